@@ -1,0 +1,333 @@
+"""Batch least squares with an a priori (seed §3.2.1, Eq 3-1 and 3-2).
+
+For the solve-for elements ``x`` with a-priori value ``x̄`` and covariance ``P̄``, each
+iteration k linearizes every sensor at ``x_k`` and takes the Gauss–Newton step::
+
+    P_{k+1} = (P̄⁻¹ + Hᵀ R⁻¹ H)⁻¹                                             (Eq 3-2)
+    x_{k+1} = x_k + P_{k+1} [Hᵀ R⁻¹ (y − h(x_k)) + P̄⁻¹ (x̄ − x_k)]             (Eq 3-1)
+
+``R`` is diagonal with each sensor's noise variance (seed §4.3). The normal matrix is
+equilibrated (scaled to unit diagonal) and solved by Cholesky; nothing is inverted
+except the final covariance, which is formed from the Cholesky factor.
+
+Observability. The *data* information ``Hᵀ R⁻¹ H`` is examined after equilibration: an
+eigenvalue below ``rank_tol`` of the largest marks a combination of elements the data
+cannot separate (e.g. a magnetometer misalignment against the attitude at an inertial
+attitude, seed §2.1.2). Such combinations are named in the result; without an a
+priori on them the normal matrix is singular and :class:`UnobservableError` is raised
+rather than inventing numbers.
+
+Consider elements ``c`` (not estimated, uncertainty carried) add
+``S P_c Sᵀ`` with the sensitivity ``S = −P Hᵀ R⁻¹ H_c`` to the covariance.
+
+Data editing: after convergence, frames whose normalized residual exceeds ``edit_k``
+in any component are flagged (never deleted) and the fit is repeated, until the set of
+flagged frames stops changing (k-σ editing, iterated).
+
+References
+----------
+Wertz (ed.) 1978, §13.4 (batch estimators with a priori); Tapley, Schutz & Born,
+*Statistical Orbit Determination*, Elsevier 2004, §4.3 (normal equations) and §6.3
+(consider covariance).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+from scipy import linalg
+
+from gcs_core.errors import EstimationError, UnobservableError
+from gcs_core.filtr.problem import Linearization, Problem, linearize
+from gcs_core.sodl.state import StateVector
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BatchOptions:
+    """Options of :func:`batch_fit`.
+
+    Attributes
+    ----------
+    max_iterations : Gauss–Newton iterations per editing pass.
+    tol_step_sigma : converged when every step is below this fraction of its sigma.
+    tol_cost : ... or the relative cost change is below this.
+    edit_k : k of the k-σ editing (None: no editing).
+    edit_passes : maximum editing passes.
+    rank_tol : relative eigenvalue threshold naming unobservable combinations.
+    """
+
+    max_iterations: int = 20
+    tol_step_sigma: float = 1e-4
+    tol_cost: float = 1e-10
+    edit_k: float | None = 5.0
+    edit_passes: int = 6
+    rank_tol: float = 1e-10
+
+
+@dataclass(frozen=True)
+class SensorResiduals:
+    """Post-fit residuals of one sensor.
+
+    Attributes
+    ----------
+    t : (N,) frame times; y, y_pred, residual, normalized : (N, m).
+    used : (N,) frames used in the fit (valid and not edited).
+    valid : (N,) frames where the model is defined.
+    edited : (N,) frames flagged by k-σ editing.
+    rms : (m,) RMS of used residuals per component; rms_normalized : scalar, 1.0 = noise.
+    """
+
+    name: str
+    components: tuple[str, ...]
+    unit: str
+    t: np.ndarray
+    y: np.ndarray
+    y_pred: np.ndarray
+    residual: np.ndarray
+    normalized: np.ndarray
+    sigma: np.ndarray
+    used: np.ndarray
+    valid: np.ndarray
+    edited: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(np.count_nonzero(self.used))
+
+    @property
+    def rms(self) -> np.ndarray:
+        r = self.residual[self.used]
+        return np.sqrt(np.mean(r ** 2, axis=0)) if r.size else np.full(self.residual.shape[1], np.nan)
+
+    @property
+    def rms_normalized(self) -> float:
+        r = self.normalized[self.used]
+        return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
+
+    @property
+    def chi2(self) -> float:
+        return float(np.sum(self.normalized[self.used] ** 2))
+
+
+@dataclass(frozen=True)
+class BatchResult:
+    """Outcome of a batch fit, with its diagnostics.
+
+    Attributes
+    ----------
+    state : the state with solve-for values updated.
+    solve_for, consider : element names.
+    x : (n,) solve-for estimates; P : (n, n) their covariance (noise only);
+    P_consider : (n, n) covariance including consider elements.
+    sigma : dict name -> 1-sigma (with consider contributions).
+    residuals : sensor -> :class:`SensorResiduals`.
+    chi2, dof : data chi-square and degrees of freedom (used components − n).
+    cost_history : cost per iteration; iterations; status; message.
+    information : (n, n) data-only information Hᵀ R⁻¹ H.
+    unobservable : human-readable combinations the data cannot separate.
+    """
+
+    state: StateVector
+    solve_for: tuple[str, ...]
+    consider: tuple[str, ...]
+    x: np.ndarray
+    P: np.ndarray
+    P_consider: np.ndarray
+    residuals: dict[str, SensorResiduals]
+    chi2: float
+    dof: int
+    cost_history: tuple[float, ...]
+    iterations: int
+    status: str
+    message: str
+    information: np.ndarray
+    unobservable: tuple[str, ...] = ()
+    consider_budget: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def sigma(self) -> dict[str, float]:
+        return {n: float(np.sqrt(self.P_consider[i, i])) for i, n in enumerate(self.solve_for)}
+
+    @property
+    def values(self) -> dict[str, float]:
+        return self.state.values()
+
+    def correlation(self) -> np.ndarray:
+        d = np.sqrt(np.diag(self.P))
+        return self.P / np.outer(d, d)
+
+
+# ----------------------------------------------------------------------------------------
+def weighted_masks(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray]):
+    for lin in lins:
+        used = lin.valid & ~edited.get(lin.name, np.zeros(lin.valid.shape, bool))
+        yield lin, used
+
+
+def accumulate(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray], n: int):
+    """``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ² = Σ rᵀ R⁻¹ r`` over used frames."""
+    A = np.zeros((n, n))
+    b = np.zeros(n)
+    chi2 = 0.0
+    m_used = 0
+    for lin, used in weighted_masks(lins, edited):
+        if not np.any(used):
+            continue
+        w = 1.0 / lin.sigma                                   # (m,)
+        Hw = (lin.H[used] * w[None, :, None]).reshape(-1, n)  # R^-1/2 H
+        rw = (lin.r[used] * w[None, :]).reshape(-1)           # R^-1/2 r
+        A += Hw.T @ Hw
+        b += Hw.T @ rw
+        chi2 += float(rw @ rw)
+        m_used += rw.size
+    return A, b, chi2, m_used
+
+
+def name_combinations(A: np.ndarray, names: Sequence[str], rank_tol: float) -> list[str]:
+    """Eigen-directions of the (equilibrated) information with no data support."""
+    d = np.sqrt(np.clip(np.diag(A), 0, None))
+    scale = np.where(d > 0, d, 1.0)
+    As = A / np.outer(scale, scale)
+    w, V = np.linalg.eigh(As)
+    top = max(float(w[-1]), 1e-300)
+    out = []
+    for i in np.nonzero(w <= rank_tol * top)[0]:
+        v = V[:, i]
+        order = np.argsort(-np.abs(v))
+        terms = [f"{v[j]:+.2f}·{names[j]}" for j in order if abs(v[j]) > 0.1][:6]
+        out.append(" ".join(terms))
+    for j in np.nonzero(d == 0)[0]:
+        out.append(f"{names[j]} (no data depends on it)")
+    return out
+
+
+def _solve_normal(N: np.ndarray, rhs: np.ndarray):
+    """Solve ``N x = rhs`` for symmetric positive definite N (equilibrated Cholesky).
+
+    Returns x and the inverse of N (the covariance), formed from the factor.
+    """
+    d = np.sqrt(np.diag(N))
+    if np.any(~np.isfinite(d)) or np.any(d <= 0):
+        raise np.linalg.LinAlgError("zero diagonal")
+    Ns = N / np.outer(d, d)
+    c, low = linalg.cho_factor(Ns, lower=True, check_finite=False)
+    x = linalg.cho_solve((c, low), rhs / d, check_finite=False) / d
+    Pinv = linalg.cho_solve((c, low), np.eye(N.shape[0]), check_finite=False)
+    P = Pinv / np.outer(d, d)
+    return x, 0.5 * (P + P.T)                       # symmetrize: round-off only
+
+
+def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
+              edited: Mapping[str, np.ndarray] | None = None) -> BatchResult:
+    """Iterated batch least squares with a priori and k-σ editing (module docstring)."""
+    opts = options or BatchOptions()
+    state = problem.state
+    names = tuple(state.solve_for)
+    cons = tuple(state.consider)
+    if not names:
+        raise EstimationError("nothing to estimate: every state element is held or consider")
+    n = len(names)
+    x_bar = np.array([state[nm].value for nm in names])
+    s0 = np.array([state[nm].sigma0 for nm in names])
+    prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
+    values = state.values()
+    edits = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
+    x = x_bar.copy()
+    history: list[float] = []
+    status, message = "max_iterations", ""
+    it_total = 0
+    for edit_pass in range(opts.edit_passes if opts.edit_k else 1):
+        prev_cost = None
+        for it in range(opts.max_iterations):
+            it_total += 1
+            for j, nm in enumerate(names):
+                values[nm] = x[j]
+            lins = linearize(problem, values, names)
+            lins = [_zero_invalid(l) for l in lins]
+            A, b, chi2, m_used = accumulate(lins, edits, n)
+            dx_prior = x_bar - x
+            cost = chi2 + float(np.sum(prior_info * dx_prior ** 2))
+            history.append(cost)
+            if not np.isfinite(cost):
+                raise EstimationError("the fit produced non-finite residuals (diverged)")
+            Nmat = A + np.diag(prior_info)
+            try:
+                step, P = _solve_normal(Nmat, b + prior_info * dx_prior)
+            except np.linalg.LinAlgError:
+                combos = name_combinations(A, names, opts.rank_tol)
+                raise UnobservableError("the normal matrix is singular: the data cannot separate "
+                                        + "; ".join(combos or ["(unidentified)"]), combos) from None
+            if prev_cost is not None and cost > prev_cost * (1 + 1e-9) and it > 2:
+                step *= 0.5                     # damp a step that overshoots
+            x = x + step
+            sig = np.sqrt(np.diag(P))
+            small = np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300))
+            rel = abs(prev_cost - cost) / max(cost, 1e-300) if prev_cost is not None else np.inf
+            prev_cost = cost
+            if small or rel < opts.tol_cost:
+                status, message = "converged", f"converged after {it + 1} iterations"
+                break
+        else:
+            status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
+        for j, nm in enumerate(names):
+            values[nm] = x[j]
+        if not opts.edit_k:
+            break
+        lins = [_zero_invalid(l) for l in linearize(problem, values, names)]
+        new_edits = {}
+        for lin in lins:
+            z = np.abs(lin.r / lin.sigma)
+            new_edits[lin.name] = lin.valid & np.any(z > opts.edit_k, axis=1)
+        changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
+                      for k in new_edits)
+        edits = new_edits
+        if not changed:
+            break
+        log.info("editing pass %d: %d frames flagged", edit_pass + 1,
+                 sum(int(v.sum()) for v in edits.values()))
+
+    # final linearization at the solution, with consider columns
+    lins = [_zero_invalid(l) for l in linearize(problem, values, names + cons)]
+    A_all, b_all, chi2, m_used = accumulate(lins, edits, n + len(cons))
+    A = A_all[:n, :n]
+    Nmat = A + np.diag(prior_info)
+    _, P = _solve_normal(Nmat, np.zeros(n))
+    P_cons = P.copy()
+    budget = {}
+    if cons:
+        S = -P @ A_all[:n, n:]
+        for j, c in enumerate(cons):
+            contrib = np.outer(S[:, j], S[:, j]) * state[c].sigma0 ** 2
+            budget[c] = np.sqrt(np.diag(contrib))
+            P_cons += contrib
+    unobs = tuple(name_combinations(A, names, opts.rank_tol * 1e3))
+    new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
+    residuals = make_residuals(problem, lins, edits)
+    return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,
+                       tuple(history), it_total, status, message, A, unobs, budget)
+
+
+def _zero_invalid(lin: Linearization) -> Linearization:
+    if np.all(lin.valid):
+        return lin
+    H = np.where(lin.valid[:, None, None], lin.H, 0.0)
+    r = np.where(lin.valid[:, None], lin.r, 0.0)
+    return Linearization(lin.name, lin.y_pred, r, H, lin.valid, lin.sigma)
+
+
+def make_residuals(problem: Problem, lins: Sequence[Linearization],
+                   edits: Mapping[str, np.ndarray]) -> dict[str, SensorResiduals]:
+    out = {}
+    for lin in lins:
+        sd = problem.sensor(lin.name)
+        ed = edits.get(lin.name, np.zeros(lin.valid.shape, bool)) & lin.valid
+        used = lin.valid & ~ed
+        r = np.where(lin.valid[:, None], lin.r, np.nan)
+        out[lin.name] = SensorResiduals(lin.name, tuple(sd.model.components), sd.model.unit, sd.t, sd.y,
+                                        lin.y_pred, r, r / lin.sigma, lin.sigma, used, lin.valid, ed)
+    return out

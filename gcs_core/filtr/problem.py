@@ -1,0 +1,312 @@
+"""A calibration problem: state definition + sensors + attitude provider (SODL + SIDP).
+
+:func:`build_problem` is where choosing the observation and transition models defines
+the state vector automatically (seed §3.2.2, Table 3-1): every parameter of every
+chosen model becomes a named element, the attitude provider adds its own, and roles
+and a-priori values come from the analysis configuration.
+
+:func:`linearize` is the single place where predictions and partials of all sensors are
+assembled into residuals ``r = y − h(x)`` and Jacobian columns ``H = ∂h/∂x`` for any
+list of elements; the batch estimator, the Kalman filter and the diagnosis all call it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from gcs_core.errors import ConfigError, InputError
+from gcs_core.filtr.attitude import (RADEC, RPY, GyroAttitude, ReferenceAttitude, SpinAttitude,
+                                     rpy_specs)
+from gcs_core.frames.reference import ra_dec_from_vector
+from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
+from gcs_core.models import make_model
+from gcs_core.models.base import CONSIDER, HELD, SOLVE_FOR, ParamSpec
+from gcs_core.sidp.prepare import GeometryBuilder, PhysicsOptions, SensorData, prepare_sensors
+from gcs_core.sodl.state import Element, StateVector
+from gcs_core.units import DEG
+
+
+@dataclass(frozen=True)
+class ElementOverride:
+    """Per-element settings from the analysis config (all optional)."""
+
+    role: str | None = None
+    value: float | None = None
+    sigma: float | None = None
+
+
+@dataclass(frozen=True)
+class StateOptions:
+    """How SODL sets roles: which effects are in the state, and per-element overrides.
+
+    Attributes
+    ----------
+    effects : extra catalogue effects to solve for, as ``<SENSOR>.<effect>`` ids.
+    exclude : seed effects to hold instead, same ids.
+    overrides : element name -> :class:`ElementOverride`.
+    attitude_sigma : a-priori 1-sigma of the attitude elements [rad].
+    """
+
+    effects: tuple[str, ...] = ()
+    exclude: tuple[str, ...] = ()
+    overrides: Mapping[str, ElementOverride] = field(default_factory=dict)
+    attitude_sigma: float = 1.0 * DEG
+
+
+@dataclass
+class Problem:
+    """Everything the estimators need.
+
+    Attributes
+    ----------
+    state : every element (all roles).
+    attitude : the attitude provider (Reference/Gyro/Spin).
+    sensors : observation sensors (gyros excluded; they drive the attitude).
+    param_map : sensor -> {local param name -> element name}.
+    builder : reference-vector builder (for variants and new times).
+    tables : telemetry tables by sensor (for geometry variants).
+    gyro_name : name of the gyro carrying the attitude, if any.
+    """
+
+    state: StateVector
+    attitude: object
+    sensors: list[SensorData]
+    param_map: dict[str, dict[str, str]]
+    builder: GeometryBuilder
+    tables: dict
+    mode: str
+    gyro_name: str | None = None
+    edited: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def sensor(self, name: str) -> SensorData:
+        for s in self.sensors:
+            if s.name == name:
+                return s
+        raise KeyError(name)
+
+    def params_of(self, sensor: str, values: Mapping[str, float]) -> dict[str, float]:
+        return {local: values[el] for local, el in self.param_map[sensor].items()}
+
+    def with_state(self, state: StateVector) -> "Problem":
+        return replace(self, state=state)
+
+
+def _effect_id(sensor: str | None, effect: str) -> str:
+    return f"{sensor or 'model'}.{effect}"
+
+
+def _element_from_spec(sensor: str | None, spec: ParamSpec, role: str, kind: str = "sensor") -> Element:
+    name = spec.element or f"{sensor}.{spec.name}"
+    return Element(name=name, unit=spec.unit, role=role, value=spec.nominal, sigma0=spec.sigma,
+                   sensor=sensor, param=spec.name, effect=spec.effect, seed=spec.seed, kind=kind,
+                   description=spec.description)
+
+
+def default_role(sensor_type: str, spec: ParamSpec) -> str:
+    """SODL default: seed parameters are solved for, extended physics held.
+
+    Sensor alignments are held by default even where the seed lists them (Eq 4-31):
+    the body frame needs a reference, and the seed notes (§2.1.2, §2.2.2) that
+    alignment and attitude separate only with enough geometry; the analyst adds them.
+    """
+    if not spec.seed or spec.effect == "alignment":
+        return HELD
+    return SOLVE_FOR
+
+
+def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
+    """A-priori attitude element values.
+
+    Spinning: the mission's ``spin_axis_guess_deg``. Three-axis: roll/pitch/yaw of the
+    first onboard quaternion at ``t_ref`` relative to the reference frame, else zeros.
+    """
+    spec = mission.spec
+    if mode == "spinning":
+        guess = spec.spin_axis_guess_deg
+        if guess is None:
+            raise InputError("a spinning mission needs spin_axis_guess_deg = [RA, Dec]",
+                             file=spec.root / "mission.toml", key="mission.spin_axis_guess_deg")
+        return {"att.ra": guess[0] * DEG, "att.dec": guess[1] * DEG}
+    if mission.onboard is not None and len(mission.onboard):
+        ob = mission.onboard
+        t_ref = getattr(attitude, "t_ref", float(ob.t[0]))
+        k = int(np.argmin(np.abs(ob.t - t_ref)))
+        q = quat_normalize(np.array([ob.columns[c][k] for c in ("q1", "q2", "q3", "q4")]))
+        ref = attitude.ref if isinstance(attitude, GyroAttitude) else attitude
+        roll, pitch, yaw = ref.rpy_from_dcm(quat_to_dcm(q), t_ref)
+        return {"att.roll": roll, "att.pitch": pitch, "att.yaw": yaw}
+    return {n: 0.0 for n in RPY}
+
+
+def build_problem(mission, *, physics: PhysicsOptions | None = None,
+                  options: StateOptions | None = None, use_gyro: bool = True) -> Problem:
+    """SODL + SIDP: the state vector and prepared sensors of an imported mission."""
+    from gcs_core.ephem.ephemeris import Ephemeris
+
+    spec = mission.spec
+    physics = physics or PhysicsOptions()
+    options = options or StateOptions()
+    eph = Ephemeris.from_table(mission.ephemeris_table)
+    builder = GeometryBuilder(spec, eph, physics, mission.aux)
+    sensors = prepare_sensors(spec, mission.telemetry, builder)
+    mode = spec.attitude_mode
+    gyros = [s for s in spec.sensors if s.type == "gyro"]
+    gyro_name = None
+    if mode == "spinning":
+        attitude = SpinAttitude()
+    elif gyros and use_gyro:
+        g = gyros[0]
+        tab = mission.telemetry[g.name]
+        gyro_name = g.name
+        attitude = GyroAttitude(mode, eph, g.name, tab.t, tab.stack(("wx", "wy", "wz")))
+    else:
+        attitude = ReferenceAttitude(mode, eph)
+
+    # drop frames the attitude provider cannot reach (before the first gyro interval)
+    if isinstance(attitude, GyroAttitude):
+        kept = []
+        for sd in sensors:
+            m = attitude.covers(sd.t)
+            if not np.all(m):
+                sd = _subset(sd, m)
+            kept.append(sd)
+        sensors = kept
+
+    att0 = initial_attitude(mission, attitude, mode)
+    elements: list[Element] = []
+    if mode == "spinning":
+        for n in RADEC:
+            elements.append(Element(n, "rad", SOLVE_FOR, att0[n], options.attitude_sigma, None,
+                                    n.split(".")[1], "attitude", True, "attitude",
+                                    "spin-axis " + ("right ascension" if n.endswith("ra") else "declination")
+                                    + ", Eq 4-2"))
+    else:
+        for spec_ in rpy_specs(*(att0[n] for n in RPY), sigma=options.attitude_sigma):
+            elements.append(_element_from_spec(None, spec_, SOLVE_FOR, kind="attitude"))
+
+    param_map: dict[str, dict[str, str]] = {}
+    models = {sd.name: sd.model for sd in sensors}
+    for g in gyros:
+        models.setdefault(g.name, make_model(g))
+    for s in spec.sensors:
+        model = models[s.name]
+        pmap = {}
+        for p in model.parameters():
+            role = default_role(s.type, p)
+            if s.type == "gyro" and (not use_gyro or s.name != gyro_name):
+                role = HELD
+            el = _element_from_spec(s.name, p, role)
+            pmap[p.name] = el.name
+            if el.name not in {e.name for e in elements}:
+                elements.append(el)
+        param_map[s.name] = pmap
+    state = StateVector(tuple(elements))
+    state = apply_state_options(state, options)
+    return Problem(state=state, attitude=attitude, sensors=sensors, param_map=param_map,
+                   builder=builder, tables=dict(mission.telemetry), mode=mode, gyro_name=gyro_name)
+
+
+def apply_state_options(state: StateVector, options: StateOptions) -> StateVector:
+    roles: dict[str, str] = {}
+    for eid in options.effects:
+        names = _effect_elements(state, eid)
+        roles.update({n: SOLVE_FOR for n in names})
+    for eid in options.exclude:
+        roles.update({n: HELD for n in _effect_elements(state, eid)})
+    state = state.with_roles(roles)
+    for name, ov in options.overrides.items():
+        if name not in state:
+            raise ConfigError(f"no state element named '{name}'", key=f"state.{name}")
+        changes = {k: v for k, v in (("role", ov.role), ("value", ov.value), ("sigma0", ov.sigma))
+                   if v is not None}
+        state = state.replace_element(name, **changes)
+    return state
+
+
+def _effect_elements(state: StateVector, effect_id: str) -> list[str]:
+    sensor, _, effect = effect_id.partition(".")
+    names = [e.name for e in state if (e.sensor or "model") == sensor and e.effect == effect]
+    if not names:
+        raise ConfigError(f"no effect '{effect_id}' in the state definition "
+                          "(see `gcs effects` for the catalogue)", key="state.effects")
+    return names
+
+
+def _subset(sd: SensorData, mask: np.ndarray) -> SensorData:
+    g = sd.geom
+    n = sd.n
+
+    def cut(a):
+        a = np.asarray(a)
+        return a[mask] if a.ndim >= 1 and a.shape[0] == n else a
+
+    geom = replace(g, t=g.t[mask], r_I=cut(g.r_I) if g.r_I is not None else None,
+                   v_I=cut(g.v_I) if g.v_I is not None else None,
+                   sun_I=cut(g.sun_I) if g.sun_I is not None else None,
+                   B_I=cut(g.B_I) if g.B_I is not None else None,
+                   star_I=cut(g.star_I) if g.star_I is not None else None,
+                   aux={k: cut(v) for k, v in g.aux.items()},
+                   extra={k: cut(v) for k, v in g.extra.items()})
+    return replace(sd, t=sd.t[mask], y=sd.y[mask], geom=geom, lines=sd.lines[mask])
+
+
+# ----------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class Linearization:
+    """One sensor's residuals and Jacobian at a state.
+
+    Attributes
+    ----------
+    name : sensor name.
+    y_pred : (N, m) predicted measurements.
+    r : (N, m) residual ``y − h(x)`` (wrapped where the model says so).
+    H : (N, m, k) partials with respect to ``columns``.
+    valid : (N,) frames where the model is defined.
+    sigma : (m,) measurement noise.
+    """
+
+    name: str
+    y_pred: np.ndarray
+    r: np.ndarray
+    H: np.ndarray
+    valid: np.ndarray
+    sigma: np.ndarray
+
+
+def sensor_geometry(problem: Problem, sd: SensorData, values: Mapping[str, float], geom=None):
+    att = problem.attitude.evaluate(values, sd.t)
+    g = geom if geom is not None else sd.geom
+    if att.C_BI is not None:
+        g = replace(g, C_BI=att.C_BI, omega_B=att.omega_B)
+    else:
+        g = replace(g, spin_axis_I=att.spin_axis_I)
+    return g, att
+
+
+def linearize(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
+              *, sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None
+              ) -> list[Linearization]:
+    """Residuals and partials of every (or the named) sensor at ``values``."""
+    col_index = {c: j for j, c in enumerate(columns)}
+    out = []
+    for sd in problem.sensors:
+        if sensors is not None and sd.name not in sensors:
+            continue
+        geom, att = sensor_geometry(problem, sd, values, None if geoms is None else geoms.get(sd.name))
+        pred = sd.model.predict(geom, problem.params_of(sd.name, values))
+        r = sd.model.residual(sd.y, pred.y)
+        H = np.zeros(r.shape + (len(columns),))
+        att_cols = [(j_att, col_index[n]) for j_att, n in enumerate(att.names) if n in col_index]
+        if att_cols:
+            ja, jc = zip(*att_cols)
+            H[:, :, list(jc)] = np.einsum("nma,nak->nmk", pred.d_att, att.J[:, :, list(ja)])
+        for local, el in problem.param_map[sd.name].items():
+            j = col_index.get(el)
+            if j is not None:
+                H[:, :, j] += pred.d_par[local]
+        valid = np.asarray(pred.valid, bool) & np.all(np.isfinite(r), axis=1)
+        out.append(Linearization(sd.name, pred.y, r, H, valid, sd.sigma))
+    return out

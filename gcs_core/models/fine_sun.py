@@ -1,0 +1,150 @@
+"""Fine two-axis digital Sun sensor (FSS), seed §4.2.4, Eq 4-22 to 4-26; ICD §5 ``fine_sun``.
+
+Observation model (ICD reading). With ``S_S = M C Ŝ_I`` the unit Sun vector in sensor
+axes (the sensor looks along +x)::
+
+    tan α = S_Sy / S_Sx,   tan β = S_Sz / S_Sx
+    tan α = A1 + A2 n_α + A3 sin(k_α tan α)                 (transfer function, Eq 4-23a)
+    ⇒ n_α = (tan α − A1 − A3 sin(k_α tan α) − A4h sin(2 k_α tan α)) / A2
+    n_β  = (tan β − B1 − B3 sin(k_β tan β) − B4h sin(2 k_β tan β)) / B2     (Eq 4-23b)
+
+The seed state (Eq 4-26) holds the four physical parameters per axis, ``A1, A2, A3,
+k_alpha`` and ``B1, B2, B3, k_beta`` (data-book ``coeff_alpha``, ``coeff_beta``). The
+extended parameters are the alignment ``align_1..3``, a second harmonic of the transfer
+function per axis ``A4h``, ``B4h`` (nominal 0, effect ``harmonic``) and ``time_offset``.
+
+The eight coefficients of Eq 4-24 from the four of Eq 4-23
+-----------------------------------------------------------
+Eq 4-24 gives the angle from the counts, ``tan α = A1 + A2 n + A3 sin(A4 n + A5)
++ A6 sin(A7 n + A8)``. Write ``u = A1 + A2 n`` and substitute Eq 4-23 into itself once::
+
+    tan α = u + A3 sin(k u + k A3 sin(k u)) ≈ u + A3 sin(k u) + k A3² sin(k u) cos(k u)
+          = u + A3 sin(k A2 n + k A1) + (k A3²/2) sin(2 k A2 n + 2 k A1)
+
+so ``A4 = k A2, A5 = k A1, A6 = k A3²/2, A7 = 2 k A2, A8 = 2 k A1`` (Eq 4-25), the same
+for β with B and k_β: the eight are not free, and GCS estimates the four.
+:func:`eight_coefficients` returns them; :func:`tan_from_counts` inverts Eq 4-23 exactly.
+
+Partials (Eq 4-26a/b, α shown)::
+
+    ∂n/∂A1 = −1/A2,  ∂n/∂A2 = −n/A2,  ∂n/∂A3 = −sin(k tan α)/A2,  ∂n/∂A4h = −sin(2k tan α)/A2
+    ∂n/∂k  = −tan α (A3 cos(k tan α) + 2 A4h cos(2k tan α)) / A2
+    ∂n/∂tan α = (1 − k A3 cos(k tan α) − 2 k A4h cos(2k tan α)) / A2
+    ∂tan α/∂S_S = (−S_Sy/S_Sx², 1/S_Sx, 0),   ∂S_S/∂δθ = M R [S_B ×]
+
+A frame is valid when ``S_Sx > 0`` and both ``α`` and ``β`` lie within ``fov_deg`` (half
+width) plus a 10 % margin.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.errors import InputError
+from gcs_core.models import common
+from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
+
+#: (axis, data-book key, parameter names A1, A2, A3, k, harmonic, tangent component)
+AXES = (("alpha", "coeff_alpha", ("A1", "A2", "A3", "k_alpha"), "A4h", 1),
+        ("beta", "coeff_beta", ("B1", "B2", "B3", "k_beta"), "B4h", 2))
+
+
+def eight_coefficients(c1: float, c2: float, c3: float, k: float) -> tuple[float, ...]:
+    """Eq 4-25: ``(A1..A8)`` of the series Eq 4-24 from the four parameters of Eq 4-23."""
+    return (c1, c2, c3, k * c2, k * c1, k * c3 ** 2 / 2.0, 2.0 * k * c2, 2.0 * k * c1)
+
+
+def tan_from_counts(n, c1: float, c2: float, c3: float, k: float, *, harmonic: float = 0.0,
+                    iterations: int = 50):
+    """Invert Eq 4-23: ``tan α`` with ``tan α = c1 + c2 n + c3 sin(k tan α) + h sin(2k tan α)``.
+
+    Newton iteration started from the Eq 4-24 series (converges in a few steps for a
+    sensor whose transfer function is monotonic, ``|k c3| + 2|k h| < 1``). Shape of ``n``.
+    """
+    n = np.asarray(n, dtype=float)
+    u = c1 + c2 * n
+    a = eight_coefficients(c1, c2, c3, k)
+    x = u + a[2] * np.sin(a[3] * n + a[4]) + a[5] * np.sin(a[6] * n + a[7])   # Eq 4-24
+    for _ in range(iterations):
+        g = x - u - c3 * np.sin(k * x) - harmonic * np.sin(2.0 * k * x)
+        dg = 1.0 - c3 * k * np.cos(k * x) - 2.0 * harmonic * k * np.cos(2.0 * k * x)
+        step = g / dg
+        x = x - step
+        if np.all(np.abs(step) < 1e-15 * (1.0 + np.abs(x))):
+            break
+    return x
+
+
+class FineSunModel(ObservationModel):
+    """Fine digital Sun sensor, Eq 4-23: ``n = (tan α − A1 − A3 sin(k tan α)) / A2`` per axis."""
+
+    type_name = "fine_sun"
+    columns = ("n_alpha", "n_beta")
+    components = ("n_alpha", "n_beta")
+    unit = "counts"
+    attitude_kind = "three_axis"
+    book_keys = ("coeff_alpha", "coeff_beta", "fov_deg")
+
+    def parameters(self) -> tuple[ParamSpec, ...]:
+        specs = []
+        for axis, key, names, _, _ in AXES:
+            c = common.book_vector(self.sensor, key, 4)
+            if c[1] == 0.0:
+                raise InputError(f"'{key}' second coefficient (counts-to-tangent slope) must not be 0",
+                                 key=common.book_key(self.sensor, key))
+            sig = (1e-3, 0.01 * abs(c[1]), 1e-3, max(0.1 * abs(c[3]), 1.0))
+            units_ = ("1", "1/count", "1", "1")
+            what = ("offset", "slope per count", "sine amplitude", "sine frequency")
+            for i in range(4):
+                specs.append(ParamSpec(names[i], units_[i], float(c[i]), sig[i], seed=True,
+                                       effect="transfer_function",
+                                       description=f"{axis} transfer function {what[i]} (Eq 4-23)"))
+        specs += common.alignment_specs(self.sensor, seed=False, sigma=0.01)
+        for axis, _, _, harm, _ in AXES:
+            specs.append(ParamSpec(harm, "1", 0.0, 1e-3, seed=False, effect="harmonic",
+                                   description=f"{axis} transfer function second harmonic sin(2k tan)"))
+        specs.append(ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
+                               description="time-tag offset: the sample is of time t + Δt"))
+        return tuple(specs)
+
+    def sigma(self) -> np.ndarray:
+        return np.full(2, common.noise_value(self.sensor))
+
+    def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
+        """Eq 4-23 at N frames: y (N, 2) [counts], d_att (N, 2, 3), d_par (N, 2)."""
+        specs = self.parameters()
+        p = common.merged_params(specs, params)
+        if geom.sun_I is None:
+            raise ValueError("fine Sun sensor model needs sun_I in the geometry")
+        n = geom.n
+        M, dM = common.alignment_matrix(p)
+        d_par: dict[str, np.ndarray] = {}
+        y = np.zeros((n, 2))
+        J = np.zeros((n, 2, 3))                     # ∂n/∂S_S
+        with np.errstate(all="ignore"):
+            bv = common.body_vector(geom, geom.sun_I, p["time_offset"])
+            S = bv.v_B @ M.T
+            for row, (_, _, names, harm, comp) in enumerate(AXES):
+                c1, c2, c3, k = (p[nm] for nm in names)
+                h = p[harm]
+                x = S[:, comp] / S[:, 0]                                  # tan α or tan β
+                s1, co1 = np.sin(k * x), np.cos(k * x)
+                s2, co2 = np.sin(2.0 * k * x), np.cos(2.0 * k * x)
+                cnt = (x - c1 - c3 * s1 - h * s2) / c2
+                y[:, row] = cnt
+                for name, value in ((names[0], -1.0 / c2), (names[1], -cnt / c2), (names[2], -s1 / c2),
+                                    (names[3], -x * (c3 * co1 + 2.0 * h * co2) / c2), (harm, -s2 / c2)):
+                    col = np.zeros((n, 2))
+                    col[:, row] = value
+                    d_par[name] = col
+                dn_dx = (1.0 - k * c3 * co1 - 2.0 * k * h * co2) / c2
+                J[:, row, 0] = -dn_dx * S[:, comp] / S[:, 0] ** 2
+                J[:, row, comp] = dn_dx / S[:, 0]
+            d_att = J @ (M @ bv.d_att)
+            for k_, name in enumerate(common.ALIGN_NAMES):
+                d_par[name] = np.einsum("nij,nj->ni", J, bv.v_B @ dM[k_].T)
+            d_par["time_offset"] = np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
+            valid = common.fov_square_ok(S, common.fov_rad(self.sensor))
+        return common.finish(y, d_att, d_par, valid, specs)

@@ -1,0 +1,326 @@
+"""Earth horizon scanner on a spinner, seed §4.2.1, Eq 4-12 and 4-13; ICD §5 ``horizon``.
+
+Observables: ``dt_in``, ``dt_out`` [s], the times from the Sun sighting (telemetry ``t``)
+to the horizon-in and horizon-out crossings, at the measured spin rate ``ω``
+(``geom.extra["spin_rate"]`` [rad/s]). The model is the ICD's reading of Eq 4-12.
+At the crossing time ``τ = t + dt + Δt`` (``Δt``: orbit in-track time error; the
+ephemeris ``(r, v, Ŝ) = geom.ephemeris(τ)`` is read there), with ``Ê = −r/|r|``::
+
+    ρ  = asin((R_E + h_H + Δh_H)/|r|) + κ δρ_obl,   ρ' = ρ + Δρ,   γ' = γ + Δγ,   η = acos(Â·Ê)
+    M̂ = Â × Ê / sin η,   N̂ = Ê × M̂
+    cos Λ = (cos γ' − cos ρ' cos η) / (sin ρ' sin η),   sin Λ = ∓sqrt(1 − cos²Λ)  (− in, + out)
+    Ĥ = cos ρ' Ê + sin ρ' (M̂ sin Λ + N̂ cos Λ)                               (Eq 4-12c)
+    Φ = atan2(Â·(Ŝ × Ĥ), Ŝ·Ĥ − (Ŝ·Â)(Ĥ·Â))                                   (Eq 4-12b)
+    Ψ = Φ − Φ_H − ΔΦ − ΔΦ_S + ΔΦ_H,  ΔΦ_S = asin(cot β tan ε_S),  ΔΦ_H = asin(cot γ' tan ε_H)
+    dt = (Ψ(t + dt + Δt) mod 2π) / ω                                            (Eq 4-12a)
+
+The equation is implicit in ``dt`` (the geometry is read at the crossing). It is solved
+by fixed-point iteration on the circle, ``dt ← dt + wrap(Ψ(t + dt + Δt) − ω dt)/ω``,
+which contracts by ``|∂Ψ/∂τ|/ω`` (orbit rate over spin rate) per step. The partials
+follow by implicit differentiation: with ``f(dt, x) = Ψ/ω``,
+``d dt/dx = f_x / (1 − f_dt) = Ψ_x / (ω − Ψ_τ)``, where ``Ψ_τ = Ψ_r·v + Ψ_Ŝ·Ŝ̇``
+(``Ŝ̇`` from a ±1 s central difference of the ephemeris). The derivatives of Φ are
+carried forward-mode through the construction above (tangents with respect to Â, r,
+Ŝ, γ', ρ'), which is the seed's chain of ∂Ĥ/∂x_i (after Eq 4-13) written once.
+
+State (Eq 4-13): ``d_gamma`` (Δγ), ``d_rho`` (Δρ), ``d_phi`` (ΔΦ), ``eps_S`` (ε_S, the
+tilt of the Sun sensor that starts the timing, shared with that sensor's ``tilt``:
+``element = "<sun_sensor>.tilt"`` when the data book names ``sun_sensor``), ``eps_H``
+(ε_H), ``d_t`` (Δt). Extended: ``horizon_height`` (Δh_H [km]) and ``oblateness`` (κ,
+nominal 0) scaling the first-order oblate-Earth correction
+
+    δρ_obl = −f R_E sin²φ / sqrt(|r|² − (R_E + h_H)²),   sin φ = r_z/|r|,
+
+i.e. the horizon drawn on an Earth of radius ``R_E (1 − f sin²φ)`` at the sub-satellite
+geocentric latitude φ (κ = 1: WGS-84 flattening f; the tangent points' own latitudes
+are not modelled, κ absorbs the mean difference).
+
+The attitude partials are with respect to the components of Â (normalized inside; the
+gradient is tangent to the sphere). Residuals are wrapped into ``(−π/ω, π/ω]``.
+With data-book ``observable = "width_midscan"`` the two components become the Earth
+width ``(dt_out − dt_in) mod P`` and the mid-scan time ``dt_in + width/2 (mod P)``,
+``P = 2π/ω``, with noise ``σ√2`` and ``σ/√2`` (uncorrelated for equal in/out noise).
+
+References
+----------
+Wertz (ed.) 1978, §7.1–7.2 and §12.2 (horizon sensor geometry); seed Reference 6.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core import units
+from gcs_core.errors import InputError
+from gcs_core.models import common
+from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
+from gcs_core.sidp.types import SensorSpec, Table
+
+TWO_PI = 2.0 * np.pi
+FLATTENING = 1.0 / 298.257223563          # WGS-84
+SUN_RATE_STEP_S = 1.0                     # central-difference step for Ŝ̇ [s]
+MAX_ITERATIONS = 30
+TOLERANCE_S = 1e-12
+OBSERVABLES = ("in_out", "width_midscan")
+SEED_NAMES = ("d_gamma", "d_rho", "d_phi", "eps_S", "eps_H", "d_t")
+K_TANGENTS = 11                           # Â(3), r(3), Ŝ(3), γ', ρ'
+
+
+def wrap_period(x, period):
+    """``x`` wrapped into ``(−period/2, period/2]``."""
+    return x - period * np.ceil(x / period - 0.5)
+
+
+def _vdot(u, du):
+    """``u · du_k`` for vector u (N, 3) and tangents du (N, K, 3) -> (N, K)."""
+    return np.einsum("ni,nki->nk", u, du)
+
+
+def crossing_phase(A, r, S, gamma_p, rho_p, sign):
+    """Φ of Eq 4-12b and its forward-mode tangents.
+
+    Parameters
+    ----------
+    A, r, S : (N, 3) unit spin axis, position [km], unit Sun vector.
+    gamma_p, rho_p : scalar or (N,) cone half angle γ' and Earth angular radius ρ' [rad].
+    sign : −1 for horizon-in, +1 for horizon-out.
+
+    Returns
+    -------
+    phi (N,), dphi (N, 11) with respect to (A, r, S, γ', ρ') in that order, ok (N,).
+    """
+    n = A.shape[0]
+    eye = np.broadcast_to(np.eye(3), (n, 3, 3))
+    rn = np.linalg.norm(r, axis=1)
+    E = -r / rn[:, None]
+    dA = np.zeros((n, K_TANGENTS, 3))
+    dE = np.zeros((n, K_TANGENTS, 3))
+    dS = np.zeros((n, K_TANGENTS, 3))
+    dA[:, 0:3, :] = eye
+    dE[:, 3:6, :] = -(eye - np.einsum("ni,nj->nij", E, E)) / rn[:, None, None]
+    dS[:, 6:9, :] = eye
+    dg = np.zeros((n, K_TANGENTS))
+    dg[:, 9] = 1.0
+    dr = np.zeros((n, K_TANGENTS))
+    dr[:, 10] = 1.0
+    # η: nadir angle of the spin axis
+    c = np.einsum("ni,ni->n", A, E)
+    dc = _vdot(E, dA) + _vdot(A, dE)
+    s = np.sqrt(1.0 - c ** 2)
+    ds = -c[:, None] * dc / s[:, None]
+    # M̂ = Â×Ê/sin η,  N̂ = Ê×M̂ = (Â − cos η Ê)/sin η
+    m = np.cross(A, E) / s[:, None]
+    dm = (np.cross(dA, E[:, None, :]) + np.cross(A[:, None, :], dE)) / s[:, None, None] \
+        - m[:, None, :] * (ds / s[:, None])[:, :, None]
+    nv = (A - c[:, None] * E) / s[:, None]
+    dn = (dA - dc[:, :, None] * E[:, None, :] - c[:, None, None] * dE) / s[:, None, None] \
+        - nv[:, None, :] * (ds / s[:, None])[:, :, None]
+    # Λ: azimuth of the crossing about Ê
+    cg, sg = np.cos(gamma_p) * np.ones(n), np.sin(gamma_p) * np.ones(n)
+    cr, sr = np.cos(rho_p) * np.ones(n), np.sin(rho_p) * np.ones(n)
+    num = cg - cr * c
+    dnum = -sg[:, None] * dg + (sr * c)[:, None] * dr - cr[:, None] * dc
+    den = sr * s
+    dden = (cr * s)[:, None] * dr + sr[:, None] * ds
+    cL = num / den
+    dcL = (dnum - cL[:, None] * dden) / den[:, None]
+    ok = (np.abs(cL) < 1.0) & (s > 0.0)
+    sL = sign * np.sqrt(1.0 - cL ** 2)
+    dsL = -cL[:, None] * dcL / sL[:, None]
+    # Ĥ = cos ρ' Ê + sin ρ' (M̂ sin Λ + N̂ cos Λ)
+    w = m * sL[:, None] + nv * cL[:, None]
+    dw = dm * sL[:, None, None] + m[:, None, :] * dsL[:, :, None] \
+        + dn * cL[:, None, None] + nv[:, None, :] * dcL[:, :, None]
+    H = cr[:, None] * E + sr[:, None] * w
+    dH = -(sr[:, None] * dr)[:, :, None] * E[:, None, :] + cr[:, None, None] * dE \
+        + (cr[:, None] * dr)[:, :, None] * w[:, None, :] + sr[:, None, None] * dw
+    # Φ = atan2(Y, X)
+    SxH = np.cross(S, H)
+    Y = np.einsum("ni,ni->n", A, SxH)
+    dY = _vdot(SxH, dA) + _vdot(np.cross(H, A), dS) + _vdot(np.cross(A, S), dH)
+    sa = np.einsum("ni,ni->n", S, A)
+    ha = np.einsum("ni,ni->n", H, A)
+    X = np.einsum("ni,ni->n", S, H) - sa * ha
+    dX = _vdot(H, dS) + _vdot(S, dH) - (_vdot(A, dS) + _vdot(S, dA)) * ha[:, None] \
+        - sa[:, None] * (_vdot(A, dH) + _vdot(H, dA))
+    phi = np.arctan2(Y, X)
+    dphi = (X[:, None] * dY - Y[:, None] * dX) / (X ** 2 + Y ** 2)[:, None]
+    return phi, dphi, ok
+
+
+class HorizonModel(ObservationModel):
+    """Horizon scanner on a spinner, Eq 4-12: ``dt = ((Φ − Φ_H − ΔΦ − ΔΦ_S + ΔΦ_H) mod 2π)/ω``."""
+
+    type_name = "horizon"
+    columns = ("spin_rate", "dt_in", "dt_out")
+    components = ("dt_in", "dt_out")
+    unit = "s"
+    attitude_kind = "spinning"
+    book_keys = ("gamma_deg", "phi_h_deg", "horizon_height_km", "sun_sensor", "observable")
+
+    def __init__(self, sensor: SensorSpec, *, aux_channels: tuple[str, ...] = ()):
+        super().__init__(sensor, aux_channels=aux_channels)
+        obs = sensor.get("observable", "in_out")
+        if obs not in OBSERVABLES:
+            raise InputError(f"'observable' must be one of {OBSERVABLES}, got {obs!r}",
+                             key=common.book_key(sensor, "observable"))
+        self.observable = obs
+        if obs == "width_midscan":
+            self.components = ("width", "midscan")
+        self.gamma = self._required("gamma_deg") * units.DEG
+        self.phi_h = self._required("phi_h_deg") * units.DEG
+        self.h_km = self._required("horizon_height_km")
+        sun = sensor.get("sun_sensor", None)
+        self.sun_sensor = None if sun is None else str(sun)
+
+    def _required(self, key: str) -> float:
+        value = common.book_scalar(self.sensor, key)
+        if value is None:
+            raise InputError(f"horizon sensor '{self.name}' needs data-book key '{key}'",
+                             key=common.book_key(self.sensor, key))
+        return value
+
+    def parameters(self) -> tuple[ParamSpec, ...]:
+        deg = units.DEG
+        tilt_element = None if self.sun_sensor is None else f"{self.sun_sensor}.tilt"
+        return (
+            ParamSpec("d_gamma", "rad", 0.0, 0.5 * deg, effect="mounting_angle",
+                      description="scanner mounting (cone) angle bias Δγ (Eq 4-12c)"),
+            ParamSpec("d_rho", "rad", 0.0, 0.5 * deg, effect="earth_radius",
+                      description="Earth angular radius bias Δρ (Eq 4-12c)"),
+            ParamSpec("d_phi", "rad", 0.0, 0.5 * deg, effect="azimuth_bias",
+                      description="azimuth bias ΔΦ: mounting error or electronic delay (Eq 4-12a)"),
+            ParamSpec("eps_S", "rad", 0.0, 0.5 * deg, effect="sun_sensor_tilt", element=tilt_element,
+                      description="Sun sensor plane tilt ε_S (Eq 4-12d)"),
+            ParamSpec("eps_H", "rad", 0.0, 0.5 * deg, effect="horizon_sensor_tilt",
+                      description="horizon sensor plane tilt ε_H (Eq 4-12e)"),
+            ParamSpec("d_t", "s", 0.0, 1.0, effect="intrack_time",
+                      description="orbit in-track time error Δt (Eq 4-13)"),
+            ParamSpec("horizon_height", "km", 0.0, 5.0, seed=False, effect="horizon_height",
+                      description="horizon (CO2 layer) height error Δh_H"),
+            ParamSpec("oblateness", "1", 0.0, 1.0, seed=False, effect="oblateness",
+                      description="scale κ of the oblate-Earth angular radius correction"),
+        )
+
+    def sigma(self) -> np.ndarray:
+        s = common.noise_value(self.sensor)
+        if self.observable == "width_midscan":
+            return np.array([s * np.sqrt(2.0), s / np.sqrt(2.0)])
+        return np.array([s, s])
+
+    def measurements(self, table: Table) -> tuple[np.ndarray, np.ndarray]:
+        y = table.stack(("dt_in", "dt_out"))
+        if self.observable == "width_midscan":
+            period = TWO_PI / np.asarray(table.columns["spin_rate"], dtype=float)
+            width = np.mod(y[:, 1] - y[:, 0], period)
+            y = np.column_stack([width, np.mod(y[:, 0] + 0.5 * width, period)])
+        return table.t, y
+
+    def residual(self, y_meas, y_pred, geom: Geometry | None = None):
+        """Measured minus predicted, wrapped into ``(−π/ω, π/ω]`` when ``geom`` gives ω.
+
+        Without ``geom`` (no spin rate known) the plain difference is returned.
+        """
+        d = np.asarray(y_meas, dtype=float) - np.asarray(y_pred, dtype=float)
+        if geom is None or "spin_rate" not in geom.extra:
+            return d
+        period = TWO_PI / np.asarray(geom.extra["spin_rate"], dtype=float)
+        return wrap_period(d, period.reshape((-1,) + (1,) * (d.ndim - 1)))
+
+    # ----------------------------------------------------------------------------------
+    def _psi(self, p, A, t_eph, eph, sign, want_partials):
+        """Ψ (N,) at ephemeris time ``t_eph``; with partials, a dict of ∂Ψ and the ok mask."""
+        r, v, S = (np.asarray(x, dtype=float) for x in eph(t_eph))
+        R_h = units.R_EARTH_KM + self.h_km + p["horizon_height"]
+        q = np.einsum("ni,ni->n", r, r)
+        root = np.sqrt(q - R_h ** 2)                         # |r| cos ρ0
+        rho0 = np.arcsin(R_h / np.sqrt(q))
+        g = r[:, 2] ** 2 / (q * root)                          # sin²φ / sqrt(|r|² − R_h²)
+        fR = FLATTENING * units.R_EARTH_KM
+        kappa = p["oblateness"]
+        rho_p = rho0 - kappa * fR * g + p["d_rho"]
+        gamma_p = self.gamma + p["d_gamma"]
+        phi, dphi, ok = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+        cb = np.einsum("ni,ni->n", A, S)
+        sb = np.sqrt(1.0 - cb ** 2)
+        tS, tH = np.tan(p["eps_S"]), np.tan(p["eps_H"])
+        qS = cb / sb * tS
+        qH = tH / np.tan(gamma_p)
+        psi = phi - self.phi_h - p["d_phi"] - np.arcsin(qS) + np.arcsin(qH)
+        ok &= (np.abs(qS) < 1.0) & (np.abs(qH) < 1.0) & (sb > 0.0) & (root > 0.0)
+        if not want_partials:
+            return psi, ok
+        rS, rH = np.sqrt(1.0 - qS ** 2), np.sqrt(1.0 - qH ** 2)
+        dS_dcb = tS / (sb ** 3 * rS)                           # ∂ΔΦ_S/∂(Â·Ŝ)
+        dH_dgamma = -tH / (np.sin(gamma_p) ** 2 * rH)          # ∂ΔΦ_H/∂γ'
+        drho0_dr = -(R_h / (q * root))[:, None] * r
+        dg_dr = g[:, None] * (-2.0 * r / q[:, None] - r / (root ** 2)[:, None])
+        dg_dr[:, 2] += 2.0 * r[:, 2] / (q * root)
+        drho_dr = drho0_dr - kappa * fR * dg_dr
+        drho_dh = 1.0 / root - kappa * fR * g * R_h / root ** 2
+        dphi_drho = dphi[:, 10]
+        d = {"A": dphi[:, 0:3] - dS_dcb[:, None] * S,
+             "r": dphi[:, 3:6] + dphi_drho[:, None] * drho_dr,
+             "S": dphi[:, 6:9] - dS_dcb[:, None] * A}
+        h = SUN_RATE_STEP_S
+        S_dot = (np.asarray(eph(t_eph + h)[2], dtype=float) - np.asarray(eph(t_eph - h)[2], dtype=float)) / (2 * h)
+        d["tau"] = np.einsum("ni,ni->n", d["r"], v) + np.einsum("ni,ni->n", d["S"], S_dot)
+        d["d_gamma"] = dphi[:, 9] + dH_dgamma
+        d["d_rho"] = dphi_drho
+        d["d_phi"] = -np.ones_like(psi)
+        d["eps_S"] = -(cb / sb) / (np.cos(p["eps_S"]) ** 2 * rS)
+        d["eps_H"] = 1.0 / (np.tan(gamma_p) * np.cos(p["eps_H"]) ** 2 * rH)
+        d["d_t"] = d["tau"]
+        d["horizon_height"] = dphi_drho * drho_dh
+        d["oblateness"] = -dphi_drho * fR * g
+        return psi, d, ok
+
+    def _crossing(self, geom, p, A, P, omega, sign):
+        """dt (N,), ∂dt/∂Â (N, 3), ∂dt/∂x dict, ok (N,) for one crossing (implicit solve)."""
+        eph = geom.ephemeris
+        t = np.asarray(geom.t, dtype=float)
+        psi, ok = self._psi(p, A, t + p["d_t"], eph, sign, False)
+        dt = np.mod(psi, TWO_PI) / omega
+        for _ in range(MAX_ITERATIONS):
+            psi, _ = self._psi(p, A, t + dt + p["d_t"], eph, sign, False)
+            step = wrap_period(psi - omega * dt, TWO_PI) / omega
+            dt = dt + step
+            if not np.any(np.abs(step) > TOLERANCE_S):       # NaN steps (no crossing) are ignored
+                break
+        psi, d, ok = self._psi(p, A, t + dt + p["d_t"], eph, sign, True)
+        y = np.mod(psi, TWO_PI) / omega
+        den = omega - d["tau"]                                  # ω (1 − f_dt)
+        d_att = np.einsum("ni,nij->nj", d["A"], P) / den[:, None]
+        d_par = {name: d[name] / den for name in (p_.name for p_ in self.parameters())}
+        ok &= np.isfinite(y) & (den > 0.0)
+        return y, d_att, d_par, ok
+
+    def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
+        """Eq 4-12 at N Sun sightings: y (N, 2) [s], d_att (N, 2, 3) wrt Â, d_par (N, 2)."""
+        specs = self.parameters()
+        p = common.merged_params(specs, params)
+        if geom.ephemeris is None:
+            raise ValueError("horizon model needs the ephemeris callable in the geometry")
+        if "spin_rate" not in geom.extra:
+            raise InputError(f"horizon sensor '{self.name}' needs the 'spin_rate' telemetry column",
+                             column="spin_rate")
+        omega = np.asarray(geom.extra["spin_rate"], dtype=float) * np.ones(geom.n)
+        with np.errstate(all="ignore"):
+            A, P = common.spin_axis_unit(geom)
+            y_in, a_in, p_in, ok_in = self._crossing(geom, p, A, P, omega, -1.0)
+            y_out, a_out, p_out, ok_out = self._crossing(geom, p, A, P, omega, +1.0)
+            valid = ok_in & ok_out & (omega > 0.0)
+            if self.observable == "width_midscan":
+                period = TWO_PI / omega
+                width = np.mod(y_out - y_in, period)
+                y = np.column_stack([width, np.mod(y_in + 0.5 * width, period)])
+                d_att = np.stack([a_out - a_in, 0.5 * (a_in + a_out)], axis=1)
+                d_par = {k: np.column_stack([p_out[k] - p_in[k], 0.5 * (p_in[k] + p_out[k])])
+                         for k in p_in}
+            else:
+                y = np.column_stack([y_in, y_out])
+                d_att = np.stack([a_in, a_out], axis=1)
+                d_par = {k: np.column_stack([p_in[k], p_out[k]]) for k in p_in}
+        return common.finish(y, d_att, d_par, valid, specs)

@@ -1,0 +1,141 @@
+"""Three-axis magnetometer (TAM), seed §4.2.5, Eq 4-27 and 4-28; ICD §5 ``magnetometer``.
+
+Observation model, seed form (Eq 4-27) and the extended form GCS offers::
+
+    B_S = M C B_I + b                                        (Eq 4-27, state Eq 4-28)
+    B_S = (I + D) M B_B(t + Δt) + b + Σ_ch k_ch aux_ch       (extended)
+
+with ``B_B(t + Δt) = R(Δt) C (B_I + Δt Ḃ_I)`` (see :mod:`gcs_core.models.common`),
+``D`` symmetric: its diagonal the scale-factor errors ``scale_x/y/z`` and its
+off-diagonal the non-orthogonality ``nonorth_xy/xz/yz``; ``k_ch`` the contamination of
+auxiliary channel ``ch`` (torquer dipole, temperature, ...) per sensor axis.
+
+Partials (Eq 4-28 and after; attitude per base.py)::
+
+    ∂y/∂b_i   = e_i
+    ∂y/∂δθ    = (I + D) M R [u_B ×],          u_B = C (B_I + Δt Ḃ_I)
+    ∂y/∂a_k   = (I + D) ∂M/∂a_k B_B
+    ∂y/∂D_ij  = e_i (M B_B)_j   (symmetric pairs summed)
+    ∂y/∂k_ch,i = e_i aux_ch
+    ∂y/∂Δt    = (I + D) M (−ω_B × B_B + R C Ḃ_I)
+
+``Ḃ_I`` (the field's rate along the orbit) is taken, in this order, from
+``geom.extra["B_I_dot"]`` (N, 3) [nT/s] when the caller has precomputed it, else from a
+central difference of ``geom.field_model`` at ``(t ± h, r ± v h)`` with h = 1 s (two
+extra field evaluations per call), else zero (documented loss: then ``time_offset``
+only sees the attitude motion).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.errors import InputError
+from gcs_core.models import common
+from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
+
+log = logging.getLogger(__name__)
+
+AXES = ("x", "y", "z")
+#: (name, i, j) of the symmetric non-orthogonality entries D_ij = D_ji.
+NONORTH = (("nonorth_xy", 0, 1), ("nonorth_xz", 0, 2), ("nonorth_yz", 1, 2))
+#: step [s] of the central difference giving Ḃ_I from the field model.
+FIELD_RATE_STEP_S = 1.0
+
+
+class MagnetometerModel(ObservationModel):
+    """Three-axis magnetometer, Eq 4-27: ``B_S = (I + D) M C B_I + b + K·aux``."""
+
+    type_name = "magnetometer"
+    columns = ("bx", "by", "bz")
+    components = ("bx", "by", "bz")
+    unit = "nT"
+    attitude_kind = "three_axis"
+    book_keys = ("bias",)
+
+    def parameters(self) -> tuple[ParamSpec, ...]:
+        bias = common.book_vector(self.sensor, "bias", 3, default=(0.0, 0.0, 0.0))
+        specs = [ParamSpec(f"bias_{ax}", "nT", float(bias[i]), 200.0, seed=True, effect="bias",
+                           description=f"magnetometer bias along sensor {ax} (Eq 4-27)")
+                 for i, ax in enumerate(AXES)]
+        specs += common.alignment_specs(self.sensor, seed=False, sigma=0.02)
+        specs += [ParamSpec(f"scale_{ax}", "1", 0.0, 0.01, seed=False, effect="scale",
+                            description=f"scale-factor error of sensor {ax} (diagonal of D)")
+                  for ax in AXES]
+        specs += [ParamSpec(name, "1", 0.0, 0.01, seed=False, effect="nonorthogonality",
+                            description=f"non-orthogonality D_{name[-2:]} = D_{name[-1:]}{name[-2]}")
+                  for name, _, _ in NONORTH]
+        for ch in self.aux_channels:
+            specs += [ParamSpec(f"contam_{ch}_{ax}", "nT/aux", 0.0, 10.0, seed=False,
+                                effect=f"contamination_{ch}",
+                                description=f"field along sensor {ax} per unit of aux channel '{ch}'")
+                      for ax in AXES]
+        specs.append(ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
+                               description="time-tag offset: the sample is of time t + Δt"))
+        return tuple(specs)
+
+    def sigma(self) -> np.ndarray:
+        return np.full(3, common.noise_value(self.sensor))
+
+    def _field_rate(self, geom: Geometry) -> np.ndarray | None:
+        """Ḃ_I [nT/s] (N, 3), see the module docstring for the order of sources."""
+        if "B_I_dot" in geom.extra:
+            return np.asarray(geom.extra["B_I_dot"], dtype=float)
+        if geom.field_model is None or geom.r_I is None or geom.v_I is None:
+            log.debug("%s: no field model; time_offset partial ignores the field's motion", self.name)
+            return None
+        h = FIELD_RATE_STEP_S
+        t = np.asarray(geom.t, dtype=float)
+        r, v = np.asarray(geom.r_I, dtype=float), np.asarray(geom.v_I, dtype=float)
+        b_plus = np.asarray(geom.field_model(t + h, r + v * h), dtype=float)
+        b_minus = np.asarray(geom.field_model(t - h, r - v * h), dtype=float)
+        return (b_plus - b_minus) / (2.0 * h)
+
+    def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
+        """Eq 4-27 (extended form) at N frames: y (N, 3), d_att (N, 3, 3), d_par (N, 3)."""
+        specs = self.parameters()
+        p = common.merged_params(specs, params)
+        if geom.B_I is None:
+            raise ValueError("magnetometer model needs B_I in the geometry")
+        n = geom.n
+        M, dM = common.alignment_matrix(p)
+        D = np.diag([p["scale_x"], p["scale_y"], p["scale_z"]])
+        for name, i, j in NONORTH:
+            D[i, j] = D[j, i] = p[name]
+        ID = np.eye(3) + D
+        with np.errstate(all="ignore"):
+            bv = common.body_vector(geom, geom.B_I, p["time_offset"], self._field_rate(geom))
+            w = bv.v_B @ M.T                                   # M B_B (N, 3)
+            y = w @ ID.T + np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
+            d_par: dict[str, np.ndarray] = {}
+            for i, ax in enumerate(AXES):
+                e = np.zeros((n, 3))
+                e[:, i] = 1.0
+                d_par[f"bias_{ax}"] = e
+                s = np.zeros((n, 3))
+                s[:, i] = w[:, i]
+                d_par[f"scale_{ax}"] = s
+            for name, i, j in NONORTH:
+                s = np.zeros((n, 3))
+                s[:, i] = w[:, j]
+                s[:, j] = w[:, i]
+                d_par[name] = s
+            for k, name in enumerate(common.ALIGN_NAMES):
+                d_par[name] = bv.v_B @ (ID @ dM[k]).T
+            for ch in self.aux_channels:
+                if ch not in geom.aux:
+                    raise InputError(f"auxiliary channel '{ch}' is not in the aux data",
+                                     key=common.book_key(self.sensor, "aux"))
+                a = np.asarray(geom.aux[ch], dtype=float)
+                for i, ax in enumerate(AXES):
+                    name = f"contam_{ch}_{ax}"
+                    y[:, i] += p[name] * a
+                    s = np.zeros((n, 3))
+                    s[:, i] = a
+                    d_par[name] = s
+            d_par["time_offset"] = bv.d_dt @ (ID @ M).T
+            d_att = (ID @ M) @ bv.d_att
+        return common.finish(y, d_att, d_par, np.ones(n, dtype=bool), specs)

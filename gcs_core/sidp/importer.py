@@ -1,0 +1,326 @@
+"""Importing a whole mission directory, checked (ICD §1-§6; the seed's SIDP input side).
+
+:func:`load_mission` reads ``mission.toml`` (:mod:`~gcs_core.sidp.mission`), then every
+CSV file it names (:mod:`~gcs_core.sidp.csvio`) and checks, beyond the CSV rules:
+
+* the telemetry columns of each sensor type (ICD §5) and the ephemeris, onboard
+  attitude columns (ICD §4, §6);
+* the ephemeris cadence (60 s or finer) and that the ephemeris covers every telemetry
+  span;
+* physical ranges that catch unit mistakes: magnetometer components within 1e6 nT,
+  |r| between the Earth's surface and 1e6 km, the Sun distance near 1 AU, onboard
+  quaternions of unit norm (within 1e-3), gyro rates under 1 rad/s, star right
+  ascension in [0, 360] deg and declination in [-90, 90] deg, a non-zero spin rate,
+  and no time more than ten years from the epoch.
+
+Every refusal is one :class:`~gcs_core.errors.InputError` naming the file, the line and
+the column. What was repaired (rows with empty/NaN fields, duplicate packets dropped)
+is counted per file in :class:`ImportReport`.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.errors import InputError
+from gcs_core.sidp.csvio import read_table
+from gcs_core.sidp.mission import read_mission_spec
+from gcs_core.sidp.types import MissionSpec, Table
+
+log = logging.getLogger(__name__)
+
+#: telemetry columns per sensor type (ICD §5), ``t`` first.
+TELEMETRY_COLUMNS: dict[str, tuple[str, ...]] = {
+    "magnetometer": ("t", "bx", "by", "bz"),
+    "gyro": ("t", "wx", "wy", "wz"),
+    "star_tracker": ("t", "h", "v", "ra", "dec", "mag"),
+    "fine_sun": ("t", "n_alpha", "n_beta"),
+    "coarse_sun": ("t", "n_alpha", "n_beta"),
+    "plane_field_sun": ("t", "beta"),
+    "horizon": ("t", "spin_rate", "dt_in", "dt_out"),
+}
+EPHEMERIS_COLUMNS = ("t", "rx", "ry", "rz", "vx", "vy", "vz", "sx", "sy", "sz")
+ONBOARD_COLUMNS = ("t", "q1", "q2", "q3", "q4")
+
+MAX_EPHEMERIS_STEP_S = 60.0          # ICD §4: a cadence of 60 s or finer
+MAX_FIELD_COMPONENT_NT = 1e6         # the geomagnetic field is < 7e4 nT
+R_MIN_KM = 6378.0                    # below the Earth's surface
+R_MAX_KM = 1e6                       # beyond the Moon's orbit (km given as m?)
+SUN_DISTANCE_AU = (0.9, 1.1)         # the geocentric Sun is 0.983 to 1.017 AU away
+AU_KM = 149597870.7
+QUATERNION_NORM_TOL = 1e-3
+MAX_RATE_RAD_S = 1.0                 # deg/s given as rad/s otherwise
+FAR_FUTURE_S = 10 * 365.25 * 86400.0  # ten years
+
+
+@dataclass(frozen=True)
+class FileCount:
+    """What one CSV file gave: rows kept and rows dropped (ICD §1).
+
+    Attributes
+    ----------
+    file : path of the file.
+    what : its role ("telemetry TAM1", "ephemeris", "aux", "onboard attitude").
+    rows : rows kept.
+    dropped_nan : rows dropped for an empty or ``nan`` field.
+    dropped_duplicates : exact duplicate rows dropped.
+    """
+
+    file: Path
+    what: str
+    rows: int
+    dropped_nan: int
+    dropped_duplicates: int
+
+
+@dataclass(frozen=True)
+class ImportReport:
+    """Counts, unknown keys and repairs of one import.
+
+    Attributes
+    ----------
+    files : one :class:`FileCount` per file read, in reading order.
+    unknown_keys : keys of mission.toml kept but not used, dotted
+        (``mission.foo``, ``sensor[TAM1].gain``).
+    repairs : one line per repair made (rows dropped, with file and count).
+    """
+
+    files: tuple[FileCount, ...]
+    unknown_keys: tuple[str, ...] = ()
+    repairs: tuple[str, ...] = ()
+
+    def file(self, what: str) -> FileCount:
+        """The count of the file whose role is ``what`` (e.g. ``"telemetry TAM1"``)."""
+        for f in self.files:
+            if f.what == what:
+                return f
+        raise KeyError(what)
+
+    @property
+    def dropped_nan(self) -> int:
+        return sum(f.dropped_nan for f in self.files)
+
+    @property
+    def dropped_duplicates(self) -> int:
+        return sum(f.dropped_duplicates for f in self.files)
+
+    def lines(self) -> list[str]:
+        """Human summary, one line per file then the unknown keys and repairs."""
+        out = [f"{f.what}: {f.rows} rows kept, {f.dropped_nan} dropped (empty/NaN), "
+               f"{f.dropped_duplicates} duplicates dropped ({f.file})" for f in self.files]
+        out += [f"unknown key kept but not used: {k}" for k in self.unknown_keys]
+        out += [f"repair: {r}" for r in self.repairs]
+        return out
+
+    def to_dict(self) -> dict:
+        return {"files": [{"file": str(f.file), "what": f.what, "rows": f.rows,
+                           "dropped_nan": f.dropped_nan,
+                           "dropped_duplicates": f.dropped_duplicates} for f in self.files],
+                "unknown_keys": list(self.unknown_keys), "repairs": list(self.repairs)}
+
+
+@dataclass(frozen=True)
+class ImportedMission:
+    """A mission directory, read and checked.
+
+    Attributes
+    ----------
+    spec : mission.toml as read.
+    ephemeris_table : ephemeris.csv (columns :data:`EPHEMERIS_COLUMNS`, km and km/s, GCI).
+    telemetry : sensor name -> its telemetry Table, in mission order.
+    aux : aux.csv, or None.
+    onboard : onboard_attitude.csv (``t, q1..q4``), or None.
+    report : per-file counts, unknown keys and repairs.
+    """
+
+    spec: MissionSpec
+    ephemeris_table: Table
+    telemetry: Mapping[str, Table]
+    aux: Table | None = None
+    onboard: Table | None = None
+    report: ImportReport = field(default_factory=lambda: ImportReport(files=()))
+
+    @property
+    def name(self) -> str:
+        return self.spec.name
+
+    def span(self) -> tuple[float, float]:
+        """(first, last) telemetry time over all sensors [s since epoch]."""
+        t0 = min(float(tab.t[0]) for tab in self.telemetry.values())
+        t1 = max(float(tab.t[-1]) for tab in self.telemetry.values())
+        return t0, t1
+
+
+# --- checks ---------------------------------------------------------------------------
+
+def _col(table: Table, name: str) -> int:
+    """1-based column number of ``name`` in the file."""
+    return list(table.columns).index(name) + 1
+
+
+def _refuse(table: Table, row: int, name: str, message: str) -> InputError:
+    return InputError(f"{message} in column {_col(table, name)} '{name}'", file=table.path,
+                      line=int(table.lines[row]), column=_col(table, name))
+
+
+def _first(mask: np.ndarray) -> int | None:
+    idx = np.flatnonzero(mask)
+    return int(idx[0]) if idx.size else None
+
+
+def _check_times(table: Table, spec: MissionSpec) -> None:
+    i = _first(np.abs(table.t) > FAR_FUTURE_S)
+    if i is not None:
+        when = "after" if table.t[i] > 0 else "before"
+        raise _refuse(table, i, "t", f"time t = {table.t[i]:.6g} s is more than 10 years "
+                      f"{when} the epoch {spec.epoch:%Y-%m-%dT%H:%M:%SZ} (times in the far "
+                      "future: seconds since the epoch expected)")
+
+
+def _check_not_empty(table: Table, what: str, minimum: int = 1) -> None:
+    if len(table) < minimum:
+        dropped = (f" after dropping {table.dropped_nan} rows with empty/NaN fields"
+                   if table.dropped_nan else "")
+        raise InputError(f"{what} has {len(table)} data rows{dropped}; at least {minimum} "
+                         "needed", file=table.path)
+
+
+def _check_vector_norm(table: Table, names: tuple[str, ...], lo: float, hi: float,
+                       message: str) -> None:
+    v = table.stack(names)
+    norm = np.sqrt(np.sum(v * v, axis=1))
+    i = _first((norm < lo) | (norm > hi))
+    if i is not None:
+        k = int(np.argmax(np.abs(v[i])))
+        raise _refuse(table, i, names[k], message.format(norm=norm[i]))
+
+
+def _check_sensor(table: Table, stype: str) -> None:
+    c = table.columns
+    if stype == "magnetometer":
+        for name in ("bx", "by", "bz"):
+            i = _first(np.abs(c[name]) > MAX_FIELD_COMPONENT_NT)
+            if i is not None:
+                raise _refuse(table, i, name, f"magnetic field component {c[name][i]:.6g} nT "
+                              f"exceeds {MAX_FIELD_COMPONENT_NT:g} nT (telemetry in nT?)")
+    elif stype == "gyro":
+        _check_vector_norm(table, ("wx", "wy", "wz"), 0.0, MAX_RATE_RAD_S,
+                           "|omega| = {norm:.6g} rad/s exceeds 1 rad/s (rates in rad/s?)")
+    elif stype == "star_tracker":
+        i = _first((c["ra"] < 0.0) | (c["ra"] > 360.0))
+        if i is not None:
+            raise _refuse(table, i, "ra", f"star right ascension {c['ra'][i]:.6g} deg is "
+                          "outside [0, 360] deg")
+        i = _first(np.abs(c["dec"]) > 90.0)
+        if i is not None:
+            raise _refuse(table, i, "dec", f"star declination {c['dec'][i]:.6g} deg is "
+                          "outside [-90, 90] deg")
+    elif stype == "horizon":
+        i = _first(c["spin_rate"] == 0.0)
+        if i is not None:
+            raise _refuse(table, i, "spin_rate", "spin rate is 0 rad/s")
+
+
+def _check_ephemeris(table: Table) -> None:
+    _check_not_empty(table, "ephemeris", 2)
+    dt = np.diff(table.t)
+    i = _first(dt > MAX_EPHEMERIS_STEP_S * (1 + 1e-9))
+    if i is not None:
+        raise _refuse(table, i + 1, "t", f"ephemeris rows {dt[i]:.6g} s apart (lines "
+                      f"{table.lines[i]} and {table.lines[i + 1]}); ICD §4 needs a cadence "
+                      f"of {MAX_EPHEMERIS_STEP_S:g} s or finer")
+    _check_vector_norm(table, ("rx", "ry", "rz"), R_MIN_KM, R_MAX_KM,
+                       "|r| = {norm:.6g} km is outside [6378, 1e6] km (position in km?)")
+    lo, hi = SUN_DISTANCE_AU
+    _check_vector_norm(table, ("sx", "sy", "sz"), lo * AU_KM, hi * AU_KM,
+                       "|s| = {norm:.6g} km is not a geocentric Sun distance "
+                       f"({lo:g} to {hi:g} AU; Sun position in km?)")
+
+
+def _check_onboard(table: Table) -> None:
+    _check_vector_norm(table, ("q1", "q2", "q3", "q4"), 1.0 - QUATERNION_NORM_TOL,
+                       1.0 + QUATERNION_NORM_TOL,
+                       "quaternion norm {norm:.6g} is not 1 (within 1e-3)")
+
+
+def _check_covered(table: Table, eph: Table, sensor: str) -> None:
+    e0, e1 = float(eph.t[0]), float(eph.t[-1])
+    t0, t1 = float(table.t[0]), float(table.t[-1])
+    if t0 >= e0 and t1 <= e1:
+        return
+    if t0 < e0:
+        i, span = 0, (t0, min(e0, t1))
+    else:
+        i, span = _first(table.t > e1), (max(e1, t0), t1)
+    raise _refuse(table, i, "t", f"telemetry of {sensor} spans t = {t0:.6g} to {t1:.6g} s "
+                  f"but the ephemeris {eph.path} covers only t = {e0:.6g} to {e1:.6g} s: "
+                  f"t = {span[0]:.6g} to {span[1]:.6g} s is not covered")
+
+
+def _rel(path: Path, root: Path) -> str:
+    try:
+        return os.path.relpath(path, root)
+    except ValueError:
+        return str(path)
+
+
+def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
+    """Read and check a mission directory (ICD §1-§6).
+
+    Parameters
+    ----------
+    mission_dir : directory holding mission.toml (or the mission.toml path).
+
+    Returns
+    -------
+    ImportedMission with every table read, checked and counted.
+
+    Raises
+    ------
+    InputError naming the file, line and column (or key) of the first problem found.
+    """
+    spec = read_mission_spec(mission_dir)
+    counts: list[FileCount] = []
+    repairs: list[str] = []
+
+    def read(path: Path, required: tuple[str, ...], what: str) -> Table:
+        table = read_table(path, required=required, what=what)
+        counts.append(FileCount(path, what, len(table), table.dropped_nan,
+                                table.dropped_duplicates))
+        rel = _rel(path, spec.root)
+        if table.dropped_nan:
+            repairs.append(f"{rel}: dropped {table.dropped_nan} rows with an empty or NaN field")
+        if table.dropped_duplicates:
+            repairs.append(f"{rel}: dropped {table.dropped_duplicates} exact duplicate rows")
+        _check_times(table, spec)
+        return table
+
+    eph = read(spec.ephemeris_file, EPHEMERIS_COLUMNS, "ephemeris")
+    _check_ephemeris(eph)
+    telemetry: dict[str, Table] = {}
+    for s in spec.sensors:
+        what = f"telemetry {s.name}"
+        table = read(s.telemetry, TELEMETRY_COLUMNS[s.type], what)
+        _check_not_empty(table, f"{what} ({s.type})")
+        _check_sensor(table, s.type)
+        _check_covered(table, eph, s.name)
+        telemetry[s.name] = table
+    aux = read(spec.aux_file, ("t",), "aux") if spec.aux_file else None
+    onboard = None
+    if spec.onboard_file:
+        onboard = read(spec.onboard_file, ONBOARD_COLUMNS, "onboard attitude")
+        _check_onboard(onboard)
+    unknown = list(spec.unknown_keys)
+    unknown += [f"sensor[{s.name}].{k}" for s in spec.sensors for k in s.unknown_keys]
+    for r in repairs:
+        log.info("%s", r)
+    report = ImportReport(files=tuple(counts), unknown_keys=tuple(unknown),
+                          repairs=tuple(repairs))
+    return ImportedMission(spec=spec, ephemeris_table=eph, telemetry=telemetry, aux=aux,
+                           onboard=onboard, report=report)

@@ -1,0 +1,537 @@
+"""mission.toml: the sensor inventory and data-book values (ICD §3, §5).
+
+:func:`read_mission_spec` reads and checks the file and returns a
+:class:`~gcs_core.sidp.types.MissionSpec`. Every refusal is an
+:class:`~gcs_core.errors.InputError` naming ``mission.toml``, the line (found by a
+light scan of the text, since ``tomllib`` keeps no positions) and the dotted key, e.g.
+``sensor[2].noise`` (sensors counted from 1 in file order).
+
+The data-book keys each sensor type knows, their shapes, units and ranges are the
+table :data:`BOOK_KEYS`; optional keys that are absent get their nominal value there.
+Keys a table does not know are kept (in ``SensorSpec.book`` and
+``SensorSpec.unknown_keys``, or ``MissionSpec.unknown_keys``) and reported through
+``logging.warning``, never silently ignored.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import re
+import tomllib
+from dataclasses import dataclass
+from datetime import datetime, timedelta, timezone
+from pathlib import Path
+from typing import Any, Callable
+
+from gcs_core.errors import InputError
+from gcs_core.sidp.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
+
+log = logging.getLogger(__name__)
+
+MISSION_FILE = "mission.toml"
+#: sensor types that only make sense on a spinning mission (placed by their own keys).
+SPINNER_TYPES = ("plane_field_sun", "horizon")
+#: sensor names that would collide with non-sensor state elements (``att.*``, ``model.*``).
+RESERVED_NAMES = ("att", "model")
+HORIZON_OBSERVABLES = ("in_out", "width_midscan")
+_NAME = re.compile(r"[A-Za-z][A-Za-z0-9_\-]{0,63}")
+
+
+# --- ranges -------------------------------------------------------------------------
+
+def _positive(v: float) -> str | None:
+    return None if v > 0 else "must be > 0"
+
+
+def _nonnegative(v: float) -> str | None:
+    return None if v >= 0 else "must be >= 0"
+
+
+def _within(lo: float, hi: float, *, open_lo: bool = False, open_hi: bool = False
+            ) -> Callable[[float], str | None]:
+    def check(v: float) -> str | None:
+        ok = (v > lo if open_lo else v >= lo) and (v < hi if open_hi else v <= hi)
+        return None if ok else (f"must be in {'(' if open_lo else '['}{lo:g}, {hi:g}"
+                                f"{')' if open_hi else ']'}")
+    return check
+
+
+def _nonzero(v: float) -> str | None:
+    return None if v != 0 else "must not be 0 (it divides)"
+
+
+@dataclass(frozen=True)
+class BookKey:
+    """One data-book key of a sensor type (ICD §5).
+
+    Attributes
+    ----------
+    size : 0 for a number, n for a list of n numbers, -1 for a string.
+    unit : unit of the value as written in mission.toml.
+    required : must be present; otherwise ``default`` is filled in.
+    check : range check of each number, returning a complaint or None.
+    index_checks : extra checks of single list entries, ``{index: check}``.
+    choices : allowed values of a string key.
+    """
+
+    size: int
+    unit: str
+    required: bool = True
+    default: Any = None
+    check: Callable[[float], str | None] | None = None
+    index_checks: tuple[tuple[int, Callable[[float], str | None]], ...] = ()
+    choices: tuple[str, ...] = ()
+
+
+_FOV = BookKey(0, "deg", check=_within(0.0, 90.0, open_lo=True))
+_NOISE = BookKey(0, "telemetry units", check=_positive)
+_SMALL_ANGLE_DEG = _within(-90.0, 90.0, open_lo=True, open_hi=True)
+
+#: sensor type -> data-book key -> description (ICD §5). ``noise`` and
+#: ``alignment_deg`` are handled with the common keys below.
+BOOK_KEYS: dict[str, dict[str, BookKey]] = {
+    "magnetometer": {
+        "noise": BookKey(0, "nT", check=_positive),
+        "bias": BookKey(3, "nT", check=_within(-1e6, 1e6)),
+    },
+    "gyro": {
+        "bias": BookKey(3, "rad/s", check=_within(-1.0, 1.0)),
+        "arw": BookKey(0, "rad/s^0.5", check=_positive),
+        "rrw": BookKey(0, "rad/s^1.5", check=_nonnegative),
+        "electronic": BookKey(0, "rad", required=False, default=0.0, check=_nonnegative),
+    },
+    "star_tracker": {
+        "noise": BookKey(0, "rad", check=_positive),
+        "scale": BookKey(2, "1", check=_within(0.0, 10.0, open_lo=True)),
+        "fov_deg": _FOV,
+    },
+    "fine_sun": {
+        "noise": BookKey(0, "counts", check=_positive),
+        "coeff_alpha": BookKey(4, "[1, 1/count, 1, 1]", index_checks=((1, _nonzero),)),
+        "coeff_beta": BookKey(4, "[1, 1/count, 1, 1]", index_checks=((1, _nonzero),)),
+        "fov_deg": _FOV,
+    },
+    "coarse_sun": {
+        "noise": BookKey(0, "counts", check=_positive),
+        "scale": BookKey(2, "rad/count", check=_nonzero),
+        "bias": BookKey(2, "rad", check=_within(-math.pi, math.pi)),
+        "fov_deg": _FOV,
+    },
+    "plane_field_sun": {
+        "noise": BookKey(0, "rad", check=_positive),
+        "tilt_deg": BookKey(0, "deg", check=_SMALL_ANGLE_DEG),
+        "bias": BookKey(0, "rad", check=_within(-math.pi, math.pi)),
+    },
+    "horizon": {
+        "noise": BookKey(0, "s", check=_positive),
+        "gamma_deg": BookKey(0, "deg", check=_within(0.0, 180.0, open_lo=True, open_hi=True)),
+        "phi_h_deg": BookKey(0, "deg", check=_within(-360.0, 360.0)),
+        "horizon_height_km": BookKey(0, "km", check=_within(0.0, 1000.0)),
+        "delta_gamma_deg": BookKey(0, "deg", required=False, default=0.0, check=_SMALL_ANGLE_DEG),
+        "delta_rho_deg": BookKey(0, "deg", required=False, default=0.0, check=_SMALL_ANGLE_DEG),
+        "delta_phi_deg": BookKey(0, "deg", required=False, default=0.0,
+                                 check=_within(-360.0, 360.0)),
+        "eps_h_deg": BookKey(0, "deg", required=False, default=0.0, check=_SMALL_ANGLE_DEG),
+        "eps_s_deg": BookKey(0, "deg", required=False, default=None, check=_SMALL_ANGLE_DEG),
+        "delta_t": BookKey(0, "s", required=False, default=0.0, check=_within(-3600.0, 3600.0)),
+        "sun_sensor": BookKey(-1, "", required=False, default=None),
+        "observable": BookKey(-1, "", required=False, default="in_out",
+                              choices=HORIZON_OBSERVABLES),
+    },
+}
+#: keys every [[sensor]] table may hold besides its type's data-book keys.
+COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
+_TOP_TABLES = ("mission", "ephemeris", "aux", "onboard_attitude", "sensor")
+_MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
+
+# --- epoch --------------------------------------------------------------------------
+
+_EPOCH = re.compile(
+    r"(\d{4})-(\d{2})-(\d{2})"
+    r"(?:[Tt ](\d{2}):(\d{2})(?::(\d{2})(?:\.(\d{1,12}))?)?)?"
+    r"\s*(Z|z|UTC|[+-]\d{2}:?\d{2})?")
+
+
+def parse_utc(text: str) -> datetime:
+    """ISO-8601 date-time -> timezone-aware UTC datetime.
+
+    Accepts ``YYYY-MM-DD[THH:MM[:SS[.fff]]][Z|UTC|+HH:MM]``; no zone means UTC
+    (ICD §3), an offset is converted to UTC. Fractions beyond a microsecond are
+    rounded. Raises ``ValueError`` with a plain message when the text is not one.
+    """
+    m = _EPOCH.fullmatch(text.strip())
+    if not m:
+        raise ValueError(f"not an ISO-8601 UTC time: {text!r} (e.g. \"2024-03-20T06:00:00Z\")")
+    y, mo, d, hh, mm, ss, frac, zone = m.groups()
+    if ss == "60":
+        raise ValueError(f"leap second in {text!r}: choose an epoch off the leap second")
+    try:
+        dt = datetime(int(y), int(mo), int(d), int(hh or 0), int(mm or 0), int(ss or 0),
+                      tzinfo=timezone.utc)
+    except ValueError as err:
+        raise ValueError(f"not a valid date-time: {text!r} ({err})") from None
+    try:
+        if frac:
+            dt += timedelta(microseconds=round(float("0." + frac) * 1e6))
+        if zone and zone not in ("Z", "z", "UTC"):
+            sign = 1 if zone[0] == "+" else -1
+            digits = zone[1:].replace(":", "")
+            hours, minutes = int(digits[:2]), int(digits[2:])
+            if hours > 23 or minutes > 59:
+                raise ValueError(f"bad UTC offset in {text!r}")
+            dt -= sign * timedelta(hours=hours, minutes=minutes)
+    except OverflowError:
+        raise ValueError(f"date-time out of range: {text!r}") from None
+    return dt
+
+
+# --- locating keys in the text --------------------------------------------------------
+
+_HEADER = re.compile(r"\s*(\[\[|\[)\s*([A-Za-z0-9_\-\.\"' ]+?)\s*\]\]?\s*(?:#.*)?$")
+_KEYLINE = re.compile(r"\s*([A-Za-z0-9_\-]+|\"[^\"]*\"|'[^']*')\s*=")
+
+
+class _Locator:
+    """Best-effort line numbers of tables and keys (tomllib keeps none)."""
+
+    def __init__(self, text: str):
+        self.tables: dict[tuple[str, int], int] = {}
+        self.keys: dict[tuple[str, int, str], int] = {}
+        current, index, counts = "", 0, {}
+        for lineno, line in enumerate(text.splitlines(), start=1):
+            h = _HEADER.match(line)
+            if h:
+                current = h.group(2).replace(" ", "").replace('"', "").replace("'", "")
+                index = counts.get(current, 0) + 1 if h.group(1) == "[[" else 1
+                counts[current] = index
+                self.tables.setdefault((current, index), lineno)
+                continue
+            k = _KEYLINE.match(line)
+            if k:
+                self.keys.setdefault((current, index, k.group(1).strip("\"'")), lineno)
+
+    def line(self, table: str, key: str | None = None, index: int = 1) -> int | None:
+        if key is not None and (table, index, key) in self.keys:
+            return self.keys[(table, index, key)]
+        return self.tables.get((table, index))
+
+
+@dataclass
+class _Ctx:
+    file: Path
+    where: _Locator
+
+    def error(self, message: str, key: str, table: str = "", index: int = 1,
+              tkey: str | None = None) -> InputError:
+        return InputError(message, file=self.file, line=self.where.line(table, tkey, index),
+                          key=key)
+
+
+# --- values ---------------------------------------------------------------------------
+
+def _number(ctx: _Ctx, value: Any, key: str, table: str, index: int, tkey: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ctx.error(f"must be a number, not {_show(value)}", key, table, index, tkey)
+    v = float(value)
+    if not math.isfinite(v):
+        raise ctx.error(f"must be finite, not {v}", key, table, index, tkey)
+    return v
+
+
+def _show(value: Any) -> str:
+    text = repr(value)
+    return text if len(text) <= 40 else text[:40] + "..."
+
+
+def _numbers(ctx: _Ctx, value: Any, size: int, key: str, table: str, index: int,
+             tkey: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or len(value) != size:
+        raise ctx.error(f"must be a list of {size} numbers, not {_show(value)}", key, table,
+                        index, tkey)
+    return tuple(_number(ctx, v, f"{key}[{i}]", table, index, tkey) for i, v in enumerate(value))
+
+
+def _string(ctx: _Ctx, value: Any, key: str, table: str, index: int = 1,
+            tkey: str | None = None) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise ctx.error(f"must be a non-empty string, not {_show(value)}", key, table, index,
+                        tkey)
+    return value.strip()
+
+
+def _existing_file(ctx: _Ctx, root: Path, value: Any, key: str, table: str, what: str,
+                   index: int = 1, tkey: str = "file") -> Path:
+    rel = _string(ctx, value, key, table, index, tkey)
+    if "\x00" in rel:
+        raise ctx.error("file name holds a NUL character", key, table, index, tkey)
+    path = Path(rel) if os.path.isabs(rel) else root / rel
+    try:
+        is_file, is_dir = path.is_file(), path.is_dir()
+    except (OSError, ValueError) as err:
+        raise ctx.error(f"{what} file {rel!r} cannot be looked up ({err})", key, table, index,
+                        tkey) from None
+    if not is_file:
+        state = "is a directory, not a file" if is_dir else "not found"
+        raise ctx.error(f"{what} file {rel!r} {state} (looked for {path})", key, table, index,
+                        tkey)
+    return path
+
+
+def _book_value(ctx: _Ctx, spec: BookKey, value: Any, key: str, index: int, tkey: str) -> Any:
+    if spec.size == -1:
+        text = _string(ctx, value, key, "sensor", index, tkey)
+        if spec.choices and text not in spec.choices:
+            raise ctx.error(f"must be one of {', '.join(spec.choices)}, not {text!r}", key,
+                            "sensor", index, tkey)
+        return text
+    if spec.size == 0:
+        vals = (_number(ctx, value, key, "sensor", index, tkey),)
+    else:
+        vals = _numbers(ctx, value, spec.size, key, "sensor", index, tkey)
+    for i, v in enumerate(vals):
+        complaints = [spec.check(v)] if spec.check else []
+        complaints += [c(v) for j, c in spec.index_checks if j == i]
+        for complaint in complaints:
+            if complaint:
+                sub = key if spec.size == 0 else f"{key}[{i}]"
+                raise ctx.error(f"{complaint}, not {v:g} [{spec.unit}]", sub, "sensor", index, tkey)
+    return vals[0] if spec.size == 0 else vals
+
+
+def _plain(value: Any) -> Any:
+    """TOML value -> something hashable-ish to keep in a book (lists become tuples)."""
+    if isinstance(value, list):
+        return tuple(_plain(v) for v in value)
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    return value
+
+
+# --- tables ---------------------------------------------------------------------------
+
+def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> SensorSpec:
+    base = f"sensor[{index}]"
+    if not isinstance(raw, dict):
+        raise ctx.error("must be a table ([[sensor]])", base, "sensor", index)
+    for key in ("name", "type", "telemetry"):
+        if key not in raw:
+            who = f" (sensor {raw['name']!r})" if isinstance(raw.get("name"), str) else ""
+            raise ctx.error(f"missing key '{key}' in [[sensor]] number {index}{who}",
+                            f"{base}.{key}", "sensor", index)
+    name = _string(ctx, raw.get("name"), f"{base}.name", "sensor", index, "name")
+    if not _NAME.fullmatch(name):
+        raise ctx.error(f"sensor name {name!r} must start with a letter and hold only "
+                        "letters, digits, '_' and '-' (at most 64)", f"{base}.name", "sensor",
+                        index, "name")
+    if name.lower() in RESERVED_NAMES:
+        raise ctx.error(f"sensor name {name!r} is reserved (state elements "
+                        f"{', '.join(n + '.*' for n in RESERVED_NAMES)})", f"{base}.name",
+                        "sensor", index, "name")
+    stype = _string(ctx, raw.get("type"), f"{base}.type", "sensor", index, "type")
+    if stype not in SENSOR_TYPES:
+        raise ctx.error(f"unknown sensor type {stype!r} for sensor {name!r}; known types: "
+                        f"{', '.join(SENSOR_TYPES)}", f"{base}.type", "sensor", index, "type")
+    if stype in SPINNER_TYPES and mode != "spinning":
+        raise ctx.error(f"sensor type {stype!r} needs attitude_mode = \"spinning\", not "
+                        f"{mode!r}", f"{base}.type", "sensor", index, "type")
+    telemetry = _existing_file(ctx, root, raw.get("telemetry"), f"{base}.telemetry", "sensor",
+                               f"telemetry (sensor {name!r})", index, "telemetry")
+    alignment = None
+    if "alignment_deg" in raw:
+        if stype in SPINNER_TYPES:
+            raise ctx.error(f"a {stype} sensor of a spinning mission is placed by its own keys, "
+                            "not by alignment_deg (ICD §2)", f"{base}.alignment_deg", "sensor",
+                            index, "alignment_deg")
+        alignment = _numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
+                             index, "alignment_deg")
+        for i, a in enumerate(alignment):
+            if abs(a) > 360.0:
+                raise ctx.error(f"must be in [-360, 360], not {a:g} [deg]",
+                                f"{base}.alignment_deg[{i}]", "sensor", index, "alignment_deg")
+    elif mode != "spinning":
+        raise ctx.error(f"missing key 'alignment_deg' for sensor {name!r} (a {mode} mission "
+                        "places every sensor by alignment_deg = [a1, a2, a3], ICD §2)",
+                        f"{base}.alignment_deg", "sensor", index)
+    book: dict[str, Any] = {}
+    known = BOOK_KEYS[stype]
+    for key, spec in known.items():
+        if key in raw:
+            book[key] = _book_value(ctx, spec, raw[key], f"{base}.{key}", index, key)
+        elif spec.required:
+            raise ctx.error(f"missing key '{key}' for {stype} sensor {name!r} "
+                            f"[{spec.unit}] (ICD §5)", f"{base}.{key}", "sensor", index)
+        else:
+            book[key] = spec.default
+    if stype == "horizon" and book.get("sun_sensor") and book.get("eps_s_deg") is not None:
+        raise ctx.error("give sun_sensor (its tilt_deg is ε_S) or eps_s_deg, not both",
+                        f"{base}.eps_s_deg", "sensor", index, "eps_s_deg")
+    unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known)
+    for k in unknown:
+        book[k] = _plain(raw[k])
+        log.warning("%s: unknown key '%s.%s' (sensor %r, type %s) kept but not used",
+                    ctx.file, base, k, name, stype)
+    noise = book.pop("noise") if "noise" in known else None
+    return SensorSpec(name=name, type=stype, telemetry=telemetry, alignment_deg=alignment,
+                      noise=noise, book=book, unknown_keys=unknown)
+
+
+def _check_links(ctx: _Ctx, sensors: list[SensorSpec]) -> None:
+    by_name = {s.name: s for s in sensors}
+    for index, s in enumerate(sensors, start=1):
+        ref = s.book.get("sun_sensor") if s.type == "horizon" else None
+        if ref is None:
+            continue
+        other = by_name.get(ref)
+        if other is None or other.type != "plane_field_sun":
+            found = f"a {other.type} sensor" if other else "no such sensor"
+            raise ctx.error(f"sun_sensor {ref!r} must name a plane_field_sun sensor of this "
+                            f"mission ({found})", f"sensor[{index}].sun_sensor", "sensor",
+                            index, "sun_sensor")
+
+
+def _load_toml(path: Path) -> tuple[dict, str]:
+    try:
+        raw = path.read_bytes()
+    except OSError as err:
+        raise InputError(f"cannot read {MISSION_FILE} ({err.strerror})", file=path) from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = raw[:err.start].count(b"\n") + 1
+        raise InputError(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path,
+                         line=line) from None
+    try:
+        return tomllib.loads(text), text
+    except tomllib.TOMLDecodeError as err:
+        msg = str(err).splitlines()[0] if str(err) else "invalid TOML"
+        m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
+        if m:
+            raise InputError(f"TOML syntax error: {msg[:m.start()]}", file=path,
+                             line=int(m.group(1)), column=int(m.group(2))) from None
+        m = re.search(r"\s*\(at end of document\)\s*$", msg)
+        if m:
+            raise InputError(f"TOML syntax error at the end of the file: {msg[:m.start()]}",
+                             file=path, line=max(1, text.count("\n") + (not text.endswith("\n"))
+                                                 )) from None
+        raise InputError(f"TOML syntax error: {msg}", file=path) from None
+    except RecursionError:
+        raise InputError("TOML nesting too deep", file=path) from None
+
+
+def _optional_file(ctx: _Ctx, root: Path, doc: dict, table: str, unknown: list[str]) -> Path | None:
+    if table not in doc:
+        return None
+    t = doc[table]
+    if not isinstance(t, dict):
+        raise ctx.error(f"[{table}] must be a table with a 'file' key", table, table)
+    if "file" not in t:
+        raise ctx.error(f"missing key 'file' in [{table}]", f"{table}.file", table)
+    unknown += [f"{table}.{k}" for k in t if k != "file"]
+    return _existing_file(ctx, root, t["file"], f"{table}.file", table, table.replace("_", " "))
+
+
+def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
+    """Read and check ``mission.toml`` (ICD §3, §5).
+
+    Parameters
+    ----------
+    mission_dir : the mission directory, or the mission.toml file itself.
+
+    Returns
+    -------
+    MissionSpec with paths resolved against the mission directory (every file checked
+    to exist), the epoch as a timezone-aware UTC datetime, one SensorSpec per
+    ``[[sensor]]`` table in file order.
+
+    Raises
+    ------
+    InputError naming mission.toml, the line and the key at fault.
+    """
+    given = Path(mission_dir)
+    if given.is_dir():
+        root, path = given, given / MISSION_FILE
+    elif given.name == MISSION_FILE or given.suffix == ".toml":
+        root, path = given.parent, given
+    else:
+        raise InputError("mission directory not found", file=given)
+    if not path.is_file():
+        raise InputError(f"{MISSION_FILE} not found: a mission directory holds "
+                         f"{MISSION_FILE}, ephemeris.csv and telemetry/ (ICD §1)", file=path)
+    doc, text = _load_toml(path)
+    ctx = _Ctx(path, _Locator(text))
+    unknown: list[str] = [k for k in doc if k not in _TOP_TABLES]
+
+    m = doc.get("mission")
+    if not isinstance(m, dict):
+        raise ctx.error("missing [mission] table (name, epoch, attitude_mode)", "mission",
+                        "mission")
+    for key in ("name", "epoch", "attitude_mode"):
+        if key not in m:
+            raise ctx.error(f"missing key '{key}' in [mission]", f"mission.{key}", "mission")
+    name = _string(ctx, m["name"], "mission.name", "mission", 1, "name")
+    epoch_raw = m["epoch"]
+    if isinstance(epoch_raw, datetime):
+        try:
+            epoch = (epoch_raw.replace(tzinfo=timezone.utc) if epoch_raw.tzinfo is None
+                     else epoch_raw.astimezone(timezone.utc))
+        except OverflowError:
+            raise ctx.error("date-time out of range", "mission.epoch", "mission", 1,
+                            "epoch") from None
+    elif isinstance(epoch_raw, str):
+        try:
+            epoch = parse_utc(epoch_raw)
+        except ValueError as err:
+            raise ctx.error(str(err), "mission.epoch", "mission", 1, "epoch") from None
+    else:
+        raise ctx.error(f"must be an ISO-8601 UTC string, not {_show(epoch_raw)}",
+                        "mission.epoch", "mission", 1, "epoch")
+    mode = _string(ctx, m["attitude_mode"], "mission.attitude_mode", "mission", 1,
+                   "attitude_mode")
+    if mode not in ATTITUDE_MODES:
+        raise ctx.error(f"attitude_mode must be one of {', '.join(ATTITUDE_MODES)}, not "
+                        f"{mode!r}", "mission.attitude_mode", "mission", 1, "attitude_mode")
+    spin_guess = None
+    if "spin_axis_guess_deg" in m:
+        ra, dec = _numbers(ctx, m["spin_axis_guess_deg"], 2, "mission.spin_axis_guess_deg",
+                           "mission", 1, "spin_axis_guess_deg")
+        if not (0.0 <= ra <= 360.0 and -90.0 <= dec <= 90.0):
+            raise ctx.error(f"[RA, Dec] must have RA in [0, 360] and Dec in [-90, 90], not "
+                            f"[{ra:g}, {dec:g}]", "mission.spin_axis_guess_deg", "mission", 1,
+                            "spin_axis_guess_deg")
+        spin_guess = (ra, dec)
+    unknown += [f"mission.{k}" for k in m if k not in _MISSION_KEYS]
+
+    e = doc.get("ephemeris")
+    if not isinstance(e, dict) or "file" not in e:
+        raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3)",
+                        "ephemeris.file", "ephemeris")
+    ephemeris = _optional_file(ctx, root, doc, "ephemeris", unknown)
+    aux = _optional_file(ctx, root, doc, "aux", unknown)
+    onboard = _optional_file(ctx, root, doc, "onboard_attitude", unknown)
+
+    raw_sensors = doc.get("sensor")
+    if raw_sensors is None:
+        raise ctx.error("no [[sensor]] tables: the mission has no sensors to calibrate",
+                        "sensor", "sensor")
+    if not isinstance(raw_sensors, list):
+        raise ctx.error("sensors must be [[sensor]] tables (an array of tables)", "sensor",
+                        "sensor")
+    sensors: list[SensorSpec] = []
+    seen: dict[str, int] = {}
+    for index, raw in enumerate(raw_sensors, start=1):
+        s = _read_sensor(ctx, root, raw, index, mode)
+        if s.name in seen:
+            raise ctx.error(f"sensor name {s.name!r} is used twice (sensor[{seen[s.name]}] "
+                            f"and sensor[{index}]); names must be unique",
+                            f"sensor[{index}].name", "sensor", index, "name")
+        seen[s.name] = index
+        sensors.append(s)
+    _check_links(ctx, sensors)
+    for k in unknown:
+        log.warning("%s: unknown key '%s' kept but not used", path, k)
+    return MissionSpec(root=root, name=name, epoch=epoch, attitude_mode=mode,
+                       ephemeris_file=ephemeris, sensors=tuple(sensors),
+                       spin_axis_guess_deg=spin_guess, aux_file=aux, onboard_file=onboard,
+                       unknown_keys=tuple(unknown))

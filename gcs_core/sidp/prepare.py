@@ -1,0 +1,205 @@
+"""Data preparation (the seed's SIDP, §3.2.2): telemetry + ephemeris → model inputs.
+
+For each sensor this builds, once, everything its observation model needs except the
+attitude: reference vectors in GCI at the sensor's frame times (Sun, geomagnetic field,
+catalog stars), the spacecraft state, auxiliary channels held to each frame (ICD §6) and
+non-measurement telemetry (the horizon scanner's spin rate). The estimator then only
+adds the attitude at each iteration.
+
+The *physics options* choose which always-on corrections the reference vectors carry:
+
+* ``stellar_aberration`` — annual + orbital aberration of catalog star directions;
+* ``solar_aberration`` — the Sun seen from the moving spacecraft (orbital aberration;
+  the ephemeris Sun is already apparent-geocentric, ICD §4);
+* ``sun_parallax`` — the Sun from the spacecraft (``s − r``) rather than from the Earth;
+* ``field_model`` — ``"igrf"`` (degree 13) or ``"dipole"``.
+
+Each option is also a catalogue effect (``model.<option>``): the diagnosis compares the
+predictions with and without it (:func:`geometry_variants`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.ephem import corrections
+from gcs_core.ephem.ephemeris import Ephemeris
+from gcs_core.ephem.geomag import GeomagField
+from gcs_core.frames.reference import spin_axis
+from gcs_core.models import make_model
+from gcs_core.models.base import Geometry, ObservationModel
+from gcs_core.sidp.types import MissionSpec, Table
+from gcs_core.units import DEG
+
+
+@dataclass(frozen=True)
+class PhysicsOptions:
+    """Always-on physics applied to reference vectors (module docstring)."""
+
+    stellar_aberration: bool = True
+    solar_aberration: bool = True
+    sun_parallax: bool = True
+    field_model: str = "igrf"
+
+    def as_dict(self) -> dict:
+        return {"stellar_aberration": self.stellar_aberration, "solar_aberration": self.solar_aberration,
+                "sun_parallax": self.sun_parallax, "field_model": self.field_model}
+
+
+#: physics effects of the catalogue: option name -> (value when on, value when off)
+PHYSICS_EFFECTS = {
+    "stellar_aberration": (True, False),
+    "solar_aberration": (True, False),
+    "sun_parallax": (True, False),
+    "field_model": ("igrf", "dipole"),
+}
+
+
+@dataclass(frozen=True)
+class SensorData:
+    """One sensor's measurements and attitude-free geometry.
+
+    Attributes
+    ----------
+    name : sensor name.
+    model : its observation model.
+    t : (N,) frame times [s].
+    y : (N, m) measurements, telemetry units.
+    sigma : (m,) 1-sigma noise per component.
+    geom : model inputs without the attitude (``C_BI`` / ``spin_axis_I`` unset).
+    lines : (N,) line numbers in the telemetry file (for the editing report).
+    """
+
+    name: str
+    model: ObservationModel
+    t: np.ndarray
+    y: np.ndarray
+    sigma: np.ndarray
+    geom: Geometry
+    lines: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.t.shape[0])
+
+
+def hold_channels(aux: Table | None, t: np.ndarray) -> dict[str, np.ndarray]:
+    """ICD §6: each auxiliary channel holds its value until its next row.
+
+    Frames before the first aux row take the first row's value.
+    """
+    if aux is None or len(aux) == 0:
+        return {}
+    k = np.clip(np.searchsorted(aux.t, t, side="right") - 1, 0, len(aux) - 1)
+    return {name: np.asarray(col)[k] for name, col in aux.columns.items() if name != "t"}
+
+
+def aux_channel_names(aux: Table | None) -> tuple[str, ...]:
+    return tuple(n for n in aux.columns if n != "t") if aux is not None else ()
+
+
+class GeometryBuilder:
+    """Computes reference vectors for any times, with the mission's physics options."""
+
+    def __init__(self, spec: MissionSpec, ephemeris: Ephemeris, physics: PhysicsOptions,
+                 aux: Table | None = None):
+        self.spec = spec
+        self.ephemeris = ephemeris
+        self.physics = physics
+        self.aux = aux
+        self._fields: dict[str, GeomagField] = {}
+
+    def field(self, model: str | None = None) -> GeomagField:
+        model = model or self.physics.field_model
+        if model not in self._fields:
+            self._fields[model] = GeomagField(self.spec.epoch, model=model)
+        return self._fields[model]
+
+    def sun(self, t, r, v, physics: PhysicsOptions | None = None) -> np.ndarray:
+        ph = physics or self.physics
+        s = self.ephemeris.sun_geocentric(t)
+        u = corrections.sun_from_spacecraft(s, r) if ph.sun_parallax else s / np.linalg.norm(s, axis=-1, keepdims=True)
+        return corrections.aberrate(u, v) if ph.solar_aberration else u
+
+    def stars(self, t, v, ra_deg, dec_deg, physics: PhysicsOptions | None = None) -> np.ndarray:
+        ph = physics or self.physics
+        u = spin_axis(np.asarray(ra_deg) * DEG, np.asarray(dec_deg) * DEG)
+        if not ph.stellar_aberration:
+            return u
+        return corrections.apparent_star_direction(u, self.ephemeris.earth_velocity_km_s(t), v)
+
+    def ephemeris_callable(self, physics: PhysicsOptions | None = None):
+        def at(t):
+            t = np.atleast_1d(np.asarray(t, dtype=float))
+            r, v = self.ephemeris.state(t)
+            return r, v, self.sun(t, r, v, physics)
+        return at
+
+    def geometry(self, sensor_type: str, t: np.ndarray, table: Table | None = None,
+                 physics: PhysicsOptions | None = None) -> Geometry:
+        """Attitude-free :class:`Geometry` for a sensor type at times ``t``."""
+        ph = physics or self.physics
+        t = np.asarray(t, dtype=float)
+        r, v = self.ephemeris.state(t, what=f"{sensor_type} frames")
+        kw: dict = {"t": t, "r_I": r, "v_I": v, "aux": hold_channels(self.aux, t)}
+        extra: dict = {}
+        if sensor_type in ("fine_sun", "coarse_sun", "plane_field_sun", "horizon"):
+            kw["sun_I"] = self.sun(t, r, v, ph)
+        if sensor_type == "magnetometer":
+            fld = self.field(ph.field_model)
+            kw["B_I"] = fld.field_I(t, r)
+            h = 1.0
+            extra["B_I_dot"] = (fld.field_I(t + h, r + v * h) - fld.field_I(t - h, r - v * h)) / (2 * h)
+            kw["field_model"] = fld.field_I
+        if sensor_type == "star_tracker" and table is not None:
+            kw["star_I"] = self.stars(t, v, table.columns["ra"], table.columns["dec"], ph)
+        if sensor_type == "horizon":
+            kw["ephemeris"] = self.ephemeris_callable(ph)
+            if table is not None:
+                extra["spin_rate"] = np.asarray(table.columns["spin_rate"], dtype=float)
+        kw["extra"] = extra
+        return Geometry(**kw)
+
+
+def prepare_sensors(spec: MissionSpec, telemetry: Mapping[str, Table], builder: GeometryBuilder,
+                    *, include_gyro: bool = False) -> list[SensorData]:
+    """One :class:`SensorData` per sensor in mission order (gyros only if asked)."""
+    channels = aux_channel_names(builder.aux)
+    out = []
+    for s in spec.sensors:
+        if s.type == "gyro" and not include_gyro:
+            continue
+        table = telemetry[s.name]
+        model = make_model(s, aux_channels=channels if s.type == "magnetometer" else ())
+        t, y = model.measurements(table)
+        geom = builder.geometry(s.type, t, table)
+        out.append(SensorData(s.name, model, np.asarray(t, float), np.asarray(y, float),
+                              np.asarray(model.sigma(), float), geom, np.asarray(table.lines)))
+    return out
+
+
+def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) -> dict[str, Geometry]:
+    """For each physics effect relevant to the sensor: its geometry with the option flipped.
+
+    Returns ``{"model.<option>": geometry}``; the diagnosis evaluates the model on both
+    geometries and takes the difference as the effect's signature (exactly linear for
+    these small corrections).
+    """
+    relevant = {
+        "star_tracker": ("stellar_aberration",),
+        "fine_sun": ("solar_aberration", "sun_parallax"),
+        "coarse_sun": ("solar_aberration", "sun_parallax"),
+        "plane_field_sun": ("solar_aberration", "sun_parallax"),
+        "magnetometer": ("field_model",),
+    }.get(sd.model.type_name, ())
+    out = {}
+    for opt in relevant:
+        on, off = PHYSICS_EFFECTS[opt]
+        current = getattr(builder.physics, opt)
+        flipped = off if current == on else on
+        ph = replace(builder.physics, **{opt: flipped})
+        out[f"model.{opt}"] = builder.geometry(sd.model.type_name, sd.t, table, ph)
+    return out

@@ -1,0 +1,187 @@
+"""Independent forward models of the seven ICD §5 sensor types, with TRUE parameters.
+
+This module holds the magnetometer and the two digital Sun sensors and the factory
+:func:`make_sensor_sim` for all seven; the star tracker lives in :mod:`.stars`, the gyro
+in :mod:`.truth`, the plane-field Sun sensor and horizon scanner in :mod:`.spinner`.
+Every simulator has ``columns``, ``formats`` (printf formats of the CSV columns) and
+``run(t_rows) -> {column: (N,) array}``; rows the sensor cannot produce (eclipse, Sun
+outside the field of view, occultation) are simply absent.
+
+A measurement stamped ``t`` is made at ``t' = t + time_offset_s`` (the hidden time-tag
+offset; zero in the data book).
+
+Noise (ICD ``noise``: 1-sigma per component, quantization included): for integer-count
+sensors the Gaussian part is ``σ_g = sqrt(noise² − 1/12)`` before rounding to an integer,
+so that Gaussian plus rounding has the data-book total; other sensors add ``N(0, noise²)``.
+
+Magnetometer (Eq 4-27), with the hidden response matrix ``K`` (scale and
+non-orthogonality, ``I`` in the book) and contamination by auxiliary channels::
+
+    B_S = K M C_BI(t') B_I(t') + b + Σ_ch k_ch a_ch(t') + n,   B_I from IGRF (field.py)
+
+Sun direction from the spacecraft: ``Ŝ = unit(s − r)`` (parallax is real physics and the
+ICD's ``Ŝ`` is "from the spacecraft"); with the hidden ``solar_aberration`` effect the
+first-order aberration by the spacecraft's geocentric velocity is added,
+``Ŝ' = unit(Ŝ + v/c − (Ŝ·v/c) Ŝ)`` (the ephemeris Sun is already apparent for a geocentric
+observer). No Sun data in the Earth's shadow (penumbra included, astro.py).
+
+Fine Sun sensor (Eq 4-22 to 4-25), ``S_S = M C_BI Ŝ``, per axis (α shown)::
+
+    tan α = S_Sy / S_Sx,   n_α = round((tan α − A1 − A3 sin(k tan α)) / A2 + N(0, σ_g²))
+
+valid when ``S_Sx > 0`` and ``|α|, |β| ≤ fov_deg``.
+
+Coarse Sun sensor (Eq 4-16, 4-17)::
+
+    α = atan2(S_Sy, S_Sx),   n_α = round((α + b_α) / K_α + N(0, σ_g²))
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gcs_core.sim import astro
+from gcs_core.sim._rot import rpy_to_dcm, unit
+from gcs_core.sim.config import SensorConfig
+from gcs_core.sim.field import igrf_gci
+
+__all__ = ["MagnetometerSim", "FineSunSim", "CoarseSunSim", "make_sensor_sim", "sun_unit_from_sc"]
+
+
+def _alignment(sensor: SensorConfig) -> np.ndarray:
+    a = np.radians(np.asarray(sensor.value("alignment_deg", (0.0, 0.0, 0.0)), dtype=float))
+    return rpy_to_dcm(a[0], a[1], a[2])
+
+
+def count_sigma(noise: float) -> float:
+    """Gaussian part of a total ``noise`` [counts] that also contains integer rounding."""
+    return float(np.sqrt(max(noise ** 2 - 1.0 / 12.0, 0.0)))
+
+
+def sun_unit_from_sc(r_I, v_I, s_I, *, aberration: bool) -> np.ndarray:
+    """Unit Sun vector from the spacecraft, (N, 3); see the module docstring."""
+    S = unit(np.asarray(s_I) - np.asarray(r_I))
+    if aberration:
+        beta = np.asarray(v_I) / astro.C_KM_S
+        d = np.einsum("ij,ij->i", S, beta)[:, None]
+        S = unit(S + beta - d * S)
+    return S
+
+
+class MagnetometerSim:
+    """TAM rows ``t, bx, by, bz`` [nT]."""
+
+    columns = ("t", "bx", "by", "bz")
+    formats = ("%.3f",) * 4
+
+    def __init__(self, sensor: SensorConfig, world, rng: np.random.Generator, aux=None):
+        self.s, self.world, self.rng, self.aux = sensor, world, rng, aux
+        self.M = _alignment(sensor)
+        self.K = np.asarray(sensor.value("response", np.eye(3)), dtype=float)
+        self.bias = np.asarray(sensor.value("bias", (0.0, 0.0, 0.0)), dtype=float)
+        self.noise = float(sensor.value("noise"))
+        self.tau = float(sensor.value("time_offset_s", 0.0))
+        self.contamination = {ch: np.asarray(k, dtype=float)
+                              for ch, k in dict(sensor.value("contamination", {}) or {}).items()}
+        self.quantum = float(sensor.value("quantum", 0.0) or 0.0)
+
+    def run(self, t_rows: np.ndarray) -> dict[str, np.ndarray]:
+        w = self.world
+        tt = t_rows + self.tau
+        r, v = w.orbit(tt)
+        B_I = igrf_gci(w.epoch, w.jd0, tt, r)
+        C = w.attitude(tt, r, v)
+        B_S = np.einsum("ij,njk,nk->ni", self.K @ self.M, C, B_I) + self.bias
+        for ch, k in self.contamination.items():
+            B_S = B_S + self.aux.value(ch, tt)[:, None] * k[None, :]
+        B_S = B_S + self.rng.standard_normal(B_S.shape) * self.noise
+        if self.quantum > 0:
+            B_S = np.round(B_S / self.quantum) * self.quantum
+        return {"t": t_rows, "bx": B_S[:, 0], "by": B_S[:, 1], "bz": B_S[:, 2]}
+
+
+class _SunSim:
+    columns = ("t", "n_alpha", "n_beta")
+    formats = ("%.12g", "%d", "%d")
+
+    def __init__(self, sensor: SensorConfig, world, rng: np.random.Generator):
+        self.s, self.world, self.rng = sensor, world, rng
+        self.M = _alignment(sensor)
+        self.fov = np.radians(float(sensor.value("fov_deg")))
+        self.sig_g = count_sigma(float(sensor.value("noise")))
+        self.tau = float(sensor.value("time_offset_s", 0.0))
+        self.aberration = bool(sensor.value("solar_aberration", False))
+        self.n_eclipsed = 0
+
+    def sun_sensor_frame(self, t_rows):
+        w = self.world
+        tt = t_rows + self.tau
+        r, v = w.orbit(tt)
+        s = w.sun(tt)
+        S_I = sun_unit_from_sc(r, v, s, aberration=self.aberration)
+        S_S = np.einsum("ij,njk,nk->ni", self.M, w.attitude(tt, r, v, s), S_I)
+        lit = ~astro.sun_eclipsed(r, s)
+        self.n_eclipsed += int(np.sum(~lit))
+        return S_S, lit
+
+    def _finish(self, t_rows, keep, x_a, x_b):
+        na = np.round(x_a + self.rng.standard_normal(x_a.shape) * self.sig_g)
+        nb = np.round(x_b + self.rng.standard_normal(x_b.shape) * self.sig_g)
+        return {"t": t_rows[keep], "n_alpha": na[keep], "n_beta": nb[keep]}
+
+
+class FineSunSim(_SunSim):
+    """FSS rows ``t, n_alpha, n_beta`` [counts] (Eq 4-23 inverted)."""
+
+    def run(self, t_rows: np.ndarray) -> dict[str, np.ndarray]:
+        S_S, lit = self.sun_sensor_frame(t_rows)
+        ta = S_S[:, 1] / S_S[:, 0]
+        tb = S_S[:, 2] / S_S[:, 0]
+        keep = lit & (S_S[:, 0] > 0) & (np.abs(np.arctan(ta)) <= self.fov) & (np.abs(np.arctan(tb)) <= self.fov)
+        A1, A2, A3, ka = (float(x) for x in self.s.value("coeff_alpha"))
+        B1, B2, B3, kb = (float(x) for x in self.s.value("coeff_beta"))
+        xa = (ta - A1 - A3 * np.sin(ka * ta)) / A2
+        xb = (tb - B1 - B3 * np.sin(kb * tb)) / B2
+        return self._finish(t_rows, keep, xa, xb)
+
+
+class CoarseSunSim(_SunSim):
+    """CSS rows ``t, n_alpha, n_beta`` [counts] (Eq 4-16, 4-17)."""
+
+    def run(self, t_rows: np.ndarray) -> dict[str, np.ndarray]:
+        S_S, lit = self.sun_sensor_frame(t_rows)
+        a = np.arctan2(S_S[:, 1], S_S[:, 0])
+        b = np.arctan2(S_S[:, 2], S_S[:, 0])
+        keep = lit & (S_S[:, 0] > 0) & (np.abs(a) <= self.fov) & (np.abs(b) <= self.fov)
+        K = np.asarray(self.s.value("scale"), dtype=float)
+        bias = np.asarray(self.s.value("bias", (0.0, 0.0)), dtype=float)
+        return self._finish(t_rows, keep, (a + bias[0]) / K[0], (b + bias[1]) / K[1])
+
+
+def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, catalog=None, aux=None,
+                    stellar_aberration: bool = False, sightings=None):
+    """The simulator object of one sensor (any of the seven ICD §5 types).
+
+    ``catalog`` (star trackers), ``aux`` (magnetometer contamination) and ``sightings``
+    (:class:`~gcs_core.sim.spinner.SunSightings`, spinner sensors) are shared objects.
+    """
+    from gcs_core.sim.spinner import HorizonSim, PlaneFieldSim
+    from gcs_core.sim.stars import StarTrackerSim
+    from gcs_core.sim.truth import GyroSim
+
+    kind = sensor.type
+    if kind == "magnetometer":
+        return MagnetometerSim(sensor, world, rng, aux)
+    if kind == "gyro":
+        return GyroSim(sensor, world, rng)
+    if kind == "star_tracker":
+        return StarTrackerSim(sensor, world, catalog, rng, stellar_aberration=stellar_aberration)
+    if kind == "fine_sun":
+        return FineSunSim(sensor, world, rng)
+    if kind == "coarse_sun":
+        return CoarseSunSim(sensor, world, rng)
+    if kind == "plane_field_sun":
+        return PlaneFieldSim(sensor, world, rng, sightings)
+    if kind == "horizon":
+        return HorizonSim(sensor, world, rng, sightings)
+    raise ValueError(f"unknown sensor type '{kind}' for {sensor.name}")
