@@ -28,4 +28,10 @@ UNIT_SCALE = {
     "rad": 1.0, "deg": 1.0 / DEG, "arcsec": 1.0 / ARCSEC,
     "rad/s": 1.0, "deg/h": 3600.0 / DEG, "arcsec/s": 1.0 / ARCSEC,
     "nT": 1.0, "1": 1.0, "s": 1.0, "km": 1.0, "counts": 1.0,
+    "1/count": 1.0, "rad/count": 1.0, "nT/aux": 1.0,
 }
+
+
+def display_scale(unit: str) -> float:
+    """Factor from an internal unit to its display unit (1 for units shown as they are)."""
+    return UNIT_SCALE.get(unit, 1.0)

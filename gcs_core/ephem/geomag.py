@@ -118,10 +118,10 @@ def spherical_harmonic_field(r_km, theta, phi, g, h, *, max_degree: int,
     st = np.where(np.abs(st) < _POLE_SIN, _POLE_SIN, st)
     sv = dt_yr is not None
     N = int(max_degree)
-    # cos(mφ), sin(mφ) for m = 0..N
+    # cos(mφ), sin(mφ) for m = 0..N, one contiguous row per order
     m_idx = np.arange(N + 1)
-    cm = np.cos(np.outer(phi, m_idx))
-    sm = np.sin(np.outer(phi, m_idx))
+    cm = np.cos(np.outer(m_idx, phi))
+    sm = np.sin(np.outer(m_idx, phi))
     ratio = a_km / r
     Br = np.zeros_like(r)
     Bt = np.zeros_like(r)
@@ -159,11 +159,11 @@ def spherical_harmonic_field(r_km, theta, phi, g, h, *, max_degree: int,
                 if sv:
                     gnm = gnm + gdot[n, m] * dt_yr
                     hnm = hnm + hdot[n, m] * dt_yr
-                c = gnm * cm[:, m] + hnm * sm[:, m]
+                c = gnm * cm[m] + hnm * sm[m]
                 sr += c * P[m]
                 stt += c * dP[m]
                 if m > 0:
-                    sp += m * (hnm * cm[:, m] - gnm * sm[:, m]) * P[m]
+                    sp += m * (hnm * cm[m] - gnm * sm[m]) * P[m]
             Br += (n + 1) * rn * sr
             Bt -= rn * stt
             Bp -= rn * sp

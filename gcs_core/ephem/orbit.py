@@ -126,8 +126,9 @@ class KeplerOrbit:
         cO, sO = np.cos(raan), np.sin(raan)
         cw, sw = np.cos(argp), np.sin(argp)
         ci, si = np.cos(self.i), np.sin(self.i)
-        P = np.stack([cO * cw - sO * sw * ci, sO * cw + cO * sw * ci, np.broadcast_to(sw * si, cw.shape)], -1)
-        Q = np.stack([-cO * sw - sO * cw * ci, -sO * sw + cO * cw * ci, np.broadcast_to(cw * si, cw.shape)], -1)
+        # P: unit vector to perigee, Q: 90 deg ahead in the orbit plane (both in GCI)
+        P = np.stack([cO * cw - sO * sw * ci, sO * cw + cO * sw * ci, sw * si], -1)
+        Q = np.stack([-cO * sw - sO * cw * ci, -sO * sw + cO * cw * ci, cw * si], -1)
         r = x_p[:, None] * P + y_p[:, None] * Q
         v2 = vx_p[:, None] * P + vy_p[:, None] * Q
         # exact derivative with the secular drift: v = v2 Mdot/n + Ωdot z x r + ωdot h x r

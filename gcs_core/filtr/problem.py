@@ -200,8 +200,13 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
                 role = HELD
             el = _element_from_spec(s.name, p, role)
             pmap[p.name] = el.name
-            if el.name not in {e.name for e in elements}:
+            names_now = [e.name for e in elements]
+            if el.name not in names_now:
                 elements.append(el)
+            elif el.name.split(".", 1)[0] == s.name:
+                # a shared element (e.g. the Sun-sensor tilt ε_S used by the horizon
+                # model) takes its data-book value from the sensor that owns it
+                elements[names_now.index(el.name)] = el
         param_map[s.name] = pmap
     state = StateVector(tuple(elements))
     state = apply_state_options(state, options)
@@ -297,7 +302,7 @@ def linearize(problem: Problem, values: Mapping[str, float], columns: Sequence[s
             continue
         geom, att = sensor_geometry(problem, sd, values, None if geoms is None else geoms.get(sd.name))
         pred = sd.model.predict(geom, problem.params_of(sd.name, values))
-        r = sd.model.residual(sd.y, pred.y)
+        r = sd.model.residual(sd.y, pred.y, geom=geom)
         H = np.zeros(r.shape + (len(columns),))
         att_cols = [(j_att, col_index[n]) for j_att, n in enumerate(att.names) if n in col_index]
         if att_cols:

@@ -67,14 +67,15 @@ def euler123_to_dcm(roll, pitch, yaw):
 def dcm_to_euler123(B):
     """Eq 4-5: roll, pitch, yaw from ``[B] = T3(ψ) T2(θ) T1(φ)``.
 
-    ``φ = atan2(−B32, B33)``, ``θ = asin(B31)``, ``ψ = atan2(−B21, B11)``. Roll and yaw
+    ``φ = atan2(−B32, B33)``, ``θ = asin(B31)`` (computed as ``atan2(B31, hypot(B11, B21))``), ``ψ = atan2(−B21, B11)``. Roll and yaw
     come back in ``(−π, π]`` (the seed's ``[0, 2π)`` is the same angle), pitch in
     ``[−π/2, π/2]``. At gimbal lock (``|θ| = π/2``) roll is set to zero and yaw
     carries the whole rotation about the common axis: ``ψ = atan2(B12, B22)``.
     """
     B = np.asarray(B, dtype=float)
-    pitch = np.arcsin(np.clip(B[..., 2, 0], -1.0, 1.0))
     cos_t = np.hypot(B[..., 0, 0], B[..., 1, 0])
+    # atan2 rather than Eq 4-5's asin(B31): asin loses ~1e-8 rad within 1e-8 of ±90°
+    pitch = np.arctan2(B[..., 2, 0], cos_t)
     singular = cos_t < 1e-12
     roll = np.where(singular, 0.0, np.arctan2(-B[..., 2, 1], B[..., 2, 2]))
     yaw = np.where(singular, np.arctan2(B[..., 0, 1], B[..., 1, 1]),

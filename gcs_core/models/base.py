@@ -150,7 +150,8 @@ class ObservationModel:
     components: ClassVar[tuple[str, ...]] = ()
     #: unit of the measurements, for display.
     unit: ClassVar[str] = ""
-    #: "three_axis" or "spinning": which attitude the partials ``d_att`` refer to.
+    #: "three_axis", "spinning" or "rate" (the gyro: ``d_att`` is ∂y/∂ω): what the
+    #: partials ``d_att`` refer to.
     attitude_kind: ClassVar[str] = "three_axis"
     #: data-book keys this type knows (besides name/type/telemetry/alignment_deg/noise).
     book_keys: ClassVar[tuple[str, ...]] = ()
@@ -183,8 +184,9 @@ class ObservationModel:
         """Predicted measurements and all partials at the frames of ``geom``."""
         raise NotImplementedError
 
-    def residual(self, y_meas: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
-        """Measured minus predicted; models with wrapping observables override it."""
+    def residual(self, y_meas: np.ndarray, y_pred: np.ndarray, geom: Geometry | None = None) -> np.ndarray:
+        """Measured minus predicted; models with wrapping observables override it (the
+        horizon scanner wraps modulo the spin period, which it reads from ``geom``)."""
         return np.asarray(y_meas) - np.asarray(y_pred)
 
     def describe(self) -> dict[str, Any]:

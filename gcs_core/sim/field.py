@@ -28,8 +28,10 @@ from gcs_core.sim.astro import gmst_rad
 
 __all__ = ["igrf_gci"]
 
+_BATCH = 4096
 
-def igrf_gci(epoch, jd0: float, t, r_I_km) -> np.ndarray:
+
+def igrf_gci(epoch, jd0: float, t, r_I_km, *, max_degree: int = 13) -> np.ndarray:
     """IGRF field [nT] in GCI at mission times ``t`` (N,) and positions ``r_I_km`` (N, 3)."""
     import ppigrf  # local import: ppigrf pulls in pandas, slow to import
 
@@ -47,8 +49,11 @@ def igrf_gci(epoch, jd0: float, t, r_I_km) -> np.ndarray:
     th = np.arccos(np.clip(zE / rn, -1.0, 1.0))
     ph = np.arctan2(yE, xE)
     date = (epoch + timedelta(seconds=float(0.5 * (t.min() + t.max())))).replace(tzinfo=None)
-    Br, Bt, Bp = ppigrf.igrf_gc(rn, np.degrees(th), np.degrees(ph), date)
-    Br, Bt, Bp = Br[0], Bt[0], Bp[0]
+    Br, Bt, Bp = (np.empty_like(rn) for _ in range(3))
+    for lo in range(0, rn.size, _BATCH):              # ppigrf holds (N, 195) arrays: keep N small
+        sl = slice(lo, lo + _BATCH)
+        out = ppigrf.igrf_gc(rn[sl], np.degrees(th[sl]), np.degrees(ph[sl]), date, max_degree=max_degree)
+        Br[sl], Bt[sl], Bp[sl] = out[0][0], out[1][0], out[2][0]
     st, ct, sp, cp = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)
     bx = Br * st * cp + Bt * ct * cp - Bp * sp
     by = Br * st * sp + Bt * ct * sp + Bp * cp

@@ -1,0 +1,130 @@
+"""The catalogue of candidate effects: what an experienced analyst suspects.
+
+An effect is a group of model parameters that enter and leave the state together
+(``<SENSOR>.<effect>``, ICD §7), or an always-on physics correction
+(``model.<effect>``). Sensor effects are parameters that each observation model
+already declares with analytic partials (:class:`~gcs_core.models.base.ParamSpec`,
+``effect`` field), so adding an entry to the catalogue is adding a parameter to one
+model module plus, if wanted, an explanation below. Physics effects flip an option of
+:class:`~gcs_core.sidp.prepare.PhysicsOptions`; their signature is the difference of
+the predictions with and without the option.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: effect name -> (family, physical explanation). The explanation says what the
+#: signature looks like and what physical cause it points to.
+EXPLANATIONS: dict[str, tuple[str, str]] = {
+    "bias": ("bias", "A constant offset of the measurement: electronics offset, or (magnetometer) the "
+             "spacecraft's own permanent field. Its signature is a residual that does not average "
+             "to zero, whatever the geometry."),
+    "alignment": ("alignment", "The sensor is mounted rotated from its data-book alignment. The "
+                  "residual follows the reference vector as it moves in the sensor frame, as a "
+                  "small rotation would; about an optical boresight it shows as a residual growing "
+                  "with distance from the centre of the field of view."),
+    "scale": ("scale", "Scale-factor error: the reading is proportional to the true value with a gain "
+              "other than the data book's. The residual grows with the size of the measured "
+              "component and changes sign with it."),
+    "nonorthogonality": ("scale", "The sensor axes are not mutually orthogonal (the symmetric part of "
+                         "the full 3×3 correction). One axis picks up a fraction of another's field."),
+    "time_offset": ("timing", "The sensor's clock and the attitude's differ by a constant: the residual "
+                    "is proportional to how fast the measured vector moves in the sensor frame "
+                    "(body rate and orbital motion)."),
+    "harmonic": ("transfer function", "A second harmonic in the fine Sun sensor's transfer function "
+                 "(reticle pattern): the residual oscillates with the Sun angle across the field of "
+                 "view at twice the fundamental frequency."),
+    "scale_misalignment": ("gyro", "The gyro scale factors and axis misalignments (the 3×3 matrix G of "
+                           "Eq 4-32): attitude errors that build up during slews in proportion to "
+                           "the angle turned."),
+    "horizon_height": ("horizon", "The height of the CO2 horizon differs from the data book; the "
+                       "Earth looks larger or smaller, changing the Earth width most."),
+    "oblateness": ("horizon", "The Earth is oblate: its angular radius depends on the latitude of the "
+                   "horizon crossing, a residual that follows the orbit's latitude."),
+    "d_gamma": ("horizon", "Scanner mounting-angle bias Δγ (Eq 4-12)."),
+    "d_rho": ("horizon", "Bias on the Earth's angular radius Δρ (Eq 4-12)."),
+    "d_phi": ("horizon", "Azimuth bias ΔΦ between Sun sensor and horizon scanner (Eq 4-12)."),
+    "eps_H": ("horizon", "Earth-sensor plane tilt ε_H (Eq 4-12e)."),
+    "d_t": ("horizon", "In-track orbit time error Δt (Eq 4-13)."),
+    "tilt": ("sun sensor", "Plane-field Sun-sensor tilt ε_S (Eq 4-14)."),
+    "stellar_aberration": ("physics", "Stellar aberration: the spacecraft's velocity (the Earth's "
+                           "≈30 km/s about the Sun plus the orbital ≈7.5 km/s) displaces every star by "
+                           "up to ≈25 arcsec toward the apex of motion. Star-tracker residuals then "
+                           "follow the velocity direction in the tracker frame."),
+    "solar_aberration": ("physics", "Aberration of the Sun seen from the moving spacecraft: up to "
+                         "≈5 arcsec along the orbital velocity, once per orbit."),
+    "sun_parallax": ("physics", "Solar parallax: the Sun seen from the spacecraft rather than the "
+                     "Earth's centre, up to ≈9 arcsec, once per orbit."),
+    "field_model": ("physics", "Geomagnetic model truncation: a dipole leaves out the higher degrees "
+                    "of IGRF, hundreds of nT in LEO, following the ground track."),
+}
+
+
+def explanation(effect: str) -> tuple[str, str]:
+    """(family, explanation) of an effect name; contamination channels share one text."""
+    if effect.startswith("contamination_"):
+        ch = effect[len("contamination_"):]
+        return ("contamination", f"Magnetic contamination correlated with the auxiliary channel "
+                f"'{ch}': a spacecraft field (torquer coil, current loop, temperature-dependent "
+                f"magnetization) proportional to it adds to the measurement. The residual tracks "
+                f"'{ch}' in time.")
+    return EXPLANATIONS.get(effect, ("other", "An extended model parameter."))
+
+
+@dataclass(frozen=True)
+class Effect:
+    """One catalogue entry for a mission.
+
+    Attributes
+    ----------
+    id : ``<SENSOR>.<effect>`` or ``model.<effect>``.
+    sensor : owning sensor, or None for physics effects.
+    effect : effect name.
+    elements : state elements (sensor effects); empty for physics effects.
+    family, explanation : from :data:`EXPLANATIONS`.
+    """
+
+    id: str
+    sensor: str | None
+    effect: str
+    elements: tuple[str, ...]
+    family: str
+    explanation: str
+
+    @property
+    def physics(self) -> bool:
+        return self.sensor is None
+
+
+def generic_catalogue() -> list[tuple[str, str, str]]:
+    """(effect, family, explanation) for ``gcs effects`` without a mission."""
+    rows = [(name, *explanation(name)) for name in EXPLANATIONS]
+    rows.append(("contamination_<channel>", *explanation("contamination_<channel>")))
+    return rows
+
+
+def mission_catalogue(problem, physics) -> list[Effect]:
+    """Every effect of this mission's models and physics, in the state or not."""
+    from gcs_core.sidp.prepare import PHYSICS_EFFECTS
+
+    seen: dict[str, Effect] = {}
+    for e in problem.state:
+        if e.kind != "sensor" or not e.effect:
+            continue
+        eid = f"{e.sensor}.{e.effect}"
+        if eid not in seen:
+            fam, text = explanation(e.effect)
+            seen[eid] = Effect(eid, e.sensor, e.effect, (), fam, text)
+        seen[eid] = Effect(eid, e.sensor, e.effect, seen[eid].elements + (e.name,),
+                           seen[eid].family, seen[eid].explanation)
+    types = {sd.model.type_name for sd in problem.sensors}
+    relevant = {"stellar_aberration": "star_tracker" in types,
+                "solar_aberration": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
+                "sun_parallax": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
+                "field_model": "magnetometer" in types}
+    for opt in PHYSICS_EFFECTS:
+        if relevant.get(opt):
+            fam, text = explanation(opt)
+            seen[f"model.{opt}"] = Effect(f"model.{opt}", None, opt, (), fam, text)
+    return list(seen.values())

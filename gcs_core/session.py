@@ -1,0 +1,308 @@
+"""One analysis session: mission + config → fit → diagnose → add → refit.
+
+The TUI and the headless commands both drive an :class:`Analysis`; that is why a
+config saved from the TUI and run with ``gcs batch`` gives the same numbers. Nothing
+here knows about screens or terminals.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Callable, Mapping
+
+import numpy as np
+
+from gcs_core.config import AnalysisConfig, ElementConfig
+from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
+from gcs_core.diagnosis.ranking import Candidate, rank_candidates
+from gcs_core.errors import ConfigError, EstimationError
+from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit
+from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
+from gcs_core.models.base import HELD, SOLVE_FOR
+from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
+from gcs_core.units import DEG
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class Step:
+    """One entry of the add/refit history.
+
+    Attributes
+    ----------
+    action : "fit", "add" or "remove"; effect : the effect id (None for the first fit).
+    rms_before, rms_after : sensor -> normalized RMS on the fitted span.
+    holdout_after : sensor -> normalized RMS on the held-out span (empty if none).
+    delta_chi2 : χ² removed by the change (fit χ² before − after).
+    estimates : element -> value after the step, for the elements of ``effect``.
+    """
+
+    action: str
+    effect: str | None
+    rms_before: Mapping[str, float]
+    rms_after: Mapping[str, float]
+    holdout_after: Mapping[str, float]
+    delta_chi2: float
+    chi2_after: float
+    estimates: Mapping[str, float] = field(default_factory=dict)
+
+    def as_report(self) -> dict:
+        return {"action": self.action, "added" if self.action != "remove" else "removed": self.effect,
+                "rms_normalized_before": _round(self.rms_before),
+                "rms_normalized_after": _round(self.rms_after),
+                "holdout_rms_normalized_after": _round(self.holdout_after),
+                "delta_chi2": round(self.delta_chi2, 3), "estimates": dict(self.estimates)}
+
+
+def _round(d: Mapping[str, float]) -> dict:
+    return {k: (round(v, 4) if math.isfinite(v) else None) for k, v in d.items()}
+
+
+class Analysis:
+    """A mission under analysis, as configured.
+
+    Attributes
+    ----------
+    config : the analysis config (updated as effects are added or removed).
+    mission : the imported mission.
+    problem : the current state definition and prepared sensors.
+    result : the latest fit (None before the first).
+    candidates : the latest ranking.
+    steps : the add/refit history.
+    """
+
+    def __init__(self, config: AnalysisConfig, *, mission=None):
+        from gcs_core.sidp.importer import load_mission
+
+        self.config = config
+        self.mission = mission if mission is not None else load_mission(config.mission)
+        self.result: BatchResult | None = None
+        self.candidates: list[Candidate] = []
+        self.steps: list[Step] = []
+        self.holdout_rms: dict[str, float] = {}
+        self._rebuild()
+
+    # ------------------------------------------------------------------ set-up
+    @property
+    def physics(self) -> PhysicsOptions:
+        return PhysicsOptions(**self.config.physics)
+
+    def _state_options(self) -> StateOptions:
+        ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in self.config.elements.items()}
+        return StateOptions(effects=self.config.effects, exclude=self.config.exclude, overrides=ov,
+                            attitude_sigma=self.config.attitude_sigma_deg * DEG)
+
+    def _rebuild(self) -> None:
+        spec = self.mission.spec
+        off = {name for name, m in self.config.models.items() if m == "off"}
+        for name in self.config.models:
+            if name not in {s.name for s in spec.sensors}:
+                raise ConfigError(f"no sensor named '{name}' in the mission", key=f"models.{name}")
+        mission = self.mission
+        if off:
+            mission = _without_sensors(mission, off)
+        gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
+        self.problem: Problem = build_problem(mission, physics=self.physics, options=self._state_options(),
+                                              use_gyro=not gyro_off)
+
+    def catalogue(self) -> list[Effect]:
+        return mission_catalogue(self.problem, self.physics)
+
+    def effects_in_state(self) -> list[str]:
+        out = []
+        for e in self.catalogue():
+            if e.physics:
+                on, _ = PHYSICS_EFFECTS[e.effect]
+                if self.config.physics.get(e.effect) == on:
+                    out.append(e.id)
+            elif all(self.problem.state[n].role == SOLVE_FOR for n in e.elements):
+                out.append(e.id)
+        return out
+
+    def candidate_effects(self) -> list[Effect]:
+        """Effects not in the state: sensor effects wholly held, physics options off."""
+        out = []
+        for e in self.catalogue():
+            if e.physics:
+                on, _ = PHYSICS_EFFECTS[e.effect]
+                if self.config.physics.get(e.effect) != on:
+                    out.append(e)
+            elif e.effect != "attitude" and all(self.problem.state[n].role == HELD for n in e.elements):
+                out.append(e)
+        return out
+
+    # ------------------------------------------------------------------ fitting
+    def batch_options(self) -> BatchOptions:
+        return BatchOptions(max_iterations=self.config.max_iterations,
+                            edit_k=self.config.edit_k or None)
+
+    def holdout_masks(self) -> dict[str, np.ndarray]:
+        """The last ``holdout_fraction`` of the span, per sensor (True = held out)."""
+        f = self.config.holdout_fraction
+        if f <= 0:
+            return {}
+        t_all = np.concatenate([sd.t for sd in self.problem.sensors])
+        t_cut = t_all.min() + (1.0 - f) * (t_all.max() - t_all.min())
+        return {sd.name: sd.t > t_cut for sd in self.problem.sensors}
+
+    def fit(self, *, holdout: bool = True) -> BatchResult:
+        """Fit the current state; with ``holdout`` also score the held-out span."""
+        masks = self.holdout_masks() if holdout else {}
+        if masks:
+            res_train = batch_fit(self.problem, self.batch_options(), edited=masks)
+            self.holdout_rms = _holdout_rms(res_train, masks)
+        res = batch_fit(self.problem, self.batch_options())
+        self.result = res
+        self.candidates = []
+        return res
+
+    def rank(self) -> list[Candidate]:
+        if self.result is None:
+            self.fit()
+        self.candidates = rank_candidates(self.problem, self.result, self.candidate_effects(),
+                                          alpha=self.config.significance)
+        return self.candidates
+
+    def rms(self) -> dict[str, float]:
+        return {k: v.rms_normalized for k, v in self.result.residuals.items()} if self.result else {}
+
+    # ------------------------------------------------------------------ add / remove
+    def _set_effect(self, effect_id: str, on: bool) -> None:
+        cat = {e.id: e for e in self.catalogue()}
+        if effect_id not in cat:
+            raise ConfigError(f"unknown effect '{effect_id}' (see `gcs effects`)", key="state.effects")
+        e = cat[effect_id]
+        if e.physics:
+            on_val, off_val = PHYSICS_EFFECTS[e.effect]
+            phys = dict(self.config.physics)
+            phys[e.effect] = on_val if on else off_val
+            self.config = replace(self.config, physics=phys)
+        else:
+            effects = [x for x in self.config.effects if x != effect_id]
+            exclude = [x for x in self.config.exclude if x != effect_id]
+            if on:
+                effects.append(effect_id)
+            else:
+                exclude.append(effect_id)
+            self.config = replace(self.config, effects=tuple(effects), exclude=tuple(exclude))
+        self._rebuild()
+
+    def _apply(self, action: str, effect_id: str, on: bool) -> Step:
+        if self.result is None:
+            self.fit()
+        before = self.rms()
+        chi_before = self.result.chi2
+        prev_values = self.result.state.values()
+        self._set_effect(effect_id, on)
+        # warm start from the previous solution (attitude and common elements)
+        warm = {k: v for k, v in prev_values.items() if k in self.problem.state}
+        self.problem = self.problem.with_state(self.problem.state.with_values(warm))
+        res = self.fit()
+        est = {}
+        e = {x.id: x for x in self.catalogue()}.get(effect_id)
+        if e is not None:
+            est = {n: res.state[n].value for n in e.elements if n in res.state}
+        step = Step(action, effect_id, before, self.rms(), dict(self.holdout_rms),
+                    chi_before - res.chi2, res.chi2, est)
+        self.steps.append(step)
+        return step
+
+    def add_effect(self, effect_id: str) -> Step:
+        return self._apply("add", effect_id, True)
+
+    def remove_effect(self, effect_id: str) -> Step:
+        return self._apply("remove", effect_id, False)
+
+    def first_step(self) -> Step:
+        res = self.result or self.fit()
+        step = Step("fit", None, {}, self.rms(), dict(self.holdout_rms), 0.0, res.chi2)
+        self.steps.append(step)
+        return step
+
+    # ------------------------------------------------------------------ discovery
+    def discover(self, *, max_steps: int = 10, progress: Callable[[str], None] | None = None) -> list[Step]:
+        """Stepwise: add the most significant identifiable candidate while one passes the
+        Bonferroni-corrected level; stop and say why."""
+        say = progress or (lambda msg: log.info(msg))
+        if self.result is None:
+            self.fit()
+        if not self.steps:
+            self.first_step()
+        self.stop_reason = ""
+        for _ in range(max_steps):
+            cands = self.rank()
+            ok = [c for c in cands if c.identifiable and c.p_adjusted < self.config.significance]
+            if not ok:
+                best = cands[0] if cands else None
+                self.stop_reason = ("no candidate is significant at family-wise α = "
+                                    f"{self.config.significance:g}" +
+                                    (f" (best: {best.id}, adjusted p = {best.p_adjusted:.2g})" if best else ""))
+                say(self.stop_reason)
+                break
+            top = ok[0]
+            say(f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, p = {top.p_value:.2g})")
+            self.add_effect(top.id)
+        else:
+            self.stop_reason = f"stopped after {max_steps} steps"
+        self.rank()
+        return self.steps
+
+    # ------------------------------------------------------------------ report (ICD §7)
+    def report(self) -> dict:
+        res = self.result
+        spec = self.mission.spec
+        sensors = {}
+        if res is not None:
+            for name, r in res.residuals.items():
+                rms = r.rms
+                sensors[name] = {"n": r.n, "rms": [float(v) for v in rms] if rms.size > 1 else float(rms[0]),
+                                 "rms_normalized": round(r.rms_normalized, 4),
+                                 "edited": int(np.count_nonzero(r.edited)),
+                                 "holdout_rms_normalized": _round({name: self.holdout_rms.get(name, float("nan"))})[name],
+                                 "unit": r.unit, "components": list(r.components)}
+        state = []
+        if res is not None:
+            sig = res.sigma
+            for e in res.state:
+                if e.role == HELD:
+                    continue
+                state.append({"name": e.name, "estimate": e.value, "sigma": sig.get(e.name, e.sigma0),
+                              "unit": e.unit, "role": e.role})
+        return {
+            "mission": spec.name,
+            "method": self.config.method,
+            "status": res.status if res else "not run",
+            "sensors": sensors,
+            "state": state,
+            "candidates": [c.as_report() for c in self.candidates],
+            "steps": [s.as_report() for s in self.steps if s.action != "fit"],
+            "effects_in_state": self.effects_in_state(),
+            "physics": dict(self.config.physics),
+            "unobservable": list(res.unobservable) if res else [],
+            "stop_reason": getattr(self, "stop_reason", ""),
+            "config_digest": self.config.digest(),
+        }
+
+
+def _holdout_rms(res: BatchResult, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+    out = {}
+    for name, r in res.residuals.items():
+        m = masks.get(name)
+        if m is None:
+            continue
+        sel = m & r.valid & (np.abs(np.nan_to_num(r.normalized)) < 1e6).all(axis=1)
+        z = r.normalized[sel]
+        out[name] = float(np.sqrt(np.mean(z ** 2))) if z.size else float("nan")
+    return out
+
+
+def _without_sensors(mission, names: set):
+    from dataclasses import replace as dc_replace
+
+    spec = dc_replace(mission.spec, sensors=tuple(s for s in mission.spec.sensors if s.name not in names))
+    tel = {k: v for k, v in mission.telemetry.items() if k not in names}
+    return dc_replace(mission, spec=spec, telemetry=tel)

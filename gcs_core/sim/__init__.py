@@ -1,0 +1,27 @@
+"""GCS truth simulator: independent physics that writes ICD mission directories.
+
+Nothing here imports the estimator's models, ephemeris or rotation code
+(``gcs_core.models``, ``gcs_core.ephem``, ``gcs_core.frames.rotations``): a bug shared by
+the simulator and the estimator would cancel out and hide.
+
+Modules: ``config`` (dataclasses), ``astro`` (GMST, Sun, shadow), ``orbit`` (secular-J2
+orbit), ``field`` (IGRF), ``truth`` (attitude, rates, gyro, onboard attitude), ``sensors``
+(TAM, FSS, CSS and the factory), ``stars`` (catalog, FHST), ``spinner`` (plane-field Sun
+sensor, horizon scanner), ``aux`` (torquers, temperature), ``writer`` (ICD files and
+truth.json), ``scenarios`` (named missions, hidden effects), ``samples`` (bundled data).
+
+Typical use::
+
+    from gcs_core.sim import nominal_threeaxis, with_effect, write_mission
+    cfg = with_effect(nominal_threeaxis("sun_pointing", seed=7), "TAM1.bias", 200.0)
+    write_mission(cfg, "out/mission", truth_path="out/answers/mission.json")
+"""
+
+from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
+                                 SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
+from gcs_core.sim.scenarios import EFFECTS, list_effects, nominal_threeaxis, spinner_nominal, with_effect
+from gcs_core.sim.writer import write_mission
+
+__all__ = ["AuxConfig", "HiddenEffect", "MissionConfig", "OnboardConfig", "OrbitElements", "SensorConfig",
+           "Slew", "SpinProfile", "ThreeAxisProfile", "EFFECTS", "list_effects", "nominal_threeaxis",
+           "spinner_nominal", "with_effect", "write_mission"]

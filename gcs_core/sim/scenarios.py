@@ -1,0 +1,293 @@
+"""Named mission scenarios and hidden-effect builders.
+
+* :func:`nominal_threeaxis` — TAM, IRU, two FHSTs, FSS and CSS on a 520 km, 28.5° orbit,
+  in inertial, Earth-pointing or Sun-pointing mode, with slow attitude motion and four
+  constant-rate slews (Eq 4-36) so gyro scale factors are observable. Data book = truth.
+* :func:`spinner_nominal` — a 10 rpm spinner with a plane-field Sun sensor (PSS1) and a
+  horizon scanner (HS1), one row per spin. Data book = truth.
+* :func:`with_effect` — a copy of a scenario with one hidden effect: a difference between
+  truth and data book, or physics the book does not mention. :data:`EFFECTS` lists them.
+
+Default data-book values mirror the ICD example mission (shared/examples/sunpoint-nominal):
+TAM noise 25 nT; IRU σ_v = 3.162278e-7 rad/s^0.5, σ_u = 3.162278e-10 rad/s^1.5;
+FHST fov 4°, noise 8″; FSS fov 32°, A2 = 7.6e-5, k = 50, noise 0.577 counts;
+CSS fov 60°, K = 0.25°/count, noise 0.577 counts.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from gcs_core.errors import InputError
+from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
+from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
+                                 SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
+
+__all__ = ["nominal_threeaxis", "spinner_nominal", "with_effect", "EFFECTS", "list_effects"]
+
+ARCSEC = np.pi / 180.0 / 3600.0
+
+
+# --- sensor builders -----------------------------------------------------------------------
+def tam(name="TAM1", cadence_s=1.0, alignment_deg=(0.0, 0.0, 0.0)) -> SensorConfig:
+    return SensorConfig(name, "magnetometer", cadence_s,
+                        {"alignment_deg": list(map(float, alignment_deg)), "noise": 25.0, "bias": [0.0, 0.0, 0.0]})
+
+
+def iru(name="IRU", cadence_s=1.0) -> SensorConfig:
+    return SensorConfig(name, "gyro", cadence_s,
+                        {"alignment_deg": [0.0, 0.0, 0.0], "arw": 3.162278e-07, "rrw": 3.162278e-10,
+                         "bias": [0.0, 0.0, 0.0]})
+
+
+def fhst(name, alignment_deg, cadence_s=10.0) -> SensorConfig:
+    return SensorConfig(name, "star_tracker", cadence_s,
+                        {"alignment_deg": list(map(float, alignment_deg)), "fov_deg": 4.0,
+                         "noise": 3.878509e-05, "scale": [1.0, 1.0]},
+                        {"sun_exclusion_deg": 30.0, "earth_exclusion_deg": 10.0})
+
+
+def fss(name="FSS1", alignment_deg=(0.0, 0.0, 0.0), cadence_s=1.0) -> SensorConfig:
+    return SensorConfig(name, "fine_sun", cadence_s,
+                        {"alignment_deg": list(map(float, alignment_deg)), "fov_deg": 32.0, "noise": 0.577,
+                         "coeff_alpha": [0.0, 7.6e-05, 0.0, 50.0], "coeff_beta": [0.0, 7.6e-05, 0.0, 50.0]})
+
+
+def css(name="CSS1", alignment_deg=(0.0, 0.0, 0.0), cadence_s=1.0) -> SensorConfig:
+    k = float(np.radians(0.25))
+    return SensorConfig(name, "coarse_sun", cadence_s,
+                        {"alignment_deg": list(map(float, alignment_deg)), "fov_deg": 60.0, "noise": 0.577,
+                         "scale": [k, k], "bias": [0.0, 0.0]})
+
+
+def default_slews(duration_s: float) -> list[Slew]:
+    """Roll out and back (~24°), a pitch and a yaw step (~5.6°), at 22/45/60/75 % of the span."""
+    D = duration_s
+    return [Slew(0.22 * D, 600.0, "roll", 0.04), Slew(0.45 * D, 300.0, "pitch", 0.02),
+            Slew(0.60 * D, 300.0, "yaw", -0.02), Slew(0.75 * D, 600.0, "roll", -0.04)]
+
+
+def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: float = 7200.0, *,
+                      name: str | None = None, epoch: str = "2024-05-14T04:00:00Z",
+                      orbit: OrbitElements | None = None) -> MissionConfig:
+    """A three-axis mission with TAM1, IRU, FHST1, FHST2, FSS1, CSS1 (no hidden effect)."""
+    if mode not in ("inertial", "earth_pointing", "sun_pointing"):
+        raise InputError(f"unknown three-axis mode '{mode}'", key="mode")
+    cfg = MissionConfig(name=name or f"nominal-{mode.replace('_', '')}", epoch=epoch, attitude_mode=mode,
+                        duration_s=float(duration_s), orbit=orbit or OrbitElements(),
+                        attitude=ThreeAxisProfile(slews=default_slews(duration_s)),
+                        aux=AuxConfig(cadence_s=1.0 if duration_s <= 86400 else 10.0),
+                        onboard=OnboardConfig(error_deg=(0.03, -0.04, 0.0)), seed=int(seed))
+    sun_align, fhst1 = (0.0, 0.0, 0.0), (0.0, 0.0, 90.0)
+    if mode == "inertial":
+        # Point body x at the Sun at the epoch (the Sun-pointing frame frozen at t = 0).
+        from gcs_core.sim.truth import World
+        probe = MissionConfig(name="probe", epoch=epoch, attitude_mode="sun_pointing", duration_s=1.0,
+                              orbit=cfg.orbit)
+        A0 = World(probe).reference(np.array([0.0]))[0]
+        cfg.attitude.rpy0_deg = tuple(float(np.degrees(x)) for x in dcm_to_rpy(A0))
+    elif mode == "earth_pointing":
+        # Sun sensors look at the zenith, tilted toward the Sun's side of the orbit plane by the
+        # beta angle; FHST1 looks along ±y away from the Sun.
+        from gcs_core.sim.truth import World
+        w = World(cfg)
+        r, v = w.orbit(np.array([0.0]))
+        s = unit(w.sun(np.array([0.0])))
+        beta = float(np.arcsin(np.clip(np.dot(unit(np.cross(r, v))[0], s[0]), -1, 1)))
+        sun_align = (float(np.degrees(-beta)), 90.0, 0.0)
+        fhst1 = (0.0, 0.0, 90.0 if beta > 0 else -90.0)
+    cfg.sensors = [tam(), iru(), fhst("FHST1", fhst1), fhst("FHST2", (30.0, 75.0, 0.0)),
+                   fss(alignment_deg=sun_align), css(alignment_deg=sun_align)]
+    return cfg
+
+
+def spinner_nominal(seed: int = 1, duration_s: float = 10800.0, *, name: str = "spinner-nominal",
+                    epoch: str = "2024-09-02T10:00:00Z") -> MissionConfig:
+    """A 10 rpm spinner: PSS1 (plane-field Sun sensor) and HS1 (horizon scanner), one row per spin."""
+    pss = SensorConfig("PSS1", "plane_field_sun", 0.0,
+                       {"tilt_deg": 0.0, "bias": 0.0, "noise": float(np.radians(0.05))})
+    hs = SensorConfig("HS1", "horizon", 0.0,
+                      {"gamma_deg": 80.0, "phi_h_deg": 40.0, "horizon_height_km": 40.0, "noise": 0.0015})
+    return MissionConfig(name=name, epoch=epoch, attitude_mode="spinning", duration_s=float(duration_s),
+                         orbit=OrbitElements(a_km=7078.137, e=0.001, i_deg=28.5, raan_deg=35.0,
+                                             argp_deg=60.0, mean_anomaly_deg=10.0),
+                         attitude=SpinProfile(ra_deg=320.0, dec_deg=50.0, rate_rpm=10.0, phase0_deg=17.0),
+                         sensors=[pss, hs], aux=None, onboard=None, seed=int(seed))
+
+
+# --- hidden effects ------------------------------------------------------------------------
+@dataclass(frozen=True)
+class EffectSpec:
+    """One kind of hidden effect: where it applies, its unit and how it changes the truth."""
+
+    types: tuple[str, ...]
+    unit: str
+    description: str
+    apply: Callable[[SensorConfig, float, dict], None]
+
+
+def _pattern(n, axis):
+    v = np.asarray(axis if axis is not None else (0.6, -0.48, 0.64)[:n], dtype=float)
+    return v / np.linalg.norm(v)
+
+
+def _bias(s: SensorConfig, m: float, kw: dict) -> None:
+    if s.type == "plane_field_sun":
+        s.true["bias"] = float(s.book["bias"]) + m
+        return
+    b = np.asarray(s.book["bias"], dtype=float)
+    s.true["bias"] = (b + m * _pattern(b.size, kw.get("axis"))).tolist()
+
+
+def _fss_bias(s, m, kw):
+    a, b = list(s.book["coeff_alpha"]), list(s.book["coeff_beta"])
+    a[0] += m
+    b[0] -= 0.6 * m
+    s.true["coeff_alpha"], s.true["coeff_beta"] = a, b
+
+
+def _alignment(s, m, kw):
+    a = np.radians(np.asarray(s.book["alignment_deg"], dtype=float))
+    delta = m * _pattern(3, kw.get("axis", (0.36, 0.48, 0.8)))
+    M_true = rotvec_to_dcm(delta) @ rpy_to_dcm(a[0], a[1], a[2])
+    s.true["alignment_deg"] = [float(np.degrees(x)) for x in dcm_to_rpy(M_true)]
+    s.true["misalignment_rad"] = delta.tolist()
+
+
+def _scale(s, m, kw):
+    if s.type == "magnetometer":
+        s.true["response"] = np.diag(1.0 + m * np.array([1.0, -0.7, 0.5])).tolist()
+    elif s.type == "gyro":
+        s.true["G"] = np.diag(1.0 + m * np.array([1.0, -0.7, 0.5])).tolist()
+    elif s.type == "star_tracker":
+        s.true["scale"] = (np.asarray(s.book["scale"], dtype=float) * (1.0 + m * np.array([1.0, -0.7]))).tolist()
+    elif s.type == "coarse_sun":
+        s.true["scale"] = (np.asarray(s.book["scale"], dtype=float) * (1.0 + m * np.array([1.0, -0.7]))).tolist()
+    elif s.type == "fine_sun":
+        a, b = list(s.book["coeff_alpha"]), list(s.book["coeff_beta"])
+        a[1] *= 1.0 + m
+        b[1] *= 1.0 - 0.7 * m
+        s.true["coeff_alpha"], s.true["coeff_beta"] = a, b
+
+
+def _nonorth(s, m, kw):
+    K = np.asarray(s.true.get("response", np.eye(3)), dtype=float).copy()
+    K += m * np.array([[0.0, 1.0, -0.6], [1.0, 0.0, 0.8], [-0.6, 0.8, 0.0]])
+    s.true["response"] = K.tolist()
+
+
+def _gyro_g(s, m, kw):
+    s.true["G"] = (np.eye(3) + m * np.array([[1.0, 0.6, -0.4], [-0.3, -0.7, 0.5], [0.8, 0.2, 0.5]])).tolist()
+
+
+def _contamination(channel):
+    def apply(s, m, kw):
+        c = dict(s.true.get("contamination", {}))
+        c[channel] = (m * _pattern(3, kw.get("axis", (0.8, -0.5, 0.33)))).tolist()
+        s.true["contamination"] = c
+    return apply
+
+
+def _set(key, base_key=None, convert=lambda m: m):
+    def apply(s, m, kw):
+        base = float(s.book.get(base_key, 0.0)) if base_key else 0.0
+        s.true[key] = base + convert(m)
+    return apply
+
+
+def _harmonic(s, m, kw):
+    a, b = list(s.book["coeff_alpha"]), list(s.book["coeff_beta"])
+    a[2] += m
+    b[2] -= 0.8 * m
+    s.true["coeff_alpha"], s.true["coeff_beta"] = a, b
+
+
+_VEC3 = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun")
+EFFECTS: dict[str, EffectSpec] = {
+    "bias": EffectSpec(("magnetometer", "gyro", "coarse_sun", "plane_field_sun"), "nT | rad/s | rad",
+                       "constant bias added to the true bias (direction (0.6, -0.48, 0.64) unless axis=)", _bias),
+    "fss_bias": EffectSpec(("fine_sun",), "1 (tan)", "FSS null offsets A1 += m, B1 -= 0.6 m", _fss_bias),
+    "alignment": EffectSpec(_VEC3, "rad", "small rotation of the sensor frame, M_true = exp(-[δx]) M_book, "
+                            "δ = m·axis (default (0.36, 0.48, 0.8)); axis=(1,0,0) is about the boresight",
+                            _alignment),
+    "scale": EffectSpec(_VEC3, "1", "scale factors 1 + m·(1, -0.7, 0.5) (TAM/gyro), S_H,S_V·(1 + m·(1, -0.7)) "
+                        "(FHST), K·(1 + m·(1, -0.7)) (CSS), A2·(1+m), B2·(1-0.7m) (FSS)", _scale),
+    "nonorthogonality": EffectSpec(("magnetometer",), "rad", "symmetric off-diagonal response terms", _nonorth),
+    "scale_misalignment": EffectSpec(("gyro",), "1", "full gyro G = I + m·P (ICD Eq 4-32)", _gyro_g),
+    "contamination_mtb_x": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads k·mtb_x", _contamination("mtb_x")),
+    "contamination_mtb_y": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads k·mtb_y", _contamination("mtb_y")),
+    "contamination_mtb_z": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads k·mtb_z", _contamination("mtb_z")),
+    "time_offset": EffectSpec(_VEC3 + ("plane_field_sun", "horizon"), "s",
+                              "a row stamped t is measured at t + m", _set("time_offset_s")),
+    "harmonic": EffectSpec(("fine_sun",), "1 (tan)", "FSS A3 += m, B3 -= 0.8 m (Eq 4-23)", _harmonic),
+    "solar_aberration": EffectSpec(("fine_sun", "coarse_sun"), "1 (on)",
+                                   "Sun direction aberrated by the spacecraft velocity v/c",
+                                   lambda s, m, kw: s.true.__setitem__("solar_aberration", bool(m))),
+    "misidentification": EffectSpec(("star_tracker",), "1 (fraction)",
+                                    "fraction of rows reporting a wrong catalog star",
+                                    lambda s, m, kw: s.true.__setitem__("misid_fraction", float(m))),
+    "tilt": EffectSpec(("plane_field_sun", "horizon"), "rad", "sensor plane tilt: ε_S (tilt_deg) of the "
+                       "plane-field sensor, ε_H of the horizon scanner", None),
+    "d_gamma": EffectSpec(("horizon",), "rad", "scanner cone half-angle bias Δγ", _set("d_gamma")),
+    "d_phi": EffectSpec(("horizon",), "rad", "scanner azimuth bias ΔΦ", _set("d_phi")),
+    "d_rho": EffectSpec(("horizon",), "rad", "Earth angular radius bias Δρ", _set("d_rho")),
+    "horizon_height": EffectSpec(("horizon",), "km", "true horizon height = book + m",
+                                 _set("horizon_height_km", "horizon_height_km")),
+    "oblateness": EffectSpec(("horizon",), "1 (x WGS-84 f)", "oblate Earth, flattening m/298.257",
+                             _set("flattening", None, lambda m: m / 298.257223563)),
+}
+MODEL_EFFECTS = {"stellar_aberration": ("1 (on)", "star directions aberrated by (v_earth + v_sc)/c")}
+
+
+def _tilt(s: SensorConfig, m: float, kw: dict) -> None:
+    if s.type == "plane_field_sun":
+        s.true["tilt_deg"] = float(s.book["tilt_deg"]) + float(np.degrees(m))
+    else:
+        s.true["tilt_h"] = float(m)
+
+
+EFFECTS["tilt"] = EffectSpec(EFFECTS["tilt"].types, EFFECTS["tilt"].unit, EFFECTS["tilt"].description, _tilt)
+
+
+def list_effects() -> list[tuple[str, tuple[str, ...], str, str]]:
+    """``(effect, sensor types, unit, description)`` of every hidden effect, model ones last."""
+    out = [(k, v.types, v.unit, v.description) for k, v in EFFECTS.items()]
+    out += [(k, ("model",), u, d) for k, (u, d) in MODEL_EFFECTS.items()]
+    return out
+
+
+def with_effect(base: MissionConfig, effect_id: str, magnitude: float, *, name: str | None = None,
+                axis=None, description: str | None = None) -> MissionConfig:
+    """Copy of ``base`` with one hidden effect ``<SENSOR>.<effect>`` (or ``model.<effect>``).
+
+    ``magnitude`` is in the unit of :data:`EFFECTS` (see :func:`list_effects`); ``axis``
+    chooses the direction of vector effects (e.g. ``(1, 0, 0)``: about the boresight).
+    """
+    cfg = base.copy()
+    if name:
+        cfg.name = name
+    sensor_name, _, effect = effect_id.partition(".")
+    kw = {} if axis is None else {"axis": axis}
+    if sensor_name == "model":
+        if effect not in MODEL_EFFECTS:
+            raise InputError(f"unknown model effect '{effect}'", key="effect_id")
+        if effect == "stellar_aberration":
+            cfg.stellar_aberration = bool(magnitude)
+        unit_, desc = MODEL_EFFECTS[effect]
+    else:
+        try:
+            s = cfg.sensor(sensor_name)
+        except KeyError:
+            raise InputError(f"no sensor '{sensor_name}' in mission '{cfg.name}'", key="effect_id") from None
+        spec = EFFECTS.get(effect)
+        if effect == "bias" and s.type == "fine_sun":
+            spec = EFFECTS["fss_bias"]
+        if spec is None or s.type not in spec.types:
+            raise InputError(f"effect '{effect}' does not apply to {s.type} {sensor_name}", key="effect_id")
+        spec.apply(s, float(magnitude), kw)
+        unit_, desc = spec.unit, spec.description
+    cfg.effects.append(HiddenEffect(effect_id, float(magnitude), unit_, description or desc))
+    return cfg
