@@ -153,7 +153,7 @@ def _alignment(s, m, kw):
     a = np.radians(np.asarray(s.book["alignment_deg"], dtype=float))
     delta = m * _pattern(3, kw.get("axis", (0.36, 0.48, 0.8)))
     M_true = rotvec_to_dcm(delta) @ rpy_to_dcm(a[0], a[1], a[2])
-    s.true["alignment_deg"] = [float(np.degrees(x)) for x in dcm_to_rpy(M_true)]
+    s.true["alignment_deg"] = [float(np.round(np.degrees(x), 12)) + 0.0 for x in dcm_to_rpy(M_true)]
     s.true["misalignment_rad"] = delta.tolist()
 
 

@@ -284,5 +284,5 @@ def write_mission(cfg: MissionConfig, out_dir, *, truth_path=None) -> Path:
         raise
     if truth_path is not None:
         _write_text_atomic(Path(truth_path), json.dumps(_truth(cfg, record), indent=1) + "\n")
-    log.info("mission %s written to %s", cfg.name, out_dir)
+    log.debug("mission %s written to %s", cfg.name, out_dir)
     return out_dir
