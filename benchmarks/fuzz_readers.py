@@ -166,12 +166,17 @@ def run(cases: int, seed: int) -> int:
             for p in [example, *example.rglob("*")]:
                 p.chmod(0o755 if p.is_dir() else 0o644)
         csv_path = work / "fuzz.csv"
+        read_mission_spec(spinner)  # the unmutated inputs are valid
+        csv_path.write_bytes(CSV)
+        read_table(csv_path, required=("t", "bx", "by", "bz"))
+        if example is not None:
+            load_mission(example)
         counts = {"accepted": 0, "refused": 0, "unhandled": 0}
         by_target: dict[str, int] = {}
         unhandled: list[str] = []
         start = time.perf_counter()
         for case in range(cases):
-            target = rng.choice(("csv", "csv", "toml", "toml", "mission"))
+            target = rng.choices(("csv", "toml", "mission"), weights=(9, 9, 2))[0]
             if target == "mission" and example is None:
                 target = "toml"
             n_ops = rng.randint(1, 6)

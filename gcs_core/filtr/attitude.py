@@ -235,7 +235,7 @@ class GyroAttitude:
         Qk = quat_multiply(_quat_scan(steps), np.broadcast_to(q0, steps.shape))
         C_knots = np.concatenate([C0[None], quat_to_dcm(Qk)])            # (K+1, 3, 3)
         # E_k = Σ_{j≤k} C_jᵀ W_j Δ_j   (K+1, 3, 15), E_0 = 0
-        incr = np.einsum("kji,kjp->kip", C_knots[1:], W) * self.dt[:, None, None]
+        incr = (np.swapaxes(C_knots[1:], 1, 2) @ W) * self.dt[:, None, None]
         E = np.concatenate([np.zeros((1, 3, W.shape[2])), np.cumsum(incr, axis=0)])
         J0 = rpy_error_jacobian(*rpy)
         self._cache_key, self._cache = key, (C_knots, omega, W, E, C0, J0)
@@ -251,6 +251,6 @@ class GyroAttitude:
         w = omega[k - 1]
         C = quat_to_dcm(_step_quaternions(w, s)) @ C_knots[k - 1]
         # C(t)ᵀ δθ(t) = C_0ᵀ δθ_0 + E_{k-1} + C(t)ᵀ W_k s δp
-        Jp = np.einsum("nij,njp->nip", C, E[k - 1]) + W[k - 1] * s[:, None, None]
-        Ja = np.einsum("nij,jk,kl->nil", C, C0.T, J0)
+        Jp = C @ E[k - 1] + W[k - 1] * s[:, None, None]
+        Ja = C @ (C0.T @ J0)
         return AttitudeEval(C, None, self.names, np.concatenate([Ja, Jp], -1), omega_B=w)

@@ -55,7 +55,8 @@ class BatchOptions:
     ----------
     max_iterations : Gauss–Newton iterations per editing pass.
     tol_step_sigma : converged when every step is below this fraction of its sigma.
-    tol_cost : ... or the relative cost change is below this.
+    tol_chi2 : ... or the cost (χ² with prior) changes by less than this (absolute; a
+        χ² change of 0.01 carries no statistical meaning).
     edit_k : k of the k-σ editing (None: no editing).
     edit_passes : maximum editing passes.
     rank_tol : relative eigenvalue threshold naming unobservable combinations.
@@ -63,7 +64,7 @@ class BatchOptions:
 
     max_iterations: int = 20
     tol_step_sigma: float = 1e-4
-    tol_cost: float = 1e-10
+    tol_chi2: float = 1e-2
     edit_k: float | None = 5.0
     edit_passes: int = 6
     rank_tol: float = 1e-10
@@ -267,9 +268,9 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             x = x + step
             sig = np.sqrt(np.diag(P))
             small = np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300))
-            rel = abs(prev_cost - cost) / max(cost, 1e-300) if prev_cost is not None else np.inf
+            change = abs(prev_cost - cost) if prev_cost is not None else np.inf
             prev_cost = cost
-            if small or rel < opts.tol_cost:
+            if small or change < opts.tol_chi2:
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:

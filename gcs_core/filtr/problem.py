@@ -307,7 +307,7 @@ def linearize(problem: Problem, values: Mapping[str, float], columns: Sequence[s
         att_cols = [(j_att, col_index[n]) for j_att, n in enumerate(att.names) if n in col_index]
         if att_cols:
             ja, jc = zip(*att_cols)
-            H[:, :, list(jc)] = np.einsum("nma,nak->nmk", pred.d_att, att.J[:, :, list(ja)])
+            H[:, :, list(jc)] = pred.d_att @ att.J[:, :, list(ja)]
         for local, el in problem.param_map[sd.name].items():
             j = col_index.get(el)
             if j is not None:

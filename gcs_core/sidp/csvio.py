@@ -44,7 +44,7 @@ _EMPTY_FIELD_ERR = re.compile(r"could not convert string '\s*' to")
 #: a field that is empty or blank, to be read as NaN (multiline text).
 _EMPTY_FIELD = re.compile(r"(^|,)[ \t\r]*(?=,|$)", re.MULTILINE)
 #: a line holding nothing but blanks (inside the data rows).
-_BLANK_LINE = re.compile(r"(^|\n)[ \t\r\f\v]*(\n|$)")
+_BLANK_LINE = re.compile(r"\n[ \t\r\f\v]*(?:\n|$)")  # searched in "\n" + text
 _SHOW = 30  # characters of a bad field quoted in a message
 
 
@@ -167,7 +167,7 @@ def _split_lines(text: str, path: Path, required: tuple[str, ...], what: str):
     while body and not body[-1].strip():
         body.pop()  # trailing newline(s)
     joined = "\n".join(body)
-    if "#" not in joined and not _BLANK_LINE.search(joined):  # the usual case: no skips
+    if "#" not in joined and not _BLANK_LINE.search("\n" + joined):  # the usual case: no skips
         return names, body, list(range(header_at + 2, header_at + 2 + len(body))), header_at + 1
     rows, linenos = [], []
     for i in range(header_at + 1, len(lines)):

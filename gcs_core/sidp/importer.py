@@ -194,7 +194,8 @@ def _check_not_empty(table: Table, what: str, minimum: int = 1) -> None:
 def _check_vector_norm(table: Table, names: tuple[str, ...], lo: float, hi: float,
                        message: str) -> None:
     v = table.stack(names)
-    norm = np.sqrt(np.sum(v * v, axis=1))
+    with np.errstate(over="ignore"):  # |v| of 1e300 overflows to inf: out of range anyway
+        norm = np.sqrt(np.sum(v * v, axis=1))
     i = _first((norm < lo) | (norm > hi))
     if i is not None:
         k = int(np.argmax(np.abs(v[i])))

@@ -109,8 +109,8 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
     },
     "fine_sun": {
         "noise": BookKey(0, "counts", check=_positive),
-        "coeff_alpha": BookKey(4, "[1, 1/count, 1, 1]", index_checks=((1, _nonzero),)),
-        "coeff_beta": BookKey(4, "[1, 1/count, 1, 1]", index_checks=((1, _nonzero),)),
+        "coeff_alpha": BookKey(4, "1, 1/count, 1, 1", index_checks=((1, _nonzero),)),
+        "coeff_beta": BookKey(4, "1, 1/count, 1, 1", index_checks=((1, _nonzero),)),
         "fov_deg": _FOV,
     },
     "coarse_sun": {

@@ -9,8 +9,8 @@ geocentric spherical coordinates of the Earth-fixed frame and rotated back to GC
     B_I = T3(GMST)ᵀ B_E
 
 GMST is the simulator's own (:func:`gcs_core.sim.astro.gmst_rad`). The IGRF
-coefficients are taken at one date per call (the middle of the chunk); over a
-six-hour chunk the secular variation is below 0.1 nT.
+coefficients (linear in time between their 5-year epochs) are evaluated at the two
+mission-day boundaries around each sample and interpolated linearly, which is exact.
 
 References
 ----------
@@ -48,12 +48,21 @@ def igrf_gci(epoch, jd0: float, t, r_I_km, *, max_degree: int = 13) -> np.ndarra
     rn = np.sqrt(xE ** 2 + yE ** 2 + zE ** 2)
     th = np.arccos(np.clip(zE / rn, -1.0, 1.0))
     ph = np.arctan2(yE, xE)
-    date = (epoch + timedelta(seconds=float(0.5 * (t.min() + t.max())))).replace(tzinfo=None)
-    Br, Bt, Bp = (np.empty_like(rn) for _ in range(3))
-    for lo in range(0, rn.size, _BATCH):              # ppigrf holds (N, 195) arrays: keep N small
-        sl = slice(lo, lo + _BATCH)
-        out = ppigrf.igrf_gc(rn[sl], np.degrees(th[sl]), np.degrees(ph[sl]), date, max_degree=max_degree)
-        Br[sl], Bt[sl], Bp[sl] = out[0][0], out[1][0], out[2][0]
+    # IGRF coefficients are linear in time between their 5-year epochs, so the field at a
+    # fixed place is linear in time within a day: evaluate it at the two midnights (mission
+    # days) around each sample and interpolate. Exact, and independent of the chunking.
+    day = np.floor(t / 86400.0)
+    frac = (t / 86400.0 - day)[:, None]
+    B_sph = np.empty((rn.size, 3))
+    for d in np.unique(day):
+        idx = np.flatnonzero(day == d)
+        dates = [(epoch + timedelta(days=float(d + k))).replace(tzinfo=None) for k in (0, 1)]
+        for lo in range(0, idx.size, _BATCH):          # ppigrf holds (N, 195) arrays: keep N small
+            sl = idx[lo:lo + _BATCH]
+            out = ppigrf.igrf_gc(rn[sl], np.degrees(th[sl]), np.degrees(ph[sl]), dates, max_degree=max_degree)
+            both = np.stack(out, -1)                    # (2 dates, n, 3 components)
+            B_sph[sl] = (1.0 - frac[sl]) * both[0] + frac[sl] * both[1]
+    Br, Bt, Bp = B_sph[:, 0], B_sph[:, 1], B_sph[:, 2]
     st, ct, sp, cp = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)
     bx = Br * st * cp + Bt * ct * cp - Bp * sp
     by = Br * st * sp + Bt * ct * sp + Bp * cp

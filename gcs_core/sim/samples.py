@@ -8,7 +8,8 @@ effects). The samples:
 nominal-sunpoint           Sun-pointing, 2 h at 1 Hz, data book = truth
 hidden-tam-contamination   TAM1 reads 0.5 nT per A m² of mtb_x (``TAM1.contamination_mtb_x``)
 hidden-fhst-boresight      FHST1 rotated 0.1° about its boresight (``FHST1.alignment``)
-hidden-fss-harmonic        FSS1 harmonic A3 = 5e-5, B3 = −4e-5 (``FSS1.harmonic``)
+hidden-fss-harmonic        FSS1 harmonic A3 = 5e-5, B3 = −4e-5 (``FSS1.harmonic``); a ±3° pitch/yaw
+                           sweep carries the Sun across the FSS so the harmonic shows
 hidden-gyro-scale          IRU scale factors 1 + 1e-3·(1, −0.7, 0.5) (``IRU.scale``)
 spinner-hidden-horizon     10 rpm spinner, HS1 cone angle off by 0.25° (``HS1.d_gamma``)
 =========================  ===========================================================
@@ -34,8 +35,8 @@ log = logging.getLogger("gcs_core.sim.samples")
 __all__ = ["SAMPLES", "generate_samples", "main"]
 
 
-def _sun(seed: int, name: str) -> MissionConfig:
-    return nominal_threeaxis("sun_pointing", seed=seed, duration_s=7200.0, name=name)
+def _sun(seed: int, name: str, sweep_deg: float = 0.0) -> MissionConfig:
+    return nominal_threeaxis("sun_pointing", seed=seed, duration_s=7200.0, name=name, sweep_deg=sweep_deg)
 
 
 SAMPLES: dict[str, Callable[[], MissionConfig]] = {
@@ -45,7 +46,8 @@ SAMPLES: dict[str, Callable[[], MissionConfig]] = {
     "hidden-fhst-boresight": lambda: with_effect(_sun(103, "hidden-fhst-boresight"), "FHST1.alignment",
                                                  math.radians(0.1), axis=(1.0, 0.0, 0.0),
                                                  description="FHST1 rotated 0.1 deg about its boresight"),
-    "hidden-fss-harmonic": lambda: with_effect(_sun(104, "hidden-fss-harmonic"), "FSS1.harmonic", 5e-5),
+    "hidden-fss-harmonic": lambda: with_effect(_sun(104, "hidden-fss-harmonic", sweep_deg=3.0),
+                                               "FSS1.harmonic", 5e-5),
     "hidden-gyro-scale": lambda: with_effect(_sun(105, "hidden-gyro-scale"), "IRU.scale", 1e-3),
     "spinner-hidden-horizon": lambda: with_effect(spinner_nominal(106, name="spinner-hidden-horizon"),
                                                   "HS1.d_gamma", math.radians(0.25)),

@@ -72,8 +72,12 @@ def default_slews(duration_s: float) -> list[Slew]:
 
 def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: float = 7200.0, *,
                       name: str | None = None, epoch: str = "2024-05-14T04:00:00Z",
-                      orbit: OrbitElements | None = None) -> MissionConfig:
-    """A three-axis mission with TAM1, IRU, FHST1, FHST2, FSS1, CSS1 (no hidden effect)."""
+                      orbit: OrbitElements | None = None, sweep_deg: float = 0.0) -> MissionConfig:
+    """A three-axis mission with TAM1, IRU, FHST1, FHST2, FSS1, CSS1 (no hidden effect).
+
+    ``sweep_deg`` > 0 adds a slow pitch and yaw sinusoid of that amplitude (periods 2300 s and
+    1700 s), a calibration sweep that carries the Sun across the Sun sensors' fields of view.
+    """
     if mode not in ("inertial", "earth_pointing", "sun_pointing"):
         raise InputError(f"unknown three-axis mode '{mode}'", key="mode")
     cfg = MissionConfig(name=name or f"nominal-{mode.replace('_', '')}", epoch=epoch, attitude_mode=mode,
@@ -81,6 +85,10 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
                         attitude=ThreeAxisProfile(slews=default_slews(duration_s)),
                         aux=AuxConfig(cadence_s=1.0 if duration_s <= 86400 else 10.0),
                         onboard=OnboardConfig(error_deg=(0.03, -0.04, 0.0)), seed=int(seed))
+    if sweep_deg > 0:
+        p = cfg.attitude
+        p.wobble_amp_deg = (p.wobble_amp_deg[0], float(sweep_deg), float(sweep_deg))
+        p.wobble_period_s = (p.wobble_period_s[0], 2300.0, 1700.0)
     sun_align, fhst1 = (0.0, 0.0, 0.0), (0.0, 0.0, 90.0)
     if mode == "inertial":
         # Point body x at the Sun at the epoch (the Sun-pointing frame frozen at t = 0).
@@ -91,14 +99,14 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
         cfg.attitude.rpy0_deg = tuple(float(np.degrees(x)) for x in dcm_to_rpy(A0))
     elif mode == "earth_pointing":
         # Sun sensors look at the zenith, tilted toward the Sun's side of the orbit plane by the
-        # beta angle; FHST1 looks along ±y away from the Sun.
+        # beta angle; FHST1 looks along ±y away from the Sun, raised 30° toward the zenith.
         from gcs_core.sim.truth import World
         w = World(cfg)
         r, v = w.orbit(np.array([0.0]))
         s = unit(w.sun(np.array([0.0])))
         beta = float(np.arcsin(np.clip(np.dot(unit(np.cross(r, v))[0], s[0]), -1, 1)))
         sun_align = (float(np.degrees(-beta)), 90.0, 0.0)
-        fhst1 = (0.0, 0.0, 90.0 if beta > 0 else -90.0)
+        fhst1 = (-30.0, 0.0, 90.0) if beta > 0 else (30.0, 0.0, -90.0)     # 30° above the horizon
     cfg.sensors = [tam(), iru(), fhst("FHST1", fhst1), fhst("FHST2", (30.0, 75.0, 0.0)),
                    fss(alignment_deg=sun_align), css(alignment_deg=sun_align)]
     return cfg

@@ -125,9 +125,9 @@ class _SunSim:
         return S_S, lit
 
     def _finish(self, t_rows, keep, x_a, x_b):
-        na = np.round(x_a + self.rng.standard_normal(x_a.shape) * self.sig_g)
-        nb = np.round(x_b + self.rng.standard_normal(x_b.shape) * self.sig_g)
-        return {"t": t_rows[keep], "n_alpha": na[keep], "n_beta": nb[keep]}
+        # one (N, 2) draw per chunk: the stream is consumed row by row, whatever the chunking
+        n = np.round(np.stack([x_a, x_b], -1) + self.rng.standard_normal((x_a.size, 2)) * self.sig_g)
+        return {"t": t_rows[keep], "n_alpha": n[keep, 0], "n_beta": n[keep, 1]}
 
 
 class FineSunSim(_SunSim):

@@ -224,6 +224,7 @@ class HorizonSim:
         if not out_t:
             return {c: np.zeros(0) for c in self.columns}
         t_s = np.concatenate(out_t)
-        dt_in = np.concatenate(out_in) + self.rng.standard_normal(t_s.size) * self.noise
-        dt_out = np.concatenate(out_out) + self.rng.standard_normal(t_s.size) * self.noise
+        e = self.rng.standard_normal((t_s.size, 2)) * self.noise
+        dt_in = np.concatenate(out_in) + e[:, 0]
+        dt_out = np.concatenate(out_out) + e[:, 1]
         return {"t": t_s - self.tau, "spin_rate": np.concatenate(out_w), "dt_in": dt_in, "dt_out": dt_out}

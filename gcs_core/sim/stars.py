@@ -69,7 +69,9 @@ class StarTrackerSim:
 
     def __init__(self, sensor: SensorConfig, world, catalog: StarCatalog, rng: np.random.Generator,
                  *, stellar_aberration: bool = False):
-        self.s, self.world, self.cat, self.rng = sensor, world, catalog, rng
+        self.s, self.world, self.cat = sensor, world, catalog
+        # Star choice and noise use separate streams: the files do not depend on the chunking.
+        self.rng, self.rng_pick = (np.random.default_rng(x) for x in rng.integers(2 ** 62, size=2))
         a = np.radians(np.asarray(sensor.value("alignment_deg"), dtype=float))
         self.M = rpy_to_dcm(a[0], a[1], a[2])
         self.scale = np.asarray(sensor.value("scale", (1.0, 1.0)), dtype=float)
@@ -115,12 +117,12 @@ class StarTrackerSim:
                 continue
             sel = np.flatnonzero(inside)
             wgt = 10.0 ** (-0.4 * self.cat.mag[idx[sel]])
-            j = sel[self.rng.choice(sel.size, p=wgt / wgt.sum())]
+            j = sel[self.rng_pick.choice(sel.size, p=wgt / wgt.sum())]
             star = idx[j]
-            if self.misid > 0 and self.rng.uniform() < self.misid:
+            if self.misid > 0 and self.rng_pick.uniform() < self.misid:
                 others = idx[idx != star]
                 if others.size:
-                    star = others[self.rng.integers(others.size)]
+                    star = others[self.rng_pick.integers(others.size)]
                     self.n_misidentified += 1
             rows.append((t_rows[k], h_true[j], v_true[j], star))
         if not rows:
@@ -129,7 +131,7 @@ class StarTrackerSim:
         h = np.array([x[1] for x in rows]) / self.scale[0]
         vv = np.array([x[2] for x in rows]) / self.scale[1]
         star = np.array([x[3] for x in rows], dtype=int)
-        h = h + self.rng.standard_normal(h.size) * self.noise
-        vv = vv + self.rng.standard_normal(vv.size) * self.noise
+        e = self.rng.standard_normal((h.size, 2)) * self.noise
+        h, vv = h + e[:, 0], vv + e[:, 1]
         return {"t": t_out, "h": h, "v": vv, "ra": self.cat.ra_deg[star],
                 "dec": self.cat.dec_deg[star], "mag": self.cat.mag[star]}

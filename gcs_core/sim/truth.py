@@ -176,7 +176,10 @@ class GyroSim:
     formats = ("%.12e",) * 4
 
     def __init__(self, sensor: SensorConfig, world: World, rng: np.random.Generator):
-        self.s, self.world, self.rng = sensor, world, rng
+        self.s, self.world = sensor, world
+        # Separate streams for noise, bias walk and electronic noise: the files do not depend
+        # on how the span is chunked.
+        self.rng, self.rng_walk, self.rng_e = (np.random.default_rng(x) for x in rng.integers(2 ** 62, size=3))
         a = np.radians(np.asarray(sensor.value("alignment_deg", (0.0, 0.0, 0.0)), dtype=float))
         self.M = rpy_to_dcm(a[0], a[1], a[2])
         self.G = np.asarray(sensor.value("G", np.eye(3)), dtype=float)
@@ -185,7 +188,7 @@ class GyroSim:
         self.sig_e = float(sensor.value("electronic", 0.0) or 0.0)
         self.tau = float(sensor.value("time_offset_s", 0.0))
         self.bias = np.asarray(sensor.value("bias", (0.0, 0.0, 0.0)), dtype=float).copy()
-        self.e_prev = self.rng.standard_normal(3) * self.sig_e
+        self.e_prev = self.rng_e.standard_normal(3) * self.sig_e
         self.bias_log: list[tuple[float, list[float]]] = [(0.0, self.bias.tolist())]
 
     def run(self, t_rows: np.ndarray) -> dict[str, np.ndarray]:
@@ -195,13 +198,13 @@ class GyroSim:
             return {c: np.zeros(0) for c in self.columns}
         dt = float(self.s.cadence_s)
         w_avg = self.world.omega_avg(t_rows - dt + self.tau, t_rows + self.tau)
-        steps = self.rng.standard_normal((n, 3)) * self.rrw * np.sqrt(dt)
+        steps = self.rng_walk.standard_normal((n, 3)) * self.rrw * np.sqrt(dt)
         b_end = self.bias + np.cumsum(steps, axis=0)
         b_start = np.vstack([self.bias[None, :], b_end[:-1]])
         sig = np.sqrt(self.arw ** 2 / dt + self.rrw ** 2 * dt / 12.0)
         noise = self.rng.standard_normal((n, 3)) * sig
         if self.sig_e > 0:
-            e = self.rng.standard_normal((n, 3)) * self.sig_e
+            e = self.rng_e.standard_normal((n, 3)) * self.sig_e
             e_prev = np.vstack([self.e_prev[None, :], e[:-1]])
             noise = noise + (e - e_prev) / dt
             self.e_prev = e[-1]

@@ -1,0 +1,227 @@
+"""The predictor's nominal state: attitude along the plan, and when each sensor sees.
+
+A predictor keeps the state "at its nominal values" (seed §3.2.2); only the geometry
+matters. The nominal three-axis attitude is the reference-frame attitude with the
+plan's maneuvers (Eq 4-4, 4-6, 4-35, 4-36)::
+
+    C_BI(t) = T3(ψ(t)) T2(θ(t)) T1(φ(t)) A(t),   (φ, θ, ψ)(t) = (φ0, θ0, ψ0) + Δ(t)
+
+with ``Δ(t)`` the maneuver offsets of :meth:`DataPlan.maneuver_offsets`. The nominal
+body rate over a gyro interval is taken from two attitudes by Eq 4-33
+(:func:`gcs_core.models.gyro.rate_from_quaternions`), which is what a gyro would read.
+
+Two attitude providers complete :mod:`gcs_core.filtr.attitude` for the predictor:
+
+* :class:`ManeuverAttitude` — gyro-free three-axis attitude whose roll/pitch/yaw follow
+  a *known* maneuver profile: ``(φ, θ, ψ)(t) = x + Δ(t)``, elements ``x`` = the
+  ``att.*`` values at ``start``; ``∂δθ/∂x`` is Eq 4-22 at the angles of each time.
+* :class:`BodyErrorAttitude` — a fixed nominal attitude whose elements are the body
+  error angles themselves (``∂δθ/∂x = I``); the covariance recursion of Eq 3-4 uses it
+  to obtain the observation partials with respect to the current attitude error.
+
+Sensor availability (seed §4.3, "the times at which the data is available"):
+
+* Sun sensors: not in the Earth's shadow (conical model, switching at mid-penumbra,
+  :func:`gcs_core.ephem.sun.in_shadow`) and the Sun inside the square field of view
+  ``|atan(S_y/S_x)|, |atan(S_z/S_x)| ≤ fov`` (no margin);
+* star trackers: the boresight (sensor +x) farther than ``earth_exclusion_deg``
+  (default 10°) from the Earth limb and than ``sun_exclusion_deg`` (default 30°) from
+  the Sun — data-book keys, kept by the mission reader as extra keys;
+* plane-field Sun sensor and horizon scanner: not in shadow (the horizon timing starts
+  at the Sun sighting); whether the Sun crosses the slit and the scan cone crosses the
+  Earth is the models' own ``valid`` flag;
+* magnetometer, gyro: always.
+"""
+
+from __future__ import annotations
+
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.ephem.sun import earth_occults, in_shadow
+from gcs_core.filtr.attitude import RPY, AttitudeEval, ReferenceAttitude
+from gcs_core.frames.reference import spin_axis
+from gcs_core.frames.rotations import (dcm_to_euler123, euler123_partials, euler123_to_dcm,
+                                       quat_from_dcm)
+from gcs_core.models import common
+from gcs_core.models.gyro import rate_from_quaternions
+from gcs_core.sidp.types import SensorSpec
+from gcs_core.units import DEG
+
+#: default exclusion angles of a star tracker [deg] (typical FHST values)
+EARTH_EXCLUSION_DEG = 10.0
+SUN_EXCLUSION_DEG = 30.0
+#: body error angle element names of :class:`BodyErrorAttitude`
+ERR = ("err.x", "err.y", "err.z")
+
+
+def _vee(S):
+    """Vector of skew matrices ``[a×]`` (..., 3, 3) -> (..., 3)."""
+    return np.stack([S[..., 2, 1], S[..., 0, 2], S[..., 1, 0]], -1)
+
+
+def rpy_error_jacobians(rpy: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) ``∂δθ/∂(φ, θ, ψ)`` at N angle triples (Eq 4-22, vectorized).
+
+    ``[δθ×] = −Σ_i (∂B/∂x_i) Bᵀ δx_i`` for ``C = B(φ, θ, ψ) A``.
+    """
+    rpy = np.atleast_2d(np.asarray(rpy, dtype=float))
+    B = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2])
+    dB = euler123_partials(rpy[:, 0], rpy[:, 1], rpy[:, 2])            # (N, 3, 3, 3)
+    BT = np.swapaxes(B, -1, -2)
+    return np.stack([_vee(-(dB[:, i] @ BT)) for i in range(3)], -1)
+
+
+class NominalAttitude:
+    """Reference attitude + maneuvers (three-axis) or a fixed spin axis (spinning).
+
+    Parameters
+    ----------
+    mode : mission attitude mode.
+    ephemeris : :class:`~gcs_core.ephem.ephemeris.Ephemeris`.
+    plan : the :class:`~gcs_core.predictor.plan.DataPlan` (maneuvers).
+    rpy0 : (3,) roll, pitch, yaw at ``plan.start`` [rad] (three-axis).
+    spin_axis_I : (3,) unit spin axis (spinning).
+    """
+
+    def __init__(self, mode: str, ephemeris, plan, rpy0=(0.0, 0.0, 0.0), spin_axis_I=None):
+        self.mode = mode
+        self.ephemeris = ephemeris
+        self.plan = plan
+        self.rpy0 = np.asarray(rpy0, dtype=float)
+        self.spin_axis_I = None if spin_axis_I is None else np.asarray(spin_axis_I, dtype=float)
+        self.reference = ReferenceAttitude(mode, ephemeris) if mode != "spinning" else None
+
+    @property
+    def spinning(self) -> bool:
+        return self.mode == "spinning"
+
+    def rpy(self, t) -> np.ndarray:
+        """(N, 3) nominal roll, pitch, yaw [rad] (Eq 4-36)."""
+        return self.rpy0[None, :] + self.plan.maneuver_offsets(t)
+
+    def dcm(self, t) -> np.ndarray:
+        """(N, 3, 3) nominal ``C_BI`` (Eq 4-6)."""
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        a = self.rpy(t)
+        return euler123_to_dcm(a[:, 0], a[:, 1], a[:, 2]) @ self.reference.reference(t)
+
+    def mean_rates(self, knots) -> np.ndarray:
+        """(K, 3) body rate averaged over each interval ``(τ_{k−1}, τ_k]`` (Eq 4-33)."""
+        knots = np.asarray(knots, dtype=float)
+        q = quat_from_dcm(self.dcm(knots))
+        return rate_from_quaternions(q[:-1], q[1:], np.diff(knots))
+
+
+class ManeuverAttitude:
+    """Gyro-free three-axis attitude following a known maneuver profile (module docstring)."""
+
+    kind = "three_axis"
+    names = RPY
+
+    def __init__(self, reference: ReferenceAttitude, offsets):
+        self.reference_attitude = reference
+        self.mode = reference.mode
+        self.offsets = offsets
+
+    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        rpy = np.array([values[n] for n in RPY])[None, :] + self.offsets(t)
+        C = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2]) @ self.reference_attitude.reference(t)
+        return AttitudeEval(C, None, RPY, rpy_error_jacobians(rpy))
+
+    def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
+        A = self.reference_attitude.reference(np.atleast_1d(t))[0]
+        rpy = np.array(dcm_to_euler123(C @ A.T)) - self.offsets(np.atleast_1d(t))[0]
+        return tuple(float(a) for a in rpy)
+
+
+class BodyErrorAttitude:
+    """A fixed attitude history whose elements are the body error angles (``J = I``).
+
+    Parameters
+    ----------
+    base : an attitude provider; ``base_values`` its element values.
+    """
+
+    kind = "three_axis"
+    names = ERR
+
+    def __init__(self, base, base_values: Mapping[str, float]):
+        self.base = base
+        self.base_values = dict(base_values)
+
+    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
+        att = self.base.evaluate(self.base_values, t)
+        n = att.C_BI.shape[0]
+        return AttitudeEval(att.C_BI, None, ERR, np.broadcast_to(np.eye(3), (n, 3, 3)),
+                            omega_B=att.omega_B)
+
+
+# ----------------------------------------------------------------------------------------
+def _alignment(sensor: SensorSpec) -> np.ndarray:
+    a = np.zeros(3) if sensor.alignment_deg is None else np.asarray(sensor.alignment_deg) * DEG
+    return euler123_to_dcm(*a)
+
+
+def _book_deg(sensor: SensorSpec, key: str, default: float) -> float:
+    value = common.book_scalar(sensor, key, default)
+    return float(value) * DEG
+
+
+def available(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np.ndarray:
+    """(N,) True where ``sensor`` can deliver a frame at ``t`` (module docstring)."""
+    t = np.asarray(t, dtype=float)
+    if t.size == 0 or sensor.type in ("magnetometer", "gyro"):
+        return np.ones(t.shape, dtype=bool)
+    eph = nominal.ephemeris
+    r, _ = eph.state(t, what=f"the plan of {sensor.name}")
+    s = eph.sun_geocentric(t, what=f"the plan of {sensor.name}")
+    sun_hat = (s - r) / np.linalg.norm(s - r, axis=-1, keepdims=True)
+    if sensor.type in ("plane_field_sun", "horizon"):
+        return ~in_shadow(r, s)
+    M_C = _alignment(sensor)[None] @ nominal.dcm(t)                   # GCI -> sensor
+    if sensor.type in ("fine_sun", "coarse_sun"):
+        S = np.einsum("nij,nj->ni", M_C, sun_hat)
+        ok = S[:, 0] > 0.0
+        fov = common.fov_rad(sensor)
+        if fov is not None:
+            ok &= (np.abs(np.arctan2(S[:, 1], S[:, 0])) <= fov) & (np.abs(np.arctan2(S[:, 2], S[:, 0])) <= fov)
+        return ok & ~in_shadow(r, s)
+    if sensor.type == "star_tracker":
+        bore = M_C[:, 0, :]                                            # sensor +x in GCI
+        earth_margin = _book_deg(sensor, "earth_exclusion_deg", EARTH_EXCLUSION_DEG)
+        sun_margin = _book_deg(sensor, "sun_exclusion_deg", SUN_EXCLUSION_DEG)
+        near_sun = np.einsum("ni,ni->n", bore, sun_hat) > np.cos(sun_margin)
+        return ~earth_occults(r, bore, earth_margin) & ~near_sun
+    return np.ones(t.shape, dtype=bool)
+
+
+# ----------------------------------------------------------------------------------------
+#: the plastic number's powers: R2 low-discrepancy sequence in the unit square
+_PLASTIC = 1.324717957244746
+_R2 = (1.0 / _PLASTIC, 1.0 / _PLASTIC ** 2)
+
+
+def synthetic_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np.ndarray:
+    """(N, 3) GCI unit vectors of one star per frame, spread evenly over the field of view.
+
+    "Headers only" (seed §3.2.2): no catalog. The k-th frame's star sits at
+    ``(h, v) = fov · (2 u_k − 1)`` in the tracker's square field, ``u_k`` the R2
+    low-discrepancy sequence, so that its partials (Eq 4-29, 4-31) sample the field as
+    real stars do; then ``F_I = (M C)ᵀ F_S``.
+    """
+    fov = common.fov_rad(sensor) or 4.0 * DEG
+    k = np.arange(1, t.size + 1, dtype=float)
+    u = np.mod(0.5 + np.outer(k, _R2), 1.0)
+    h = fov * (2.0 * u[:, 0] - 1.0)
+    v = fov * (2.0 * u[:, 1] - 1.0)
+    F_S = np.column_stack([np.cos(h) * np.cos(v), np.cos(h) * np.sin(v), np.sin(h)])
+    M_C = _alignment(sensor)[None] @ nominal.dcm(t)
+    return np.einsum("nji,nj->ni", M_C, F_S)
+
+
+def nominal_spin_axis(ra_deg: float, dec_deg: float) -> np.ndarray:
+    """(3,) Eq 4-2 from degrees."""
+    return spin_axis(ra_deg * DEG, dec_deg * DEG)

@@ -1,0 +1,152 @@
+"""Data modeling for the predictor (seed §4.3): *when* each sensor has data.
+
+The seed's predictor needs no data, "only a scheme to specify the times at which the
+data is available", and "a simple data modeling method which assumes continuous data
+segments interleaved with specified data gaps is usually adequate" (§4.3). A
+:class:`DataPlan` is that scheme:
+
+* the span ``[start, end]`` and the output step of the σ history;
+* data gaps ``[t0, t1)`` in which no observation sensor delivers a frame;
+* maneuvers (Eq 4-35, 4-36): over ``[t_m, t_m + D]`` one Euler angle of the nominal
+  attitude relative to the reference frame changes at a constant rate,
+  ``φ = φ0 + φ̇ (t − t_m)`` (roll; pitch and yaw alike), and holds its new value after;
+* per-sensor cadences (otherwise taken from the telemetry, a ``cadence`` data-book key,
+  or 1 s — 10 s for star trackers);
+* the nominal roll/pitch/yaw at ``start`` (or the spin rate of a spinner).
+
+Gaps are telemetry gaps of the *observation* sensors. The gyro, which carries the
+attitude between observations (Eq 4-38), is taken to run through them.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.config import AXES, AnalysisConfig, Maneuver
+from gcs_core.errors import InputError
+from gcs_core.units import DEG
+
+#: default cadence [s] when neither the plan, the telemetry nor the data book gives one
+DEFAULT_CADENCE_S = 1.0
+#: default cadence of star trackers [s] (one identified star every 10 s)
+DEFAULT_TRACKER_CADENCE_S = 10.0
+FRAME_SOURCES = ("plan", "telemetry")
+
+
+@dataclass(frozen=True)
+class DataPlan:
+    """A data plan for the predictor (module docstring).
+
+    Attributes
+    ----------
+    start, end : plan span [s since the mission epoch].
+    step : spacing of the output times of the σ history [s].
+    gaps : ``(t0, t1)`` intervals without observation data.
+    maneuvers : constant-rate Euler-angle maneuvers (Eq 4-36), from :mod:`gcs_core.config`.
+    cadence : sensor name -> frame spacing [s], overriding telemetry and data book.
+    rpy0 : nominal roll, pitch, yaw at ``start`` [rad] relative to the reference frame;
+        None: from the onboard attitude at ``start`` if there is one, else zeros.
+    spin_rate : spin rate of a spinning mission [rad/s]; None: from the horizon
+        telemetry or the data-book key ``spin_rate_rpm``.
+    frames : ``"plan"`` — generate the frame times from the cadences, the gaps and the
+        sensor availability; ``"telemetry"`` — use the telemetry's own frame times and
+        star identifications (values ignored), minus the gaps.
+    """
+
+    start: float
+    end: float
+    step: float = 10.0
+    gaps: tuple[tuple[float, float], ...] = ()
+    maneuvers: tuple[Maneuver, ...] = ()
+    cadence: Mapping[str, float] = field(default_factory=dict)
+    rpy0: tuple[float, float, float] | None = None
+    spin_rate: float | None = None
+    frames: str = "plan"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.start) and math.isfinite(self.end) and self.end > self.start):
+            raise InputError(f"the plan needs end > start (got {self.start}, {self.end})",
+                             key="prediction.end")
+        if not self.step > 0:
+            raise InputError(f"must be > 0, got {self.step}", key="prediction.step")
+        for g in self.gaps:
+            if len(g) != 2 or not g[0] < g[1]:
+                raise InputError(f"a gap must be [t0, t1] with t0 < t1, got {g!r}",
+                                 key="prediction.gaps")
+        for i, m in enumerate(self.maneuvers):
+            if m.axis not in AXES:
+                raise InputError(f"axis must be one of {', '.join(AXES)}",
+                                 key=f"prediction.maneuvers[{i}].axis")
+            if not m.duration > 0:
+                raise InputError("duration must be > 0", key=f"prediction.maneuvers[{i}].duration")
+        for name, c in self.cadence.items():
+            if not c > 0:
+                raise InputError(f"cadence must be > 0, got {c}", key=f"cadence.{name}")
+        if self.frames not in FRAME_SOURCES:
+            raise InputError(f"frames must be one of {', '.join(FRAME_SOURCES)}",
+                             key="prediction.frames")
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def from_config(cls, cfg: AnalysisConfig, *, span: tuple[float, float] | None = None,
+                    **overrides) -> "DataPlan":
+        """The plan of an analysis config's ``[prediction]`` table.
+
+        ``span`` supplies start/end where the config leaves them out (e.g. the
+        telemetry span); keyword ``overrides`` replace any field.
+        """
+        start, end = cfg.pred_start, cfg.pred_end
+        if (start is None or end is None) and span is None:
+            raise InputError("the plan needs prediction.start and prediction.end (no telemetry "
+                             "span to default to)", file=cfg.path, key="prediction.start")
+        kw = dict(start=float(span[0] if start is None else start),
+                  end=float(span[1] if end is None else end),
+                  step=cfg.pred_step, gaps=tuple(cfg.gaps), maneuvers=tuple(cfg.maneuvers))
+        kw.update(overrides)
+        return cls(**kw)
+
+    # ------------------------------------------------------------------ times
+    def output_times(self) -> np.ndarray:
+        """(T,) ``start, start + step, …`` and ``end`` itself."""
+        n = int(math.ceil((self.end - self.start) / self.step - 1e-9))
+        t = self.start + self.step * np.arange(n + 1, dtype=float)
+        t[-1] = self.end
+        return t
+
+    def grid(self, cadence: float, *, first: float | None = None) -> np.ndarray:
+        """(N,) frame slots ``first + k·cadence`` inside ``[start, end]`` (``first`` = start)."""
+        t0 = self.start if first is None else first
+        n = int(math.floor((self.end - t0) / cadence + 1e-9))
+        return t0 + cadence * np.arange(n + 1, dtype=float)
+
+    def in_gap(self, t) -> np.ndarray:
+        """(N,) True where ``t`` lies in a data gap ``[t0, t1)``."""
+        t = np.asarray(t, dtype=float)
+        mask = np.zeros(t.shape, dtype=bool)
+        for a, b in self.gaps:
+            mask |= (t >= a) & (t < b)
+        return mask
+
+    def in_span(self, t) -> np.ndarray:
+        t = np.asarray(t, dtype=float)
+        return (t >= self.start) & (t <= self.end)
+
+    # ------------------------------------------------------------------ maneuvers
+    def maneuver_offsets(self, t) -> np.ndarray:
+        """Eq 4-36: (N, 3) change of roll, pitch, yaw [rad] since ``start``.
+
+        Each maneuver adds ``φ̇ · clip(t − t_m, 0, D)`` to its axis: a constant rate
+        during the maneuver, the angle held after it.
+        """
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        out = np.zeros((t.size, 3))
+        for m in self.maneuvers:
+            k = AXES.index(m.axis)
+            rate = m.rate_deg_s * DEG
+            out[:, k] += rate * (np.clip(t - m.start, 0.0, m.duration)
+                                 - np.clip(self.start - m.start, 0.0, m.duration))
+        return out
