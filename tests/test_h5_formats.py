@@ -98,6 +98,20 @@ def test_sdf_headers_only(tmp_path, imported):
     assert os.path.getsize(path) < os.path.getsize(write_sdf(tmp_path / "f.h5", imported))
 
 
+def test_sdf_with_an_empty_aux_table_and_late_aux_rows(tmp_path, imported):
+    from dataclasses import replace
+    aux = imported.aux
+    late = replace(aux, t=aux.t[100:], columns={k: v[100:] for k, v in aux.columns.items()},
+                   lines=aux.lines[100:])
+    sdf = read_sdf(write_sdf(tmp_path / "late.h5", replace(imported, aux=late)))
+    held = sdf.blocks[0].sensors["TAM1"].aux
+    assert np.all(np.isnan(held[:100])) and not np.any(np.isnan(held[100:]))
+    empty = replace(aux, t=aux.t[:0], columns={k: v[:0] for k, v in aux.columns.items()},
+                    lines=aux.lines[:0])
+    sdf = read_sdf(write_sdf(tmp_path / "empty.h5", replace(imported, aux=empty)))
+    assert np.all(np.isnan(sdf.blocks[0].sensors["TAM1"].aux))
+
+
 def test_scds_round_trip_and_diff(tmp_path):
     path = tmp_path / "cal.scds.h5"
     assert [append(path, k, note=f"run {k}") for k in range(3)] == [1, 2, 3]

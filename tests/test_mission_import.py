@@ -299,3 +299,54 @@ def test_parse_utc_forms():
             parse_utc(bad)
     assert np.isclose((parse_utc("2024-01-01T00:00:00Z") - parse_utc("2023-12-31T23:59:59Z"))
                       .total_seconds(), 1.0)
+
+
+# --- docs/input_checks.md lists every message the readers raise ----------------------------
+
+REPO = Path(__file__).resolve().parents[1]
+#: callables whose argument at this position is a user-facing message template
+_MESSAGE_ARG = {"InputError": 0, "DataFileError": 0, "error": 0, "_refuse": 3,
+                "_field_error": 4, "_check_vector_norm": 4}
+
+
+def _template(node) -> str | None:
+    import ast
+    import re
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        text = node.value
+    elif isinstance(node, ast.JoinedStr):
+        text = "".join(v.value if isinstance(v, ast.Constant) else "…" for v in node.values)
+    else:
+        return None
+    return re.sub(r"\{[^{}]*\}", "…", text)  # str.format fields, e.g. {norm:.6g}
+
+
+def _code_templates() -> tuple[set[str], set[str]]:
+    """(messages raised by the sidp readers, every string template in their sources)."""
+    import ast
+    raised, everything = set(), set()
+    for source in sorted((REPO / "gcs_core" / "sidp").glob("*.py")):
+        for node in ast.walk(ast.parse(source.read_text())):
+            t = _template(node)
+            if t:
+                everything.add(t)
+            if isinstance(node, ast.Call):
+                func = node.func
+                name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", None)
+                k = _MESSAGE_ARG.get(name)
+                if k is not None and len(node.args) > k:
+                    t = _template(node.args[k])
+                    if t and t.strip("… "):
+                        raised.add(t)
+    return raised, everything
+
+
+def test_input_checks_doc_in_sync():
+    import re
+    doc = (REPO / "docs" / "input_checks.md").read_text()
+    documented = {m.group(1) for m in re.finditer(r"→ `([^`]+)`\s*$", doc, re.MULTILINE)}
+    raised, everything = _code_templates()
+    undocumented = raised - documented
+    assert not undocumented, f"add to docs/input_checks.md: {sorted(undocumented)}"
+    stale = {d for d in documented if d not in everything}
+    assert not stale, f"docs/input_checks.md lists messages the code no longer has: {sorted(stale)}"

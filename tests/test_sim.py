@@ -24,6 +24,20 @@ from gcs_core.sim.truth import World
 one_nT = 1.0
 one_arcsecond = units.ARCSEC
 
+def aberrated(u, beta):
+    """First-order aberration (Wertz 1978 §5.4): u' = unit(u + β − (u·β) u), β = v/c."""
+    d = np.sum(u * beta, axis=-1, keepdims=True)
+    w = u + beta - d * u
+    return w / np.linalg.norm(w, axis=-1, keepdims=True)
+
+
+def apparent_sun(world, t):
+    """Sun seen from the moving spacecraft: parallax and orbital aberration (real physics)."""
+    r, v = world.orbit(t)
+    S = world.sun(t) - r
+    return aberrated(S / np.linalg.norm(S, axis=1)[:, None], v / units.C_KM_S)
+
+
 EXPECTED_HEADERS = {
     "magnetometer": "t,bx,by,bz", "gyro": "t,wx,wy,wz", "star_tracker": "t,h,v,ra,dec,mag",
     "fine_sun": "t,n_alpha,n_beta", "coarse_sun": "t,n_alpha,n_beta",
@@ -211,6 +225,9 @@ def test_star_tracker_follows_icd_model_within_noise(mission):
         _, d = _read(out / f"telemetry/{name}.csv")
         ra, dec = np.radians(d[:, 3]), np.radians(d[:, 4])
         F_I = np.stack([np.cos(ra) * np.cos(dec), np.sin(ra) * np.cos(dec), np.sin(dec)], -1)
+        _, v_sc = world.orbit(d[:, 0])
+        v_earth = -(world.sun(d[:, 0] + 1.0) - world.sun(d[:, 0] - 1.0)) / 2.0   # Earth about the Sun
+        F_I = aberrated(F_I, (v_earth + v_sc) / units.C_KM_S)           # stellar aberration
         F_S = np.einsum("ij,njk,nk->ni", M, world.attitude(d[:, 0]), F_I)
         h = np.arcsin(F_S[:, 2])                                     # Eq 4-29, S_H = S_V = 1
         v = np.arctan2(F_S[:, 1], F_S[:, 0])
@@ -227,9 +244,7 @@ def test_sun_sensor_counts_follow_icd_model_within_noise(mission, name):
     s = cfg.sensor(name)
     _, d = _read(out / f"telemetry/{name}.csv")
     t = d[:, 0]
-    r, _ = world.orbit(t)
-    S_I = world.sun(t) - r
-    S_I /= np.linalg.norm(S_I, axis=1)[:, None]
+    S_I = apparent_sun(world, t)
     M = R.euler123_to_dcm(*np.radians(s.book["alignment_deg"]))
     S_S = np.einsum("ij,njk,nk->ni", M, world.attitude(t), S_I)
     if s.type == "fine_sun":

@@ -34,8 +34,7 @@ def run(cfg, name, t, **true):
     world = World(cfg)
     aux = AuxSchedule(cfg.aux, cfg.duration_s, _rng(cfg.seed, "aux")) if cfg.aux else None
     cat = StarCatalog(cfg.catalog_seed) if s.type == "star_tracker" else None
-    sim = make_sensor_sim(s, world, _rng(cfg.seed, name), catalog=cat, aux=aux,
-                          stellar_aberration=cfg.stellar_aberration)
+    sim = make_sensor_sim(s, world, _rng(cfg.seed, name), catalog=cat, aux=aux)
     return sim.run(np.asarray(t, dtype=float)), world, aux
 
 
@@ -100,8 +99,8 @@ def test_fhst_rotation_about_boresight(base):
 
 
 def test_stellar_aberration_and_misidentification(base):
-    y0, world, _ = run(base, "FHST2", T10, noise=0.0)
-    y1, _, _ = run(with_effect(base, "model.stellar_aberration", 1.0), "FHST2", T10, noise=0.0)
+    y0, world, _ = run(with_effect(base, "model.stellar_aberration", 0.0), "FHST2", T10, noise=0.0)
+    y1, _, _ = run(base, "FHST2", T10, noise=0.0)                    # real physics: on
     k = np.isin(y1["t"], y0["t"])
     k0 = np.searchsorted(y0["t"], y1["t"][k])
     ok = y0["ra"][k0] == y1["ra"][k]
@@ -118,12 +117,12 @@ def test_stellar_aberration_and_misidentification(base):
 
 
 def test_fss_harmonic_and_css_bias(base):
-    A3 = 5e-5
+    H = 5e-5
     swept = nominal_threeaxis("sun_pointing", seed=21, duration_s=D, sweep_deg=3.0)
     y0, _, _ = run(swept, "FSS1", T1HZ)
-    y1, world, _ = run(with_effect(swept, "FSS1.harmonic", A3), "FSS1", T1HZ)
+    y1, world, _ = run(with_effect(swept, "FSS1.harmonic", H), "FSS1", T1HZ)
     tan_a = 7.6e-5 * y0["n_alpha"]                                    # A1 = 0, A3 = 0 in the book
-    expected = -A3 * np.sin(50.0 * tan_a) / 7.6e-5                    # ±0.66 counts
+    expected = -H * np.sin(2 * 50.0 * tan_a) / 7.6e-5                 # second harmonic, ±0.66 counts
     dn = y1["n_alpha"] - y0["n_alpha"]
     assert np.max(np.abs(dn - expected)) <= 1.0 + 1e-9
     # The shared Gaussian noise dithers the rounding, so E[Δn | expected] = expected.
@@ -159,8 +158,6 @@ def test_every_effect_applies_and_is_listed_in_the_answer_file(tmp_path):
     cfg_of = {s.name: (three if s in three.sensors else spin) for s in three.sensors + spin.sensors}
     n = 0
     for effect, types, unit, desc in list_effects():
-        if effect == "fss_bias":
-            continue
         for typ in types:
             sensor = "model" if typ == "model" else by_type[typ]
             cfg = three if sensor == "model" else cfg_of[sensor]
@@ -172,10 +169,27 @@ def test_every_effect_applies_and_is_listed_in_the_answer_file(tmp_path):
     write_mission(cfg, tmp_path / "m", truth_path=tmp_path / "a.json")
     truth = json.loads((tmp_path / "a.json").read_text())
     assert [e["id"] for e in truth["hidden_effects"]] == ["TAM1.bias", "model.stellar_aberration"]
-    assert truth["hidden_effects"][1]["sensor"] is None and truth["stellar_aberration"] is True
+    assert truth["hidden_effects"][1]["sensor"] is None and truth["physics"]["stellar_aberration"] is True
     assert truth["sensors"]["TAM1"]["true"]["bias"] == pytest.approx([30.0, -24.0, 32.0])
     assert "bias = [0.0, 0.0, 0.0]" in (tmp_path / "m" / "mission.toml").read_text()
     with pytest.raises(InputError, match="does not apply"):
         with_effect(three, "FHST1.contamination_mtb_x", 1.0)
     with pytest.raises(InputError, match="no sensor"):
         with_effect(three, "TAM9.bias", 1.0)
+
+
+def test_physics_switches_and_ephemeris_time_error(tmp_path):
+    base = nominal_threeaxis("sun_pointing", seed=3, duration_s=D)
+    y0, world, _ = run(base, "FSS1", T1HZ, noise=0.0)
+    y1, _, _ = run(with_effect(base, "model.sun_parallax", 0.0), "FSS1", T1HZ, noise=0.0)
+    # Parallax |r|/AU ≈ 9.5": about 0.6 count at A2 = 7.6e-5 (16"/count), once per orbit.
+    d = np.concatenate([y1["n_alpha"] - y0["n_alpha"], y1["n_beta"] - y0["n_beta"]])
+    assert 0 < np.mean(d != 0) < 0.9 and np.abs(d).max() <= 1
+    spin = spinner_nominal(seed=2, duration_s=600.0)
+    cfg = with_effect(spin, "HS1.d_t", 2.0)
+    out = write_mission(cfg, tmp_path / "dt", truth_path=tmp_path / "dt.json")
+    eph = np.loadtxt(out / "ephemeris.csv", delimiter=",", skiprows=1)
+    r_true, _ = World(cfg).orbit(eph[:, 0] - 2.0)
+    assert np.allclose(eph[:, 1:4], r_true, atol=1e-6)
+    truth = json.loads((tmp_path / "dt.json").read_text())
+    assert truth["ephemeris_time_error_s"] == 2.0 and truth["hidden_effects"][0]["id"] == "HS1.d_t"

@@ -22,6 +22,15 @@ from gcs_core.sim.truth import World
 one_microsecond = 1e-6
 
 
+def apparent_sun(world, t):
+    """Ŝ from the spacecraft with orbital aberration (the data's real physics)."""
+    r, v = world.orbit(t)
+    S = world.sun(t) - r
+    S /= np.linalg.norm(S, axis=1)[:, None]
+    S = S + v / units.C_KM_S - np.sum(S * v / units.C_KM_S, 1)[:, None] * S
+    return S / np.linalg.norm(S, axis=1)[:, None]
+
+
 def icd_dt(world, t_s, dt0, w, *, gamma, phi_h, h_H, d_gamma=0.0, d_phi=0.0, eps_s=0.0, eps_h=0.0,
            d_rho=0.0, out=False):
     """ICD §5 horizon model, iterated at the crossing time (Eq 4-12a to 4-12e)."""
@@ -31,8 +40,7 @@ def icd_dt(world, t_s, dt0, w, *, gamma, phi_h, h_H, d_gamma=0.0, d_phi=0.0, eps
     for _ in range(6):
         t = t_s + dt
         r, _ = world.orbit(t)
-        S = world.sun(t) - r
-        S /= np.linalg.norm(S, axis=1)[:, None]
+        S = apparent_sun(world, t)
         rn = np.linalg.norm(r, axis=1)
         E = -r / rn[:, None]
         eta = np.arccos(E @ A)
@@ -49,7 +57,7 @@ def icd_dt(world, t_s, dt0, w, *, gamma, phi_h, h_H, d_gamma=0.0, d_phi=0.0, eps
     return dt
 
 
-CASES = [(None, 0.0), ("HS1.d_gamma", 0.01), ("HS1.d_phi", 0.02), ("PSS1.tilt", 0.03), ("HS1.tilt", 0.02),
+CASES = [(None, 0.0), ("HS1.d_gamma", 0.01), ("HS1.d_phi", 0.02), ("PSS1.tilt", 0.03), ("HS1.eps_H", 0.02),
          ("HS1.horizon_height", 15.0), ("HS1.d_rho", 0.004), ("PSS1.bias", 0.01)]
 
 
@@ -68,14 +76,12 @@ def test_root_found_crossings_match_icd_closed_form(effect, magnitude):
     assert d["t"].size > 150 and p["t"].size >= d["t"].size
     kw = dict(gamma=math.radians(hs.value("gamma_deg")), phi_h=math.radians(hs.value("phi_h_deg")),
               h_H=hs.value("horizon_height_km"), d_gamma=hs.value("d_gamma", 0.0), d_phi=hs.value("d_phi", 0.0),
-              eps_s=math.radians(pss.value("tilt_deg")), eps_h=hs.value("tilt_h", 0.0), d_rho=hs.value("d_rho", 0.0))
+              eps_s=math.radians(pss.value("tilt_deg")), eps_h=hs.value("eps_H", 0.0), d_rho=hs.value("d_rho", 0.0))
     for col, out in (("dt_in", False), ("dt_out", True)):
         ref = icd_dt(world, d["t"], d[col], d["spin_rate"], out=out, **kw)
         assert np.max(np.abs(ref - d[col])) < 5 * one_microsecond, col
     # Plane-field Sun sensor, Eq 4-14: β_m = acos(Â·Ŝ / cos ε_S) + Δβ at the sighting time.
-    r, _ = world.orbit(p["t"])
-    S = world.sun(p["t"]) - r
-    S /= np.linalg.norm(S, axis=1)[:, None]
+    S = apparent_sun(world, p["t"])
     beta = np.arccos((S @ world.spin_axis_I) / math.cos(kw["eps_s"])) + pss.value("bias")
     assert np.max(np.abs(beta - p["beta"])) < 1e-9
 

@@ -208,10 +208,33 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
                 # model) takes its data-book value from the sensor that owns it
                 elements[names_now.index(el.name)] = el
         param_map[s.name] = pmap
+    elements = _link_sun_sensor_tilt(spec, elements, param_map)
     state = StateVector(tuple(elements))
     state = apply_state_options(state, options)
     return Problem(state=state, attitude=attitude, sensors=sensors, param_map=param_map,
                    builder=builder, tables=dict(mission.telemetry), mode=mode, gyro_name=gyro_name)
+
+
+def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> list[Element]:
+    """ICD §5 horizon: ε_S is the plane-field Sun sensor's ``tilt`` — one element for both.
+
+    A horizon scanner names its Sun sensor with the book key ``sun_sensor``; without it,
+    a mission with exactly one plane-field Sun sensor links to that one.
+    """
+    pfss = [s.name for s in spec.sensors if s.type == "plane_field_sun"]
+    drop = set()
+    for s in spec.sensors:
+        if s.type != "horizon" or "eps_S" not in param_map.get(s.name, {}):
+            continue
+        target = s.get("sun_sensor") or (pfss[0] if len(pfss) == 1 else None)
+        if target is None or target not in param_map:
+            continue
+        own = param_map[s.name]["eps_S"]
+        linked = param_map[target].get("tilt")
+        if linked and own != linked:
+            param_map[s.name]["eps_S"] = linked
+            drop.add(own)
+    return [e for e in elements if e.name not in drop]
 
 
 def apply_state_options(state: StateVector, options: StateOptions) -> StateVector:

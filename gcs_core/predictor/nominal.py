@@ -35,6 +35,7 @@ Sensor availability (seed §4.3, "the times at which the data is available"):
 
 from __future__ import annotations
 
+import functools
 from typing import Mapping
 
 import numpy as np
@@ -52,6 +53,9 @@ from gcs_core.units import DEG
 #: default exclusion angles of a star tracker [deg] (typical FHST values)
 EARTH_EXCLUSION_DEG = 10.0
 SUN_EXCLUSION_DEG = 30.0
+#: stars in the synthetic sky (about the count brighter than visual magnitude 6) and its seed
+SKY_STARS = 5000
+SKY_SEED = 1988
 #: body error angle element names of :class:`BodyErrorAttitude`
 ERR = ("err.x", "err.y", "err.z")
 
@@ -220,6 +224,69 @@ def synthetic_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude)
     F_S = np.column_stack([np.cos(h) * np.cos(v), np.cos(h) * np.sin(v), np.sin(h)])
     M_C = _alignment(sensor)[None] @ nominal.dcm(t)
     return np.einsum("nji,nj->ni", M_C, F_S)
+
+
+class SyntheticSky:
+    """A fixed pseudo-random sky for star-tracker headers (:func:`sky_stars`).
+
+    ``n`` stars uniform on the sphere with magnitudes ``m ∈ [m_lo, m_hi]`` whose
+    cumulative count grows as ``10^(0.48 m)`` (the bright-star counts), drawn once from
+    a fixed seed so that every prediction sees the same sky.
+    """
+
+    def __init__(self, n: int = SKY_STARS, m_lo: float = 1.0, m_hi: float = 6.0, seed: int = SKY_SEED):
+        from scipy.spatial import cKDTree
+
+        rng = np.random.default_rng(seed)
+        z = rng.uniform(-1.0, 1.0, n)
+        lon = rng.uniform(0.0, 2.0 * np.pi, n)
+        c = np.sqrt(1.0 - z * z)
+        self.u_I = np.column_stack([c * np.cos(lon), c * np.sin(lon), z])
+        k = 0.48 * np.log(10.0)
+        x = rng.uniform(0.0, 1.0, n)
+        self.mag = np.log(np.exp(k * m_lo) + x * (np.exp(k * m_hi) - np.exp(k * m_lo))) / k
+        self.tree = cKDTree(self.u_I)
+
+
+@functools.lru_cache(maxsize=1)
+def default_sky() -> SyntheticSky:
+    """The shared synthetic sky (built once)."""
+    return SyntheticSky()
+
+
+def sky_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude,
+              sky: SyntheticSky) -> tuple[np.ndarray, np.ndarray]:
+    """Stars of a fixed sky seen by a tracker: ``(ok, F_I)``.
+
+    At each frame the stars inside the square field ``|h|, |v| ≤ fov`` are the
+    candidates and one is reported with probability proportional to its brightness
+    ``10^(−0.4 m)``, drawn with the golden-ratio sequence (deterministic). A pointing
+    that stays put keeps seeing the same few stars, as a tracker on the real sky does.
+    Returns (N,) frames with a star and (N, 3) its GCI direction (NaN where none).
+    """
+    fov = common.fov_rad(sensor) or 4.0 * DEG
+    M_C = _alignment(sensor)[None] @ nominal.dcm(t)
+    bore = M_C[:, 0, :]
+    radius = 2.0 * np.sin(0.5 * fov * np.sqrt(2.0) * 1.01)
+    cand = sky.tree.query_ball_point(bore, radius)
+    u = np.mod(0.5 + np.arange(1, t.size + 1) * 0.6180339887498949, 1.0)
+    F = np.full((t.size, 3), np.nan)
+    ok = np.zeros(t.size, dtype=bool)
+    for k, idx in enumerate(cand):
+        if not idx:
+            continue
+        idx = np.asarray(idx)
+        FS = sky.u_I[idx] @ M_C[k].T
+        inside = (FS[:, 0] > 0) & (np.abs(np.arcsin(np.clip(FS[:, 2], -1, 1))) <= fov) & \
+            (np.abs(np.arctan2(FS[:, 1], FS[:, 0])) <= fov)
+        if not np.any(inside):
+            continue
+        sel = idx[inside]
+        w = np.cumsum(10.0 ** (-0.4 * sky.mag[sel]))
+        j = sel[min(int(np.searchsorted(w, u[k] * w[-1])), sel.size - 1)]
+        F[k] = sky.u_I[j]
+        ok[k] = True
+    return ok, F
 
 
 def nominal_spin_axis(ra_deg: float, dec_deg: float) -> np.ndarray:

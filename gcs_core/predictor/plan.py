@@ -35,6 +35,7 @@ DEFAULT_CADENCE_S = 1.0
 #: default cadence of star trackers [s] (one identified star every 10 s)
 DEFAULT_TRACKER_CADENCE_S = 10.0
 FRAME_SOURCES = ("plan", "telemetry")
+STAR_MODELS = ("sky", "uniform")
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,10 @@ class DataPlan:
     frames : ``"plan"`` — generate the frame times from the cadences, the gaps and the
         sensor availability; ``"telemetry"`` — use the telemetry's own frame times and
         star identifications (values ignored), minus the gaps.
+    stars : star-tracker headers: ``"sky"`` — the stars of a fixed synthetic sky that
+        the nominal boresight sweeps (a still pointing sees the same few stars);
+        ``"uniform"`` — one star per frame spread evenly over the field of view (the
+        expected geometry, slightly optimistic for scale factors at a still pointing).
     """
 
     start: float
@@ -66,6 +71,7 @@ class DataPlan:
     rpy0: tuple[float, float, float] | None = None
     spin_rate: float | None = None
     frames: str = "plan"
+    stars: str = "sky"
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.start) and math.isfinite(self.end) and self.end > self.start):
@@ -86,6 +92,8 @@ class DataPlan:
         for name, c in self.cadence.items():
             if not c > 0:
                 raise InputError(f"cadence must be > 0, got {c}", key=f"cadence.{name}")
+        if self.stars not in STAR_MODELS:
+            raise InputError(f"stars must be one of {', '.join(STAR_MODELS)}", key="prediction.stars")
         if self.frames not in FRAME_SOURCES:
             raise InputError(f"frames must be one of {', '.join(FRAME_SOURCES)}",
                              key="prediction.frames")

@@ -344,11 +344,13 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int) -> Iterator[h
                 yield f
             _fsync_path(tmp)
             os.replace(tmp, path)
-        except BaseException:
+        except BaseException as err:
             try:
                 os.unlink(tmp)
             except OSError:
                 pass
+            if isinstance(err, OSError):  # disk full, read-only directory, ...
+                raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
             raise
         _fsync_path(path.parent, directory=True)
 

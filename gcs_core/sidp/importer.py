@@ -45,6 +45,12 @@ TELEMETRY_COLUMNS: dict[str, tuple[str, ...]] = {
     "plane_field_sun": ("t", "beta"),
     "horizon": ("t", "spin_rate", "dt_in", "dt_out"),
 }
+#: units of the telemetry columns (ICD §5); extra columns have no stated unit.
+COLUMN_UNITS: dict[str, str] = {
+    "t": "s", "bx": "nT", "by": "nT", "bz": "nT", "wx": "rad/s", "wy": "rad/s", "wz": "rad/s",
+    "h": "rad", "v": "rad", "ra": "deg", "dec": "deg", "mag": "mag", "n_alpha": "counts",
+    "n_beta": "counts", "beta": "rad", "spin_rate": "rad/s", "dt_in": "s", "dt_out": "s",
+}
 EPHEMERIS_COLUMNS = ("t", "rx", "ry", "rz", "vx", "vy", "vz", "sx", "sy", "sz")
 ONBOARD_COLUMNS = ("t", "q1", "q2", "q3", "q4")
 

@@ -51,10 +51,11 @@ def _nonnegative(v: float) -> str | None:
 
 def _within(lo: float, hi: float, *, open_lo: bool = False, open_hi: bool = False
             ) -> Callable[[float], str | None]:
+    interval = f"{'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}"
+
     def check(v: float) -> str | None:
         ok = (v > lo if open_lo else v >= lo) and (v < hi if open_hi else v <= hi)
-        return None if ok else (f"must be in {'(' if open_lo else '['}{lo:g}, {hi:g}"
-                                f"{')' if open_hi else ']'}")
+        return None if ok else f"must be in {interval}"
     return check
 
 
@@ -129,13 +130,8 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
         "gamma_deg": BookKey(0, "deg", check=_within(0.0, 180.0, open_lo=True, open_hi=True)),
         "phi_h_deg": BookKey(0, "deg", check=_within(-360.0, 360.0)),
         "horizon_height_km": BookKey(0, "km", check=_within(0.0, 1000.0)),
-        "delta_gamma_deg": BookKey(0, "deg", required=False, default=0.0, check=_SMALL_ANGLE_DEG),
-        "delta_rho_deg": BookKey(0, "deg", required=False, default=0.0, check=_SMALL_ANGLE_DEG),
-        "delta_phi_deg": BookKey(0, "deg", required=False, default=0.0,
-                                 check=_within(-360.0, 360.0)),
-        "eps_h_deg": BookKey(0, "deg", required=False, default=0.0, check=_SMALL_ANGLE_DEG),
-        "eps_s_deg": BookKey(0, "deg", required=False, default=None, check=_SMALL_ANGLE_DEG),
-        "delta_t": BookKey(0, "s", required=False, default=0.0, check=_within(-3600.0, 3600.0)),
+        # the biases Δγ, Δρ, ΔΦ, ε_S, ε_H, Δt are state elements, nominally zero (ICD §5),
+        # not data-book keys; ε_S is the tilt_deg of the plane-field sensor named here
         "sun_sensor": BookKey(-1, "", required=False, default=None),
         "observable": BookKey(-1, "", required=False, default="in_out",
                               choices=HORIZON_OBSERVABLES),
@@ -272,9 +268,11 @@ def _existing_file(ctx: _Ctx, root: Path, value: Any, key: str, table: str, what
     except (OSError, ValueError) as err:
         raise ctx.error(f"{what} file {rel!r} cannot be looked up ({err})", key, table, index,
                         tkey) from None
+    if is_dir:
+        raise ctx.error(f"{what} file {rel!r} is a directory, not a file", key, table, index,
+                        tkey)
     if not is_file:
-        state = "is a directory, not a file" if is_dir else "not found"
-        raise ctx.error(f"{what} file {rel!r} {state} (looked for {path})", key, table, index,
+        raise ctx.error(f"{what} file {rel!r} not found (looked for {path})", key, table, index,
                         tkey)
     return path
 
@@ -317,8 +315,8 @@ def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> Sens
         raise ctx.error("must be a table ([[sensor]])", base, "sensor", index)
     for key in ("name", "type", "telemetry"):
         if key not in raw:
-            who = f" (sensor {raw['name']!r})" if isinstance(raw.get("name"), str) else ""
-            raise ctx.error(f"missing key '{key}' in [[sensor]] number {index}{who}",
+            who = repr(raw["name"]) if isinstance(raw.get("name"), str) else "without a name"
+            raise ctx.error(f"missing key '{key}' in [[sensor]] number {index} (sensor {who})",
                             f"{base}.{key}", "sensor", index)
     name = _string(ctx, raw.get("name"), f"{base}.name", "sensor", index, "name")
     if not _NAME.fullmatch(name):
@@ -364,9 +362,6 @@ def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> Sens
                             f"[{spec.unit}] (ICD §5)", f"{base}.{key}", "sensor", index)
         else:
             book[key] = spec.default
-    if stype == "horizon" and book.get("sun_sensor") and book.get("eps_s_deg") is not None:
-        raise ctx.error("give sun_sensor (its tilt_deg is ε_S) or eps_s_deg, not both",
-                        f"{base}.eps_s_deg", "sensor", index, "eps_s_deg")
     unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known)
     for k in unknown:
         book[k] = _plain(raw[k])

@@ -40,7 +40,7 @@ import numpy as np
 
 from gcs_core.errors import DataFileError
 from gcs_core.sidp import h5store
-from gcs_core.sidp.importer import ImportedMission
+from gcs_core.sidp.importer import COLUMN_UNITS, ImportedMission
 from gcs_core.sidp.mission import parse_utc
 
 FORMAT = "SDF"
@@ -65,6 +65,7 @@ class SdfSensor:
     alignment_deg : ``(a1, a2, a3)`` or None; noise : 1-sigma or None.
     book : the data-book values (JSON round trip: lists for tuples).
     columns : telemetry columns stored in each block's ``data`` (``t`` excluded).
+    units : unit of each column ("" for extra columns of no stated unit).
     n_samples : samples written over all blocks.
     """
 
@@ -77,6 +78,7 @@ class SdfSensor:
     book: Mapping[str, Any]
     columns: tuple[str, ...]
     n_samples: int
+    units: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -174,6 +176,8 @@ def _json(value: Any) -> str:
 
 def _hold(aux_t: np.ndarray, aux_values: np.ndarray, t: np.ndarray) -> np.ndarray:
     """Zero-order hold of the aux channels at times t (ICD §6); NaN before the first row."""
+    if aux_t.size == 0:
+        return np.full((t.size, aux_values.shape[1]), np.nan)
     idx = np.searchsorted(aux_t, t, side="right") - 1
     out = aux_values[np.clip(idx, 0, None)].astype(np.float64, copy=True)
     out[idx < 0] = np.nan
@@ -277,6 +281,8 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
                 "noise": _json(s.noise), "book": _json(dict(s.book)),
                 "unknown_keys": _json(list(s.unknown_keys)),
                 "columns": _json([c for c in tables[s.name].columns if c != "t"]),
+                "units": _json([COLUMN_UNITS.get(c, "") for c in tables[s.name].columns
+                                if c != "t"]),
                 "n_samples": np.int64(len(tables[s.name])),
                 "dropped_nan": np.int64(tables[s.name].dropped_nan),
                 "dropped_duplicates": np.int64(tables[s.name].dropped_duplicates),
@@ -358,7 +364,8 @@ def _read_sensors(f: h5py.File) -> dict[str, SdfSensor]:
                               alignment_deg=tuple(align) if align is not None else None,
                               noise=_loads(a["noise"]), book=_loads(a["book"]),
                               columns=tuple(_loads(a["columns"])),
-                              n_samples=int(a["n_samples"]))
+                              n_samples=int(a["n_samples"]),
+                              units=tuple(_loads(a.get("units", "[]"))))
     return out
 
 

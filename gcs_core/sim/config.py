@@ -5,8 +5,13 @@ A sensor carries two sets of values:
 * ``book``: the data-book keys of ICD §5 (``alignment_deg``, ``noise``, ``bias``,
   ``scale``, ``coeff_alpha``...), written to mission.toml: what the team believes;
 * ``true``: overrides of those keys used to simulate, plus the physics the book does
-  not mention (``misalignment_rad``, ``response``, ``contamination``, ``time_offset_s``,
-  ``solar_aberration``, ``misid_fraction``, horizon biases...).
+  not mention (``misalignment_rad``, ``response`` (TAM 3×3), ``G`` (gyro 3×3),
+  ``contamination`` ({channel: (3,)}), ``time_offset_s``, ``harmonic`` (FSS second
+  harmonic per axis), ``misid_fraction``, horizon ``d_gamma, d_phi, d_rho, eps_H,
+  flattening``, star-tracker exclusion angles...).
+
+Mission-wide physics (aberrations, solar parallax) is real by default
+(:data:`REAL_PHYSICS`), like the data of a real spacecraft.
 
 A *hidden effect* is any difference between truth and book, or physics the book does
 not mention; each one is recorded as a :class:`HiddenEffect` so the answer file
@@ -25,10 +30,12 @@ THREE_AXIS_MODES = ("inertial", "earth_pointing", "sun_pointing")
 ATTITUDE_MODES = THREE_AXIS_MODES + ("spinning",)
 SENSOR_TYPES = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun",
                 "plane_field_sun", "horizon")
+#: physics present in real data; a switch turned off gives data without it.
+REAL_PHYSICS = {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True}
 
 __all__ = ["OrbitElements", "Slew", "ThreeAxisProfile", "SpinProfile", "AuxConfig",
            "OnboardConfig", "SensorConfig", "HiddenEffect", "MissionConfig",
-           "THREE_AXIS_MODES", "ATTITUDE_MODES", "SENSOR_TYPES"]
+           "THREE_AXIS_MODES", "ATTITUDE_MODES", "SENSOR_TYPES", "REAL_PHYSICS"]
 
 
 @dataclass
@@ -208,8 +215,12 @@ class MissionConfig:
     """ephemeris.csv row spacing [s] (ICD §4: 60 s or finer)."""
     catalog_seed: int = 20240320
     """seed of the synthetic star catalog (shared by all missions)."""
-    stellar_aberration: bool = False
-    """apparent star directions shifted by (v_earth + v_sc)/c (``model.stellar_aberration``)."""
+    physics: dict[str, bool] = field(default_factory=lambda: dict(REAL_PHYSICS))
+    """always-on physics in the data (the real world by default): ``stellar_aberration``
+    (stars shifted by (v_earth + v_sc)/c), ``solar_aberration`` (Sun shifted by v_sc/c),
+    ``sun_parallax`` (Sun seen from the spacecraft, s − r, instead of the Earth's centre)."""
+    ephemeris_time_error_s: float = 0.0
+    """in-track timing error Δt of the written ephemeris: row t holds the orbit at t − Δt."""
     chunk_s: float = 21600.0
     """time span simulated and written per chunk (bounded memory)."""
     effects: list[HiddenEffect] = field(default_factory=list)

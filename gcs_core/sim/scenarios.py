@@ -150,13 +150,6 @@ def _bias(s: SensorConfig, m: float, kw: dict) -> None:
     s.true["bias"] = (b + m * _pattern(b.size, kw.get("axis"))).tolist()
 
 
-def _fss_bias(s, m, kw):
-    a, b = list(s.book["coeff_alpha"]), list(s.book["coeff_beta"])
-    a[0] += m
-    b[0] -= 0.6 * m
-    s.true["coeff_alpha"], s.true["coeff_beta"] = a, b
-
-
 def _alignment(s, m, kw):
     a = np.radians(np.asarray(s.book["alignment_deg"], dtype=float))
     delta = m * _pattern(3, kw.get("axis", (0.36, 0.48, 0.8)))
@@ -167,18 +160,10 @@ def _alignment(s, m, kw):
 
 def _scale(s, m, kw):
     if s.type == "magnetometer":
-        s.true["response"] = np.diag(1.0 + m * np.array([1.0, -0.7, 0.5])).tolist()
-    elif s.type == "gyro":
-        s.true["G"] = np.diag(1.0 + m * np.array([1.0, -0.7, 0.5])).tolist()
-    elif s.type == "star_tracker":
+        K = np.asarray(s.true.get("response", np.eye(3)), dtype=float).copy()
+        s.true["response"] = (K + np.diag(m * np.array([1.0, -0.7, 0.5]))).tolist()
+    elif s.type in ("star_tracker", "coarse_sun"):
         s.true["scale"] = (np.asarray(s.book["scale"], dtype=float) * (1.0 + m * np.array([1.0, -0.7]))).tolist()
-    elif s.type == "coarse_sun":
-        s.true["scale"] = (np.asarray(s.book["scale"], dtype=float) * (1.0 + m * np.array([1.0, -0.7]))).tolist()
-    elif s.type == "fine_sun":
-        a, b = list(s.book["coeff_alpha"]), list(s.book["coeff_beta"])
-        a[1] *= 1.0 + m
-        b[1] *= 1.0 - 0.7 * m
-        s.true["coeff_alpha"], s.true["coeff_beta"] = a, b
 
 
 def _nonorth(s, m, kw):
@@ -188,7 +173,8 @@ def _nonorth(s, m, kw):
 
 
 def _gyro_g(s, m, kw):
-    s.true["G"] = (np.eye(3) + m * np.array([[1.0, 0.6, -0.4], [-0.3, -0.7, 0.5], [0.8, 0.2, 0.5]])).tolist()
+    P = np.asarray(kw.get("pattern", [[1.0, 0.6, -0.4], [-0.3, -0.7, 0.5], [0.8, 0.2, 0.5]]), dtype=float)
+    s.true["G"] = (np.eye(3) + m * P).tolist()
 
 
 def _contamination(channel):
@@ -206,58 +192,70 @@ def _set(key, base_key=None, convert=lambda m: m):
     return apply
 
 
-def _harmonic(s, m, kw):
+def _transfer(s, m, kw):
     a, b = list(s.book["coeff_alpha"]), list(s.book["coeff_beta"])
-    a[2] += m
-    b[2] -= 0.8 * m
+    a[0], a[2] = a[0] + m, a[2] + m
+    b[0], b[2] = b[0] - 0.6 * m, b[2] + 0.8 * m
     s.true["coeff_alpha"], s.true["coeff_beta"] = a, b
 
 
+def _tilt(s: SensorConfig, m: float, kw: dict) -> None:
+    s.true["tilt_deg"] = float(s.book["tilt_deg"]) + float(np.degrees(m))
+
+
 _VEC3 = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun")
+#: Sensor effects by catalogue name (``gcs effects``): the id is ``<SENSOR>.<name>``.
 EFFECTS: dict[str, EffectSpec] = {
     "bias": EffectSpec(("magnetometer", "gyro", "coarse_sun", "plane_field_sun"), "nT | rad/s | rad",
-                       "constant bias added to the true bias (direction (0.6, -0.48, 0.64) unless axis=)", _bias),
-    "fss_bias": EffectSpec(("fine_sun",), "1 (tan)", "FSS null offsets A1 += m, B1 -= 0.6 m", _fss_bias),
-    "alignment": EffectSpec(_VEC3, "rad", "small rotation of the sensor frame, M_true = exp(-[δx]) M_book, "
-                            "δ = m·axis (default (0.36, 0.48, 0.8)); axis=(1,0,0) is about the boresight",
-                            _alignment),
-    "scale": EffectSpec(_VEC3, "1", "scale factors 1 + m·(1, -0.7, 0.5) (TAM/gyro), S_H,S_V·(1 + m·(1, -0.7)) "
-                        "(FHST), K·(1 + m·(1, -0.7)) (CSS), A2·(1+m), B2·(1-0.7m) (FSS)", _scale),
-    "nonorthogonality": EffectSpec(("magnetometer",), "rad", "symmetric off-diagonal response terms", _nonorth),
-    "scale_misalignment": EffectSpec(("gyro",), "1", "full gyro G = I + m·P (ICD Eq 4-32)", _gyro_g),
-    "contamination_mtb_x": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads k·mtb_x", _contamination("mtb_x")),
-    "contamination_mtb_y": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads k·mtb_y", _contamination("mtb_y")),
-    "contamination_mtb_z": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads k·mtb_z", _contamination("mtb_z")),
+                       "bias added to the book value, direction (0.6, -0.48, 0.64) unless axis= "
+                       "(CSS: (b_α, b_β) ∝ (0.6, -0.48); plane-field: Δβ)", _bias),
+    "alignment": EffectSpec(_VEC3, "rad", "sensor frame rotated, M_true = exp(-[δx]) M_book, δ = m·axis "
+                            "(default axis (0.36, 0.48, 0.8); axis=(1, 0, 0) turns an optical sensor about "
+                            "its boresight)", _alignment),
+    "scale": EffectSpec(("magnetometer", "star_tracker", "coarse_sun"), "1",
+                        "gains 1 + m·(1, -0.7, 0.5) (TAM response diagonal), S_H, S_V or K_α, K_β "
+                        "times 1 + m·(1, -0.7)", _scale),
+    "nonorthogonality": EffectSpec(("magnetometer",), "1",
+                                   "symmetric off-diagonal TAM response m·[[0,1,-.6],[1,0,.8],[-.6,.8,0]]",
+                                   _nonorth),
+    "scale_misalignment": EffectSpec(("gyro",), "1", "G = I + m·P, P = [[1,.6,-.4],[-.3,-.7,.5],[.8,.2,.5]] "
+                                     "unless pattern= (Eq 4-32)", _gyro_g),
+    "contamination_mtb_x": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_x",
+                                      _contamination("mtb_x")),
+    "contamination_mtb_y": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_y",
+                                      _contamination("mtb_y")),
+    "contamination_mtb_z": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_z",
+                                      _contamination("mtb_z")),
     "time_offset": EffectSpec(_VEC3 + ("plane_field_sun", "horizon"), "s",
                               "a row stamped t is measured at t + m", _set("time_offset_s")),
-    "harmonic": EffectSpec(("fine_sun",), "1 (tan)", "FSS A3 += m, B3 -= 0.8 m (Eq 4-23)", _harmonic),
-    "solar_aberration": EffectSpec(("fine_sun", "coarse_sun"), "1 (on)",
-                                   "Sun direction aberrated by the spacecraft velocity v/c",
-                                   lambda s, m, kw: s.true.__setitem__("solar_aberration", bool(m))),
+    "transfer_function": EffectSpec(("fine_sun",), "1 (tan)",
+                                    "FSS A1 += m, A3 += m, B1 -= 0.6 m, B3 += 0.8 m (Eq 4-23)", _transfer),
+    "harmonic": EffectSpec(("fine_sun",), "1 (tan)", "FSS second harmonic H sin(2k tan) of the transfer "
+                           "function, H_α = m, H_β = -0.8 m", lambda s, m, kw: s.true.__setitem__(
+                               "harmonic", [float(m), -0.8 * float(m)])),
     "misidentification": EffectSpec(("star_tracker",), "1 (fraction)",
                                     "fraction of rows reporting a wrong catalog star",
                                     lambda s, m, kw: s.true.__setitem__("misid_fraction", float(m))),
-    "tilt": EffectSpec(("plane_field_sun", "horizon"), "rad", "sensor plane tilt: ε_S (tilt_deg) of the "
-                       "plane-field sensor, ε_H of the horizon scanner", None),
+    "tilt": EffectSpec(("plane_field_sun",), "rad", "plane-field sensor tilt ε_S (tilt_deg += m), shared "
+                       "by the horizon timing (Eq 4-12d, 4-14)", _tilt),
     "d_gamma": EffectSpec(("horizon",), "rad", "scanner cone half-angle bias Δγ", _set("d_gamma")),
     "d_phi": EffectSpec(("horizon",), "rad", "scanner azimuth bias ΔΦ", _set("d_phi")),
     "d_rho": EffectSpec(("horizon",), "rad", "Earth angular radius bias Δρ", _set("d_rho")),
+    "eps_H": EffectSpec(("horizon",), "rad", "horizon sensor plane tilt ε_H (Eq 4-12e)", _set("eps_H")),
     "horizon_height": EffectSpec(("horizon",), "km", "true horizon height = book + m",
                                  _set("horizon_height_km", "horizon_height_km")),
     "oblateness": EffectSpec(("horizon",), "1 (x WGS-84 f)", "oblate Earth, flattening m/298.257",
                              _set("flattening", None, lambda m: m / 298.257223563)),
+    "d_t": EffectSpec(("horizon",), "s", "in-track time error of the ephemeris: row t holds the orbit "
+                      "at t - m (Eq 4-13; affects every sensor of the mission)", None),
 }
-MODEL_EFFECTS = {"stellar_aberration": ("1 (on)", "star directions aberrated by (v_earth + v_sc)/c")}
-
-
-def _tilt(s: SensorConfig, m: float, kw: dict) -> None:
-    if s.type == "plane_field_sun":
-        s.true["tilt_deg"] = float(s.book["tilt_deg"]) + float(np.degrees(m))
-    else:
-        s.true["tilt_h"] = float(m)
-
-
-EFFECTS["tilt"] = EffectSpec(EFFECTS["tilt"].types, EFFECTS["tilt"].unit, EFFECTS["tilt"].description, _tilt)
+#: Mission-wide physics switches, id ``model.<name>``: on in every scenario (real data);
+#: with_effect(..., "model.X", 0) gives data without it, 1 records it as an expected discovery.
+MODEL_EFFECTS = {
+    "stellar_aberration": ("1 (on)", "star directions aberrated by (v_earth + v_sc)/c, up to 26 arcsec"),
+    "solar_aberration": ("1 (on)", "Sun direction aberrated by the spacecraft velocity v_sc/c, up to 5 arcsec"),
+    "sun_parallax": ("1 (on)", "Sun seen from the spacecraft (s - r) instead of the Earth's centre, ~9 arcsec"),
+}
 
 
 def list_effects() -> list[tuple[str, tuple[str, ...], str, str]]:
@@ -268,22 +266,26 @@ def list_effects() -> list[tuple[str, tuple[str, ...], str, str]]:
 
 
 def with_effect(base: MissionConfig, effect_id: str, magnitude: float, *, name: str | None = None,
-                axis=None, description: str | None = None) -> MissionConfig:
+                axis=None, pattern=None, description: str | None = None) -> MissionConfig:
     """Copy of ``base`` with one hidden effect ``<SENSOR>.<effect>`` (or ``model.<effect>``).
 
     ``magnitude`` is in the unit of :data:`EFFECTS` (see :func:`list_effects`); ``axis``
-    chooses the direction of vector effects (e.g. ``(1, 0, 0)``: about the boresight).
+    chooses the direction of vector effects (e.g. ``(1, 0, 0)``: about the boresight),
+    ``pattern`` the 3×3 shape of the gyro ``scale_misalignment``. ``model.<physics>`` switches
+    physics on (magnitude ≠ 0, recorded) or off (magnitude 0, recorded in truth.json
+    ``physics`` only).
     """
     cfg = base.copy()
     if name:
         cfg.name = name
     sensor_name, _, effect = effect_id.partition(".")
-    kw = {} if axis is None else {"axis": axis}
+    kw = {k: v for k, v in (("axis", axis), ("pattern", pattern)) if v is not None}
     if sensor_name == "model":
         if effect not in MODEL_EFFECTS:
             raise InputError(f"unknown model effect '{effect}'", key="effect_id")
-        if effect == "stellar_aberration":
-            cfg.stellar_aberration = bool(magnitude)
+        cfg.physics[effect] = bool(magnitude)
+        if not magnitude:
+            return cfg
         unit_, desc = MODEL_EFFECTS[effect]
     else:
         try:
@@ -291,11 +293,12 @@ def with_effect(base: MissionConfig, effect_id: str, magnitude: float, *, name: 
         except KeyError:
             raise InputError(f"no sensor '{sensor_name}' in mission '{cfg.name}'", key="effect_id") from None
         spec = EFFECTS.get(effect)
-        if effect == "bias" and s.type == "fine_sun":
-            spec = EFFECTS["fss_bias"]
         if spec is None or s.type not in spec.types:
             raise InputError(f"effect '{effect}' does not apply to {s.type} {sensor_name}", key="effect_id")
-        spec.apply(s, float(magnitude), kw)
+        if effect == "d_t":
+            cfg.ephemeris_time_error_s = float(magnitude)
+        else:
+            spec.apply(s, float(magnitude), kw)
         unit_, desc = spec.unit, spec.description
     cfg.effects.append(HiddenEffect(effect_id, float(magnitude), unit_, description or desc))
     return cfg

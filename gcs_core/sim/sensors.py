@@ -19,15 +19,17 @@ non-orthogonality, ``I`` in the book) and contamination by auxiliary channels::
 
     B_S = K M C_BI(t') B_I(t') + b + Σ_ch k_ch a_ch(t') + n,   B_I from IGRF (field.py)
 
-Sun direction from the spacecraft: ``Ŝ = unit(s − r)`` (parallax is real physics and the
-ICD's ``Ŝ`` is "from the spacecraft"); with the hidden ``solar_aberration`` effect the
-first-order aberration by the spacecraft's geocentric velocity is added,
-``Ŝ' = unit(Ŝ + v/c − (Ŝ·v/c) Ŝ)`` (the ephemeris Sun is already apparent for a geocentric
-observer). No Sun data in the Earth's shadow (penumbra included, astro.py).
+Sun direction, real physics by default (mission ``physics`` switches): seen from the
+spacecraft, ``Ŝ = unit(s − r)`` (``sun_parallax``), then aberrated by the spacecraft's
+geocentric velocity, ``Ŝ' = unit(Ŝ + v/c − (Ŝ·v/c) Ŝ)`` (``solar_aberration``; the
+ephemeris Sun is already apparent for a geocentric observer). No Sun data in the Earth's
+shadow (penumbra included, astro.py).
 
-Fine Sun sensor (Eq 4-22 to 4-25), ``S_S = M C_BI Ŝ``, per axis (α shown)::
+Fine Sun sensor (Eq 4-22 to 4-25), ``S_S = M C_BI Ŝ``, per axis (α shown), with the hidden
+second harmonic ``H_α`` of the transfer function (0 in the book)::
 
-    tan α = S_Sy / S_Sx,   n_α = round((tan α − A1 − A3 sin(k tan α)) / A2 + N(0, σ_g²))
+    tan α = S_Sy / S_Sx
+    n_α = round((tan α − A1 − A3 sin(k tan α) − H_α sin(2k tan α)) / A2 + N(0, σ_g²))
 
 valid when ``S_Sx > 0`` and ``|α|, |β| ≤ fov_deg``.
 
@@ -58,9 +60,9 @@ def count_sigma(noise: float) -> float:
     return float(np.sqrt(max(noise ** 2 - 1.0 / 12.0, 0.0)))
 
 
-def sun_unit_from_sc(r_I, v_I, s_I, *, aberration: bool) -> np.ndarray:
-    """Unit Sun vector from the spacecraft, (N, 3); see the module docstring."""
-    S = unit(np.asarray(s_I) - np.asarray(r_I))
+def sun_unit_from_sc(r_I, v_I, s_I, *, parallax: bool = True, aberration: bool = True) -> np.ndarray:
+    """Apparent unit Sun vector at the spacecraft, (N, 3); see the module docstring."""
+    S = unit(np.asarray(s_I) - np.asarray(r_I)) if parallax else unit(np.asarray(s_I))
     if aberration:
         beta = np.asarray(v_I) / astro.C_KM_S
         d = np.einsum("ij,ij->i", S, beta)[:, None]
@@ -110,7 +112,9 @@ class _SunSim:
         self.fov = np.radians(float(sensor.value("fov_deg")))
         self.sig_g = count_sigma(float(sensor.value("noise")))
         self.tau = float(sensor.value("time_offset_s", 0.0))
-        self.aberration = bool(sensor.value("solar_aberration", False))
+        ph = world.cfg.physics
+        self.aberration = bool(ph.get("solar_aberration", True))
+        self.parallax = bool(ph.get("sun_parallax", True))
         self.n_eclipsed = 0
 
     def sun_sensor_frame(self, t_rows):
@@ -118,7 +122,7 @@ class _SunSim:
         tt = t_rows + self.tau
         r, v = w.orbit(tt)
         s = w.sun(tt)
-        S_I = sun_unit_from_sc(r, v, s, aberration=self.aberration)
+        S_I = sun_unit_from_sc(r, v, s, parallax=self.parallax, aberration=self.aberration)
         S_S = np.einsum("ij,njk,nk->ni", self.M, w.attitude(tt, r, v, s), S_I)
         lit = ~astro.sun_eclipsed(r, s)
         self.n_eclipsed += int(np.sum(~lit))
@@ -140,8 +144,9 @@ class FineSunSim(_SunSim):
         keep = lit & (S_S[:, 0] > 0) & (np.abs(np.arctan(ta)) <= self.fov) & (np.abs(np.arctan(tb)) <= self.fov)
         A1, A2, A3, ka = (float(x) for x in self.s.value("coeff_alpha"))
         B1, B2, B3, kb = (float(x) for x in self.s.value("coeff_beta"))
-        xa = (ta - A1 - A3 * np.sin(ka * ta)) / A2
-        xb = (tb - B1 - B3 * np.sin(kb * tb)) / B2
+        Ha, Hb = (float(x) for x in self.s.value("harmonic", (0.0, 0.0)))
+        xa = (ta - A1 - A3 * np.sin(ka * ta) - Ha * np.sin(2 * ka * ta)) / A2
+        xb = (tb - B1 - B3 * np.sin(kb * tb) - Hb * np.sin(2 * kb * tb)) / B2
         return self._finish(t_rows, keep, xa, xb)
 
 
@@ -159,7 +164,7 @@ class CoarseSunSim(_SunSim):
 
 
 def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, catalog=None, aux=None,
-                    stellar_aberration: bool = False, sightings=None):
+                    sightings=None):
     """The simulator object of one sensor (any of the seven ICD §5 types).
 
     ``catalog`` (star trackers), ``aux`` (magnetometer contamination) and ``sightings``
@@ -175,7 +180,8 @@ def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, ca
     if kind == "gyro":
         return GyroSim(sensor, world, rng)
     if kind == "star_tracker":
-        return StarTrackerSim(sensor, world, catalog, rng, stellar_aberration=stellar_aberration)
+        return StarTrackerSim(sensor, world, catalog, rng,
+                              stellar_aberration=bool(world.cfg.physics.get("stellar_aberration", True)))
     if kind == "fine_sun":
         return FineSunSim(sensor, world, rng)
     if kind == "coarse_sun":

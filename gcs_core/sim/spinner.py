@@ -9,8 +9,8 @@ at ``ω``; a body direction at azimuth ψ (from ``x_B``) has GCI azimuth ``ψ + 
 Plane-field Sun sensor ("slit" plane through the spacecraft). Its plane contains the
 radial direction ``u = x_B`` and the axis ``w = cos ε_S ẑ − sin ε_S (ẑ × u)``, tilted by
 ``ε_S`` about ``u``; normal ``n = u × w = (0, −cos ε_S, −sin ε_S)``. The Sun sighting is the
-root of ``f(t) = n · C_BI(t) Ŝ(t)`` (going − to +, with ``Ŝ_B · u > 0``), ``Ŝ`` the unit Sun
-vector from the spacecraft. In that plane ``Ŝ = a u + b w`` and ``Â·Ŝ = b cos ε_S``, so the
+root of ``f(t) = n · C_BI(t) Ŝ(t)`` (going − to +, with ``Ŝ_B · u > 0``), ``Ŝ`` the apparent
+unit Sun vector at the spacecraft (parallax and aberration per the mission physics). In that plane ``Ŝ = a u + b w`` and ``Â·Ŝ = b cos ε_S``, so the
 angle the sensor reads from ``w`` is ``acos(Ŝ·w) = acos((Â·Ŝ)/cos ε_S)`` (Eq 4-14)::
 
     β_m = acos(Ŝ_B · w) + Δβ + N(0, noise²)
@@ -45,7 +45,7 @@ import numpy as np
 
 from gcs_core.sim import astro
 from gcs_core.sim.config import SensorConfig
-from gcs_core.sim._rot import unit
+from gcs_core.sim.sensors import sun_unit_from_sc
 
 __all__ = ["SunSightings", "PlaneFieldSim", "HorizonSim", "bisect_roots"]
 
@@ -82,9 +82,12 @@ class SunSightings:
         self._cache: tuple | None = None
 
     def sun_I(self, t):
+        """Apparent unit Sun vector at the spacecraft (mission physics switches), (N, 3)."""
         w = self.world
-        r, _ = w.orbit(t)
-        return unit(w.sun(t) - r)
+        r, v = w.orbit(t)
+        ph = w.cfg.physics
+        return sun_unit_from_sc(r, v, w.sun(t), parallax=bool(ph.get("sun_parallax", True)),
+                                aberration=bool(ph.get("solar_aberration", True)))
 
     def sun_B(self, t):
         return np.einsum("nij,nj->ni", self.world.attitude(t), self.sun_I(t))
@@ -162,7 +165,7 @@ class HorizonSim:
         self.s, self.world, self.rng, self.sightings = sensor, world, rng, sightings
         gamma = np.radians(float(sensor.value("gamma_deg"))) + float(sensor.value("d_gamma", 0.0))
         psi = np.radians(float(sensor.value("phi_h_deg"))) + float(sensor.value("d_phi", 0.0))
-        eps_h = float(sensor.value("tilt_h", 0.0))
+        eps_h = float(sensor.value("eps_H", 0.0))
         u = np.array([np.cos(psi), np.sin(psi), 0.0])
         wv = np.cos(eps_h) * np.array([0.0, 0.0, 1.0]) - np.sin(eps_h) * np.cross([0.0, 0.0, 1.0], u)
         b = np.cos(gamma) / np.cos(eps_h)

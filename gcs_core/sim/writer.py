@@ -4,6 +4,7 @@
 
     out_dir/mission.toml            data-book values (what the team believes)
     out_dir/ephemeris.csv           t, r, v, apparent geocentric Sun, every ephemeris_cadence_s
+                                    (r, v of time t − Δt with the hidden in-track error Δt)
     out_dir/telemetry/<SENSOR>.csv  one file per sensor
     out_dir/aux.csv                 torquer dipoles and tam_temp (three-axis missions)
     out_dir/onboard_attitude.csv    onboard quaternions (three-axis missions)
@@ -173,7 +174,7 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
         sims = {}
         for s in cfg.sensors:
             sims[s.name] = make_sensor_sim(s, world, _rng(cfg.seed, s.name), catalog=catalog, aux=aux,
-                                           stellar_aberration=cfg.stellar_aberration, sightings=sightings)
+                                           sightings=sightings)
             files[s.name] = _Csv(root / "telemetry" / f"{s.name}.csv", sims[s.name].columns,
                                  sims[s.name].formats)
         n_chunks = int(np.ceil(D / cfg.chunk_s))
@@ -183,7 +184,7 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
             te = time_grid(cfg.ephemeris_cadence_s, 0.0, t0, t1, last=last)
             if last and (te.size == 0 or te[-1] < D - 1e-9):
                 te = np.append(te, D)                 # the span always ends on a row
-            r, v = world.orbit(te)
+            r, v = world.orbit(te - cfg.ephemeris_time_error_s)      # Δt = 0 unless hidden
             sun = world.sun(te)
             files["ephemeris"].append(dict(zip(_EPH_COLS, [te, *r.T, *v.T, *sun.T])))
             if aux is not None:
@@ -233,7 +234,8 @@ def _truth(cfg: MissionConfig, record: dict) -> dict:
     out = {
         "mission": cfg.name, "generator": "gcs_core.sim", "seed": cfg.seed, "epoch": cfg.epoch,
         "attitude_mode": cfg.attitude_mode, "duration_s": cfg.duration_s,
-        "hidden_effects": effects, "stellar_aberration": cfg.stellar_aberration,
+        "hidden_effects": effects, "physics": dict(cfg.physics),
+        "ephemeris_time_error_s": cfg.ephemeris_time_error_s,
         "sensors": sensors, "orbit": dataclasses.asdict(cfg.orbit),
         "attitude": as_plain(dataclasses.asdict(cfg.attitude)),
         "rows": record["rows"],

@@ -1,0 +1,190 @@
+"""Covariance-only Kalman recursion for a gyro-carried attitude (seed Eq 3-4, §4.2.7.2).
+
+With process noise the attitude is a dynamic state and the predictor runs the filter's
+covariance equations without data — "the state will be kept at its nominal values and
+only the covariance matrix needs to be updated and propagated" (seed §3.2.2)::
+
+    P⁻_i = Φ P_{i−1} Φᵀ + Γ Q Γᵀ                                                (Eq 3-4)
+    K = P⁻ Hᵀ (H P⁻ Hᵀ + R)⁻¹,   P = (I − K H) P⁻ (I − K H)ᵀ + K R Kᵀ
+
+The filter state is the body-frame attitude error ``δθ`` at the current time followed
+by every other solve-for element (gyro and sensor parameters, constant). Between two
+event times the gyro carries the error (first order, :mod:`gcs_core.filtr.attitude`)::
+
+    δθ_b = C_b C_aᵀ δθ_a + C_b (E_b − E_a) δp,      E(t) = C(t)ᵀ ∂δθ(t)/∂p
+
+``E`` is read from the gyro attitude provider, so the transition is exactly the one the
+batch estimator uses; with zero process noise the recursion reproduces the information
+form (Eq 3-2) mapped to the current time. The process noise is Farrenkopf's gyro model
+(σ_v the angle random walk ``arw``, σ_u the rate random walk ``rrw``; the bias error
+enters the body rate as ``−Mᵀ δb``)::
+
+    Q_θθ = (σ_v² Δt + σ_u² Δt³/3) I,   Q_θb = −Mᵀ σ_u² Δt²/2,   Q_bb = σ_u² Δt I
+
+(``Q_θb`` and ``Q_bb`` only when the three gyro biases are solve-for). The electronic
+read-out noise σ_e is left out. The Joseph form keeps ``P`` symmetric and positive
+under round-off. Consider elements are carried by their sensitivity ``S``
+(``S ← Φ S + Φ_c`` on propagation, ``S ← S − K (H S + H_c)`` on update), whose
+covariance contribution is ``S P_c Sᵀ`` (consider filter, Tapley et al. 2004 §6.3).
+
+The ``att.roll/pitch/yaw`` σ reported are those of the *current* attitude, mapped from
+``δθ`` by the inverse of Eq 4-22 at the nominal angles of each output time.
+
+References
+----------
+Farrenkopf, R. L., "Analytic steady-state accuracy solutions for two common spacecraft
+attitude estimators", J. Guidance & Control 1(4), 1978. Tapley, B. D., Schutz, B. E.,
+Born, G. H., *Statistical Orbit Determination*, Elsevier 2004, §4.7 and §6.3.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Mapping, Sequence
+
+import numpy as np
+from scipy import linalg
+
+from gcs_core.filtr.attitude import RPY
+from gcs_core.filtr.problem import Problem, linearize
+from gcs_core.frames.rotations import dcm_to_euler123
+from gcs_core.models import common
+from gcs_core.predictor.information import weighted_rows
+from gcs_core.predictor.nominal import ERR, BodyErrorAttitude, rpy_error_jacobians
+
+#: a-priori σ used in place of an infinite one (the covariance form needs a finite P)
+BIG_SIGMA = 1e6
+
+
+def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequence[str],
+                   consider: Sequence[str], sigma0: np.ndarray, sigma_c: np.ndarray,
+                   times: np.ndarray, *, masks: Mapping[str, np.ndarray] | None = None,
+                   arw: float = 0.0, rrw: float = 0.0) -> dict:
+    """σ history of the covariance-only filter (module docstring).
+
+    Parameters
+    ----------
+    problem : a Problem whose attitude is a :class:`~gcs_core.filtr.attitude.GyroAttitude`.
+    values : nominal element values.
+    names : solve-for elements (``att.roll/pitch/yaw`` first); consider : consider elements.
+    sigma0 : (n,) a-priori σ of ``names``; sigma_c : (c,) of ``consider``.
+    times : (T,) output times.
+    masks : sensor -> (N,) frames to use.
+    arw, rrw : gyro σ_v [rad/s^0.5] and σ_u [rad/s^1.5].
+
+    Returns
+    -------
+    dict like :func:`gcs_core.predictor.information.static_history`.
+    """
+    att = problem.attitude
+    masks = masks or {}
+    names = list(names)
+    others = [nm for nm in names if nm not in RPY]
+    n, c = 3 + len(others), len(consider)
+    k_all = n + c
+    err_problem = replace(problem, attitude=BodyErrorAttitude(att, values))
+    lins = linearize(err_problem, values, list(ERR) + others + list(consider))
+    rows = [weighted_rows(lin, sd.t, masks.get(sd.name)) for lin, sd in zip(lins, problem.sensors)]
+
+    t_ref = float(att.t_ref)
+    t_rows = np.concatenate([t for t, _ in rows] + [np.zeros(0)])
+    events = np.unique(np.concatenate([[t_ref], t_rows[t_rows >= t_ref], times[times >= t_ref]]))
+
+    # every frame row at its event, as (row-block per frame) lists
+    frame_ev, frame_X = [], []
+    for (t, X) in rows:
+        keep = t >= t_ref
+        frame_ev.append(np.searchsorted(events, t[keep]))
+        frame_X.append(X[keep].reshape(-1, X.shape[1], k_all))
+    ev_idx = np.concatenate(frame_ev) if frame_ev else np.zeros(0, int)
+    order = np.argsort(ev_idx, kind="stable")
+    all_X = [x for Xs in frame_X for x in Xs]
+    starts = np.searchsorted(ev_idx[order], np.arange(events.size + 1))
+
+    # attitude transition pieces at the events
+    ae = att.evaluate(values, events)
+    C = ae.C_BI
+    pnames = list(ae.names[3:])
+    F = np.einsum("eji,ejp->eip", C, ae.J[:, :, 3:])              # E(t) = Cᵀ ∂δθ/∂p
+    sf = [(j, 3 + others.index(p)) for j, p in enumerate(pnames) if p in others]
+    cf = [(j, list(consider).index(p)) for j, p in enumerate(pnames) if p in consider]
+    gyro = getattr(att, "gyro", None)
+    bias_names = [f"{gyro}.bias_{a}" for a in "xyz"]
+    bias_idx = [3 + others.index(b) for b in bias_names] if all(b in others for b in bias_names) else None
+    M, _ = common.alignment_matrix({f"align_{k}": values.get(f"{gyro}.align_{k}", 0.0) for k in (1, 2, 3)})
+
+    # output-time mapping δθ -> δ(roll, pitch, yaw)
+    A_out = att.ref.reference(np.maximum(times, t_ref))
+    C_out = att.evaluate(values, np.maximum(times, t_ref)).C_BI
+    rpy_out = np.column_stack(dcm_to_euler123(C_out @ np.swapaxes(A_out, -1, -2)))
+    Jr = rpy_error_jacobians(rpy_out)
+
+    # a-priori covariance at t_ref
+    s0 = np.where(np.isfinite(sigma0), sigma0, BIG_SIGMA)
+    J0 = rpy_error_jacobians(np.array([[values[nm] for nm in RPY]]))[0]
+    P = np.zeros((n, n))
+    P[:3, :3] = J0 @ np.diag(s0[:3] ** 2) @ J0.T
+    P[3:, 3:] = np.diag(s0[3:] ** 2)
+    S = np.zeros((n, c))
+    sc = np.asarray(sigma_c, dtype=float)
+
+    T = times.size
+    out = {"sigma": np.zeros((T, n)), "sigma_noise": np.zeros((T, n)), "attitude_sigma": np.zeros((T, 3))}
+    out_at = {int(e): [] for e in np.searchsorted(events, times[times >= t_ref])}
+    for j in np.flatnonzero(times >= t_ref):
+        out_at[int(np.searchsorted(events, times[j]))].append(j)
+    last = {}
+
+    def record(j):
+        Tm = np.eye(n)
+        Tm[:3, :3] = np.linalg.solve(Jr[j], np.eye(3))            # δrpy = Jr⁻¹ δθ
+        Pz = Tm @ P @ Tm.T
+        Sc = (Tm @ S) * sc[None, :]
+        Ptot = Pz + Sc @ Sc.T
+        out["sigma_noise"][j] = np.sqrt(np.clip(np.diag(Pz), 0, None))
+        out["sigma"][j] = np.sqrt(np.clip(np.diag(Ptot), 0, None))
+        Sb = S * sc[None, :]
+        out["attitude_sigma"][j] = np.sqrt(np.clip(np.diag(P[:3, :3] + Sb[:3] @ Sb[:3].T), 0, None))
+        last.update(P=Pz, P_consider=Ptot, budget=np.abs(Sc).T)
+
+    for j in np.flatnonzero(times < t_ref):
+        record(j)
+    eye_n = np.eye(n)
+    for k in range(events.size):
+        if k > 0:
+            # propagation, Eq 3-4: P⁻ = Φ P Φᵀ + Q (only the δθ rows of Φ differ from I)
+            dt = events[k] - events[k - 1]
+            L = np.zeros((3, n))
+            L[:, :3] = C[k] @ C[k - 1].T                           # Φ_θθ = C_b C_aᵀ
+            G = C[k] @ (F[k] - F[k - 1])                           # Φ_θp = C_b (E_b − E_a)
+            for jp, jz in sf:
+                L[:, jz] += G[:, jp]
+            top = L @ P
+            P[:3, :] = top
+            P[:, :3] = top.T
+            P[:3, :3] = top @ L.T
+            Sn = L @ S
+            for jp, jc in cf:
+                Sn[:, jc] += G[:, jp]
+            S[:3, :] = Sn
+            P[:3, :3] += (arw ** 2 * dt + rrw ** 2 * dt ** 3 / 3.0) * np.eye(3)
+            if bias_idx is not None and rrw > 0:
+                qtb = -M.T * (rrw ** 2 * dt ** 2 / 2.0)
+                P[:3, bias_idx] += qtb
+                P[bias_idx, :3] += qtb.T
+                P[np.ix_(bias_idx, bias_idx)] += rrw ** 2 * dt * np.eye(3)
+        i0, i1 = starts[k], starts[k + 1]
+        if i1 > i0:
+            Y = np.concatenate([all_X[i] for i in order[i0:i1]], axis=0)
+            Hx, Hc = Y[:, :n], Y[:, n:]
+            PHt = P @ Hx.T
+            Sinn = Hx @ PHt + np.eye(Y.shape[0])                   # S = H P Hᵀ + R  (R = I, whitened)
+            K = linalg.cho_solve(linalg.cho_factor(Sinn, lower=True), PHt.T).T
+            IKH = eye_n - K @ Hx
+            P = IKH @ P @ IKH.T + K @ K.T                          # Joseph form
+            P = 0.5 * (P + P.T)
+            S = S - K @ (Hx @ S + Hc)
+        for j in out_at.get(k, ()):
+            record(j)
+    return {**out, "P": last["P"], "P_consider": last["P_consider"], "budget": last["budget"],
+            "unobservable": np.zeros(n, dtype=bool)}

@@ -1,0 +1,307 @@
+"""Attitude and sensor-bias accuracy prediction without data (seed §3.1, §3.2, §4.3).
+
+"The first function requires a predictor which predicts the attitude and sensor bias
+determination accuracies achievable under various geometrical conditions" (§3.1).
+:func:`predict` takes a mission description, an ephemeris and a data plan, builds the
+calibration's own Problem from frame times only (:mod:`.synth`), evaluates every
+model's partials at the nominal state and accumulates information over time:
+
+* static states (method ``"information"``, the batch estimator's setting):
+  ``P(t) = (P̄⁻¹ + Σ_{t_k≤t} Hᵀ R⁻¹ H)⁻¹`` (Eq 3-2, :mod:`.information`);
+* a gyro-carried attitude with process noise (method ``"kalman"``): the covariance
+  recursion of Eq 3-4 (:mod:`.kalman`).
+
+Elements with role ``consider`` add ``S P_c Sᵀ``; the result carries the σ contribution
+of each of them to every solve-for element and the noise-only part (an error budget).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from gcs_core.config import AnalysisConfig
+from gcs_core.errors import InputError
+from gcs_core.filtr.attitude import GyroAttitude
+from gcs_core.filtr.batch import name_combinations
+from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, linearize
+from gcs_core.models import common
+from gcs_core.predictor import information as info
+from gcs_core.predictor.kalman import kalman_history
+from gcs_core.predictor.plan import DataPlan
+from gcs_core.predictor.synth import PlannedProblem, _median_step, plan_problem
+from gcs_core.sidp.prepare import PhysicsOptions
+from gcs_core.sidp.types import MissionSpec
+from gcs_core.units import DEG
+
+log = logging.getLogger(__name__)
+
+METHODS = ("information", "kalman")
+#: margin of an orbit-built ephemeris beyond the plan span [s] (time-tag and crossing shifts)
+EPHEMERIS_MARGIN_S = 120.0
+
+
+@dataclass(frozen=True)
+class PredictionResult:
+    """Predicted accuracies of a data plan, with the error budget.
+
+    Attributes
+    ----------
+    times : (T,) output times [s since epoch].
+    names : the n solve-for elements; units : their units.
+    sigma : (T, n) predicted 1-σ, noise and consider elements together.
+    sigma_noise : (T, n) noise-only 1-σ (data noise and a priori).
+    attitude_sigma : (T, 3) 1-σ attitude error at each output time about the body axes
+        [rad] (spinning missions: of the spin-axis unit-vector components).
+    P : (n, n) final noise-only covariance; P_consider : (n, n) with consider elements.
+    consider : consider element names.
+    budget : consider element -> (n,) its 1-σ contribution to each solve-for element.
+    noise_only : (n,) final noise-only 1-σ.
+    availability : sensor -> fraction of the plan's cadence slots with a usable frame.
+    frames : sensor -> number of usable frames.
+    method : ``"information"`` (Eq 3-2) or ``"kalman"`` (Eq 3-4).
+    plan : the data plan.
+    unobservable : combinations of elements the data cannot separate (final time).
+    """
+
+    times: np.ndarray
+    names: tuple[str, ...]
+    units: tuple[str, ...]
+    sigma: np.ndarray
+    sigma_noise: np.ndarray
+    attitude_sigma: np.ndarray
+    P: np.ndarray
+    P_consider: np.ndarray
+    consider: tuple[str, ...]
+    budget: Mapping[str, np.ndarray]
+    noise_only: np.ndarray
+    availability: Mapping[str, float]
+    frames: Mapping[str, int]
+    method: str
+    plan: DataPlan | None = None
+    unobservable: tuple[str, ...] = ()
+
+    def index(self, name: str) -> int:
+        try:
+            return self.names.index(name)
+        except ValueError:
+            raise KeyError(f"'{name}' is not a solve-for element of this prediction") from None
+
+    def sigma_of(self, name: str, *, noise_only: bool = False) -> np.ndarray:
+        """(T,) σ history of one element."""
+        return (self.sigma_noise if noise_only else self.sigma)[:, self.index(name)]
+
+    @property
+    def final_sigma(self) -> dict[str, float]:
+        """Element -> final total 1-σ."""
+        return {n: float(s) for n, s in zip(self.names, self.sigma[-1])}
+
+    def budget_rows(self) -> list[dict[str, Any]]:
+        """One row per solve-for element: total, noise-only and each consider contribution."""
+        return [{"name": n, "unit": u, "sigma": float(self.sigma[-1, i]),
+                 "noise_only": float(self.noise_only[i]),
+                 "consider": {c: float(v[i]) for c, v in self.budget.items()}}
+                for i, (n, u) in enumerate(zip(self.names, self.units))]
+
+
+# ----------------------------------------------------------------------------------------
+def state_options(cfg: AnalysisConfig | None) -> StateOptions:
+    """SODL options of an analysis config (as :class:`gcs_core.session.Analysis` builds them)."""
+    if cfg is None:
+        return StateOptions()
+    ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in cfg.elements.items()}
+    return StateOptions(effects=cfg.effects, exclude=cfg.exclude, overrides=ov,
+                        attitude_sigma=cfg.attitude_sigma_deg * DEG)
+
+
+def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
+    if method is None:
+        method = "kalman" if (cfg is not None and cfg.method == "kalman") else "information"
+    if method not in METHODS:
+        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}",
+                         key="prediction.method")
+    return method
+
+
+def _mission_parts(source, mission, cfg):
+    """(spec, telemetry, ephemeris table, aux, onboard) of whatever was given."""
+    from gcs_core.sidp.importer import ImportedMission, load_mission
+
+    m = mission
+    if m is None and cfg is not None:
+        m = load_mission(cfg.mission)
+    if m is None:
+        m = source
+    if isinstance(m, ImportedMission):
+        return m.spec, dict(m.telemetry), m.ephemeris_table, m.aux, m.onboard
+    if isinstance(m, MissionSpec):
+        eph_table = None
+        if m.ephemeris_file is not None and m.ephemeris_file.is_file():
+            from gcs_core.sidp.csvio import read_table
+            from gcs_core.sidp.importer import EPHEMERIS_COLUMNS
+            eph_table = read_table(m.ephemeris_file, required=EPHEMERIS_COLUMNS, what="ephemeris")
+        return m, {}, eph_table, None, None
+    raise InputError(f"cannot predict from a {type(m).__name__}: give an AnalysisConfig, an Analysis, "
+                     "an ImportedMission, a MissionSpec or a Problem", key="prediction")
+
+
+def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float):
+    from gcs_core.ephem.ephemeris import Ephemeris
+    from gcs_core.ephem.orbit import build_ephemeris
+
+    if eph_table is not None:
+        eph = Ephemeris.from_table(eph_table)
+        if eph.t_start <= plan.start and eph.t_end >= plan.end:
+            return eph
+        if orbit is None:
+            eph.check_covers(np.array([plan.start, plan.end]), what="the prediction plan")
+    if orbit is None:
+        raise InputError("no ephemeris for the plan: give the mission's ephemeris.csv or an orbit "
+                         "(KeplerOrbit / TleOrbit)", key="prediction.orbit")
+    return build_ephemeris(orbit, spec.epoch, plan.start - EPHEMERIS_MARGIN_S,
+                           plan.end + EPHEMERIS_MARGIN_S, step)
+
+
+def _telemetry_span(telemetry) -> tuple[float, float] | None:
+    tabs = [t for t in telemetry.values() if len(t)]
+    if not tabs:
+        return None
+    return min(float(t.t[0]) for t in tabs), max(float(t.t[-1]) for t in tabs)
+
+
+def predict(source, *, plan: DataPlan | None = None, mission=None, orbit=None,
+            method: str | None = None, ephemeris_step: float = 30.0) -> PredictionResult:
+    """Predict the σ of every solve-for element over a data plan (module docstring).
+
+    Parameters
+    ----------
+    source : an :class:`~gcs_core.config.AnalysisConfig` (mission, physics, state roles,
+        ``[prediction]`` plan and method), a :class:`~gcs_core.session.Analysis`, an
+        :class:`~gcs_core.sidp.importer.ImportedMission`, a
+        :class:`~gcs_core.sidp.types.MissionSpec` (pre-launch: no telemetry), or a
+        :class:`~gcs_core.filtr.problem.Problem` (its own frames are the plan's frames;
+        its measured values are ignored).
+    plan : the data plan; default from the config's ``[prediction]`` table, the
+        telemetry span, or the Problem's frames.
+    mission : the mission when ``source`` is a config and the mission is already loaded
+        (or is only a MissionSpec).
+    orbit : :class:`~gcs_core.ephem.orbit.KeplerOrbit` / ``TleOrbit``, used when the
+        mission has no ephemeris covering the plan (:func:`~gcs_core.ephem.orbit.build_ephemeris`).
+    method : ``"information"`` (Eq 3-2) or ``"kalman"`` (Eq 3-4, gyro process noise);
+        default from the config (``kalman`` for ``method = "kalman"``).
+    ephemeris_step : tabulation step of an orbit-built ephemeris [s].
+
+    Returns
+    -------
+    :class:`PredictionResult`.
+    """
+    from gcs_core.session import Analysis
+
+    if isinstance(source, Problem):
+        return _predict_problem(source, plan, _method(method, None))
+    cfg = None
+    if isinstance(source, Analysis):
+        cfg, mission = source.config, mission if mission is not None else source.mission
+    elif isinstance(source, AnalysisConfig):
+        cfg = source
+    spec, telemetry, eph_table, aux, onboard = _mission_parts(source, mission, cfg)
+    if plan is None:
+        span = _telemetry_span(telemetry)
+        if cfg is not None:
+            plan = DataPlan.from_config(cfg, span=span)
+        elif span is not None:
+            plan = DataPlan(*span)
+        else:
+            raise InputError("no data plan: give DataPlan(start, end, ...)", key="prediction.start")
+    off = {k for k, v in (cfg.models.items() if cfg is not None else ()) if v == "off"}
+    for name in off:
+        if name not in {s.name for s in spec.sensors}:
+            raise InputError(f"no sensor named '{name}' in the mission", key=f"models.{name}")
+    gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
+    if off:
+        from dataclasses import replace
+        spec = replace(spec, sensors=tuple(s for s in spec.sensors if s.name not in off))
+        telemetry = {k: v for k, v in telemetry.items() if k not in off}
+    eph = _ephemeris(spec, eph_table, plan, orbit, ephemeris_step)
+    physics = PhysicsOptions(**cfg.physics) if cfg is not None else PhysicsOptions()
+    planned = plan_problem(spec, eph, plan, telemetry=telemetry, aux=aux, onboard=onboard,
+                           physics=physics, options=state_options(cfg), use_gyro=not gyro_off)
+    return _run(planned, plan, _method(method, cfg))
+
+
+def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> PredictionResult:
+    """Prediction for a Problem's own frames (values ignored), restricted to the plan."""
+    if plan is None:
+        t = [sd.t for sd in problem.sensors if sd.n]
+        if not t:
+            raise InputError("the problem has no frames", key="prediction")
+        plan = DataPlan(min(float(x[0]) for x in t), max(float(x[-1]) for x in t))
+    cadence = {sd.name: _median_step(sd.t) or 1.0 for sd in problem.sensors}
+    planned = PlannedProblem(problem, problem.state.values(), None, cadence,
+                             {k: int(plan.grid(c).size) for k, c in cadence.items()})
+    return _run(planned, plan, method)
+
+
+def _gyro_noise(problem: Problem) -> tuple[float, float]:
+    spec = problem.builder.spec
+    try:
+        g = spec.sensor(problem.gyro_name)
+    except KeyError:
+        return 0.0, 0.0
+    return (common.book_scalar(g, "arw", 0.0) or 0.0, common.book_scalar(g, "rrw", 0.0) or 0.0)
+
+
+def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResult:
+    problem, values = planned.problem, planned.values
+    state = problem.state
+    names = tuple(state.solve_for)
+    cons = tuple(state.consider)
+    if not names:
+        raise InputError("nothing to predict: every state element is held or consider", key="state")
+    n = len(names)
+    times = plan.output_times()
+    masks = info.masks_in(plan, problem)
+    sigma0 = np.array([state[nm].sigma0 for nm in names], dtype=float)
+    sigma_c = np.array([state[nm].sigma0 for nm in cons], dtype=float)
+    if np.any(~np.isfinite(sigma_c)):
+        raise InputError("a consider element needs a finite a-priori sigma", key="state.elements")
+    lins = linearize(problem, values, names + cons)
+    rows = [info.weighted_rows(lin, sd.t, masks[sd.name]) for lin, sd in zip(lins, problem.sensors)]
+    frames = {sd.name: int(t.size) for (t, _), sd in zip(rows, problem.sensors)}
+    A_final = info.final_information(rows, n + len(cons), plan.end)[:n, :n]
+    use_kalman = method == "kalman" and isinstance(problem.attitude, GyroAttitude)
+    if method == "kalman" and not use_kalman:
+        log.info("no gyro carries the attitude: the Kalman recursion reduces to Eq 3-2")
+    if use_kalman:
+        arw, rrw = _gyro_noise(problem)
+        hist = kalman_history(problem, values, names, cons, sigma0, sigma_c, times, masks=masks,
+                              arw=arw, rrw=rrw)
+    else:
+        A_cum = info.binned_information(rows, times, n + len(cons))
+        hist = info.static_history(A_cum, n, info.prior_information(sigma0), sigma_c,
+                                   _attitude_partials(problem, values, names, times))
+    slots = planned.slots
+    availability = {k: (frames.get(k, 0) / slots[k] if slots.get(k) else 0.0)
+                    for k in slots if k in frames}
+    unobs = tuple(name_combinations(A_final, names, 1e-7))
+    return PredictionResult(
+        times=times, names=names, units=tuple(state[nm].unit for nm in names),
+        sigma=hist["sigma"], sigma_noise=hist["sigma_noise"], attitude_sigma=hist["attitude_sigma"],
+        P=hist["P"], P_consider=hist["P_consider"], consider=cons,
+        budget={c: hist["budget"][j] for j, c in enumerate(cons)},
+        noise_only=hist["sigma_noise"][-1].copy(), availability=availability, frames=frames,
+        method="kalman" if use_kalman else "information", plan=plan, unobservable=unobs)
+
+
+def _attitude_partials(problem: Problem, values, names, times) -> np.ndarray:
+    """(T, 3, n) ``∂δθ(t)/∂x`` (three-axis) or ``∂Â/∂x`` (spinning) over the solve-for columns."""
+    att = problem.attitude.evaluate(values, times)
+    J = np.zeros((times.size, 3, len(names)))
+    col = {nm: j for j, nm in enumerate(names)}
+    for a, nm in enumerate(att.names):
+        if nm in col:
+            J[:, :, col[nm]] = att.J[:, :, a]
+    return J

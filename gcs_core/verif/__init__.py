@@ -1,0 +1,13 @@
+"""VERIF (seed §3.2.2, §4.4): onboard attitudes against the ground attitude.
+
+- :mod:`.compare` — :func:`verify`, :class:`VerifResult`, the §4.4 statistic and flag rule.
+- :mod:`.ground` — the fitted attitude with its 1-σ.
+- :mod:`.analysis` — :func:`verify_analysis` on a fitted :class:`~gcs_core.session.Analysis`.
+"""
+
+from gcs_core.verif.analysis import verify_analysis
+from gcs_core.verif.compare import VerifResult, flag_rule, seed_sigma, slerp, verify
+from gcs_core.verif.ground import GroundAttitude, ground_attitude
+
+__all__ = ["VerifResult", "verify", "verify_analysis", "flag_rule", "seed_sigma", "slerp",
+           "GroundAttitude", "ground_attitude"]

@@ -1,0 +1,160 @@
+"""Engine calls that run as background jobs, beyond fitting (which lives on the Workbench).
+
+Each function takes the workbench, a ``progress(done, total, text)`` callback and a
+``cancelled()`` predicate, stores its result on the workbench and returns it. They
+are plain functions (no Textual) so tests can call them directly. Engine packages that
+may be absent from an installation are imported here, lazily, and a missing one is
+reported as an :class:`~gcs_core.errors.GcsError` the status line can show.
+"""
+
+from __future__ import annotations
+
+import importlib
+import logging
+from pathlib import Path
+
+from gcs_core.errors import GcsError
+
+log = logging.getLogger(__name__)
+
+
+class Unavailable(GcsError):
+    """An engine module this view needs is not installed."""
+
+
+def engine(module: str, name: str):
+    """``module.name`` from gcs_core, or :class:`Unavailable` naming what is missing."""
+    try:
+        return getattr(importlib.import_module(module), name)
+    except (ImportError, AttributeError) as err:
+        raise Unavailable(f"{module}.{name} is not available ({err})") from None
+
+
+def available(module: str, name: str) -> bool:
+    try:
+        engine(module, name)
+        return True
+    except Unavailable:
+        return False
+
+
+# ---------------------------------------------------------------------------- predictor
+def predict(wb, progress=None, cancelled=None):
+    """σ of every solve-for element along the config's data plan (gcs_core.predictor)."""
+    run = engine("gcs_core.predictor", "predict")
+    if progress:
+        progress(0, None, "accumulating information")
+    result = run(wb.analysis)
+    if cancelled is not None and cancelled():
+        return None
+    wb.prediction = result
+    return result
+
+
+# ---------------------------------------------------------------------------- verification
+def verify(wb, progress=None, cancelled=None):
+    """Onboard against ground attitude (gcs_core.verif.verify_analysis); fits first if needed."""
+    run = engine("gcs_core.verif", "verify_analysis")
+    if wb.result is None:
+        if progress:
+            progress(0, 2, "fitting first")
+        wb.fit(progress=None, cancelled=cancelled)
+    if progress:
+        progress(1, 2, "comparing attitudes")
+    result = run(wb.analysis)
+    if cancelled is not None and cancelled():
+        return None
+    wb.verification = result
+    return result
+
+
+# ---------------------------------------------------------------------------- calibration
+def scds_path(wb) -> Path | None:
+    """Where this analysis keeps its SCDS (the engine's default), or None if unknown."""
+    try:
+        default = engine("gcs_core.calibration", "default_scds_path")
+    except Unavailable:
+        default = None
+    if default is not None:
+        try:
+            return Path(default(wb.analysis))
+        except Exception:  # an engine default that cannot resolve: fall back below
+            log.debug("default_scds_path failed", exc_info=True)
+    cfg = wb.config
+    base = cfg.path.parent if cfg.path is not None else Path(cfg.mission)
+    return base / "scds.h5"
+
+
+def save_calibration(wb, progress=None, cancelled=None):
+    """Append the latest fit to the SCDS; returns the new version number."""
+    save = engine("gcs_core.calibration", "save_calibration")
+    if progress:
+        progress(0, None, "writing the SCDS")
+    return save(wb.analysis, scds_path(wb))
+
+
+def scds_versions(path: Path):
+    """Version summaries of an SCDS file (empty when the file does not exist)."""
+    if path is None or not Path(path).exists():
+        return []
+    return engine("gcs_core.sidp.scds", "list_versions")(path)
+
+
+def scds_diff(path: Path, a: int, b: int):
+    return engine("gcs_core.sidp.scds", "diff_versions")(path, a, b)
+
+
+def scds_version(path: Path, n: int | None = None):
+    return engine("gcs_core.sidp.scds", "read_version")(path, n)
+
+
+# ---------------------------------------------------------------------------- FILTR
+class FiltrRun:
+    """A FILTR run on the workbench's problem, with every block report kept.
+
+    The engine's ``Filtr(problem, options=..., block_seconds=...)`` steps one block at
+    a time; this wrapper remembers the reports so a screen can redraw the history.
+    """
+
+    def __init__(self, wb) -> None:
+        Filtr = engine("gcs_core.filtr.stepping", "Filtr")
+        a = wb.analysis
+        self.filtr = Filtr(a.problem, options=a.batch_options(), block_seconds=wb.config.block_seconds)
+        self.reports: list = []
+
+    @property
+    def n_blocks(self) -> int:
+        return int(getattr(self.filtr, "n_blocks", len(self.reports) or 1))
+
+    @property
+    def done(self) -> int:
+        return len(self.reports)
+
+    @property
+    def finished(self) -> bool:
+        flag = getattr(self.filtr, "finished", getattr(self.filtr, "done", None))
+        return bool(flag) if flag is not None else self.done >= self.n_blocks
+
+    def step(self):
+        report = self.filtr.step()
+        self.reports.append(report)
+        return report
+
+
+def filtr_advance(wb, blocks: int | None, progress=None, cancelled=None, on_block=None):
+    """Process ``blocks`` FILTR blocks (None: to the end), checking ``cancelled()``
+    between blocks and calling ``on_block(report)`` after each."""
+    if wb.filtr is None:
+        wb.filtr = FiltrRun(wb)
+    run = wb.filtr
+    k = 0
+    while not run.finished and (blocks is None or k < blocks):
+        if cancelled is not None and cancelled():
+            break
+        report = run.step()
+        k += 1
+        if progress:
+            progress(run.done, run.n_blocks, f"block {run.done}/{run.n_blocks}")
+        if on_block:
+            on_block(report)
+    return run

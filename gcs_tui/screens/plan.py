@@ -1,0 +1,163 @@
+"""Data plan: the predictor's span and output step, its data gaps and maneuvers
+(seed §4.3, Eq 4-35/4-36). Edits go straight into the config's ``[prediction]`` table;
+``p`` runs the predictor on the plan.
+"""
+
+from __future__ import annotations
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.widgets import DataTable, Label, Static
+
+from gcs_core.config import AXES
+from gcs_core.errors import GcsError
+from gcs_tui import format as fmt
+from gcs_tui.keys import SCREENS, bindings
+from gcs_tui.screens.base import GcsScreen
+from gcs_tui.screens.dialogs import Field, FormScreen
+from gcs_tui.theme import series
+from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.workbench import maneuver
+
+
+class PlanScreen(GcsScreen):
+    """Span, gaps and maneuvers of the prediction data plan."""
+
+    VIEW = "plan"
+    CSS_PATH = "plan.tcss"
+    BINDINGS = bindings(SCREENS["plan"])
+
+    def compose_body(self) -> ComposeResult:
+        yield Static("", id="plan-span", markup=False)
+        with Horizontal(id="plan-tables"):
+            with Vertical(id="plan-gaps-box"):
+                yield Label("Data gaps  (g: add · enter: edit · d: delete)", classes="panel-title")
+                yield DataTable(id="gaps", cursor_type="row", zebra_stripes=True)
+            with Vertical(id="plan-man-box"):
+                yield Label("Maneuvers  (m: add · enter: edit · d: delete)", classes="panel-title")
+                yield DataTable(id="maneuvers", cursor_type="row", zebra_stripes=True)
+        yield GcsPlot(id="plan-plot", title="plan")
+
+    def refresh_view(self) -> None:
+        wb = self.wb
+        cfg = wb.config
+        t0, t1 = wb.plan_span()
+        source = "config" if cfg.pred_start is not None and cfg.pred_end is not None else "telemetry span"
+        self.query_one("#plan-span", Static).update(Text.assemble(
+            ("span ", "bold"), fmt.span(t0, t1), f" ({source})  ·  ", ("step ", "bold"), fmt.seconds(cfg.pred_step),
+            f"  ·  {len(cfg.gaps)} gaps, {len(cfg.maneuvers)} maneuvers  ·  e: edit span/step  ·  p: predict"))
+        gaps = self.query_one("#gaps", DataTable)
+        gaps.clear(columns=True)
+        gaps.add_columns(Text("start", justify="right"), Text("end", justify="right"), Text("length", justify="right"))
+        for i, (a, b) in enumerate(cfg.gaps):
+            gaps.add_row(*(Text(fmt.seconds(v), justify="right") for v in (a, b, b - a)), key=str(i))
+        man = self.query_one("#maneuvers", DataTable)
+        man.clear(columns=True)
+        man.add_columns(Text("start", justify="right"), Text("duration", justify="right"), "axis",
+                        Text("rate", justify="right"), Text("angle", justify="right"))
+        for i, m in enumerate(cfg.maneuvers):
+            man.add_row(Text(fmt.seconds(m.start), justify="right"), Text(fmt.seconds(m.duration), justify="right"),
+                        m.axis, Text(f"{fmt.sig(m.rate_deg_s, 3)} deg/s", justify="right"),
+                        Text(f"{fmt.sig(m.rate_deg_s * m.duration, 3)} deg", justify="right"), key=str(i))
+        self.query_one("#plan-plot", GcsPlot).paint(lambda plt: self._plot(plt, t0, t1, cfg))
+
+    @staticmethod
+    def _plot(plt, t0, t1, cfg) -> None:
+        plt.plot([t0, t1], [4, 4], color=series(0), marker="hd", label="data")
+        for a, b in cfg.gaps:
+            plt.plot([a, b], [4, 4], color="red", marker="hd")
+        for m in cfg.maneuvers:
+            y = 3 - AXES.index(m.axis)
+            plt.plot([m.start, m.start + m.duration], [y, y], color=series(1 + AXES.index(m.axis)), marker="hd")
+        plt.yticks([4, 3, 2, 1], ["data", "roll", "pitch", "yaw"])
+        plt.ylim(0.5, 4.5)
+        plt.xlim(min(t0, *(a for a, _ in cfg.gaps)) if cfg.gaps else t0,
+                 max(t1, *(b for _, b in cfg.gaps)) if cfg.gaps else t1)
+        plt.xlabel("t [s]   (red: gap)")
+        plt.title("data plan")
+
+    # ------------------------------------------------------------------ edits
+    def _apply(self, **kw) -> None:
+        try:
+            self.wb.set_plan(**kw)
+        except GcsError as err:
+            self.app.notify(str(err), title="plan not changed", severity="error")
+            return
+        self.app.changed()
+
+    def _row(self, table_id: str) -> int | None:
+        table = self.query_one(f"#{table_id}", DataTable)
+        if table.row_count == 0:
+            return None
+        return int(table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value)
+
+    def action_edit_span(self) -> None:
+        cfg = self.wb.config
+        t0, t1 = self.wb.plan_span()
+        fields = [Field("start", "start [s]", repr(t0)), Field("end", "end [s]", repr(t1)),
+                  Field("step", "step [s]", repr(cfg.pred_step), positive=True)]
+        self.app.push_screen(FormScreen("Plan span and output step", fields),
+                             lambda v: v and self._apply(start=v["start"], end=v["end"], step=v["step"]))
+
+    def _gap_form(self, title: str, a: float, b: float, index: int | None) -> None:
+        def done(v):
+            if not v:
+                return
+            gaps = list(self.wb.config.gaps)
+            if index is None:
+                gaps.append((v["start"], v["end"]))
+            else:
+                gaps[index] = (v["start"], v["end"])
+            self._apply(gaps=tuple(gaps))
+
+        self.app.push_screen(FormScreen(title, [Field("start", "start [s]", repr(a)),
+                                                Field("end", "end [s]", repr(b))]), done)
+
+    def action_add_gap(self) -> None:
+        t0, t1 = self.wb.plan_span()
+        mid = 0.5 * (t0 + t1)
+        self._gap_form("Add a data gap", mid, mid + 600.0, None)
+
+    def _maneuver_form(self, title: str, m, index: int | None) -> None:
+        def done(v):
+            if not v:
+                return
+            mans = list(self.wb.config.maneuvers)
+            new = maneuver(v["start"], v["duration"], v["axis"], v["rate"])
+            if index is None:
+                mans.append(new)
+            else:
+                mans[index] = new
+            self._apply(maneuvers=tuple(mans))
+
+        fields = [Field("start", "start [s]", repr(m.start)),
+                  Field("duration", "duration [s]", repr(m.duration), positive=True),
+                  Field("axis", "axis", m.axis, kind="choice", choices=AXES),
+                  Field("rate", "rate [deg/s]", repr(m.rate_deg_s))]
+        self.app.push_screen(FormScreen(title, fields, note="Constant-rate rotation about one reference "
+                                        "axis (Eq 4-35, 4-36)."), done)
+
+    def action_add_maneuver(self) -> None:
+        t0, t1 = self.wb.plan_span()
+        self._maneuver_form("Add a maneuver", maneuver(0.5 * (t0 + t1), 300.0, "yaw", 0.1), None)
+
+    def action_delete_item(self) -> None:
+        focused = self.focused
+        if not isinstance(focused, DataTable):
+            return
+        i = self._row(focused.id)
+        if i is None:
+            return
+        if focused.id == "gaps":
+            self._apply(gaps=tuple(g for j, g in enumerate(self.wb.config.gaps) if j != i))
+        else:
+            self._apply(maneuvers=tuple(m for j, m in enumerate(self.wb.config.maneuvers) if j != i))
+
+    def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
+        i = int(event.row_key.value)
+        if event.data_table.id == "gaps":
+            a, b = self.wb.config.gaps[i]
+            self._gap_form("Edit the data gap", a, b, i)
+        else:
+            self._maneuver_form("Edit the maneuver", self.wb.config.maneuvers[i], i)

@@ -1,0 +1,102 @@
+"""Predictor: the σ each element would reach along the data plan, without data
+(seed §3.1, §4.3), and the error budget (noise-only and each consider element's share).
+
+``p`` runs the prediction; ``[``/``]`` pick what the plot shows (the attitude about the
+body axes, then each solve-for element).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.widgets import DataTable, Static
+
+from gcs_tui import format as fmt
+from gcs_tui.keys import SCREENS, bindings
+from gcs_tui.screens.base import GcsScreen
+from gcs_tui.theme import series
+from gcs_tui.widgets.plots import GcsPlot
+
+EMPTY = "No prediction yet — press p to predict σ along the data plan (screen 4 edits the plan)."
+
+
+class PredictorScreen(GcsScreen):
+    """σ against time and the error budget table."""
+
+    VIEW = "predictor"
+    CSS_PATH = "predictor.tcss"
+    BINDINGS = bindings(SCREENS["predictor"])
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.element_i = 0
+
+    def compose_body(self) -> ComposeResult:
+        yield Static("", id="pred-info", markup=False)
+        yield GcsPlot(id="pred-plot", title="predicted σ")
+        yield DataTable(id="budget", cursor_type="row", zebra_stripes=True)
+
+    def refresh_view(self) -> None:
+        p = self.wb.prediction
+        info = self.query_one("#pred-info", Static)
+        plot = self.query_one("#pred-plot", GcsPlot)
+        table = self.query_one("#budget", DataTable)
+        if p is None:
+            info.update(EMPTY)
+            plot.paint(None, empty="no prediction")
+            table.clear(columns=True)
+            return
+        att = p.attitude_sigma[-1] if p.attitude_sigma.size else np.full(3, np.nan)
+        avail = ", ".join(f"{k} {100 * v:.0f}%" for k, v in p.availability.items())
+        info.update(Text.assemble(
+            (" method ", "bold"), p.method, f" · {fmt.span(float(p.times[0]), float(p.times[-1]))}",
+            " · final attitude σ ", (" / ".join(fmt.quantity(v, "rad", digits=2, shown="arcsec") for v in att), "bold"),
+            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations" if p.unobservable else "")))
+        choices = ["attitude"] + list(p.names)
+        self.element_i %= len(choices)
+        what = choices[self.element_i]
+        plot.paint(lambda plt: self._plot(plt, p, what))
+        self._budget(table, p, what)
+
+    @staticmethod
+    def _plot(plt, p, what) -> None:
+        t = p.times.tolist()
+        if what == "attitude":
+            for k, axis in enumerate(("x", "y", "z")):
+                y = [fmt.to_display(v, "rad", "arcsec") for v in p.attitude_sigma[:, k]]
+                plt.plot(t, y, color=series(k), label=f"body {axis}")
+            plt.title("attitude σ about the body axes [arcsec]")
+        else:
+            i = p.index(what)
+            unit = p.units[i]
+            shown = fmt.display_unit(unit, float(np.nanmax(p.sigma[:, i])))
+            y = [fmt.to_display(v, unit, shown) for v in p.sigma[:, i]]
+            yn = [fmt.to_display(v, unit, shown) for v in p.sigma_noise[:, i]]
+            plt.plot(t, y, color=series(0), label="total")
+            if p.consider:
+                plt.plot(t, yn, color=series(1), label="noise only")
+            plt.title(f"σ of {what} [{fmt.unit_label(shown) or '1'}]   ([ ] other elements)")
+        plt.xlabel("t [s]")
+
+    def _budget(self, table: DataTable, p, what: str) -> None:
+        table.clear(columns=True)
+        table.add_column("element")
+        table.add_column(Text("σ final", justify="right"))
+        table.add_column(Text("noise only", justify="right"))
+        cons = list(p.consider)[: (2 if self.compact else 5)]
+        for c in cons:
+            table.add_column(Text(c, justify="right"))
+        for row in p.budget_rows():
+            unit = row["unit"]
+            shown = fmt.display_unit(unit, row["sigma"])
+            cells = [Text(row["name"], style="bold" if row["name"] == what else ""),
+                     Text(fmt.quantity(row["sigma"], unit, digits=2, shown=shown), justify="right"),
+                     Text(fmt.quantity(row["noise_only"], unit, digits=2, shown=shown), justify="right")]
+            cells += [Text(fmt.quantity(row["consider"].get(c, 0.0), unit, digits=2, shown=shown), justify="right")
+                      for c in cons]
+            table.add_row(*cells, key=row["name"])
+
+    def action_element(self, step: int) -> None:
+        self.element_i += step
+        self.refresh_view()

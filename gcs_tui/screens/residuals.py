@@ -1,0 +1,197 @@
+"""Residuals: per sensor and component against time, orbit angle, a measured
+component (position in the field of view) or an auxiliary channel, with the ±3σ band;
+histogram and autocorrelation of the normalized residuals; normalized RMS per sensor
+(1.0 = the noise floor). Edited frames are drawn apart (orange ×) and never hidden.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.containers import Horizontal, Vertical
+from textual.widgets import DataTable, Static
+
+from gcs_tui import derive
+from gcs_tui import format as fmt
+from gcs_tui.keys import SCREENS, bindings
+from gcs_tui.screens.base import GcsScreen
+from gcs_tui.theme import color, rgb
+from gcs_tui.widgets.plots import GcsPlot
+
+KINDS = ("residual", "histogram", "autocorrelation")
+#: normalized RMS above this is flagged (5 % above the noise floor)
+RMS_LIMIT = 1.05
+#: at most this many used points are drawn per plot (every edited point is drawn)
+MAX_POINTS = 4000
+
+
+def x_axes(sd, shown_unit: str, unit: str) -> list[tuple[str, str, np.ndarray]]:
+    """``(name, axis label, values (N,))`` a sensor's residuals can be plotted against."""
+    g = sd.geom
+    out = [("time", "t [s]", sd.t)]
+    if g.r_I is not None and g.v_I is not None:
+        out.append(("orbit angle", "argument of latitude [deg]", derive.argument_of_latitude(g.r_I, g.v_I)))
+    for j, comp in enumerate(sd.model.components):
+        vals = np.array([fmt.to_display(v, unit, shown_unit) for v in sd.y[:, j]]) if unit != shown_unit \
+            else sd.y[:, j]
+        out.append((f"measured {comp}", f"measured {comp} [{fmt.unit_label(shown_unit) or '1'}]", vals))
+    for name, values in sorted(g.aux.items()):
+        out.append((f"aux {name}", f"aux {name}", np.asarray(values, dtype=float)))
+    return out
+
+
+class ResidualsScreen(GcsScreen):
+    """Residual plots and the normalized RMS table."""
+
+    VIEW = "residuals"
+    CSS_PATH = "residuals.tcss"
+    BINDINGS = bindings(SCREENS["residuals"])
+    NEEDS_FIT = True
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.sensor_i = 0
+        self.comp_i = 0
+        self.x_i = 0
+        self.kind_i = 0
+
+    def compose_body(self) -> ComposeResult:
+        yield Static("", id="res-info", markup=False)
+        yield GcsPlot(id="res-main", title="residuals")
+        with Horizontal(id="res-lower"):
+            yield GcsPlot(id="res-hist", title="histogram")
+            yield GcsPlot(id="res-acf", title="autocorrelation")
+            with Vertical(id="res-table-box"):
+                yield DataTable(id="rms", cursor_type="row", zebra_stripes=True, show_cursor=False)
+
+    # ------------------------------------------------------------------ data
+    def _sensors(self) -> list[str]:
+        return list(self.wb.result.residuals)
+
+    def _current(self):
+        names = self._sensors()
+        self.sensor_i %= max(len(names), 1)
+        name = names[self.sensor_i]
+        r = self.wb.result.residuals[name]
+        self.comp_i %= max(len(r.components), 1)
+        return name, r, self.wb.analysis.problem.sensor(name)
+
+    # ------------------------------------------------------------------ drawing
+    def refresh_view(self) -> None:
+        name, r, sd = self._current()
+        j = self.comp_i
+        shown = fmt.display_unit(r.unit, float(np.nanmax(np.abs(r.sigma))) if r.sigma.size else 0.0)
+        axes = x_axes(sd, fmt.display_unit(r.unit, float(np.nanmax(np.abs(sd.y))) if sd.y.size else 0.0), r.unit)
+        self.x_i %= len(axes)
+        xname, xlabel, xvals = axes[self.x_i]
+        kind = KINDS[self.kind_i]
+        res = self.wb.result
+        n_edit = int(np.count_nonzero(r.edited))
+        ho = self.wb.analysis.holdout_rms.get(name, float("nan"))
+        self.query_one("#res-info", Static).update(Text.assemble(
+            (f" {name}", "bold"), f" ({self.sensor_i + 1}/{len(self._sensors())}) · ", (r.components[j], "bold"),
+            f" · {kind}" + (f" vs {xname}" if kind == "residual" else ""), " · normalized RMS ",
+            (fmt.fixed(r.rms_normalized, 3), f"bold {color('gcs-bad' if r.rms_normalized > RMS_LIMIT else 'gcs-ok')}"),
+            f" · held-out {fmt.fixed(ho, 3)} · n {r.n} · edited {n_edit}",
+            f" · χ²/dof {res.chi2 / max(res.dof, 1):.3f}"))
+        z = r.normalized[:, j]
+        resid = np.array([fmt.to_display(v, r.unit, shown) for v in r.residual[:, j]])
+        sigma = fmt.to_display(float(r.sigma[j]), r.unit, shown)
+        title = f"{name} {r.components[j]} [{fmt.unit_label(shown) or '1'}]"
+        main = self.query_one("#res-main", GcsPlot)
+        if kind == "residual":
+            main.paint(lambda plt: self._scatter(plt, xvals, resid, sigma, r.used, r.edited, title, xlabel))
+        elif kind == "histogram":
+            main.paint(lambda plt: self._hist(plt, z[r.used], f"{title}: normalized"))
+        else:
+            main.paint(lambda plt: self._acf(plt, z[r.used], f"{title}: normalized"))
+        self.query_one("#res-hist", GcsPlot).paint(lambda plt: self._hist(plt, z[r.used], "histogram (z)"))
+        self.query_one("#res-acf", GcsPlot).paint(lambda plt: self._acf(plt, z[r.used], "autocorrelation (z)"))
+        self._table()
+
+    def _table(self) -> None:
+        wb = self.wb
+        table = self.query_one("#rms", DataTable)
+        table.clear(columns=True)
+        table.add_column("sensor")
+        table.add_column(Text("norm RMS", justify="right"))
+        table.add_column(Text("held-out", justify="right"))
+        table.add_column(Text("n", justify="right"))
+        table.add_column(Text("edited", justify="right"))
+        if not self.compact:
+            table.add_column(Text("RMS", justify="right"))
+        for name, r in wb.result.residuals.items():
+            bad = r.rms_normalized > RMS_LIMIT
+            cells = [Text(name, style="bold" if self._sensors().index(name) == self.sensor_i else ""),
+                     Text(fmt.fixed(r.rms_normalized, 3), justify="right",
+                          style=color("gcs-bad" if bad else "gcs-ok")),
+                     Text(fmt.fixed(wb.analysis.holdout_rms.get(name, float("nan")), 3), justify="right"),
+                     Text(str(r.n), justify="right"),
+                     Text(str(int(np.count_nonzero(r.edited))), justify="right",
+                          style=color("gcs-edited") if np.any(r.edited) else "")]
+            if not self.compact:
+                rms = r.rms
+                shown = fmt.display_unit(r.unit, float(np.nanmax(rms)) if rms.size else 0.0)
+                vals = "/".join(fmt.sig(fmt.to_display(v, r.unit, shown), 2) for v in rms)
+                cells.append(Text(f"{vals} {fmt.unit_label(shown)}".rstrip(), justify="right"))
+            table.add_row(*cells, key=name)
+
+    @staticmethod
+    def _scatter(plt, x, y, sigma, used, edited, title, xlabel) -> None:
+        ok = used & np.isfinite(y) & np.isfinite(x)
+        idx = np.nonzero(ok)[0]
+        idx = idx[derive.thin(idx.size, MAX_POINTS)]
+        plt.scatter(x[idx].tolist(), y[idx].tolist(), marker="braille", color=rgb("gcs-used"), label="used")
+        ed = np.nonzero(edited & np.isfinite(y) & np.isfinite(x))[0]
+        lim = 4.0 * sigma
+        if idx.size:
+            lim = max(lim, 1.1 * derive.spread(y[idx]))
+        if ed.size:
+            plt.scatter(x[ed].tolist(), np.clip(y[ed], -lim, lim).tolist(), marker="x",
+                        color=rgb("gcs-edited"), label="edited")
+        if idx.size or ed.size:
+            plt.horizontal_line(3 * sigma, color=rgb("gcs-band"))
+            plt.horizontal_line(-3 * sigma, color=rgb("gcs-band"))
+            plt.ylim(-lim, lim)
+        plt.title(f"{title}  (±3σ band)")
+        plt.xlabel(xlabel)
+
+    @staticmethod
+    def _hist(plt, z, title) -> None:
+        h = derive.histogram(z)
+        plt.bar(h.centers.tolist(), h.counts.tolist(), color=rgb("gcs-used"), width=0.8)
+        plt.plot(h.centers.tolist(), h.expected.tolist(), color=rgb("gcs-band"), label="N(0,1)")
+        plt.title(title)
+        plt.xlabel("residual / σ")
+
+    @staticmethod
+    def _acf(plt, z, title) -> None:
+        lags, acf, band = derive.autocorrelation(z, 40)
+        plt.bar(lags.tolist(), acf.tolist(), color=rgb("gcs-used"), width=0.5)
+        if np.isfinite(band):
+            plt.horizontal_line(band, color=rgb("gcs-band"))
+            plt.horizontal_line(-band, color=rgb("gcs-band"))
+        plt.ylim(-1.0, 1.0)
+        plt.title(title)
+        plt.xlabel("lag [samples]")
+
+    # ------------------------------------------------------------------ actions
+    def action_sensor(self, step: int) -> None:
+        self.sensor_i = (self.sensor_i + step) % max(len(self._sensors()), 1)
+        self.comp_i = 0
+        self.x_i = min(self.x_i, 1)
+        self.refresh_view()
+
+    def action_component(self) -> None:
+        self.comp_i += 1
+        self.refresh_view()
+
+    def action_xaxis(self) -> None:
+        self.x_i += 1
+        self.kind_i = 0
+        self.refresh_view()
+
+    def action_view_kind(self) -> None:
+        self.kind_i = (self.kind_i + 1) % len(KINDS)
+        self.refresh_view()

@@ -1,0 +1,41 @@
+"""A plotext plot that repaints itself from a stored painter at every render.
+
+Screens hand :meth:`GcsPlot.paint` a function ``painter(plt)`` that draws with the
+plotext API; the widget clears the figure, calls it and builds the text at the
+widget's current size, so a resize redraws the same data at the new resolution.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from textual_plotext import PlotextPlot
+
+Painter = Callable[[object], None]
+
+
+class GcsPlot(PlotextPlot):
+    """A :class:`textual_plotext.PlotextPlot` driven by a painter function."""
+
+    def __init__(self, *, title: str = "", **kw) -> None:
+        super().__init__(**kw)
+        self._painter: Painter | None = None
+        self._empty_title = title
+
+    def paint(self, painter: Painter | None, *, empty: str = "") -> None:
+        """Draw with ``painter`` from now on (None: an empty frame titled ``empty``)."""
+        self._painter = painter
+        if empty:
+            self._empty_title = empty
+        self.refresh()
+
+    def render(self):
+        plt = self.plt
+        plt.clear_figure()
+        if self._painter is not None:
+            self._painter(plt)
+        else:
+            plt.title(self._empty_title)
+            plt.xticks([])
+            plt.yticks([])
+        return super().render()
