@@ -141,13 +141,25 @@ class Analysis:
                             edit_k=self.config.edit_k or None)
 
     def holdout_masks(self) -> dict[str, np.ndarray]:
-        """The last ``holdout_fraction`` of the span, per sensor (True = held out)."""
+        """Held-out frames per sensor (True = held out).
+
+        The span is cut into 20 equal blocks and every ``round(1/holdout_fraction)``-th
+        block is held out, so the held-out frames sample every part of the span (slews,
+        eclipses, both ends) instead of asking the fit to extrapolate past its data.
+        """
         f = self.config.holdout_fraction
         if f <= 0:
             return {}
         t_all = np.concatenate([sd.t for sd in self.problem.sensors])
-        t_cut = t_all.min() + (1.0 - f) * (t_all.max() - t_all.min())
-        return {sd.name: sd.t > t_cut for sd in self.problem.sensors}
+        t0, t1 = float(t_all.min()), float(t_all.max())
+        n_blocks = 20
+        every = max(2, int(round(1.0 / f)))
+        width = (t1 - t0) / n_blocks or 1.0
+        out = {}
+        for sd in self.problem.sensors:
+            block = np.minimum(((sd.t - t0) / width).astype(int), n_blocks - 1)
+            out[sd.name] = (block % every) == (every - 1)
+        return out
 
     def fit(self, *, holdout: bool = True) -> BatchResult:
         """Fit the current state; with ``holdout`` also score the held-out span."""
@@ -243,13 +255,23 @@ class Analysis:
                                     (f" (best: {best.id}, adjusted p = {best.p_adjusted:.2g})" if best else ""))
                 say(self.stop_reason)
                 break
-            top = ok[0]
+            top = self._parsimonious(ok[0], cands)
             say(f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, p = {top.p_value:.2g})")
             self.add_effect(top.id)
         else:
             self.stop_reason = f"stopped after {max_steps} steps"
         self.rank()
         return self.steps
+
+    def _parsimonious(self, top: Candidate, cands: list[Candidate]) -> Candidate:
+        """Among candidates the data cannot tell from ``top`` (canonical correlation above
+        the alias threshold), prefer the one with the best Bayesian information criterion
+        ``Δχ² − dof·ln(n)``: equal fits, fewer parameters (e.g. a Sun-sensor bias against a
+        sensor rotation, which differ only at second order)."""
+        n = max(2, sum(r.n * len(r.components) for r in self.result.residuals.values()))
+        group = [top] + [c for c in cands if c.id in {a for a, _ in top.aliases_candidates}
+                         and c.p_adjusted < self.config.significance and c.dof > 0]
+        return max(group, key=lambda c: c.delta_chi2 - c.dof * math.log(n))
 
     # ------------------------------------------------------------------ report (ICD §7)
     def report(self) -> dict:

@@ -68,7 +68,7 @@ class GcsApp(App):
     BINDINGS = bindings(APP)
     COMMANDS = App.COMMANDS | {GcsCommands}
     MODES = SCREENS_BY_VIEW
-    HORIZONTAL_BREAKPOINTS = [(0, "-compact"), (120, "-wide")]
+    HORIZONTAL_BREAKPOINTS = [(0, "-compact"), (120, "-wide"), (150, "-xwide")]
     VERTICAL_BREAKPOINTS = [(0, "-short"), (40, "-tall")]
 
     def __init__(self, source: str | Path | None = None, *, workbench: Workbench | None = None,
@@ -84,6 +84,8 @@ class GcsApp(App):
         self.job = JobState()
         self._done: dict[str, Callable[[Any], None]] = {}
         self.last_notice = ""
+        self.job_errors: dict[str, str] = {}
+        """Job id -> the error of its latest failed run (views show why they are empty)."""
 
     # ------------------------------------------------------------------ theme
     def get_theme_variable_defaults(self) -> dict[str, str]:
@@ -152,9 +154,11 @@ class GcsApp(App):
             self.last_notice = f"{message.label}: cancelled"
             self.notify(self.last_notice, severity="warning")
         elif not message.ok:
+            self.job_errors[message.job] = message.error
             self.last_notice = f"{message.label} failed: {message.error}"
             self.notify(message.error, title=f"{message.label} failed", severity="error", timeout=10)
         else:
+            self.job_errors.pop(message.job, None)
             self.last_notice = ""
             if callback is not None:
                 callback(message.result)
@@ -284,8 +288,18 @@ class GcsApp(App):
         if not wb.ready or wb.result is None:
             self.notify("fit first (f)", severity="warning")
             return
-        self.run_job("calibration", "saving calibration", lambda p, c: jobs.save_calibration(wb, p, c),
-                     on_done=lambda out: out and self.notify(f"calibration saved: version {out}"))
+        fields = [Field("path", "SCDS file", str(jobs.scds_path(wb)), kind="text"),
+                  Field("note", "note", "", kind="text", optional=True)]
+
+        def done(values) -> None:
+            if not values:
+                return
+            self.run_job("calibration", "saving calibration",
+                         lambda p, c: jobs.save_calibration(wb, values["path"], values["note"] or "", p, c),
+                         on_done=lambda v: self.notify(f"calibration saved as version {v}"))
+
+        self.push_screen(FormScreen("Append the fitted calibration to the SCDS", fields,
+                                    note="Every element not held, with σ and covariance (append-only)."), done)
 
     def action_filtr_step(self) -> None:
         self.switch_mode("filtr")

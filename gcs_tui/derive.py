@@ -119,3 +119,4 @@ def spread(values: np.ndarray, *, floor: float = 1e-300) -> float:
     v = np.asarray(values, dtype=float)
     v = np.abs(v[np.isfinite(v)])
     return float(v.max()) if v.size else floor
+

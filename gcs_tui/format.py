@@ -43,6 +43,11 @@ def display_unit(unit: str, magnitude: float) -> str:
     return large if math.isfinite(magnitude) and abs(magnitude) >= threshold else small
 
 
+def scale(unit: str, shown: str) -> float:
+    """Factor from internal ``unit`` to display unit ``shown`` (every conversion is linear)."""
+    return 1.0 if shown == unit else UNIT_SCALE[shown] / UNIT_SCALE.get(unit, 1.0)
+
+
 def to_display(value: float, unit: str, shown: str) -> float:
     """Convert ``value`` from internal ``unit`` to the display unit ``shown``."""
     if shown == unit:
@@ -83,7 +88,7 @@ def fixed(x: float, decimals: int) -> str:
         return "—"
     if math.isinf(x):
         return "∞" if x > 0 else "-∞"
-    return f"{x:.{decimals}f}"
+    return f"{round(x, decimals) + 0.0:.{decimals}f}"    # + 0.0: no "-0.0"
 
 
 def pvalue(p: float) -> str:
@@ -99,29 +104,33 @@ def value_sigma(value: float, sigma: float | None) -> tuple[str, str]:
     """``(value, sigma)`` strings: σ to 2 significant digits, value to σ's decimal place.
 
     With no usable σ (None, 0, inf, NaN) the value gets 6 significant digits and σ is
-    ``—`` (or ``∞``). Outside 1e-4 ≤ σ < 1e5 both share an exponent, the value's
-    mantissa rounded to the σ's second digit.
+    ``—`` (or ``∞``). Fixed-point while that needs at most 10 decimals and the numbers
+    are below 1e5; otherwise both share a power of ten, the value's mantissa rounded to
+    the σ's second digit (``1.23e-5``, ``0.11e-5``).
     """
     if sigma is None or not math.isfinite(sigma) or sigma <= 0:
         s = "∞" if sigma is not None and math.isinf(sigma) else "—"
         return sig(value, 6), s
     exp_s = math.floor(math.log10(sigma))
     decimals = 1 - exp_s                        # keep 2 significant digits of σ
-    if -4 <= exp_s < 5:
+    ref = max(abs(value), sigma)
+    if decimals <= 10 and ref < 1e5 and (ref >= 1e-3 or exp_s >= -4):
         d = max(decimals, 0)
-        v = round(value, decimals)
+        v = round(value, decimals) + 0.0       # + 0.0 turns a rounded -0.0 into 0.0
         s = round(sigma, decimals)
         return f"{v:.{d}f}", f"{s:.{d}f}"
     # shared power of ten, chosen from the larger of |value| and σ
-    ref = max(abs(value), sigma)
     exp = math.floor(math.log10(ref)) if ref > 0 else exp_s
     scale = 10.0 ** exp
     d = max(exp - exp_s + 1, 0)
     return f"{value / scale:.{d}f}e{exp:+d}", f"{sigma / scale:.{d}f}e{exp:+d}"
 
 
-def estimate(value: float, sigma: float | None, unit: str, *, shown: str | None = None) -> str:
-    """``value ± σ unit`` in display units, honest precision (module docstring)."""
+def estimate(value: float, sigma: float | None, unit: str, *, shown: str | None = None,
+             with_unit: bool = True) -> str:
+    """``value ± σ unit`` in display units, honest precision (module docstring).
+
+    ``with_unit=False`` leaves the unit out (a table that has a unit column)."""
     finite_sigma = sigma if sigma is not None and math.isfinite(sigma) else 0.0
     shown = shown or display_unit(unit, max(abs(value), finite_sigma))
     v = to_display(value, unit, shown)
@@ -134,13 +143,21 @@ def estimate(value: float, sigma: float | None, unit: str, *, shown: str | None 
         body = f"({vs.split('e')[0]} ± {ss.split('e')[0]})e{vs.split('e')[1]}"
     else:
         body = f"{vs} ± {ss}"
-    return f"{body} {lab}".rstrip()
+    return f"{body} {lab}".rstrip() if with_unit else body
 
 
-def quantity(value: float, unit: str, *, digits: int = 4, shown: str | None = None) -> str:
+def quantity(value: float, unit: str, *, digits: int = 4, shown: str | None = None,
+             with_unit: bool = True) -> str:
     """A number with no σ in display units, ``digits`` significant digits."""
     shown = shown or display_unit(unit, value)
-    return f"{sig(to_display(value, unit, shown), digits)} {unit_label(shown)}".rstrip()
+    text = sig(to_display(value, unit, shown), digits)
+    return f"{text} {unit_label(shown)}".rstrip() if with_unit else text
+
+
+def shown_unit(unit: str, value: float, sigma: float | None = None) -> str:
+    """The display unit :func:`estimate` picks for ``value ± sigma``."""
+    finite_sigma = sigma if sigma is not None and math.isfinite(sigma) else 0.0
+    return display_unit(unit, max(abs(value), finite_sigma))
 
 
 def seconds(t: float) -> str:

@@ -69,28 +69,26 @@ def verify(wb, progress=None, cancelled=None):
 
 
 # ---------------------------------------------------------------------------- calibration
-def scds_path(wb) -> Path | None:
-    """Where this analysis keeps its SCDS (the engine's default), or None if unknown."""
-    try:
-        default = engine("gcs_core.calibration", "default_scds_path")
-    except Unavailable:
-        default = None
-    if default is not None:
-        try:
-            return Path(default(wb.analysis))
-        except Exception:  # an engine default that cannot resolve: fall back below
-            log.debug("default_scds_path failed", exc_info=True)
+def scds_path(wb) -> Path:
+    """The SCDS this session reads and appends to: the workbench's, else
+    ``<mission>.scds.h5`` beside the analysis config (or in the working directory)."""
+    if wb.scds_path is not None:
+        return Path(wb.scds_path)
     cfg = wb.config
-    base = cfg.path.parent if cfg.path is not None else Path(cfg.mission)
-    return base / "scds.h5"
+    base = cfg.path.parent if cfg.path is not None else Path.cwd()
+    return base / f"{wb.mission.name}.scds.h5"
 
 
-def save_calibration(wb, progress=None, cancelled=None):
-    """Append the latest fit to the SCDS; returns the new version number."""
+def save_calibration(wb, path=None, note: str = "", progress=None, cancelled=None) -> int:
+    """Append the latest fit to the SCDS at ``path`` (default :func:`scds_path`);
+    returns the new version number and remembers the file on the workbench."""
     save = engine("gcs_core.calibration", "save_calibration")
     if progress:
         progress(0, None, "writing the SCDS")
-    return save(wb.analysis, scds_path(wb))
+    path = Path(path) if path else scds_path(wb)
+    version = save(wb.analysis, path, note=note or "")
+    wb.scds_path = path
+    return version
 
 
 def scds_versions(path: Path):

@@ -101,7 +101,7 @@ SCREENS: dict[str, tuple[Key, ...]] = {
     ),
     "residuals": (
         Key("residuals.prev_sensor", "left_square_bracket", "sensor(-1)", "Prev sensor", show=False),
-        Key("residuals.next_sensor", "right_square_bracket", "sensor(1)", "Sensor ]"),
+        Key("residuals.next_sensor", "right_square_bracket", "sensor(1)", "Next sensor"),
         Key("residuals.component", "c", "component", "Component"),
         Key("residuals.xaxis", "x", "xaxis", "X axis"),
         Key("residuals.view", "v", "view_kind", "Plot kind"),
@@ -112,7 +112,7 @@ SCREENS: dict[str, tuple[Key, ...]] = {
     ),
     "predictor": (
         Key("predictor.run", "p", "app.predict", "Predict"),
-        Key("predictor.element", "right_square_bracket", "element(1)", "Element ]"),
+        Key("predictor.element", "right_square_bracket", "element(1)", "Next element"),
         Key("predictor.prev_element", "left_square_bracket", "element(-1)", "Prev element", show=False),
     ),
     "verification": (

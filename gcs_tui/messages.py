@@ -8,7 +8,7 @@ High-rate progress replaces an unhandled earlier message of the same job
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 from textual.message import Message
@@ -52,26 +52,3 @@ class FiltrBlock(Message):
     """FILTR finished one block; ``report`` is the engine's BlockReport."""
 
     report: Any
-
-
-@dataclass
-class WorkbenchChanged(Message):
-    """The analysis, its config or a result changed; views redraw from the workbench."""
-
-    what: str = "all"
-
-
-@dataclass
-class OpenRequest(Message):
-    """The user asked to open a mission directory or analysis config."""
-
-    path: str
-
-
-@dataclass
-class Notice(Message):
-    """A one-line message for the status line (``severity``: information/warning/error)."""
-
-    text: str
-    severity: str = "information"
-    extra: dict = field(default_factory=dict)

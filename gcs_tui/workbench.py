@@ -22,8 +22,6 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Callable
 
-import numpy as np
-
 from gcs_core.config import (METHODS, AnalysisConfig, ElementConfig, Maneuver, default_config,
                              load_config, save_config)
 from gcs_core.errors import ConfigError
@@ -117,9 +115,10 @@ class Workbench:
 
     # ------------------------------------------------------------------ opening
     @classmethod
-    def open(cls, path: str | Path, *, save_path: str | Path | None = None) -> "Workbench":
+    def open(cls, path: str | Path, *, save_path: str | Path | None = None,
+             scds_path: str | Path | None = None) -> "Workbench":
         """Import the mission of ``path`` (config or mission directory); no fit yet."""
-        wb = cls(save_path=save_path)
+        wb = cls(save_path=save_path, scds_path=scds_path)
         wb.load(path)
         return wb
 
@@ -380,7 +379,3 @@ def maneuver(start: float, duration: float, axis: str, rate_deg_s: float) -> Man
     """A :class:`gcs_core.config.Maneuver` (re-exported for the plan screen)."""
     return Maneuver(float(start), float(duration), axis, float(rate_deg_s))
 
-
-def finite(values) -> np.ndarray:
-    v = np.asarray(values, dtype=float)
-    return v[np.isfinite(v)]

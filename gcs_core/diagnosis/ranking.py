@@ -110,15 +110,24 @@ def mdb_noncentrality(alpha: float, power: float = 0.8, dof: int = 1) -> float:
     return float(brentq(lambda lam: stats.ncx2.sf(crit, dof, lam) - power, 1e-6, 1e4))
 
 
-def _physics_columns(problem: Problem, values, effects: Sequence[Effect]) -> dict[str, dict[str, np.ndarray]]:
-    """For physics effects: per sensor, the prediction change when the option flips on."""
+def _variants(problem: Problem, sd) -> dict:
+    """Geometry variants of a sensor, computed once per problem (they do not depend on
+    the state, and the field-model variant costs a full IGRF evaluation)."""
     from gcs_core.sidp.prepare import geometry_variants
 
+    cache = problem.__dict__.setdefault("_variant_cache", {})
+    if sd.name not in cache:
+        cache[sd.name] = geometry_variants(sd, problem.builder, problem.tables[sd.name])
+    return cache[sd.name]
+
+
+def _physics_columns(problem: Problem, values, effects: Sequence[Effect]) -> dict[str, dict[str, np.ndarray]]:
+    """For physics effects: per sensor, the prediction change when the option flips on."""
     out: dict[str, dict[str, np.ndarray]] = {e.id: {} for e in effects if e.physics}
     if not out:
         return out
     for sd in problem.sensors:
-        variants = geometry_variants(sd, problem.builder, problem.tables[sd.name])
+        variants = _variants(problem, sd)
         for eid, geom_alt in variants.items():
             if eid not in out:
                 continue
@@ -224,6 +233,8 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
                 shares[sname] = float(np.abs(gsc @ (est if est.size else gsc)))
         raw.append([e, dchi, dof, est, sigma, mdb, absorbed, aliases, shares])
     m = max(len(raw), 1)
+    n_meas = sum(int(np.count_nonzero(r.used)) * r.residual.shape[1] for r in result.residuals.values())
+    log_n = float(np.log(max(n_meas, 2)))
     # aliasing between candidates (canonical correlation of conditional signatures)
     out = []
     for item in raw:
@@ -237,8 +248,8 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
             rho = _canonical_corr(S_all, idx_of[e.id], idx_of[oe.id])
             if rho > ALIAS_TOL:
                 cand_alias.append((oe.id, rho, other[1], other[2]))
-        stronger = [a for a in cand_alias if (a[2] - a[3]) > (dchi - dof) + 1e-9 or
-                    (abs(a[2] - dchi) < 1e-9 and a[3] < dof)]
+        # an alias "wins" when it explains the data better after a BIC penalty per dof
+        stronger = [a for a in cand_alias if (a[2] - a[3] * log_n) > (dchi - dof * log_n) + 1e-9]
         identifiable = dof > 0 and absorbed < ABSORB_TOL and not stronger
         tot = sum(shares.values()) or 1.0
         out.append(Candidate(e, dchi, dof, p, min(1.0, p * m), {k: v for k, v in est_items(e, est, result)},

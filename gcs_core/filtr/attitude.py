@@ -40,6 +40,8 @@ from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.units import DEG
 
 RPY = ("att.roll", "att.pitch", "att.yaw")
+#: gyro bias instability, modelled as a bias changing linearly over the span (rad/s²)
+BIAS_RATE_NAMES = ("bias_rate_x", "bias_rate_y", "bias_rate_z")
 RADEC = ("att.ra", "att.dec")
 
 
@@ -188,7 +190,7 @@ class GyroAttitude:
     @property
     def param_names(self) -> tuple[str, ...]:
         return tuple(f"{self.gyro}.{n}" for n in G_NAMES + ("bias_x", "bias_y", "bias_z")
-                     + model_common.ALIGN_NAMES)
+                     + model_common.ALIGN_NAMES + BIAS_RATE_NAMES)
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -202,16 +204,22 @@ class GyroAttitude:
         return {n.split(".", 1)[1]: values[n] for n in self.param_names}
 
     def _rates(self, values):
-        """Corrected body rates ω_k (K, 3) and ``∂ω_k/∂p`` (K, 3, 15) over param_names."""
+        """Corrected body rates ω_k (K, 3) and ``∂ω_k/∂p`` (K, 3, 18) over param_names.
+
+        ``ω = Mᵀ (G⁻¹ y − b − ḃ (t − t_mid))``: Eq 4-32 inverted, with the bias drifting
+        linearly about the middle of the span when the bias-instability effect is in use.
+        """
         p = self._gyro_params(values)
         G = g_matrix(p)
         Ginv = np.linalg.inv(G)
         M, dM = model_common.alignment_matrix(p)
         b = np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
-        u = self.y @ Ginv.T - b                                  # G⁻¹ y − b   (K, 3)
+        bdot = np.array([p[n] for n in BIAS_RATE_NAMES])
+        tau = self.knots[1:] - 0.5 * (self.knots[0] + self.knots[-1])
+        u = self.y @ Ginv.T - b - tau[:, None] * bdot                 # G⁻¹ y − b(t)   (K, 3)
         omega = u @ M                                            # Mᵀ u
         K = self.y.shape[0]
-        W = np.empty((K, 3, 15))
+        W = np.empty((K, 3, 18))
         Gy = self.y @ Ginv.T                                     # G⁻¹ y
         MtGinv = M.T @ Ginv
         for a in range(3):
@@ -221,6 +229,7 @@ class GyroAttitude:
         W[:, :, 9:12] = -M.T[None, :, :]
         for k in range(3):
             W[:, :, 12 + k] = u @ dM[k]                           # (∂M/∂a_k)ᵀ u
+        W[:, :, 15:18] = -M.T[None, :, :] * tau[:, None, None]
         return omega, W
 
     def _propagate(self, values):

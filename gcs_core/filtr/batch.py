@@ -242,20 +242,22 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     history: list[float] = []
     status, message = "max_iterations", ""
     it_total = 0
+    def evaluate(x_eval):
+        for j, nm in enumerate(names):
+            values[nm] = x_eval[j]
+        lins_ = [_zero_invalid(l) for l in linearize(problem, values, names)]
+        A_, b_, chi2_, _ = accumulate(lins_, edits, n)
+        d_ = x_bar - x_eval
+        cost_ = chi2_ + float(np.sum(prior_info * d_ ** 2))
+        return A_, b_, cost_, d_
+
     for edit_pass in range(opts.edit_passes if opts.edit_k else 1):
-        prev_cost = None
+        A, b, cost, dx_prior = evaluate(x)
+        if not np.isfinite(cost):
+            raise EstimationError("the initial state gives non-finite residuals; check the a-priori values")
+        history.append(cost)
         for it in range(opts.max_iterations):
             it_total += 1
-            for j, nm in enumerate(names):
-                values[nm] = x[j]
-            lins = linearize(problem, values, names)
-            lins = [_zero_invalid(l) for l in lins]
-            A, b, chi2, m_used = accumulate(lins, edits, n)
-            dx_prior = x_bar - x
-            cost = chi2 + float(np.sum(prior_info * dx_prior ** 2))
-            history.append(cost)
-            if not np.isfinite(cost):
-                raise EstimationError("the fit produced non-finite residuals (diverged)")
             Nmat = A + np.diag(prior_info)
             try:
                 step, P = _solve_normal(Nmat, b + prior_info * dx_prior)
@@ -263,14 +265,25 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                 combos = name_combinations(A, names, opts.rank_tol)
                 raise UnobservableError("the normal matrix is singular: the data cannot separate "
                                         + "; ".join(combos or ["(unidentified)"]), combos) from None
-            if prev_cost is not None and cost > prev_cost * (1 + 1e-9) and it > 2:
-                step *= 0.5                     # damp a step that overshoots
-            x = x + step
             sig = np.sqrt(np.diag(P))
             small = np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300))
-            change = abs(prev_cost - cost) if prev_cost is not None else np.inf
-            prev_cost = cost
-            if small or change < opts.tol_chi2:
+            # Backtracking line search: a Gauss–Newton step that raises the cost (a model far
+            # from the data is strongly non-linear) is halved until the cost falls.
+            frac = 1.0
+            for _ in range(10):
+                x_try = x + frac * step
+                A_t, b_t, cost_t, d_t = evaluate(x_try)
+                if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
+                    break
+                frac *= 0.5
+            else:
+                status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
+                                               "(the model cannot describe these data)")
+                break
+            change = cost - cost_t
+            x, A, b, cost, dx_prior = x_try, A_t, b_t, cost_t, d_t
+            history.append(cost)
+            if small or (frac == 1.0 and change < opts.tol_chi2):
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:

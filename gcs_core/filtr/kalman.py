@@ -57,8 +57,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
+from gcs_core.frames.rotations import quat_to_dcm
+
 __all__ = ["LinearBlock", "BlockSolution", "solve_block", "referred_transitions",
-           "group_partition"]
+           "group_partition", "GyroNoise", "GyroSegment", "farrenkopf_q"]
 
 
 @dataclass(frozen=True)
@@ -157,170 +159,209 @@ def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *, edit_k: flo
     """
     n, d = blk.n, blk.d
     G, F = blk.t.size, blk.frame_start.size
-    m_max = int(blk.frame_m.max()) if F else 1
-    nu = np.full((F, m_max), np.nan)
-    S_out = np.full((F, m_max, m_max), np.nan)
-    nis = np.full(F, np.nan)
-    knorm = np.full(F, np.nan)
+    mx = int(blk.frame_m.max()) if F else 1
+    raw = _Raw(F, n, mx)
     gated = np.zeros(F, bool)
     y_ep = np.empty((G, n)) if keep_epochs else None
     P_ep = np.empty((G, n, n)) if keep_epochs else None
     frame_of_row = np.repeat(np.arange(F), blk.frame_m)
     bounds = group_partition(blk.row_epoch, G, group_rows)
-    row_bounds = np.searchsorted(blk.row_epoch, bounds)
-    frame_bounds = np.searchsorted(blk.frame_epoch, bounds)
+    row_b = np.searchsorted(blk.row_epoch, bounds)
+    frame_b = np.searchsorted(blk.frame_epoch, bounds)
     y, P = np.array(y0, float), np.array(P0, float)
     zero_d = np.zeros((d, d))
+    dPi = np.diff(blk.Pi, axis=0, prepend=zero_d[None])     # ΔΠ_k, noise entering at epoch k
     for g in range(bounds.size - 1):
         e0, e1 = bounds[g], bounds[g + 1]
         base = blk.Pi[e0 - 1] if e0 > 0 else zero_d
-        grp = _Group(blk, e0, e1, row_bounds[g], row_bounds[g + 1], frame_bounds[g],
-                     frame_bounds[g + 1], frame_of_row, blk.Pi[e0:e1] - base)
-        y, P = grp.run(y, P, edit_k, (nu, S_out, nis, knorm, gated), y_ep, P_ep)
-    return BlockSolution(y, P, nu, S_out, nis, knorm, gated, y_ep, P_ep)
+        grp = _Group(blk, e0, e1, slice(row_b[g], row_b[g + 1]), slice(frame_b[g], frame_b[g + 1]),
+                     frame_of_row, blk.Pi[e0:e1] - base, dPi[e0:e1])
+        y, P = grp.run(y, P, edit_k, raw, gated, y_ep, P_ep)
+    nu, S, nis, knorm = raw.finish(blk, gated)
+    return BlockSolution(y, P, nu, S, nis, knorm, gated, y_ep, P_ep)
+
+
+class _Raw:
+    """Per-frame pieces gathered in the groups; the diagnostics are formed once per block.
+
+    ``L_ff`` and ``(L⁻¹)_ff`` are padded with identity, ``e_f`` and ``W_f`` with zeros, so
+    frames with fewer rows than ``m_max`` need no special case.
+    """
+
+    def __init__(self, F: int, n: int, mx: int):
+        self.F, self.n, self.mx = F, n, mx
+        self.parts: list = []
+
+    def put(self, fr, mm, Lff, ef, Liff, Wf):
+        self.parts.append((fr, mm, Lff, ef, Liff, Wf))
+
+    def _assemble(self):
+        F, n, mx = self.F, self.n, self.mx
+        L = np.broadcast_to(np.eye(mx), (F, mx, mx)).copy()
+        Li = L.copy()
+        e = np.zeros((F, mx))
+        W = np.zeros((F, n, mx))
+        for mm in {p[1] for p in self.parts}:
+            parts = [p for p in self.parts if p[1] == mm]
+            fr = np.concatenate([p[0] for p in parts])
+            L[fr, :mm, :mm] = np.concatenate([p[2] for p in parts])
+            e[fr, :mm] = np.concatenate([p[3] for p in parts])
+            Li[fr, :mm, :mm] = np.concatenate([p[4] for p in parts])
+            W[fr, :, :mm] = np.swapaxes(np.concatenate([p[5] for p in parts], axis=1), 0, 1)
+        return L, Li, e, W
+
+    def finish(self, blk: LinearBlock, gated: np.ndarray):
+        F, mx = self.F, self.mx
+        L, Li, e, W = self._assemble()
+        pad = np.arange(mx)[None, :] >= blk.frame_m[:, None]             # (F, mx)
+        rows = np.minimum(blk.frame_start[:, None] + np.arange(mx), max(blk.sigma.size - 1, 0))
+        sig = np.where(pad, 1.0, blk.sigma[rows]) if F else np.ones((0, mx))
+        nu = (L @ e[:, :, None])[:, :, 0] * sig                          # ν_f = L_ff e_f
+        S = L @ np.swapaxes(L, 1, 2) * sig[:, :, None] * sig[:, None, :]  # S_f = L_ff L_ffᵀ
+        nis = np.sum(e ** 2, axis=1)                                     # NIS = νᵀ S⁻¹ ν = |e_f|²
+        # K_f = W_f (L⁻¹)_ff in telemetry units (÷σ), rows of δθ, b in current-time coordinates
+        K = W @ Li / sig[:, None, :]
+        if blk.d and blk.Psi_d is not None:
+            K[:, :blk.d] = blk.Psi_d[blk.frame_epoch] @ K
+        knorm = np.sqrt(np.einsum("fij,fij->f", K, K))
+        knorm[gated] = np.nan
+        nu[pad] = np.nan
+        S[pad[:, :, None] | pad[:, None, :]] = np.nan
+        return nu, S, nis, knorm
+
+
+class _Pattern:
+    """Index arrays of one row/frame layout of a group (cached: layouts repeat)."""
+
+    def __init__(self, rep: np.ndarray, m: np.ndarray, Ge: int):
+        M = rep.size
+        self.lower = rep[:, None] >= rep[None, :]           # S_rs = A_r B_s holds for k_r ≥ k_s
+        self.same = rep[:, None] == rep[None, :]
+        self.after = (rep[:, None] >= np.arange(Ge)[None, :]).astype(float)  # row at/after epoch j
+        self.last = np.searchsorted(rep, np.arange(Ge), side="right") - 1
+        self.has = self.last >= 0
+        self.diag = np.arange(M) * (M + 1)
+        self.starts = np.nonzero(np.r_[True, np.diff(rep) != 0])[0]
+        start = np.cumsum(m) - m
+        self.classes = []
+        for mm in np.unique(m):
+            sel = np.nonzero(m == mm)[0]
+            idx = start[sel][:, None] + np.arange(mm)
+            self.classes.append((int(mm), sel, idx, (idx[:, :, None], idx[:, None, :])))
+
+
+_PATTERNS: dict = {}
+
+
+def _pattern(rep, m, Ge) -> _Pattern:
+    key = (Ge, rep.tobytes(), m.tobytes())
+    pat = _PATTERNS.get(key)
+    if pat is None:
+        if len(_PATTERNS) > 512:
+            _PATTERNS.clear()
+        pat = _PATTERNS[key] = _Pattern(rep, m, Ge)
+    return pat
 
 
 class _Group:
     """One lifted group of consecutive epochs (module docstring)."""
 
-    def __init__(self, blk: LinearBlock, e0, e1, r0, r1, f0, f1, frame_of_row, Pig):
-        self.blk, self.e0, self.e1, self.f0, self.f1 = blk, e0, e1, f0, f1
-        self.A = blk.A[r0:r1]
-        self.r = blk.r[r0:r1]
-        self.sig = blk.sigma[r0:r1]
-        self.rep = blk.row_epoch[r0:r1] - e0
-        self.rframe = frame_of_row[r0:r1] - f0
-        self.Hth = blk.Hth[r0:r1] if blk.Hth is not None and blk.sig_e2 > 0 else None
-        self.m = blk.frame_m[f0:f1]
-        self.fep = blk.frame_epoch[f0:f1] - e0
+    def __init__(self, blk: LinearBlock, e0, e1, rows: slice, frames: slice, frame_of_row, Pig,
+                 dPi):
+        self.blk, self.e0, self.e1, self.f0 = blk, e0, e1, frames.start
+        self.A, self.r, self.rep = blk.A[rows], blk.r[rows], blk.row_epoch[rows] - e0
+        self.rframe = frame_of_row[rows] - frames.start
+        self.Hth = blk.Hth[rows] if blk.Hth is not None and blk.sig_e2 > 0 else None
+        self.m = blk.frame_m[frames]
         self.Pig = Pig                                      # (Ge, d, d) noise since group start
+        self.dPi = dPi                                      # (Ge, d, d) noise entering per epoch
         self.d = blk.d
-        self.m_values = np.unique(self.m)
 
-    def run(self, y0, P0, edit_k, out, y_ep, P_ep):
-        nf = self.f1 - self.f0
-        active = np.ones(nf, bool)
-        while True:
-            rows = active[self.rframe]
-            sol = self._solve(y0, P0, rows)
-            if sol is None:
+    def run(self, y0, P0, edit_k, raw: _Raw, gated, y_ep, P_ep):
+        local = np.arange(self.m.size)                       # frames taking part
+        rows = slice(None)
+        Ge = self.e1 - self.e0
+        while local.size:
+            pat = _pattern(self.rep[rows], self.m[local], Ge)
+            sol = self._solve(y0, P0, rows, pat)
+            first = self._gather(sol, pat, local, raw, edit_k)
+            if first is None:
                 break
-            diag = self._frame_diagnostics(sol, active)
-            if edit_k is None:
-                break
-            bad = np.nonzero(diag["zmax"] > edit_k)[0]
-            if bad.size == 0:
-                break
-            first = diag["frames"][bad[0]]                 # earliest gated frame in the group
-            self._store(out, diag, bad[:1])
-            out[4][self.f0 + first] = True
-            active[first] = False
-        if sol is None:                                     # nothing to update with: propagate only
-            n = P0.shape[0]
-            Pend = P0.copy()
-            Pend[:self.d, :self.d] += self.Pig[-1]
+            gated[self.f0 + first] = True                   # earliest gated frame: skip it, redo
+            local = local[local != first]
+            rows = np.isin(self.rframe, local)
+        if not local.size:                                  # no rows left: propagate only
+            P_end = P0.copy()
+            P_end[:self.d, :self.d] += self.Pig[-1]
             if y_ep is not None:
                 y_ep[self.e0:self.e1] = y0
                 P_ep[self.e0:self.e1] = P0
                 P_ep[self.e0:self.e1, :self.d, :self.d] += self.Pig
-            return y0.copy(), Pend
-        self._store(out, diag, np.arange(diag["frames"].size), with_gain=sol)
+            return y0.copy(), P_end
         y_end = y0 + sol["W"] @ sol["e"]                    # x = x⁻ + K (z − H x⁻), all rows
-        P_end = _group_end_covariance(P0, sol, self.Pig, self.d)
+        P_end = _group_end_covariance(P0, sol, self.dPi, self.d, pat)
         if y_ep is not None:
-            self._epochs(y0, P0, sol, y_ep, P_ep)
+            self._epochs(y0, P0, sol, pat, y_ep, P_ep)
         return y_end, P_end
 
     # -- one solve over the active rows ------------------------------------------------
-    def _solve(self, y0, P0, rows):
-        if not np.any(rows):
-            return None
+    def _solve(self, y0, P0, rows, pat: _Pattern):
         A, rep = self.A[rows], self.rep[rows]
         d = self.d
         # B = cov(y, z) = (P0 + Π_{k_s}) A_sᵀ
         B = P0 @ A.T
         if d:
-            B[:d] += np.einsum("mij,mj->im", self.Pig[rep], A[:, :d])
+            B[:d] += (self.Pig[rep] @ A[:, :d, None])[:, :, 0].T
         # S = A B for k_r ≥ k_s, mirrored, + R (= I after whitening)
         S = A @ B
-        S = np.where(rep[:, None] >= rep[None, :], S, S.T)
-        S.flat[::S.shape[0] + 1] += 1.0
+        S = np.where(pat.lower, S, S.T)
+        S.flat[pat.diag] += 1.0
         Hth = None
         if self.Hth is not None:
             Hth = self.Hth[rows]
-            same = rep[:, None] == rep[None, :]
             # read-out noise: a white attitude error shared by the rows of one epoch
-            S += self.blk.sig_e2 * np.where(same, Hth @ Hth.T, 0.0)
+            S += self.blk.sig_e2 * np.where(pat.same, Hth @ Hth.T, 0.0)
         L, Li = _cholesky_and_inverse(S)
         # e = L⁻¹ (z − A y⁻): whitened sequential innovations
         e = Li @ (self.r[rows] - A @ y0)
         # W = B L⁻ᵀ = cov(y, e)
         W = B @ Li.T
-        return {"rows": rows, "A": A, "rep": rep, "L": L, "Li": Li, "e": e, "W": W,
-                "Hth": Hth, "sig": self.sig[rows], "sig_e2": self.blk.sig_e2}
+        return {"A": A, "L": L, "Li": Li, "e": e, "W": W, "Hth": Hth,
+                "sig_e2": self.blk.sig_e2}
 
-    def _frame_diagnostics(self, sol, active):
-        """Innovation, S and NIS of every active frame from the frame blocks of L."""
-        frames = np.nonzero(active)[0]
-        m = self.m[frames]
-        start = np.cumsum(m) - m                           # first row in the active rows
-        out = {"frames": frames, "zmax": np.zeros(frames.size), "nu": {}, "S": {}, "nis": {},
-               "idx": {}}
-        for mm in self.m_values:
-            sel = np.nonzero(m == mm)[0]
-            if sel.size == 0:
-                continue
-            idx = start[sel][:, None] + np.arange(mm)
-            blocks = (idx[:, :, None], idx[:, None, :])
-            Lff = sol["L"][blocks]
-            ef = sol["e"][idx]
-            nu_w = np.einsum("fij,fj->fi", Lff, ef)        # ν_f = L_ff e_f
-            S_w = Lff @ np.swapaxes(Lff, 1, 2)              # S_f = L_ff L_ffᵀ
-            s = sol["sig"][idx]
-            out["zmax"][sel] = np.max(np.abs(nu_w) / np.sqrt(np.einsum("fii->fi", S_w)), axis=1)
-            out["nu"][mm] = (sel, nu_w * s)
-            out["S"][mm] = S_w * s[:, :, None] * s[:, None, :]
-            out["nis"][mm] = np.sum(ef ** 2, axis=1)       # NIS = νᵀ S⁻¹ ν = |e_f|²
-            out["idx"][mm] = (sel, idx, blocks, s)
-        return out
+    def _gather(self, sol, pat: _Pattern, local, raw: _Raw, edit_k):
+        """Keep each frame's blocks of L, L⁻¹, e, W; return the first gated frame or None."""
+        first = None
+        L, Li, e, W = sol["L"], sol["Li"], sol["e"], sol["W"]
+        for mm, sel, idx, blocks in pat.classes:
+            Lff, ef = L[blocks], e[idx]
+            fr = self.f0 + local[sel]
+            # |ν_i|/sqrt(S_ii) ≤ sqrt(NIS_f) (Cauchy–Schwarz): test components only if needed
+            if edit_k is not None and np.max(np.einsum("fi,fi->f", ef, ef)) > edit_k ** 2:
+                nu_w = (Lff @ ef[:, :, None])[:, :, 0]      # ν_f = L_ff e_f (whitened rows)
+                z = np.abs(nu_w) / np.sqrt(np.sum(Lff * Lff, axis=2))   # |ν_i| / sqrt(S_ii)
+                bad = np.nonzero(np.max(z, axis=1) > edit_k)[0]
+                if bad.size and (first is None or local[sel[bad[0]]] < first):
+                    first = int(local[sel[bad[0]]])
+            raw.put(fr, mm, Lff, ef, Li[blocks], W[:, idx])
+        return first
 
-    def _store(self, out, diag, which, with_gain=None):
-        nu, S, nis, knorm, _ = out
-        which_set = np.zeros(diag["frames"].size, bool)
-        which_set[which] = True
-        for mm, (sel, vals) in diag["nu"].items():
-            keep = which_set[sel]
-            fr = self.f0 + diag["frames"][sel[keep]]
-            nu[fr, :mm] = vals[keep]
-            S[fr, :mm, :mm] = diag["S"][mm][keep]
-            nis[fr] = diag["nis"][mm][keep]
-            if with_gain is not None:
-                _, idx, blocks, s = diag["idx"][mm]
-                # K_f = W_f L_ff⁻¹ ((L⁻¹)_ff = (L_ff)⁻¹), in telemetry units: K_f diag(1/σ)
-                Wf = np.swapaxes(with_gain["W"][:, idx], 0, 1)          # (Fm, n, mm)
-                Kf = Wf @ with_gain["Li"][blocks] / s[:, None, :]
-                if self.d and self.blk.Psi_d is not None:
-                    ep = self.e0 + self.fep[diag["frames"][sel]]
-                    Kf[:, :self.d] = self.blk.Psi_d[ep] @ Kf             # to current-time coords
-                knorm[fr] = np.sqrt(np.sum(Kf[keep] ** 2, axis=(1, 2)))
-
-    def _epochs(self, y0, P0, sol, y_ep, P_ep):
+    def _epochs(self, y0, P0, sol, pat: _Pattern, y_ep, P_ep):
         """Posterior at every epoch of the group (rows up to that epoch)."""
-        rep, W, e = sol["rep"], sol["W"], sol["e"]
-        Ge = self.e1 - self.e0
-        last = np.searchsorted(rep, np.arange(Ge), side="right") - 1
-        has = last >= 0
+        W, e = sol["W"], sol["e"]
+        last, has = pat.last, pat.has
         ycum = np.cumsum(W * e[None, :], axis=1)            # Σ_{s≤r} K_s ν_s
-        y_ep[self.e0:self.e1] = y0
-        y_ep[self.e0:self.e1][has] += ycum[:, last[has]].T
-        WW = np.cumsum(np.einsum("is,js->sij", W, W), axis=0)
-        Pk = np.broadcast_to(P0, (Ge,) + P0.shape).copy()
+        ys = y_ep[self.e0:self.e1]
+        ys[:] = y0
+        ys[has] += ycum[:, last[has]].T
+        WW = np.cumsum(W.T[:, :, None] * W.T[:, None, :], axis=0)
+        Pk = np.broadcast_to(P0, (self.e1 - self.e0,) + P0.shape).copy()
         Pk[:, :self.d, :self.d] += self.Pig                 # P0 + Π_k
-        Pk[has] -= WW[last[has]]                            # − cov(y, e_{≤k}) cov(...)ᵀ
+        Pk[has] -= WW[last[has]]                            # − cov(y, e_{≤k}) cov(y, e_{≤k})ᵀ
         P_ep[self.e0:self.e1] = 0.5 * (Pk + np.swapaxes(Pk, 1, 2))
 
 
-def _group_end_covariance(P0, sol, Pig, d):
+def _group_end_covariance(P0, sol, dPi, d, pat: _Pattern):
     """Joseph form of the group update, a sum of positive semi-definite terms.
 
     The error of ``ŷ = y_0 + K (z − A y_0)`` after the group is
@@ -334,31 +375,24 @@ def _group_end_covariance(P0, sol, Pig, d):
     can leave it indefinite; the Joseph form stays positive semi-definite for any gain,
     and an error in ``K`` enters ``P`` only at second order (Bierman 1977, §V).
     """
-    A, W = sol["A"], sol["W"]
+    A = sol["A"]
     n = P0.shape[0]
     # K = W L⁻¹ = B S⁻¹  (the group gain, n × M)
-    K = W @ sol["Li"]
+    K = sol["W"] @ sol["Li"]
     IKA = np.eye(n) - K @ A
-    # P = (I − K A) P0 (I − K A)ᵀ
-    P = IKA @ P0 @ IKA.T
-    # + K R Kᵀ  (R = I for whitened rows)
-    P += K @ K.T
+    # P = (I − K A) P0 (I − K A)ᵀ + K R Kᵀ   (R = I for whitened rows)
+    P = IKA @ P0 @ IKA.T + K @ K.T
     if sol["Hth"] is not None:
         # + σ_e² Σ_epoch (K_e H_θ,e)(K_e H_θ,e)ᵀ   (read-out noise shared within an epoch)
-        rep = sol["rep"]
-        starts = np.nonzero(np.r_[True, np.diff(rep) != 0])[0]
-        KH = np.add.reduceat(K.T[:, :, None] * sol["Hth"][:, None, :], starts, axis=0)
+        KH = np.add.reduceat(K.T[:, :, None] * sol["Hth"][:, None, :], pat.starts, axis=0)
         P += sol["sig_e2"] * np.einsum("eia,eja->ij", KH, KH)
     if d:
-        rep = sol["rep"]
-        Ge = Pig.shape[0]
-        # Σ_{s: k_s ≥ j} K_s A_s,d by a reverse cumulative sum over rows
-        O = K.T[:, :, None] * A[:, None, :d]                 # (M, n, d)
-        rev = np.concatenate([np.cumsum(O[::-1], axis=0)[::-1], np.zeros((1, n, d))])
-        first = np.searchsorted(rep, np.arange(Ge), side="left")
-        T = -rev[first]
-        T[:, np.arange(d), np.arange(d)] += 1.0              # T_j = E_d − Σ K_s A_s,d
-        dPi = np.diff(Pig, axis=0, prepend=np.zeros((1, d, d)))
+        M, Ge = A.shape[0], dPi.shape[0]
+        # Σ_{s: k_s ≥ j} K_s A_s,d = K Z_j, Z_j the rows of A_d at or after epoch j
+        Z = (pat.after[:, :, None] * A[:, None, :d]).reshape(M, Ge * d)
+        T = (K @ Z).reshape(n, Ge, d).transpose(1, 0, 2)
+        np.negative(T, out=T)
+        T[:, range(d), range(d)] += 1.0                      # T_j = E_d − Σ K_s A_s,d
         TQ = (T @ dPi).transpose(1, 0, 2).reshape(n, -1)
         # + Σ_j T_j ΔΠ_j T_jᵀ
         P += TQ @ T.transpose(1, 0, 2).reshape(n, -1).T
@@ -381,6 +415,137 @@ def _cholesky_and_inverse(S: np.ndarray):
     if info != 0:
         raise np.linalg.LinAlgError("singular Cholesky factor")
     return L, Li
+
+
+@dataclass(frozen=True)
+class GyroNoise:
+    """Gyro noise of the data book (ICD §5 ``gyro``), Farrenkopf's model.
+
+    Attributes
+    ----------
+    sigma_v : angle random walk σ_v [rad/s^0.5] (``arw``).
+    sigma_u : rate random walk σ_u [rad/s^1.5] (``rrw``); the bias random-walks iff > 0.
+    sigma_e : electronic (angle read-out) noise σ_e [rad] (``electronic``).
+    """
+
+    sigma_v: float = 0.0
+    sigma_u: float = 0.0
+    sigma_e: float = 0.0
+
+
+def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray | None
+                 ) -> np.ndarray:
+    """Process noise of one gyro step (Eq 4-38 noise matrix, Farrenkopf 1978).
+
+    Over a step ``Δt`` the attitude error gathers the rate noise and the integral of the
+    bias walk; the bias gathers the walk::
+
+        Q_θθ = σ_v² Δt W_y W_yᵀ + σ_u² Δt³/3 W_b W_bᵀ,   Q_θb = σ_u² Δt²/2 W_b,   Q_bb = σ_u² Δt I
+
+    with ``W_y = ∂ω/∂y = Mᵀ G⁻¹`` and ``W_b = ∂ω/∂b = −Mᵀ`` (Eq 4-32 inverted). The
+    read-out noise σ_e does not accumulate (the integrated angle telescopes), so it is not
+    in Q: it reaches the measurements as a white attitude error (:class:`LinearBlock`).
+
+    Parameters: dt (K,) [s]; Wy (3, 3); Wb (3, nb) or None (bias not in the state).
+    Returns (K, d, d), d = 3 + nb.
+    """
+    dt = np.asarray(dt, float)[:, None, None]
+    nb = 0 if Wb is None else Wb.shape[1]
+    Q = np.zeros((dt.shape[0], 3 + nb, 3 + nb))
+    v2, u2 = noise.sigma_v ** 2, noise.sigma_u ** 2
+    WbWb = (Wb @ Wb.T) if nb else np.eye(3)          # W_b = −Mᵀ is orthogonal
+    Q[:, :3, :3] = v2 * dt * (Wy @ Wy.T) + u2 * dt ** 3 / 3.0 * WbWb
+    if nb:
+        Q[:, :3, 3:] = u2 * dt ** 2 / 2.0 * Wb
+        Q[:, 3:, :3] = np.swapaxes(Q[:, :3, 3:], 1, 2)
+        Q[:, 3:, 3:] = u2 * dt * np.eye(nb)
+    return Q
+
+
+def step_quaternions(omega: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """Quaternions of the frame rotation ``exp(−[ω Δt ×])`` of each step (Eq 4-38a), (K, 4)."""
+    phi = omega * np.asarray(dt, float)[:, None]
+    ang = np.linalg.norm(phi, axis=-1)
+    small = ang < 1e-12
+    k = np.where(small, 0.5 - ang ** 2 / 48.0, np.sin(0.5 * ang) / np.where(small, 1.0, ang))
+    return np.column_stack([phi * k[:, None], np.cos(0.5 * ang)])
+
+
+def cumulative_rotations(R: np.ndarray) -> np.ndarray:
+    """``R_k ⋯ R_1`` for every k (K, 3, 3) by a parallel prefix (ceil(log2 K) matmul passes)."""
+    C = np.array(R, float)
+    d = 1
+    while d < C.shape[0]:
+        C[d:] = C[d:] @ C[:-d]
+        d *= 2
+    return C
+
+
+class GyroSegment:
+    """Nominal attitude carried by the gyros over one block, and its error transitions.
+
+    The nominal starts at ``C_0`` at ``τ_0`` and turns with the corrected rates ``ω_k``
+    of the intervals ``(τ_{k−1}, τ_k]`` (Eq 4-38). For the error state ``(δθ, p)``::
+
+        Ψ_θ·(t) = [C(t) C_0ᵀ,  C(t) E(t)],   E(t) = Σ_{steps} Cᵀ W Δ       (attitude.py)
+        Π(t) = Σ_{steps} Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ,   Ψ_dd⁻¹ = [[C_0 Cᵀ, −C_0 E_b], [0, I]]
+
+    Parameters
+    ----------
+    knots : (K+1,) times τ_0..τ_K [s].
+    omega : (K, 3) corrected body rate of each interval [rad/s].
+    Wg : (K, 3, ng) ``∂ω/∂p`` for the gyro parameters in the filter state, the nb
+        random-walking biases first.
+    C0 : (3, 3) nominal attitude at τ_0.
+    noise, Wy, Wb : for :func:`farrenkopf_q` (Wb None when no bias random-walks).
+    """
+
+    def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb):
+        self.knots = np.asarray(knots, float)
+        self.dt = np.diff(self.knots)
+        self.omega, self.Wg, self.C0 = np.asarray(omega, float), np.asarray(Wg, float), C0
+        self.noise, self.Wy, self.Wb = noise, Wy, Wb
+        self.nb = 0 if Wb is None else Wb.shape[1]
+        steps = cumulative_rotations(quat_to_dcm(step_quaternions(self.omega, self.dt)))
+        self.C = np.concatenate([C0[None], steps @ C0])                 # (K+1, 3, 3)
+        # E_k = Σ_{j≤k} C_jᵀ W_j Δ_j
+        incr = np.swapaxes(self.C[1:], 1, 2) @ self.Wg * self.dt[:, None, None]
+        self.E = np.concatenate([np.zeros((1, 3, self.Wg.shape[2])), np.cumsum(incr, axis=0)])
+        dPi = self._referred(self.C[1:], self.E[1:], farrenkopf_q(self.dt, noise, Wy, Wb))
+        d = 3 + self.nb
+        self.Pi = np.concatenate([np.zeros((1, d, d)), np.cumsum(dPi, axis=0)])
+
+    def _referred(self, C, E, Q):
+        """``Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ`` at the given states (process noise referred to τ_0)."""
+        nb = self.nb
+        T = np.zeros((C.shape[0], 3 + nb, 3 + nb))
+        T[:, :3, :3] = self.C0 @ np.swapaxes(C, 1, 2)
+        if nb:
+            T[:, :3, 3:] = -self.C0 @ E[:, :, :nb]
+            T[:, 3:, 3:] = np.eye(nb)
+        out = T @ Q @ np.swapaxes(T, 1, 2)
+        return 0.5 * (out + np.swapaxes(out, 1, 2))
+
+    def at_knots(self):
+        """``(C C_0ᵀ, C E, Π)`` at the knots τ_0..τ_K (as :meth:`at`, without re-propagating)."""
+        return self.C @ self.C0.T, self.C @ self.E, self.Pi
+
+    def at(self, t):
+        """Nominal ``C`` (N, 3, 3), rate ω (N, 3), ``Ψ_θ·`` as ``(C C_0ᵀ, C E)`` and Π (N, d, d)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        K = self.dt.size
+        k = np.clip(np.searchsorted(self.knots, t, side="left"), 1, max(K, 1))
+        s = t - self.knots[k - 1]
+        if K == 0:
+            N = t.size
+            return (np.broadcast_to(self.C0, (N, 3, 3)), np.zeros((N, 3)),
+                    np.broadcast_to(np.eye(3), (N, 3, 3)), np.zeros((N, 3, self.Wg.shape[2])),
+                    np.zeros((N, 3 + self.nb, 3 + self.nb)))
+        w = self.omega[k - 1]
+        C = quat_to_dcm(step_quaternions(w, s)) @ self.C[k - 1]
+        E = self.E[k - 1] + np.swapaxes(C, 1, 2) @ self.Wg[k - 1] * s[:, None, None]
+        Pi = self.Pi[k - 1] + self._referred(C, E, farrenkopf_q(s, self.noise, self.Wy, self.Wb))
+        return C, w, C @ self.C0.T, C @ E, Pi
 
 
 def referred_transitions(Phi_dd: np.ndarray, Phi_ds: np.ndarray, Q: np.ndarray):

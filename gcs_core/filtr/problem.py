@@ -105,13 +105,17 @@ def _element_from_spec(sensor: str | None, spec: ParamSpec, role: str, kind: str
                    description=spec.description)
 
 
-def default_role(sensor_type: str, spec: ParamSpec) -> str:
+def default_role(sensor_type: str, spec: ParamSpec, sensor=None) -> str:
     """SODL default: seed parameters are solved for, extended physics held.
 
     Sensor alignments are held by default even where the seed lists them (Eq 4-31):
     the body frame needs a reference, and the seed notes (§2.1.2, §2.2.2) that
     alignment and attitude separate only with enough geometry; the analyst adds them.
+    A gyro whose data book declares a rate random walk (``rrw`` > 0) has a wandering
+    bias: its bias instability (a linear drift over the span) is solved for too.
     """
+    if spec.effect == "bias_instability" and sensor is not None and float(sensor.get("rrw", 0.0) or 0.0) > 0:
+        return SOLVE_FOR
     if not spec.seed or spec.effect == "alignment":
         return HELD
     return SOLVE_FOR
@@ -166,12 +170,16 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
         attitude = ReferenceAttitude(mode, eph)
 
     # drop frames the attitude provider cannot reach (before the first gyro interval)
+    tables = {sd.name: mission.telemetry[sd.name] for sd in sensors}
     if isinstance(attitude, GyroAttitude):
         kept = []
         for sd in sensors:
             m = attitude.covers(sd.t)
             if not np.all(m):
                 sd = _subset(sd, m)
+                tab = tables[sd.name]
+                tables[sd.name] = replace(tab, t=tab.t[m], lines=np.asarray(tab.lines)[m],
+                                          columns={k: np.asarray(v)[m] for k, v in tab.columns.items()})
             kept.append(sd)
         sensors = kept
 
@@ -195,7 +203,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
         model = models[s.name]
         pmap = {}
         for p in model.parameters():
-            role = default_role(s.type, p)
+            role = default_role(s.type, p, s)
             if s.type == "gyro" and (not use_gyro or s.name != gyro_name):
                 role = HELD
             el = _element_from_spec(s.name, p, role)
@@ -212,7 +220,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     state = StateVector(tuple(elements))
     state = apply_state_options(state, options)
     return Problem(state=state, attitude=attitude, sensors=sensors, param_map=param_map,
-                   builder=builder, tables=dict(mission.telemetry), mode=mode, gyro_name=gyro_name)
+                   builder=builder, tables=tables, mode=mode, gyro_name=gyro_name)
 
 
 def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> list[Element]:

@@ -8,7 +8,8 @@ Observation side (gyro calibration, §4.2.7.1)::
 (``align_1..3``, extended, nominal from ``alignment_deg``), ``b`` the drift-rate bias
 (``bias_x/y/z``, data-book ``bias``) and ``ΔG`` the nine deviations ``G_11..G_33`` of the
 scale-factor/misalignment matrix from identity (nominal 0). State Eq 4-37:
-``(G_ij, b_i)``. Partials (after Eq 4-37)::
+``(G_ij, b_i)``. Extended: a bias instability ``bias_rate_*`` [rad/s²], the bias drifting
+linearly about the middle of the span, ``b(t) = b + ḃ (t − t_mid)``. Partials (after Eq 4-37)::
 
     ∂y_i/∂G_jk = δ_ij (M ω + b)_k,   ∂y/∂b = G,   ∂y/∂ω = G M,   ∂y/∂a_k = G ∂M/∂a_k ω
 
@@ -134,6 +135,10 @@ class GyroModel(ObservationModel):
                             description=f"drift-rate bias about sensor {ax} (Eq 4-32)")
                   for i, ax in enumerate(AXES)]
         specs += common.alignment_specs(self.sensor, seed=False, sigma=1e-3)
+        specs += [ParamSpec(f"bias_rate_{ax}", "rad/s2", 0.0, 1e-9, seed=False, effect="bias_instability",
+                            description=f"bias instability: drift of the {ax} bias per second over the "
+                                        "span (used by the gyro-propagated attitude)")
+                  for ax in AXES]
         return tuple(specs)
 
     def sigma(self, dt: float = 1.0) -> np.ndarray:
@@ -161,7 +166,10 @@ class GyroModel(ObservationModel):
         G = g_matrix(p)
         M, dM = common.alignment_matrix(p)
         b = np.array([p[f"bias_{ax}"] for ax in AXES])
-        u = omega @ M.T + b                                          # M ω + b
+        bdot = np.array([p[f"bias_rate_{ax}"] for ax in AXES])
+        t = np.asarray(geom.t, dtype=float)
+        tau = t - 0.5 * (t.min() + t.max()) if n else t              # about the middle of the span
+        u = omega @ M.T + b + tau[:, None] * bdot                    # M ω + b(t)
         y = u @ G.T
         d_par: dict[str, np.ndarray] = {}
         for idx, name in enumerate(G_NAMES):
@@ -171,6 +179,7 @@ class GyroModel(ObservationModel):
             d_par[name] = d
         for j, ax in enumerate(AXES):
             d_par[f"bias_{ax}"] = np.broadcast_to(G[:, j], (n, 3))
+            d_par[f"bias_rate_{ax}"] = G[:, j][None, :] * tau[:, None]
         for k, name in enumerate(common.ALIGN_NAMES):
             d_par[name] = omega @ (G @ dM[k]).T
         d_att = np.broadcast_to(G @ M, (n, 3, 3))

@@ -186,17 +186,17 @@ class HorizonModel(ObservationModel):
         deg = units.DEG
         tilt_element = None if self.sun_sensor is None else f"{self.sun_sensor}.tilt"
         return (
-            ParamSpec("d_gamma", "rad", 0.0, 0.5 * deg, effect="mounting_angle",
+            ParamSpec("d_gamma", "rad", 0.0, 0.5 * deg, effect="d_gamma",
                       description="scanner mounting (cone) angle bias Δγ (Eq 4-12c)"),
-            ParamSpec("d_rho", "rad", 0.0, 0.5 * deg, effect="earth_radius",
+            ParamSpec("d_rho", "rad", 0.0, 0.5 * deg, effect="d_rho",
                       description="Earth angular radius bias Δρ (Eq 4-12c)"),
-            ParamSpec("d_phi", "rad", 0.0, 0.5 * deg, effect="azimuth_bias",
+            ParamSpec("d_phi", "rad", 0.0, 0.5 * deg, effect="d_phi",
                       description="azimuth bias ΔΦ: mounting error or electronic delay (Eq 4-12a)"),
-            ParamSpec("eps_S", "rad", 0.0, 0.5 * deg, effect="sun_sensor_tilt", element=tilt_element,
+            ParamSpec("eps_S", "rad", 0.0, 0.5 * deg, effect="tilt", element=tilt_element,
                       description="Sun sensor plane tilt ε_S (Eq 4-12d)"),
-            ParamSpec("eps_H", "rad", 0.0, 0.5 * deg, effect="horizon_sensor_tilt",
+            ParamSpec("eps_H", "rad", 0.0, 0.5 * deg, effect="eps_H",
                       description="horizon sensor plane tilt ε_H (Eq 4-12e)"),
-            ParamSpec("d_t", "s", 0.0, 1.0, effect="intrack_time",
+            ParamSpec("d_t", "s", 0.0, 1.0, effect="d_t",
                       description="orbit in-track time error Δt (Eq 4-13)"),
             ParamSpec("horizon_height", "km", 0.0, 5.0, seed=False, effect="horizon_height",
                       description="horizon (CO2 layer) height error Δh_H"),

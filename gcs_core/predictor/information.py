@@ -18,8 +18,11 @@ GSFC error analyses::
     σ_i² = P_ii  +  Σ_j (S_ij σ_cj)²      (noise only + one term per error source)
 
 Frames are binned by output time (data up to and including each output time), the
-per-bin information ``Σ Hᵀ R⁻¹ H`` summed cumulatively, and the normal matrix of each
-output time solved through an equilibrated Cholesky factor (never a plain inverse).
+per-bin information ``Σ Hᵀ R⁻¹ H`` summed cumulatively, and the normal matrices of all
+output times equilibrated to unit diagonal, checked positive definite by Cholesky and
+solved against the identity together; a time whose matrix is singular (an element
+without information or prior) falls back to an eigen-decomposition that reports the
+elements involved as unobservable (σ = ∞).
 
 References
 ----------
@@ -32,7 +35,6 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy import linalg
 
 #: relative eigenvalue below which a direction of the normal matrix carries no information
 NULL_TOL = 1e-13
@@ -80,6 +82,25 @@ def binned_information(rows: Sequence[tuple[np.ndarray, np.ndarray]], times: np.
     return np.cumsum(A, axis=0)
 
 
+def _equilibrated_inverse(N: np.ndarray) -> np.ndarray:
+    """Inverse of symmetric positive definite matrices (..., n, n) by equilibration.
+
+    Scaled to unit diagonal, checked positive definite by a Cholesky factorization whose
+    pivots must stay above ``sqrt(NULL_TOL)``, then solved against the identity.
+    Raises ``LinAlgError`` otherwise.
+    """
+    d = np.sqrt(np.diagonal(N, axis1=-2, axis2=-1))
+    if not np.all(d > 0):
+        raise np.linalg.LinAlgError("zero diagonal")
+    dd = d[..., :, None] * d[..., None, :]
+    Ns = N / dd
+    L = np.linalg.cholesky(Ns)
+    if np.min(np.diagonal(L, axis1=-2, axis2=-1)) < np.sqrt(NULL_TOL):
+        raise np.linalg.LinAlgError("ill-conditioned")
+    P = np.linalg.solve(Ns, np.broadcast_to(np.eye(N.shape[-1]), Ns.shape)) / dd
+    return 0.5 * (P + np.swapaxes(P, -1, -2))          # symmetrize: round-off only
+
+
 def covariance(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Inverse of a symmetric positive semi-definite normal matrix, with its null space.
 
@@ -93,6 +114,10 @@ def covariance(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     unobservable : (n,) bool, elements with no information in some direction.
     """
     n = N.shape[0]
+    try:
+        return _equilibrated_inverse(N), np.zeros(n, dtype=bool)
+    except np.linalg.LinAlgError:
+        pass
     d = np.sqrt(np.clip(np.diag(N), 0.0, None))
     unobs = ~(d > 0)
     ok = ~unobs
@@ -101,42 +126,17 @@ def covariance(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         return P, unobs
     dk = d[ok]
     Ns = N[np.ix_(ok, ok)] / np.outer(dk, dk)
-    try:
-        c, low = linalg.cho_factor(Ns, lower=True, check_finite=False)
-        Ps = linalg.cho_solve((c, low), np.eye(dk.size), check_finite=False)
-        if not np.all(np.isfinite(Ps)) or np.min(np.diag(c)) < np.sqrt(NULL_TOL):
-            raise np.linalg.LinAlgError("ill-conditioned")
-    except np.linalg.LinAlgError:
-        w, V = np.linalg.eigh(Ns)
-        keep = w > NULL_TOL * max(float(w[-1]), 1e-300)
-        Ps = (V[:, keep] / w[keep]) @ V[:, keep].T
-        touched = np.any(np.abs(V[:, ~keep]) > 1e-6, axis=1)
-        idx = np.flatnonzero(ok)
-        unobs[idx[touched]] = True
-        Ps[touched, :] = 0.0
-        Ps[:, touched] = 0.0
+    w, V = np.linalg.eigh(Ns)
+    keep = w > NULL_TOL * max(float(w[-1]), 1e-300)
+    Ps = (V[:, keep] / w[keep]) @ V[:, keep].T
+    touched = np.any(np.abs(V[:, ~keep]) > 1e-6, axis=1)
+    idx = np.flatnonzero(ok)
+    unobs[idx[touched]] = True
+    Ps[touched, :] = 0.0
+    Ps[:, touched] = 0.0
     Pk = Ps / np.outer(dk, dk)
-    P[np.ix_(ok, ok)] = 0.5 * (Pk + Pk.T)            # symmetrize: round-off only
+    P[np.ix_(ok, ok)] = 0.5 * (Pk + Pk.T)
     return P, unobs
-
-
-def consider_split(P: np.ndarray, A_xc: np.ndarray, sigma_c: np.ndarray):
-    """Sensitivity ``S = −P A_xc`` and the consider covariance ``S P_c Sᵀ``.
-
-    Parameters
-    ----------
-    P : (n, n) noise-only covariance; A_xc : (n, c) data information between solve-for
-    and consider columns; sigma_c : (c,) consider a-priori σ.
-
-    Returns
-    -------
-    S (n, c), contributions (c, n) 1-σ of each consider element on each solve-for
-    element, and the (n, n) consider covariance.
-    """
-    S = -P @ A_xc
-    contrib = np.abs(S * sigma_c[None, :]).T
-    Sc = S * sigma_c[None, :]
-    return S, contrib, Sc @ Sc.T
 
 
 def static_history(A_cum: np.ndarray, n: int, prior_info: np.ndarray, sigma_c: np.ndarray,
@@ -157,28 +157,28 @@ def static_history(A_cum: np.ndarray, n: int, prior_info: np.ndarray, sigma_c: n
     (n,) bool at the last time.
     """
     T = A_cum.shape[0]
-    sig = np.zeros((T, n))
-    sig_noise = np.zeros((T, n))
+    N = A_cum[:, :n, :n] + np.diag(prior_info)[None]
+    try:                                                # all output times at once
+        P = _equilibrated_inverse(N)
+        unobs = np.zeros((T, n), dtype=bool)
+    except np.linalg.LinAlgError:                       # some time lacks information
+        parts = [covariance(N[j]) for j in range(T)]
+        P = np.stack([p for p, _ in parts])
+        unobs = np.stack([u for _, u in parts])
+    # consider: S = −P A_xc, contribution S P_c Sᵀ
+    Sc = -(P @ A_cum[:, :n, n:]) * sigma_c[None, None, :]
+    Ptot = P + Sc @ np.swapaxes(Sc, -1, -2)
+    sig_noise = np.sqrt(np.clip(np.diagonal(P, axis1=1, axis2=2), 0.0, None))
+    sig = np.sqrt(np.clip(np.diagonal(Ptot, axis1=1, axis2=2), 0.0, None))
+    sig_noise[unobs] = np.inf
+    sig[unobs] = np.inf
     att = np.full((T, 3), np.nan)
-    P = Ptot = np.zeros((n, n))
-    contrib = np.zeros((sigma_c.size, n))
-    unobs = np.zeros(n, dtype=bool)
-    for j in range(T):
-        N = A_cum[j, :n, :n] + np.diag(prior_info)
-        P, unobs = covariance(N)
-        _, contrib, Pc = consider_split(P, A_cum[j, :n, n:], sigma_c)
-        Ptot = P + Pc
-        sig_noise[j] = np.sqrt(np.clip(np.diag(P), 0.0, None))
-        sig[j] = np.sqrt(np.clip(np.diag(Ptot), 0.0, None))
-        sig_noise[j, unobs] = np.inf
-        sig[j, unobs] = np.inf
-        if attitude_J is not None:
-            J = attitude_J[j]
-            v = np.einsum("ia,ab,ib->i", J, Ptot, J)
-            touches = np.any(np.abs(J[:, unobs]) > 0, axis=1)
-            att[j] = np.where(touches, np.inf, np.sqrt(np.clip(v, 0.0, None)))
-    return {"sigma": sig, "sigma_noise": sig_noise, "attitude_sigma": att, "P": P,
-            "P_consider": Ptot, "budget": contrib, "unobservable": unobs}
+    if attitude_J is not None:
+        v = np.einsum("tia,tab,tib->ti", attitude_J, Ptot, attitude_J)
+        touches = np.einsum("tia,ta->ti", np.abs(attitude_J), unobs.astype(float)) > 0
+        att = np.where(touches, np.inf, np.sqrt(np.clip(v, 0.0, None)))
+    return {"sigma": sig, "sigma_noise": sig_noise, "attitude_sigma": att, "P": P[-1],
+            "P_consider": Ptot[-1], "budget": np.abs(Sc[-1]).T, "unobservable": unobs[-1]}
 
 
 def prior_information(sigma0: np.ndarray) -> np.ndarray:

@@ -43,7 +43,6 @@ from dataclasses import replace
 from typing import Mapping, Sequence
 
 import numpy as np
-from scipy import linalg
 
 from gcs_core.filtr.attitude import RPY
 from gcs_core.filtr.problem import Problem, linearize
@@ -179,7 +178,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
             Hx, Hc = Y[:, :n], Y[:, n:]
             PHt = P @ Hx.T
             Sinn = Hx @ PHt + np.eye(Y.shape[0])                   # S = H P Hᵀ + R  (R = I, whitened)
-            K = linalg.cho_solve(linalg.cho_factor(Sinn, lower=True), PHt.T).T
+            K = np.linalg.solve(Sinn, PHt.T).T                     # K = P Hᵀ S⁻¹ (S symmetric)
             IKH = eye_n - K @ Hx
             P = IKH @ P @ IKH.T + K @ K.T                          # Joseph form
             P = 0.5 * (P + P.T)

@@ -21,14 +21,15 @@ Two attitude providers complete :mod:`gcs_core.filtr.attitude` for the predictor
 
 Sensor availability (seed §4.3, "the times at which the data is available"):
 
-* Sun sensors: not in the Earth's shadow (conical model, switching at mid-penumbra,
-  :func:`gcs_core.ephem.sun.in_shadow`) and the Sun inside the square field of view
+* Sun sensors: in full sunlight — neither umbra nor penumbra of the conical shadow
+  model (:func:`gcs_core.ephem.sun.sunlit_fraction` = 1; a partly hidden disk shifts
+  the measured Sun centroid) — and the Sun inside the square field of view
   ``|atan(S_y/S_x)|, |atan(S_z/S_x)| ≤ fov`` (no margin);
 * star trackers: the boresight (sensor +x) farther than ``earth_exclusion_deg``
   (default 10°) from the Earth limb and than ``sun_exclusion_deg`` (default 30°) from
   the Sun — data-book keys, kept by the mission reader as extra keys;
-* plane-field Sun sensor and horizon scanner: not in shadow (the horizon timing starts
-  at the Sun sighting); whether the Sun crosses the slit and the scan cone crosses the
+* plane-field Sun sensor and horizon scanner: in full sunlight (the horizon timing
+  starts at the Sun sighting); whether the Sun crosses the slit and the scan cone crosses the
   Earth is the models' own ``valid`` flag;
 * magnetometer, gyro: always.
 """
@@ -40,7 +41,7 @@ from typing import Mapping
 
 import numpy as np
 
-from gcs_core.ephem.sun import earth_occults, in_shadow
+from gcs_core.ephem.sun import earth_occults, sunlit_fraction
 from gcs_core.filtr.attitude import RPY, AttitudeEval, ReferenceAttitude
 from gcs_core.frames.reference import spin_axis
 from gcs_core.frames.rotations import (dcm_to_euler123, euler123_partials, euler123_to_dcm,
@@ -53,6 +54,8 @@ from gcs_core.units import DEG
 #: default exclusion angles of a star tracker [deg] (typical FHST values)
 EARTH_EXCLUSION_DEG = 10.0
 SUN_EXCLUSION_DEG = 30.0
+#: visible fraction of the solar disk that counts as full sunlight (round-off margin)
+FULL_SUN = 1.0 - 1e-9
 #: stars in the synthetic sky (about the count brighter than visual magnitude 6) and its seed
 SKY_STARS = 5000
 SKY_SEED = 1988
@@ -183,8 +186,9 @@ def available(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np
     r, _ = eph.state(t, what=f"the plan of {sensor.name}")
     s = eph.sun_geocentric(t, what=f"the plan of {sensor.name}")
     sun_hat = (s - r) / np.linalg.norm(s - r, axis=-1, keepdims=True)
+    sunlit = sunlit_fraction(r, s) >= FULL_SUN
     if sensor.type in ("plane_field_sun", "horizon"):
-        return ~in_shadow(r, s)
+        return sunlit
     M_C = _alignment(sensor)[None] @ nominal.dcm(t)                   # GCI -> sensor
     if sensor.type in ("fine_sun", "coarse_sun"):
         S = np.einsum("nij,nj->ni", M_C, sun_hat)
@@ -192,7 +196,7 @@ def available(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np
         fov = common.fov_rad(sensor)
         if fov is not None:
             ok &= (np.abs(np.arctan2(S[:, 1], S[:, 0])) <= fov) & (np.abs(np.arctan2(S[:, 2], S[:, 0])) <= fov)
-        return ok & ~in_shadow(r, s)
+        return ok & sunlit
     if sensor.type == "star_tracker":
         bore = M_C[:, 0, :]                                            # sensor +x in GCI
         earth_margin = _book_deg(sensor, "earth_exclusion_deg", EARTH_EXCLUSION_DEG)

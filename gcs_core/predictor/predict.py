@@ -18,21 +18,21 @@ of each of them to every solve-for element and the noise-only part (an error bud
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.errors import InputError
-from gcs_core.filtr.attitude import GyroAttitude
+from gcs_core.filtr.attitude import RPY, GyroAttitude
 from gcs_core.filtr.batch import name_combinations
 from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, linearize
 from gcs_core.models import common
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.plan import DataPlan
-from gcs_core.predictor.synth import PlannedProblem, _median_step, plan_problem
+from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
 from gcs_core.sidp.prepare import PhysicsOptions
 from gcs_core.sidp.types import MissionSpec
 from gcs_core.units import DEG
@@ -98,6 +98,24 @@ class PredictionResult:
     def final_sigma(self) -> dict[str, float]:
         """Element -> final total 1-σ."""
         return {n: float(s) for n, s in zip(self.names, self.sigma[-1])}
+
+    def as_report(self) -> dict[str, Any]:
+        """JSON-ready summary: final σ, budget, availability, frames (internal units;
+        an infinite σ becomes None)."""
+        num = lambda x: float(x) if np.isfinite(x) else None  # noqa: E731
+        return {"method": self.method,
+                "plan": None if self.plan is None else {
+                    "start": self.plan.start, "end": self.plan.end, "step": self.plan.step,
+                    "gaps": [list(g) for g in self.plan.gaps], "frames": self.plan.frames,
+                    "maneuvers": [{"start": m.start, "duration": m.duration, "axis": m.axis,
+                                   "rate_deg_s": m.rate_deg_s} for m in self.plan.maneuvers]},
+                "state": [{"name": r["name"], "unit": r["unit"], "sigma": num(r["sigma"]),
+                           "noise_only": num(r["noise_only"]),
+                           "consider": {c: num(v) for c, v in r["consider"].items()}}
+                          for r in self.budget_rows()],
+                "attitude_sigma_rad": [num(x) for x in self.attitude_sigma[-1]],
+                "availability": {k: float(v) for k, v in self.availability.items()},
+                "frames": dict(self.frames), "unobservable": list(self.unobservable)}
 
     def budget_rows(self) -> list[dict[str, Any]]:
         """One row per solve-for element: total, noise-only and each consider contribution."""
@@ -239,7 +257,7 @@ def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> Pr
         if not t:
             raise InputError("the problem has no frames", key="prediction")
         plan = DataPlan(min(float(x[0]) for x in t), max(float(x[-1]) for x in t))
-    cadence = {sd.name: _median_step(sd.t) or 1.0 for sd in problem.sensors}
+    cadence = {sd.name: median_step(sd.t) or 1.0 for sd in problem.sensors}
     planned = PlannedProblem(problem, problem.state.values(), None, cadence,
                              {k: int(plan.grid(c).size) for k, c in cadence.items()})
     return _run(planned, plan, method)
@@ -272,9 +290,10 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
     rows = [info.weighted_rows(lin, sd.t, masks[sd.name]) for lin, sd in zip(lins, problem.sensors)]
     frames = {sd.name: int(t.size) for (t, _), sd in zip(rows, problem.sensors)}
     A_final = info.final_information(rows, n + len(cons), plan.end)[:n, :n]
-    use_kalman = method == "kalman" and isinstance(problem.attitude, GyroAttitude)
+    use_kalman = (method == "kalman" and isinstance(problem.attitude, GyroAttitude)
+                  and tuple(names[:3]) == RPY)
     if method == "kalman" and not use_kalman:
-        log.info("no gyro carries the attitude: the Kalman recursion reduces to Eq 3-2")
+        log.info("no gyro carries a solved-for attitude: the prediction uses Eq 3-2")
     if use_kalman:
         arw, rrw = _gyro_noise(problem)
         hist = kalman_history(problem, values, names, cons, sigma0, sigma_c, times, masks=masks,

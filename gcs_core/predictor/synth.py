@@ -24,7 +24,6 @@ same SODL state, same models, same reference vectors — from frame *times* only
 
 from __future__ import annotations
 
-import logging
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Mapping
@@ -47,9 +46,10 @@ from gcs_core.sidp.prepare import PhysicsOptions
 from gcs_core.sidp.types import MissionSpec, SensorSpec, Table
 from gcs_core.units import DEG
 
-log = logging.getLogger(__name__)
 
 SPINNER_TYPES = ("plane_field_sun", "horizon")
+#: room left at the end of a spinner plan for the horizon model's time shifts [s]
+SPINNER_MARGIN_S = 2.0
 
 
 @dataclass
@@ -80,7 +80,7 @@ def ephemeris_table(eph: Ephemeris) -> Table:
                  lines=np.arange(2, eph.t.size + 2))
 
 
-def _median_step(t) -> float | None:
+def median_step(t) -> float | None:
     t = np.asarray(t, dtype=float)
     return float(np.median(np.diff(t))) if t.size >= 2 else None
 
@@ -110,7 +110,7 @@ def cadence_of(sensor: SensorSpec, table: Table | None, plan: DataPlan,
     if sensor.type in SPINNER_TYPES and spin_rate:
         return 2.0 * np.pi / spin_rate
     if table is not None:
-        step = _median_step(table.t)
+        step = median_step(table.t)
         if step:
             return step
     book = sensor.get("cadence")
@@ -228,7 +228,13 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
             keep = plan.in_span(tab.t) & ~plan.in_gap(tab.t)
             table = _subset(tab, keep)
         else:
-            t = plan.grid(c)
+            if s.type in SPINNER_TYPES:
+                # sightings from half a spin in; the horizon crossing (up to a spin later,
+                # and the model's ±1 s differences) must stay inside the ephemeris
+                t = plan.grid(c, first=plan.start + 0.5 * c)
+                t = t[t <= plan.end - c - SPINNER_MARGIN_S]
+            else:
+                t = plan.grid(c)
             t = t[~plan.in_gap(t)]
             t = t[available(s, t, nominal)] if t.size else t
             stars_I = None
@@ -237,9 +243,10 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
                 t, stars_I = t[seen], stars_I[seen]
             table = _synthetic_table(s, t, nominal, spin_rate, stars_I)
         if len(table) == 0:
-            # keep the sensor's elements in the state: one placeholder frame, dropped below
+            # keep the sensor's elements in the state: one placeholder frame mid-span,
+            # dropped below
             empty.append(s.name)
-            table = _synthetic_table(s, np.array([plan.start]), nominal, spin_rate)
+            table = _synthetic_table(s, np.array([0.5 * (plan.start + plan.end)]), nominal, spin_rate)
         tables[s.name] = table
 
     mission = ImportedMission(spec=spec, ephemeris_table=ephemeris_table(eph), telemetry=tables,

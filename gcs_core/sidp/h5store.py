@@ -3,7 +3,7 @@
 Guarantees every GCS data set gets:
 
 * **Atomic writes.** A file is written to a temporary file in the same directory,
-  closed, ``fsync``-ed, renamed over the destination with ``os.replace`` and the directory
+  closed, given its header, ``fsync``-ed, renamed over the destination with ``os.replace`` and the directory
   ``fsync``-ed: a crash or a kill at any moment leaves either the old file or the new
   one, never a mixture. Appending (SCDS versions, ASF solutions) copies the existing
   groups into the new file, so earlier groups are carried over byte for byte.
@@ -13,9 +13,11 @@ Guarantees every GCS data set gets:
   another GCS process (pid N)". HDF5's own file locking is turned off
   (``locking=False``): ours is the only one. Locks are re-entrant within a process.
   Sidecar lock files are left in place (removing them would race with waiters).
-* **Checksums.** Every dataset is chunked with the ``fletcher32`` filter; metadata
-  (object headers, superblock) carries HDF5's own checksums (``libver`` 1.10 layout).
-  A corrupt chunk is found when it is read.
+* **Checksums.** The first 512 bytes (HDF5's user block) hold a text header: format,
+  version, file length and the SHA-256 of the rest of the file. It is checked before
+  HDF5 reads anything. HDF5 can loop forever on some damaged metadata, so a damaged
+  GCS file never reaches it. Inside, every dataset is chunked with the ``fletcher32``
+  filter and the metadata carries HDF5's own checksums (``libver`` 1.10 layout).
 * **A format name and version** on every file (root attributes ``gcs_format`` and
   ``gcs_format_version``), checked when the file is opened.
 
@@ -28,6 +30,7 @@ from __future__ import annotations
 import errno
 import fcntl
 import glob
+import hashlib
 import logging
 import os
 import threading
@@ -51,6 +54,10 @@ GCS_VERSION_ATTR = "gcs_version"
 #: HDF5 1.10 file layout: superblock v3 and object headers v2, with metadata checksums.
 LIBVER = ("v110", "v110")
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: the GCS header in the HDF5 user block (bytes HDF5 leaves to the application).
+USERBLOCK = 512
+GCS_MAGIC = b"GCS-HDF5"
+HEADER_VERSION = 1
 #: seconds a process waits for a lock held by another GCS process before giving up.
 LOCK_WAIT_S = 1.0
 _POLL_S = 0.02
@@ -189,7 +196,7 @@ def _describe_open_failure(path: Path, err: BaseException) -> DataFileError:
         return DataFileError(f"cannot be read ({e.strerror})", file=path)
     if size == 0:
         return DataFileError("is empty (0 bytes), not an HDF5 file", file=path)
-    if head != HDF5_SIGNATURE:
+    if head != HDF5_SIGNATURE and not head.startswith(GCS_MAGIC):
         return DataFileError("is not an HDF5 file (no HDF5 signature)", file=path)
     text = _one_line(err)
     if "truncated" in text:
@@ -207,9 +214,80 @@ def corrupt(path: str | os.PathLike, err: BaseException, where: str = "") -> Dat
     return DataFileError(f"is corrupt or not laid out as expected{place} ({text})", file=path)
 
 
+def _file_digest(fh, start: int) -> tuple[str, int]:
+    """(sha256 hex of the bytes from ``start`` to the end, file length)."""
+    fh.seek(start)
+    h = hashlib.sha256()
+    length = start
+    while chunk := fh.read(1 << 20):
+        h.update(chunk)
+        length += len(chunk)
+    return h.hexdigest(), length
+
+
+def _write_header(path: Path, fmt: str, version: int) -> None:
+    """Fill the user block of a closed file with the GCS header (see module docstring)."""
+    with open(path, "r+b") as fh:
+        digest, length = _file_digest(fh, USERBLOCK)
+        text = (f"{GCS_MAGIC.decode()} {HEADER_VERSION}\nformat {fmt}\nversion {version}\n"
+                f"length {length}\nsha256 {digest}\n").encode("ascii")
+        fh.seek(0)
+        fh.write(text.ljust(USERBLOCK, b"\0"))
+        fh.flush()
+        os.fsync(fh.fileno())
+
+
+def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
+    """Check the GCS header block and the whole-file SHA-256 before HDF5 sees the file.
+
+    HDF5 itself can loop forever on some damaged metadata, so a GCS file is only handed
+    to it once its checksum holds. Raises DataFileError naming what is wrong.
+    """
+    path = Path(path)
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(USERBLOCK)
+            size = os.fstat(fh.fileno()).st_size
+            if size == 0:
+                raise DataFileError("is empty (0 bytes), not an HDF5 file", file=path)
+            if head.startswith(HDF5_SIGNATURE):
+                raise DataFileError(f"is an HDF5 file but not a GCS {fmt} file (no GCS header "
+                                    "block)", file=path)
+            if not head.startswith(GCS_MAGIC):
+                fh.seek(USERBLOCK)
+                if fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
+                    raise DataFileError("has a damaged GCS header block", file=path)
+                raise DataFileError("is not an HDF5 file (no HDF5 signature)", file=path)
+            fields = {}
+            for line in head.rstrip(b"\0").decode("ascii", "replace").splitlines()[1:]:
+                key, _, value = line.partition(" ")
+                fields[key] = value.strip()
+            try:
+                found, version = fields["format"], int(fields["version"])
+                length, digest = int(fields["length"]), fields["sha256"]
+            except (KeyError, ValueError):
+                raise DataFileError("has a damaged GCS header block", file=path) from None
+            if found != fmt:
+                raise DataFileError(f"is a GCS {found} file, not {fmt}", file=path)
+            if version > max_version:
+                raise DataFileError(f"was written by a newer GCS ({fmt} format version "
+                                    f"{version}; this GCS reads up to {max_version})", file=path)
+            if size < length:
+                raise DataFileError(f"is truncated ({size} of {length} bytes)", file=path)
+            if size > length:
+                raise DataFileError(f"has {size - length} bytes after its end ({length} bytes): "
+                                    "the file is damaged", file=path)
+            actual, _ = _file_digest(fh, USERBLOCK)
+    except OSError as err:
+        raise DataFileError(f"cannot be read ({err.strerror})", file=path) from None
+    if actual != digest:
+        raise DataFileError("fails its checksum (SHA-256 of the whole file): the file is "
+                            "damaged", file=path)
+
+
 @contextmanager
 def open_read(path: str | os.PathLike, fmt: str, *, max_version: int,
-              lock: bool = True) -> Iterator[h5py.File]:
+              lock: bool = True, check: bool = True) -> Iterator[h5py.File]:
     """Open a GCS HDF5 file for reading, checked, under a shared lock.
 
     Parameters
@@ -217,6 +295,10 @@ def open_read(path: str | os.PathLike, fmt: str, *, max_version: int,
     path : the file.
     fmt : expected ``gcs_format`` ("SDF", "SCDS", "ASF").
     max_version : newest format version this GCS reads.
+    lock : take the shared lock (False only when the caller holds one).
+    check : verify the GCS header and whole-file checksum first (:func:`check_file`);
+        False hands even a damaged file to HDF5, to salvage what it can (HDF5 may hang
+        on damaged metadata).
 
     Errors raised by h5py inside the ``with`` body (checksum failures, corrupt object
     headers, missing groups) are turned into :class:`DataFileError` as well.
@@ -228,6 +310,8 @@ def open_read(path: str | os.PathLike, fmt: str, *, max_version: int,
         raise DataFileError(f"{fmt} file is a directory", file=path)
     ctx = locked(path, exclusive=False) if lock else _nothing()
     with ctx:
+        if check:
+            check_file(path, fmt, max_version=max_version)
         try:
             f = h5py.File(path, "r", locking=False)
         except H5_ERRORS as err:
@@ -336,13 +420,14 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int) -> Iterator[h
         _remove_stale_temps(path)
         tmp = path.with_name(f".{path.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
         try:
-            with h5py.File(tmp, "w", libver=LIBVER, locking=False) as f:
+            with h5py.File(tmp, "w", libver=LIBVER, locking=False,
+                           userblock_size=USERBLOCK) as f:
                 f.attrs[FORMAT_ATTR] = fmt
                 f.attrs[VERSION_ATTR] = np.int64(version)
                 f.attrs[CREATED_ATTR] = utc_now()
                 f.attrs[GCS_VERSION_ATTR] = gcs_version()
                 yield f
-            _fsync_path(tmp)
+            _write_header(tmp, fmt, version)  # hashes, writes and fsyncs
             os.replace(tmp, path)
         except BaseException as err:
             try:
@@ -359,17 +444,18 @@ def append_group(path: str | os.PathLike, fmt: str, version: int, collection: st
                  build: Callable[[h5py.Group, int], None], *, max_version: int) -> int:
     """Append one numbered group ``/<collection>/NNNNN`` to an append-only file.
 
-    The existing file (if any) is first verified (every checksum); a file that fails
-    is refused, never rewritten. Its groups and root attributes are copied into a new
-    temporary file, ``build(group, number)`` fills the new group, and the result
-    replaces the old file atomically. Returns the new number (1, 2, ...).
+    The existing file (if any) is first checked (:func:`check_file`: header and
+    whole-file SHA-256); a file that fails is refused, never rewritten. Its groups and
+    root attributes are copied into a new temporary file, ``build(group, number)``
+    fills the new group, and the result replaces the old file atomically. Returns the
+    new number (1, 2, ...).
     """
     path = Path(path)
     with locked(path, exclusive=True):
         existing: list[int] = []
         if path.exists():
-            try:
-                verify(path, fmt, max_version=max_version)
+            try:  # the whole-file SHA-256 covers every byte, every earlier group
+                check_file(path, fmt, max_version=max_version)
             except DataFileError as err:
                 raise DataFileError(f"{err.message}; refusing to append to it (the earlier "
                                     "versions would be at risk)", file=path) from None

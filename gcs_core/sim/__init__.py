@@ -10,6 +10,10 @@ orbit), ``field`` (IGRF), ``truth`` (attitude, rates, gyro, onboard attitude), `
 sensor, horizon scanner), ``aux`` (torquers, temperature), ``writer`` (ICD files and
 truth.json), ``scenarios`` (named missions, hidden effects), ``samples`` (bundled data).
 
+The data carry real always-on physics by default (stellar and solar aberration, solar
+parallax; ``MissionConfig.physics``); hidden effects (``with_effect``) are what the data
+book does not say. ``list_effects()`` lists them with their units.
+
 Typical use::
 
     from gcs_core.sim import nominal_threeaxis, with_effect, write_mission

@@ -6,7 +6,9 @@
 * :func:`spinner_nominal` — a 10 rpm spinner with a plane-field Sun sensor (PSS1) and a
   horizon scanner (HS1), one row per spin. Data book = truth.
 * :func:`with_effect` — a copy of a scenario with one hidden effect: a difference between
-  truth and data book, or physics the book does not mention. :data:`EFFECTS` lists them.
+  truth and data book, or physics the book does not mention. :data:`EFFECTS` lists them,
+  named as in the GCS effect catalogue (``gcs effects``); :data:`MODEL_EFFECTS` are the
+  mission-wide physics switches (on in every scenario, as in real data).
 
 Default data-book values mirror the ICD example mission (shared/examples/sunpoint-nominal):
 TAM noise 25 nT; IRU σ_v = 3.162278e-7 rad/s^0.5, σ_u = 3.162278e-10 rad/s^1.5;

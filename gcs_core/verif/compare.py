@@ -90,6 +90,18 @@ class VerifResult:
     trend_n: np.ndarray
     trend_flag: np.ndarray
 
+    def summary(self) -> str:
+        """A few lines for a terminal: per-axis mean and σ against both thresholds, the flag."""
+        lines = [f"{self.n} onboard attitudes compared ({self.angles} angles)",
+                 f"{'axis':6s} {'mean [deg]':>12s} {'sigma [deg]':>12s} {'ground [deg]':>12s} "
+                 f"{'required [deg]':>14s}  flag"]
+        for k, a in enumerate(AXES):
+            lines.append(f"{a:6s} {self.mean[k] / DEG:12.5f} {self.sigma[k] / DEG:12.5f} "
+                         f"{self.ground_accuracy[k] / DEG:12.5f} {self.requirement[k] / DEG:14.5f}  "
+                         f"{'FLAG' if self.flag_axes[k] else '-'}")
+        lines.append(("FLAG: " if self.flag else "ok: ") + self.reason)
+        return "\n".join(lines)
+
     def as_report(self) -> dict:
         """JSON-ready summary in degrees."""
         deg = lambda a: [float(x) / DEG for x in a]  # noqa: E731

@@ -30,6 +30,9 @@ class GcsScreen(Screen):
     NEEDS_FIT: ClassVar[bool] = False
     """True when the view shows fit results (it says so until there is a fit)."""
 
+    AUTO_JOB: ClassVar[str] = ""
+    """App action run when the screen is shown and :meth:`needs_job` says its result is missing."""
+
     def __init__(self) -> None:
         super().__init__()
         self._drawn = -1
@@ -58,6 +61,22 @@ class GcsScreen(Screen):
 
     def on_screen_resume(self) -> None:
         self.update_view()
+        self.maybe_start_job()
+
+    def needs_job(self) -> bool:
+        """True when the view's own result (prediction, verification) is missing."""
+        return False
+
+    def maybe_start_job(self) -> None:
+        """Start :attr:`AUTO_JOB` once, when the view is shown without its result."""
+        wb = self.wb
+        if not self.AUTO_JOB or wb is None or not wb.ready or self.app.busy:
+            return
+        if self.NEEDS_FIT and wb.result is None:
+            return
+        if self.needs_job() and getattr(self, "_auto_for", None) is not wb.analysis:
+            self._auto_for = wb.analysis            # once per analysis: a failure is not retried
+            getattr(self.app, f"action_{self.AUTO_JOB}")()
 
     def update_view(self, *, force: bool = False) -> None:
         """Redraw if the workbench changed since the last drawing (or ``force``)."""

@@ -62,7 +62,8 @@ class DiagnosisScreen(GcsScreen):
         for i, c in enumerate(a.candidates):
             signif = c.p_adjusted < alpha
             style = f"bold {color('gcs-warn')}" if signif and c.identifiable else ""
-            aliases = ", ".join(list(c.aliases_state) + [x for x, _ in c.aliases_candidates]) or "—"
+            names = list(c.aliases_state) + [x for x, _ in c.aliases_candidates]
+            aliases = ", ".join(names[:2]) + (f" +{len(names) - 2}" if len(names) > 2 else "") if names else "—"
             cells = [Text(str(i + 1), justify="right"), Text(c.id, style=style),
                      Text(fmt.sig(c.delta_chi2, 3), justify="right"), Text(str(c.dof), justify="right"),
                      Text(fmt.pvalue(c.p_value), justify="right")]

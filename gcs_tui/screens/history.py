@@ -44,7 +44,7 @@ class HistoryScreen(GcsScreen):
                 yield DataTable(id="diff", cursor_type="row", zebra_stripes=True)
 
     def _path(self):
-        return self.wb.scds_path or jobs.scds_path(self.wb)
+        return jobs.scds_path(self.wb)
 
     def refresh_view(self) -> None:
         path = self._path()
@@ -63,6 +63,9 @@ class HistoryScreen(GcsScreen):
             return
         info.update(f" SCDS {path.name} · {len(versions)} version{'s' if len(versions) != 1 else ''}")
         numbers = [v.version for v in versions]
+        if getattr(self, "_seen", None) != numbers:        # a new version: diff the latest two again
+            self._seen = numbers
+            self.marks = {}
         if self.marks.get("b") not in numbers:
             self.marks["b"] = numbers[-1]
         if self.marks.get("a") not in numbers:
@@ -95,17 +98,26 @@ class HistoryScreen(GcsScreen):
         table.add_column(Text(f"v{b}", justify="right"))
         table.add_column(Text("Δ", justify="right"))
         table.add_column(Text("Δ/σ", justify="right"))
+        table.add_column("unit")
         for name, xa, xb, delta, z in rows:
             unit = (vb.params.get(name) or va.params.get(name))[2]
             sa = va.params[name][1] if name in va.params else math.nan
             sb = vb.params[name][1] if name in vb.params else math.nan
+            ref_v, ref_s = (xb, sb) if math.isfinite(xb) else (xa, sa)
+            shown = fmt.shown_unit(unit, ref_v, ref_s)
             big = math.isfinite(z) and abs(z) > 3
+
+            def est(x, s):
+                return fmt.estimate(x, s, unit, shown=shown, with_unit=False) if math.isfinite(x) else "—"
+
             cells = [name]
             if not self.compact:
-                cells.append(Text(fmt.estimate(xa, sa, unit) if math.isfinite(xa) else "—", justify="right"))
-            cells += [Text(fmt.estimate(xb, sb, unit) if math.isfinite(xb) else "—", justify="right"),
-                      Text(fmt.quantity(delta, unit, digits=2) if math.isfinite(delta) else "—", justify="right"),
-                      Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else "")]
+                cells.append(Text(est(xa, sa), justify="right"))
+            cells += [Text(est(xb, sb), justify="right"),
+                      Text(fmt.quantity(delta, unit, digits=2, shown=shown, with_unit=False)
+                           if math.isfinite(delta) else "new" if math.isfinite(xb) else "gone", justify="right"),
+                      Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else ""),
+                      fmt.unit_label(shown)]
             table.add_row(*cells, key=name)
 
     def action_mark(self, which: str) -> None:

@@ -60,7 +60,7 @@ class MissionScreen(GcsScreen):
                 Text(f"{r.dropped_nan} NaN, {r.dropped_duplicates} dup" if dropped else "0", justify="right"),
                 key=r.name)
         for f in m.report.files:
-            if f.what.startswith("telemetry "):
+            if f.what.startswith("telemetry ") or self.compact:
                 continue
             table.add_row(Text(f.what, style="italic"), "file", "", Text(str(f.rows), justify="right"), "", "", "",
                           Text(str(f.dropped_nan + f.dropped_duplicates), justify="right"), key=f"file:{f.what}")
@@ -73,7 +73,7 @@ class MissionScreen(GcsScreen):
             y = n - i
             colour = series(i)
             for a, b in r.spans:
-                plt.plot([a, b], [y, y], color=colour, marker="hd")
+                plt.plot([a, b], [y, y], color=colour, marker="sd")
             for (_, b), (a, _) in zip(r.spans[:-1], r.spans[1:]):
                 plt.scatter([0.5 * (a + b)], [y], color="red", marker="x")
         plt.yticks(list(range(n, 0, -1)), [r.name for r in rows])

@@ -21,6 +21,10 @@ from gcs_tui.widgets.plots import GcsPlot
 from gcs_tui.workbench import maneuver
 
 
+def _count(n: int, noun: str) -> str:
+    return f"{n} {noun}{'' if n == 1 else 's'}"
+
+
 class PlanScreen(GcsScreen):
     """Span, gaps and maneuvers of the prediction data plan."""
 
@@ -46,7 +50,8 @@ class PlanScreen(GcsScreen):
         source = "config" if cfg.pred_start is not None and cfg.pred_end is not None else "telemetry span"
         self.query_one("#plan-span", Static).update(Text.assemble(
             ("span ", "bold"), fmt.span(t0, t1), f" ({source})  ·  ", ("step ", "bold"), fmt.seconds(cfg.pred_step),
-            f"  ·  {len(cfg.gaps)} gaps, {len(cfg.maneuvers)} maneuvers  ·  e: edit span/step  ·  p: predict"))
+            f"  ·  {_count(len(cfg.gaps), 'gap')}, {_count(len(cfg.maneuvers), 'maneuver')}"
+            "  ·  e: edit span/step  ·  p: predict"))
         gaps = self.query_one("#gaps", DataTable)
         gaps.clear(columns=True)
         gaps.add_columns(Text("start", justify="right"), Text("end", justify="right"), Text("length", justify="right"))
@@ -64,12 +69,12 @@ class PlanScreen(GcsScreen):
 
     @staticmethod
     def _plot(plt, t0, t1, cfg) -> None:
-        plt.plot([t0, t1], [4, 4], color=series(0), marker="hd", label="data")
+        plt.plot([t0, t1], [4, 4], color=series(0), marker="sd")
         for a, b in cfg.gaps:
-            plt.plot([a, b], [4, 4], color="red", marker="hd")
+            plt.plot([a, b], [4, 4], color="red", marker="sd")
         for m in cfg.maneuvers:
             y = 3 - AXES.index(m.axis)
-            plt.plot([m.start, m.start + m.duration], [y, y], color=series(1 + AXES.index(m.axis)), marker="hd")
+            plt.plot([m.start, m.start + m.duration], [y, y], color=series(1 + AXES.index(m.axis)), marker="sd")
         plt.yticks([4, 3, 2, 1], ["data", "roll", "pitch", "yaw"])
         plt.ylim(0.5, 4.5)
         plt.xlim(min(t0, *(a for a, _ in cfg.gaps)) if cfg.gaps else t0,

@@ -18,7 +18,7 @@ from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import series
 from gcs_tui.widgets.plots import GcsPlot
 
-EMPTY = "No prediction yet — press p to predict σ along the data plan (screen 4 edits the plan)."
+EMPTY = "No prediction yet — p predicts σ along the data plan (screen 4 edits the plan)."
 
 
 class PredictorScreen(GcsScreen):
@@ -27,6 +27,7 @@ class PredictorScreen(GcsScreen):
     VIEW = "predictor"
     CSS_PATH = "predictor.tcss"
     BINDINGS = bindings(SCREENS["predictor"])
+    AUTO_JOB = "predict"
 
     def __init__(self) -> None:
         super().__init__()
@@ -37,13 +38,16 @@ class PredictorScreen(GcsScreen):
         yield GcsPlot(id="pred-plot", title="predicted σ")
         yield DataTable(id="budget", cursor_type="row", zebra_stripes=True)
 
+    def needs_job(self) -> bool:
+        return self.wb.prediction is None
+
     def refresh_view(self) -> None:
         p = self.wb.prediction
         info = self.query_one("#pred-info", Static)
         plot = self.query_one("#pred-plot", GcsPlot)
         table = self.query_one("#budget", DataTable)
         if p is None:
-            info.update(EMPTY)
+            info.update(self.app.job_errors.get("predict", EMPTY))
             plot.paint(None, empty="no prediction")
             table.clear(columns=True)
             return
@@ -64,18 +68,18 @@ class PredictorScreen(GcsScreen):
         t = p.times.tolist()
         if what == "attitude":
             for k, axis in enumerate(("x", "y", "z")):
-                y = [fmt.to_display(v, "rad", "arcsec") for v in p.attitude_sigma[:, k]]
-                plt.plot(t, y, color=series(k), label=f"body {axis}")
+                y = p.attitude_sigma[:, k] * fmt.scale("rad", "arcsec")
+                plt.plot(t, y.tolist(), color=series(k), marker="braille", label=f"body {axis}")
             plt.title("attitude σ about the body axes [arcsec]")
         else:
             i = p.index(what)
             unit = p.units[i]
             shown = fmt.display_unit(unit, float(np.nanmax(p.sigma[:, i])))
-            y = [fmt.to_display(v, unit, shown) for v in p.sigma[:, i]]
-            yn = [fmt.to_display(v, unit, shown) for v in p.sigma_noise[:, i]]
-            plt.plot(t, y, color=series(0), label="total")
+            y = (p.sigma[:, i] * fmt.scale(unit, shown)).tolist()
+            yn = (p.sigma_noise[:, i] * fmt.scale(unit, shown)).tolist()
+            plt.plot(t, y, color=series(0), marker="braille", label="total")
             if p.consider:
-                plt.plot(t, yn, color=series(1), label="noise only")
+                plt.plot(t, yn, color=series(1), marker="braille", label="noise only")
             plt.title(f"σ of {what} [{fmt.unit_label(shown) or '1'}]   ([ ] other elements)")
         plt.xlabel("t [s]")
 

@@ -32,9 +32,9 @@ def x_axes(sd, shown_unit: str, unit: str) -> list[tuple[str, str, np.ndarray]]:
     out = [("time", "t [s]", sd.t)]
     if g.r_I is not None and g.v_I is not None:
         out.append(("orbit angle", "argument of latitude [deg]", derive.argument_of_latitude(g.r_I, g.v_I)))
+    k = fmt.scale(unit, shown_unit)
     for j, comp in enumerate(sd.model.components):
-        vals = np.array([fmt.to_display(v, unit, shown_unit) for v in sd.y[:, j]]) if unit != shown_unit \
-            else sd.y[:, j]
+        vals = sd.y[:, j] * k
         out.append((f"measured {comp}", f"measured {comp} [{fmt.unit_label(shown_unit) or '1'}]", vals))
     for name, values in sorted(g.aux.items()):
         out.append((f"aux {name}", f"aux {name}", np.asarray(values, dtype=float)))
@@ -96,7 +96,7 @@ class ResidualsScreen(GcsScreen):
             f" · held-out {fmt.fixed(ho, 3)} · n {r.n} · edited {n_edit}",
             f" · χ²/dof {res.chi2 / max(res.dof, 1):.3f}"))
         z = r.normalized[:, j]
-        resid = np.array([fmt.to_display(v, r.unit, shown) for v in r.residual[:, j]])
+        resid = r.residual[:, j] * fmt.scale(r.unit, shown)
         sigma = fmt.to_display(float(r.sigma[j]), r.unit, shown)
         title = f"{name} {r.components[j]} [{fmt.unit_label(shown) or '1'}]"
         main = self.query_one("#res-main", GcsPlot)
@@ -162,13 +162,14 @@ class ResidualsScreen(GcsScreen):
         h = derive.histogram(z)
         plt.bar(h.centers.tolist(), h.counts.tolist(), color=rgb("gcs-used"), width=0.8)
         plt.plot(h.centers.tolist(), h.expected.tolist(), color=rgb("gcs-band"), label="N(0,1)")
+        plt.xticks([-4, -2, 0, 2, 4], ["-4", "-2", "0", "2", "4"])
         plt.title(title)
         plt.xlabel("residual / σ")
 
     @staticmethod
     def _acf(plt, z, title) -> None:
         lags, acf, band = derive.autocorrelation(z, 40)
-        plt.bar(lags.tolist(), acf.tolist(), color=rgb("gcs-used"), width=0.5)
+        plt.plot(lags.tolist(), acf.tolist(), color=rgb("gcs-used"), marker="dot")
         if np.isfinite(band):
             plt.horizontal_line(band, color=rgb("gcs-band"))
             plt.horizontal_line(-band, color=rgb("gcs-band"))

@@ -128,15 +128,18 @@ class StateScreen(GcsScreen):
         e = self.wb.analysis.problem.state[name]
         shown = fmt.display_unit(e.unit, max(abs(e.value), e.sigma0 if math.isfinite(e.sigma0) else 0.0))
         lab = fmt.unit_label(shown) or "1"
-        fields = [Field("value", f"value [{lab}]", repr(round(fmt.to_display(e.value, e.unit, shown), 12))),
-                  Field("sigma", f"σ [{lab}]", repr(round(fmt.to_display(e.sigma0, e.unit, shown), 12)),
-                        positive=True)]
+        v0 = repr(round(fmt.to_display(e.value, e.unit, shown), 12))
+        s0 = repr(round(fmt.to_display(e.sigma0, e.unit, shown), 12))
+        fields = [Field("value", f"value [{lab}]", v0), Field("sigma", f"σ [{lab}]", s0, positive=True)]
 
         def done(values):
             if not values:
                 return
-            value = fmt.from_display(values["value"], e.unit, shown)
-            sigma = fmt.from_display(values["sigma"], e.unit, shown)
+            # only what the user changed goes into the config (the shown text is rounded)
+            value = fmt.from_display(values["value"], e.unit, shown) if values["value"] != float(v0) else None
+            sigma = fmt.from_display(values["sigma"], e.unit, shown) if values["sigma"] != float(s0) else None
+            if value is None and sigma is None:
+                return
             self.app.run_job("state", f"edit {name}",
                              lambda p, c: self.wb.set_element(name, value=value, sigma=sigma))
 

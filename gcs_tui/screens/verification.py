@@ -1,16 +1,17 @@
-"""Verification (VERIF): onboard against ground attitude — differences per axis over
-time, σ per axis against the requirement, the trend and the pass/fail flag.
+"""Verification (VERIF, seed §4.4): onboard against ground attitude — the differences
+per axis over time, the §4.4 σ per axis against the ground accuracy and the
+requirement, its trend over windows, and the flag that says the onboard calibration
+needs an update (σ above both thresholds on some axis).
 
-``r`` runs the comparison (fitting first when there is no fit).
+``r`` runs the comparison; the screen runs it by itself the first time it is shown.
 """
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from rich.text import Text
 from textual.app import ComposeResult
+from textual.containers import Horizontal
 from textual.widgets import DataTable, Static
 
 from gcs_tui import format as fmt
@@ -21,77 +22,75 @@ from gcs_tui.widgets.plots import GcsPlot
 
 EMPTY = "No verification yet — press r to compare the onboard attitude with the ground solution."
 AXES = ("roll", "pitch", "yaw")
+ARCSEC = fmt.scale("rad", "arcsec")
 
 
 class VerificationScreen(GcsScreen):
-    """Onboard − ground differences, per-axis σ against the requirement, the flag."""
+    """Onboard − ground differences, per-axis σ against thresholds, trend, the flag."""
 
     VIEW = "verification"
     CSS_PATH = "verification.tcss"
     BINDINGS = bindings(SCREENS["verification"])
+    NEEDS_FIT = True
+    AUTO_JOB = "verify"
 
     def compose_body(self) -> ComposeResult:
         yield Static("", id="verif-flag", markup=False)
-        yield GcsPlot(id="verif-plot", title="onboard − ground")
+        with Horizontal(id="verif-plots"):
+            yield GcsPlot(id="verif-diff", title="onboard − ground")
+            yield GcsPlot(id="verif-trend", title="σ per window")
         yield DataTable(id="verif-table", cursor_type="row", zebra_stripes=True, show_cursor=False)
+
+    def needs_job(self) -> bool:
+        return self.wb.verification is None
 
     def refresh_view(self) -> None:
         v = self.wb.verification
         flag = self.query_one("#verif-flag", Static)
-        plot = self.query_one("#verif-plot", GcsPlot)
+        diff_plot = self.query_one("#verif-diff", GcsPlot)
+        trend_plot = self.query_one("#verif-trend", GcsPlot)
         table = self.query_one("#verif-table", DataTable)
         table.clear(columns=True)
         if v is None:
-            flag.update(EMPTY)
-            plot.paint(None, empty="no verification")
+            flag.update(self.app.job_errors.get("verify", EMPTY))
+            diff_plot.paint(None, empty="no verification")
+            trend_plot.paint(None, empty="no verification")
             return
-        view = verif_view(v, self.wb.config.requirement_deg)
-        ok = view["flag"]
         flag.update(Text.assemble(
-            (" PASS " if ok else " FAIL ", f"bold reverse {color('gcs-ok' if ok else 'gcs-bad')}"),
-            f"  requirement {fmt.quantity(view['requirement'], 'rad', digits=3, shown='deg')} (1σ per axis)"
-            f"  ·  {view['n']} onboard samples" + (f"  ·  {view['message']}" if view["message"] else "")))
-        plot.paint(lambda plt: self._plot(plt, view))
+            (" FLAG SET " if v.flag else " no flag ", f"bold reverse {color('gcs-bad' if v.flag else 'gcs-ok')}"),
+            f" {v.n} onboard attitudes · {v.angles} angles · ", v.reason))
+        diff_plot.paint(lambda plt: self._diff(plt, v))
+        trend_plot.paint(lambda plt: self._trend(plt, v))
         table.add_column("axis")
         table.add_column(Text("mean", justify="right"))
-        table.add_column(Text("σ", justify="right"))
+        table.add_column(Text("σ (§4.4)", justify="right"))
+        table.add_column(Text("ground σ", justify="right"))
         table.add_column(Text("requirement", justify="right"))
-        table.add_column(Text("trend", justify="right"))
-        table.add_column("")
-        for k, axis in enumerate(view["axes"]):
-            s = view["sigma"][k]
-            good = s <= view["requirement"]
-            table.add_row(axis, Text(fmt.quantity(view["mean"][k], "rad", digits=2, shown="arcsec"), justify="right"),
-                          Text(fmt.quantity(s, "rad", digits=2, shown="arcsec"), justify="right"),
-                          Text(fmt.quantity(view["requirement"], "rad", digits=2, shown="arcsec"), justify="right"),
-                          Text(view["trend"][k], justify="right"),
-                          Text("ok" if good else "over", style=color("gcs-ok" if good else "gcs-bad")))
+        table.add_column("flag")
+        for k, axis in enumerate(AXES):
+            q = lambda x: Text(fmt.quantity(float(x), "rad", digits=3, shown="arcsec"), justify="right")  # noqa: E731
+            flagged = bool(v.flag_axes[k])
+            table.add_row(axis, q(v.mean[k]), q(v.sigma[k]), q(v.ground_accuracy[k]), q(v.requirement[k]),
+                          Text("set" if flagged else "—", style=color("gcs-bad") if flagged else ""))
 
     @staticmethod
-    def _plot(plt, view) -> None:
-        t = view["t"]
-        d = view["diff"]
-        if t.size:
-            for k, axis in enumerate(view["axes"]):
-                y = d[:, k] * fmt.to_display(1.0, "rad", "arcsec")
-                plt.plot(t.tolist(), y.tolist(), color=series(k), label=axis)
-            req = fmt.to_display(view["requirement"], "rad", "arcsec")
+    def _diff(plt, v) -> None:
+        if v.n:
+            t = v.t.tolist()
+            for k, axis in enumerate(AXES):
+                plt.plot(t, (v.diff[:, k] * ARCSEC).tolist(), color=series(k), marker="braille", label=axis)
+            req = float(np.max(v.requirement)) * ARCSEC
             plt.horizontal_line(req, color=rgb("gcs-bad"))
             plt.horizontal_line(-req, color=rgb("gcs-bad"))
-        plt.title("onboard − ground attitude [arcsec]  (red: ± requirement)")
+        plt.title("onboard − ground [arcsec]  (red: ± requirement)")
         plt.xlabel("t [s]")
 
-
-def verif_view(v, requirement_deg: float) -> dict:
-    """The fields this screen draws, from a VERIF result."""
-    t = np.asarray(getattr(v, "t", getattr(v, "times", np.zeros(0))), dtype=float)
-    diff = np.asarray(getattr(v, "diff", getattr(v, "differences", np.zeros((0, 3)))), dtype=float)
-    sigma = np.asarray(getattr(v, "sigma", np.full(3, math.nan)), dtype=float)
-    mean = np.asarray(getattr(v, "mean", np.nanmean(diff, axis=0) if diff.size else np.full(3, math.nan)))
-    req = float(getattr(v, "requirement", requirement_deg * math.pi / 180.0))
-    trend = getattr(v, "trend", None)
-    trend_s = [fmt.sig(x, 2) if isinstance(x, (int, float)) else str(x) for x in
-               (trend if isinstance(trend, (list, tuple, np.ndarray)) else [trend] * 3)]
-    return {"t": t, "diff": diff, "sigma": sigma, "mean": mean, "requirement": req,
-            "axes": tuple(getattr(v, "axes", AXES)), "trend": trend_s, "flag": bool(getattr(v, "flag", False)),
-            "n": int(t.size), "message": str(getattr(v, "message", ""))}
+    @staticmethod
+    def _trend(plt, v) -> None:
+        if len(v.trend_t):
+            t = v.trend_t.tolist()
+            for k, axis in enumerate(AXES):
+                plt.plot(t, (v.trend_sigma[:, k] * ARCSEC).tolist(), color=series(k), marker="dot", label=axis)
+            plt.horizontal_line(float(np.max(v.requirement)) * ARCSEC, color=rgb("gcs-bad"))
+        plt.title("σ per window [arcsec] (trend)")
+        plt.xlabel("t [s]")

@@ -21,7 +21,8 @@ from gcs_tui.keys import VIEWS
 class NavBar(Widget):
     """One line: every screen with its key, the current one highlighted.
 
-    Wide terminals get full titles, narrow ones the short titles; a click switches.
+    Three densities, the first that fits: full titles, short titles, or only the keys
+    with the current screen's title. A click on an entry switches to it.
     """
 
     current: reactive[str] = reactive("mission")
@@ -31,32 +32,32 @@ class NavBar(Widget):
         super().__init__(**kw)
         self.set_reactive(NavBar.current, current)
 
+    def _entries(self, width: int) -> list[tuple[str, str]]:
+        """``(mode, label)`` per screen at the densest form that fits ``width``."""
+        for form in ("full", "short"):
+            entries = [(mode, f"{key} {title if form == 'full' else short}") for mode, key, title, short in VIEWS]
+            if 5 + sum(len(label) + 2 for _, label in entries) <= width:
+                return entries
+        return [(mode, f"{key} {title}" if mode == self.current else key) for mode, key, title, _ in VIEWS]
+
     def render(self) -> Text:
         width = self.size.width or 80
-        long = sum(len(t) + len(k) + 3 for _, k, t, _ in VIEWS) + 5 <= width
-        out = Text(" GCS ", style="bold reverse")
-        for mode, key, title, short in VIEWS:
-            label = title if long else short
+        out = Text()
+        out.append(" GCS ", style="bold reverse")
+        for mode, label in self._entries(width):
             out.append(" ")
-            seg = Text.assemble((key, "bold"), " ", label)
-            if mode == self.current:
-                seg.stylize("bold reverse")
-            out.append_text(seg)
+            out.append(label, style="bold reverse" if mode == self.current else "")
             out.append(" ")
         out.truncate(width)
         return out
 
     def on_click(self, event) -> None:
-        x = event.x - 5
-        pos = 0
-        width = self.size.width or 80
-        long = sum(len(t) + len(k) + 3 for _, k, t, _ in VIEWS) + 5 <= width
-        for mode, key, title, short in VIEWS:
-            n = len(key) + len(title if long else short) + 3
-            if pos <= x < pos + n:
+        pos = 5
+        for mode, label in self._entries(self.size.width or 80):
+            if pos <= event.x < pos + len(label) + 2:
                 self.app.action_view(mode)
                 return
-            pos += n
+            pos += len(label) + 2
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,248 @@
+"""Backward smoothing of the Kalman filter, and post-fit residuals of the whole span.
+
+The filter's estimate at a frame uses the data up to that frame only; residuals of the
+whole span need the attitude given *all* data. The static parameters ``s`` (sensor
+calibration, gyro scale factors) end the filter with their final estimate ``s*``; the
+dynamic states ``d = (δθ, b)`` are smoothed by Rauch–Tung–Striebel over the epochs,
+*conditioned on* ``s = s*``. Conditioning the filter's joint Gaussian at every epoch::
+
+    d_k | s  =  c_k + B_k s,    B_k = P_ds P_ss⁻¹,    P_k|s = P_dd − B_k P_sd
+
+is exactly the filter that would have run with ``s`` known, so the RTS recursion over
+``d`` alone (6×6 quantities per epoch) is exact for the linearized problem::
+
+    d_{k+1} = Φ d_k + Φ_s s + u + w,   P⁻ = Φ P Φᵀ + Q,   G = P Φᵀ (P⁻)⁻¹
+    d̂_k = d_k|s + G (d̂_{k+1} − d⁻_{k+1}),   P̂_k = P_k|s + G (P̂_{k+1} − P⁻) Gᵀ
+
+The smoothed mean is linear in ``s*`` with sensitivity ``Γ_k`` (same recursion, started
+at ``B_N``), so the covariance without conditioning is ``P̂_k + Γ_k P_ss Γ_kᵀ``.
+
+The per-epoch records live in an :class:`EpochStore`: in memory below a size limit, else
+in a temporary ``numpy.memmap`` file (a week of 1 Hz data is ~2 GB of records); the
+smoother reads them back in chunks, so memory stays bounded.
+
+References
+----------
+Rauch, Tung & Striebel, "Maximum likelihood estimates of linear dynamic systems",
+AIAA J. 3(8), 1965. Bell, "The iterated Kalman smoother as a Gauss–Newton method",
+SIAM J. Optim. 4(3), 1994 (re-linearizing about the smoothed trajectory).
+"""
+
+from __future__ import annotations
+
+import logging
+import tempfile
+from dataclasses import dataclass, replace
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.filtr.batch import SensorResiduals
+from gcs_core.filtr.kalman import step_quaternions
+from gcs_core.frames.rotations import quat_multiply, quat_normalize, quat_to_dcm
+
+log = logging.getLogger(__name__)
+
+
+class EpochStore:
+    """Per-epoch filter records for the smoother (module docstring).
+
+    Fields (per epoch): ``t``; ``q`` (4) nominal attitude; ``bnom`` (nb) nominal biases;
+    ``c`` (d), ``B`` (d, ns), ``Pc`` (d, d) the conditioned posterior; ``Phi`` (d, d),
+    ``Phis`` (d, ngs), ``u`` (d), ``Q`` (d, d) the transition *into* the epoch.
+
+    Parameters
+    ----------
+    n_epochs, d, ns, ngs, nb : sizes.
+    limit_bytes : records larger than this go to a temporary memory-mapped file.
+    """
+
+    def __init__(self, n_epochs: int, d: int, ns: int, ngs: int, nb: int, *,
+                 limit_bytes: float = 256e6):
+        shapes = {"t": (), "q": (4,), "bnom": (nb,), "c": (d,), "B": (d, ns), "Pc": (d, d),
+                  "Phi": (d, d), "Phis": (d, ngs), "u": (d,), "Q": (d, d)}
+        self.fields, off = {}, 0
+        for name, shp in shapes.items():
+            size = int(np.prod(shp)) if shp else 1
+            self.fields[name] = (off, size, shp)
+            off += size
+        self.n, self.width = int(n_epochs), off
+        self.nbytes = self.n * self.width * 8
+        self._file = None
+        if self.nbytes > limit_bytes:
+            self._file = tempfile.TemporaryFile(prefix="gcs-smoother-")
+            self.data = np.memmap(self._file, dtype=np.float64, mode="w+",
+                                  shape=(max(self.n, 1), self.width))
+            log.info("smoother records: %.0f MB in a temporary file", self.nbytes / 1e6)
+        else:
+            self.data = np.zeros((max(self.n, 1), self.width))
+
+    @property
+    def spilled(self) -> bool:
+        """True when the records are in a memory-mapped temporary file."""
+        return self._file is not None
+
+    def write(self, k0: int, **arrays) -> None:
+        """Write records of epochs ``k0..k0+G−1``; each array has leading dimension G."""
+        for name, a in arrays.items():
+            off, size, _ = self.fields[name]
+            a = np.asarray(a, float)
+            self.data[k0:k0 + a.shape[0], off:off + size] = a.reshape(a.shape[0], size)
+
+    def read(self, k0: int, k1: int) -> dict[str, np.ndarray]:
+        """Records of epochs ``k0..k1−1`` as arrays ``(k1−k0, *shape)`` (copies)."""
+        slab = np.array(self.data[k0:k1])
+        return {name: slab[:, off:off + size].reshape((k1 - k0,) + shp)
+                for name, (off, size, shp) in self.fields.items()}
+
+    def close(self) -> None:
+        if self._file is not None:
+            del self.data
+            self._file.close()
+            self._file = None
+
+
+@dataclass(frozen=True)
+class SmoothedTrajectory:
+    """Smoothed attitude (and gyro biases) at every epoch of the filter.
+
+    Attributes
+    ----------
+    t : (N,) epoch times [s] (frame times, block boundaries; a boundary appears twice).
+    q_BI : (N, 4) GCI-to-body quaternion, scalar last (ICD §2).
+    sigma_att : (N, 3) 1-sigma of the attitude error about the body axes [rad].
+    bias : (N, nb) smoothed random-walking gyro biases [rad/s], or None.
+    sigma_bias : (N, nb) their 1-sigma, or None.
+    bias_names : element names of the biases.
+    """
+
+    t: np.ndarray
+    q_BI: np.ndarray
+    sigma_att: np.ndarray
+    bias: np.ndarray | None = None
+    sigma_bias: np.ndarray | None = None
+    bias_names: tuple[str, ...] = ()
+
+    def C_BI(self, k) -> np.ndarray:
+        """Attitude matrices at epochs ``k`` (index or array)."""
+        return quat_to_dcm(self.q_BI[k])
+
+
+@dataclass(frozen=True)
+class SmoothedStates:
+    """Raw output of :func:`rts_smooth`.
+
+    Attributes
+    ----------
+    x : (N, d) smoothed dynamic error states (each epoch's own nominal).
+    sigma : (N, d) their 1-sigma (static uncertainty included).
+    P0 : (d, d) full covariance at epoch 0; Gamma0 : (d, ns) sensitivity to s at epoch 0.
+    """
+
+    x: np.ndarray
+    sigma: np.ndarray
+    P0: np.ndarray
+    Gamma0: np.ndarray
+
+
+def rts_smooth(store: EpochStore, s_star: np.ndarray, P_ss: np.ndarray, gs_pos: np.ndarray, *,
+               chunk: int = 8192) -> SmoothedStates:
+    """RTS over the dynamic states conditioned on ``s = s*`` (module docstring)."""
+    N = store.n
+    d = store.fields["c"][2][0]
+    ns = s_star.size
+    s_gs = s_star[gs_pos]
+    x_out, sd_out = np.empty((N, d)), np.empty((N, d))
+    last = store.read(N - 1, N)
+    xs = last["c"][0] + last["B"][0] @ s_star
+    Ps, Gs = last["Pc"][0], last["B"][0]
+    _total(x_out, sd_out, N - 1, xs[None], Ps[None], Gs[None], P_ss)
+    P0, G0 = Ps + Gs @ P_ss @ Gs.T, Gs
+    k1 = N - 1
+    while k1 > 0:
+        k0 = max(0, k1 - chunk)
+        rec = store.read(k0, k1 + 1)
+        B, Pf = rec["B"][:-1], rec["Pc"][:-1]
+        xf = rec["c"][:-1] + B @ s_star                        # d_k | s*
+        Phi, Q = rec["Phi"][1:], rec["Q"][1:]
+        # d⁻_{k+1} = Φ d_k + Φ_s s + u,   P⁻ = Φ P Φᵀ + Q
+        xp = (Phi @ xf[:, :, None])[:, :, 0] + rec["Phis"][1:] @ s_gs + rec["u"][1:]
+        Pp = Phi @ Pf @ np.swapaxes(Phi, 1, 2) + Q
+        Pp = 0.5 * (Pp + np.swapaxes(Pp, 1, 2))
+        # G = P Φᵀ (P⁻)⁻¹ = ((P⁻)⁻¹ Φ P)ᵀ   (solve, not invert)
+        G = np.swapaxes(_solve(Pp, Phi @ Pf), 1, 2)
+        Gp = Phi @ B                                            # Γ⁻_{k+1} = Φ B_k + Φ_s
+        Gp[:, :, gs_pos] += rec["Phis"][1:]
+        n_c = k1 - k0
+        X, PS, GS = np.empty((n_c, d)), np.empty((n_c, d, d)), np.empty((n_c, d, ns))
+        for j in range(n_c - 1, -1, -1):
+            Gj = G[j]
+            xs = xf[j] + Gj @ (xs - xp[j])
+            Ps = Pf[j] + Gj @ (Ps - Pp[j]) @ Gj.T
+            Gs = B[j] + Gj @ (Gs - Gp[j])
+            X[j], PS[j], GS[j] = xs, Ps, Gs
+        _total(x_out, sd_out, k0, X, PS, GS, P_ss)
+        if k0 == 0:
+            P0 = PS[0] + GS[0] @ P_ss @ GS[0].T
+            G0 = GS[0]
+        k1 = k0
+    return SmoothedStates(x_out, sd_out, 0.5 * (P0 + P0.T), G0)
+
+
+def _total(x_out, sd_out, k0, X, PS, GS, P_ss):
+    """Store means and 1-sigma including the static uncertainty ``Γ P_ss Γᵀ``."""
+    x_out[k0:k0 + X.shape[0]] = X
+    var = np.einsum("kii->ki", PS) + np.einsum("kij,jl,kil->ki", GS, P_ss, GS)
+    sd_out[k0:k0 + X.shape[0]] = np.sqrt(np.maximum(var, 0.0))
+
+
+def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    try:
+        return np.linalg.solve(A, B)
+    except np.linalg.LinAlgError:                      # a singular prediction: least squares
+        return np.linalg.pinv(A) @ B
+
+
+def trajectory(store: EpochStore, sm: SmoothedStates, nb: int,
+               bias_names: tuple[str, ...] = ()) -> SmoothedTrajectory:
+    """Smoothed quaternions ``q = q(δθ) ⊗ q_nominal`` (``C = exp(−[δθ×]) C_nom``) and biases."""
+    N = store.n
+    t, q = np.empty(N), np.empty((N, 4))
+    bias = np.empty((N, nb)) if nb else None
+    for k0 in range(0, N, 65536):
+        k1 = min(N, k0 + 65536)
+        rec = store.read(k0, k1)
+        t[k0:k1] = rec["t"]
+        dq = step_quaternions(sm.x[k0:k1, :3], np.ones(k1 - k0))
+        q[k0:k1] = quat_normalize(quat_multiply(dq, rec["q"]))
+        if nb:
+            bias[k0:k1] = rec["bnom"] + sm.x[k0:k1, 3:3 + nb]
+    return SmoothedTrajectory(t, q, sm.sigma[:, :3], bias, sm.sigma[:, 3:3 + nb] if nb else None,
+                              tuple(bias_names))
+
+
+def smoothed_residuals(problem, traj: SmoothedTrajectory, frame_epoch: Mapping[str, np.ndarray],
+                       values: Mapping[str, float], omega_at, edited: Mapping[str, np.ndarray]
+                       ) -> dict[str, SensorResiduals]:
+    """Post-fit residuals of every sensor at the smoothed attitude and final parameters.
+
+    Parameters
+    ----------
+    problem : the calibration problem.
+    traj : smoothed trajectory; frame_epoch : sensor -> (N,) epoch of each frame.
+    values : final element values; omega_at : ``t -> (N, 3)`` body rate at final gyro values.
+    edited : sensor -> (N,) frames refused by the filter's gate (or edited beforehand).
+    """
+    out = {}
+    for sd in problem.sensors:
+        ep = frame_epoch[sd.name]
+        geom = replace(sd.geom, C_BI=traj.C_BI(ep), omega_B=omega_at(sd.t))
+        pred = sd.model.predict(geom, problem.params_of(sd.name, values))
+        r = sd.model.residual(sd.y, pred.y)
+        valid = np.asarray(pred.valid, bool) & np.all(np.isfinite(r), axis=1)
+        ed = np.asarray(edited.get(sd.name, np.zeros(sd.n, bool)), bool) & valid
+        r = np.where(valid[:, None], r, np.nan)
+        out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t,
+                                       sd.y, pred.y, r, r / sd.sigma, sd.sigma, valid & ~ed, valid,
+                                       ed)
+    return out

@@ -1,0 +1,552 @@
+"""The stepping Kalman filter of FILTR, for the TUI and the headless batch mode.
+
+The seed's FILTR "processes one block of data at a time" (§3.2.2): :class:`Filtr` does
+the same. Each :meth:`Filtr.step` processes one block of ``block_seconds`` and returns a
+:class:`BlockReport` (estimates and sigmas after the block, innovation statistics, NIS
+with its χ² p-value, frames used and gated); :meth:`Filtr.run` goes to the end, smooths,
+and returns a :class:`FilterResult` carrying post-fit residuals of the whole span.
+
+* With a gyro: the multiplicative EKF of :mod:`gcs_core.filtr.mekf` (Eq 3-3, 3-4, 4-38),
+  the attitude elements reinterpreted as the current attitude error δθ.
+* Without a gyro (reference-pointing or spinning missions): the same blocks with Q = 0,
+  i.e. recursive least squares (the seed: "a Kalman filter reduces to a recursive
+  least-squares estimator when the state noise is zero").
+
+Passes. The first pass is an EKF (re-linearized at each block start). Further passes
+(``FilterOptions.max_passes``) re-linearize every block about the previous pass's
+smoothed trajectory, starting again from the a priori: the iterated Kalman smoother,
+a Gauss–Newton method on the whole span (Bell 1994). With Q = 0 it converges to the
+batch least-squares solution of :func:`~gcs_core.filtr.batch.batch_fit` (same a priori);
+``tests/test_kalman.py`` checks it.
+
+Consider elements are not carried by the filter (they stay at their values, as held).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from typing import Callable, Mapping
+
+import numpy as np
+from scipy import stats
+
+from gcs_core.errors import EstimationError
+from gcs_core.filtr.attitude import RPY, rpy_error_jacobian
+from gcs_core.filtr.batch import SensorResiduals, make_residuals
+from gcs_core.filtr.kalman import GyroSegment, solve_block
+from gcs_core.filtr.mekf import assemble, block_epochs, gyro_noise, gyro_rates, make_layout
+from gcs_core.filtr.problem import Problem, linearize
+from gcs_core.filtr.smoother import (EpochStore, SmoothedTrajectory, rts_smooth,
+                                     smoothed_residuals, trajectory)
+from gcs_core.frames.rotations import (dcm_to_rotvec, euler123_to_dcm, quat_from_dcm,
+                                       rotvec_to_dcm)
+from gcs_core.sodl.state import StateVector
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FilterOptions:
+    """Options of :class:`Filtr`.
+
+    Attributes
+    ----------
+    edit_k : innovation gate: a frame with ``|ν_i|/sqrt(S_ii) > edit_k`` in any component
+        is flagged and skipped (None: no gate).
+    process_noise_scale : multiplies the gyro's σ_v, σ_u, σ_e (0 gives Q = 0: RLS).
+    max_passes : passes over the data (1: a plain EKF; more: iterated smoother).
+    pass_tol_sigma : stop iterating when no estimate moved by more than this many sigmas.
+    group_rows : scalar measurement rows per lifted group of the core (speed only).
+    memory_limit_mb : smoother records above this size go to a temporary file.
+    diffuse_sigma : prior 1-sigma used for elements whose ``sigma0`` is infinite.
+    """
+
+    edit_k: float | None = 5.0
+    process_noise_scale: float = 1.0
+    max_passes: int = 3
+    pass_tol_sigma: float = 1e-3
+    group_rows: int = 48
+    memory_limit_mb: float = 256.0
+    diffuse_sigma: float = 1e6
+
+
+@dataclass(frozen=True)
+class FrameDiagnostics:
+    """Per-frame filter diagnostics of one sensor (m measurement components).
+
+    Attributes
+    ----------
+    name : sensor; t : (N,) frame times; index : (N,) frame numbers in the sensor's data.
+    innovation : (N, m) ``ν = y − h(x⁻)``, telemetry units (NaN where not processed).
+    S : (N, m, m) innovation covariance ``H P⁻ Hᵀ + R``.
+    nis : (N,) ``νᵀ S⁻¹ ν``; k_norm : (N,) Frobenius norm of the gain K (mixed units).
+    gated : (N,) refused by the k-σ gate (flagged and skipped, never dropped silently).
+    used : (N,) updated the state; valid : (N,) the model is defined there.
+    """
+
+    name: str
+    t: np.ndarray
+    index: np.ndarray
+    innovation: np.ndarray
+    S: np.ndarray
+    nis: np.ndarray
+    k_norm: np.ndarray
+    gated: np.ndarray
+    used: np.ndarray
+    valid: np.ndarray
+
+
+@dataclass(frozen=True)
+class InnovationStats:
+    """Innovation statistics of one sensor over one block.
+
+    Attributes
+    ----------
+    n_frames, n_valid, n_used, n_gated : frame counts.
+    nis : Σ NIS over used frames; dof : Σ m over used frames; p_value : ``P(χ²_dof ≥ nis)``.
+    rms_normalized : RMS of ``ν_i / sqrt(S_ii)`` over used frames (1.0 when consistent).
+    """
+
+    name: str
+    n_frames: int
+    n_valid: int
+    n_used: int
+    n_gated: int
+    nis: float
+    dof: int
+    p_value: float
+    rms_normalized: float
+
+
+@dataclass(frozen=True)
+class BlockReport:
+    """What one :meth:`Filtr.step` did.
+
+    Attributes
+    ----------
+    index : block number in the pass; n_blocks : blocks per pass; pass_index : 0-based.
+    t_start, t_end : the block's time window [s].
+    names : solve-for element names (``problem.state.solve_for`` order).
+    prior_x, prior_sigma : (n,) estimates and 1-sigma at the block start;
+    x, sigma : (n,) after the block. With a gyro, ``att.roll/pitch/yaw`` are those of the
+        *current* attitude (at ``t_start`` / ``t_end``) relative to the reference frame.
+    q_BI : (4,) attitude at ``t_end`` (gyro missions) or None.
+    sensors : sensor -> :class:`InnovationStats`.
+    nis, dof, p_value : block totals over used frames.
+    frames_used, frames_gated, frames_invalid : counts over all sensors.
+    frames : sensor -> :class:`FrameDiagnostics` of this block's frames.
+    """
+
+    index: int
+    n_blocks: int
+    pass_index: int
+    t_start: float
+    t_end: float
+    names: tuple[str, ...]
+    prior_x: np.ndarray
+    prior_sigma: np.ndarray
+    x: np.ndarray
+    sigma: np.ndarray
+    q_BI: np.ndarray | None
+    sensors: Mapping[str, InnovationStats]
+    nis: float
+    dof: int
+    p_value: float
+    frames_used: int
+    frames_gated: int
+    frames_invalid: int
+    frames: Mapping[str, FrameDiagnostics] = field(repr=False, default_factory=dict)
+
+    @property
+    def fraction(self) -> float:
+        """Progress within the pass, 0..1."""
+        return (self.index + 1) / self.n_blocks
+
+
+@dataclass(frozen=True)
+class FilterResult:
+    """Outcome of a filter run, with its diagnostics.
+
+    Attributes
+    ----------
+    state : the state with estimated values (attitude: roll/pitch/yaw at the reference
+        time, from the smoothed attitude, as :class:`~gcs_core.filtr.batch.BatchResult`).
+    solve_for : element names; x : (n,) estimates; P : (n, n) covariance (same order).
+    residuals : sensor -> post-fit :class:`~gcs_core.filtr.batch.SensorResiduals`.
+    trajectory : smoothed attitude at every epoch (gyro missions) or None.
+    frames : sensor -> :class:`FrameDiagnostics` of the last pass.
+    blocks : every :class:`BlockReport` of every pass.
+    passes : passes made; status : "converged", "max_passes", "single_pass" or "cancelled".
+    nis, dof, p_value : innovation totals of the last pass.
+    """
+
+    state: StateVector
+    solve_for: tuple[str, ...]
+    x: np.ndarray
+    P: np.ndarray
+    residuals: dict[str, SensorResiduals]
+    trajectory: SmoothedTrajectory | None
+    frames: Mapping[str, FrameDiagnostics]
+    blocks: tuple[BlockReport, ...]
+    passes: int
+    status: str
+    message: str
+    nis: float
+    dof: int
+    p_value: float
+
+    @property
+    def sigma(self) -> dict[str, float]:
+        return {n: float(np.sqrt(self.P[i, i])) for i, n in enumerate(self.solve_for)}
+
+    @property
+    def values(self) -> dict[str, float]:
+        return self.state.values()
+
+
+class Filtr:
+    """Stepping Kalman filter / recursive least squares over blocks (module docstring).
+
+    Parameters
+    ----------
+    problem : the calibration problem (:func:`~gcs_core.filtr.problem.build_problem`).
+    options : :class:`FilterOptions`.
+    block_seconds : length of a block [s]; each block is re-linearized at its start.
+    """
+
+    def __init__(self, problem: Problem, *, options: FilterOptions | None = None,
+                 block_seconds: float = 600.0):
+        if block_seconds <= 0:
+            raise EstimationError("block_seconds must be positive")
+        self.options = options or FilterOptions()
+        self.block_seconds = float(block_seconds)
+        self._setup(problem)
+
+    # ------------------------------------------------------------------ set-up
+    def _setup(self, problem: Problem) -> None:
+        self.problem = problem
+        self._gyro = problem.gyro_name is not None
+        self._noise = gyro_noise(problem, self.options.process_noise_scale) if self._gyro else None
+        self._layout = make_layout(problem, self._noise)
+        if self._layout.n == 0:
+            raise EstimationError("nothing to estimate: every state element is held or consider")
+        self._windows = self._make_windows()
+        counts = [block_epochs(problem, ta, tb, b == 0)[0].size
+                  for b, (ta, tb, _, _) in enumerate(self._windows)]
+        self._offsets = np.concatenate([[0], np.cumsum(counts)]).astype(int)
+        self._store: EpochStore | None = None
+        self._prior()
+        self.reset()
+
+    def _make_windows(self):
+        if self._gyro:
+            kn = self.problem.attitude.knots
+            K, bounds = kn.size - 1, [0]
+            while bounds[-1] < K:
+                k = int(np.searchsorted(kn, kn[bounds[-1]] + self.block_seconds - 1e-9))
+                bounds.append(min(max(k, bounds[-1] + 1), K))
+            return [(float(kn[a]), float(kn[b]), a, b) for a, b in zip(bounds[:-1], bounds[1:])]
+        times = [sd.t for sd in self.problem.sensors if sd.n]
+        if not times:
+            raise EstimationError("no sensor data to filter")
+        t0 = min(float(t[0]) for t in times)
+        t1 = max(float(t[-1]) for t in times)
+        nb = max(1, int(np.ceil((t1 - t0) / self.block_seconds - 1e-9)))
+        edges = np.minimum(t0 + self.block_seconds * np.arange(nb + 1), t1)
+        edges[-1] = t1
+        return [(float(a), float(b), 0, 0) for a, b in zip(edges[:-1], edges[1:])]
+
+    def _prior(self) -> None:
+        """A priori values, the covariance in filter coordinates and (gyro) the attitude."""
+        st, lay = self.problem.state, self._layout
+        self._vals0 = st.values()
+        sig = np.array([st[e].sigma0 for e in lay.elements], float)
+        if np.any(~np.isfinite(sig)):
+            log.warning("elements without prior information get a diffuse sigma of %g",
+                        self.options.diffuse_sigma)
+            sig = np.where(np.isfinite(sig), sig, self.options.diffuse_sigma)
+        P = np.diag(sig ** 2)
+        self._C0 = None
+        if self._gyro:
+            att = self.problem.attitude
+            rpy = [self._vals0[n] for n in RPY]
+            J0 = rpy_error_jacobian(*rpy)                      # δθ = J0 δ(roll, pitch, yaw)
+            P[:3, :3] = J0 @ P[:3, :3] @ J0.T
+            self._C0 = euler123_to_dcm(*rpy) @ att.ref.reference(att.t_ref)[0]
+        self._P0 = P
+
+    # ------------------------------------------------------------------ public API
+    def reset(self) -> None:
+        """Back to the a priori, before the first block of the first pass."""
+        self.blocks: list[BlockReport] = []
+        self._pass = 0
+        self._done = False
+        self._ref = None
+        self._prev = None
+        self._status, self._smooth = "", None
+        self._start_pass()
+
+    def set_roles(self, roles: Mapping[str, str]) -> None:
+        """Change element roles (``{name: "solve-for" | "consider" | "held"}``), then reset."""
+        self._setup(self.problem.with_state(self.problem.state.with_roles(roles)))
+
+    @property
+    def done(self) -> bool:
+        """True when every pass has processed every block."""
+        return self._done
+
+    @property
+    def n_blocks(self) -> int:
+        return len(self._windows)
+
+    @property
+    def pass_index(self) -> int:
+        return self._pass
+
+    @property
+    def current_time(self) -> float:
+        """End of the last processed block (the start of the data before the first step)."""
+        b = self._block - 1
+        return self._windows[b][1] if b >= 0 else self._windows[0][0]
+
+    def step(self) -> BlockReport:
+        """Process the next block and return its :class:`BlockReport`."""
+        if self._done:
+            raise EstimationError("the filter has processed all the data; reset() to start again")
+        b = self._block
+        t_a, t_b, k_a, k_b = self._windows[b]
+        prior_x, prior_s = self._element_state(t_a)
+        frames, sol, q = self._gyro_block(b) if self._gyro else self._rls_block(b)
+        report = self._report(b, frames, sol, prior_x, prior_s, q)
+        self.blocks.append(report)
+        self._block += 1
+        if self._block == self.n_blocks:
+            self._end_pass()
+        return report
+
+    def run(self, progress: Callable[[BlockReport], None] | None = None,
+            cancel: Callable[[], bool] | None = None) -> FilterResult:
+        """Step to the end (every pass), smooth, and return the :class:`FilterResult`.
+
+        ``progress(report)`` is called after each block; when ``cancel()`` returns True
+        the run stops and the result covers the data processed so far ("cancelled").
+        """
+        while not self._done:
+            if cancel is not None and cancel():
+                return self.result(cancelled=True)
+            report = self.step()
+            if progress is not None:
+                progress(report)
+        return self.result()
+
+    # ------------------------------------------------------------------ passes
+    def _start_pass(self) -> None:
+        self._block = 0
+        self._vals = dict(self._vals0)
+        self._C = None if self._C0 is None else self._C0.copy()
+        self._P = self._P0.copy()
+        self._prev_nom = None
+        self._diag = {}
+        for sd in self.problem.sensors:
+            m = sd.y.shape[1]
+            self._diag[sd.name] = {"innovation": np.full((sd.n, m), np.nan),
+                                   "S": np.full((sd.n, m, m), np.nan), "nis": np.full(sd.n, np.nan),
+                                   "k_norm": np.full(sd.n, np.nan), "gated": np.zeros(sd.n, bool),
+                                   "used": np.zeros(sd.n, bool), "valid": np.zeros(sd.n, bool),
+                                   "epoch": np.full(sd.n, -1, int)}
+        if self._gyro and self._store is None:
+            lay = self._layout
+            self._store = EpochStore(int(self._offsets[-1]), lay.d, lay.ns, lay.gs_pos.size, lay.nb,
+                                     limit_bytes=self.options.memory_limit_mb * 1e6)
+
+    def _end_pass(self) -> None:
+        lay = self._layout
+        if self._gyro:
+            s_star = np.array([self._vals[e] for e in lay.elements[lay.d:]])
+            sm = rts_smooth(self._store, s_star, self._P[lay.d:, lay.d:], lay.gs_pos)
+            traj = trajectory(self._store, sm, lay.nb, lay.elements[3:lay.d])
+            self._smooth = (sm, traj, s_star)
+            starts = self._offsets[:-1]
+            ref = {"C": traj.C_BI(starts), "bias": None if traj.bias is None else traj.bias[starts]}
+            cur = np.concatenate([dcm_to_rotvec(traj.C_BI(0) @ self._C0.T), sm.x[0, 3:], s_star])
+            sig = np.concatenate([sm.sigma[0], np.sqrt(np.diag(self._P))[lay.d:]])
+        else:
+            ref = {}
+            cur = np.array([self._vals[e] for e in lay.elements])
+            sig = np.sqrt(np.diag(self._P))
+        gated = np.concatenate([d["gated"] for d in self._diag.values()])
+        converged = False
+        if self._prev is not None:
+            step = np.abs(cur - self._prev[0]) / np.maximum(sig, 1e-300)
+            converged = bool(np.max(step) < self.options.pass_tol_sigma
+                             and np.array_equal(gated, self._prev[1]))
+        self._prev = (cur, gated)
+        ref["values"] = dict(self._vals)
+        if converged:
+            self._status = "converged"
+        elif self._pass + 1 >= self.options.max_passes:
+            self._status = "single_pass" if self.options.max_passes == 1 else "max_passes"
+        else:
+            self._ref = ref
+            self._pass += 1
+            self._start_pass()
+            return
+        self._done = True
+
+    # ------------------------------------------------------------------ one block
+    def _pre_edited(self) -> Mapping[str, np.ndarray]:
+        return getattr(self.problem, "edited", None) or {}
+
+    def _rls_block(self, b: int):
+        t_a, t_b, _, _ = self._windows[b]
+        lay = self._layout
+        nom = dict(self._vals) if self._ref is None else dict(self._ref["values"])
+        y0 = np.array([self._vals[e] - nom[e] for e in lay.elements])
+        blk, frames = assemble(self.problem, lay, nom, None, t_a, t_b, b == 0, self._pre_edited())
+        o = self.options
+        sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows)
+        for j, e in enumerate(lay.elements):
+            self._vals[e] = nom[e] + sol.y[j]                   # x = x_nominal + y
+        self._P = sol.P
+        return frames, sol, None
+
+    def _gyro_block(self, b: int):
+        t_a, t_b, k_a, k_b = self._windows[b]
+        lay, att = self._layout, self.problem.attitude
+        nom = dict(self._vals)
+        if self._ref is None:                                   # EKF: linearize at the estimate
+            C_a = self._C
+        else:                                                   # iterated: at the smoothed one
+            C_a = self._ref["C"][b]
+            nom.update({e: self._ref["values"][e] for e in lay.elements[lay.d:]})
+            if lay.nb:
+                nom.update(dict(zip(lay.elements[3:lay.d], self._ref["bias"][b])))
+        y0 = np.zeros(lay.n)
+        y0[:3] = dcm_to_rotvec(self._C @ C_a.T)                 # C = exp(−[δθ×]) C_a
+        y0[3:] = [self._vals[e] - nom[e] for e in lay.elements[3:]]
+        omega, W, Wy, Wb = gyro_rates(att, nom, k_a, k_b)
+        axes = ["xyz".index(e[-1]) for e in lay.elements[3:lay.d]]
+        seg = GyroSegment(att.knots[k_a:k_b + 1], omega, W[:, :, lay.gyro_w], C_a, self._noise, Wy,
+                          Wb[:, axes] if lay.nb else None)
+        blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0, self._pre_edited(),
+                               self._noise.sigma_e ** 2)
+        o = self.options
+        sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows,
+                          keep_epochs=True)
+        Psi = np.eye(lay.n)
+        Psi[:lay.d] = blk.Psi_d[-1]
+        x = Psi @ sol.y                                         # x = Ψ(t_b) y
+        P = Psi @ sol.P @ Psi.T
+        self._P = 0.5 * (P + P.T)                               # symmetrize: round-off only
+        C_end = seg.C[-1]
+        self._C = rotvec_to_dcm(x[:3]) @ C_end                  # reset: nominal ⊕ δθ
+        for j, e in enumerate(lay.elements[3:], start=3):
+            self._vals[e] = nom[e] + x[j]
+        self._records(b, blk, sol, seg, nom, C_a)
+        return frames, sol, quat_from_dcm(self._C)
+
+    def _records(self, b, blk, sol, seg, nom, C_a) -> None:
+        """Per-epoch records for the smoother (conditioned posterior and transitions)."""
+        lay = self._layout
+        d, n = lay.d, lay.n
+        G = blk.t.size
+        Psi_d, ye, Pe = blk.Psi_d, sol.y_epoch, sol.P_epoch
+        s_nom = np.array([nom[e] for e in lay.elements[d:]])
+        xd = (Psi_d @ ye[:, :, None])[:, :, 0]
+        Pxd = Psi_d @ Pe                                        # (G, d, n) = Ψ_d P
+        Pdd, Pds, Pss = Pxd @ np.swapaxes(Psi_d, 1, 2), Pxd[:, :, d:], Pe[:, d:, d:]
+        B = np.swapaxes(np.linalg.solve(Pss, np.swapaxes(Pds, 1, 2)), 1, 2)   # P_ds P_ss⁻¹
+        Pc = Pdd - B @ np.swapaxes(Pds, 1, 2)                   # P_dd − B P_sd
+        c = xd - (B @ (s_nom + ye[:, d:])[:, :, None])[:, :, 0]
+        Pdd_psi, Pgs = Psi_d[:, :, :d], Psi_d[:, :, d + lay.gs_pos]
+        Phi = np.broadcast_to(np.eye(d), (G, d, d)).copy()
+        Phis = np.zeros((G, d, lay.gs_pos.size))
+        u, Q = np.zeros((G, d)), np.zeros((G, d, d))
+        if G > 1:
+            Phi[1:] = Pdd_psi[1:] @ np.linalg.inv(Pdd_psi[:-1])  # Ψ_k Ψ_{k−1}⁻¹
+            Phis[1:] = Pgs[1:] - Phi[1:] @ Pgs[:-1]
+            u[1:] = -Phis[1:] @ s_nom[lay.gs_pos]
+            dPi = np.diff(blk.Pi, axis=0)
+            Q[1:] = Pdd_psi[1:] @ dPi @ np.swapaxes(Pdd_psi[1:], 1, 2)
+        bnom = np.array([nom[e] for e in lay.elements[3:d]])
+        if self._prev_nom is not None:                          # reset at the block boundary
+            C_old, b_old = self._prev_nom
+            u[0, :3] = dcm_to_rotvec(C_old @ C_a.T)             # C_old = exp(−[u×]) C_a
+            u[0, 3:] = b_old - bnom
+        self._prev_nom = (seg.C[-1], bnom)
+        Cn = seg.at(blk.t)[0]
+        self._store.write(int(self._offsets[b]), t=blk.t, q=quat_from_dcm(Cn),
+                          bnom=np.broadcast_to(bnom, (G, lay.nb)), c=c, B=B,
+                          Pc=0.5 * (Pc + np.swapaxes(Pc, 1, 2)), Phi=Phi, Phis=Phis, u=u, Q=Q)
+        del n
+
+    # ------------------------------------------------------------------ reporting
+    def _element_state(self, t: float):
+        """(x, sigma) of the solve-for elements now, in ``problem.state.solve_for`` order."""
+        lay = self._layout
+        x = np.array([self._vals[e] for e in lay.elements])
+        P = self._P
+        if self._gyro:
+            rpy = self.problem.attitude.ref.rpy_from_dcm(self._C, t)
+            x[:3] = rpy
+            T = np.eye(lay.n)
+            T[:3, :3] = np.linalg.inv(rpy_error_jacobian(*rpy))  # δ(rpy) = J⁻¹ δθ
+            P = T @ P @ T.T
+        perm = [lay.elements.index(n) for n in self.problem.state.solve_for]
+        return x[perm], np.sqrt(np.diag(P))[perm]
+
+    def _report(self, b, frames, sol, prior_x, prior_s, q) -> BlockReport:
+        t_a, t_b, _, _ = self._windows[b]
+        off = int(self._offsets[b])
+        per, fd = {}, {}
+        tot_nis, tot_dof, n_used, n_gated, n_invalid = 0.0, 0, 0, 0, 0
+        for j, (name, idx, ep, valid) in enumerate(frames.sensors):
+            dg = self._diag[name]
+            dg["valid"][idx] = valid
+            dg["epoch"][idx] = off + ep
+            sel = np.nonzero(frames.frame_sensor == j)[0]
+            fi = frames.frame_index[sel]
+            m = dg["innovation"].shape[1]
+            dg["innovation"][fi] = sol.nu[sel, :m]
+            dg["S"][fi] = sol.S[sel, :m, :m]
+            dg["nis"][fi] = sol.nis[sel]
+            dg["k_norm"][fi] = sol.k_norm[sel]
+            dg["gated"][fi] = sol.gated[sel]
+            dg["used"][fi] = ~sol.gated[sel]
+            sd = self.problem.sensor(name)
+            fd[name] = FrameDiagnostics(name, sd.t[idx], idx, *(dg[k][idx] for k in (
+                "innovation", "S", "nis", "k_norm", "gated", "used", "valid")))
+            used = dg["used"][idx]
+            nis = float(np.sum(dg["nis"][idx][used]))
+            dof = int(used.sum()) * m
+            zn = dg["innovation"][idx][used] / np.sqrt(np.einsum("fii->fi", dg["S"][idx][used]))
+            per[name] = InnovationStats(name, idx.size, int(valid.sum()), int(used.sum()),
+                                        int(dg["gated"][idx].sum()), nis, dof, _pvalue(nis, dof),
+                                        float(np.sqrt(np.mean(zn ** 2))) if zn.size else np.nan)
+            tot_nis, tot_dof = tot_nis + nis, tot_dof + dof
+            n_used += int(used.sum())
+            n_gated += int(dg["gated"][idx].sum())
+            n_invalid += int((~valid).sum())
+        x, s = self._element_state(t_b)
+        return BlockReport(b, self.n_blocks, self._pass, t_a, t_b, tuple(self.problem.state.solve_for),
+                           prior_x, prior_s, x, s, q, per, tot_nis, tot_dof, _pvalue(tot_nis, tot_dof),
+                           n_used, n_gated, n_invalid, fd)
+
+    def frame_diagnostics(self) -> dict[str, FrameDiagnostics]:
+        """Per-frame diagnostics of the current pass, whole span, every sensor."""
+        out = {}
+        for sd in self.problem.sensors:
+            dg = self._diag[sd.name]
+            out[sd.name] = FrameDiagnostics(sd.name, sd.t, np.arange(sd.n), *(dg[k] for k in (
+                "innovation", "S", "nis", "k_norm", "gated", "used", "valid")))
+        return out
+
+    def result(self, cancelled: bool = False) -> FilterResult:
+        """The :class:`FilterResult` (after :meth:`run`; ``cancelled`` for a partial run)."""
+        from gcs_core.filtr.stepping_result import build_result
+        return build_result(self, cancelled)
+
+
+def _pvalue(nis: float, dof: int) -> float:
+    return float(stats.chi2.sf(nis, dof)) if dof > 0 else float("nan")
