@@ -27,11 +27,11 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.filtr.attitude import RPY, AttitudeEval
+from gcs_core.filtr.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval
 from gcs_core.filtr.kalman import GyroNoise, GyroSegment, LinearBlock
 from gcs_core.filtr.problem import Problem, linearize
 from gcs_core.models import common as model_common
-from gcs_core.models.gyro import g_matrix
+from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.sidp.prepare import SensorData
 
 #: filter columns of the attitude error δθ (body axes, rad).
@@ -113,31 +113,45 @@ def make_layout(problem: Problem, noise: GyroNoise | None) -> Layout:
                   np.array([pnames.index(n) for n in gyro], int), gs)
 
 
+#: gyro parameters in the order of ``GyroAttitude.param_names`` that :func:`gyro_rates` knows.
+_KNOWN_GYRO = G_NAMES + ("bias_x", "bias_y", "bias_z") + model_common.ALIGN_NAMES + BIAS_RATE_NAMES
+
+
 def gyro_rates(att, values: Mapping[str, float], k0: int, k1: int):
     """Corrected rates of gyro rows ``k0..k1−1`` and their partials (Eq 4-32 inverted).
 
-    ``ω = Mᵀ (G⁻¹ y − b)``; returns ω (K, 3), ``∂ω/∂p`` (K, 3, 15) over
-    ``att.param_names``, ``W_y = Mᵀ G⁻¹`` and ``W_b = −Mᵀ`` (the same expressions as
-    :class:`~gcs_core.filtr.attitude.GyroAttitude`, restricted to a window of rows).
+    ``ω = Mᵀ (G⁻¹ y − b − ḃ τ)`` (τ: time from the middle of the span; ḃ the optional bias
+    rate); returns ω (K, 3), ``∂ω/∂p`` (K, 3, P) over ``att.param_names``, ``W_y = Mᵀ G⁻¹``
+    and ``W_b = −Mᵀ``. These are the expressions of
+    :class:`~gcs_core.filtr.attitude.GyroAttitude` restricted to a window of rows; if the
+    provider has parameters this function does not know, its own (whole-span) rates are
+    sliced instead.
     """
-    p = {n.split(".", 1)[1]: values[n] for n in att.param_names}
+    names = tuple(n.split(".", 1)[1] for n in att.param_names)
+    p = {n: values.get(f"{att.gyro}.{n}", 0.0) for n in _KNOWN_GYRO}
     G = g_matrix(p)
     Ginv = np.linalg.inv(G)
     M, dM = model_common.alignment_matrix(p)
+    if names != _KNOWN_GYRO[:len(names)]:
+        omega, W = att._rates(values)
+        return omega[k0:k1], W[k0:k1], M.T @ Ginv, -M.T
     b = np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
+    bdot = np.array([p[n] for n in BIAS_RATE_NAMES])
+    tau = att.knots[k0 + 1:k1 + 1] - 0.5 * (att.knots[0] + att.knots[-1])
     y = att.y[k0:k1]
     Gy = y @ Ginv.T                                           # G⁻¹ y
-    u = Gy - b
-    omega = u @ M                                             # Mᵀ (G⁻¹ y − b)
+    u = Gy - b - tau[:, None] * bdot
+    omega = u @ M                                             # Mᵀ (G⁻¹ y − b − ḃ τ)
     MtGinv = M.T @ Ginv
-    W = np.empty((y.shape[0], 3, 15))
+    W = np.empty((y.shape[0], 3, len(_KNOWN_GYRO)))
     for a in range(3):
         for c in range(3):
             W[:, :, 3 * a + c] = -MtGinv[:, a][None, :] * Gy[:, c:c + 1]   # ∂ω/∂G_ac
     W[:, :, 9:12] = -M.T[None, :, :]
     for k in range(3):
         W[:, :, 12 + k] = u @ dM[k]
-    return omega, W, MtGinv, -M.T
+    W[:, :, 15:18] = -M.T[None, :, :] * tau[:, None, None]
+    return omega, W[:, :, :len(names)], MtGinv, -M.T
 
 
 class NominalAttitude:

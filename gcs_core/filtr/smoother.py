@@ -146,9 +146,10 @@ class SmoothedStates:
 
 
 def rts_smooth(store: EpochStore, s_star: np.ndarray, P_ss: np.ndarray, gs_pos: np.ndarray, *,
-               chunk: int = 8192) -> SmoothedStates:
-    """RTS over the dynamic states conditioned on ``s = s*`` (module docstring)."""
-    N = store.n
+               n: int | None = None, chunk: int = 8192) -> SmoothedStates:
+    """RTS over the dynamic states conditioned on ``s = s*`` (module docstring); the first
+    ``n`` epochs of the store (all by default)."""
+    N = store.n if n is None else int(n)
     d = store.fields["c"][2][0]
     ns = s_star.size
     s_gs = s_star[gs_pos]
@@ -206,7 +207,7 @@ def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
 def trajectory(store: EpochStore, sm: SmoothedStates, nb: int,
                bias_names: tuple[str, ...] = ()) -> SmoothedTrajectory:
     """Smoothed quaternions ``q = q(δθ) ⊗ q_nominal`` (``C = exp(−[δθ×]) C_nom``) and biases."""
-    N = store.n
+    N = sm.x.shape[0]
     t, q = np.empty(N), np.empty((N, 4))
     bias = np.empty((N, nb)) if nb else None
     for k0 in range(0, N, 65536):
@@ -236,10 +237,11 @@ def smoothed_residuals(problem, traj: SmoothedTrajectory, frame_epoch: Mapping[s
     out = {}
     for sd in problem.sensors:
         ep = frame_epoch[sd.name]
-        geom = replace(sd.geom, C_BI=traj.C_BI(ep), omega_B=omega_at(sd.t))
+        reached = (ep >= 0) & (ep < traj.t.size)               # frames the filter processed
+        geom = replace(sd.geom, C_BI=traj.C_BI(np.where(reached, ep, 0)), omega_B=omega_at(sd.t))
         pred = sd.model.predict(geom, problem.params_of(sd.name, values))
         r = sd.model.residual(sd.y, pred.y)
-        valid = np.asarray(pred.valid, bool) & np.all(np.isfinite(r), axis=1)
+        valid = np.asarray(pred.valid, bool) & np.all(np.isfinite(r), axis=1) & reached
         ed = np.asarray(edited.get(sd.name, np.zeros(sd.n, bool)), bool) & valid
         r = np.where(valid[:, None], r, np.nan)
         out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t,

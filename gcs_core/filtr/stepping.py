@@ -369,7 +369,8 @@ class Filtr:
             self._smooth = (sm, traj, s_star)
             starts = self._offsets[:-1]
             ref = {"C": traj.C_BI(starts), "bias": None if traj.bias is None else traj.bias[starts]}
-            cur = np.concatenate([dcm_to_rotvec(traj.C_BI(0) @ self._C0.T), sm.x[0, 3:], s_star])
+            cur = np.concatenate([dcm_to_rotvec(traj.C_BI(0) @ self._C0.T),
+                                  traj.bias[0] if lay.nb else [], s_star])
             sig = np.concatenate([sm.sigma[0], np.sqrt(np.diag(self._P))[lay.d:]])
         else:
             ref = {}
@@ -543,9 +544,61 @@ class Filtr:
         return out
 
     def result(self, cancelled: bool = False) -> FilterResult:
-        """The :class:`FilterResult` (after :meth:`run`; ``cancelled`` for a partial run)."""
-        from gcs_core.filtr.stepping_result import build_result
-        return build_result(self, cancelled)
+        """The :class:`FilterResult` (after :meth:`run`; ``cancelled``: what was processed)."""
+        if not (self._done or cancelled):
+            raise EstimationError("the filter has not finished: call run() (or step() to the end)")
+        lay, prob = self._layout, self.problem
+        diag = self.frame_diagnostics()
+        edited = {n: f.gated | np.asarray(self._pre_edited().get(n, np.zeros(f.t.size, bool)), bool)
+                  for n, f in diag.items()}
+        x, P, traj = np.array([self._vals[e] for e in lay.elements]), self._P, None
+        if self._gyro:
+            if self._done:
+                sm, traj, s_star = self._smooth
+            else:
+                n_ep = int(self._offsets[self._block])
+                s_star = x[lay.d:]
+                sm = rts_smooth(self._store, s_star, P[lay.d:, lay.d:], lay.gs_pos, n=n_ep) \
+                    if n_ep else None
+                traj = trajectory(self._store, sm, lay.nb, lay.elements[3:lay.d]) if n_ep else None
+            if traj is not None:
+                att = prob.attitude
+                rpy = att.ref.rpy_from_dcm(traj.C_BI(0), att.t_ref)
+                x = np.concatenate([rpy, traj.bias[0] if lay.nb else [], s_star])
+                Pss = P[lay.d:, lay.d:]
+                cross = sm.Gamma0 @ Pss                         # cov(d_0, s) = Γ_0 P_ss
+                P = np.block([[sm.P0, cross], [cross.T, Pss]])
+                T = np.eye(lay.n)
+                T[:3, :3] = np.linalg.inv(rpy_error_jacobian(*rpy))
+                P = T @ P @ T.T
+        values = dict(self._vals)
+        values.update(zip(lay.elements, x))
+        if self._gyro:
+            residuals = self._gyro_residuals(traj, values, diag, edited) if traj is not None else {}
+        else:
+            residuals = make_residuals(prob, linearize(prob, values, lay.elements), edited)
+        perm = [lay.elements.index(n) for n in prob.state.solve_for]
+        used = [(f.nis[f.used], f.innovation.shape[1] * int(f.used.sum())) for f in diag.values()]
+        nis, dof = float(sum(np.sum(a) for a, _ in used)), int(sum(k for _, k in used))
+        status = "cancelled" if not self._done else self._status
+        msg = f"{self._pass + 1} pass(es), {status}"
+        if prob.state.consider:
+            msg += "; consider elements held at their values: " + ", ".join(prob.state.consider)
+        return FilterResult(prob.state.with_values(values), tuple(prob.state.solve_for), x[perm],
+                            0.5 * (P + P.T)[np.ix_(perm, perm)], residuals, traj, diag,
+                            tuple(self.blocks), self._pass + 1, status, msg, nis, dof,
+                            _pvalue(nis, dof))
+
+    def _gyro_residuals(self, traj, values, diag, edited):
+        att = self.problem.attitude
+        omega, *_ = gyro_rates(att, values, 0, att.y.shape[0])
+        K = omega.shape[0]
+
+        def omega_at(t):
+            return omega[np.clip(np.searchsorted(att.knots, t, side="left"), 1, K) - 1]
+
+        epochs = {n: self._diag[n]["epoch"] for n in diag}
+        return smoothed_residuals(self.problem, traj, epochs, values, omega_at, edited)
 
 
 def _pvalue(nis: float, dof: int) -> float:
