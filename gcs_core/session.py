@@ -161,13 +161,18 @@ class Analysis:
             out[sd.name] = (block % every) == (every - 1)
         return out
 
-    def fit(self, *, holdout: bool = True) -> BatchResult:
-        """Fit the current state; with ``holdout`` also score the held-out span."""
+    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> BatchResult:
+        """Fit the current state; with ``holdout`` also score the held-out span.
+
+        ``initial`` warm-starts the iterations (e.g. from the previous step's solution);
+        the a priori stays at the configured values.
+        """
+        res = batch_fit(self.problem, self.batch_options(), initial=initial)
         masks = self.holdout_masks() if holdout else {}
         if masks:
-            res_train = batch_fit(self.problem, self.batch_options(), edited=masks)
-            self.holdout_rms = _holdout_rms(res_train, masks)
-        res = batch_fit(self.problem, self.batch_options())
+            res_train = batch_fit(self.problem, self.batch_options(), edited=masks,
+                                  initial=res.state.values())
+            self.holdout_rms = _holdout_rms(self.problem, res_train, masks)
         self.result = res
         self.candidates = []
         return res
@@ -210,10 +215,9 @@ class Analysis:
         chi_before = self.result.chi2
         prev_values = self.result.state.values()
         self._set_effect(effect_id, on)
-        # warm start from the previous solution (attitude and common elements)
+        # warm start from the previous solution; the a priori stays the configured one
         warm = {k: v for k, v in prev_values.items() if k in self.problem.state}
-        self.problem = self.problem.with_state(self.problem.state.with_values(warm))
-        res = self.fit()
+        res = self.fit(initial=warm)
         est = {}
         e = {x.id: x for x in self.catalogue()}.get(effect_id)
         if e is not None:
@@ -310,15 +314,26 @@ class Analysis:
         }
 
 
-def _holdout_rms(res: BatchResult, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+def _holdout_rms(problem: Problem, res: BatchResult, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """Normalized RMS of the held-out frames, each residual standardized by its full
+    prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
+    training fit carried to that frame), so 1.0 is the expected value for a right model."""
+    from gcs_core.filtr.problem import linearize
+
+    lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
     out = {}
     for name, r in res.residuals.items():
         m = masks.get(name)
-        if m is None:
+        lin = lins.get(name)
+        if m is None or lin is None:
             continue
-        sel = m & r.valid & (np.abs(np.nan_to_num(r.normalized)) < 1e6).all(axis=1)
-        z = r.normalized[sel]
-        out[name] = float(np.sqrt(np.mean(z ** 2))) if z.size else float("nan")
+        sel = m & r.valid & ~r.edited
+        if not np.any(sel):
+            continue
+        H = lin.H[sel]
+        var_pred = np.einsum("kmn,np,kmp->km", H, res.P, H, optimize=True)
+        z = r.residual[sel] / np.sqrt(lin.sigma[None, :] ** 2 + var_pred)
+        out[name] = float(np.sqrt(np.mean(z ** 2)))
     return out
 
 

@@ -197,7 +197,12 @@ class GcsApp(App):
             parts.append(f"fit {res.status}, χ²/dof {red:.3f}")
             if wb.stale:
                 parts.append("config changed — f refits")
-        added = [s.effect for s in wb.analysis.steps if s.action == "add"]
+        added: list[str] = []
+        for step in wb.analysis.steps:
+            if step.action == "add":
+                added.append(step.effect)
+            elif step.action == "remove" and step.effect in added:
+                added.remove(step.effect)
         if added:
             parts.append(f"added: {', '.join(added)}")
         if self.last_notice:

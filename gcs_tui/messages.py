@@ -52,3 +52,7 @@ class FiltrBlock(Message):
     """FILTR finished one block; ``report`` is the engine's BlockReport."""
 
     report: Any
+
+    def can_replace(self, message: Message) -> bool:
+        # the screen redraws from the workbench: only the latest block matters
+        return isinstance(message, FiltrBlock)

@@ -127,7 +127,8 @@ class Workbench:
         analysis = Analysis(cfg)
         if self.save_path is None:
             self.save_path = cfg.path if cfg.path is not None else Path.cwd() / f"{analysis.mission.name}.toml"
-        self._replace(analysis)
+        self.fitted_config = ""
+        self._replace(analysis, keep_steps=False)          # a new mission: a new history
 
     def _replace(self, analysis: Analysis, *, keep_steps: bool = True) -> None:
         if keep_steps and self.analysis is not None:

@@ -56,15 +56,21 @@ CASES = [
     Case("model.stellar_aberration", 1.0, physics_off="stellar_aberration"),
     Case("model.solar_aberration", 1.0, physics_off="solar_aberration"),
     Case("HS1.d_gamma", math.radians(0.25), kind="spinning", exclude=("HS1.d_gamma",)),
-    Case("HS1.d_phi", math.radians(0.25), kind="spinning", exclude=("HS1.d_phi",)),
+    Case("HS1.d_rho", math.radians(0.05), kind="spinning", exclude=("HS1.d_rho",)),
     Case("PSS1.bias", 2e-3, kind="spinning", exclude=("PSS1.bias",)),
 ]
 
 
 def scenario(kind: str, seed: int, duration_s: float, sweep_deg: float = 0.0):
+    """A nominal scenario; star trackers report at 1 Hz (as real trackers do) so that the
+    held-out quarter has enough samples for its RMS to be known to about 2 %."""
     if kind == "spinning":
         return spinner_nominal(seed=seed)
-    return nominal_threeaxis(kind, seed=seed, duration_s=duration_s, sweep_deg=sweep_deg)
+    cfg = nominal_threeaxis(kind, seed=seed, duration_s=duration_s, sweep_deg=sweep_deg)
+    for s in cfg.sensors:
+        if s.type == "star_tracker":
+            s.cadence_s = 1.0
+    return cfg
 
 
 def simulate(case: Case, seed: int, folder: Path, duration_s: float = ONE_HOUR) -> Path:

@@ -13,7 +13,7 @@ from __future__ import annotations
 import pytest
 
 from gcs_core.sidp import h5store
-from gcs_tui import jobs
+from gcs_tui import filtr_run, jobs
 from gcs_tui.app import GcsApp
 from gcs_tui.keys import VIEWS
 from gcs_tui.testing import sample_mission, settle
@@ -46,7 +46,7 @@ def workbench(tmp_path_factory) -> Workbench:
     jobs.predict(wb)
     jobs.verify(wb)
     if jobs.available("gcs_core.filtr.stepping", "Filtr"):
-        jobs.filtr_advance(wb, None)
+        filtr_run.advance(wb, None)
     return wb
 
 

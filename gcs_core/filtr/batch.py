@@ -224,8 +224,13 @@ def _solve_normal(N: np.ndarray, rhs: np.ndarray):
 
 
 def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
-              edited: Mapping[str, np.ndarray] | None = None) -> BatchResult:
-    """Iterated batch least squares with a priori and k-σ editing (module docstring)."""
+              edited: Mapping[str, np.ndarray] | None = None,
+              initial: Mapping[str, float] | None = None) -> BatchResult:
+    """Iterated batch least squares with a priori and k-σ editing (module docstring).
+
+    ``edited`` pre-flags frames (e.g. a held-out span); ``initial`` starts the iteration
+    from other values than the a priori (a warm start) without moving the prior mean.
+    """
     opts = options or BatchOptions()
     state = problem.state
     names = tuple(state.solve_for)
@@ -237,8 +242,11 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     s0 = np.array([state[nm].sigma0 for nm in names])
     prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     values = state.values()
-    edits = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
+    preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
+    edits = {k: v.copy() for k, v in preflag.items()}
     x = x_bar.copy()
+    if initial:
+        x = np.array([float(initial.get(nm, x_bar[j])) for j, nm in enumerate(names)])
     history: list[float] = []
     status, message = "max_iterations", ""
     it_total = 0
@@ -296,7 +304,8 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         new_edits = {}
         for lin in lins:
             z = np.abs(lin.r / lin.sigma)
-            new_edits[lin.name] = lin.valid & np.any(z > opts.edit_k, axis=1)
+            pre = preflag.get(lin.name, np.zeros(lin.valid.shape, bool))
+            new_edits[lin.name] = pre | (lin.valid & np.any(z > opts.edit_k, axis=1))
         changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
                       for k in new_edits)
         edits = new_edits

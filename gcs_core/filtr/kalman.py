@@ -1,15 +1,10 @@
-"""Kalman-filter core of FILTR (seed §3.2.1, Eq 3-3 and 3-4; gyro transition Eq 4-38).
+"""Linear Kalman-filter core of FILTR (seed §3.2.1, Eq 3-3 and 3-4).
 
-The filter state is ``x = (δθ, b, s)``: ``δθ`` the body attitude-error angles *of the
-current time* (the state elements ``att.roll/pitch/yaw`` are reinterpreted as these, with
-the convention ``C_true = (I − [δθ×]) C`` of :mod:`gcs_core.models.base`), ``b`` the gyro
-drift biases when they random-walk (``rrw > 0``), and ``s`` every static solve-for
-parameter (gyro scale/misalignment, biases when ``rrw = 0``, sensor parameters). The
-dynamic part ``d = (δθ, b)`` has ``d`` = 3 or 6 elements. Between times the filter
-propagates (Eq 3-4)::
+The state is split into a dynamic part ``d`` (the attitude error δθ and random-walking
+gyro biases in the MEKF of :mod:`gcs_core.filtr.mekf`) and a static part ``s`` (Φ = I,
+Q = 0). Between times the filter propagates (Eq 3-4)::
 
     x_k = Φ_k x_{k−1} + w_k,   P_k⁻ = Φ_k P_{k−1} Φ_kᵀ + Q_k                     (Eq 3-4)
-    Φ_θθ = C_k C_{k−1}ᵀ,   Φ_θp = C_k (E_k − E_{k−1}) = W_k Δ_k   (Eq 4-38, attitude.py)
 
 and at a frame with measurement rows ``H`` (noise ``R``, diagonal) it updates (Eq 3-3)::
 
@@ -38,14 +33,13 @@ earlier row), ``NIS_f = |e_f|²``, and ``W = B L⁻ᵀ`` gives the gain ``K_f = 
 The state after the group is ``y_0 + W e``; its covariance is taken in Joseph form for
 the group gain ``K = W L⁻¹`` (a sum of positive semi-definite terms, see
 :func:`_group_end_covariance`). Results equal the textbook frame-by-frame filter to
-round-off (``tests/test_kalman.py``) at several times its speed
+round-off (``tests/test_kalman.py``), faster than a frame-by-frame filter
 (``benchmarks/kalman_vs_filterpy.py``).
 
 References
 ----------
-Lefferts, Markley & Shuster, "Kalman filtering for spacecraft attitude estimation",
-J. Guidance 5(5), 1982 (multiplicative EKF, Farrenkopf noise). Bierman, *Factorization
-Methods for Discrete Sequential Estimation*, Academic Press 1977, §V (Joseph form, why).
+Bierman, *Factorization Methods for Discrete Sequential Estimation*, Academic Press 1977,
+§V (Joseph form, why).
 Kailath, Sayed & Hassibi, *Linear Estimation*, Prentice Hall 2000, §4.1 (innovations
 from the Cholesky factor of the covariance of stacked observations).
 """
@@ -57,10 +51,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
-from gcs_core.frames.rotations import quat_to_dcm
-
 __all__ = ["LinearBlock", "BlockSolution", "solve_block", "referred_transitions",
-           "group_partition", "GyroNoise", "GyroSegment", "farrenkopf_q"]
+           "group_partition"]
 
 
 @dataclass(frozen=True)
@@ -204,10 +196,13 @@ class _Raw:
         for mm in {p[1] for p in self.parts}:
             parts = [p for p in self.parts if p[1] == mm]
             fr = np.concatenate([p[0] for p in parts])
-            L[fr, :mm, :mm] = np.concatenate([p[2] for p in parts])
-            e[fr, :mm] = np.concatenate([p[3] for p in parts])
-            Li[fr, :mm, :mm] = np.concatenate([p[4] for p in parts])
-            W[fr, :, :mm] = np.swapaxes(np.concatenate([p[5] for p in parts], axis=1), 0, 1)
+            # a group re-run after a gated frame gathers later frames again: keep the last
+            last = fr.size - 1 - np.unique(fr[::-1], return_index=True)[1]
+            fr = fr[last]
+            L[fr, :mm, :mm] = np.concatenate([p[2] for p in parts])[last]
+            e[fr, :mm] = np.concatenate([p[3] for p in parts])[last]
+            Li[fr, :mm, :mm] = np.concatenate([p[4] for p in parts])[last]
+            W[fr, :, :mm] = np.swapaxes(np.concatenate([p[5] for p in parts], axis=1), 0, 1)[last]
         return L, Li, e, W
 
     def finish(self, blk: LinearBlock, gated: np.ndarray):
@@ -415,137 +410,6 @@ def _cholesky_and_inverse(S: np.ndarray):
     if info != 0:
         raise np.linalg.LinAlgError("singular Cholesky factor")
     return L, Li
-
-
-@dataclass(frozen=True)
-class GyroNoise:
-    """Gyro noise of the data book (ICD §5 ``gyro``), Farrenkopf's model.
-
-    Attributes
-    ----------
-    sigma_v : angle random walk σ_v [rad/s^0.5] (``arw``).
-    sigma_u : rate random walk σ_u [rad/s^1.5] (``rrw``); the bias random-walks iff > 0.
-    sigma_e : electronic (angle read-out) noise σ_e [rad] (``electronic``).
-    """
-
-    sigma_v: float = 0.0
-    sigma_u: float = 0.0
-    sigma_e: float = 0.0
-
-
-def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray | None
-                 ) -> np.ndarray:
-    """Process noise of one gyro step (Eq 4-38 noise matrix, Farrenkopf 1978).
-
-    Over a step ``Δt`` the attitude error gathers the rate noise and the integral of the
-    bias walk; the bias gathers the walk::
-
-        Q_θθ = σ_v² Δt W_y W_yᵀ + σ_u² Δt³/3 W_b W_bᵀ,   Q_θb = σ_u² Δt²/2 W_b,   Q_bb = σ_u² Δt I
-
-    with ``W_y = ∂ω/∂y = Mᵀ G⁻¹`` and ``W_b = ∂ω/∂b = −Mᵀ`` (Eq 4-32 inverted). The
-    read-out noise σ_e does not accumulate (the integrated angle telescopes), so it is not
-    in Q: it reaches the measurements as a white attitude error (:class:`LinearBlock`).
-
-    Parameters: dt (K,) [s]; Wy (3, 3); Wb (3, nb) or None (bias not in the state).
-    Returns (K, d, d), d = 3 + nb.
-    """
-    dt = np.asarray(dt, float)[:, None, None]
-    nb = 0 if Wb is None else Wb.shape[1]
-    Q = np.zeros((dt.shape[0], 3 + nb, 3 + nb))
-    v2, u2 = noise.sigma_v ** 2, noise.sigma_u ** 2
-    WbWb = (Wb @ Wb.T) if nb else np.eye(3)          # W_b = −Mᵀ is orthogonal
-    Q[:, :3, :3] = v2 * dt * (Wy @ Wy.T) + u2 * dt ** 3 / 3.0 * WbWb
-    if nb:
-        Q[:, :3, 3:] = u2 * dt ** 2 / 2.0 * Wb
-        Q[:, 3:, :3] = np.swapaxes(Q[:, :3, 3:], 1, 2)
-        Q[:, 3:, 3:] = u2 * dt * np.eye(nb)
-    return Q
-
-
-def step_quaternions(omega: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    """Quaternions of the frame rotation ``exp(−[ω Δt ×])`` of each step (Eq 4-38a), (K, 4)."""
-    phi = omega * np.asarray(dt, float)[:, None]
-    ang = np.linalg.norm(phi, axis=-1)
-    small = ang < 1e-12
-    k = np.where(small, 0.5 - ang ** 2 / 48.0, np.sin(0.5 * ang) / np.where(small, 1.0, ang))
-    return np.column_stack([phi * k[:, None], np.cos(0.5 * ang)])
-
-
-def cumulative_rotations(R: np.ndarray) -> np.ndarray:
-    """``R_k ⋯ R_1`` for every k (K, 3, 3) by a parallel prefix (ceil(log2 K) matmul passes)."""
-    C = np.array(R, float)
-    d = 1
-    while d < C.shape[0]:
-        C[d:] = C[d:] @ C[:-d]
-        d *= 2
-    return C
-
-
-class GyroSegment:
-    """Nominal attitude carried by the gyros over one block, and its error transitions.
-
-    The nominal starts at ``C_0`` at ``τ_0`` and turns with the corrected rates ``ω_k``
-    of the intervals ``(τ_{k−1}, τ_k]`` (Eq 4-38). For the error state ``(δθ, p)``::
-
-        Ψ_θ·(t) = [C(t) C_0ᵀ,  C(t) E(t)],   E(t) = Σ_{steps} Cᵀ W Δ       (attitude.py)
-        Π(t) = Σ_{steps} Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ,   Ψ_dd⁻¹ = [[C_0 Cᵀ, −C_0 E_b], [0, I]]
-
-    Parameters
-    ----------
-    knots : (K+1,) times τ_0..τ_K [s].
-    omega : (K, 3) corrected body rate of each interval [rad/s].
-    Wg : (K, 3, ng) ``∂ω/∂p`` for the gyro parameters in the filter state, the nb
-        random-walking biases first.
-    C0 : (3, 3) nominal attitude at τ_0.
-    noise, Wy, Wb : for :func:`farrenkopf_q` (Wb None when no bias random-walks).
-    """
-
-    def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb):
-        self.knots = np.asarray(knots, float)
-        self.dt = np.diff(self.knots)
-        self.omega, self.Wg, self.C0 = np.asarray(omega, float), np.asarray(Wg, float), C0
-        self.noise, self.Wy, self.Wb = noise, Wy, Wb
-        self.nb = 0 if Wb is None else Wb.shape[1]
-        steps = cumulative_rotations(quat_to_dcm(step_quaternions(self.omega, self.dt)))
-        self.C = np.concatenate([C0[None], steps @ C0])                 # (K+1, 3, 3)
-        # E_k = Σ_{j≤k} C_jᵀ W_j Δ_j
-        incr = np.swapaxes(self.C[1:], 1, 2) @ self.Wg * self.dt[:, None, None]
-        self.E = np.concatenate([np.zeros((1, 3, self.Wg.shape[2])), np.cumsum(incr, axis=0)])
-        dPi = self._referred(self.C[1:], self.E[1:], farrenkopf_q(self.dt, noise, Wy, Wb))
-        d = 3 + self.nb
-        self.Pi = np.concatenate([np.zeros((1, d, d)), np.cumsum(dPi, axis=0)])
-
-    def _referred(self, C, E, Q):
-        """``Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ`` at the given states (process noise referred to τ_0)."""
-        nb = self.nb
-        T = np.zeros((C.shape[0], 3 + nb, 3 + nb))
-        T[:, :3, :3] = self.C0 @ np.swapaxes(C, 1, 2)
-        if nb:
-            T[:, :3, 3:] = -self.C0 @ E[:, :, :nb]
-            T[:, 3:, 3:] = np.eye(nb)
-        out = T @ Q @ np.swapaxes(T, 1, 2)
-        return 0.5 * (out + np.swapaxes(out, 1, 2))
-
-    def at_knots(self):
-        """``(C C_0ᵀ, C E, Π)`` at the knots τ_0..τ_K (as :meth:`at`, without re-propagating)."""
-        return self.C @ self.C0.T, self.C @ self.E, self.Pi
-
-    def at(self, t):
-        """Nominal ``C`` (N, 3, 3), rate ω (N, 3), ``Ψ_θ·`` as ``(C C_0ᵀ, C E)`` and Π (N, d, d)."""
-        t = np.atleast_1d(np.asarray(t, float))
-        K = self.dt.size
-        k = np.clip(np.searchsorted(self.knots, t, side="left"), 1, max(K, 1))
-        s = t - self.knots[k - 1]
-        if K == 0:
-            N = t.size
-            return (np.broadcast_to(self.C0, (N, 3, 3)), np.zeros((N, 3)),
-                    np.broadcast_to(np.eye(3), (N, 3, 3)), np.zeros((N, 3, self.Wg.shape[2])),
-                    np.zeros((N, 3 + self.nb, 3 + self.nb)))
-        w = self.omega[k - 1]
-        C = quat_to_dcm(step_quaternions(w, s)) @ self.C[k - 1]
-        E = self.E[k - 1] + np.swapaxes(C, 1, 2) @ self.Wg[k - 1] * s[:, None, None]
-        Pi = self.Pi[k - 1] + self._referred(C, E, farrenkopf_q(s, self.noise, self.Wy, self.Wb))
-        return C, w, C @ self.C0.T, C @ E, Pi
 
 
 def referred_transitions(Phi_dd: np.ndarray, Phi_ds: np.ndarray, Q: np.ndarray):

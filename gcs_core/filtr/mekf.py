@@ -1,22 +1,37 @@
-"""Filter blocks from a calibration :class:`~gcs_core.filtr.problem.Problem` (FILTR, seed §3.2.2).
+"""The multiplicative EKF of FILTR: gyro kinematics and filter blocks (Eq 3-3, 3-4, 4-38).
 
 Two kinds of problem, one block format (:class:`~gcs_core.filtr.kalman.LinearBlock`):
 
 * **With a gyro** (``problem.gyro_name`` set, ``problem.attitude`` a GyroAttitude): the
   multiplicative EKF. The filter state is laid out ``(δθ, b, s)`` (:class:`Layout`): the
   three ``att.roll/pitch/yaw`` elements are *reinterpreted* as the body attitude-error
-  angles δθ of the current time (columns ``kf.dtheta_x/y/z``), ``b`` are the gyro biases
-  that random-walk (``rrw > 0``), ``s`` every other solve-for element (static). Each block
-  propagates a nominal attitude with the gyro-corrected rates (Eq 4-32 inverted,
-  Eq 4-38) from the block-start attitude, evaluates every sensor's predictions and
-  partials *vectorized* over the block at that nominal (through :func:`linearize`, the
-  nominal attitude being its attitude provider), and hands the rows ``A = H Ψ(t)`` to
-  the core, which then does exact frame-by-frame linear updates with the accumulated
-  error state. The next block re-linearizes at the updated estimate (the reset).
+  angles δθ **of the current time** (columns ``kf.dtheta_x/y/z``, convention
+  ``C_true = (I − [δθ×]) C`` of :mod:`gcs_core.models.base`), ``b`` are the gyro biases
+  that random-walk (``rrw > 0``), ``s`` every other solve-for element (static: gyro
+  scale/misalignment, biases when ``rrw = 0``, sensor parameters). Each block propagates
+  a nominal attitude with the gyro-corrected rates (Eq 4-32 inverted, Eq 4-38) from the
+  block-start attitude (:class:`GyroSegment`), with the error transition of
+  :mod:`gcs_core.filtr.attitude`::
+
+      Φ_θθ = C_k C_{k−1}ᵀ,   Φ_θp = C_k (E_k − E_{k−1}) = W_k Δ_k,   Φ_bb = I      (Eq 4-38)
+
+  and Farrenkopf's process noise (:func:`farrenkopf_q`). Every sensor's predictions and
+  partials are evaluated *vectorized* over the block at that nominal (through
+  :func:`~gcs_core.filtr.problem.linearize`, the nominal being its attitude provider);
+  the core then makes exact frame-by-frame linear updates with the accumulated error
+  state (rows ``A = H Ψ(t)``), and the next block re-linearizes at the updated estimate
+  (the reset).
 * **Without a gyro** (reference-pointing or spinning): the state is the solve-for
   elements themselves, static (Q = 0): recursive least squares over blocks.
 
 Both use the residual ``r = y − h(nominal)`` as the measurement of the error state.
+
+References
+----------
+Lefferts, Markley & Shuster, "Kalman filtering for spacecraft attitude estimation",
+J. Guidance 5(5), 1982 (multiplicative EKF). Farrenkopf, "Analytic steady-state accuracy
+solutions for two common spacecraft attitude estimators", J. Guidance & Control 1(4),
+1978 (σ_v, σ_u noise model).
 """
 
 from __future__ import annotations
@@ -28,14 +43,146 @@ import numpy as np
 
 from gcs_core.errors import EstimationError
 from gcs_core.filtr.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval
-from gcs_core.filtr.kalman import GyroNoise, GyroSegment, LinearBlock
+from gcs_core.filtr.kalman import LinearBlock
 from gcs_core.filtr.problem import Problem, linearize
+from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.sidp.prepare import SensorData
 
 #: filter columns of the attitude error δθ (body axes, rad).
 DTH = ("kf.dtheta_x", "kf.dtheta_y", "kf.dtheta_z")
+
+
+@dataclass(frozen=True)
+class GyroNoise:
+    """Gyro noise of the data book (ICD §5 ``gyro``), Farrenkopf's model.
+
+    Attributes
+    ----------
+    sigma_v : angle random walk σ_v [rad/s^0.5] (``arw``).
+    sigma_u : rate random walk σ_u [rad/s^1.5] (``rrw``); the bias random-walks iff > 0.
+    sigma_e : electronic (angle read-out) noise σ_e [rad] (``electronic``).
+    """
+
+    sigma_v: float = 0.0
+    sigma_u: float = 0.0
+    sigma_e: float = 0.0
+
+
+def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray | None
+                 ) -> np.ndarray:
+    """Process noise of one gyro step (Eq 4-38 noise matrix, Farrenkopf 1978).
+
+    Over a step ``Δt`` the attitude error gathers the rate noise and the integral of the
+    bias walk; the bias gathers the walk::
+
+        Q_θθ = σ_v² Δt W_y W_yᵀ + σ_u² Δt³/3 W_b W_bᵀ,   Q_θb = σ_u² Δt²/2 W_b,   Q_bb = σ_u² Δt I
+
+    with ``W_y = ∂ω/∂y = Mᵀ G⁻¹`` and ``W_b = ∂ω/∂b = −Mᵀ`` (Eq 4-32 inverted). The
+    read-out noise σ_e does not accumulate (the integrated angle telescopes), so it is not
+    in Q: it reaches the measurements as a white attitude error (:class:`LinearBlock`).
+
+    Parameters: dt (K,) [s]; Wy (3, 3); Wb (3, nb) or None (bias not in the state).
+    Returns (K, d, d), d = 3 + nb.
+    """
+    dt = np.asarray(dt, float)[:, None, None]
+    nb = 0 if Wb is None else Wb.shape[1]
+    Q = np.zeros((dt.shape[0], 3 + nb, 3 + nb))
+    v2, u2 = noise.sigma_v ** 2, noise.sigma_u ** 2
+    WbWb = (Wb @ Wb.T) if nb else np.eye(3)          # W_b = −Mᵀ is orthogonal
+    Q[:, :3, :3] = v2 * dt * (Wy @ Wy.T) + u2 * dt ** 3 / 3.0 * WbWb
+    if nb:
+        Q[:, :3, 3:] = u2 * dt ** 2 / 2.0 * Wb
+        Q[:, 3:, :3] = np.swapaxes(Q[:, :3, 3:], 1, 2)
+        Q[:, 3:, 3:] = u2 * dt * np.eye(nb)
+    return Q
+
+
+def step_quaternions(omega: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    """Quaternions of the frame rotation ``exp(−[ω Δt ×])`` of each step (Eq 4-38a), (K, 4)."""
+    phi = omega * np.asarray(dt, float)[:, None]
+    ang = np.linalg.norm(phi, axis=-1)
+    small = ang < 1e-12
+    k = np.where(small, 0.5 - ang ** 2 / 48.0, np.sin(0.5 * ang) / np.where(small, 1.0, ang))
+    return np.column_stack([phi * k[:, None], np.cos(0.5 * ang)])
+
+
+def cumulative_rotations(R: np.ndarray) -> np.ndarray:
+    """``R_k ⋯ R_1`` for every k (K, 3, 3) by a parallel prefix (ceil(log2 K) matmul passes)."""
+    C = np.array(R, float)
+    d = 1
+    while d < C.shape[0]:
+        C[d:] = C[d:] @ C[:-d]
+        d *= 2
+    return C
+
+
+class GyroSegment:
+    """Nominal attitude carried by the gyros over one block, and its error transitions.
+
+    The nominal starts at ``C_0`` at ``τ_0`` and turns with the corrected rates ``ω_k``
+    of the intervals ``(τ_{k−1}, τ_k]`` (Eq 4-38). For the error state ``(δθ, p)``::
+
+        Ψ_θ·(t) = [C(t) C_0ᵀ,  C(t) E(t)],   E(t) = Σ_{steps} Cᵀ W Δ       (attitude.py)
+        Π(t) = Σ_{steps} Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ,   Ψ_dd⁻¹ = [[C_0 Cᵀ, −C_0 E_b], [0, I]]
+
+    Parameters
+    ----------
+    knots : (K+1,) times τ_0..τ_K [s].
+    omega : (K, 3) corrected body rate of each interval [rad/s].
+    Wg : (K, 3, ng) ``∂ω/∂p`` for the gyro parameters in the filter state, the nb
+        random-walking biases first.
+    C0 : (3, 3) nominal attitude at τ_0.
+    noise, Wy, Wb : for :func:`farrenkopf_q` (Wb None when no bias random-walks).
+    """
+
+    def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb):
+        self.knots = np.asarray(knots, float)
+        self.dt = np.diff(self.knots)
+        self.omega, self.Wg, self.C0 = np.asarray(omega, float), np.asarray(Wg, float), C0
+        self.noise, self.Wy, self.Wb = noise, Wy, Wb
+        self.nb = 0 if Wb is None else Wb.shape[1]
+        steps = cumulative_rotations(quat_to_dcm(step_quaternions(self.omega, self.dt)))
+        self.C = np.concatenate([C0[None], steps @ C0])                 # (K+1, 3, 3)
+        # E_k = Σ_{j≤k} C_jᵀ W_j Δ_j
+        incr = np.swapaxes(self.C[1:], 1, 2) @ self.Wg * self.dt[:, None, None]
+        self.E = np.concatenate([np.zeros((1, 3, self.Wg.shape[2])), np.cumsum(incr, axis=0)])
+        dPi = self._referred(self.C[1:], self.E[1:], farrenkopf_q(self.dt, noise, Wy, Wb))
+        d = 3 + self.nb
+        self.Pi = np.concatenate([np.zeros((1, d, d)), np.cumsum(dPi, axis=0)])
+
+    def _referred(self, C, E, Q):
+        """``Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ`` at the given states (process noise referred to τ_0)."""
+        nb = self.nb
+        T = np.zeros((C.shape[0], 3 + nb, 3 + nb))
+        T[:, :3, :3] = self.C0 @ np.swapaxes(C, 1, 2)
+        if nb:
+            T[:, :3, 3:] = -self.C0 @ E[:, :, :nb]
+            T[:, 3:, 3:] = np.eye(nb)
+        out = T @ Q @ np.swapaxes(T, 1, 2)
+        return 0.5 * (out + np.swapaxes(out, 1, 2))
+
+    def at_knots(self):
+        """``(C C_0ᵀ, C E, Π)`` at the knots τ_0..τ_K (as :meth:`at`, without re-propagating)."""
+        return self.C @ self.C0.T, self.C @ self.E, self.Pi
+
+    def at(self, t):
+        """Nominal ``C`` (N, 3, 3), rate ω (N, 3), ``Ψ_θ·`` as ``(C C_0ᵀ, C E)`` and Π (N, d, d)."""
+        t = np.atleast_1d(np.asarray(t, float))
+        K = self.dt.size
+        k = np.clip(np.searchsorted(self.knots, t, side="left"), 1, max(K, 1))
+        s = t - self.knots[k - 1]
+        if K == 0:
+            N = t.size
+            return (np.broadcast_to(self.C0, (N, 3, 3)), np.zeros((N, 3)),
+                    np.broadcast_to(np.eye(3), (N, 3, 3)), np.zeros((N, 3, self.Wg.shape[2])),
+                    np.zeros((N, 3 + self.nb, 3 + self.nb)))
+        w = self.omega[k - 1]
+        C = quat_to_dcm(step_quaternions(w, s)) @ self.C[k - 1]
+        E = self.E[k - 1] + np.swapaxes(C, 1, 2) @ self.Wg[k - 1] * s[:, None, None]
+        Pi = self.Pi[k - 1] + self._referred(C, E, farrenkopf_q(s, self.noise, self.Wy, self.Wb))
+        return C, w, C @ self.C0.T, C @ E, Pi
 
 
 @dataclass(frozen=True)

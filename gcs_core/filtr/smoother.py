@@ -18,8 +18,9 @@ The smoothed mean is linear in ``s*`` with sensitivity ``Γ_k`` (same recursion,
 at ``B_N``), so the covariance without conditioning is ``P̂_k + Γ_k P_ss Γ_kᵀ``.
 
 The per-epoch records live in an :class:`EpochStore`: in memory below a size limit, else
-in a temporary ``numpy.memmap`` file (a week of 1 Hz data is ~2 GB of records); the
-smoother reads them back in chunks, so memory stays bounded.
+in a temporary file written and read through ``numpy.memmap`` a slab at a time (a week
+of 1 Hz data is ~1.2 GB of records); the smoother reads them back in chunks, so memory
+stays bounded.
 
 References
 ----------
@@ -38,8 +39,9 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.filtr.batch import SensorResiduals
-from gcs_core.filtr.kalman import step_quaternions
-from gcs_core.frames.rotations import quat_multiply, quat_normalize, quat_to_dcm
+from gcs_core.filtr.mekf import gyro_rates, sensor_window, step_quaternions
+from gcs_core.frames.rotations import (dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize,
+                                       quat_to_dcm)
 
 log = logging.getLogger(__name__)
 
@@ -71,33 +73,43 @@ class EpochStore:
         self._file = None
         if self.nbytes > limit_bytes:
             self._file = tempfile.TemporaryFile(prefix="gcs-smoother-")
-            self.data = np.memmap(self._file, dtype=np.float64, mode="w+",
-                                  shape=(max(self.n, 1), self.width))
+            self._file.truncate(self.nbytes)
+            self.data = None
             log.info("smoother records: %.0f MB in a temporary file", self.nbytes / 1e6)
         else:
             self.data = np.zeros((max(self.n, 1), self.width))
 
     @property
     def spilled(self) -> bool:
-        """True when the records are in a memory-mapped temporary file."""
+        """True when the records are in a temporary file (mapped a slab at a time)."""
         return self._file is not None
+
+    def _slab(self, k0: int, k1: int, mode: str) -> np.ndarray:
+        if self._file is None:
+            return self.data[k0:k1]
+        # map only the rows in use: the process keeps no pages of the file once unmapped
+        return np.memmap(self._file, dtype=np.float64, mode=mode, offset=k0 * self.width * 8,
+                         shape=(k1 - k0, self.width))
 
     def write(self, k0: int, **arrays) -> None:
         """Write records of epochs ``k0..k0+G−1``; each array has leading dimension G."""
+        G = next(iter(arrays.values())).shape[0]
+        slab = self._slab(k0, k0 + G, "r+")
         for name, a in arrays.items():
             off, size, _ = self.fields[name]
-            a = np.asarray(a, float)
-            self.data[k0:k0 + a.shape[0], off:off + size] = a.reshape(a.shape[0], size)
+            slab[:, off:off + size] = np.asarray(a, float).reshape(G, size)
+        if self._file is not None:
+            slab.flush()
+            del slab
 
     def read(self, k0: int, k1: int) -> dict[str, np.ndarray]:
         """Records of epochs ``k0..k1−1`` as arrays ``(k1−k0, *shape)`` (copies)."""
-        slab = np.array(self.data[k0:k1])
+        slab = np.array(self._slab(k0, k1, "r"))
         return {name: slab[:, off:off + size].reshape((k1 - k0,) + shp)
                 for name, (off, size, shp) in self.fields.items()}
 
     def close(self) -> None:
         if self._file is not None:
-            del self.data
             self._file.close()
             self._file = None
 
@@ -210,8 +222,8 @@ def trajectory(store: EpochStore, sm: SmoothedStates, nb: int,
     N = sm.x.shape[0]
     t, q = np.empty(N), np.empty((N, 4))
     bias = np.empty((N, nb)) if nb else None
-    for k0 in range(0, N, 65536):
-        k1 = min(N, k0 + 65536)
+    for k0 in range(0, N, 8192):
+        k1 = min(N, k0 + 8192)
         rec = store.read(k0, k1)
         t[k0:k1] = rec["t"]
         dq = step_quaternions(sm.x[k0:k1, :3], np.ones(k1 - k0))
@@ -223,8 +235,8 @@ def trajectory(store: EpochStore, sm: SmoothedStates, nb: int,
 
 
 def smoothed_residuals(problem, traj: SmoothedTrajectory, frame_epoch: Mapping[str, np.ndarray],
-                       values: Mapping[str, float], omega_at, edited: Mapping[str, np.ndarray]
-                       ) -> dict[str, SensorResiduals]:
+                       values: Mapping[str, float], omega_at, edited: Mapping[str, np.ndarray],
+                       *, chunk: int = 65536) -> dict[str, SensorResiduals]:
     """Post-fit residuals of every sensor at the smoothed attitude and final parameters.
 
     Parameters
@@ -238,13 +250,72 @@ def smoothed_residuals(problem, traj: SmoothedTrajectory, frame_epoch: Mapping[s
     for sd in problem.sensors:
         ep = frame_epoch[sd.name]
         reached = (ep >= 0) & (ep < traj.t.size)               # frames the filter processed
-        geom = replace(sd.geom, C_BI=traj.C_BI(np.where(reached, ep, 0)), omega_B=omega_at(sd.t))
-        pred = sd.model.predict(geom, problem.params_of(sd.name, values))
-        r = sd.model.residual(sd.y, pred.y)
-        valid = np.asarray(pred.valid, bool) & np.all(np.isfinite(r), axis=1) & reached
+        y_pred = np.full(sd.y.shape, np.nan)
+        valid = np.zeros(sd.n, bool)
+        for lo in range(0, sd.n, chunk):                       # bounded memory on long spans
+            hi = min(sd.n, lo + chunk)
+            part = sensor_window(sd, lo, hi)
+            k = np.where(reached[lo:hi], ep[lo:hi], 0)
+            geom = replace(part.geom, C_BI=traj.C_BI(k), omega_B=omega_at(part.t))
+            pred = sd.model.predict(geom, problem.params_of(sd.name, values))
+            y_pred[lo:hi] = pred.y
+            valid[lo:hi] = np.asarray(pred.valid, bool)
+        r = sd.model.residual(sd.y, y_pred)
+        valid &= np.all(np.isfinite(r), axis=1) & reached
         ed = np.asarray(edited.get(sd.name, np.zeros(sd.n, bool)), bool) & valid
         r = np.where(valid[:, None], r, np.nan)
         out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t,
-                                       sd.y, pred.y, r, r / sd.sigma, sd.sigma, valid & ~ed, valid,
+                                       sd.y, y_pred, r, r / sd.sigma, sd.sigma, valid & ~ed, valid,
                                        ed)
     return out
+
+
+def block_records(lay, blk, sol, seg, nom: Mapping[str, float], C_a: np.ndarray, prev_nom):
+    """Records of one MEKF block for the :class:`EpochStore` (module docstring).
+
+    Posterior at every epoch in current-time coordinates ``x_d = Ψ_d y``, conditioned on
+    the static part (``B = P_ds P_ss⁻¹``, ``P_c = P_dd − B P_sd``, ``c = x̂_d − B ŝ``), and
+    the transition into each epoch: ``Φ = Ψ_dd,k Ψ_dd,k−1⁻¹``, ``Φ_s = Ψ_ds,k − Φ Ψ_ds,k−1``,
+    ``Q = Ψ_dd ΔΠ Ψ_ddᵀ``; into the block's first epoch, the reset ``u`` (old nominal
+    relative to the new one, ``C_old = exp(−[u×]) C_a``; reset Jacobian taken as I).
+    Returns the records (dict of (G, ...) arrays) and the block's end nominal.
+    """
+    d = lay.d
+    G = blk.t.size
+    Psi_d, ye, Pe = blk.Psi_d, sol.y_epoch, sol.P_epoch
+    s_nom = np.array([nom[e] for e in lay.elements[d:]])
+    xd = (Psi_d @ ye[:, :, None])[:, :, 0]
+    Pxd = Psi_d @ Pe                                            # Ψ_d P
+    Pdd, Pds, Pss = Pxd @ np.swapaxes(Psi_d, 1, 2), Pxd[:, :, d:], Pe[:, d:, d:]
+    B = np.swapaxes(np.linalg.solve(Pss, np.swapaxes(Pds, 1, 2)), 1, 2)   # P_ds P_ss⁻¹
+    Pc = Pdd - B @ np.swapaxes(Pds, 1, 2)                       # P_dd − B P_sd
+    c = xd - (B @ (s_nom + ye[:, d:])[:, :, None])[:, :, 0]
+    Psi_dd, Psi_gs = Psi_d[:, :, :d], Psi_d[:, :, d + lay.gs_pos]
+    Phi = np.broadcast_to(np.eye(d), (G, d, d)).copy()
+    Phis = np.zeros((G, d, lay.gs_pos.size))
+    u, Q = np.zeros((G, d)), np.zeros((G, d, d))
+    if G > 1:
+        Phi[1:] = Psi_dd[1:] @ np.linalg.inv(Psi_dd[:-1])       # Ψ_k Ψ_{k−1}⁻¹
+        Phis[1:] = Psi_gs[1:] - Phi[1:] @ Psi_gs[:-1]
+        u[1:] = -Phis[1:] @ s_nom[lay.gs_pos]                   # static terms in absolute values
+        Q[1:] = Psi_dd[1:] @ np.diff(blk.Pi, axis=0) @ np.swapaxes(Psi_dd[1:], 1, 2)
+    bnom = np.array([nom[e] for e in lay.elements[3:d]])
+    if prev_nom is not None:                                    # the reset at the boundary
+        C_old, b_old = prev_nom
+        u[0, :3] = dcm_to_rotvec(C_old @ C_a.T)
+        u[0, 3:] = b_old - bnom
+    recs = dict(t=blk.t, q=quat_from_dcm(seg.at(blk.t)[0]), bnom=np.broadcast_to(bnom, (G, lay.nb)),
+                c=c, B=B, Pc=0.5 * (Pc + np.swapaxes(Pc, 1, 2)), Phi=Phi, Phis=Phis, u=u, Q=Q)
+    return recs, (seg.C[-1], bnom)
+
+
+def gyro_residuals(problem, traj: SmoothedTrajectory, frame_epoch, values, edited):
+    """:func:`smoothed_residuals` with body rates from the final gyro values (Eq 4-32)."""
+    att = problem.attitude
+    omega, *_ = gyro_rates(att, values, 0, att.y.shape[0])
+    K = omega.shape[0]
+
+    def omega_at(t):
+        return omega[np.clip(np.searchsorted(att.knots, t, side="left"), 1, K) - 1]
+
+    return smoothed_residuals(problem, traj, frame_epoch, values, omega_at, edited)

@@ -29,16 +29,16 @@ from dataclasses import dataclass, field
 from typing import Callable, Mapping
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from gcs_core.errors import EstimationError
 from gcs_core.filtr.attitude import RPY, rpy_error_jacobian
 from gcs_core.filtr.batch import SensorResiduals, make_residuals
-from gcs_core.filtr.kalman import GyroSegment, solve_block
-from gcs_core.filtr.mekf import assemble, block_epochs, gyro_noise, gyro_rates, make_layout
+from gcs_core.filtr.kalman import solve_block
+from gcs_core.filtr.mekf import GyroSegment, assemble, block_epochs, gyro_noise, gyro_rates, make_layout
 from gcs_core.filtr.problem import Problem, linearize
-from gcs_core.filtr.smoother import (EpochStore, SmoothedTrajectory, rts_smooth,
-                                     smoothed_residuals, trajectory)
+from gcs_core.filtr.smoother import (EpochStore, SmoothedTrajectory, block_records,
+                                     gyro_residuals, rts_smooth, trajectory)
 from gcs_core.frames.rotations import (dcm_to_rotvec, euler123_to_dcm, quat_from_dcm,
                                        rotvec_to_dcm)
 from gcs_core.sodl.state import StateVector
@@ -57,6 +57,10 @@ class FilterOptions:
     process_noise_scale : multiplies the gyro's σ_v, σ_u, σ_e (0 gives Q = 0: RLS).
     max_passes : passes over the data (1: a plain EKF; more: iterated smoother).
     pass_tol_sigma : stop iterating when no estimate moved by more than this many sigmas.
+    relinearize_rad : a block whose attitude estimate ends further than this angle [rad]
+        from its linearization point is run again, linearized about the estimate (an
+        iterated EKF on the block; needed when the a-priori attitude is far off); at most
+        ``block_iterations`` runs (first pass only).
     group_rows : scalar measurement rows per lifted group of the core (speed only).
     memory_limit_mb : smoother records above this size go to a temporary file.
     diffuse_sigma : prior 1-sigma used for elements whose ``sigma0`` is infinite.
@@ -65,7 +69,9 @@ class FilterOptions:
     edit_k: float | None = 5.0
     process_noise_scale: float = 1.0
     max_passes: int = 3
-    pass_tol_sigma: float = 1e-3
+    pass_tol_sigma: float = 1e-2
+    relinearize_rad: float = 2e-4
+    block_iterations: int = 4
     group_rows: int = 48
     memory_limit_mb: float = 256.0
     diffuse_sigma: float = 1e6
@@ -232,6 +238,8 @@ class Filtr:
         if self._layout.n == 0:
             raise EstimationError("nothing to estimate: every state element is held or consider")
         self._windows = self._make_windows()
+        if getattr(self, "_store", None) is not None:
+            self._store.close()                                 # a new problem: new records
         counts = [block_epochs(problem, ta, tb, b == 0)[0].size
                   for b, (ta, tb, _, _) in enumerate(self._windows)]
         self._offsets = np.concatenate([[0], np.cumsum(counts)]).astype(int)
@@ -303,6 +311,26 @@ class Filtr:
     @property
     def pass_index(self) -> int:
         return self._pass
+
+    @property
+    def columns(self) -> tuple[str, ...]:
+        """Filter state columns: ``kf.dtheta_x/y/z`` (δθ, for att.roll/pitch/yaw), then elements."""
+        return self._layout.columns
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(n, n) current error covariance, :attr:`columns` order, at :attr:`current_time`."""
+        return self._P.copy()
+
+    @property
+    def attitude(self) -> np.ndarray | None:
+        """(3, 3) current attitude estimate ``C_BI`` at :attr:`current_time` (gyro missions)."""
+        return None if self._C is None else self._C.copy()
+
+    def estimate(self) -> dict[str, float]:
+        """Current values of the filter's elements (attitude: roll/pitch/yaw now)."""
+        x, _ = self._element_state(self.current_time)
+        return dict(zip(self.problem.state.solve_for, map(float, x)))
 
     @property
     def current_time(self) -> float:
@@ -399,14 +427,25 @@ class Filtr:
     def _pre_edited(self) -> Mapping[str, np.ndarray]:
         return getattr(self.problem, "edited", None) or {}
 
+    def _block_iterations(self) -> int:
+        """Block re-linearizations are for the first (EKF) pass; later passes linearize
+        every block about the same smoothed trajectory (one Gauss–Newton step)."""
+        return max(self.options.block_iterations, 1) if self._ref is None else 1
+
     def _rls_block(self, b: int):
         t_a, t_b, _, _ = self._windows[b]
-        lay = self._layout
+        lay, o = self._layout, self.options
         nom = dict(self._vals) if self._ref is None else dict(self._ref["values"])
-        y0 = np.array([self._vals[e] - nom[e] for e in lay.elements])
-        blk, frames = assemble(self.problem, lay, nom, None, t_a, t_b, b == 0, self._pre_edited())
-        o = self.options
-        sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows)
+        att = [j for j, e in enumerate(lay.elements) if e.startswith("att.")]
+        for it in range(self._block_iterations()):
+            y0 = np.array([self._vals[e] - nom[e] for e in lay.elements])
+            blk, frames = assemble(self.problem, lay, nom, None, t_a, t_b, b == 0, self._pre_edited())
+            sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows)
+            n_it = self._block_iterations()
+            if it == n_it - 1 or np.max(np.abs(sol.y[att]), initial=0.0) <= o.relinearize_rad:
+                break                                           # near the nominal (or no more)
+            for j, e in enumerate(lay.elements):                # re-linearize at the update
+                nom[e] += sol.y[j]
         for j, e in enumerate(lay.elements):
             self._vals[e] = nom[e] + sol.y[j]                   # x = x_nominal + y
         self._P = sol.P
@@ -414,7 +453,7 @@ class Filtr:
 
     def _gyro_block(self, b: int):
         t_a, t_b, k_a, k_b = self._windows[b]
-        lay, att = self._layout, self.problem.attitude
+        lay, att, o = self._layout, self.problem.attitude, self.options
         nom = dict(self._vals)
         if self._ref is None:                                   # EKF: linearize at the estimate
             C_a = self._C
@@ -423,64 +462,36 @@ class Filtr:
             nom.update({e: self._ref["values"][e] for e in lay.elements[lay.d:]})
             if lay.nb:
                 nom.update(dict(zip(lay.elements[3:lay.d], self._ref["bias"][b])))
-        y0 = np.zeros(lay.n)
-        y0[:3] = dcm_to_rotvec(self._C @ C_a.T)                 # C = exp(−[δθ×]) C_a
-        y0[3:] = [self._vals[e] - nom[e] for e in lay.elements[3:]]
-        omega, W, Wy, Wb = gyro_rates(att, nom, k_a, k_b)
         axes = ["xyz".index(e[-1]) for e in lay.elements[3:lay.d]]
-        seg = GyroSegment(att.knots[k_a:k_b + 1], omega, W[:, :, lay.gyro_w], C_a, self._noise, Wy,
-                          Wb[:, axes] if lay.nb else None)
-        blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0, self._pre_edited(),
-                               self._noise.sigma_e ** 2)
-        o = self.options
-        sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows,
-                          keep_epochs=True)
+        for it in range(self._block_iterations()):
+            y0 = np.zeros(lay.n)
+            y0[:3] = dcm_to_rotvec(self._C @ C_a.T)             # C = exp(−[δθ×]) C_a
+            y0[3:] = [self._vals[e] - nom[e] for e in lay.elements[3:]]
+            omega, W, Wy, Wb = gyro_rates(att, nom, k_a, k_b)
+            seg = GyroSegment(att.knots[k_a:k_b + 1], omega, W[:, :, lay.gyro_w], C_a, self._noise,
+                              Wy, Wb[:, axes] if lay.nb else None)
+            blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0,
+                                   self._pre_edited(), self._noise.sigma_e ** 2)
+            sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows,
+                              keep_epochs=True)
+            # y is referred to the block start: its δθ estimates the start's attitude error,
+            # which must be small for the linearization at the nominal to hold
+            if it == self._block_iterations() - 1 or np.max(np.abs(sol.y[:3])) <= o.relinearize_rad:
+                break
+            C_a = rotvec_to_dcm(sol.y[:3]) @ C_a                # re-linearize at the update
+            for j, e in enumerate(lay.elements[3:], start=3):
+                nom[e] += sol.y[j]
         Psi = np.eye(lay.n)
         Psi[:lay.d] = blk.Psi_d[-1]
         x = Psi @ sol.y                                         # x = Ψ(t_b) y
         P = Psi @ sol.P @ Psi.T
         self._P = 0.5 * (P + P.T)                               # symmetrize: round-off only
-        C_end = seg.C[-1]
-        self._C = rotvec_to_dcm(x[:3]) @ C_end                  # reset: nominal ⊕ δθ
+        self._C = rotvec_to_dcm(x[:3]) @ seg.C[-1]              # reset: nominal ⊕ δθ
         for j, e in enumerate(lay.elements[3:], start=3):
             self._vals[e] = nom[e] + x[j]
-        self._records(b, blk, sol, seg, nom, C_a)
+        recs, self._prev_nom = block_records(lay, blk, sol, seg, nom, C_a, self._prev_nom)
+        self._store.write(int(self._offsets[b]), **recs)
         return frames, sol, quat_from_dcm(self._C)
-
-    def _records(self, b, blk, sol, seg, nom, C_a) -> None:
-        """Per-epoch records for the smoother (conditioned posterior and transitions)."""
-        lay = self._layout
-        d, n = lay.d, lay.n
-        G = blk.t.size
-        Psi_d, ye, Pe = blk.Psi_d, sol.y_epoch, sol.P_epoch
-        s_nom = np.array([nom[e] for e in lay.elements[d:]])
-        xd = (Psi_d @ ye[:, :, None])[:, :, 0]
-        Pxd = Psi_d @ Pe                                        # (G, d, n) = Ψ_d P
-        Pdd, Pds, Pss = Pxd @ np.swapaxes(Psi_d, 1, 2), Pxd[:, :, d:], Pe[:, d:, d:]
-        B = np.swapaxes(np.linalg.solve(Pss, np.swapaxes(Pds, 1, 2)), 1, 2)   # P_ds P_ss⁻¹
-        Pc = Pdd - B @ np.swapaxes(Pds, 1, 2)                   # P_dd − B P_sd
-        c = xd - (B @ (s_nom + ye[:, d:])[:, :, None])[:, :, 0]
-        Pdd_psi, Pgs = Psi_d[:, :, :d], Psi_d[:, :, d + lay.gs_pos]
-        Phi = np.broadcast_to(np.eye(d), (G, d, d)).copy()
-        Phis = np.zeros((G, d, lay.gs_pos.size))
-        u, Q = np.zeros((G, d)), np.zeros((G, d, d))
-        if G > 1:
-            Phi[1:] = Pdd_psi[1:] @ np.linalg.inv(Pdd_psi[:-1])  # Ψ_k Ψ_{k−1}⁻¹
-            Phis[1:] = Pgs[1:] - Phi[1:] @ Pgs[:-1]
-            u[1:] = -Phis[1:] @ s_nom[lay.gs_pos]
-            dPi = np.diff(blk.Pi, axis=0)
-            Q[1:] = Pdd_psi[1:] @ dPi @ np.swapaxes(Pdd_psi[1:], 1, 2)
-        bnom = np.array([nom[e] for e in lay.elements[3:d]])
-        if self._prev_nom is not None:                          # reset at the block boundary
-            C_old, b_old = self._prev_nom
-            u[0, :3] = dcm_to_rotvec(C_old @ C_a.T)             # C_old = exp(−[u×]) C_a
-            u[0, 3:] = b_old - bnom
-        self._prev_nom = (seg.C[-1], bnom)
-        Cn = seg.at(blk.t)[0]
-        self._store.write(int(self._offsets[b]), t=blk.t, q=quat_from_dcm(Cn),
-                          bnom=np.broadcast_to(bnom, (G, lay.nb)), c=c, B=B,
-                          Pc=0.5 * (Pc + np.swapaxes(Pc, 1, 2)), Phi=Phi, Phis=Phis, u=u, Q=Q)
-        del n
 
     # ------------------------------------------------------------------ reporting
     def _element_state(self, t: float):
@@ -574,7 +585,8 @@ class Filtr:
         values = dict(self._vals)
         values.update(zip(lay.elements, x))
         if self._gyro:
-            residuals = self._gyro_residuals(traj, values, diag, edited) if traj is not None else {}
+            epochs = {n: self._diag[n]["epoch"] for n in diag}
+            residuals = gyro_residuals(prob, traj, epochs, values, edited) if traj is not None else {}
         else:
             residuals = make_residuals(prob, linearize(prob, values, lay.elements), edited)
         perm = [lay.elements.index(n) for n in prob.state.solve_for]
@@ -589,17 +601,5 @@ class Filtr:
                             tuple(self.blocks), self._pass + 1, status, msg, nis, dof,
                             _pvalue(nis, dof))
 
-    def _gyro_residuals(self, traj, values, diag, edited):
-        att = self.problem.attitude
-        omega, *_ = gyro_rates(att, values, 0, att.y.shape[0])
-        K = omega.shape[0]
-
-        def omega_at(t):
-            return omega[np.clip(np.searchsorted(att.knots, t, side="left"), 1, K) - 1]
-
-        epochs = {n: self._diag[n]["epoch"] for n in diag}
-        return smoothed_residuals(self.problem, traj, epochs, values, omega_at, edited)
-
-
 def _pvalue(nis: float, dof: int) -> float:
-    return float(stats.chi2.sf(nis, dof)) if dof > 0 else float("nan")
+    return float(special.chdtrc(dof, nis)) if dof > 0 else float("nan")   # P(χ²_dof ≥ nis)
