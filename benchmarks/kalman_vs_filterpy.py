@@ -55,7 +55,7 @@ def make_problem(n_frames: int, n_states: int = 15, seed: int = 7) -> dict:
     Wg = np.zeros((n_frames, 3, 6))                       # ∂ω/∂(b, scale) = (−I, −diag ω)
     Wg[:, :, :3] = -np.eye(3)
     Wg[:, range(3), range(3, 6)] = -omega
-    seg = GyroSegment(knots, omega, Wg, np.eye(3), NOISE, np.eye(3), -np.eye(3))
+    seg = GyroSegment(knots, omega, Wg, np.eye(3), NOISE, np.eye(3), -np.eye(3), range(3))
     C = seg.C                                             # nominal attitude at the knots
     H = np.zeros((n_frames, m, n))
     H[:, :, :3] = rng.normal(size=(n_frames, m, 3))
@@ -65,7 +65,7 @@ def make_problem(n_frames: int, n_states: int = 15, seed: int = 7) -> dict:
     F[:, :3, :3] = C[1:] @ np.swapaxes(C[:-1], 1, 2)       # Φ_θθ = C_k C_{k−1}ᵀ
     F[:, :3, 3:9] = Wg * dt[:, None, None]                 # Φ_θp = W_k Δ_k
     Q = np.zeros((n_frames, n, n))
-    Q[:, :6, :6] = farrenkopf_q(dt, NOISE, np.eye(3), -np.eye(3))
+    Q[:, :6, :6] = farrenkopf_q(dt, NOISE, np.eye(3), -np.eye(3), range(3))
     x = np.concatenate([rng.normal(size=3) * 1e-2, rng.normal(size=3) * 1e-4,
                         rng.normal(size=3) * 1e-3, rng.normal(size=n - 9) * 1e-2])
     z = np.empty((n_frames, m))
@@ -92,7 +92,7 @@ def gcs_pass(pb: dict):
         k1 = min(k0 + BLOCK_FRAMES, N)
         K = k1 - k0
         seg = GyroSegment(pb["knots"][k0:k1 + 1], pb["omega"][k0:k1], pb["Wg"][k0:k1], C0, NOISE,
-                          np.eye(3), -np.eye(3))
+                          np.eye(3), -np.eye(3), range(3))
         CC0, CE, Pi = seg.at_knots()
         Psi_d = np.zeros((K + 1, 6, n))                   # x_d = Ψ_d y
         Psi_d[:, :3, :3] = CC0

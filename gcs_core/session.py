@@ -144,8 +144,9 @@ class Analysis:
         """Held-out frames per sensor (True = held out).
 
         The span is cut into 20 equal blocks and every ``round(1/holdout_fraction)``-th
-        block is held out, so the held-out frames sample every part of the span (slews,
-        eclipses, both ends) instead of asking the fit to extrapolate past its data.
+        block is held out (never the first or the last), so the held-out frames sample every
+        part of the span (slews, eclipses) while the fit interpolates into them rather than
+        extrapolating past the end of its data.
         """
         f = self.config.holdout_fraction
         if f <= 0:
@@ -158,7 +159,7 @@ class Analysis:
         out = {}
         for sd in self.problem.sensors:
             block = np.minimum(((sd.t - t0) / width).astype(int), n_blocks - 1)
-            out[sd.name] = (block % every) == (every - 1)
+            out[sd.name] = ((block % every) == every // 2) & (block < n_blocks - 1)
         return out
 
     def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> BatchResult:
@@ -327,7 +328,7 @@ def _holdout_rms(problem: Problem, res: BatchResult, masks: Mapping[str, np.ndar
         lin = lins.get(name)
         if m is None or lin is None:
             continue
-        sel = m & r.valid & ~r.edited
+        sel = m & r.valid
         if not np.any(sel):
             continue
         H = lin.H[sel]

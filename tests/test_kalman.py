@@ -175,7 +175,7 @@ def test_covariance_symmetric_positive_definite_over_a_day():
 
     f = Filtr(prob, options=FilterOptions(max_passes=1, memory_limit_mb=1.0), block_seconds=1800)
     res = f.run(progress=check)
-    assert f._store.spilled
+    assert f.records_on_disk
     assert min(worst) > 1e-6 and len(worst) == 48
     assert abs(res.nis / res.dof - 1.0) < 4 * np.sqrt(2.0 / res.dof)
     # the same from memory, over the first hours only (the store path is what differs)
@@ -183,7 +183,7 @@ def test_covariance_symmetric_positive_definite_over_a_day():
     for _ in range(4):
         g.step()
     part = g.result(cancelled=True)
-    assert not g._store.spilled
+    assert not g.records_on_disk
     n = part.trajectory.t.size
     np.testing.assert_allclose(part.trajectory.t, res.trajectory.t[:n])
     assert np.all(np.isfinite(res.trajectory.sigma_att)) and np.all(res.trajectory.sigma_att > 0)

@@ -59,6 +59,8 @@ class BatchOptions:
         χ² change of 0.01 carries no statistical meaning).
     edit_k : k of the k-σ editing (None: no editing).
     edit_passes : maximum editing passes.
+    max_edit_fraction : if more than this share of a sensor's frames exceed k σ, the
+        model (not the data) is wrong: that sensor is not edited, and the result says so.
     rank_tol : relative eigenvalue threshold naming unobservable combinations.
     """
 
@@ -67,6 +69,7 @@ class BatchOptions:
     tol_chi2: float = 1e-2
     edit_k: float | None = 5.0
     edit_passes: int = 6
+    max_edit_fraction: float = 0.05
     rank_tol: float = 1e-10
 
 
@@ -179,13 +182,15 @@ def accumulate(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray], 
     for lin, used in weighted_masks(lins, edited):
         if not np.any(used):
             continue
-        w = 1.0 / lin.sigma                                   # (m,)
-        Hw = (lin.H[used] * w[None, :, None]).reshape(-1, n)  # R^-1/2 H
-        rw = (lin.r[used] * w[None, :]).reshape(-1)           # R^-1/2 r
-        A += Hw.T @ Hw
-        b += Hw.T @ rw
+        # R^-1/2 with unused frames weighted zero (cheaper than copying the used rows)
+        w = used[:, None] / lin.sigma[None, :]                # (N, m)
+        rw = (lin.r * w).reshape(-1)                          # R^-1/2 r
+        if n:
+            Hw = (lin.H * w[:, :, None]).reshape(-1, n)       # R^-1/2 H
+            A += Hw.T @ Hw
+            b += Hw.T @ rw
         chi2 += float(rw @ rw)
-        m_used += rw.size
+        m_used += int(np.count_nonzero(used)) * lin.r.shape[1]
     return A, b, chi2, m_used
 
 
@@ -249,18 +254,24 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         x = np.array([float(initial.get(nm, x_bar[j])) for j, nm in enumerate(names)])
     history: list[float] = []
     status, message = "max_iterations", ""
+    suspect_all: set[str] = set()
     it_total = 0
-    def evaluate(x_eval):
+    counts = [0]
+
+    def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):
             values[nm] = x_eval[j]
-        lins_ = [_zero_invalid(l) for l in linearize(problem, values, names)]
-        A_, b_, chi2_, _ = accumulate(lins_, edits, n)
+        cols = names if with_jacobian else ()
+        lins_ = [_zero_invalid(l) for l in linearize(problem, values, cols)]
+        A_, b_, chi2_, m_ = accumulate(lins_, edits, len(cols))
+        counts[0] = m_
         d_ = x_bar - x_eval
         cost_ = chi2_ + float(np.sum(prior_info * d_ ** 2))
         return A_, b_, cost_, d_
 
     for edit_pass in range(opts.edit_passes if opts.edit_k else 1):
         A, b, cost, dx_prior = evaluate(x)
+        lam_state = 0.0
         if not np.isfinite(cost):
             raise EstimationError("the initial state gives non-finite residuals; check the a-priori values")
         history.append(cost)
@@ -275,23 +286,38 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                                         + "; ".join(combos or ["(unidentified)"]), combos) from None
             sig = np.sqrt(np.diag(P))
             small = np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300))
-            # Backtracking line search: a Gauss–Newton step that raises the cost (a model far
-            # from the data is strongly non-linear) is halved until the cost falls.
-            frac = 1.0
-            for _ in range(10):
-                x_try = x + frac * step
-                A_t, b_t, cost_t, d_t = evaluate(x_try)
+            # Levenberg–Marquardt safeguard: a Gauss–Newton step that raises the cost (a
+            # model far from the data, or a nearly unobservable non-linear direction such
+            # as an FSS frequency k with amplitude A3 ≈ 0) is re-solved with the normal
+            # matrix's diagonal inflated by λ until the cost falls; λ relaxes after success.
+            # Trial points need only the cost: no Jacobian until a step is accepted.
+            lam = lam_state
+            rhs = b + prior_info * dx_prior
+            for _ in range(14):
+                if lam > 0:
+                    step, _ = _solve_normal(Nmat + lam * np.diag(np.diag(Nmat)), rhs)
+                x_try = x + step
+                _, _, cost_t, _ = evaluate(x_try, with_jacobian=False)
                 if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
                     break
-                frac *= 0.5
+                lam = max(lam * 10.0, 1e-4)
             else:
                 status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
                                                "(the model cannot describe these data)")
                 break
+            frac = 1.0 if lam == 0 else 0.0
+            lam_state = lam / 10.0 if lam > 1e-4 else 0.0
             change = cost - cost_t
-            x, A, b, cost, dx_prior = x_try, A_t, b_t, cost_t, d_t
+            A, b, cost, dx_prior = evaluate(x_try)
+            m_meas = counts[0]
+            x = x_try
             history.append(cost)
-            if small or (frac == 1.0 and change < opts.tol_chi2):
+            # converged: steps negligible against σ, or the cost no longer moves (absolutely,
+            # or relatively for a model far from the data, whose χ² is huge)
+            # a model far from the data (χ² > 2 per measurement) crawls along flat valleys;
+            # its precise minimum is meaningless, so it stops at a relative change of 1e-4
+            tol = opts.tol_chi2 if cost < 2.0 * max(m_meas, 1) else max(opts.tol_chi2, 1e-4 * cost)
+            if small or ((frac == 1.0 or it >= 2) and change < tol):
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:
@@ -300,12 +326,24 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             values[nm] = x[j]
         if not opts.edit_k:
             break
+        if cost > 2.0 * max(counts[0], 1):
+            # k-σ editing removes outliers from a model that describes the data; with χ²
+            # above twice the measurement count the model itself is wrong: no editing
+            message += "; editing skipped (the model does not describe the data yet)"
+            break
         lins = [_zero_invalid(l) for l in linearize(problem, values, names)]
         new_edits = {}
+        suspect: set[str] = set()
         for lin in lins:
             z = np.abs(lin.r / lin.sigma)
             pre = preflag.get(lin.name, np.zeros(lin.valid.shape, bool))
-            new_edits[lin.name] = pre | (lin.valid & np.any(z > opts.edit_k, axis=1))
+            out = lin.valid & ~pre & np.any(z > opts.edit_k, axis=1)
+            n_valid = max(1, int(np.count_nonzero(lin.valid & ~pre)))
+            if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
+                suspect.add(lin.name)
+                out[:] = False
+            new_edits[lin.name] = pre | out
+        suspect_all |= suspect
         changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
                       for k in new_edits)
         edits = new_edits
@@ -329,6 +367,10 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             budget[c] = np.sqrt(np.diag(contrib))
             P_cons += contrib
     unobs = tuple(name_combinations(A, names, opts.rank_tol * 1e3))
+    if opts.edit_k and suspect_all:
+        message += ("; not edited (more than "
+                    f"{100 * opts.max_edit_fraction:g}% of frames beyond {opts.edit_k:g}σ, the model "
+                    "is suspect): " + ", ".join(sorted(suspect_all)))
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = make_residuals(problem, lins, edits)
     return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,

@@ -235,14 +235,14 @@ class _Pattern:
         self.after = (rep[:, None] >= np.arange(Ge)[None, :]).astype(float)  # row at/after epoch j
         self.last = np.searchsorted(rep, np.arange(Ge), side="right") - 1
         self.has = self.last >= 0
-        self.diag = np.arange(M) * (M + 1)
+        self.eye = np.eye(M)
         self.starts = np.nonzero(np.r_[True, np.diff(rep) != 0])[0]
         start = np.cumsum(m) - m
         self.classes = []
         for mm in np.unique(m):
             sel = np.nonzero(m == mm)[0]
             idx = start[sel][:, None] + np.arange(mm)
-            self.classes.append((int(mm), sel, idx, (idx[:, :, None], idx[:, None, :])))
+            self.classes.append((int(mm), sel, idx, idx[:, :, None] * M + idx[:, None, :]))
 
 
 _PATTERNS: dict = {}
@@ -301,16 +301,19 @@ class _Group:
 
     # -- one solve over the active rows ------------------------------------------------
     def _solve(self, y0, P0, rows, pat: _Pattern):
-        A, rep = self.A[rows], self.rep[rows]
+        A = self.A[rows]
         d = self.d
-        # B = cov(y, z) = (P0 + Π_{k_s}) A_sᵀ
+        # B = cov(y, z) = (P0 + Π_{k_s}) A_sᵀ,  Π_{k_s} A_sᵀ = Σ_{j ≤ k_s} ΔΠ_j A_s,dᵀ
         B = P0 @ A.T
+        Z = None
         if d:
-            B[:d] += (self.Pig[rep] @ A[:, :d, None])[:, :, 0].T
+            Ge = self.dPi.shape[0]
+            Z = (pat.after[:, :, None] * A[:, None, :d]).reshape(A.shape[0], Ge * d)
+            B[:d] += self.dPi.transpose(1, 0, 2).reshape(d, Ge * d) @ Z.T
         # S = A B for k_r ≥ k_s, mirrored, + R (= I after whitening)
         S = A @ B
         S = np.where(pat.lower, S, S.T)
-        S.flat[pat.diag] += 1.0
+        S += pat.eye
         Hth = None
         if self.Hth is not None:
             Hth = self.Hth[rows]
@@ -321,7 +324,7 @@ class _Group:
         e = Li @ (self.r[rows] - A @ y0)
         # W = B L⁻ᵀ = cov(y, e)
         W = B @ Li.T
-        return {"A": A, "L": L, "Li": Li, "e": e, "W": W, "Hth": Hth,
+        return {"A": A, "L": L, "Li": Li, "e": e, "W": W, "Hth": Hth, "Z": Z,
                 "sig_e2": self.blk.sig_e2}
 
     def _gather(self, sol, pat: _Pattern, local, raw: _Raw, edit_k):
@@ -329,7 +332,7 @@ class _Group:
         first = None
         L, Li, e, W = sol["L"], sol["Li"], sol["e"], sol["W"]
         for mm, sel, idx, blocks in pat.classes:
-            Lff, ef = L[blocks], e[idx]
+            Lff, ef = L.take(blocks), e[idx]
             fr = self.f0 + local[sel]
             # |ν_i|/sqrt(S_ii) ≤ sqrt(NIS_f) (Cauchy–Schwarz): test components only if needed
             if edit_k is not None and np.max(np.einsum("fi,fi->f", ef, ef)) > edit_k ** 2:
@@ -338,7 +341,7 @@ class _Group:
                 bad = np.nonzero(np.max(z, axis=1) > edit_k)[0]
                 if bad.size and (first is None or local[sel[bad[0]]] < first):
                     first = int(local[sel[bad[0]]])
-            raw.put(fr, mm, Lff, ef, Li[blocks], W[:, idx])
+            raw.put(fr, mm, Lff, ef, Li.take(blocks), W.take(idx, axis=1))
         return first
 
     def _epochs(self, y0, P0, sol, pat: _Pattern, y_ep, P_ep):
@@ -374,7 +377,8 @@ def _group_end_covariance(P0, sol, dPi, d, pat: _Pattern):
     n = P0.shape[0]
     # K = W L⁻¹ = B S⁻¹  (the group gain, n × M)
     K = sol["W"] @ sol["Li"]
-    IKA = np.eye(n) - K @ A
+    IKA = -(K @ A)
+    IKA[range(n), range(n)] += 1.0                           # I − K A
     # P = (I − K A) P0 (I − K A)ᵀ + K R Kᵀ   (R = I for whitened rows)
     P = IKA @ P0 @ IKA.T + K @ K.T
     if sol["Hth"] is not None:
@@ -382,12 +386,11 @@ def _group_end_covariance(P0, sol, dPi, d, pat: _Pattern):
         KH = np.add.reduceat(K.T[:, :, None] * sol["Hth"][:, None, :], pat.starts, axis=0)
         P += sol["sig_e2"] * np.einsum("eia,eja->ij", KH, KH)
     if d:
-        M, Ge = A.shape[0], dPi.shape[0]
+        Ge = dPi.shape[0]
         # Σ_{s: k_s ≥ j} K_s A_s,d = K Z_j, Z_j the rows of A_d at or after epoch j
-        Z = (pat.after[:, :, None] * A[:, None, :d]).reshape(M, Ge * d)
-        T = (K @ Z).reshape(n, Ge, d).transpose(1, 0, 2)
+        T = (K @ sol["Z"]).reshape(n, Ge, d).transpose(1, 0, 2)
         np.negative(T, out=T)
-        T[:, range(d), range(d)] += 1.0                      # T_j = E_d − Σ K_s A_s,d
+        T[:, :d, :] += np.eye(d)                              # T_j = E_d − Σ K_s A_s,d
         TQ = (T @ dPi).transpose(1, 0, 2).reshape(n, -1)
         # + Σ_j T_j ΔΠ_j T_jᵀ
         P += TQ @ T.transpose(1, 0, 2).reshape(n, -1).T

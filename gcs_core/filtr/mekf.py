@@ -70,8 +70,8 @@ class GyroNoise:
     sigma_e: float = 0.0
 
 
-def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray | None
-                 ) -> np.ndarray:
+def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray,
+                 axes=()) -> np.ndarray:
     """Process noise of one gyro step (Eq 4-38 noise matrix, Farrenkopf 1978).
 
     Over a step ``Δt`` the attitude error gathers the rate noise and the integral of the
@@ -79,21 +79,22 @@ def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarra
 
         Q_θθ = σ_v² Δt W_y W_yᵀ + σ_u² Δt³/3 W_b W_bᵀ,   Q_θb = σ_u² Δt²/2 W_b,   Q_bb = σ_u² Δt I
 
-    with ``W_y = ∂ω/∂y = Mᵀ G⁻¹`` and ``W_b = ∂ω/∂b = −Mᵀ`` (Eq 4-32 inverted). The
+    with ``W_y = ∂ω/∂y = Mᵀ G⁻¹`` and ``W_b = ∂ω/∂b = −Mᵀ`` (Eq 4-32 inverted). The bias
+    walks on every axis; only the ``axes`` in the state get the ``θb``, ``bb`` blocks. The
     read-out noise σ_e does not accumulate (the integrated angle telescopes), so it is not
     in Q: it reaches the measurements as a white attitude error (:class:`LinearBlock`).
 
-    Parameters: dt (K,) [s]; Wy (3, 3); Wb (3, nb) or None (bias not in the state).
+    Parameters: dt (K,) [s]; Wy (3, 3); Wb (3, 3); axes: bias axes in the state (nb).
     Returns (K, d, d), d = 3 + nb.
     """
     dt = np.asarray(dt, float)[:, None, None]
-    nb = 0 if Wb is None else Wb.shape[1]
+    axes = list(axes)
+    nb = len(axes)
     Q = np.zeros((dt.shape[0], 3 + nb, 3 + nb))
     v2, u2 = noise.sigma_v ** 2, noise.sigma_u ** 2
-    WbWb = (Wb @ Wb.T) if nb else np.eye(3)          # W_b = −Mᵀ is orthogonal
-    Q[:, :3, :3] = v2 * dt * (Wy @ Wy.T) + u2 * dt ** 3 / 3.0 * WbWb
+    Q[:, :3, :3] = v2 * dt * (Wy @ Wy.T) + u2 * dt ** 3 / 3.0 * (Wb @ Wb.T)
     if nb:
-        Q[:, :3, 3:] = u2 * dt ** 2 / 2.0 * Wb
+        Q[:, :3, 3:] = u2 * dt ** 2 / 2.0 * Wb[:, axes]
         Q[:, 3:, :3] = np.swapaxes(Q[:, :3, 3:], 1, 2)
         Q[:, 3:, 3:] = u2 * dt * np.eye(nb)
     return Q
@@ -134,21 +135,22 @@ class GyroSegment:
     Wg : (K, 3, ng) ``∂ω/∂p`` for the gyro parameters in the filter state, the nb
         random-walking biases first.
     C0 : (3, 3) nominal attitude at τ_0.
-    noise, Wy, Wb : for :func:`farrenkopf_q` (Wb None when no bias random-walks).
+    noise, Wy, Wb, axes : for :func:`farrenkopf_q` (axes: the random-walking biases).
     """
 
-    def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb):
+    def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb, axes=()):
         self.knots = np.asarray(knots, float)
         self.dt = np.diff(self.knots)
         self.omega, self.Wg, self.C0 = np.asarray(omega, float), np.asarray(Wg, float), C0
-        self.noise, self.Wy, self.Wb = noise, Wy, Wb
-        self.nb = 0 if Wb is None else Wb.shape[1]
+        self.noise, self.Wy, self.Wb, self.axes = noise, Wy, Wb, tuple(axes)
+        self.nb = len(self.axes)
         steps = cumulative_rotations(quat_to_dcm(step_quaternions(self.omega, self.dt)))
         self.C = np.concatenate([C0[None], steps @ C0])                 # (K+1, 3, 3)
         # E_k = Σ_{j≤k} C_jᵀ W_j Δ_j
         incr = np.swapaxes(self.C[1:], 1, 2) @ self.Wg * self.dt[:, None, None]
         self.E = np.concatenate([np.zeros((1, 3, self.Wg.shape[2])), np.cumsum(incr, axis=0)])
-        dPi = self._referred(self.C[1:], self.E[1:], farrenkopf_q(self.dt, noise, Wy, Wb))
+        Q = farrenkopf_q(self.dt, noise, Wy, Wb, self.axes)
+        dPi = self._referred(self.C[1:], self.E[1:], Q)
         d = 3 + self.nb
         self.Pi = np.concatenate([np.zeros((1, d, d)), np.cumsum(dPi, axis=0)])
 
@@ -181,7 +183,8 @@ class GyroSegment:
         w = self.omega[k - 1]
         C = quat_to_dcm(step_quaternions(w, s)) @ self.C[k - 1]
         E = self.E[k - 1] + np.swapaxes(C, 1, 2) @ self.Wg[k - 1] * s[:, None, None]
-        Pi = self.Pi[k - 1] + self._referred(C, E, farrenkopf_q(s, self.noise, self.Wy, self.Wb))
+        Q = farrenkopf_q(s, self.noise, self.Wy, self.Wb, self.axes)
+        Pi = self.Pi[k - 1] + self._referred(C, E, Q)
         return C, w, C @ self.C0.T, C @ E, Pi
 
 

@@ -98,9 +98,7 @@ class EpochStore:
         for name, a in arrays.items():
             off, size, _ = self.fields[name]
             slab[:, off:off + size] = np.asarray(a, float).reshape(G, size)
-        if self._file is not None:
-            slab.flush()
-            del slab
+        del slab                    # unmapped: the pages stay in the OS cache, not in our RSS
 
     def read(self, k0: int, k1: int) -> dict[str, np.ndarray]:
         """Records of epochs ``k0..k1−1`` as arrays ``(k1−k0, *shape)`` (copies)."""

@@ -327,6 +327,11 @@ class Filtr:
         """(3, 3) current attitude estimate ``C_BI`` at :attr:`current_time` (gyro missions)."""
         return None if self._C is None else self._C.copy()
 
+    @property
+    def records_on_disk(self) -> bool:
+        """True when the smoother's per-epoch records went to a temporary file."""
+        return self._store is not None and self._store.spilled
+
     def estimate(self) -> dict[str, float]:
         """Current values of the filter's elements (attitude: roll/pitch/yaw now)."""
         x, _ = self._element_state(self.current_time)
@@ -343,8 +348,7 @@ class Filtr:
         if self._done:
             raise EstimationError("the filter has processed all the data; reset() to start again")
         b = self._block
-        t_a, t_b, k_a, k_b = self._windows[b]
-        prior_x, prior_s = self._element_state(t_a)
+        prior_x, prior_s = self._element_state(self._windows[b][0])
         frames, sol, q = self._gyro_block(b) if self._gyro else self._rls_block(b)
         report = self._report(b, frames, sol, prior_x, prior_s, q)
         self.blocks.append(report)
@@ -469,7 +473,7 @@ class Filtr:
             y0[3:] = [self._vals[e] - nom[e] for e in lay.elements[3:]]
             omega, W, Wy, Wb = gyro_rates(att, nom, k_a, k_b)
             seg = GyroSegment(att.knots[k_a:k_b + 1], omega, W[:, :, lay.gyro_w], C_a, self._noise,
-                              Wy, Wb[:, axes] if lay.nb else None)
+                              Wy, Wb, axes)
             blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0,
                                    self._pre_edited(), self._noise.sigma_e ** 2)
             sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows,
@@ -564,8 +568,8 @@ class Filtr:
                   for n, f in diag.items()}
         x, P, traj = np.array([self._vals[e] for e in lay.elements]), self._P, None
         if self._gyro:
-            if self._done:
-                sm, traj, s_star = self._smooth
+            if self._done or (self._block == 0 and self._smooth is not None):
+                sm, traj, s_star = self._smooth                 # the last completed pass
             else:
                 n_ep = int(self._offsets[self._block])
                 s_star = x[lay.d:]

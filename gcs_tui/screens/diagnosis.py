@@ -113,7 +113,10 @@ class DiagnosisScreen(GcsScreen):
             ho_plot.paint(None, empty="no steps yet")
         else:
             fit_plot.paint(lambda plt: self._chart(plt, steps, sensors, "rms_after", "normalized RMS (fitted span)"))
-            ho_plot.paint(lambda plt: self._chart(plt, steps, sensors, "holdout_after", "held-out RMS"))
+            if any(s.holdout_after for s in steps):
+                ho_plot.paint(lambda plt: self._chart(plt, steps, sensors, "holdout_after", "held-out RMS"))
+            else:
+                ho_plot.paint(None, empty="no held-out score (diagnosis.holdout_fraction)")
         legend = "  ".join(f"{i}: {step_label(s)}" for i, s in enumerate(steps))
         self.query_one("#steps-legend", Static).update(f" steps — {legend}" if steps else "")
 
