@@ -168,7 +168,10 @@ class Analysis:
         ``initial`` warm-starts the iterations (e.g. from the previous step's solution);
         the a priori stays at the configured values.
         """
-        res = batch_fit(self.problem, self.batch_options(), initial=initial)
+        if self.config.method == "kalman":
+            res = self._kalman_fit()
+        else:
+            res = batch_fit(self.problem, self.batch_options(), initial=initial)
         masks = self.holdout_masks() if holdout else {}
         if masks:
             res_train = batch_fit(self.problem, self.batch_options(), edited=masks,
@@ -177,6 +180,22 @@ class Analysis:
         self.result = res
         self.candidates = []
         return res
+
+    def filter_options(self):
+        from gcs_core.filtr.stepping import FilterOptions
+        return FilterOptions(edit_k=self.config.edit_k or 0.0)
+
+    def make_filter(self):
+        """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""
+        from gcs_core.filtr.stepping import Filtr
+        return Filtr(self.problem, options=self.filter_options(), block_seconds=self.config.block_seconds)
+
+    def _kalman_fit(self, progress=None, cancel=None) -> BatchResult:
+        """Kalman filter + smoother (Eq 3-3, 3-4), reported in the batch result's shape so that
+        the diagnosis and reports read either. The ranking then linearizes about the
+        smoothed solution."""
+        fr = self.make_filter().run(progress=progress, cancel=cancel)
+        return batch_result_from_filter(fr)
 
     def rank(self) -> list[Candidate]:
         if self.result is None:
@@ -336,6 +355,17 @@ def _holdout_rms(problem: Problem, res: BatchResult, masks: Mapping[str, np.ndar
         z = r.residual[sel] / np.sqrt(lin.sigma[None, :] ** 2 + var_pred)
         out[name] = float(np.sqrt(np.mean(z ** 2)))
     return out
+
+
+def batch_result_from_filter(fr) -> BatchResult:
+    """A :class:`BatchResult` view of a filter/smoother result (no consider elements)."""
+    chi2 = float(sum(r.chi2 for r in fr.residuals.values()))
+    m = int(sum(r.n * len(r.components) for r in fr.residuals.values()))
+    n = len(fr.solve_for)
+    return BatchResult(fr.state, tuple(fr.solve_for), (), np.asarray(fr.x), np.asarray(fr.P),
+                       np.asarray(fr.P), fr.residuals, chi2, m - n, (), fr.passes,
+                       "converged" if fr.status in ("converged", "single_pass") else fr.status,
+                       f"Kalman filter + smoother: {fr.message}", np.zeros((n, n)), ())
 
 
 def _without_sensors(mission, names: set):
