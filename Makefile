@@ -22,7 +22,7 @@ run: $(STAMP)
 
 # NO_COLOR breaks the SVG snapshots, so it is removed from the environment here.
 test: $(STAMP)
-	env -u NO_COLOR $(BIN)/python -m pytest -q -n 2 --dist loadfile $(PYTEST_ARGS)
+	env -u NO_COLOR OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 $(PYTEST_ARGS)
 
 bench: $(STAMP)
 	for f in benchmarks/*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done
