@@ -19,7 +19,7 @@ from gcs_core.errors import EstimationError
 from gcs_core.session import Analysis
 from gcs_core.sidp import asf, scds
 
-EXAMPLE = Path("/work/shared/examples/sunpoint-nominal")
+EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 
 
 @pytest.fixture(scope="module")

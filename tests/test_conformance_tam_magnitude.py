@@ -17,7 +17,7 @@ import pytest
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.geomag import GeomagField
 
-EXAMPLE = Path("/work/shared/examples/sunpoint-nominal")
+EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 EPOCH = "2024-03-20T06:00:00Z"
 noise_nT = 25.0
 

@@ -18,7 +18,7 @@ from gcs_core.sidp.importer import load_mission
 from gcs_core.sidp.sdf import iter_blocks, read_sdf, write_sdf
 
 REPO = Path(__file__).resolve().parents[1]
-EXAMPLE = Path("/work/shared/examples/sunpoint-nominal")
+EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 if not EXAMPLE.is_dir():
     EXAMPLE = REPO.parent / "shared" / "examples" / "sunpoint-nominal"
 one_nT = 1.0

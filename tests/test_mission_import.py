@@ -15,7 +15,7 @@ from gcs_core.errors import InputError
 from gcs_core.sidp.importer import load_mission
 from gcs_core.sidp.mission import parse_utc, read_mission_spec
 
-EXAMPLE = Path("/work/shared/examples/sunpoint-nominal")
+EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 if not EXAMPLE.is_dir():  # a checkout elsewhere: the example lives beside the repository
     EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 

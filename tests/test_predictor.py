@@ -25,7 +25,7 @@ from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import Slew, ThreeAxisProfile
 from gcs_core.units import DEG
 
-EXAMPLE = Path("/work/shared/examples/sunpoint-nominal")
+EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 FIFTEEN_PERCENT = 0.15
 SPAN_S = 3600.0
 RPY0_DEG = (1.0, 3.0, -2.0)

@@ -151,7 +151,7 @@ def test_catalog_and_first_order_aberration():
     assert shift[0] / one_arcsecond == pytest.approx(20.64, abs=0.01)
 
 
-EXAMPLE = Path("/work/shared/examples/sunpoint-nominal")
+EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 
 
 @pytest.mark.skipif(not EXAMPLE.exists(), reason="shared example mission not available")

@@ -23,7 +23,7 @@ from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import OnboardConfig
 from gcs_core.verif import flag_rule, seed_sigma, slerp, verify, verify_analysis
 
-EXAMPLE = Path("/work/shared/examples/sunpoint-nominal")
+EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 one_arcsecond = units.ARCSEC
 INJECTED_DEG = 0.05
 ROUND_OFF_RAD = 1e-12
