@@ -1,9 +1,11 @@
 """The analysis configuration (TOML): one file for the TUI and the headless runs.
 
-Example (every table optional except ``[analysis]``)::
+Example (every table optional except ``[analysis]``; ``sample_data/configs/`` holds one per
+sample mission)::
 
     [analysis]
-    mission = "../sample_data/missions/nominal-sunpoint"   # relative to this file
+    mission = "../missions/nominal-sunpoint"   # relative to this file
+    name = "nominal, first look"  # optional label
     method = "batch"              # batch | kalman
 
     [physics]
@@ -12,7 +14,7 @@ Example (every table optional except ``[analysis]``)::
     sun_parallax = true
     field_model = "igrf"          # igrf | dipole
 
-    [models]                      # observation/transition model per sensor; "off" drops it
+    [models]                      # per sensor: its type (as in mission.toml) or "off"
     CSS1 = "coarse_sun"
     IRU = "gyro"
 
@@ -24,7 +26,7 @@ Example (every table optional except ``[analysis]``)::
     [state.elements."TAM1.bias_x"]
     role = "solve-for"            # solve-for | consider | held
     value = 0.0                   # internal units of the element
-    sigma = 200.0
+    sigma = 200.0                 # > 0, or inf (no a-priori information)
 
     [filter]
     block_seconds = 600.0
@@ -49,25 +51,49 @@ Example (every table optional except ``[analysis]``)::
     [verification]
     requirement_deg = 0.01
 
-Every error names the key and says what is wrong (:class:`~gcs_core.errors.ConfigError`).
+Every error names the key and says what is wrong (:class:`~gcs_core.errors.ConfigError`);
+``docs/input_checks.md`` lists the messages. Keys are dotted as in TOML: a state element
+name holds a dot and is quoted (``state.elements."TAM1.bias_x".sigma``), list entries
+are counted from 1 (``prediction.maneuvers[2].axis``).
 """
 
 from __future__ import annotations
 
+import difflib
 import hashlib
 import json
 import math
+import os
+import re
+import tempfile
 import tomllib
-from dataclasses import asdict, dataclass, field, fields, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 from gcs_core.errors import ConfigError
 from gcs_core.models.base import ROLES
+from gcs_core.sidp.types import SENSOR_TYPES
 
 METHODS = ("batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole")
 AXES = ("roll", "pitch", "yaw")
+#: value of ``[models]`` that drops a sensor from the analysis
+MODEL_OFF = "off"
+#: the tables of a config and the keys each holds
+TABLES: dict[str, tuple[str, ...]] = {
+    "analysis": ("mission", "name", "method"),
+    "physics": ("stellar_aberration", "solar_aberration", "sun_parallax", "field_model"),
+    "models": (),
+    "state": ("effects", "exclude", "attitude_sigma_deg", "elements"),
+    "filter": ("block_seconds", "edit_k", "max_iterations"),
+    "diagnosis": ("significance", "holdout_fraction"),
+    "prediction": ("start", "end", "step", "gaps", "maneuvers"),
+    "verification": ("requirement_deg",),
+}
+ELEMENT_KEYS = ("role", "value", "sigma")
+MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
+_ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
 
 
 @dataclass(frozen=True)
@@ -100,7 +126,7 @@ class AnalysisConfig:
     method : ``batch`` (static states, gyro-propagated attitude with Q = 0) or
         ``kalman`` (filter and smoother with gyro process noise).
     physics : always-on physics switches (see :mod:`gcs_core.sidp.prepare`).
-    models : sensor -> chosen model type, or ``"off"``.
+    models : sensor -> its type, or ``"off"`` to leave the sensor out.
     effects, exclude : catalogue effect ids added to / removed from the solve-for set.
     elements : element name -> :class:`ElementConfig`.
     attitude_sigma_deg : a-priori sigma of the attitude elements.
@@ -108,6 +134,7 @@ class AnalysisConfig:
     significance, holdout_fraction : diagnosis options.
     pred_start, pred_end, pred_step, gaps, maneuvers : predictor data plan.
     requirement_deg : VERIF attitude accuracy requirement.
+    name : an optional label (not part of :meth:`digest`).
     """
 
     path: Path | None = None
@@ -131,144 +158,266 @@ class AnalysisConfig:
     gaps: tuple[tuple[float, float], ...] = ()
     maneuvers: tuple[Maneuver, ...] = ()
     requirement_deg: float = 0.01
+    name: str | None = None
 
     # ------------------------------------------------------------------ derived
     def with_changes(self, **kw) -> "AnalysisConfig":
         return replace(self, **kw)
 
     def digest(self) -> str:
-        """A short hash of the settings (provenance of calibrations)."""
-        return hashlib.sha256(json.dumps(to_dict(self), sort_keys=True).encode()).hexdigest()[:16]
+        """A short hash of the settings (provenance of calibrations); the label is left out."""
+        d = to_dict(self)
+        d["analysis"].pop("name", None)
+        return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+
+# ---------------------------------------------------------------------------- checks
+def _fail(key: str | None, message: str, file) -> None:
+    raise ConfigError(message, file=file, key=key or None)
 
 
 def _require(cond: bool, key: str, message: str, file) -> None:
     if not cond:
-        raise ConfigError(message, file=file, key=key)
+        _fail(key, message, file)
 
 
-def _number(table: dict, key: str, default, file, *, positive=False, lo=None, hi=None, prefix=""):
+def _quote(name: str) -> str:
+    """A TOML key part, quoted when it is not a bare key (element names hold a dot)."""
+    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
+
+
+def _show(v: Any) -> str:
+    text = repr(v)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _table(parent: dict, key: str, full: str, file) -> dict:
+    v = parent.get(key, {})
+    _require(isinstance(v, dict), full, f"must be a table, not {_show(v)}", file)
+    return v
+
+
+def _list(parent: dict, key: str, full: str, file) -> list:
+    v = parent.get(key, [])
+    _require(isinstance(v, list), full, f"must be a list, not {_show(v)}", file)
+    return v
+
+
+def _is_number(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _number(table: dict, key: str, default, file, *, positive=False, lo=None, hi=None, prefix="",
+            integer=False, allow_inf=False):
     full = f"{prefix}{key}"
     if key not in table:
         return default
     v = table[key]
-    _require(isinstance(v, (int, float)) and not isinstance(v, bool), full,
-             f"must be a number, got {v!r}", file)
+    _require(_is_number(v), full, f"must be a number, not {_show(v)}", file)
     v = float(v)
-    _require(math.isfinite(v), full, "must be finite", file)
+    _require(not math.isnan(v), full, "must be a number, not nan", file)
+    if not (allow_inf and v == math.inf):
+        _require(math.isfinite(v), full, f"must be finite, not {v}", file)
+    if integer:
+        _require(v == int(v), full, f"must be a whole number, not {v}", file)
     if positive:
-        _require(v > 0, full, f"must be > 0, got {v}", file)
+        _require(v > 0, full, f"must be > 0, not {v}", file)
     if lo is not None:
-        _require(v >= lo, full, f"must be ≥ {lo}, got {v}", file)
+        _require(v >= lo, full, f"must be ≥ {lo}, not {v}", file)
     if hi is not None:
-        _require(v <= hi, full, f"must be ≤ {hi}, got {v}", file)
+        _require(v <= hi, full, f"must be ≤ {hi}, not {v}", file)
+    return int(v) if integer else v
+
+
+def _choice(table: dict, key: str, choices, default, full: str, file):
+    v = table.get(key, default)
+    _require(isinstance(v, str) and v in choices, full,
+             f"must be one of {', '.join(choices)}, not {_show(v)}", file)
     return v
 
 
-def _unknown(table: dict, known: set, prefix: str, file) -> None:
-    extra = sorted(set(table) - known)
+def _unknown(table: dict, known, prefix: str, file) -> None:
+    extra = sorted(str(k) for k in set(table) - set(known))
     if extra:
-        raise ConfigError(f"unknown key (known: {', '.join(sorted(known))})", file=file,
-                          key=f"{prefix}{extra[0]}")
+        close = difflib.get_close_matches(extra[0], list(known), n=1)
+        hint = f"; did you mean '{close[0]}'?" if close else ""
+        _fail(f"{prefix}{_quote(extra[0])}", f"unknown key{hint} (known: {', '.join(sorted(known))})", file)
 
 
+def _pair(g: Any) -> bool:
+    return (isinstance(g, list) and len(g) == 2 and all(_is_number(x) and math.isfinite(x) for x in g)
+            and g[0] < g[1])
+
+
+# ---------------------------------------------------------------------------- reading
 def load_config(path: str | Path) -> AnalysisConfig:
-    """Read and validate an analysis config; errors name the key."""
+    """Read and validate an analysis config; errors name the key (or the line and column)."""
     path = Path(path)
+    if path.is_dir():
+        _fail(None, "is a directory, not a config file", path)
     if not path.is_file():
-        raise ConfigError("config file not found", file=path)
+        _fail(None, "config file not found", path)
     try:
-        data = tomllib.loads(path.read_text(encoding="utf-8"))
-    except UnicodeDecodeError:
-        raise ConfigError("config file is not UTF-8 text", file=path) from None
+        raw = path.read_bytes()
+    except OSError as err:
+        _fail(None, f"cannot read the config file ({err.strerror or err})", path)
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = raw[:err.start].count(b"\n") + 1
+        raise ConfigError(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path, line=line,
+                          column=err.start - (raw.rfind(b"\n", 0, err.start) + 1) + 1) from None
+    return config_from_dict(parse_toml(text, path), path=path)
+
+
+def parse_toml(text: str, path: Path | None = None) -> dict:
+    """``tomllib.loads`` with its errors as :class:`ConfigError` at a line and column."""
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as err:
-        raise ConfigError(f"TOML syntax: {err}", file=path) from None
-    return config_from_dict(data, path=path)
+        msg = str(err).splitlines()[0] if str(err) else "invalid TOML"
+        m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
+        if m:
+            raise ConfigError(f"TOML syntax error: {msg[:m.start()]}", file=path,
+                              line=int(m.group(1)), column=int(m.group(2))) from None
+        m = re.search(r"\s*\(at end of document\)\s*$", msg)
+        if m:
+            raise ConfigError(f"TOML syntax error at the end of the file: {msg[:m.start()]}", file=path,
+                              line=max(1, text.count("\n") + (not text.endswith("\n")))) from None
+        raise ConfigError(f"TOML syntax error: {msg}", file=path) from None
+    except RecursionError:
+        raise ConfigError("TOML nesting too deep", file=path) from None
 
 
 def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
+    """Validate the TOML tables of a config (relative paths resolve against ``path``'s folder)."""
     f = path
-    _unknown(data, {"analysis", "physics", "models", "state", "filter", "diagnosis", "prediction",
-                    "verification"}, "", f)
-    an = data.get("analysis", {})
-    _require(isinstance(an, dict), "analysis", "must be a table", f)
-    _unknown(an, {"mission", "method", "name"}, "analysis.", f)
-    _require("mission" in an and isinstance(an["mission"], str), "analysis.mission",
-             "must name the mission directory (a string)", f)
+    _require(isinstance(data, dict), "", "a config is a TOML document of tables", f)
+    _unknown(data, TABLES, "", f)
+    tables = {name: _table(data, name, name, f) for name in TABLES}
+
+    an = tables["analysis"]
+    _unknown(an, TABLES["analysis"], "analysis.", f)
+    _require("mission" in an, "analysis.mission", "missing: name the mission directory", f)
+    mission_s = an["mission"]
+    _require(isinstance(mission_s, str) and mission_s.strip() != "" and "\0" not in mission_s,
+             "analysis.mission", f"must be the mission directory as a string, not {_show(mission_s)}", f)
     base = path.parent if path is not None else Path(".")
-    mission = Path(an["mission"])
+    mission = Path(mission_s)
     if not mission.is_absolute():
-        mission = (base / mission)
-    method = an.get("method", "batch")
-    _require(method in METHODS, "analysis.method", f"must be one of {', '.join(METHODS)}, got {method!r}", f)
+        mission = Path(os.path.normpath(base / mission))
+    name = an.get("name")
+    _require(name is None or isinstance(name, str), "analysis.name", f"must be a string, not {_show(name)}", f)
+    method = _choice(an, "method", METHODS, "batch", "analysis.method", f)
 
     ph = dict(AnalysisConfig().physics)
-    phys = data.get("physics", {})
-    _unknown(phys, set(ph), "physics.", f)
+    phys = tables["physics"]
+    _unknown(phys, TABLES["physics"], "physics.", f)
     for k, v in phys.items():
         if k == "field_model":
-            _require(v in FIELD_MODELS, "physics.field_model", f"must be one of {', '.join(FIELD_MODELS)}", f)
+            ph[k] = _choice(phys, k, FIELD_MODELS, "igrf", "physics.field_model", f)
         else:
-            _require(isinstance(v, bool), f"physics.{k}", "must be true or false", f)
-        ph[k] = v
+            _require(isinstance(v, bool), f"physics.{k}", f"must be true or false, not {_show(v)}", f)
+            ph[k] = v
 
-    models = data.get("models", {})
-    _require(isinstance(models, dict), "models", "must be a table of sensor = model", f)
+    models = tables["models"]
     for k, v in models.items():
-        _require(isinstance(v, str), f"models.{k}", "must be a model name or \"off\"", f)
+        _require(isinstance(v, str) and v in SENSOR_TYPES + (MODEL_OFF,), f"models.{_quote(k)}",
+                 f"must be the sensor's type ({', '.join(SENSOR_TYPES)}) or \"off\", not {_show(v)}", f)
 
-    st = data.get("state", {})
-    _unknown(st, {"effects", "exclude", "attitude_sigma_deg", "elements"}, "state.", f)
-    effects = st.get("effects", [])
-    exclude = st.get("exclude", [])
-    for key, lst in (("state.effects", effects), ("state.exclude", exclude)):
-        _require(isinstance(lst, list) and all(isinstance(e, str) and "." in e for e in lst), key,
-                 "must be a list of effect ids like \"TAM1.alignment\"", f)
+    st = tables["state"]
+    _unknown(st, TABLES["state"], "state.", f)
+    lists = {}
+    for key in ("effects", "exclude"):
+        lst = _list(st, key, f"state.{key}", f)
+        for i, e in enumerate(lst, start=1):
+            _require(isinstance(e, str) and _ID.match(e) is not None, f"state.{key}[{i}]",
+                     f"must be an effect id like \"TAM1.alignment\" (see gcs effects), not {_show(e)}", f)
+        lists[key] = tuple(lst)
     elements = {}
-    for name, ov in st.get("elements", {}).items():
-        pre = f"state.elements.{name}."
-        _require(isinstance(ov, dict), f"state.elements.{name}", "must be a table", f)
-        _unknown(ov, {"role", "value", "sigma"}, pre, f)
+    for name_e, ov in _table(st, "elements", "state.elements", f).items():
+        pre = f"state.elements.{_quote(name_e)}."
+        _require("." in name_e, pre[:-1], "must be an element name like \"TAM1.bias_x\"", f)
+        _require(isinstance(ov, dict), pre[:-1], f"must be a table (role, value, sigma), not {_show(ov)}", f)
+        _unknown(ov, ELEMENT_KEYS, pre, f)
         role = ov.get("role")
-        _require(role is None or role in ROLES, pre + "role", f"must be one of {', '.join(ROLES)}", f)
-        elements[name] = ElementConfig(role, _number(ov, "value", None, f, prefix=pre),
-                                       _number(ov, "sigma", None, f, positive=True, prefix=pre)
-                                       if ov.get("sigma") != math.inf else math.inf)
-    att_sig = _number(st, "attitude_sigma_deg", 1.0, f, positive=True, prefix="state.")
+        _require(role is None or (isinstance(role, str) and role in ROLES), pre + "role",
+                 f"must be one of {', '.join(ROLES)}, not {_show(role)}", f)
+        elements[name_e] = ElementConfig(role, _number(ov, "value", None, f, prefix=pre),
+                                         _number(ov, "sigma", None, f, positive=True, prefix=pre,
+                                                 allow_inf=True))
+    att_sig = _number(st, "attitude_sigma_deg", 1.0, f, positive=True, hi=180.0, prefix="state.")
 
-    fl = data.get("filter", {})
-    _unknown(fl, {"block_seconds", "edit_k", "max_iterations"}, "filter.", f)
-    dg = data.get("diagnosis", {})
-    _unknown(dg, {"significance", "holdout_fraction"}, "diagnosis.", f)
-    pr = data.get("prediction", {})
-    _unknown(pr, {"start", "end", "step", "gaps", "maneuvers"}, "prediction.", f)
-    gaps = pr.get("gaps", [])
-    _require(isinstance(gaps, list) and all(isinstance(g, list) and len(g) == 2 and g[0] < g[1] for g in gaps),
-             "prediction.gaps", "must be a list of [start, end] pairs with start < end", f)
+    fl = tables["filter"]
+    _unknown(fl, TABLES["filter"], "filter.", f)
+    dg = tables["diagnosis"]
+    _unknown(dg, TABLES["diagnosis"], "diagnosis.", f)
+    pr = tables["prediction"]
+    _unknown(pr, TABLES["prediction"], "prediction.", f)
+    gaps = _list(pr, "gaps", "prediction.gaps", f)
+    for i, g in enumerate(gaps, start=1):
+        _require(_pair(g), f"prediction.gaps[{i}]",
+                 f"must be a [start, end] pair of numbers with start < end, not {_show(g)}", f)
     mans = []
-    for i, m in enumerate(pr.get("maneuvers", [])):
+    for i, m in enumerate(_list(pr, "maneuvers", "prediction.maneuvers", f), start=1):
         pre = f"prediction.maneuvers[{i}]."
-        _unknown(m, {"start", "duration", "axis", "rate_deg_s"}, pre, f)
-        _require(m.get("axis") in AXES, pre + "axis", f"must be one of {', '.join(AXES)}", f)
+        _require(isinstance(m, dict), pre[:-1], f"must be a table ([[prediction.maneuvers]]), not {_show(m)}", f)
+        _unknown(m, MANEUVER_KEYS, pre, f)
+        for k in MANEUVER_KEYS:
+            _require(k in m, pre + k, "missing: a maneuver needs start, duration, axis and rate_deg_s", f)
         mans.append(Maneuver(_number(m, "start", 0.0, f, prefix=pre),
                              _number(m, "duration", 0.0, f, positive=True, prefix=pre),
-                             m["axis"], _number(m, "rate_deg_s", 0.0, f, prefix=pre)))
-    vf = data.get("verification", {})
-    _unknown(vf, {"requirement_deg"}, "verification.", f)
+                             _choice(m, "axis", AXES, None, pre + "axis", f),
+                             _number(m, "rate_deg_s", 0.0, f, lo=-180.0, hi=180.0, prefix=pre)))
+    pred_start = _number(pr, "start", None, f, prefix="prediction.")
+    pred_end = _number(pr, "end", None, f, prefix="prediction.")
+    if pred_start is not None and pred_end is not None:
+        _require(pred_end > pred_start, "prediction.end",
+                 f"must be later than prediction.start ({pred_start}), not {pred_end}", f)
+    vf = tables["verification"]
+    _unknown(vf, TABLES["verification"], "verification.", f)
     return AnalysisConfig(
         path=path, mission=mission, method=method, physics=ph, models=dict(models),
-        effects=tuple(effects), exclude=tuple(exclude), elements=elements, attitude_sigma_deg=att_sig,
+        effects=lists["effects"], exclude=lists["exclude"], elements=elements, attitude_sigma_deg=att_sig,
         block_seconds=_number(fl, "block_seconds", 600.0, f, positive=True, prefix="filter."),
         edit_k=_number(fl, "edit_k", 5.0, f, lo=0.0, prefix="filter."),
-        max_iterations=int(_number(fl, "max_iterations", 20, f, lo=1, hi=1000, prefix="filter.")),
+        max_iterations=_number(fl, "max_iterations", 20, f, lo=1, hi=1000, integer=True, prefix="filter."),
         significance=_number(dg, "significance", 0.001, f, lo=1e-12, hi=0.5, prefix="diagnosis."),
         holdout_fraction=_number(dg, "holdout_fraction", 0.25, f, lo=0.0, hi=0.9, prefix="diagnosis."),
-        pred_start=_number(pr, "start", None, f, prefix="prediction."),
-        pred_end=_number(pr, "end", None, f, prefix="prediction."),
+        pred_start=pred_start, pred_end=pred_end,
         pred_step=_number(pr, "step", 10.0, f, positive=True, prefix="prediction."),
         gaps=tuple((float(a), float(b)) for a, b in gaps), maneuvers=tuple(mans),
-        requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, prefix="verification."))
+        requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
+                                prefix="verification."),
+        name=name)
 
 
+def check_against_mission(cfg: AnalysisConfig, spec) -> None:
+    """The checks that need the mission: ``[models]`` names its sensors with their types,
+    and effect ids and element names start with one of its sensors (``att.``/``model.`` too).
+
+    ``spec`` is the mission's :class:`~gcs_core.sidp.types.MissionSpec`.
+    """
+    f = cfg.path
+    types = {s.name: s.type for s in spec.sensors}
+    listed = ", ".join(types) or "none"
+    for name, model in cfg.models.items():
+        key = f"models.{_quote(name)}"
+        _require(name in types, key, f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
+        _require(model in (types[name], MODEL_OFF), key,
+                 f"sensor {name} is a {types[name]}: use \"{types[name]}\" or \"off\", not {_show(model)}", f)
+    for key, ids in (("state.effects", cfg.effects), ("state.exclude", cfg.exclude)):
+        for i, e in enumerate(ids, start=1):
+            owner = e.split(".")[0]
+            _require(owner in types or owner == "model", f"{key}[{i}]",
+                     f"effect {e}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})", f)
+    for name in cfg.elements:
+        owner = name.split(".")[0]
+        _require(owner in types or owner == "att", f"state.elements.{_quote(name)}",
+                 f"element {name}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})", f)
+
+
+# ---------------------------------------------------------------------------- writing
 def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str, Any]:
     """The TOML-ready dictionary of a config (paths relative to ``relative_to``)."""
     mission = cfg.mission
@@ -277,8 +426,11 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
             mission = Path(_relpath(cfg.mission, relative_to))
         except ValueError:
             pass
+    analysis: dict[str, Any] = {"mission": mission.as_posix(), "method": cfg.method}
+    if cfg.name is not None:
+        analysis["name"] = cfg.name
     out: dict[str, Any] = {
-        "analysis": {"mission": str(mission), "method": cfg.method},
+        "analysis": analysis,
         "physics": dict(cfg.physics),
         "models": dict(cfg.models),
         "state": {"effects": list(cfg.effects), "exclude": list(cfg.exclude),
@@ -300,15 +452,11 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
 
 
 def _relpath(p: Path, base: Path) -> str:
-    import os
     return os.path.relpath(Path(p).resolve(), Path(base).resolve())
 
 
 def save_config(cfg: AnalysisConfig, path: str | Path) -> Path:
     """Write the config atomically (write new, then replace)."""
-    import os
-    import tempfile
-
     import tomli_w
 
     path = Path(path)

@@ -1,8 +1,12 @@
-"""Plain-text tables and the JSON report writer for headless runs.
+"""Plain-text tables and the JSON reports of the headless runs (ICD §7).
 
 Numbers are shown with honest precision: an estimate is rounded to the decimal place
 of the second significant digit of its σ, and angles are shown in arcsec or degrees
-rather than radians.
+rather than radians. Every table is a list of lines, so that the ``gcs`` command, the
+TUI and the tests print or compare them alike; nothing here writes to a terminal.
+
+The JSON report of ``gcs batch`` and ``gcs discover`` is :func:`analysis_report`; the
+fields ICD §7 requires are checked by :func:`icd_report_problems`.
 """
 
 from __future__ import annotations
@@ -11,7 +15,9 @@ import json
 import math
 import os
 import tempfile
+import textwrap
 from pathlib import Path
+from typing import Any, Iterable, Mapping
 
 import numpy as np
 
@@ -66,14 +72,194 @@ def state_table(analysis) -> list[str]:
 
 
 def prediction_table(res) -> list[str]:
+    """The predicted 1-σ of every solve-for element at the end of the plan, the attitude
+    1-σ and the usable frames per sensor (a :class:`~gcs_core.predictor.PredictionResult`)."""
     names = list(res.names)
-    final = res.sigma[-1] if len(res.sigma) else []
-    lines = [f"{'element':28s} predicted 1-sigma at end of plan"]
-    for n, s in zip(names, final):
-        unit = res.units[names.index(n)] if hasattr(res, "units") else ""
-        _, s_disp, u = display_unit(unit, 0.0, float(s))
-        lines.append(f"{n:28s} {s_disp:.3g} {u}")
+    units = list(getattr(res, "units", [""] * len(names)))
+    final = res.sigma[-1] if len(res.sigma) else [float("nan")] * len(names)
+    lines = []
+    plan = getattr(res, "plan", None)
+    if plan is not None:
+        lines.append(f"plan t = {plan.start:g} to {plan.end:g} s, {len(plan.gaps)} gap(s), "
+                     f"{len(plan.maneuvers)} maneuver(s); method {res.method}")
+    lines.append(f"{'element':28s} predicted 1-sigma at end of plan")
+    for n, u, s in zip(names, units, final):
+        _, s_disp, u_disp = display_unit(u, 0.0, float(s))
+        lines.append(f"{n:28s} {s_disp:.3g} {u_disp}")
+    att = getattr(res, "attitude_sigma", None)
+    if att is not None and len(att):
+        # three-axis: about the body axes; spinning: of the spin-axis unit vector (≈ angles)
+        axes = ("roll", "pitch", "yaw") if "att.roll" in names else ("spin axis x", "spin axis y", "spin axis z")
+        lines.append("attitude 1-sigma at end of plan: " + ", ".join(
+            f"{ax} {v / ARCSEC:.3g} arcsec" for ax, v in zip(axes, att[-1])))
+    frames = getattr(res, "frames", None)
+    if frames:
+        avail = getattr(res, "availability", {})
+        lines.append("usable frames: " + ", ".join(
+            f"{k} {v}" + (f" ({100 * avail[k]:.0f}%)" if k in avail else "") for k, v in frames.items()))
+    for u in getattr(res, "unobservable", ()):
+        lines.append(f"unobservable from the plan: {u}")
     return lines
+
+
+def candidate_table(candidates: Iterable, *, alpha: float, limit: int | None = 10) -> list[str]:
+    """Ranked candidate effects: Δχ², dof, p, Bonferroni-adjusted p, identifiable, and
+    ``*`` where the adjusted p passes the family-wise level ``alpha``."""
+    cands = list(candidates)
+    lines = [f"{'candidate':38s} {'Δχ²':>10s} {'dof':>3s} {'p':>9s} {'adj. p':>9s}  identifiable"]
+    for c in cands[:limit] if limit else cands:
+        mark = " *" if c.identifiable and c.p_adjusted < alpha else ""
+        lines.append(f"{c.id:38s} {c.delta_chi2:10.1f} {c.dof:3d} {c.p_value:9.2g} {c.p_adjusted:9.2g}  "
+                     f"{'yes' if c.identifiable else 'no'}{mark}")
+    if limit and len(cands) > limit:
+        lines.append(f"... {len(cands) - limit} more (all are in the JSON report)")
+    lines.append(f"* significant at family-wise α = {alpha:g} (Bonferroni over {len(cands)} candidates)")
+    return lines
+
+
+def steps_table(steps: Iterable, *, min_change: float = 0.005) -> list[str]:
+    """One line per effect added or removed: Δχ² and the normalized RMS of the sensors it
+    moved by at least ``min_change`` (before → after, held-out after)."""
+    lines = []
+    for k, s in enumerate((s for s in steps if s.action in ("add", "remove")), start=1):
+        moved = {n: (s.rms_before.get(n, float("nan")), v) for n, v in s.rms_after.items()}
+        shown = {n: ba for n, ba in moved.items() if abs(ba[1] - ba[0]) >= min_change}
+        if not shown and moved:
+            n = max(moved, key=lambda n: abs(moved[n][1] - moved[n][0]) if math.isfinite(moved[n][0]) else 0.0)
+            shown = {n: moved[n]}
+        rms = ", ".join(f"{n} {b:.3f} → {a:.3f}" + (f" (held-out {s.holdout_after[n]:.3f})"
+                                                     if n in s.holdout_after else "")
+                        for n, (b, a) in shown.items())
+        verb = "added" if s.action == "add" else "removed"
+        lines.append(f"{k:2d}. {verb} {s.effect}: Δχ² {s.delta_chi2:.1f}; normalized RMS {rms}")
+    return lines
+
+
+def import_table(mission) -> list[str]:
+    """What an import read: rows kept and dropped per file, unknown keys and repairs
+    (an :class:`~gcs_core.sidp.importer.ImportedMission`)."""
+    spec, rep = mission.spec, mission.report
+    root = Path(getattr(spec, "root", "."))
+    lines = [f"mission {spec.name}: {len(spec.sensors)} sensors "
+             f"({', '.join(f'{s.name} {s.type}' for s in spec.sensors)}), attitude mode {spec.attitude_mode}",
+             "",
+             f"{'file':34s} {'role':20s} {'rows kept':>9s} {'NaN dropped':>11s} {'duplicates':>10s}"]
+    for fc in rep.files:
+        try:
+            shown = Path(fc.file).relative_to(root).as_posix()
+        except ValueError:
+            shown = str(fc.file)
+        lines.append(f"{shown:34s} {fc.what:20s} {fc.rows:9d} {fc.dropped_nan:11d} {fc.dropped_duplicates:10d}")
+    lines.append(f"{'total':34s} {'':20s} {sum(f.rows for f in rep.files):9d} {rep.dropped_nan:11d} "
+                 f"{rep.dropped_duplicates:10d}")
+    lines.append("")
+    lines.append("unknown keys (kept, not used): " + (", ".join(rep.unknown_keys) or "none"))
+    lines += [f"repair: {r}" for r in rep.repairs] or ["repairs: none"]
+    return lines
+
+
+def effects_lines(effects: Iterable, in_state: Iterable[str], *, explain: bool = False,
+                  width: int = 100) -> list[str]:
+    """A mission's catalogue: effect id, family, whether it is in the state, its elements."""
+    in_state = set(in_state)
+    lines = [f"{'effect id':38s} {'family':18s} {'in state':8s} elements"]
+    for e in effects:
+        elems = ", ".join(e.elements) if e.elements else "(physics option)"
+        lines.append(f"{e.id:38s} {e.family:18s} {'yes' if e.id in in_state else 'no':8s} "
+                     + textwrap.shorten(elems, max(20, width - 67), placeholder=" ..."))
+        if explain and e.explanation:
+            lines += textwrap.wrap(e.explanation, width, initial_indent="    ", subsequent_indent="    ")
+    return lines
+
+
+def generic_effects_lines(rows: Iterable[tuple[str, str, str]], *, width: int = 100) -> list[str]:
+    """The catalogue without a mission: ``<SENSOR>.<effect>`` or ``model.<effect>``,
+    its family and what it looks like."""
+    lines = []
+    for name, family, text in rows:
+        lines.append(f"model.{name}" if family == "physics" else f"<SENSOR>.{name}")
+        lines += textwrap.wrap(f"[{family}] {text}", width, initial_indent="    ", subsequent_indent="    ")
+    return lines
+
+
+# ---------------------------------------------------------------------------- JSON (ICD §7)
+def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
+    """The ICD §7 report of a fitted :class:`~gcs_core.session.Analysis`.
+
+    ``sensors[name].rms`` is one number as in ICD §7, the RMS over the components
+    ``sqrt(mean_j rms_j²)`` in the sensor's unit; the per-component values are in
+    ``rms_components``. Everything else is :meth:`Analysis.report`.
+    """
+    rep = dict(analysis.report())
+    res = analysis.result
+    if res is not None:
+        for name, s in rep.get("sensors", {}).items():
+            r = res.residuals.get(name)
+            if r is None:
+                continue
+            comp = np.atleast_1d(np.asarray(r.rms, dtype=float))
+            s["rms_components"] = {c: float(v) for c, v in zip(r.components, comp)}
+            s["rms"] = float(np.sqrt(np.mean(comp ** 2))) if comp.size else float("nan")
+    out: dict[str, Any] = {"mission": rep.pop("mission")}
+    if command:
+        out["command"] = command
+    out.update(rep)
+    return out
+
+
+def _is_num(v, *, none_ok: bool = False) -> bool:
+    if v is None:
+        return none_ok
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def icd_report_problems(rep: Mapping[str, Any]) -> list[str]:
+    """What an ICD §7 report lacks (empty when every required field is there and typed).
+
+    Required: ``mission``; ``sensors{name: {n, rms, rms_normalized}}``;
+    ``state[{name, estimate, sigma, unit}]``; ``candidates[{id, sensor, effect,
+    delta_chi2, dof, p_value, identifiable}]``; ``steps[{added, rms_normalized_before,
+    rms_normalized_after}]`` (a removal names ``removed`` instead). A number that was not
+    finite is ``null`` in JSON and accepted where a σ or p may be undefined.
+    """
+    out = []
+    if not isinstance(rep.get("mission"), str):
+        out.append("mission: must be a string")
+    sensors = rep.get("sensors")
+    if not isinstance(sensors, Mapping):
+        out.append("sensors: must be an object")
+        sensors = {}
+    for name, s in sensors.items():
+        if not isinstance(s, Mapping):
+            out.append(f"sensors.{name}: must be an object")
+            continue
+        if not isinstance(s.get("n"), int) or isinstance(s.get("n"), bool):
+            out.append(f"sensors.{name}.n: must be an integer")
+        for k in ("rms", "rms_normalized"):
+            if k not in s or not _is_num(s[k], none_ok=True):
+                out.append(f"sensors.{name}.{k}: must be a number")
+    for key, fields in (("state", {"name": str, "estimate": float, "sigma": float, "unit": str}),
+                        ("candidates", {"id": str, "sensor": str, "effect": str, "delta_chi2": float,
+                                        "dof": int, "p_value": float, "identifiable": bool}),
+                        ("steps", {"rms_normalized_before": dict, "rms_normalized_after": dict})):
+        rows = rep.get(key)
+        if not isinstance(rows, list):
+            out.append(f"{key}: must be a list")
+            continue
+        for i, row in enumerate(rows):
+            if not isinstance(row, Mapping):
+                out.append(f"{key}[{i}]: must be an object")
+                continue
+            for f, typ in fields.items():
+                v = row.get(f)
+                ok = (f in row and (_is_num(v, none_ok=f in ("sigma", "p_value")) if typ is float
+                                    else isinstance(v, int) and not isinstance(v, bool) if typ is int
+                                    else isinstance(v, typ)))
+                if not ok:
+                    out.append(f"{key}[{i}].{f}: must be {typ.__name__}")
+            if key == "steps" and not isinstance(row.get("added", row.get("removed")), str):
+                out.append(f"steps[{i}].added: must name the effect")
+    return out
 
 
 def _default(o):

@@ -3,268 +3,469 @@
 Commands (``gcs COMMAND --help`` for options):
 
 * ``gcs tui [TARGET]`` — the analyst's terminal UI;
-* ``gcs import MISSION [--sdf FILE]`` — validate a mission directory, write the SDF;
+* ``gcs import MISSION [--sdf FILE] [--report R]`` — validate a mission directory, print what
+  was read (rows kept, NaN and duplicate rows dropped per file, unknown keys), write the SDF;
 * ``gcs batch TARGET`` — fit the configured state, print residuals and estimates;
 * ``gcs discover TARGET`` — stepwise missing-effect discovery;
-* ``gcs effects [TARGET]`` — the catalogue of candidate effects;
+* ``gcs effects [TARGET]`` — the catalogue of candidate effects (generic, or the mission's);
 * ``gcs predict TARGET`` — covariance-only accuracy prediction for the data plan;
 * ``gcs verify TARGET`` — onboard against ground attitudes, §4.4 flag.
 
-``TARGET`` is an analysis config (``.toml``) or a mission directory (default config).
+``TARGET`` is an analysis config (``.toml``, see :mod:`gcs_core.config` and
+``sample_data/configs/``) or a mission directory (default config). ``--report R`` writes
+the JSON report (ICD §7 for ``batch`` and ``discover``); ``--plots DIR`` exports residual
+plots (``--plot-format txt|html``).
+
+Results go to stdout; progress, log lines and errors to stderr: a live progress line when
+stderr is a terminal, plain ``gcs: ...`` lines otherwise (CI, pipes), nothing with ``-q``
+(:mod:`gcs_tui.progress`).
 
 Exit codes: 0 success; 1 the run completed and found something the analyst must act
-on (``verify`` raised the §4.4 flag; ``discover`` added effects with ``--strict``);
-2 bad input (the message names the file, line and column or the key); 3 the
-estimation failed (divergence, unobservable state); 130 interrupted.
+on (``verify`` raised the §4.4 flag; ``discover --strict`` added effects);
+2 bad input, one line naming the file, line and column or the config key (also a
+usage error); 3 the estimation failed (divergence, unobservable state); 4 an internal
+error (a bug in GCS: one line, ``-v`` shows the traceback); 130 interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
-import math
+import os
 import sys
+import traceback
 from pathlib import Path
 
-from gcs_core.errors import EstimationError, GcsError, InputError
+from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
+from gcs_tui.progress import MODES, LogHandler, Progress
 
 log = logging.getLogger("gcs")
 
-EXIT_OK, EXIT_FLAG, EXIT_INPUT, EXIT_ESTIMATION, EXIT_INTERRUPT = 0, 1, 2, 3, 130
+EXIT_OK, EXIT_FLAG, EXIT_INPUT, EXIT_ESTIMATION, EXIT_INTERNAL, EXIT_INTERRUPT = 0, 1, 2, 3, 4, 130
+#: fit statuses that mean the estimation failed (exit 3 after the tables are printed)
+FAILED_STATUSES = ("diverged",)
+#: loggers the command shows (``gcs`` at INFO, the engine's at WARNING unless ``-v``)
+LOGGERS = ("gcs", "gcs_core", "gcs_tui")
 
 
 def _out(text: str = "") -> None:
     sys.stdout.write(text + "\n")
 
 
-def _load(target: str):
+def _lines(lines) -> None:
+    for line in lines:
+        _out(line)
+
+
+# ---------------------------------------------------------------------------- set-up
+def _load(args):
+    """The analysis config of ``args.target`` (a .toml, or a mission directory's default)."""
     from gcs_core.config import default_config, load_config
 
-    p = Path(target)
+    p = Path(args.target)
     if p.is_dir():
-        return default_config(p)
-    if p.suffix == ".toml" or p.is_file():
-        return load_config(p)
-    raise InputError("no such mission directory or config file", file=p)
-
-
-def _analysis(args):
-    from gcs_core.session import Analysis
-
-    cfg = _load(args.target)
+        cfg = default_config(p)
+    elif p.name == "mission.toml" and p.is_file():      # the mission's own file: its directory
+        cfg = default_config(p.parent)
+    elif p.suffix == ".toml" or p.is_file():
+        cfg = load_config(p)
+    else:
+        raise InputError("no such mission directory or config file", file=p)
+    args.config_path = cfg.path
     if getattr(args, "method", None):
         from dataclasses import replace
         cfg = replace(cfg, method=args.method)
-    return Analysis(cfg)
+    return cfg
+
+
+def _setup(args, prog: Progress):
+    """(config, imported mission), the config checked against the mission."""
+    from gcs_core.config import check_against_mission
+    from gcs_core.sidp.importer import load_mission
+
+    cfg = _load(args)
+    with prog.task(f"reading mission {cfg.mission}"):
+        mission = load_mission(cfg.mission)
+    check_against_mission(cfg, mission.spec)
+    return cfg, mission
+
+
+def _analysis(args, prog: Progress):
+    from gcs_core.session import Analysis
+
+    cfg, mission = _setup(args, prog)
+    with prog.task("building the state"):
+        return Analysis(cfg, mission=mission)
+
+
+def _fit(a, prog: Progress, **kw):
+    with prog.task(f"fitting {a.mission.spec.name} ({a.config.method})"):
+        return a.fit(**kw)
+
+
+def _fit_failed(a) -> bool:
+    res = a.result
+    if res is not None and res.status in FAILED_STATUSES:
+        sys.stderr.write(f"gcs: estimation failed: {res.message}\n")
+        return True
+    return False
 
 
 def _write_json(path: str | None, data: dict) -> None:
     if not path:
         return
     from gcs_core.reporting import write_json_atomic
-    write_json_atomic(Path(path), data)
+    try:
+        write_json_atomic(Path(path), data)
+    except OSError as err:
+        raise InputError(f"cannot write the report ({err.strerror or err})", file=path) from None
     log.info("report written to %s", path)
 
 
-# ---------------------------------------------------------------------------- commands
-def cmd_tui(args) -> int:
-    from gcs_tui.app import run_tui
-
-    run_tui(args.target)
-    return EXIT_OK
-
-
-def cmd_import(args) -> int:
-    from gcs_core.sidp.importer import load_mission
-
-    m = load_mission(args.mission)
-    rep = m.report
-    _out(f"mission {m.spec.name}: {len(m.spec.sensors)} sensors, attitude mode {m.spec.attitude_mode}")
-    for line in rep.lines() if hasattr(rep, "lines") else [str(rep)]:
-        _out("  " + line)
-    if args.sdf:
-        from gcs_core.sidp.sdf import write_sdf
-        write_sdf(Path(args.sdf), m)
-        _out(f"SDF written to {args.sdf}")
-    return EXIT_OK
-
-
-def _print_fit(a) -> None:
-    from gcs_core.reporting import fit_table, state_table
-
-    for line in fit_table(a):
-        _out(line)
-    _out("")
-    for line in state_table(a):
-        _out(line)
-
-
-def cmd_batch(args) -> int:
-    a = _analysis(args)
-    _progress(args, f"fitting {a.mission.spec.name} ({a.config.method})")
-    a.fit()
-    if args.rank:
-        a.rank()
-    _print_fit(a)
-    if args.scds:
-        from gcs_core.calibration import save_calibration
-        v = save_calibration(a, Path(args.scds), note=args.note or "")
-        _out(f"calibration saved as version {v} in {args.scds}")
-    _write_json(args.report, a.report())
-    _export_plots(args, a)
-    return EXIT_OK
-
-
-def cmd_discover(args) -> int:
-    from dataclasses import replace
-
-    a = _analysis(args)
-    if args.significance:
-        a.config = replace(a.config, significance=args.significance)
-    steps = a.discover(max_steps=args.max_steps, progress=lambda m: _progress(args, m))
-    _print_fit(a)
-    added = [s.effect for s in steps if s.action == "add"]
-    _out("")
-    _out("effects added: " + (", ".join(added) if added else "none"))
-    for s in steps:
-        if s.action == "add":
-            cand = next((c for c in a.steps if c is s), None)
-            _out(f"  {s.effect}: Δχ² {s.delta_chi2:.1f}; normalized RMS after: "
-                 + ", ".join(f"{k} {v:.3f}" for k, v in s.rms_after.items()))
-    _out("stopped: " + a.stop_reason)
-    _write_json(args.report, a.report())
-    _export_plots(args, a)
-    return EXIT_FLAG if (args.strict and added) else EXIT_OK
-
-
-def cmd_effects(args) -> int:
-    from gcs_core.diagnosis.catalogue import generic_catalogue
-
-    if args.target:
-        a = _analysis(args)
-        in_state = set(a.effects_in_state())
-        _out(f"{'effect id':38s} {'family':18s} in state")
-        for e in a.catalogue():
-            _out(f"{e.id:38s} {e.family:18s} {'yes' if e.id in in_state else 'no'}")
-        return EXIT_OK
-    for name, family, text in generic_catalogue():
-        _out(f"<SENSOR>.{name}" if family != "physics" else f"model.{name}")
-        _out(f"    [{family}] {text}")
-    return EXIT_OK
-
-
-def cmd_predict(args) -> int:
-    from gcs_core.predictor import predict
-    from gcs_core.reporting import prediction_table
-
-    cfg = _load(args.target)
-    res = predict(cfg)
-    for line in prediction_table(res):
-        _out(line)
-    _write_json(args.report, res.as_report() if hasattr(res, "as_report") else {})
-    return EXIT_OK
-
-
-def cmd_verify(args) -> int:
-    from gcs_core.verif import verify_analysis
-
-    a = _analysis(args)
-    a.fit(holdout=False)
-    v = verify_analysis(a)
-    _out(v.summary() if hasattr(v, "summary") else str(v))
-    if args.asf:
-        from gcs_core.calibration import save_ground_attitude
-        save_ground_attitude(a, Path(args.asf))
-    _write_json(args.report, v.as_report() if hasattr(v, "as_report") else {})
-    return EXIT_FLAG if v.flag else EXIT_OK
-
-
-def _progress(args, message: str) -> None:
-    log.info(message)
+def _output(path: str) -> Path:
+    """An output file's path, its folder created if missing."""
+    p = Path(path)
+    try:
+        p.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise InputError(f"cannot create the folder ({err.strerror or err})", file=p.parent) from None
+    return p
 
 
 def _export_plots(args, a) -> None:
     if not getattr(args, "plots", None):
         return
     from gcs_tui.export import export_residual_plots
-    paths = export_residual_plots(a, Path(args.plots), fmt=args.plot_format)
-    _out(f"{len(paths)} plots written to {args.plots}")
+    try:
+        paths = export_residual_plots(a, Path(args.plots), fmt=args.plot_format)
+    except OSError as err:
+        raise InputError(f"cannot write the plots ({err.strerror or err})", file=args.plots) from None
+    _out(f"{len(paths)} plot file(s) written to {args.plots}")
+
+
+def _print_fit(a) -> None:
+    from gcs_core.reporting import fit_table, state_table
+
+    _lines(fit_table(a))
+    _out("")
+    _lines(state_table(a))
+
+
+# ---------------------------------------------------------------------------- commands
+def cmd_tui(args, prog: Progress) -> int:
+    from gcs_tui.app import run_tui
+
+    run_tui(args.target)
+    return EXIT_OK
+
+
+def cmd_import(args, prog: Progress) -> int:
+    from gcs_core.reporting import import_table
+    from gcs_core.sidp.importer import load_mission
+
+    with prog.task(f"reading mission {args.mission}"):
+        m = load_mission(args.mission)
+    _lines(import_table(m))
+    if args.sdf:
+        from gcs_core.sidp.sdf import write_sdf
+        with prog.task(f"writing the SDF {args.sdf}"):
+            path = write_sdf(_output(args.sdf), m)
+        _out(f"SDF written to {path}")
+    _write_json(args.report, {"mission": m.spec.name, "command": "import", **m.report.to_dict()})
+    return EXIT_OK
+
+
+def cmd_batch(args, prog: Progress) -> int:
+    from gcs_core.reporting import analysis_report, candidate_table
+
+    a = _analysis(args, prog)
+    _fit(a, prog)
+    if args.rank or args.report:          # ICD §7 reports always carry the candidates
+        with prog.task("ranking candidate effects"):
+            a.rank()
+    _print_fit(a)
+    if args.rank:
+        _out("")
+        _lines(candidate_table(a.candidates, alpha=a.config.significance))
+    if args.scds:
+        from gcs_core.calibration import save_calibration
+        with prog.task(f"appending the calibration to {args.scds}"):
+            v = save_calibration(a, _output(args.scds), note=args.note or "")
+        _out(f"calibration saved as version {v} in {args.scds}")
+    _write_json(args.report, analysis_report(a, command="batch"))
+    _export_plots(args, a)
+    return EXIT_ESTIMATION if _fit_failed(a) else EXIT_OK
+
+
+def cmd_discover(args, prog: Progress) -> int:
+    from dataclasses import replace
+
+    from gcs_core.reporting import analysis_report, candidate_table, steps_table
+
+    a = _analysis(args, prog)
+    if args.significance is not None:
+        a.config = replace(a.config, significance=args.significance)
+    _fit(a, prog)
+    if _fit_failed(a):
+        return EXIT_ESTIMATION
+    with prog.task("discovering missing effects (score tests, refits)") as task:
+        def say(message: str) -> None:
+            prog.message(message)
+            task(text=message)
+        steps = a.discover(max_steps=args.max_steps, progress=say)
+    added = [s.effect for s in steps if s.action == "add"]
+    _print_fit(a)
+    _out("")
+    _out("effects added: " + (", ".join(added) if added else "none"))
+    _lines("  " + line for line in steps_table(steps))
+    _out("stopped: " + a.stop_reason)
+    if a.candidates:
+        _out("")
+        _lines(candidate_table(a.candidates, alpha=a.config.significance, limit=5))
+    _write_json(args.report, analysis_report(a, command="discover"))
+    _export_plots(args, a)
+    if _fit_failed(a):
+        return EXIT_ESTIMATION
+    return EXIT_FLAG if (args.strict and added) else EXIT_OK
+
+
+def cmd_effects(args, prog: Progress) -> int:
+    from gcs_core.reporting import effects_lines, generic_effects_lines
+
+    width = max(60, min(120, _terminal_width()))
+    if args.target:
+        a = _analysis(args, prog)
+        _lines(effects_lines(a.catalogue(), a.effects_in_state(), explain=args.explain, width=width))
+        return EXIT_OK
+    from gcs_core.diagnosis.catalogue import generic_catalogue
+    _out("Effect ids are <SENSOR>.<effect> or model.<effect> (ICD §7); `gcs effects MISSION` "
+         "lists a mission's.")
+    _out("")
+    _lines(generic_effects_lines(generic_catalogue(), width=width))
+    return EXIT_OK
+
+
+def cmd_predict(args, prog: Progress) -> int:
+    from gcs_core.predictor import predict
+    from gcs_core.reporting import prediction_table
+
+    cfg, mission = _setup(args, prog)
+    with prog.task("predicting the accuracy of the data plan (covariance only)"):
+        res = predict(cfg, mission=mission)
+    _lines(prediction_table(res))
+    _write_json(args.report, {"mission": mission.spec.name, "command": "predict", **res.as_report()})
+    return EXIT_OK
+
+
+def cmd_verify(args, prog: Progress) -> int:
+    from gcs_core.verif import verify_analysis
+
+    a = _analysis(args, prog)
+    _fit(a, prog, holdout=False)
+    if _fit_failed(a):
+        return EXIT_ESTIMATION
+    with prog.task("comparing onboard and ground attitudes"):
+        v = verify_analysis(a)
+    _out(v.summary() if hasattr(v, "summary") else str(v))
+    if args.asf:
+        from gcs_core.calibration import save_ground_attitude
+        with prog.task(f"appending the ground attitudes to {args.asf}"):
+            n = save_ground_attitude(a, _output(args.asf))
+        _out(f"ground attitudes saved as solution {n} in {args.asf}")
+    _write_json(args.report, {"mission": a.mission.spec.name, "command": "verify", **v.as_report()})
+    return EXIT_FLAG if v.flag else EXIT_OK
+
+
+def _terminal_width() -> int:
+    try:
+        return os.get_terminal_size(sys.stdout.fileno()).columns
+    except (OSError, ValueError, AttributeError):
+        return 100
 
 
 # ---------------------------------------------------------------------------- parser
+class _Parser(argparse.ArgumentParser):
+    """argparse with usage errors as one line (exit 2, like every bad input)."""
+
+    def error(self, message: str):
+        self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
+def _positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be ≥ 1, not {v}")
+    return v
+
+
+def _alpha(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not 0.0 < v <= 0.5:
+        raise argparse.ArgumentTypeError(f"must be in (0, 0.5], not {v}")
+    return v
+
+
+EPILOG = ("exit codes: 0 ok; 1 a finding to act on (verify flag, discover --strict added effects); "
+          "2 bad input; 3 estimation failed; 4 internal error; 130 interrupted")
+
+
+def _common(top: bool) -> argparse.ArgumentParser:
+    """The options every command takes, before or after its name (the command's copies
+    default to SUPPRESS so they do not undo what was given before the name)."""
+    common = argparse.ArgumentParser(add_help=False)
+    dflt = (lambda v: v) if top else (lambda v: argparse.SUPPRESS)
+    common.add_argument("-v", "--verbose", action="store_true", default=dflt(False),
+                        help="debug logging (and the traceback of an internal error)")
+    common.add_argument("-q", "--quiet", action="store_true", default=dflt(False),
+                        help="no progress or log lines, only results, warnings and errors")
+    common.add_argument("--progress", choices=MODES, default=dflt("auto"),
+                        help="progress display: a live line on a terminal (auto), always (bar), "
+                             "plain log lines (plain) or none (off)")
+    return common
+
+
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="gcs", description="GCS: calibrate and verify spacecraft attitude sensors")
-    p.add_argument("-v", "--verbose", action="store_true", help="debug logging")
-    sub = p.add_subparsers(dest="command", required=True)
+    p = _Parser(prog="gcs", description="GCS: calibrate and verify spacecraft attitude sensors",
+                epilog=EPILOG, parents=[_common(True)])
+    sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
+    common = _common(False)
+
+    def add(name: str, func, helptext: str):
+        sp = sub.add_parser(name, help=helptext, description=helptext, parents=[common], epilog=EPILOG)
+        sp.set_defaults(func=func)
+        return sp
 
     def target(sp, required=True):
         sp.add_argument("target", nargs=None if required else "?",
                         help="analysis config (.toml) or mission directory")
 
-    sp = sub.add_parser("tui", help="the analyst's terminal UI")
-    sp.add_argument("target", nargs="?", default="sample_data/missions/hidden-tam-contamination")
-    sp.set_defaults(func=cmd_tui)
+    sp = add("tui", cmd_tui, "the analyst's terminal UI")
+    sp.add_argument("target", nargs="?", default="sample_data/missions/hidden-tam-contamination",
+                    help="analysis config (.toml) or mission directory")
 
-    sp = sub.add_parser("import", help="validate a mission directory and write the SDF")
-    sp.add_argument("mission")
+    sp = add("import", cmd_import, "validate a mission directory, show what was read, write the SDF")
+    sp.add_argument("mission", help="mission directory (ICD §1)")
     sp.add_argument("--sdf", help="write the Standard Data File (HDF5) here")
-    sp.set_defaults(func=cmd_import)
+    sp.add_argument("--report", help="write the import counts (JSON) here")
 
     for name, func, helptext in (("batch", cmd_batch, "fit the configured state"),
                                  ("discover", cmd_discover, "stepwise missing-effect discovery")):
-        sp = sub.add_parser(name, help=helptext)
+        sp = add(name, func, helptext)
         target(sp)
         sp.add_argument("--report", help="write the JSON report (ICD §7) here")
         sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
         sp.add_argument("--plots", help="export residual plots to this folder")
-        sp.add_argument("--plot-format", choices=("txt", "html"), default="txt")
+        sp.add_argument("--plot-format", choices=("txt", "html"), default="txt",
+                        help="plain-text plots, one per component, or one HTML page")
         if name == "batch":
-            sp.add_argument("--rank", action="store_true", help="also rank candidate effects")
+            sp.add_argument("--rank", action="store_true", help="also print the ranked candidate effects")
             sp.add_argument("--scds", help="append the calibration to this SCDS (HDF5)")
             sp.add_argument("--note", help="note stored with the calibration")
         else:
-            sp.add_argument("--max-steps", type=int, default=10)
-            sp.add_argument("--significance", type=float, help="family-wise α (default from config)")
+            sp.add_argument("--max-steps", type=_positive_int, default=10, help="at most this many additions")
+            sp.add_argument("--significance", type=_alpha, help="family-wise α (default from the config)")
             sp.add_argument("--strict", action="store_true", help="exit 1 when effects were added")
-        sp.set_defaults(func=func)
 
-    sp = sub.add_parser("effects", help="list the catalogue of candidate effects")
+    sp = add("effects", cmd_effects, "list the catalogue of candidate effects")
     target(sp, required=False)
-    sp.set_defaults(func=cmd_effects)
+    sp.add_argument("--explain", action="store_true", help="with a TARGET: each effect's signature")
 
-    sp = sub.add_parser("predict", help="covariance-only prediction for the data plan")
+    sp = add("predict", cmd_predict, "covariance-only prediction for the data plan")
     target(sp)
     sp.add_argument("--report", help="write a JSON report here")
-    sp.set_defaults(func=cmd_predict)
 
-    sp = sub.add_parser("verify", help="onboard vs ground attitude, §4.4 flag")
+    sp = add("verify", cmd_verify, "onboard vs ground attitude, §4.4 flag")
     target(sp)
     sp.add_argument("--report", help="write a JSON report here")
     sp.add_argument("--asf", help="append the ground attitudes to this Attitude Status File")
-    sp.set_defaults(func=cmd_verify)
     return p
 
 
+# ---------------------------------------------------------------------------- main
+def _install_logging(handler: logging.Handler, *, verbose: bool, quiet: bool) -> list:
+    saved = []
+    for name in LOGGERS:
+        lg = logging.getLogger(name)
+        saved.append((lg, lg.level))
+        if verbose:
+            lg.setLevel(logging.DEBUG)
+        elif name == "gcs" and not quiet:
+            lg.setLevel(logging.INFO)
+        else:
+            lg.setLevel(logging.WARNING)
+        lg.addHandler(handler)
+    return saved
+
+
+def _restore_logging(handler: logging.Handler, saved: list) -> None:
+    for lg, level in saved:
+        lg.removeHandler(handler)
+        lg.setLevel(level)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split("\n"))
+
+
+def _error(prog: Progress, text: str, code: int) -> int:
+    prog.close()
+    sys.stderr.write(f"gcs: {_one_line(text)}\n")
+    return code
+
+
+def _numeric_failure(err: BaseException) -> bool:
+    """numpy's LinAlgError or a floating-point trap: the estimation failed, not GCS."""
+    return type(err).__name__ == "LinAlgError" or isinstance(err, FloatingPointError)
+
+
 def main(argv=None) -> int:
-    args = build_parser().parse_args(argv)
-    logging.basicConfig(level=logging.DEBUG if args.verbose else logging.INFO,
-                        format="gcs: %(message)s", stream=sys.stderr)
-    logging.getLogger("matplotlib").setLevel(logging.WARNING)
+    """Run one ``gcs`` command; returns the exit code (module docstring)."""
     try:
-        return args.func(args)
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:             # --help (0) or a usage error (2), already printed
+        return exc.code if isinstance(exc.code, int) else EXIT_INPUT
+    prog = Progress(sys.stderr, mode="off" if args.quiet else args.progress)
+    handler = LogHandler(prog)
+    saved = _install_logging(handler, verbose=args.verbose, quiet=args.quiet)
+    try:
+        code = args.func(args, prog)
+        sys.stdout.flush()
+        prog.finish()
+        return code
     except InputError as err:
-        sys.stderr.write(f"gcs: error: {err}\n")
-        return EXIT_INPUT
+        if err.file is None and err.key and getattr(args, "config_path", None) is not None:
+            err.file = args.config_path          # a config key: name the config it is in
+        kind = "config error" if isinstance(err, ConfigError) else "error"
+        return _error(prog, f"{kind}: {err}", EXIT_INPUT)
     except EstimationError as err:
-        sys.stderr.write(f"gcs: estimation failed: {err}\n")
-        return EXIT_ESTIMATION
+        return _error(prog, f"estimation failed: {err}", EXIT_ESTIMATION)
     except GcsError as err:
-        sys.stderr.write(f"gcs: error: {err}\n")
-        return EXIT_INPUT
+        return _error(prog, f"error: {err}", EXIT_INPUT)
     except KeyboardInterrupt:
-        sys.stderr.write("gcs: interrupted\n")
-        return EXIT_INTERRUPT
+        return _error(prog, "interrupted", EXIT_INTERRUPT)
+    except BrokenPipeError:               # stdout closed early (gcs ... | head): not an error
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        return EXIT_OK
+    except Exception as err:  # noqa: BLE001 — the last line of defence: one line, no traceback
+        if _numeric_failure(err):
+            return _error(prog, f"estimation failed: {type(err).__name__}: {err}", EXIT_ESTIMATION)
+        if args.verbose:
+            prog.close()
+            traceback.print_exc(file=sys.stderr)
+        return _error(prog, f"internal error: {type(err).__name__}: {err} — a bug in GCS; please report it "
+                            "(rerun with -v for the traceback)", EXIT_INTERNAL)
+    finally:
+        prog.close()
+        _restore_logging(handler, saved)
 
 
 if __name__ == "__main__":  # pragma: no cover

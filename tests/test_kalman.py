@@ -1,7 +1,10 @@
 """The Kalman filter of FILTR: its core, recursive least squares = batch, long spans, the API.
 
-* The lifted-group core (:func:`gcs_core.filtr.kalman.solve_block`) equals a textbook
-  frame-by-frame Kalman filter (Eq 3-3, 3-4, Joseph form) to round-off, gate included.
+* Both engines of :func:`gcs_core.filtr.kalman.solve_block` (the compiled frame-by-frame
+  kernel and the lifted-group numpy core) equal a textbook frame-by-frame Kalman filter
+  (Eq 3-3, 3-4, Joseph form) to round-off, gate included, and each other to 1e-10
+  (read-out noise, per-epoch posteriors and a static-only state included); the kernel is
+  compiled for one signature only (its JIT is paid once).
 * With Q = 0 the filter is recursive least squares (seed §3.2.1); iterated passes
   (re-linearized about the smoothed trajectory) reproduce :func:`batch_fit` with the same
   a priori, with and without a gyro.
@@ -12,9 +15,15 @@
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from dataclasses import replace
+from pathlib import Path
+
 import numpy as np
 import pytest
 
+from gcs_core.filtr import kalman_kernels
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.filtr.kalman import LinearBlock, referred_transitions, solve_block
 from gcs_core.filtr.mekf import gyro_rates
@@ -24,6 +33,8 @@ from test_filter_consistency import sim_problem, simulate
 
 #: tolerances: round-off of the lifted core, and agreement of two converged estimators
 ROUND_OFF = 1e-9
+SAME_TO_ROUND_OFF = 1e-10           # compiled kernel against the numpy core, relative
+ENGINES = ("compiled", "numpy")
 SAME_ESTIMATE_SIGMA = 1e-3          # |x_filter − x_batch| / σ_batch
 SAME_SIGMA_RELATIVE = 1e-3          # |σ_filter / σ_batch − 1|
 
@@ -73,15 +84,9 @@ def _textbook(x0, P0, Phi_dd, Phi_ds, Q, frames, H, sig, z, edit_k):
     return x, P, out
 
 
-@pytest.mark.parametrize("group_rows", [1, 10, 48])
-@pytest.mark.parametrize("edit_k", [None, 5.0])
-def test_core_equals_textbook_filter(group_rows, edit_k):
-    """Lifted groups in block-start coordinates give the frame-by-frame filter's state,
-    covariance, innovations, S, NIS and gate decisions (any group size)."""
-    rng = np.random.default_rng(5)
-    Phi_dd, Phi_ds, Q, frames, H, sig, z = _random_block(rng)
+def _linear_block(Phi_dd, Phi_ds, Q, frames, H, sig, z):
+    """The problem of :func:`_random_block` as a LinearBlock (block-start coordinates)."""
     d, n = Phi_dd.shape[1], H[0].shape[1]
-    x0, P0 = np.zeros(n), np.diag(rng.uniform(0.5, 2.0, n))
     Pdd, Pds, Pi = referred_transitions(Phi_dd, Phi_ds, Q)
     Psi_d = np.concatenate([np.concatenate([np.eye(d)[None], Pdd]),
                             np.concatenate([np.zeros((1, d, n - d)), Pds])], axis=2)
@@ -96,10 +101,25 @@ def test_core_equals_textbook_filter(group_rows, edit_k):
         rep += [k] * m
         m_f.append(m)
         ep.append(k)
-    blk = LinearBlock(np.arange(Phi_dd.shape[0] + 1.0), np.concatenate([np.zeros((1, d, d)), Pi]),
-                      Psi_d, np.concatenate(A), np.concatenate(r), np.concatenate(s), np.array(rep),
-                      np.array(start), np.array(m_f), np.array(ep))
-    sol = solve_block(x0, P0, blk, edit_k=edit_k, group_rows=group_rows)
+    return LinearBlock(np.arange(Phi_dd.shape[0] + 1.0), np.concatenate([np.zeros((1, d, d)), Pi]),
+                       Psi_d, np.concatenate(A), np.concatenate(r), np.concatenate(s), np.array(rep),
+                       np.array(start), np.array(m_f), np.array(ep))
+
+
+@pytest.mark.parametrize("engine,group_rows", [("compiled", None), ("numpy", 1), ("numpy", 10),
+                                               ("numpy", 48)])
+@pytest.mark.parametrize("edit_k", [None, 5.0])
+def test_core_equals_textbook_filter(engine, group_rows, edit_k):
+    """The compiled kernel and the lifted groups (any group size), in block-start
+    coordinates, give the frame-by-frame filter's state, covariance, innovations, S, NIS
+    and gate decisions."""
+    rng = np.random.default_rng(5)
+    Phi_dd, Phi_ds, Q, frames, H, sig, z = _random_block(rng)
+    d, n = Phi_dd.shape[1], H[0].shape[1]
+    x0, P0 = np.zeros(n), np.diag(rng.uniform(0.5, 2.0, n))
+    blk = _linear_block(Phi_dd, Phi_ds, Q, frames, H, sig, z)
+    Psi_d = blk.Psi_d
+    sol = solve_block(x0, P0, blk, edit_k=edit_k, group_rows=group_rows or 48, engine=engine)
     x_ref, P_ref, out = _textbook(x0, P0, Phi_dd, Phi_ds, Q, frames, H, sig, z, edit_k)
     Psi = np.eye(n)
     Psi[:d] = Psi_d[-1]
@@ -112,6 +132,59 @@ def test_core_equals_textbook_filter(group_rows, edit_k):
         np.testing.assert_allclose(sol.nu[f, :m], nu, rtol=1e-8, atol=ROUND_OFF)
         np.testing.assert_allclose(sol.S[f, :m, :m], S, rtol=1e-8)
         assert sol.nis[f] == pytest.approx(nis, rel=1e-7)
+
+
+def _assert_same(a, b, what):
+    """Equal NaN pattern, and finite entries equal to ``SAME_TO_ROUND_OFF`` relative."""
+    assert a.shape == b.shape, what
+    fin = np.isfinite(b)
+    assert np.array_equal(np.isfinite(a), fin), what
+    scale = np.max(np.abs(b[fin]), initial=0.0)
+    assert np.max(np.abs(a[fin] - b[fin]), initial=0.0) <= SAME_TO_ROUND_OFF * scale, what
+
+
+@pytest.mark.parametrize("dynamic", [True, False])
+def test_compiled_kernel_equals_numpy_core(dynamic):
+    """On a random problem with an outlier, frames of two sizes sharing epochs and the
+    gyro read-out noise (correlated within an epoch: the kernel's augmented states, the
+    numpy core's joint S), both engines give the same posterior, per-epoch posteriors,
+    innovations, S, NIS, gain norms and gate decisions. ``dynamic=False``: a static
+    state only (d = 0, recursive least squares)."""
+    rng = np.random.default_rng(11)
+    Phi_dd, Phi_ds, Q, frames, H, sig, z = _random_block(rng, K=90)
+    blk = _linear_block(Phi_dd, Phi_ds, Q, frames, H, sig, z)
+    n, M = blk.n, blk.A.shape[0]
+    if not dynamic:
+        blk = LinearBlock(blk.t, np.zeros((blk.t.size, 0, 0)), None, blk.A, blk.r, blk.sigma,
+                          blk.row_epoch, blk.frame_start, blk.frame_m, blk.frame_epoch)
+    blk = replace(blk, Hth=rng.normal(size=(M, 3)), sig_e2=0.2 ** 2)
+    y0, P0 = rng.normal(size=n) * 0.1, np.diag(rng.uniform(0.5, 2.0, n))
+    for edit_k in (None, 5.0):
+        sols = [solve_block(y0, P0, blk, edit_k=edit_k, keep_epochs=True, engine=e) for e in ENGINES]
+        assert np.array_equal(sols[0].gated, sols[1].gated)
+        assert (edit_k is None) != bool(sols[0].gated[7])
+        for field in ("y", "P", "nu", "S", "nis", "k_norm", "y_epoch", "P_epoch"):
+            _assert_same(getattr(sols[0], field), getattr(sols[1], field), field)
+
+
+@pytest.mark.skipif(not kalman_kernels.COMPILED, reason="numba not importable")
+def test_kernel_compiled_for_one_signature():
+    """Every kind of block (gyro or not, read-out noise or not, gate or not, per-epoch
+    posteriors or not) reaches the kernel with the same argument types, so its JIT
+    compile is paid once (and then loaded from the on-disk cache)."""
+    test_compiled_kernel_equals_numpy_core(True)
+    test_compiled_kernel_equals_numpy_core(False)
+    test_core_equals_textbook_filter("compiled", None, None)
+    assert len(kalman_kernels.filter_frames.signatures) == 1
+
+
+def test_numpy_engine_without_numba():
+    """Without numba the package imports and solve_block runs the numpy core."""
+    code = ("import sys; sys.modules['numba'] = None\n"
+            "from gcs_core.filtr import kalman, kalman_kernels\n"
+            "assert not kalman_kernels.COMPILED and kalman.ENGINE == 'numpy'\n")
+    root = Path(__file__).resolve().parents[1]
+    subprocess.run([sys.executable, "-c", code], cwd=root, check=True)
 
 
 def test_gyro_rates_match_attitude_provider():

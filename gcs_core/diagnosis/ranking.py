@@ -44,8 +44,8 @@ import numpy as np
 from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
-from gcs_core.filtr.batch import BatchResult, _zero_invalid
-from gcs_core.filtr.problem import Problem, linearize, sensor_geometry
+from gcs_core.filtr.batch import BatchResult
+from gcs_core.filtr.problem import Problem, iter_blocks, window_geometry
 
 #: canonical correlation above which two candidates are called indistinguishable
 ALIAS_TOL = 0.98
@@ -112,7 +112,9 @@ def mdb_noncentrality(alpha: float, power: float = 0.8, dof: int = 1) -> float:
 
 def _variants(problem: Problem, sd) -> dict:
     """Geometry variants of a sensor, computed once per problem (they do not depend on
-    the state, and the field-model variant costs a full IGRF evaluation)."""
+    the state, and the field-model variant costs a full IGRF evaluation). They hold only
+    the reference vectors that change (O(N) per variant, for the sensors a physics
+    candidate concerns)."""
     from gcs_core.sidp.prepare import geometry_variants
 
     cache = problem.__dict__.setdefault("_variant_cache", {})
@@ -121,33 +123,34 @@ def _variants(problem: Problem, sd) -> dict:
     return cache[sd.name]
 
 
-def _physics_columns(problem: Problem, values, effects: Sequence[Effect]) -> dict[str, dict[str, np.ndarray]]:
-    """For physics effects: per sensor, the prediction change when the option flips on."""
-    out: dict[str, dict[str, np.ndarray]] = {e.id: {} for e in effects if e.physics}
-    if not out:
-        return out
-    for sd in problem.sensors:
-        variants = _variants(problem, sd)
-        for eid, geom_alt in variants.items():
-            if eid not in out:
-                continue
-            params = problem.params_of(sd.name, values)
-            g0, _ = sensor_geometry(problem, sd, values)
-            g1, _ = sensor_geometry(problem, sd, values, geom_alt)
-            y0 = sd.model.predict(g0, params).y
-            y1 = sd.model.predict(g1, params).y
-            d = np.where(np.isfinite(y1 - y0), y1 - y0, 0.0)
-            out[eid][sd.name] = d
+def _physics_block(problem: Problem, blk, values, phys_ids: Sequence[str]) -> list[tuple[int, np.ndarray]]:
+    """For the physics candidates concerning this block's sensor: (candidate position,
+    prediction change (n, m) when the option flips on, zero where undefined)."""
+    sd = blk.sensor
+    variants = _variants(problem, sd)
+    out = []
+    for j, eid in enumerate(phys_ids):
+        geom_alt = variants.get(eid)
+        if geom_alt is None:
+            continue
+        g1 = window_geometry(geom_alt, blk.lo, blk.hi, sd.n)
+        g1 = replace(g1, C_BI=blk.geom.C_BI, omega_B=blk.geom.omega_B, spin_axis_I=blk.geom.spin_axis_I)
+        y1 = sd.model.predict(g1, problem.params_of(sd.name, values)).y
+        d = y1 - blk.y_pred
+        out.append((j, np.where(np.isfinite(d), d, 0.0)))
     return out
 
 
 def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Effect], *,
                     alpha: float = 0.001, edited: Mapping[str, np.ndarray] | None = None,
-                    exclude_frames: Mapping[str, np.ndarray] | None = None) -> list[Candidate]:
+                    exclude_frames: Mapping[str, np.ndarray] | None = None,
+                    chunk: int | None = None) -> list[Candidate]:
     """Score every candidate effect (module docstring); most significant first.
 
     ``effects`` are the candidates (effects not in the state); physics effects must be
-    ones whose option is currently off.
+    ones whose option is currently off. One streaming pass over the data (chunks of
+    ``chunk`` frames, default the problem's) accumulates the information of the state
+    and every candidate together; memory does not grow with the span.
     """
     state = result.state
     values = state.values()
@@ -158,39 +161,40 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
     for e in sensor_effects:
         c_names += [nm for nm in e.elements if nm not in c_names]
     phys = [e for e in effects if e.physics]
+    phys_ids = [e.id for e in phys]
     cols = x_names + c_names
-    lins = [_zero_invalid(l) for l in linearize(problem, values, cols)]
-    phys_cols = _physics_columns(problem, values, phys)
     k_all = len(c_names) + len(phys)
-    # accumulate over used frames: A = [H_x H_c]ᵀ W [H_x H_c], g = [.]ᵀ W r
-    A = np.zeros((n + k_all, n + k_all))
-    g = np.zeros(n + k_all)
-    per_sensor_g: dict[str, np.ndarray] = {}
-    per_sensor_A: dict[str, np.ndarray] = {}
-    for lin in lins:
-        used = lin.valid.copy()
-        res = result.residuals.get(lin.name)
+    K = n + k_all
+    exclude: dict[str, np.ndarray] = {}
+    for sd in problem.sensors:
+        ex = np.zeros(sd.n, bool)
+        res = result.residuals.get(sd.name)
         if res is not None:
-            used &= ~res.edited
-        if exclude_frames and lin.name in exclude_frames:
-            used &= ~exclude_frames[lin.name]
-        if not np.any(used):
+            ex |= res.edited
+        if exclude_frames and sd.name in exclude_frames:
+            ex |= exclude_frames[sd.name]
+        exclude[sd.name] = ex
+    # accumulate over used frames: A = [H_x H_c]ᵀ W [H_x H_c], g = [.]ᵀ W r
+    A = np.zeros((K, K))
+    g = np.zeros(K)
+    per_sensor_g: dict[str, np.ndarray] = {}
+    for blk in iter_blocks(problem, values, cols, exclude=exclude, weighted=True, chunk=chunk):
+        if not np.any(blk.used):
             continue
-        extra = np.zeros(lin.H.shape[:2] + (len(phys),))
-        for j, e in enumerate(phys):
-            d = phys_cols.get(e.id, {}).get(lin.name)
-            if d is not None:
-                extra[:, :, j] = d
-        H = np.concatenate([lin.H, extra], axis=2)[used]
-        w = 1.0 / lin.sigma
-        Hw = (H * w[None, :, None]).reshape(-1, n + k_all)
-        rw = (lin.r[used] * w[None, :]).reshape(-1)
-        As = Hw.T @ Hw
-        gs = Hw.T @ rw
-        A += As
-        g += gs
-        per_sensor_g[lin.name] = gs
-        per_sensor_A[lin.name] = As
+        sd = blk.sensor
+        H, c = blk.H, blk.cols
+        extra = _physics_block(problem, blk, values, phys_ids) if phys_ids else []
+        if extra:
+            w = blk.used[:, None] / sd.sigma[None, :]
+            H = np.concatenate([H, np.stack([d * w for _, d in extra], -1)], axis=2)
+            c = np.concatenate([c, [n + len(c_names) + j for j, _ in extra]])
+        Hm = H.reshape(-1, c.size)
+        rw = blk.weighted_residual()
+        A[np.ix_(c, c)] += Hm.T @ Hm
+        gs = Hm.T @ rw
+        g[c] += gs
+        acc = per_sensor_g.setdefault(sd.name, np.zeros(K))
+        acc[c] += gs
     s0 = np.array([state[nm].sigma0 for nm in x_names])
     prior = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     Nxx = A[:n, :n] + np.diag(prior)

@@ -41,7 +41,7 @@ import numpy as np
 from scipy import linalg
 
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr.problem import Linearization, Problem, linearize
+from gcs_core.filtr.problem import Linearization, Problem, iter_blocks, linearize
 from gcs_core.sodl.state import StateVector
 
 log = logging.getLogger(__name__)
@@ -174,7 +174,8 @@ def weighted_masks(lins: Sequence[Linearization], edited: Mapping[str, np.ndarra
 
 
 def accumulate(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray], n: int):
-    """``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ² = Σ rᵀ R⁻¹ r`` over used frames."""
+    """``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ² = Σ rᵀ R⁻¹ r`` over used frames
+    (whole-span :class:`Linearization` form; the estimators use :func:`normal_equations`)."""
     A = np.zeros((n, n))
     b = np.zeros(n)
     chi2 = 0.0
@@ -191,6 +192,63 @@ def accumulate(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray], 
             b += Hw.T @ rw
         chi2 += float(rw @ rw)
         m_used += int(np.count_nonzero(used)) * lin.r.shape[1]
+    return A, b, chi2, m_used
+
+
+@dataclass
+class Residuals:
+    """Per-sensor buffers of one pass: y_pred, r (N, m) and valid (N,) (reused across passes)."""
+
+    y_pred: dict[str, np.ndarray] = field(default_factory=dict)
+    r: dict[str, np.ndarray] = field(default_factory=dict)
+    valid: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def ensure(self, problem: Problem) -> "Residuals":
+        for sd in problem.sensors:
+            if sd.name not in self.r:
+                m = len(sd.sigma)
+                self.y_pred[sd.name] = np.empty((sd.n, m))
+                self.r[sd.name] = np.empty((sd.n, m))
+                self.valid[sd.name] = np.empty(sd.n, bool)
+        return self
+
+
+def normal_equations(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
+                     edited: Mapping[str, np.ndarray] | None = None, *, jacobian: bool = True,
+                     store: Residuals | None = None, chunk: int | None = None):
+    """One streaming pass: ``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ²`` and the number of
+    used measurements, over used frames (valid and not ``edited``), chunk by chunk.
+
+    Each sensor's block adds into the rows and columns it touches only. With ``store``
+    the predictions, residuals and validity of every frame are written into its buffers
+    (O(N·m), the post-fit residuals). Memory otherwise: one chunk.
+    """
+    n = len(columns) if jacobian else 0
+    A = np.zeros((n, n))
+    b = np.zeros(n)
+    chi2 = 0.0
+    m_used = 0
+    for blk in iter_blocks(problem, values, columns if jacobian else (), exclude=edited or {},
+                           weighted=True, jacobian=jacobian, chunk=chunk):
+        if store is not None:
+            store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
+            store.r[blk.name][blk.lo:blk.hi] = blk.r
+            store.valid[blk.name][blk.lo:blk.hi] = blk.valid
+        nu = int(np.count_nonzero(blk.used))
+        if not nu:
+            continue
+        rw = blk.weighted_residual()
+        chi2 += float(rw @ rw)
+        m_used += nu * blk.r.shape[1]
+        if n and blk.H is not None:
+            c = blk.cols
+            Hm = blk.H.reshape(-1, c.size)
+            if c.size == n and np.array_equal(c, np.arange(n)):
+                A += Hm.T @ Hm
+                b += Hm.T @ rw
+            else:
+                A[np.ix_(c, c)] += Hm.T @ Hm
+                b[c] += Hm.T @ rw
     return A, b, chi2, m_used
 
 
@@ -257,13 +315,16 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     suspect_all: set[str] = set()
     it_total = 0
     counts = [0]
+    buffers = Residuals().ensure(problem)
+    stored = [None]                     # (x, edits, A, χ², m) of the pass the buffers hold
 
     def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):
             values[nm] = x_eval[j]
-        cols = names if with_jacobian else ()
-        lins_ = [_zero_invalid(l) for l in linearize(problem, values, cols)]
-        A_, b_, chi2_, m_ = accumulate(lins_, edits, len(cols))
+        A_, b_, chi2_, m_ = normal_equations(problem, values, names, edits, jacobian=with_jacobian,
+                                             store=buffers if with_jacobian else None)
+        if with_jacobian:
+            stored[0] = (x_eval.copy(), edits, A_, chi2_, m_)
         counts[0] = m_
         d_ = x_bar - x_eval
         cost_ = chi2_ + float(np.sum(prior_info * d_ ** 2))
@@ -290,14 +351,17 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             # model far from the data, or a nearly unobservable non-linear direction such
             # as an FSS frequency k with amplitude A3 ≈ 0) is re-solved with the normal
             # matrix's diagonal inflated by λ until the cost falls; λ relaxes after success.
-            # Trial points need only the cost: no Jacobian until a step is accepted.
+            # The first trial point is linearized at once (it is usually accepted, and the
+            # pass that gives its cost gives its Jacobian too); later trials need the cost only.
             lam = lam_state
             rhs = b + prior_info * dx_prior
-            for _ in range(14):
+            trial = None
+            for attempt in range(14):
                 if lam > 0:
                     step, _ = _solve_normal(Nmat + lam * np.diag(np.diag(Nmat)), rhs)
                 x_try = x + step
-                _, _, cost_t, _ = evaluate(x_try, with_jacobian=False)
+                trial = evaluate(x_try, with_jacobian=attempt == 0)
+                cost_t = trial[2]
                 if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
                     break
                 lam = max(lam * 10.0, 1e-4)
@@ -308,7 +372,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             frac = 1.0 if lam == 0 else 0.0
             lam_state = lam / 10.0 if lam > 1e-4 else 0.0
             change = cost - cost_t
-            A, b, cost, dx_prior = evaluate(x_try)
+            A, b, cost, dx_prior = trial if attempt == 0 else evaluate(x_try)
             m_meas = counts[0]
             x = x_try
             history.append(cost)
@@ -331,18 +395,21 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             # above twice the measurement count the model itself is wrong: no editing
             message += "; editing skipped (the model does not describe the data yet)"
             break
-        lins = [_zero_invalid(l) for l in linearize(problem, values, names)]
+        if not _stored_at(stored[0], x, edits):
+            evaluate(x)
         new_edits = {}
         suspect: set[str] = set()
-        for lin in lins:
-            z = np.abs(lin.r / lin.sigma)
-            pre = preflag.get(lin.name, np.zeros(lin.valid.shape, bool))
-            out = lin.valid & ~pre & np.any(z > opts.edit_k, axis=1)
-            n_valid = max(1, int(np.count_nonzero(lin.valid & ~pre)))
+        for sd in problem.sensors:
+            valid = buffers.valid[sd.name]
+            with np.errstate(invalid="ignore"):
+                big = np.any(np.abs(buffers.r[sd.name] / sd.sigma) > opts.edit_k, axis=1)
+            pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
+            out = valid & ~pre & big
+            n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
             if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
-                suspect.add(lin.name)
+                suspect.add(sd.name)
                 out[:] = False
-            new_edits[lin.name] = pre | out
+            new_edits[sd.name] = pre | out
         suspect_all |= suspect
         changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
                       for k in new_edits)
@@ -352,9 +419,14 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         log.info("editing pass %d: %d frames flagged", edit_pass + 1,
                  sum(int(v.sum()) for v in edits.values()))
 
-    # final linearization at the solution, with consider columns
-    lins = [_zero_invalid(l) for l in linearize(problem, values, names + cons)]
-    A_all, b_all, chi2, m_used = accumulate(lins, edits, n + len(cons))
+    # final normal equations at the solution, with consider columns (the last pass of the
+    # iterations serves when it was at this point, with these edits and no consider element)
+    for j, nm in enumerate(names):
+        values[nm] = x[j]
+    if cons or not _stored_at(stored[0], x, edits):
+        A_all, _, chi2, m_used = normal_equations(problem, values, names + cons, edits, store=buffers)
+    else:
+        A_all, chi2, m_used = stored[0][2:]
     A = A_all[:n, :n]
     Nmat = A + np.diag(prior_info)
     _, P = _solve_normal(Nmat, np.zeros(n))
@@ -372,9 +444,28 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                     f"{100 * opts.max_edit_fraction:g}% of frames beyond {opts.edit_k:g}σ, the model "
                     "is suspect): " + ", ".join(sorted(suspect_all)))
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
-    residuals = make_residuals(problem, lins, edits)
+    residuals = residuals_from(problem, buffers, edits)
     return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,
                        tuple(history), it_total, status, message, A, unobs, budget)
+
+
+def _stored_at(stored, x, edits) -> bool:
+    return stored is not None and stored[1] is edits and np.array_equal(stored[0], x)
+
+
+def residuals_from(problem: Problem, buffers: Residuals,
+                   edits: Mapping[str, np.ndarray]) -> dict[str, SensorResiduals]:
+    """:class:`SensorResiduals` from the buffers of a pass (taken over, not copied)."""
+    out = {}
+    for sd in problem.sensors:
+        valid = buffers.valid[sd.name]
+        ed = edits.get(sd.name, np.zeros(valid.shape, bool)) & valid
+        r = buffers.r[sd.name]
+        r[~valid] = np.nan
+        out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t, sd.y,
+                                       buffers.y_pred[sd.name], r, r / sd.sigma, sd.sigma, valid & ~ed,
+                                       valid, ed)
+    return out
 
 
 def _zero_invalid(lin: Linearization) -> Linearization:

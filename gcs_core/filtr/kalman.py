@@ -33,8 +33,16 @@ earlier row), ``NIS_f = |e_f|²``, and ``W = B L⁻ᵀ`` gives the gain ``K_f = 
 The state after the group is ``y_0 + W e``; its covariance is taken in Joseph form for
 the group gain ``K = W L⁻¹`` (a sum of positive semi-definite terms, see
 :func:`_group_end_covariance`). Results equal the textbook frame-by-frame filter to
-round-off (``tests/test_kalman.py``), faster than a frame-by-frame filter
-(``benchmarks/kalman_vs_filterpy.py``).
+round-off (``tests/test_kalman.py``).
+
+Two engines, one answer
+-----------------------
+:func:`solve_block` runs the compiled frame-by-frame kernel of
+:mod:`gcs_core.filtr.kalman_kernels` (numba; the same Eq 3-3, 3-4 and Joseph update, one
+frame at a time, O(n² m) per frame) when numba imports, and the lifted-group numpy core
+above otherwise (:data:`ENGINE`, chosen once from ``kalman_kernels.COMPILED``). Both give
+the same state, covariance, per-frame diagnostics and gate decisions to round-off
+(``tests/test_kalman.py``); the kernel is the faster (``benchmarks/kalman_vs_filterpy.py``).
 
 References
 ----------
@@ -51,8 +59,13 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
+from gcs_core.filtr import kalman_kernels
+
 __all__ = ["LinearBlock", "BlockSolution", "solve_block", "referred_transitions",
-           "group_partition"]
+           "group_partition", "ENGINE"]
+
+#: engine of :func:`solve_block`: "compiled" (numba kernel) when numba imports, else "numpy".
+ENGINE = "compiled" if kalman_kernels.COMPILED else "numpy"
 
 
 @dataclass(frozen=True)
@@ -136,8 +149,9 @@ def group_partition(row_epoch: np.ndarray, n_epochs: int, group_rows: int) -> np
 
 
 def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *, edit_k: float | None = 5.0,
-                group_rows: int = 48, keep_epochs: bool = False) -> BlockSolution:
-    """Filter one block (Eq 3-3, 3-4) group by group, with k-σ innovation gating.
+                group_rows: int = 48, keep_epochs: bool = False,
+                engine: str | None = None) -> BlockSolution:
+    """Filter one block (Eq 3-3, 3-4) frame by frame, with k-σ innovation gating.
 
     Parameters
     ----------
@@ -146,9 +160,17 @@ def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *, edit_k: flo
     edit_k : a frame whose normalized innovation ``|ν_i|/sqrt(S_ii)`` exceeds ``edit_k`` in
         any component is flagged and skipped (None: no gate). The gate uses the innovation
         given every earlier accepted frame, exactly as a frame-by-frame filter would.
-    group_rows : scalar rows per lifted group (speed only; the answer does not depend on it).
+    group_rows : scalar rows per lifted group of the numpy engine (speed only; the answer
+        does not depend on it).
     keep_epochs : also return the posterior at every epoch (for the smoother).
+    engine : "compiled" (frame-by-frame numba kernel) or "numpy" (lifted groups); None:
+        :data:`ENGINE`. Both give the same answer to round-off.
     """
+    engine = ENGINE if engine is None else engine
+    if engine == "compiled":
+        return BlockSolution(*kalman_kernels.run_block(y0, P0, blk, edit_k, keep_epochs))
+    if engine != "numpy":
+        raise ValueError(f"unknown Kalman engine {engine!r} (compiled, numpy)")
     n, d = blk.n, blk.d
     G, F = blk.t.size, blk.frame_start.size
     mx = int(blk.frame_m.max()) if F else 1

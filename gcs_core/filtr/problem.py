@@ -13,20 +13,26 @@ list of elements; the batch estimator, the Kalman filter and the diagnosis all c
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Mapping, Sequence
+from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.filtr.attitude import (RADEC, RPY, GyroAttitude, ReferenceAttitude, SpinAttitude,
-                                     rpy_specs)
+from gcs_core.filtr.attitude import (RADEC, RPY, FrameAttitude, GyroAttitude, ReferenceAttitude,
+                                     SpinAttitude, rpy_specs)
 from gcs_core.frames.reference import ra_dec_from_vector
 from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import CONSIDER, HELD, SOLVE_FOR, ParamSpec
-from gcs_core.sidp.prepare import GeometryBuilder, PhysicsOptions, SensorData, prepare_sensors
+from gcs_core.sidp.prepare import (GeometryBuilder, HeldChannels, PhysicsOptions, SensorData,
+                                   prepare_sensors)
 from gcs_core.sodl.state import Element, StateVector
 from gcs_core.units import DEG
+
+
+#: frames per chunk of the streaming linearization: memory is bounded by the chunk, not
+#: the span; large enough that per-chunk overheads are negligible
+CHUNK_FRAMES = 50_000
 
 
 @dataclass(frozen=True)
@@ -69,6 +75,7 @@ class Problem:
     builder : reference-vector builder (for variants and new times).
     tables : telemetry tables by sensor (for geometry variants).
     gyro_name : name of the gyro carrying the attitude, if any.
+    chunk_frames : frames per chunk of the streaming linearization (:func:`iter_blocks`).
     """
 
     state: StateVector
@@ -80,6 +87,14 @@ class Problem:
     mode: str
     gyro_name: str | None = None
     edited: dict[str, np.ndarray] = field(default_factory=dict)
+    chunk_frames: int = CHUNK_FRAMES
+
+    def set_chunk(self, frames: int) -> None:
+        """Chunk length of the streaming linearization and of the gyro propagation blocks
+        (results do not depend on it beyond round-off; memory and speed do)."""
+        self.chunk_frames = max(1, int(frames))
+        if isinstance(self.attitude, GyroAttitude):
+            self.attitude.block_knots = self.chunk_frames
 
     def sensor(self, name: str) -> SensorData:
         for s in self.sensors:
@@ -146,8 +161,14 @@ def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
 
 
 def build_problem(mission, *, physics: PhysicsOptions | None = None,
-                  options: StateOptions | None = None, use_gyro: bool = True) -> Problem:
-    """SODL + SIDP: the state vector and prepared sensors of an imported mission."""
+                  options: StateOptions | None = None, use_gyro: bool = True,
+                  chunk_frames: int = CHUNK_FRAMES) -> Problem:
+    """SODL + SIDP: the state vector and prepared sensors of an imported mission.
+
+    The problem keeps what estimation needs (prepared sensors, the gyro rates, the
+    telemetry columns geometry variants read again), not the mission: a caller that
+    has no further use for the mission may drop it.
+    """
     from gcs_core.ephem.ephemeris import Ephemeris
 
     spec = mission.spec
@@ -165,12 +186,14 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
         g = gyros[0]
         tab = mission.telemetry[g.name]
         gyro_name = g.name
-        attitude = GyroAttitude(mode, eph, g.name, tab.t, tab.stack(("wx", "wy", "wz")))
+        attitude = GyroAttitude(mode, eph, g.name, tab.t, tab.stack(("wx", "wy", "wz")),
+                                block_knots=chunk_frames)
     else:
         attitude = ReferenceAttitude(mode, eph)
 
     # drop frames the attitude provider cannot reach (before the first gyro interval)
-    tables = {sd.name: mission.telemetry[sd.name] for sd in sensors}
+    types = {s.name: s.type for s in spec.sensors}
+    tables = {sd.name: _slim_table(mission.telemetry[sd.name], types[sd.name]) for sd in sensors}
     if isinstance(attitude, GyroAttitude):
         kept = []
         for sd in sensors:
@@ -220,7 +243,8 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     state = StateVector(tuple(elements))
     state = apply_state_options(state, options)
     return Problem(state=state, attitude=attitude, sensors=sensors, param_map=param_map,
-                   builder=builder, tables=tables, mode=mode, gyro_name=gyro_name)
+                   builder=builder, tables=tables, mode=mode, gyro_name=gyro_name,
+                   chunk_frames=max(1, int(chunk_frames)))
 
 
 def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> list[Element]:
@@ -279,14 +303,21 @@ def _subset(sd: SensorData, mask: np.ndarray) -> SensorData:
         a = np.asarray(a)
         return a[mask] if a.ndim >= 1 and a.shape[0] == n else a
 
+    aux = g.aux.subset(mask) if isinstance(g.aux, HeldChannels) else {k: cut(v) for k, v in g.aux.items()}
     geom = replace(g, t=g.t[mask], r_I=cut(g.r_I) if g.r_I is not None else None,
                    v_I=cut(g.v_I) if g.v_I is not None else None,
                    sun_I=cut(g.sun_I) if g.sun_I is not None else None,
                    B_I=cut(g.B_I) if g.B_I is not None else None,
                    star_I=cut(g.star_I) if g.star_I is not None else None,
-                   aux={k: cut(v) for k, v in g.aux.items()},
-                   extra={k: cut(v) for k, v in g.extra.items()})
+                   aux=aux, extra={k: cut(v) for k, v in g.extra.items()})
     return replace(sd, t=sd.t[mask], y=sd.y[mask], geom=geom, lines=sd.lines[mask])
+
+
+def _slim_table(tab, sensor_type: str):
+    """The telemetry columns :meth:`GeometryBuilder.geometry` reads again (geometry variants):
+    star catalogue positions, the horizon spin rate; the rest lives in SensorData."""
+    keep = {"star_tracker": ("ra", "dec"), "horizon": ("spin_rate",)}.get(sensor_type, ())
+    return replace(tab, columns={k: v for k, v in tab.columns.items() if k in keep or k == "t"})
 
 
 # ----------------------------------------------------------------------------------------
@@ -312,6 +343,43 @@ class Linearization:
     sigma: np.ndarray
 
 
+@dataclass(frozen=True)
+class Block:
+    """One sensor's residuals and partials over one chunk of its frames (:func:`iter_blocks`).
+
+    Attributes
+    ----------
+    sensor : the sensor; lo, hi : its frames ``lo..hi−1``.
+    geom : the chunk's geometry with the attitude.
+    y_pred, r : (n, m) prediction and residual (NaN where the model is undefined).
+    valid : (n,) frames where the model is defined (finite residual).
+    used : (n,) valid and not excluded.
+    cols : (k_s,) positions in the requested columns of the columns this sensor's
+        measurements depend on (the attitude's elements and its own parameters).
+    H : (n, m, k_s) partials over ``cols``; weighted (``R^-1/2 H``, zero rows where not
+        used) when the blocks were asked weighted, raw (NaN where invalid) otherwise.
+    """
+
+    sensor: SensorData
+    lo: int
+    hi: int
+    geom: object
+    y_pred: np.ndarray
+    r: np.ndarray
+    valid: np.ndarray
+    used: np.ndarray
+    cols: np.ndarray
+    H: np.ndarray | None
+
+    @property
+    def name(self) -> str:
+        return self.sensor.name
+
+    def weighted_residual(self) -> np.ndarray:
+        """(n·m,) ``R^-1/2 r`` with unused frames zero."""
+        return (np.where(self.used[:, None], self.r, 0.0) / self.sensor.sigma).reshape(-1)
+
+
 def sensor_geometry(problem: Problem, sd: SensorData, values: Mapping[str, float], geom=None):
     att = problem.attitude.evaluate(values, sd.t)
     g = geom if geom is not None else sd.geom
@@ -322,27 +390,151 @@ def sensor_geometry(problem: Problem, sd: SensorData, values: Mapping[str, float
     return g, att
 
 
+def window_geometry(g, lo: int, hi: int, n: int):
+    """Frames ``lo..hi−1`` of an N-frame geometry (views; the aux channels stay lazy)."""
+    def cut(a):
+        return a[lo:hi] if isinstance(a, np.ndarray) and a.ndim >= 1 and a.shape[0] == n else a
+
+    aux = g.aux.window(lo, hi) if isinstance(g.aux, HeldChannels) else {k: cut(v) for k, v in g.aux.items()}
+    return replace(g, t=g.t[lo:hi], C_BI=cut(g.C_BI), spin_axis_I=cut(g.spin_axis_I), r_I=cut(g.r_I),
+                   v_I=cut(g.v_I), sun_I=cut(g.sun_I), B_I=cut(g.B_I), star_I=cut(g.star_I),
+                   omega_B=cut(g.omega_B), aux=aux, extra={k: cut(v) for k, v in g.extra.items()})
+
+
+def chunk_windows(problem: Problem, sensors: Sequence[SensorData], chunk: int | None = None
+                  ) -> list[list[tuple[int, int]]]:
+    """Time windows of at most ``chunk`` frames of any sensor: per window, each sensor's
+    frame range ``(lo, hi)``. Windows end on the gyro-carried attitude's block edges, so
+    that a window needs one block of its propagation."""
+    chunk = max(1, int(chunk or problem.chunk_frames))
+    edges = problem.attitude.block_edges() if hasattr(problem.attitude, "block_edges") else np.zeros(0)
+    pos = [0] * len(sensors)
+    cur, e = -np.inf, 0
+    out = []
+    while any(p < sd.n for p, sd in zip(pos, sensors)):
+        cand = [sd.t[p + chunk - 1] for p, sd in zip(pos, sensors) if p + chunk - 1 < sd.n]
+        while e < edges.size and edges[e] <= cur:
+            e += 1
+        if e < edges.size:
+            cand.append(edges[e])
+        edge = min(cand) if cand else np.inf
+        hi = [int(np.searchsorted(sd.t, edge, side="right")) if np.isfinite(edge) else sd.n
+              for sd in sensors]
+        if any(h > p for h, p in zip(hi, pos)):
+            out.append(list(zip(pos, hi)))
+        pos, cur = hi, edge
+    return out
+
+
+def _frames(att, values, t):
+    if hasattr(att, "frames"):
+        return att.frames(values, t)
+    return FrameAttitude.of(att.evaluate(values, t))
+
+
+def _sensor_columns(problem: Problem, sd: SensorData, att_names, col_index):
+    """This sensor's columns: attitude elements first (positions in ``att_names``), then
+    its own parameters; returns (att positions, param (local name, block column), cols)."""
+    att_sel = [a for a, nm in enumerate(att_names) if nm in col_index]
+    cols = [col_index[att_names[a]] for a in att_sel]
+    where = {c: i for i, c in enumerate(cols)}
+    par = []
+    for local, el in problem.param_map[sd.name].items():
+        j = col_index.get(el)
+        if j is None:
+            continue
+        if j not in where:
+            where[j] = len(cols)
+            cols.append(j)
+        par.append((local, where[j]))
+    return np.array(att_sel, int), par, np.array(cols, int)
+
+
+def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence[str] = (), *,
+                exclude: Mapping[str, np.ndarray] | None = None, weighted: bool = False,
+                sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None,
+                chunk: int | None = None, jacobian: bool = True) -> Iterator[Block]:
+    """Residuals and partials of every (or the named) sensor at ``values``, chunk by chunk.
+
+    Windows of time (:func:`chunk_windows`) are visited in order; in each, the attitude is
+    evaluated and every sensor's frames are predicted and linearized. A block holds only
+    the columns its sensor depends on (``Block.cols``), so memory is O(chunk · k_s) and
+    the work is that of the non-zero part of H.
+
+    ``exclude`` flags frames (True = not used); ``weighted`` returns ``R^-1/2 H`` with the
+    unused frames' rows zero, ready for ``Hᵀ H``; ``jacobian=False`` skips H.
+    """
+    col_index = {c: j for j, c in enumerate(columns)}
+    sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
+    att_names = tuple(problem.attitude.names)
+    layout = {sd.name: _sensor_columns(problem, sd, att_names, col_index) for sd in sds}
+    for window in chunk_windows(problem, sds, chunk):
+        for sd, (lo, hi) in zip(sds, window):
+            if hi <= lo:
+                continue
+            base = geoms.get(sd.name) if geoms is not None and sd.name in geoms else sd.geom
+            geom = window_geometry(base, lo, hi, sd.n)
+            fr = _frames(problem.attitude, values, sd.t[lo:hi])
+            if fr.C_BI is not None:
+                geom = replace(geom, C_BI=fr.C_BI, omega_B=fr.omega_B)
+            else:
+                geom = replace(geom, spin_axis_I=fr.spin_axis_I)
+            pred = sd.model.predict(geom, problem.params_of(sd.name, values))
+            r = sd.model.residual(sd.y[lo:hi], pred.y, geom=geom)
+            valid = np.asarray(pred.valid, bool) & np.all(np.isfinite(r), axis=1)
+            used = valid if exclude is None or sd.name not in exclude else \
+                valid & ~np.asarray(exclude[sd.name][lo:hi], bool)
+            H = None
+            att_sel, par, cols = layout[sd.name]
+            if jacobian and cols.size:
+                H = _block_jacobian(pred, fr, att_sel, par, cols.size,
+                                    (used[:, None] / sd.sigma[None, :]) if weighted else None)
+                if weighted and not np.all(used):
+                    H[~used] = 0.0
+            yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H)
+
+
+def _block_jacobian(pred, fr, att_sel, par, k: int, w) -> np.ndarray:
+    """(n, m, k) partials of one block: ``∂y/∂δθ · ∂δθ/∂x`` in the attitude columns, the
+    model's own partials in the parameter columns; rows scaled by ``w`` (n, m) if given."""
+    D = pred.d_att
+    n, m = D.shape[:2]
+    H = np.empty((n, m, k))
+    ka = att_sel.size
+    if ka:
+        fr.chain(D if w is None else D * w[:, :, None], att_sel, out=H[:, :, :ka])
+    for local, j in par:
+        d = pred.d_par[local]
+        if j < ka:
+            H[:, :, j] += d if w is None else d * w
+        elif w is None:
+            H[:, :, j] = d
+        else:
+            np.multiply(d, w, out=H[:, :, j])
+    return H
+
+
 def linearize(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
               *, sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None
               ) -> list[Linearization]:
-    """Residuals and partials of every (or the named) sensor at ``values``."""
-    col_index = {c: j for j, c in enumerate(columns)}
-    out = []
-    for sd in problem.sensors:
-        if sensors is not None and sd.name not in sensors:
-            continue
-        geom, att = sensor_geometry(problem, sd, values, None if geoms is None else geoms.get(sd.name))
-        pred = sd.model.predict(geom, problem.params_of(sd.name, values))
-        r = sd.model.residual(sd.y, pred.y, geom=geom)
-        H = np.zeros(r.shape + (len(columns),))
-        att_cols = [(j_att, col_index[n]) for j_att, n in enumerate(att.names) if n in col_index]
-        if att_cols:
-            ja, jc = zip(*att_cols)
-            H[:, :, list(jc)] = pred.d_att @ att.J[:, :, list(ja)]
-        for local, el in problem.param_map[sd.name].items():
-            j = col_index.get(el)
-            if j is not None:
-                H[:, :, j] += pred.d_par[local]
-        valid = np.asarray(pred.valid, bool) & np.all(np.isfinite(r), axis=1)
-        out.append(Linearization(sd.name, pred.y, r, H, valid, sd.sigma))
-    return out
+    """Residuals and partials of every (or the named) sensor at ``values``, whole span.
+
+    The (N, m, k) arrays of this form grow with the span; the estimators stream
+    :func:`iter_blocks` instead.
+    """
+    k = len(columns)
+    sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
+    out = {}
+    for sd in sds:
+        m = len(sd.sigma)
+        out[sd.name] = (np.full((sd.n, m), np.nan), np.full((sd.n, m), np.nan), np.zeros(sd.n, bool),
+                        np.zeros((sd.n, m, k)))
+    for blk in iter_blocks(problem, values, columns, sensors=sensors, geoms=geoms):
+        y_pred, r, valid, H = out[blk.name]
+        y_pred[blk.lo:blk.hi] = blk.y_pred
+        r[blk.lo:blk.hi] = blk.r
+        valid[blk.lo:blk.hi] = blk.valid
+        if blk.H is not None:
+            H[blk.lo:blk.hi, :, blk.cols] = blk.H
+    return [Linearization(sd.name, *out[sd.name][:2], out[sd.name][3], out[sd.name][2], sd.sigma)
+            for sd in sds]

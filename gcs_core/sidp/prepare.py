@@ -16,12 +16,18 @@ The *physics options* choose which always-on corrections the reference vectors c
 
 Each option is also a catalogue effect (``model.<option>``): the diagnosis compares the
 predictions with and without it (:func:`geometry_variants`).
+
+Memory. What is stored per frame is what the models read: the reference vectors (and
+the magnetometer's field rate). The spacecraft position and velocity are not kept (no
+model reads them; :meth:`GeometryBuilder.orbit` gives them for any frames), and the
+auxiliary channels are held lazily (:class:`HeldChannels`), so a week of 1 Hz data costs
+a few tens of bytes per frame beyond the measurements.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
-from typing import Mapping
+from dataclasses import dataclass, replace
+from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -101,6 +107,53 @@ def aux_channel_names(aux: Table | None) -> tuple[str, ...]:
     return tuple(n for n in aux.columns if n != "t") if aux is not None else ()
 
 
+class HeldChannels(Mapping):
+    """The auxiliary channels held at N frames (ICD §6, :func:`hold_channels`), computed
+    when a channel is read rather than stored: ``name -> (N,)`` array.
+
+    A full-length mapping keeps what it has computed (the TUI and the Kalman filter read
+    whole channels); :meth:`window` gives the mapping of frames ``lo..hi−1``, which the
+    chunked linearization reads chunk by chunk without ever holding a whole channel.
+    """
+
+    def __init__(self, aux: Table | None, t: np.ndarray, *, keep: bool = True):
+        self._aux = aux
+        self._t = t
+        self._names = aux_channel_names(aux) if aux is not None and len(aux) else ()
+        self._keep = keep
+        self._done: dict[str, np.ndarray] = {}
+
+    def _index(self) -> np.ndarray:
+        return np.clip(np.searchsorted(self._aux.t, self._t, side="right") - 1, 0, len(self._aux) - 1)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        if name not in self._names:
+            raise KeyError(name)
+        out = self._done.get(name)
+        if out is None:
+            out = np.asarray(self._aux.columns[name])[self._index()]
+            if self._keep:
+                self._done[name] = out
+        return out
+
+    def __contains__(self, name) -> bool:
+        return name in self._names
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+    def window(self, lo: int, hi: int) -> "HeldChannels":
+        w = HeldChannels(self._aux, self._t[lo:hi], keep=False)
+        w._done = {k: v[lo:hi] for k, v in self._done.items()}
+        return w
+
+    def subset(self, mask: np.ndarray) -> "HeldChannels":
+        return HeldChannels(self._aux, self._t[mask], keep=self._keep)
+
+
 class GeometryBuilder:
     """Computes reference vectors for any times, with the mission's physics options."""
 
@@ -131,6 +184,10 @@ class GeometryBuilder:
             return u
         return corrections.apparent_star_direction(u, self.ephemeris.earth_velocity_km_s(t), v)
 
+    def orbit(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Spacecraft position [km] and velocity [km/s] (N, 3) at frame times ``t``."""
+        return self.ephemeris.state(np.atleast_1d(np.asarray(t, dtype=float)))
+
     def ephemeris_callable(self, physics: PhysicsOptions | None = None):
         def at(t):
             t = np.atleast_1d(np.asarray(t, dtype=float))
@@ -144,7 +201,8 @@ class GeometryBuilder:
         ph = physics or self.physics
         t = np.asarray(t, dtype=float)
         r, v = self.ephemeris.state(t, what=f"{sensor_type} frames")
-        kw: dict = {"t": t, "r_I": r, "v_I": v, "aux": hold_channels(self.aux, t)}
+        # r, v are not kept (no model reads them; see the module docstring)
+        kw: dict = {"t": t, "aux": HeldChannels(self.aux, t)}
         extra: dict = {}
         if sensor_type in ("fine_sun", "coarse_sun", "plane_field_sun", "horizon"):
             kw["sun_I"] = self.sun(t, r, v, ph)

@@ -1,0 +1,119 @@
+"""Predicted σ against Monte-Carlo scatter: the estimator's covariance, checked on 200+ seeds.
+
+One fixed scenario (three-axis, 30 minutes by default, data book = truth) is simulated once
+per seed with the noise re-drawn, and fitted. For each headline element (attitude, TAM bias,
+gyro bias, star-tracker scales) the table compares
+
+* predicted σ: ``sqrt(mean over runs of P_ii)``, the fit's own 1-sigma;
+* MC σ: the sample standard deviation of ``x̂ − x_true`` over the runs;
+* ratio MC σ / predicted σ, and whether it is within 15 % of 1;
+* mean error in units of the predicted σ, with its 1 % two-sided t bound
+  ``2.6/sqrt(N)`` (an unbiased estimator stays inside it).
+
+With N = 200 runs the sample σ itself is uncertain by ``1/sqrt(2(N−1)) ≈ 5 %``, so the 15 %
+criterion is a 3-sigma statement. The headline NEES (13 elements) is also printed against
+its 95 % χ² band. Truth and headline definitions: ``tests/test_consistency_batch.py``
+(:func:`headline`) and ``tests/test_truth_recovery.py`` (:func:`truth_values`).
+
+Usage::
+
+    python benchmarks/monte_carlo_consistency.py [--runs 200] [--minutes 30]
+        [--method batch|kalman] [--mode sun_pointing] [--processes 2]
+
+Exits with status 1 when a ratio is outside 15 %.
+
+References
+----------
+Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to Tracking and Navigation*,
+Wiley 2001, §5.4.2 (Monte-Carlo consistency tests).
+"""
+
+from __future__ import annotations
+
+import os
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # small matrices: threads only contend
+
+import argparse  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import time  # noqa: E402
+from multiprocessing import get_context  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import numpy as np  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+from test_consistency_batch import HEADLINE, nees_band, one_run  # noqa: E402
+
+#: a predicted σ within this fraction of the Monte-Carlo σ "matches" (issue 6)
+match_fraction = 0.15
+
+
+def _worker(job):
+    seed, minutes, method, mode = job
+    with tempfile.TemporaryDirectory(prefix="gcs-mc-") as d:
+        e, P = one_run(seed, Path(d), minutes, method, mode)
+    return seed, e, P
+
+
+def run(runs: int, minutes: float, method: str, mode: str, processes: int, first_seed: int):
+    jobs = [(s, minutes, method, mode) for s in range(first_seed, first_seed + runs)]
+    out = {}
+    with get_context("spawn").Pool(processes) as pool:
+        for k, (seed, e, P) in enumerate(pool.imap_unordered(_worker, jobs, chunksize=4)):
+            out[seed] = (e, P)
+            if (k + 1) % 25 == 0:
+                print(f"  {k + 1}/{runs} runs", flush=True)
+    seeds = sorted(out)
+    return np.array([out[s][0] for s in seeds]), np.array([out[s][1] for s in seeds])
+
+
+def table(E: np.ndarray, Ps: np.ndarray) -> bool:
+    N = E.shape[0]
+    pred = np.sqrt(np.mean(np.einsum("kii->ki", Ps), axis=0))
+    mc = np.std(E, axis=0, ddof=1)
+    mean_z = np.mean(E, axis=0) / pred
+    t_bound = 2.576 / math.sqrt(N)
+    ok_all = True
+    print(f"\n{'parameter':<15}{'predicted σ':>13}{'MC σ':>13}{'ratio':>8}  {'within 15%?':<12}"
+          f"{'mean/σ':>8}")
+    for j, name in enumerate(HEADLINE):
+        ratio = mc[j] / pred[j]
+        ok = abs(ratio - 1.0) <= match_fraction
+        ok_all &= ok
+        flag = "" if abs(mean_z[j]) <= t_bound else " (biased)"
+        print(f"{name:<15}{pred[j]:>13.4g}{mc[j]:>13.4g}{ratio:>8.3f}  {'yes' if ok else 'NO':<12}"
+              f"{mean_z[j]:>+8.3f}{flag}")
+    nees = float(sum(e @ np.linalg.solve(P, e) for e, P in zip(E, Ps)))
+    lo, hi = nees_band(N * E.shape[1], 0.95)
+    print(f"\nmean |t| bound for 'mean/σ' at 1 %: {t_bound:.3f}")
+    print(f"NEES (headline, summed over {N} runs): {nees:.1f}, 95 % band [{lo:.1f}, {hi:.1f}], "
+          f"mean per element {nees / (N * E.shape[1]):.3f}")
+    return ok_all
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--runs", type=int, default=200)
+    ap.add_argument("--minutes", type=float, default=30.0)
+    ap.add_argument("--method", choices=("batch", "kalman"), default="batch")
+    ap.add_argument("--mode", choices=("sun_pointing", "inertial", "earth_pointing"), default="sun_pointing")
+    ap.add_argument("--processes", type=int, default=2)
+    ap.add_argument("--first-seed", type=int, default=1)
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    print(f"{args.runs} runs, {args.mode}, {args.minutes:g} min, method {args.method}, "
+          f"{args.processes} processes")
+    E, Ps = run(args.runs, args.minutes, args.method, args.mode, args.processes, args.first_seed)
+    ok = table(E, Ps)
+    print(f"\n{time.perf_counter() - t0:.1f} s; predicted σ {'matches' if ok else 'does NOT match'} "
+          f"the Monte-Carlo σ within {100 * match_fraction:g} % for every headline element")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,111 @@
+"""False alarms of discovery on fully modelled missions (issue 3).
+
+"On nominal missions whose physics is fully modeled, discovery adds nothing on at least 95 %
+of seeds. The test runs enough seeds to show it."
+
+Missions: ``SEEDS`` = 100 nominal missions (data book = truth, real physics on in both the
+simulator and the analysis config), the attitude mode rotating with the seed: Sun-pointing,
+inertial and Earth-pointing three-axis missions of 30 minutes, and spinners of one hour
+(25 of each). Each is fitted and :meth:`Analysis.discover` runs with the default
+family-wise level (α = 0.001, Bonferroni over the candidates); an *alarm* is a seed on which
+discovery adds any effect.
+
+How many seeds "show it". Let p be the alarm rate. With k alarms in n seeds, the one-sided
+95 % (Clopper–Pearson) upper confidence bound on p is the 0.95 quantile of
+Beta(k + 1, n − k). The claim p < 5 % is shown when that bound is below 5 %:
+
+* n = 60 shows it only with k = 0 (bound 4.9 %; the rule of three, 3/n); k = 1 gives 7.7 %;
+* n = 100 shows it with k ≤ 1 (k = 0: 3.0 %, k = 1: 4.7 %; k = 2 gives 6.2 %).
+
+So the test runs 100 seeds and tolerates at most ``MAX_ALARMS`` = 1, asserting the bound
+itself. Expected: an engine whose χ² statistics are right alarms on about α = 0.1 % of
+seeds, so k = 0 is the typical outcome.
+
+Aggregation across xdist workers: each seed is its own test item (so ``-n 2`` spreads them);
+it writes its outcome to a directory shared by the session's workers and then counts the
+alarms recorded so far. The item that records alarm number ``MAX_ALARMS + 1`` sees it and
+fails, so the session passes exactly when the total is within the allowance. An alarm
+within the allowance is reported as a warning naming the effect added.
+
+References
+----------
+Clopper, C. J. & Pearson, E. S., "The use of confidence or fiducial limits illustrated in
+the case of the binomial", Biometrika 26(4), 1934. Hanley, J. A. & Lippman-Hand, A., "If
+nothing goes wrong, is everything all right?", JAMA 249(13), 1983 (rule of three).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from pathlib import Path
+
+import pytest
+from scipy import stats
+
+from gcs_core.config import AnalysisConfig
+from gcs_core.session import Analysis
+from gcs_core.sim.scenarios import spinner_nominal
+from gcs_core.sim.writer import write_mission
+from test_truth_recovery import threeaxis
+
+SEEDS = range(100)
+MAX_ALARMS = 1
+#: the issue-3 requirement: alarm rate below 5 %, shown at 95 % confidence
+required_rate = 0.05
+confidence = 0.95
+KINDS = ("sun_pointing", "inertial", "earth_pointing", "spinning")
+THREE_AXIS_SECONDS = 1800.0
+SPINNER_SECONDS = 3600.0
+
+
+def alarm_rate_upper_bound(alarms: int, seeds: int, level: float = confidence) -> float:
+    """One-sided Clopper–Pearson upper bound on a binomial rate: Beta(k+1, n−k) quantile."""
+    return 1.0 if alarms >= seeds else float(stats.beta.ppf(level, alarms + 1, seeds - alarms))
+
+
+def test_seed_count_shows_the_requirement():
+    """The plan itself: 100 seeds with the allowed alarms bound the rate below 5 %."""
+    assert alarm_rate_upper_bound(MAX_ALARMS, len(SEEDS)) < required_rate
+    assert alarm_rate_upper_bound(MAX_ALARMS + 1, len(SEEDS)) >= required_rate
+
+
+def kind_of(seed: int) -> str:
+    return KINDS[seed % len(KINDS)]
+
+
+def nominal(seed: int):
+    if kind_of(seed) == "spinning":
+        return spinner_nominal(seed=seed, duration_s=SPINNER_SECONDS)
+    return threeaxis(kind_of(seed), seed, THREE_AXIS_SECONDS)
+
+
+@pytest.fixture(scope="session")
+def outcomes_dir(tmp_path_factory) -> Path:
+    """A directory shared by every xdist worker of this session (fresh per session)."""
+    base = tmp_path_factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    d = root / "false-alarm-outcomes"
+    d.mkdir(exist_ok=True)
+    return d
+
+
+@pytest.mark.parametrize("seed", SEEDS, ids=[f"{kind_of(s)}-{s}" for s in SEEDS])
+def test_discovery_adds_nothing_on_nominal_missions(seed, tmp_path, outcomes_dir):
+    mission = write_mission(nominal(seed), tmp_path / "mission", truth_path=tmp_path / "truth.json")
+    a = Analysis(AnalysisConfig(mission=mission))
+    a.fit()
+    a.discover()
+    added = [s.effect for s in a.steps if s.action == "add"]
+    record = {"seed": seed, "kind": kind_of(seed), "added": added, "stop": a.stop_reason}
+    tmp = outcomes_dir / f".seed-{seed}.tmp"
+    tmp.write_text(json.dumps(record))
+    tmp.replace(outcomes_dir / f"seed-{seed}.json")            # atomic: readers see whole files
+    if added:
+        warnings.warn(f"false alarm on nominal {kind_of(seed)} seed {seed}: added {added}")
+    recorded = [json.loads(p.read_text()) for p in outcomes_dir.glob("seed-*.json")]
+    alarms = [r for r in recorded if r["added"]]
+    assert len(alarms) <= MAX_ALARMS, (
+        f"{len(alarms)} false alarms so far (allowed {MAX_ALARMS} in {len(SEEDS)} seeds): "
+        + "; ".join(f"{r['kind']} seed {r['seed']} added {r['added']}" for r in alarms))
