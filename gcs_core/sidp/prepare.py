@@ -55,6 +55,9 @@ class PhysicsOptions:
                 "sun_parallax": self.sun_parallax, "field_model": self.field_model}
 
 
+#: frames per chunk when reference vectors are computed (bounded temporaries)
+CHUNK_FRAMES = 50_000
+
 #: physics effects of the catalogue: option name -> (value when on, value when off)
 PHYSICS_EFFECTS = {
     "stellar_aberration": (True, False),
@@ -197,23 +200,43 @@ class GeometryBuilder:
 
     def geometry(self, sensor_type: str, t: np.ndarray, table: Table | None = None,
                  physics: PhysicsOptions | None = None) -> Geometry:
-        """Attitude-free :class:`Geometry` for a sensor type at times ``t``."""
+        """Attitude-free :class:`Geometry` for a sensor type at times ``t``.
+
+        Computed in chunks of :data:`CHUNK_FRAMES` frames into the output arrays, so the
+        temporaries of the ephemeris, field and aberration computations stay bounded
+        (every quantity is per frame: the chunking changes no number).
+        """
         ph = physics or self.physics
         t = np.asarray(t, dtype=float)
-        r, v = self.ephemeris.state(t, what=f"{sensor_type} frames")
+        n = t.shape[0]
+        self.ephemeris.check_covers(t, what=f"{sensor_type} frames")
         # r, v are not kept (no model reads them; see the module docstring)
         kw: dict = {"t": t, "aux": HeldChannels(self.aux, t)}
         extra: dict = {}
-        if sensor_type in ("fine_sun", "coarse_sun", "plane_field_sun", "horizon"):
-            kw["sun_I"] = self.sun(t, r, v, ph)
-        if sensor_type == "magnetometer":
+        sun = sensor_type in ("fine_sun", "coarse_sun", "plane_field_sun", "horizon")
+        mag = sensor_type == "magnetometer"
+        star = sensor_type == "star_tracker" and table is not None
+        if sun:
+            kw["sun_I"] = np.empty((n, 3))
+        if mag:
             fld = self.field(ph.field_model)
-            kw["B_I"] = fld.field_I(t, r)
-            h = 1.0
-            extra["B_I_dot"] = (fld.field_I(t + h, r + v * h) - fld.field_I(t - h, r - v * h)) / (2 * h)
+            kw["B_I"], extra["B_I_dot"] = np.empty((n, 3)), np.empty((n, 3))
             kw["field_model"] = fld.field_I
-        if sensor_type == "star_tracker" and table is not None:
-            kw["star_I"] = self.stars(t, v, table.columns["ra"], table.columns["dec"], ph)
+        if star:
+            kw["star_I"] = np.empty((n, 3))
+            ra, dec = np.asarray(table.columns["ra"]), np.asarray(table.columns["dec"])
+        for lo in range(0, n, CHUNK_FRAMES) if (sun or mag or star) else ():
+            sl = slice(lo, min(n, lo + CHUNK_FRAMES))
+            tc = t[sl]
+            r, v = self.ephemeris.state(tc, what=f"{sensor_type} frames")
+            if sun:
+                kw["sun_I"][sl] = self.sun(tc, r, v, ph)
+            if mag:
+                kw["B_I"][sl] = fld.field_I(tc, r)
+                h = 1.0
+                extra["B_I_dot"][sl] = (fld.field_I(tc + h, r + v * h) - fld.field_I(tc - h, r - v * h)) / (2 * h)
+            if star:
+                kw["star_I"][sl] = self.stars(tc, v, ra[sl], dec[sl], ph)
         if sensor_type == "horizon":
             kw["ephemeris"] = self.ephemeris_callable(ph)
             if table is not None:
