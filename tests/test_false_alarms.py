@@ -27,6 +27,14 @@ alarms recorded so far. The item that records alarm number ``MAX_ALARMS + 1`` se
 fails, so the session passes exactly when the total is within the allowance. An alarm
 within the allowance is reported as a warning naming the effect added.
 
+Scope: 30-minute three-axis missions. On two-hour inertial missions with the default gyro
+noise, discovery adds an effect on 5 of 40 seeds (100–139: FHST1/FSS1 time offsets, FSS1
+harmonic), because the batch fit and the candidate score test propagate the attitude with
+the gyros at Q = 0: the gyro's angle and rate random walks leave slow attitude wander in the
+residuals that the χ² statistics take for white noise. The same seeds with a noiseless gyro
+add nothing. :func:`test_long_mission_false_alarm_from_gyro_noise` pins one such seed as an
+expected failure, with its noiseless control.
+
 References
 ----------
 Clopper, C. J. & Pearson, E. S., "The use of confidence or fiducial limits illustrated in
@@ -48,7 +56,7 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import spinner_nominal
 from gcs_core.sim.writer import write_mission
-from test_truth_recovery import threeaxis
+from test_truth_recovery import ONE_HOUR, threeaxis
 
 SEEDS = range(100)
 MAX_ALARMS = 1
@@ -109,3 +117,28 @@ def test_discovery_adds_nothing_on_nominal_missions(seed, tmp_path, outcomes_dir
     assert len(alarms) <= MAX_ALARMS, (
         f"{len(alarms)} false alarms so far (allowed {MAX_ALARMS} in {len(SEEDS)} seeds): "
         + "; ".join(f"{r['kind']} seed {r['seed']} added {r['added']}" for r in alarms))
+
+
+def _discover(cfg, folder: Path) -> list[str]:
+    mission = write_mission(cfg, folder / "mission", truth_path=folder / "truth.json")
+    a = Analysis(AnalysisConfig(mission=mission))
+    a.fit()
+    a.discover()
+    return [s.effect for s in a.steps if s.action == "add"]
+
+
+LONG_SEED = 116             # inertial, 2 h: discovery adds FHST1.time_offset (module docstring)
+
+
+@pytest.mark.xfail(strict=True, reason="engine limitation: batch fit and candidate score test "
+                   "ignore the gyro random walks (Q = 0); on 2-hour inertial missions discovery "
+                   "adds an effect on ~12 % of nominal seeds")
+def test_long_mission_false_alarm_from_gyro_noise(tmp_path):
+    assert _discover(threeaxis("inertial", LONG_SEED, 2 * ONE_HOUR), tmp_path) == []
+
+
+def test_long_mission_without_gyro_noise_adds_nothing(tmp_path):
+    """Control of the expected failure above: the same seed, noiseless gyro, no alarm."""
+    cfg = threeaxis("inertial", LONG_SEED, 2 * ONE_HOUR)
+    cfg.sensor("IRU").true.update(arw=0.0, rrw=0.0)
+    assert _discover(cfg, tmp_path) == []

@@ -284,10 +284,18 @@ def test_inf_in_ephemeris_refused(mission):
     assert f"{eph}:4:9:" in message and "infinite" in message
 
 
-def test_empty_telemetry_refused(mission):
+def test_empty_telemetry_leaves_the_sensor_out(mission):
+    """A sensor that never saw its target is left out and reported, not a refusal."""
     (mission / "telemetry/FHST2.csv").write_text("t,h,v,ra,dec,mag\n")
+    m = load_mission(mission)
+    assert "FHST2" not in m.telemetry and "FHST2" not in [s.name for s in m.spec.sensors]
+    assert any("FHST2" in r and "left out" in r for r in m.report.repairs)
+
+
+def test_empty_gyro_telemetry_refused(mission):
+    (mission / "telemetry/IRU.csv").write_text("t,wx,wy,wz\n")
     message = refused(mission)
-    assert "FHST2.csv" in message and "0 data rows" in message
+    assert "IRU.csv" in message and "0 data rows" in message
 
 
 def test_parse_utc_forms():

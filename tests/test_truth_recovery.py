@@ -233,10 +233,8 @@ def test_every_element_within_three_sigma_of_truth(case, tmp_path):
     assert res.status in (("converged", "max_passes") if case.method == "kalman" else ("converged",)), \
         res.message
     outside = {k: round(v, 2) for k, v in z.items() if abs(v) > three_sigma}
-    worst = max(z, key=lambda k: abs(z[k]))
     assert not outside, (f"{case.id} (seed {case.seed}, {case.method}): outside 3σ {outside}; "
                          f"{len(z)} elements")
-    assert abs(z[worst]) <= three_sigma
     # the parameters moved away from the data book are determined by the data (σ well
     # below the offset), so "within 3σ of truth" means "moved to the truth"
     book = {e.name: e.value for e in a.problem.state}

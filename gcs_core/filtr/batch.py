@@ -42,6 +42,7 @@ from scipy import linalg
 
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr.problem import Linearization, Problem, iter_blocks, linearize
+from gcs_core.models.base import ObservationModel
 from gcs_core.sodl.state import StateVector
 
 log = logging.getLogger(__name__)
@@ -84,6 +85,10 @@ class SensorResiduals:
     valid : (N,) frames where the model is defined.
     edited : (N,) frames flagged by k-σ editing.
     rms : (m,) RMS of used residuals per component; rms_normalized : scalar, 1.0 = noise.
+
+    ``normalized`` (``residual / sigma``) and, for a model whose residual is the plain
+    difference, ``y_pred`` (``y − residual``, to round-off) may be passed as None: they
+    are then formed when read rather than stored (two (N, m) arrays less on long spans).
     """
 
     name: str
@@ -91,13 +96,21 @@ class SensorResiduals:
     unit: str
     t: np.ndarray
     y: np.ndarray
-    y_pred: np.ndarray
+    y_pred_: np.ndarray | None = field(repr=False)
     residual: np.ndarray
-    normalized: np.ndarray
+    normalized_: np.ndarray | None = field(repr=False)
     sigma: np.ndarray
     used: np.ndarray
     valid: np.ndarray
     edited: np.ndarray
+
+    @property
+    def y_pred(self) -> np.ndarray:
+        return self.y - self.residual if self.y_pred_ is None else self.y_pred_
+
+    @property
+    def normalized(self) -> np.ndarray:
+        return self.residual / self.sigma if self.normalized_ is None else self.normalized_
 
     @property
     def n(self) -> int:
@@ -197,7 +210,9 @@ def accumulate(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray], 
 
 @dataclass
 class Residuals:
-    """Per-sensor buffers of one pass: y_pred, r (N, m) and valid (N,) (reused across passes)."""
+    """Per-sensor buffers of one pass, reused across passes: r (N, m), valid (N,), and
+    y_pred (N, m) for models whose residual is not the plain difference ``y − y_pred``
+    (the others give it back as ``y − r``, :class:`SensorResiduals`)."""
 
     y_pred: dict[str, np.ndarray] = field(default_factory=dict)
     r: dict[str, np.ndarray] = field(default_factory=dict)
@@ -207,7 +222,8 @@ class Residuals:
         for sd in problem.sensors:
             if sd.name not in self.r:
                 m = len(sd.sigma)
-                self.y_pred[sd.name] = np.empty((sd.n, m))
+                if type(sd.model).residual is not ObservationModel.residual:
+                    self.y_pred[sd.name] = np.empty((sd.n, m))
                 self.r[sd.name] = np.empty((sd.n, m))
                 self.valid[sd.name] = np.empty(sd.n, bool)
         return self
@@ -231,7 +247,8 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     for blk in iter_blocks(problem, values, columns if jacobian else (), exclude=edited or {},
                            weighted=True, jacobian=jacobian, chunk=chunk):
         if store is not None:
-            store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
+            if blk.name in store.y_pred:
+                store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
             store.r[blk.name][blk.lo:blk.hi] = blk.r
             store.valid[blk.name][blk.lo:blk.hi] = blk.valid
         nu = int(np.count_nonzero(blk.used))
@@ -463,7 +480,7 @@ def residuals_from(problem: Problem, buffers: Residuals,
         r = buffers.r[sd.name]
         r[~valid] = np.nan
         out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t, sd.y,
-                                       buffers.y_pred[sd.name], r, r / sd.sigma, sd.sigma, valid & ~ed,
+                                       buffers.y_pred.get(sd.name), r, None, sd.sigma, valid & ~ed,
                                        valid, ed)
     return out
 

@@ -31,8 +31,7 @@ plain Python (correct, slow: tests only).
 References
 ----------
 Bierman, *Factorization Methods for Discrete Sequential Estimation*, Academic Press 1977,
-§V (Joseph form). Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to Tracking
-and Navigation*, Wiley 2001, §8.2 (correlated measurement noise by state augmentation).
+§V (Joseph form, why).
 """
 
 from __future__ import annotations

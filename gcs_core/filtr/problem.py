@@ -193,7 +193,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
 
     # drop frames the attitude provider cannot reach (before the first gyro interval)
     types = {s.name: s.type for s in spec.sensors}
-    tables = {sd.name: _slim_table(mission.telemetry[sd.name], types[sd.name]) for sd in sensors}
+    tables = {sd.name: _slim_table(mission.telemetry[sd.name], sd, types[sd.name]) for sd in sensors}
     if isinstance(attitude, GyroAttitude):
         kept = []
         for sd in sensors:
@@ -313,11 +313,13 @@ def _subset(sd: SensorData, mask: np.ndarray) -> SensorData:
     return replace(sd, t=sd.t[mask], y=sd.y[mask], geom=geom, lines=sd.lines[mask])
 
 
-def _slim_table(tab, sensor_type: str):
+def _slim_table(tab, sd: SensorData, sensor_type: str):
     """The telemetry columns :meth:`GeometryBuilder.geometry` reads again (geometry variants):
-    star catalogue positions, the horizon spin rate; the rest lives in SensorData."""
+    star catalogue positions, the horizon spin rate; the rest lives in SensorData (whose
+    times and line numbers the slim table shares)."""
     keep = {"star_tracker": ("ra", "dec"), "horizon": ("spin_rate",)}.get(sensor_type, ())
-    return replace(tab, columns={k: v for k, v in tab.columns.items() if k in keep or k == "t"})
+    return replace(tab, t=sd.t, lines=sd.lines,
+                   columns={k: (sd.t if k == "t" else v) for k, v in tab.columns.items() if k in keep or k == "t"})
 
 
 # ----------------------------------------------------------------------------------------

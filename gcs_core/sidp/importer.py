@@ -311,9 +311,16 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     eph = read(spec.ephemeris_file, EPHEMERIS_COLUMNS, "ephemeris")
     _check_ephemeris(eph)
     telemetry: dict[str, Table] = {}
+    empty: list[str] = []
     for s in spec.sensors:
         what = f"telemetry {s.name}"
         table = read(s.telemetry, TELEMETRY_COLUMNS[s.type], what)
+        if len(table) == 0 and s.type != "gyro":
+            # a sensor that never saw its target (a Sun sensor always in eclipse, say) is
+            # left out of the mission and reported, rather than refusing the whole mission
+            empty.append(s.name)
+            repairs.append(f"{_rel(s.telemetry, spec.root)}: no data rows; sensor {s.name} left out")
+            continue
         _check_not_empty(table, f"{what} ({s.type})")
         _check_sensor(table, s.type)
         _check_covered(table, eph, s.name)
@@ -323,6 +330,11 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     if spec.onboard_file:
         onboard = read(spec.onboard_file, ONBOARD_COLUMNS, "onboard attitude")
         _check_onboard(onboard)
+    if empty:
+        from dataclasses import replace as _replace
+        spec = _replace(spec, sensors=tuple(x for x in spec.sensors if x.name not in empty))
+        if not spec.sensors:
+            raise InputError("no sensor has any telemetry rows", file=spec.root / "mission.toml")
     unknown = list(spec.unknown_keys)
     unknown += [f"sensor[{s.name}].{k}" for s in spec.sensors for k in s.unknown_keys]
     for r in repairs:

@@ -258,8 +258,16 @@ def prepare_sensors(spec: MissionSpec, telemetry: Mapping[str, Table], builder: 
         t, y = model.measurements(table)
         geom = builder.geometry(s.type, t, table)
         out.append(SensorData(s.name, model, np.asarray(t, float), np.asarray(y, float),
-                              np.asarray(model.sigma(), float), geom, np.asarray(table.lines)))
+                              np.asarray(model.sigma(), float), geom, _line_numbers(table.lines)))
     return out
+
+
+def _line_numbers(lines) -> np.ndarray:
+    """File line numbers as int32 when they fit (half the memory of the reader's int64)."""
+    lines = np.asarray(lines)
+    if lines.size and lines.dtype != np.int32 and 0 <= lines.min() and lines.max() < 2 ** 31:
+        return lines.astype(np.int32)
+    return lines
 
 
 def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) -> dict[str, Geometry]:
