@@ -179,7 +179,37 @@ class Analysis:
             self.holdout_rms = _holdout_rms(self.problem, res_train, masks)
         self.result = res
         self.candidates = []
+        self.warnings = self._method_warnings()
+        for w in self.warnings:
+            log.warning("%s", w)
         return res
+
+    def _method_warnings(self) -> list[str]:
+        """Honesty checks on the chosen method.
+
+        The batch treats the gyro-propagated attitude as exact between its parameters. A
+        gyro's angle random walk makes the attitude wander by about σ_v·sqrt(T/12) about the
+        best-fit trajectory over a span T; when that is not small against the finest
+        attitude sensor's noise, the batch σ of the attitude and gyro elements are too small
+        and the candidate p-values too optimistic. The Kalman method carries that noise.
+        """
+        if self.config.method != "batch" or self.problem.gyro_name is None:
+            return []
+        spec = self.mission.spec.sensor(self.problem.gyro_name)
+        arw = float(spec.get("arw", 0.0) or 0.0)
+        if arw <= 0 or not self.problem.sensors:
+            return []
+        t = np.concatenate([sd.t for sd in self.problem.sensors])
+        span = float(t.max() - t.min())
+        wander = arw * math.sqrt(span / 12.0)
+        finest = min((float(np.min(sd.sigma)) for sd in self.problem.sensors
+                      if sd.model.type_name in ("star_tracker",)), default=None)
+        if finest is None or wander < 0.1 * finest:
+            return []
+        return [f"batch method: the gyro's angle random walk makes the attitude wander by about "
+                f"{wander / finest:.2f} of the star-tracker noise over this {span / 3600:.1f} h span, "
+                "which the batch does not model; its attitude and gyro σ are optimistic and "
+                "candidate p-values too small. Use method = \"kalman\" for honest σ."]
 
     def filter_options(self):
         from gcs_core.filtr.stepping import FilterOptions
@@ -329,6 +359,7 @@ class Analysis:
             "effects_in_state": self.effects_in_state(),
             "physics": dict(self.config.physics),
             "unobservable": list(res.unobservable) if res else [],
+            "warnings": list(getattr(self, "warnings", [])),
             "stop_reason": getattr(self, "stop_reason", ""),
             "config_digest": self.config.digest(),
         }
