@@ -31,6 +31,7 @@ memory does not grow with the span.
 
 from __future__ import annotations
 
+import sys
 from dataclasses import dataclass
 from typing import Mapping
 
@@ -137,8 +138,9 @@ class FrameAttitude:
         return self._gyro_chain(D, D @ self.C_BI, sel, out)
 
     def _gyro_chain(self, D, DC, sel, out=None):
-        """``D J`` with ``J = [C M_a | C X + W s]``: ``DC M_a``, ``DC X`` (+ ``D W s``)."""
-        Ma, X, gen = self._gyro
+        """``D J`` with ``J = [C M_a | C X + W s]``: ``DC M_a``, ``DC X`` (+ ``D W s``);
+        ``X = E[j]`` is read column run by column run (a view when ``j`` is a slice)."""
+        Ma, (E, j), gen = self._gyro
         n, m = DC.shape[:2]
         if out is None:
             out = np.empty((n, m, sel.size))
@@ -148,7 +150,7 @@ class FrameAttitude:
         o = rs.size
         for a, b in _runs(sel[sel >= 3] - 3):
             part = out[:, :, o:o + b - a]
-            np.matmul(DC, X[:, :, a:b], out=part)
+            np.matmul(DC, E[j, :, a:b], out=part)
             if gen is not None:
                 g, Wg, sg = gen
                 part[g] += (D[g] @ Wg[:, :, a:b]) * sg[:, None, None]
@@ -217,7 +219,7 @@ class ReferenceAttitude:
         J = np.broadcast_to(rpy_error_jacobian(*rpy), (C.shape[0], 3, 3))
         return AttitudeEval(C, None, RPY, J)
 
-    def frames(self, values: Mapping[str, float], t) -> "FrameAttitude":
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
         return FrameAttitude.of(self.evaluate(values, t))
 
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
@@ -238,7 +240,7 @@ class SpinAttitude:
         J = np.broadcast_to(np.stack([d_ra, d_dec], -1), (n, 3, 2))
         return AttitudeEval(None, spin_axis(ra, dec), RADEC, J)
 
-    def frames(self, values: Mapping[str, float], t) -> "FrameAttitude":
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
         return FrameAttitude.of(self.evaluate(values, t))
 
 
@@ -403,6 +405,7 @@ class GyroAttitude:
         self._consts: _GyroConsts | None = None
         self._checkpoints: list = []
         self._blocks: dict[int, _Block] = {}
+        self._spare: np.ndarray | None = None
 
     @property
     def dt(self) -> np.ndarray:
@@ -449,7 +452,7 @@ class GyroAttitude:
             c = _GyroConsts(self, values)
             self._key, self._consts = key, c
             self._checkpoints = [(c.q0, c.C0, np.zeros((3, len(self.param_names))))]
-            self._blocks = {}
+            self._drop_blocks()
         return self._consts
 
     def clear_cache(self) -> None:
@@ -457,7 +460,7 @@ class GyroAttitude:
         self._key = None
         self._consts = None
         self._checkpoints = []
-        self._blocks = {}
+        self._drop_blocks()
 
     def _rates(self, values, k0: int = 0, k1: int | None = None):
         """Corrected body rates ω_k (K, 3) and ``∂ω_k/∂p`` (K, 3, 18) over param_names,
@@ -477,7 +480,7 @@ class GyroAttitude:
         u = Gy - c.b - tau[:, None] * c.bdot                     # G⁻¹ y − b(t)   (n, 3)
         return u @ c.M, Gy, u, tau                               # ω = Mᵀ u
 
-    def _compute_block(self, b: int) -> _Block:
+    def _compute_block(self, b: int, with_E: bool) -> _Block:
         """Block ``b`` from its checkpoint (which must exist); records the next checkpoint.
 
         ``E_k = E_{r0} + Σ_{r0<j≤k} C_jᵀ W_j Δ_j`` with the increments formed from the
@@ -485,6 +488,8 @@ class GyroAttitude:
 
             C_jᵀ ∂ω/∂G_ac = −(C_jᵀ Mᵀ G⁻¹)_{:,a} (G⁻¹ y)_c,   C_jᵀ ∂ω/∂b = −C_jᵀ Mᵀ,
             C_jᵀ ∂ω/∂a_k = C_jᵀ (∂M/∂a_k)ᵀ u,               C_jᵀ ∂ω/∂ḃ = −C_jᵀ Mᵀ τ_j
+
+        Without ``with_E`` (predictions only) the sums are skipped.
         """
         c = self._consts
         L = self._block_knots
@@ -498,35 +503,66 @@ class GyroAttitude:
         C = np.empty((n + 1, 3, 3))
         C[0] = C_s
         C[1:] = _dcm(Q)
-        Ct = np.ascontiguousarray(np.swapaxes(C[1:], 1, 2))              # C_jᵀ (n, 3, 3)
-        incr = np.empty((n, 3, 18))
-        V = (Ct.reshape(-1, 3) @ c.MtGinv).reshape(n, 3, 3)           # C_jᵀ Mᵀ G⁻¹
-        g = -Gy * dt[:, None]
-        for col in range(3):                                           # columns 3a + col
-            np.multiply(V, g[:, col, None, None], out=incr[:, :, col:9:3])
-        Nb = (Ct.reshape(-1, 3) @ (-c.M.T)).reshape(n, 3, 3)          # −C_jᵀ Mᵀ
-        np.multiply(Nb, dt[:, None, None], out=incr[:, :, 9:12])
-        Z = np.stack([u @ c.dM[k] for k in range(3)], -1)               # (∂M/∂a_k)ᵀ u  (n, 3, 3)
-        np.multiply(Ct @ Z, dt[:, None, None], out=incr[:, :, 12:15])
-        np.multiply(incr[:, :, 9:12], tau[:, None, None], out=incr[:, :, 15:18])
-        E = np.empty((n + 1, 3, 18))
-        E[0] = E_s
-        np.cumsum(incr, axis=0, out=E[1:])
-        del incr
-        if np.any(E_s):
-            E[1:] += E_s
+        E = None
+        if with_E:
+            Ct = np.ascontiguousarray(np.swapaxes(C[1:], 1, 2))          # C_jᵀ (n, 3, 3)
+            E = self._spare_E(n + 1)
+            E[0] = E_s
+            incr = E[1:]                               # increments, summed in place below
+            V = (Ct.reshape(-1, 3) @ c.MtGinv).reshape(n, 9, 1)       # C_jᵀ Mᵀ G⁻¹
+            g = (-Gy * dt[:, None]).reshape(n, 1, 3)
+            incr[:, :, :9] = np.matmul(V, g).reshape(n, 3, 9)         # columns 3a + c
+            Nb = (Ct.reshape(-1, 3) @ (-c.M.T)).reshape(n, 3, 3)      # −C_jᵀ Mᵀ
+            np.multiply(Nb, dt[:, None, None], out=incr[:, :, 9:12])
+            Z = np.stack([u @ c.dM[k] for k in range(3)], -1)           # (∂M/∂a_k)ᵀ u  (n, 3, 3)
+            np.multiply(Ct @ Z, dt[:, None, None], out=incr[:, :, 12:15])
+            np.multiply(incr[:, :, 9:12], tau[:, None, None], out=incr[:, :, 15:18])
+            np.cumsum(incr, axis=0, out=incr)
+            if np.any(E_s):
+                incr += E_s
+        ck = (Q[-1].copy(), C[-1].copy(), None if E is None else E[-1].copy())
         if len(self._checkpoints) == b + 1:
-            self._checkpoints.append((Q[-1].copy(), C[-1].copy(), E[-1].copy()))
+            self._checkpoints.append(ck)
+        elif E is not None and self._checkpoints[b + 1][2] is None:
+            self._checkpoints[b + 1] = ck
         return _Block(r0, r1, C, omega, (Gy, u, tau), E)
 
-    def _block(self, values, b: int) -> _Block:
+    def _drop_blocks(self) -> None:
+        """Forget the held block; its E buffer becomes the spare if nothing else holds it."""
+        for old in self._blocks.values():
+            E = old.E
+            old.E = None
+            # references: the local name and the call argument (E: and its pointer to the base)
+            if E is not None and E.base is not None and sys.getrefcount(E) == 2 \
+                    and sys.getrefcount(E.base) == 2:
+                self._spare = E.base
+            del E
+        self._blocks = {}
+
+    def _spare_E(self, rows: int) -> np.ndarray:
+        """An (rows, 3, 18) array, recycled from the block last dropped when nothing else
+        holds it (fresh pages cost more than the sums written into them)."""
+        buf = self._spare
+        self._spare = None
+        if buf is None or buf.size < rows * 54:
+            buf = np.empty(max(rows, min(self._block_knots, self.y.shape[0]) + 1) * 54)
+        return buf[:rows * 54].reshape(rows, 3, 18)
+
+    def _block(self, values, b: int, with_E: bool = True) -> _Block:
         self._state(values)
         blk = self._blocks.get(b)
-        if blk is not None:
+        if blk is not None and (blk.E is not None or not with_E):
             return blk
-        for j in range(min(b, len(self._checkpoints) - 1), b + 1):
-            blk = self._compute_block(j)
-        self._blocks = {b: blk}                       # one block held at a time
+        # nearest checkpoint at or before b that carries what this block needs
+        j = min(b, len(self._checkpoints) - 1)
+        while with_E and self._checkpoints[j][2] is None:
+            j -= 1
+        self._drop_blocks()                               # one block held at a time
+        for jj in range(j, b + 1):
+            blk = self._compute_block(jj, with_E)
+            if jj < b and blk.E is not None:
+                self._spare = blk.E.base
+        self._blocks = {b: blk}
         return blk
 
     def _rows(self, t):
@@ -538,33 +574,44 @@ class GyroAttitude:
         i = k - 1 - blk.r0                                       # row within the block
         on_knot = self.knots[k] == t                             # frame on knot k: C_k, E_k
         c = self._consts
-        if np.all(on_knot):
-            j = i + 1
-            if j.size and j[-1] - j[0] == j.size - 1 and np.all(np.diff(j) == 1):
-                sl = slice(int(j[0]), int(j[-1]) + 1)
-                C, X, w = blk.C[sl], blk.E[sl], blk.omega[sl.start - 1:sl.stop - 1]
-            else:
-                C, X, w = blk.C[j], blk.E[j], blk.omega[i]
-            return FrameAttitude(C, None, w, self.names, gyro=(c.Ma, X, None))
+        j = np.where(on_knot, i + 1, i)                          # X = E_k on a knot, E_{k−1} off
+        if j.size and j[-1] - j[0] == j.size - 1 and np.all(np.diff(j) == 1):
+            j = slice(int(j[0]), int(j[-1]) + 1)                 # consecutive: views, no gathers
+        general = not np.all(on_knot)
+        C = blk.C[j].copy() if general and isinstance(j, slice) else blk.C[j]
+        w = blk.omega[i] if general or not isinstance(j, slice) else blk.omega[j.start - 1:j.stop - 1]
+        if not general:
+            return FrameAttitude(C, None, w, self.names, gyro=(c.Ma, (blk.E, j), None))
         g = ~on_knot
-        j = np.where(on_knot, i + 1, i)
-        C = blk.C[j]
         ig = i[g]
         s = t[g] - self.knots[k[g] - 1]
         # C(t) = exp(−[ω_k s ×]) C_{k−1};  C(t)ᵀ δθ(t) = C_0ᵀ δθ_0 + E_{k−1} + C(t)ᵀ W_k s δp
         C[g] = _dcm(_step_quaternions(blk.omega[ig], s)) @ blk.C[ig]
         Gy, u, tau = blk.W
         Wg = _rate_partials(c, Gy[ig], u[ig], tau[ig])
-        return FrameAttitude(C, None, blk.omega[i], self.names, gyro=(c.Ma, blk.E[j], (g, Wg, s)))
+        return FrameAttitude(C, None, w, self.names, gyro=(c.Ma, (blk.E, j), (g, Wg, s)))
 
-    def frames(self, values: Mapping[str, float], t) -> FrameAttitude:
-        """The attitude at times ``t`` in factored form (:class:`FrameAttitude`)."""
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
+        """The attitude at times ``t`` in factored form (:class:`FrameAttitude`); without
+        ``partials`` only ``C_BI`` and ``omega_B`` (the cumulative sums are skipped).
+
+        The result may view the held block: use it before asking for another block.
+        """
         t = np.atleast_1d(np.asarray(t, float))
         self._state(values)
         k = self._rows(t)
         b = (k - 1) // self._block_knots
         if t.size and b[0] == b[-1] and np.all(b == b[0]):
-            return self._frames_in_block(self._block(values, int(b[0])), t, k)
+            blk = self._block(values, int(b[0]), partials)
+            if not partials:
+                i = k - 1 - blk.r0
+                C = blk.C[np.where(self.knots[k] == t, i + 1, i)]
+                g = self.knots[k] != t
+                if np.any(g):
+                    s = t[g] - self.knots[k[g] - 1]
+                    C[g] = _dcm(_step_quaternions(blk.omega[i[g]], s)) @ blk.C[i[g]]
+                return FrameAttitude(C, None, blk.omega[i], self.names)
+            return self._frames_in_block(blk, t, k)
         return FrameAttitude.of(self.evaluate(values, t))
 
     def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
@@ -577,7 +624,8 @@ class GyroAttitude:
             if n == 0:
                 return AttitudeEval(np.zeros((0, 3, 3)), None, self.names, np.zeros((0, 3, P)),
                                     omega_B=np.zeros((0, 3)))
-            return self._frames_in_block(self._block(values, int(b[0])), t, k).as_eval()
+            ev = self._frames_in_block(self._block(values, int(b[0])), t, k).as_eval()
+            return AttitudeEval(np.array(ev.C_BI), None, ev.names, ev.J, omega_B=np.array(ev.omega_B))
         C, J, w = np.empty((n, 3, 3)), np.empty((n, 3, P)), np.empty((n, 3))
         for bb in np.unique(b):
             sel = np.flatnonzero(b == bb)

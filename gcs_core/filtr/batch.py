@@ -20,9 +20,11 @@ rather than inventing numbers.
 Consider elements ``c`` (not estimated, uncertainty carried) add
 ``S P_c Sᵀ`` with the sensitivity ``S = −P Hᵀ R⁻¹ H_c`` to the covariance.
 
-Data editing: after convergence, frames whose normalized residual exceeds ``edit_k``
-in any component are flagged (never deleted) and the fit is repeated, until the set of
-flagged frames stops changing (k-σ editing, iterated).
+Data editing: after convergence, frames whose normalized residual lies more than
+``edit_k`` robust σ from its median in any component are flagged (never deleted) and the
+fit is repeated, until the set of flagged frames stops changing (k-σ editing, iterated;
+:func:`robust_outliers`). The robust σ keeps gross errors from hiding themselves and a
+missing physical effect from being edited away.
 
 References
 ----------
@@ -231,13 +233,15 @@ class Residuals:
 
 def normal_equations(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
                      edited: Mapping[str, np.ndarray] | None = None, *, jacobian: bool = True,
-                     store: Residuals | None = None, chunk: int | None = None):
+                     store: Residuals | None = None, chunk: int | None = None,
+                     work: dict | None = None):
     """One streaming pass: ``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ²`` and the number of
     used measurements, over used frames (valid and not ``edited``), chunk by chunk.
 
     Each sensor's block adds into the rows and columns it touches only. With ``store``
     the predictions, residuals and validity of every frame are written into its buffers
-    (O(N·m), the post-fit residuals). Memory otherwise: one chunk.
+    (O(N·m), the post-fit residuals). Memory otherwise: one chunk (``work``, a dict the
+    caller keeps across passes, holds the chunk buffers so that they are reused).
     """
     n = len(columns) if jacobian else 0
     A = np.zeros((n, n))
@@ -245,7 +249,7 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     chi2 = 0.0
     m_used = 0
     for blk in iter_blocks(problem, values, columns if jacobian else (), exclude=edited or {},
-                           weighted=True, jacobian=jacobian, chunk=chunk):
+                           weighted=True, jacobian=jacobian, chunk=chunk, work=work):
         if store is not None:
             if blk.name in store.y_pred:
                 store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
@@ -333,13 +337,14 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     it_total = 0
     counts = [0]
     buffers = Residuals().ensure(problem)
+    work: dict = {}                     # chunk buffers, reused by every pass
     stored = [None]                     # (x, edits, A, χ², m) of the pass the buffers hold
 
     def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):
             values[nm] = x_eval[j]
         A_, b_, chi2_, m_ = normal_equations(problem, values, names, edits, jacobian=with_jacobian,
-                                             store=buffers if with_jacobian else None)
+                                             store=buffers if with_jacobian else None, work=work)
         if with_jacobian:
             stored[0] = (x_eval.copy(), edits, A_, chi2_, m_)
         counts[0] = m_
@@ -407,21 +412,14 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             values[nm] = x[j]
         if not opts.edit_k:
             break
-        if cost > 2.0 * max(counts[0], 1):
-            # k-σ editing removes outliers from a model that describes the data; with χ²
-            # above twice the measurement count the model itself is wrong: no editing
-            message += "; editing skipped (the model does not describe the data yet)"
-            break
         if not _stored_at(stored[0], x, edits):
             evaluate(x)
         new_edits = {}
         suspect: set[str] = set()
         for sd in problem.sensors:
             valid = buffers.valid[sd.name]
-            with np.errstate(invalid="ignore"):
-                big = np.any(np.abs(buffers.r[sd.name] / sd.sigma) > opts.edit_k, axis=1)
             pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
-            out = valid & ~pre & big
+            out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, opts.edit_k)
             n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
             if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
                 suspect.add(sd.name)
@@ -441,7 +439,8 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     for j, nm in enumerate(names):
         values[nm] = x[j]
     if cons or not _stored_at(stored[0], x, edits):
-        A_all, _, chi2, m_used = normal_equations(problem, values, names + cons, edits, store=buffers)
+        A_all, _, chi2, m_used = normal_equations(problem, values, names + cons, edits, store=buffers,
+                                                  work=work)
     else:
         A_all, chi2, m_used = stored[0][2:]
     A = A_all[:n, :n]
@@ -464,6 +463,35 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     residuals = residuals_from(problem, buffers, edits)
     return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,
                        tuple(history), it_total, status, message, A, unobs, budget)
+
+
+def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarray:
+    """Frames whose normalized residual ``z`` (N, m) is an outlier, among ``candidates``.
+
+    A frame is flagged when any component lies more than ``k · max(1, s)`` from the
+    component's median, ``s`` being the robust scale of the normalized residuals
+    (1.4826 × the median absolute deviation, pooled over components; 1.0 at the noise
+    floor for Gaussian noise). Scaling the threshold by ``s`` keeps the editing for
+    isolated gross errors (a misidentified star, a telemetry hit): a model that misses a
+    physical effect widens the whole distribution, ``s`` grows with it, and the signature
+    the diagnosis needs is not edited away. Gross outliers cannot mask themselves
+    either, since the median and MAD ignore up to half of the frames.
+
+    References
+    ----------
+    Hampel, Ronchetti, Rousseeuw & Stahel, *Robust Statistics*, Wiley 1986, §2.6
+    (the MAD and its 1.4826 consistency factor for the normal law).
+    """
+    out = np.zeros(candidates.shape, bool)
+    if not np.any(candidates):
+        return out
+    zc = z[candidates]
+    with np.errstate(invalid="ignore"):
+        dev = np.abs(zc - np.nanmedian(zc, axis=0))
+        s = 1.4826 * float(np.nanmedian(dev))
+        big = np.any(dev > k * max(1.0, s if np.isfinite(s) else 1.0), axis=1)
+    out[np.flatnonzero(candidates)[big]] = True
+    return out
 
 
 def _stored_at(stored, x, edits) -> bool:

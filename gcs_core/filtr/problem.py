@@ -428,9 +428,9 @@ def chunk_windows(problem: Problem, sensors: Sequence[SensorData], chunk: int | 
     return out
 
 
-def _frames(att, values, t):
+def _frames(att, values, t, partials: bool):
     if hasattr(att, "frames"):
-        return att.frames(values, t)
+        return att.frames(values, t, partials=partials)
     return FrameAttitude.of(att.evaluate(values, t))
 
 
@@ -455,7 +455,8 @@ def _sensor_columns(problem: Problem, sd: SensorData, att_names, col_index):
 def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence[str] = (), *,
                 exclude: Mapping[str, np.ndarray] | None = None, weighted: bool = False,
                 sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None,
-                chunk: int | None = None, jacobian: bool = True) -> Iterator[Block]:
+                chunk: int | None = None, jacobian: bool = True,
+                work: dict | None = None) -> Iterator[Block]:
     """Residuals and partials of every (or the named) sensor at ``values``, chunk by chunk.
 
     Windows of time (:func:`chunk_windows`) are visited in order; in each, the attitude is
@@ -465,6 +466,10 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
 
     ``exclude`` flags frames (True = not used); ``weighted`` returns ``R^-1/2 H`` with the
     unused frames' rows zero, ready for ``Hᵀ H``; ``jacobian=False`` skips H.
+
+    ``work`` (a dict kept by the caller across calls) lends chunk-sized buffers for H:
+    fresh pages cost more than the arithmetic on them. A block's H is then valid until
+    the next block of the same sensor is produced.
     """
     col_index = {c: j for j, c in enumerate(columns)}
     sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
@@ -476,7 +481,8 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
                 continue
             base = geoms.get(sd.name) if geoms is not None and sd.name in geoms else sd.geom
             geom = window_geometry(base, lo, hi, sd.n)
-            fr = _frames(problem.attitude, values, sd.t[lo:hi])
+            att_sel, par, cols = layout[sd.name]
+            fr = _frames(problem.attitude, values, sd.t[lo:hi], jacobian and att_sel.size > 0)
             if fr.C_BI is not None:
                 geom = replace(geom, C_BI=fr.C_BI, omega_B=fr.omega_B)
             else:
@@ -487,21 +493,32 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
             used = valid if exclude is None or sd.name not in exclude else \
                 valid & ~np.asarray(exclude[sd.name][lo:hi], bool)
             H = None
-            att_sel, par, cols = layout[sd.name]
             if jacobian and cols.size:
                 H = _block_jacobian(pred, fr, att_sel, par, cols.size,
-                                    (used[:, None] / sd.sigma[None, :]) if weighted else None)
+                                    (used[:, None] / sd.sigma[None, :]) if weighted else None,
+                                    _buffer(work, sd.name, (hi - lo, len(sd.sigma), cols.size)))
                 if weighted and not np.all(used):
                     H[~used] = 0.0
+            del fr                        # the attitude's block buffers may be reused
             yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H)
 
 
-def _block_jacobian(pred, fr, att_sel, par, k: int, w) -> np.ndarray:
-    """(n, m, k) partials of one block: ``∂y/∂δθ · ∂δθ/∂x`` in the attitude columns, the
-    model's own partials in the parameter columns; rows scaled by ``w`` (n, m) if given."""
+def _buffer(work: dict | None, key, shape) -> np.ndarray:
+    """An uninitialized array of ``shape``, from the caller's workspace when given."""
+    if work is None:
+        return np.empty(shape)
+    size = int(np.prod(shape))
+    buf = work.get(key)
+    if buf is None or buf.size < size:
+        buf = work[key] = np.empty(size)
+    return buf[:size].reshape(shape)
+
+
+def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray) -> np.ndarray:
+    """(n, m, k) partials of one block, into ``H``: ``∂y/∂δθ · ∂δθ/∂x`` in the attitude
+    columns, the model's own partials in the parameter columns; rows scaled by ``w`` (n, m)
+    if given."""
     D = pred.d_att
-    n, m = D.shape[:2]
-    H = np.empty((n, m, k))
     ka = att_sel.size
     if ka:
         fr.chain(D if w is None else D * w[:, :, None], att_sel, out=H[:, :, :ka])

@@ -157,26 +157,46 @@ class BodyVector:
 
 
 def body_vector(geom: Geometry, v_I: np.ndarray, dt: float, vdot_I: np.ndarray | None = None) -> BodyVector:
-    """``v_B(t + Δt) = R(Δt) C (v_I + Δt v̇_I)`` and its partials (module docstring)."""
+    """``v_B(t + Δt) = R(Δt) C (v_I + Δt v̇_I)`` and its partials (module docstring).
+
+    With ``Δt = 0`` (the usual case: the time-tag offset held at zero) ``R = I`` exactly and
+    the products with it are skipped; the numbers are the same.
+    """
     if geom.C_BI is None:
         raise ValueError("this model needs the attitude C_BI in the geometry")
     C = np.asarray(geom.C_BI, dtype=float)
     v_I = np.asarray(v_I, dtype=float)
     w_I = v_I if vdot_I is None else v_I + dt * vdot_I
     u_B = np.einsum("nij,nj->ni", C, w_I)                      # C (v_I + Δt v̇_I)
+    identity = geom.omega_B is None or dt == 0.0
     if geom.omega_B is None:
-        R = np.broadcast_to(np.eye(3), C.shape)
         v_B = u_B
         d_dt = np.zeros_like(v_B)
     else:
         omega = np.broadcast_to(np.asarray(geom.omega_B, dtype=float), u_B.shape)
-        R = rotvec_to_dcm(omega * dt)                          # exp(−[ω Δt ×])
-        v_B = np.einsum("nij,nj->ni", R, u_B)
+        if identity:
+            v_B = u_B
+        else:
+            R = rotvec_to_dcm(omega * dt)                      # exp(−[ω Δt ×])
+            v_B = np.einsum("nij,nj->ni", R, u_B)
         d_dt = -np.cross(omega, v_B)                           # −ω × v_B
     if vdot_I is not None:
-        d_dt = d_dt + np.einsum("nij,nj->ni", R @ C, vdot_I)    # + R C v̇_I
-    d_att = R @ skew(u_B)                                      # R [u_B ×]
+        d_dt = d_dt + np.einsum("nij,nj->ni", C if identity else R @ C, vdot_I)    # + R C v̇_I
+    d_att = _skew(u_B) if identity else R @ skew(u_B)          # R [u_B ×]
     return BodyVector(v_B, d_att, d_dt)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """``[v×]`` (N, 3, 3) written in place (the values of :func:`~gcs_core.frames.rotations.skew`)."""
+    out = np.zeros(v.shape[:-1] + (3, 3))
+    x, y, z = v[..., 0], v[..., 1], v[..., 2]
+    out[..., 0, 1] = -z
+    out[..., 0, 2] = y
+    out[..., 1, 0] = z
+    out[..., 1, 2] = -x
+    out[..., 2, 0] = -y
+    out[..., 2, 1] = x
+    return out
 
 
 # --------------------------------------------------------------------------------------
@@ -200,6 +220,14 @@ def finish(y: np.ndarray, d_att: np.ndarray, d_par: dict[str, np.ndarray], valid
         raise RuntimeError(f"model gives no partials for {missing}")
     valid = np.asarray(valid, dtype=bool) & np.all(np.isfinite(y), axis=1)
     bad = ~valid
+    if not bad.any():
+        # nothing to NaN out: the model's own arrays are the prediction (no copies)
+        y = np.asarray(y, dtype=float)
+        out = {}
+        for p in specs:
+            d = np.asarray(d_par[p.name], dtype=float)
+            out[p.name] = d if d.shape == y.shape else np.broadcast_to(d, y.shape)
+        return Prediction(y=y, d_att=np.asarray(d_att, dtype=float), d_par=out, valid=valid)
     y = np.array(y, dtype=float)
     d_att = np.array(d_att, dtype=float)
     out = {}

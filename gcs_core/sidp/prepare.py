@@ -125,9 +125,15 @@ class HeldChannels(Mapping):
         self._names = aux_channel_names(aux) if aux is not None and len(aux) else ()
         self._keep = keep
         self._done: dict[str, np.ndarray] = {}
+        self._idx: np.ndarray | None = None
 
     def _index(self) -> np.ndarray:
-        return np.clip(np.searchsorted(self._aux.t, self._t, side="right") - 1, 0, len(self._aux) - 1)
+        idx = self._idx
+        if idx is None:
+            idx = np.clip(np.searchsorted(self._aux.t, self._t, side="right") - 1, 0, len(self._aux) - 1)
+            if not self._keep:                  # a chunk's mapping: every channel reads it
+                self._idx = idx
+        return idx
 
     def __getitem__(self, name: str) -> np.ndarray:
         if name not in self._names:

@@ -26,12 +26,19 @@ RMS_LIMIT = 1.05
 MAX_POINTS = 4000
 
 
-def x_axes(sd, shown_unit: str, unit: str) -> list[tuple[str, str, np.ndarray]]:
-    """``(name, axis label, values (N,))`` a sensor's residuals can be plotted against."""
+def x_axes(sd, shown_unit: str, unit: str, orbit=None) -> list[tuple[str, str, np.ndarray]]:
+    """``(name, axis label, values (N,))`` a sensor's residuals can be plotted against.
+
+    ``orbit`` (``t -> (r_I, v_I)``) gives the spacecraft state when the prepared geometry
+    does not keep it (it does not, to save memory on long spans).
+    """
     g = sd.geom
     out = [("time", "t [s]", sd.t)]
-    if g.r_I is not None and g.v_I is not None:
-        out.append(("orbit angle", "argument of latitude [deg]", derive.argument_of_latitude(g.r_I, g.v_I)))
+    r_I, v_I = g.r_I, g.v_I
+    if (r_I is None or v_I is None) and orbit is not None:
+        r_I, v_I = orbit(sd.t)
+    if r_I is not None and v_I is not None:
+        out.append(("orbit angle", "argument of latitude [deg]", derive.argument_of_latitude(r_I, v_I)))
     k = fmt.scale(unit, shown_unit)
     for j, comp in enumerate(sd.model.components):
         vals = sd.y[:, j] * k
@@ -82,7 +89,8 @@ class ResidualsScreen(GcsScreen):
         name, r, sd = self._current()
         j = self.comp_i
         shown = fmt.display_unit(r.unit, float(np.nanmax(np.abs(r.sigma))) if r.sigma.size else 0.0)
-        axes = x_axes(sd, fmt.display_unit(r.unit, float(np.nanmax(np.abs(sd.y))) if sd.y.size else 0.0), r.unit)
+        axes = x_axes(sd, fmt.display_unit(r.unit, float(np.nanmax(np.abs(sd.y))) if sd.y.size else 0.0), r.unit,
+                      orbit=self.wb.analysis.problem.builder.orbit)
         self.x_i %= len(axes)
         xname, xlabel, xvals = axes[self.x_i]
         kind = KINDS[self.kind_i]
