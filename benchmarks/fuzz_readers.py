@@ -154,6 +154,7 @@ def make_spinner(root: Path) -> Path:
 
 
 def run(cases: int, seed: int) -> int:
+    previous = logging.root.manager.disable
     logging.disable(logging.WARNING)  # unknown-key warnings by the thousand
     rng = random.Random(seed)
     work = Path(tempfile.mkdtemp(prefix="gcs-fuzz-"))
@@ -210,6 +211,7 @@ def run(cases: int, seed: int) -> int:
         elapsed = time.perf_counter() - start
     finally:
         shutil.rmtree(work, ignore_errors=True)
+        logging.disable(previous)
     print(f"fuzz_readers: {cases} cases (seed {seed}) in {elapsed:.1f} s: "
           + ", ".join(f"{k} {v}" for k, v in sorted(by_target.items())))
     print(f"  accepted {counts['accepted']}, refused with InputError {counts['refused']}, "

@@ -234,6 +234,43 @@ class Analysis:
                                           alpha=self.config.significance)
         return self.candidates
 
+    def physics_needed(self) -> list[dict]:
+        """For each always-on physics option in the model, what switching it off would cost.
+
+        The option's signature ``d = h_off − h_on`` is scored at the current solution like
+        a candidate (:func:`rank_candidates`): with ``c`` the fraction of ``d`` added,
+        ``χ²(c) ≈ χ²₀ − 2cg + c²S`` (``g`` the conditional score, ``S`` its information),
+        so switching off (``c = 1``) adds ``Δχ² = S − 2g = (1 − 2ĉ)/σ_c²``, ``ĉ = g/S``.
+        The option is *needed* when that increase is significant at the session's
+        family-wise level on one degree of freedom. No refit is made.
+        """
+        from scipy import stats
+
+        if self.result is None:
+            self.fit()
+        on_ids = set(self.effects_in_state())
+        phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
+        if not phys:
+            return []
+        crit = float(stats.chi2.isf(self.config.significance, 1))
+        out = []
+        for c in rank_candidates(self.problem, self.result, phys, alpha=self.config.significance):
+            sig = c.sigma.get(c.id, float("inf"))
+            c_hat = c.estimate.get(c.id, 0.0)
+            cost = (1.0 - 2.0 * c_hat) / sig ** 2 if np.isfinite(sig) and sig > 0 else 0.0
+            seen = ", ".join(f"{k} ({100 * v:.0f}%)" for k, v in
+                             sorted(c.sensors.items(), key=lambda kv: -kv[1]) if v >= 0.05)
+            needed = cost > crit
+            why = (f"switching it off would add Δχ² = {cost:.4g} on 1 dof"
+                   + (f", seen in {seen}" if seen else "")
+                   + ("; the data need it." if needed else
+                      f"; below the {crit:.1f} that α = {self.config.significance:g} needs: "
+                      "these data cannot show it, but it is real physics."))
+            out.append({"id": c.id, "delta_chi2_if_removed": round(float(cost), 3),
+                        "needed": bool(needed), "why": why, "physics": c.effect.explanation})
+        out.sort(key=lambda d: -d["delta_chi2_if_removed"])
+        return out
+
     def rms(self) -> dict[str, float]:
         return {k: v.rms_normalized for k, v in self.result.residuals.items()} if self.result else {}
 
@@ -358,6 +395,7 @@ class Analysis:
             "steps": [s.as_report() for s in self.steps if s.action != "fit"],
             "effects_in_state": self.effects_in_state(),
             "physics": dict(self.config.physics),
+            "physics_needed": self.physics_needed() if res is not None else [],
             "unobservable": list(res.unobservable) if res else [],
             "warnings": list(getattr(self, "warnings", [])),
             "stop_reason": getattr(self, "stop_reason", ""),

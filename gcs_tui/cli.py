@@ -219,6 +219,12 @@ def cmd_discover(args, prog: Progress) -> int:
     _out("effects added: " + (", ".join(added) if added else "none"))
     _lines("  " + line for line in steps_table(steps))
     _out("stopped: " + a.stop_reason)
+    needed = a.physics_needed()
+    if needed:
+        _out("")
+        _out("always-on physics in the model:")
+        for d in needed:
+            _out(f"  {d['id']:<28} {'needed' if d['needed'] else 'not shown'}: {d['why']}")
     if a.candidates:
         _out("")
         _lines(candidate_table(a.candidates, alpha=a.config.significance, limit=5))

@@ -14,6 +14,7 @@ from pathlib import Path
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.session import Analysis
+from gcs_core.sidp.prepare import PHYSICS_EFFECTS
 from gcs_core.sim.scenarios import nominal_threeaxis, spinner_nominal, with_effect
 from gcs_core.sim.writer import write_mission
 
@@ -58,6 +59,9 @@ CASES = [
     Case("HS1.d_gamma", math.radians(0.25), kind="spinning", exclude=("HS1.d_gamma",)),
     Case("HS1.d_rho", math.radians(0.05), kind="spinning", exclude=("HS1.d_rho",)),
     Case("PSS1.bias", 2e-3, kind="spinning", exclude=("PSS1.bias",)),
+    Case("HS1.oblateness", 1.0, kind="spinning"),             # WGS-84 flattening, data book spherical
+    Case("model.field_model", 1.0, physics_off="field_model"),   # IGRF data, dipole in the config
+    Case("FHST2.time_offset", 0.5),
 ]
 
 
@@ -88,5 +92,5 @@ def simulate(case: Case, seed: int, folder: Path, duration_s: float = ONE_HOUR) 
 def analyse(case: Case, mission: Path) -> Analysis:
     physics = dict(AnalysisConfig().physics)
     if case.physics_off:
-        physics[case.physics_off] = False
+        physics[case.physics_off] = PHYSICS_EFFECTS[case.physics_off][1]     # the "off" value
     return Analysis(AnalysisConfig(mission=mission, exclude=case.exclude, physics=physics))

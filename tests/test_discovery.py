@@ -11,8 +11,9 @@ import pytest
 
 from discovery_cases import CASES, analyse, simulate
 
-noise_floor_bound = 1.05      # normalized RMS: 1.0 is the noise floor (issue 3)
-heldout_bound = 1.10          # held-out quarter: fewer samples, so a looser sampling bound
+noise_floor_bound = 1.05      # normalized RMS: 1.0 is the noise floor (issue 3), fitted and
+                              # held-out spans alike (the held-out quarter of an hour at 1 Hz
+                              # has enough samples for its RMS to be known to about 2 %)
 
 
 @pytest.mark.parametrize("seed", [1, 2])
@@ -27,7 +28,7 @@ def test_discovery_adds_exactly_the_hidden_effect(case, seed, tmp_path):
     for name, v in a.rms().items():
         assert v <= noise_floor_bound, f"{name} normalized RMS {v:.3f}"
     for name, v in a.holdout_rms.items():
-        assert v <= heldout_bound, f"{name} held-out normalized RMS {v:.3f}"
+        assert v <= noise_floor_bound, f"{name} held-out normalized RMS {v:.3f}"
     rep = a.report()
     assert rep["steps"][0]["added"] == case.effect
     assert rep["candidates"] is not None

@@ -43,6 +43,8 @@ _NAN_WORDS = frozenset({"", "nan", "+nan", "-nan"})
 _EMPTY_FIELD_ERR = re.compile(r"could not convert string '\s*' to")
 #: a field that is empty or blank, to be read as NaN (multiline text).
 _EMPTY_FIELD = re.compile(r"(^|,)[ \t\r]*(?=,|$)", re.MULTILINE)
+#: an empty or blank field, anywhere in a block of lines (the fast path declines it).
+_EMPTY_FIELD_FAST = re.compile(r"(?:^|,)[ \t\r]*(?:,|$)", re.MULTILINE)
 #: a line holding nothing but blanks (inside the data rows).
 _BLANK_LINE = re.compile(r"\n[ \t\r\f\v]*(?:\n|$)")  # searched in "\n" + text
 _SHOW = 30  # characters of a bad field quoted in a message
@@ -213,10 +215,67 @@ def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",),
     if "\x00" in text:
         lineno = text[:text.index("\x00")].count("\n") + 1
         raise InputError("NUL byte in a text file (binary data?)", file=path, line=lineno)
+    del raw
+    fast = _read_plain(path, text, required, what)
+    if fast is not None:
+        names, data, lines = fast
+        return _finish(path, names, data, lines)
     names, rows, linenos, _ = _split_lines(text, path, required, what)
     data = _parse_bulk(rows, linenos, names, path)
     lines = np.asarray(linenos, dtype=np.int64)
     return _finish(path, names, data, lines)
+
+
+_TRAILING_BLANKS = " \t\r\n\f\v"
+
+
+def _read_plain(path: Path, text: str, required: tuple[str, ...], what: str):
+    """The usual file, read without holding its lines as Python strings.
+
+    A file whose data rows hold no comment, no blank line and no empty field is parsed by
+    numpy's C reader straight from the file, in chunks: the memory it needs is the
+    result's, not several times the text's (a week of 1 Hz telemetry stays flat). Returns
+    ``(names, data, line numbers)``, or None when the file needs the general path (which
+    also finds and names any bad field).
+    """
+    pos = 0
+    header_at = 0
+    n = len(text)
+    while pos < n:                                   # the header: first non-comment line
+        eol = text.find("\n", pos)
+        eol = n if eol < 0 else eol
+        stripped = text[pos:eol].strip()
+        if stripped and not stripped.startswith("#"):
+            break
+        pos, header_at = eol + 1, header_at + 1
+    else:
+        return None
+    names = _parse_header(text[pos:eol].rstrip("\r"), header_at + 1, path, required, what)
+    end = n
+    while end > eol and text[end - 1] in _TRAILING_BLANKS:
+        end -= 1
+    if end <= eol + 1:
+        return names, np.zeros((0, len(names))), np.zeros(0, np.int64)
+    body_start = eol + 1
+    # comments, blank lines, empty fields (NaN) and a lone CR (a line break to the C
+    # reader, not to the ICD) take the general path
+    if (text.find("#", body_start, end) >= 0
+            or text.count("\r", body_start, end) != text.count("\r\n", body_start, end)
+            or _BLANK_LINE.search(text, eol, end) or _EMPTY_FIELD_FAST.search(text, body_start, end)):
+        return None
+    rows = text.count("\n", body_start, end) + 1
+    try:
+        data = np.loadtxt(path, delimiter=",", comments=None, skiprows=header_at + 1, max_rows=rows,
+                          dtype=np.float64, ndmin=2, encoding="utf-8")
+    except (ValueError, OSError):
+        return None
+    if data.shape != (rows, len(names)):
+        return None
+    inf = np.isinf(data)
+    if inf.any():
+        i, k = np.argwhere(inf)[0]
+        raise _field_error(path, int(header_at + 2 + i), int(k), names, "infinite value")
+    return names, data, np.arange(header_at + 2, header_at + 2 + rows, dtype=np.int64)
 
 
 def _finish(path: Path, names: list[str], data: np.ndarray, lines: np.ndarray) -> Table:
@@ -249,7 +308,10 @@ def _finish(path: Path, names: list[str], data: np.ndarray, lines: np.ndarray) -
         keep = np.ones(len(t), dtype=bool)
         keep[same + 1] = False
         data, lines = data[keep], lines[keep]
-    columns = {name: np.ascontiguousarray(data[:, k]) for k, name in enumerate(names)}
+    # one array per column: a view into a shared block would keep every column alive
+    # as long as any one of them is held
+    columns = {name: np.array(data[:, k]) for k, name in enumerate(names)}
+    del data
     return Table(path=path, t=columns["t"], columns=columns, lines=lines,
                  dropped_nan=dropped_nan, dropped_duplicates=dropped_dup)
 
