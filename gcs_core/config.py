@@ -32,6 +32,8 @@ sample mission)::
     block_seconds = 600.0
     edit_k = 5.0                  # 0 disables k-sigma editing
     max_iterations = 20
+    [filter.edit_k_sensor]        # per-sensor k (batch method), 0 disables that sensor's editing
+    FHST1 = 4.0
 
     [diagnosis]
     significance = 0.001          # family-wise, Bonferroni-corrected over candidates
@@ -86,7 +88,7 @@ TABLES: dict[str, tuple[str, ...]] = {
     "physics": ("stellar_aberration", "solar_aberration", "sun_parallax", "field_model"),
     "models": (),
     "state": ("effects", "exclude", "attitude_sigma_deg", "elements"),
-    "filter": ("block_seconds", "edit_k", "max_iterations"),
+    "filter": ("block_seconds", "edit_k", "max_iterations", "edit_k_sensor"),
     "diagnosis": ("significance", "holdout_fraction"),
     "prediction": ("start", "end", "step", "gaps", "maneuvers"),
     "verification": ("requirement_deg",),
@@ -131,6 +133,8 @@ class AnalysisConfig:
     elements : element name -> :class:`ElementConfig`.
     attitude_sigma_deg : a-priori sigma of the attitude elements.
     block_seconds, edit_k, max_iterations : FILTR options.
+    edit_k_sensor : sensor -> its own k of the k-σ editing (0: none), overriding ``edit_k``
+        in the batch estimator (the Kalman gate uses ``edit_k`` for every sensor).
     significance, holdout_fraction : diagnosis options.
     pred_start, pred_end, pred_step, gaps, maneuvers : predictor data plan.
     requirement_deg : VERIF attitude accuracy requirement.
@@ -150,6 +154,7 @@ class AnalysisConfig:
     block_seconds: float = 600.0
     edit_k: float = 5.0
     max_iterations: int = 20
+    edit_k_sensor: dict = field(default_factory=dict)
     significance: float = 0.001
     holdout_fraction: float = 0.25
     pred_start: float | None = None
@@ -382,6 +387,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         block_seconds=_number(fl, "block_seconds", 600.0, f, positive=True, prefix="filter."),
         edit_k=_number(fl, "edit_k", 5.0, f, lo=0.0, prefix="filter."),
         max_iterations=_number(fl, "max_iterations", 20, f, lo=1, hi=1000, integer=True, prefix="filter."),
+        edit_k_sensor=_edit_k_sensor(fl, f),
         significance=_number(dg, "significance", 0.001, f, lo=1e-12, hi=0.5, prefix="diagnosis."),
         holdout_fraction=_number(dg, "holdout_fraction", 0.25, f, lo=0.0, hi=0.9, prefix="diagnosis."),
         pred_start=pred_start, pred_end=pred_end,
@@ -390,6 +396,14 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
                                 prefix="verification."),
         name=name)
+
+
+def _edit_k_sensor(fl: dict, f) -> dict[str, float]:
+    """``[filter.edit_k_sensor]``: sensor name -> k ≥ 0 (sensor names are checked against
+    the mission by :func:`check_against_mission`)."""
+    table = _table(fl, "edit_k_sensor", "filter.edit_k_sensor", f)
+    return {str(name): _number(table, name, 5.0, f, lo=0.0, prefix="filter.edit_k_sensor.")
+            for name in table}
 
 
 def check_against_mission(cfg: AnalysisConfig, spec) -> None:
@@ -411,6 +425,9 @@ def check_against_mission(cfg: AnalysisConfig, spec) -> None:
             owner = e.split(".")[0]
             _require(owner in types or owner == "model", f"{key}[{i}]",
                      f"effect {e}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})", f)
+    for name in cfg.edit_k_sensor:
+        _require(name in types, f"filter.edit_k_sensor.{_quote(name)}",
+                 f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
     for name in cfg.elements:
         owner = name.split(".")[0]
         _require(owner in types or owner == "att", f"state.elements.{_quote(name)}",
@@ -444,6 +461,8 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
                        "maneuvers": [asdict(m) for m in cfg.maneuvers]},
         "verification": {"requirement_deg": cfg.requirement_deg},
     }
+    if cfg.edit_k_sensor:
+        out["filter"]["edit_k_sensor"] = dict(cfg.edit_k_sensor)
     if cfg.pred_start is not None:
         out["prediction"]["start"] = cfg.pred_start
     if cfg.pred_end is not None:

@@ -138,7 +138,8 @@ class Analysis:
     # ------------------------------------------------------------------ fitting
     def batch_options(self) -> BatchOptions:
         return BatchOptions(max_iterations=self.config.max_iterations,
-                            edit_k=self.config.edit_k or None)
+                            edit_k=self.config.edit_k or None,
+                            edit_k_sensor={k: (v or None) for k, v in self.config.edit_k_sensor.items()})
 
     def holdout_masks(self) -> dict[str, np.ndarray]:
         """Held-out frames per sensor (True = held out).

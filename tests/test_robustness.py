@@ -90,3 +90,17 @@ def test_calibration_within_three_sigma_of_truth(dirty):
     z = normalized_errors(a.result, truth_values(truth, a.problem, "kalman"))
     outside = {name: round(v, 2) for name, v in z.items() if abs(v) > three_sigma}
     assert not outside, f"outside 3σ of truth: {outside}"
+
+
+def test_editing_is_configurable_per_sensor(dirty):
+    """``[filter.edit_k_sensor]``: k = 0 turns one sensor's editing off (its spikes stay in
+    the fit and its RMS shows them); the other sensors are edited as before."""
+    from dataclasses import replace
+
+    a, spikes, _ = dirty
+    b = Analysis(replace(a.config, method="batch", edit_k_sensor={"TAM1": 0.0}), mission=a.mission)
+    b.fit(holdout=False)
+    tam = b.result.residuals["TAM1"]
+    assert not tam.edited.any()
+    assert tam.rms_normalized > 2.0                        # 3000 nT spikes left in
+    assert b.result.residuals["FHST1"].edited.any()        # still edited at the global k

@@ -64,6 +64,7 @@ class BatchOptions:
     edit_passes : maximum editing passes.
     max_edit_fraction : if more than this share of a sensor's frames exceed k σ, the
         model (not the data) is wrong: that sensor is not edited, and the result says so.
+    edit_k_sensor : sensor name -> its own k (0 or None: that sensor is not edited).
     rank_tol : relative eigenvalue threshold naming unobservable combinations.
     """
 
@@ -74,6 +75,12 @@ class BatchOptions:
     edit_passes: int = 6
     max_edit_fraction: float = 0.05
     rank_tol: float = 1e-10
+    edit_k_sensor: Mapping[str, float | None] = field(default_factory=dict)
+
+    def k_for(self, sensor: str) -> float | None:
+        """The editing k of one sensor (None: not edited)."""
+        k = self.edit_k_sensor.get(sensor, self.edit_k)
+        return k or None
 
 
 @dataclass(frozen=True)
@@ -352,7 +359,8 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         cost_ = chi2_ + float(np.sum(prior_info * d_ ** 2))
         return A_, b_, cost_, d_
 
-    for edit_pass in range(opts.edit_passes if opts.edit_k else 1):
+    edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
+    for edit_pass in range(opts.edit_passes if edits_on else 1):
         A, b, cost, dx_prior = evaluate(x)
         lam_state = 0.0
         if not np.isfinite(cost):
@@ -410,7 +418,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
         for j, nm in enumerate(names):
             values[nm] = x[j]
-        if not opts.edit_k:
+        if not edits_on:
             break
         if not _stored_at(stored[0], x, edits):
             evaluate(x)
@@ -419,7 +427,11 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         for sd in problem.sensors:
             valid = buffers.valid[sd.name]
             pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
-            out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, opts.edit_k)
+            k = opts.k_for(sd.name)
+            if k is None:
+                new_edits[sd.name] = pre
+                continue
+            out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, k)
             n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
             if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
                 suspect.add(sd.name)
@@ -455,9 +467,9 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             budget[c] = np.sqrt(np.diag(contrib))
             P_cons += contrib
     unobs = tuple(name_combinations(A, names, opts.rank_tol * 1e3))
-    if opts.edit_k and suspect_all:
+    if suspect_all:
         message += ("; not edited (more than "
-                    f"{100 * opts.max_edit_fraction:g}% of frames beyond {opts.edit_k:g}σ, the model "
+                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
                     "is suspect): " + ", ".join(sorted(suspect_all)))
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, buffers, edits)
