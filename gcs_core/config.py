@@ -32,7 +32,7 @@ sample mission)::
     block_seconds = 600.0
     edit_k = 5.0                  # 0 disables k-sigma editing
     max_iterations = 20
-    [filter.edit_k_sensor]        # per-sensor k (batch method), 0 disables that sensor's editing
+    [filter.edit_k_sensor]        # per-sensor k, 0 disables that sensor's editing
     FHST1 = 4.0
 
     [diagnosis]
@@ -133,8 +133,8 @@ class AnalysisConfig:
     elements : element name -> :class:`ElementConfig`.
     attitude_sigma_deg : a-priori sigma of the attitude elements.
     block_seconds, edit_k, max_iterations : FILTR options.
-    edit_k_sensor : sensor -> its own k of the k-σ editing (0: none), overriding ``edit_k``
-        in the batch estimator (the Kalman gate uses ``edit_k`` for every sensor).
+    edit_k_sensor : sensor -> its own k of the k-σ editing (batch) and innovation gate
+        (Kalman), 0 for none, overriding ``edit_k``.
     significance, holdout_fraction : diagnosis options.
     pred_start, pred_end, pred_step, gaps, maneuvers : predictor data plan.
     requirement_deg : VERIF attitude accuracy requirement.

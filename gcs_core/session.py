@@ -214,7 +214,8 @@ class Analysis:
 
     def filter_options(self):
         from gcs_core.filtr.stepping import FilterOptions
-        return FilterOptions(edit_k=self.config.edit_k or 0.0)
+        return FilterOptions(edit_k=self.config.edit_k or None,
+                             edit_k_sensor={k: (v or None) for k, v in self.config.edit_k_sensor.items()})
 
     def make_filter(self):
         """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""

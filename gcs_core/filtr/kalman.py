@@ -148,7 +148,8 @@ def group_partition(row_epoch: np.ndarray, n_epochs: int, group_rows: int) -> np
     return np.concatenate([[0], cut, [n_epochs]]).astype(int)
 
 
-def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *, edit_k: float | None = 5.0,
+def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *,
+                edit_k: float | None | np.ndarray = 5.0,
                 group_rows: int = 48, keep_epochs: bool = False,
                 engine: str | None = None) -> BlockSolution:
     """Filter one block (Eq 3-3, 3-4) frame by frame, with k-σ innovation gating.
@@ -158,7 +159,8 @@ def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *, edit_k: flo
     y0 : (n,) prior mean at the block start; P0 : (n, n) its covariance.
     blk : the block's rows and process noise (:class:`LinearBlock`).
     edit_k : a frame whose normalized innovation ``|ν_i|/sqrt(S_ii)`` exceeds ``edit_k`` in
-        any component is flagged and skipped (None: no gate). The gate uses the innovation
+        any component is flagged and skipped (None: no gate); an (F,) array gives each
+        frame its own gate (``inf``: none), e.g. per sensor. The gate uses the innovation
         given every earlier accepted frame, exactly as a frame-by-frame filter would.
     group_rows : scalar rows per lifted group of the numpy engine (speed only; the answer
         does not depend on it).
@@ -167,8 +169,13 @@ def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *, edit_k: flo
         :data:`ENGINE`. Both give the same answer to round-off.
     """
     engine = ENGINE if engine is None else engine
+    F = blk.frame_start.size
+    if edit_k is None:
+        gates = np.full(F, np.inf)
+    else:
+        gates = np.broadcast_to(np.asarray(edit_k, float), (F,)).copy()
     if engine == "compiled":
-        return BlockSolution(*kalman_kernels.run_block(y0, P0, blk, edit_k, keep_epochs))
+        return BlockSolution(*kalman_kernels.run_block(y0, P0, blk, gates, keep_epochs))
     if engine != "numpy":
         raise ValueError(f"unknown Kalman engine {engine!r} (compiled, numpy)")
     n, d = blk.n, blk.d
@@ -190,7 +197,7 @@ def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *, edit_k: flo
         base = blk.Pi[e0 - 1] if e0 > 0 else zero_d
         grp = _Group(blk, e0, e1, slice(row_b[g], row_b[g + 1]), slice(frame_b[g], frame_b[g + 1]),
                      frame_of_row, blk.Pi[e0:e1] - base, dPi[e0:e1])
-        y, P = grp.run(y, P, edit_k, raw, gated, y_ep, P_ep)
+        y, P = grp.run(y, P, gates, raw, gated, y_ep, P_ep)
     nu, S, nis, knorm = raw.finish(blk, gated)
     return BlockSolution(y, P, nu, S, nis, knorm, gated, y_ep, P_ep)
 
@@ -357,10 +364,11 @@ class _Group:
             Lff, ef = L.take(blocks), e[idx]
             fr = self.f0 + local[sel]
             # |ν_i|/sqrt(S_ii) ≤ sqrt(NIS_f) (Cauchy–Schwarz): test components only if needed
-            if edit_k is not None and np.max(np.einsum("fi,fi->f", ef, ef)) > edit_k ** 2:
+            k_f = edit_k[fr]
+            if np.any(np.einsum("fi,fi->f", ef, ef) > k_f ** 2):
                 nu_w = (Lff @ ef[:, :, None])[:, :, 0]      # ν_f = L_ff e_f (whitened rows)
                 z = np.abs(nu_w) / np.sqrt(np.sum(Lff * Lff, axis=2))   # |ν_i| / sqrt(S_ii)
-                bad = np.nonzero(np.max(z, axis=1) > edit_k)[0]
+                bad = np.nonzero(np.max(z, axis=1) > k_f)[0]
                 if bad.size and (first is None or local[sel[bad[0]]] < first):
                     first = int(local[sel[bad[0]]])
             raw.put(fr, mm, Lff, ef, Li.take(blocks), W.take(idx, axis=1))

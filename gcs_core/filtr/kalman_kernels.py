@@ -210,7 +210,7 @@ def filter_frames(y, P, A, r, sigma, Hth, sig_e2, dPi, Psi_d, frame_start, frame
     dPi : (G, d, d) process noise entering at each epoch (``ΔΠ_k``).
     Psi_d : (G, d, n) dynamic rows of Ψ for the gain norm, or (G, 0, n).
     frame_start, frame_m, frame_epoch : (F,) int64, frames ordered by epoch.
-    edit_k : gate (inf: none); keep : record the posterior at every epoch.
+    edit_k : (F,) gate of each frame (inf: none); keep : record the posterior at every epoch.
     nu (F, m_max), S (F, m_max, m_max), nis (F,), knorm (F,), gated (F,) : *out*.
     y_ep (G, n), P_ep (G, n, n) : *out* when ``keep`` (else (0, n), (0, n, n)).
     """
@@ -250,7 +250,7 @@ def filter_frames(y, P, A, r, sigma, Hth, sig_e2, dPi, Psi_d, frame_start, frame
                     Af[a, j] = A[s0 + a, j]
                 for j in range(na):
                     Af[a, n + j] = Hth[s0 + a, j]
-            if not _frame(f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, k, edit_k,
+            if not _frame(f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, k, edit_k[f],
                           Bt, Kt, AN, Nm, Sw, L, v, e, nu, S, nis, knorm, gated):
                 return f
             f += 1
@@ -266,10 +266,11 @@ def filter_frames(y, P, A, r, sigma, Hth, sig_e2, dPi, Psi_d, frame_start, frame
     return -1
 
 
-def run_block(y0, P0, blk, edit_k: float | None, keep_epochs: bool):
+def run_block(y0, P0, blk, edit_k, keep_epochs: bool):
     """Run :func:`filter_frames` on a ``LinearBlock``; returns the fields of a
     ``BlockSolution`` in order (``y, P, nu, S, nis, k_norm, gated, y_epoch, P_epoch``).
 
+    ``edit_k``: the gate, None (none), one k, or (F,) per frame.
     Every argument is passed with one dtype and layout, so the kernel is compiled once.
     """
     f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)   # noqa: E731
@@ -294,7 +295,9 @@ def run_block(y0, P0, blk, edit_k: float | None, keep_epochs: bool):
     P_ep = np.empty((G if keep_epochs else 0, n, n))
     bad = filter_frames(y, P, A, f64(blk.r), f64(blk.sigma), Hth, float(blk.sig_e2 if readout else 0.0),
                         dPi, Psi_d, i64(blk.frame_start), i64(blk.frame_m), i64(blk.frame_epoch),
-                        np.inf if edit_k is None else float(edit_k), bool(keep_epochs),
+                        np.ascontiguousarray(np.broadcast_to(np.inf if edit_k is None else
+                                                             np.asarray(edit_k, np.float64), (F,))),
+                        bool(keep_epochs),
                         nu, S, nis, knorm, gated, y_ep, P_ep)
     if bad >= 0:
         raise np.linalg.LinAlgError(f"innovation covariance of frame {bad} not positive definite")

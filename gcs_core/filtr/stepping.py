@@ -54,6 +54,7 @@ class FilterOptions:
     ----------
     edit_k : innovation gate: a frame with ``|ν_i|/sqrt(S_ii) > edit_k`` in any component
         is flagged and skipped (None: no gate).
+    edit_k_sensor : sensor name -> its own gate (0 or None: that sensor is not gated).
     process_noise_scale : multiplies the gyro's σ_v, σ_u, σ_e (0 gives Q = 0: RLS).
     max_passes : passes over the data (1: a plain EKF; more: iterated smoother).
     pass_tol_sigma : stop iterating when no estimate moved by more than this many sigmas.
@@ -67,6 +68,7 @@ class FilterOptions:
     """
 
     edit_k: float | None = 5.0
+    edit_k_sensor: Mapping[str, float | None] = field(default_factory=dict)
     process_noise_scale: float = 1.0
     max_passes: int = 3
     pass_tol_sigma: float = 1e-2
@@ -436,6 +438,15 @@ class Filtr:
         every block about the same smoothed trajectory (one Gauss–Newton step)."""
         return max(self.options.block_iterations, 1) if self._ref is None else 1
 
+    def _gates(self, frames) -> float | None | np.ndarray:
+        """The innovation gate: one k for every frame, or (F,) per frame when a sensor
+        has its own (``inf``: not gated)."""
+        o = self.options
+        if not o.edit_k_sensor:
+            return o.edit_k
+        k_of = [o.edit_k_sensor.get(name, o.edit_k) or np.inf for name, *_ in frames.sensors]
+        return np.asarray(k_of, float)[frames.frame_sensor] if len(k_of) else np.zeros(0)
+
     def _rls_block(self, b: int):
         t_a, t_b, _, _ = self._windows[b]
         lay, o = self._layout, self.options
@@ -444,7 +455,7 @@ class Filtr:
         for it in range(self._block_iterations()):
             y0 = np.array([self._vals[e] - nom[e] for e in lay.elements])
             blk, frames = assemble(self.problem, lay, nom, None, t_a, t_b, b == 0, self._pre_edited())
-            sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows)
+            sol = solve_block(y0, self._P, blk, edit_k=self._gates(frames), group_rows=o.group_rows)
             n_it = self._block_iterations()
             if it == n_it - 1 or np.max(np.abs(sol.y[att]), initial=0.0) <= o.relinearize_rad:
                 break                                           # near the nominal (or no more)
@@ -476,7 +487,7 @@ class Filtr:
                               Wy, Wb, axes)
             blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0,
                                    self._pre_edited(), self._noise.sigma_e ** 2)
-            sol = solve_block(y0, self._P, blk, edit_k=o.edit_k, group_rows=o.group_rows,
+            sol = solve_block(y0, self._P, blk, edit_k=self._gates(frames), group_rows=o.group_rows,
                               keep_epochs=True)
             # y is referred to the block start: its δθ estimates the start's attitude error,
             # which must be small for the linearization at the nominal to hold
