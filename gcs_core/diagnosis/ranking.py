@@ -12,7 +12,8 @@ Under the null hypothesis (the effect is absent and the noise model is right) Δ
 χ²-distributed with ``dof = rank(S_cc)`` degrees of freedom, which gives the p-value.
 This is the local (score) form of the likelihood-ratio test, and the detection step of
 the Baarda–Teunissen DIA procedure. One linearization with every candidate's columns
-costs about one batch iteration; no candidate is refitted.
+costs about two batch iterations (the candidates' columns widen ``Hᵀ W H``;
+``benchmarks/ranking_vs_refit.py``); no candidate is refitted.
 
 Minimal detectable bias (Baarda): for a 1-dof candidate, the smallest value detected
 with probability γ at level α is ``|c| = sqrt(λ₀ / S_cc)``, ``λ₀`` the non-centrality
@@ -38,6 +39,7 @@ introduction*, Delft 2000, ch. 4 (DIA, minimal detectable bias).
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from functools import lru_cache
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -102,8 +104,10 @@ class Candidate:
                 "explanation": self.explanation}
 
 
+@lru_cache(maxsize=64)
 def mdb_noncentrality(alpha: float, power: float = 0.8, dof: int = 1) -> float:
-    """λ₀ with P(χ²_dof(λ₀) > χ²_{dof,1−α}) = power (Baarda's non-centrality)."""
+    """λ₀ with P(χ²_dof(λ₀) > χ²_{dof,1−α}) = power (Baarda's non-centrality). A root search
+    of a few milliseconds, cached: every ranking of a session asks for the same λ₀."""
     from scipy.optimize import brentq
 
     crit = stats.chi2.isf(alpha, dof)
@@ -178,7 +182,8 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
     A = np.zeros((K, K))
     g = np.zeros(K)
     per_sensor_g: dict[str, np.ndarray] = {}
-    for blk in iter_blocks(problem, values, cols, exclude=exclude, weighted=True, chunk=chunk):
+    work: dict = {}                     # chunk buffers, reused from chunk to chunk
+    for blk in iter_blocks(problem, values, cols, exclude=exclude, weighted=True, chunk=chunk, work=work):
         if not np.any(blk.used):
             continue
         sd = blk.sensor
@@ -214,14 +219,16 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
         idx_of[e.id] = [len(c_names) + j]
     lam0 = mdb_noncentrality(alpha, 0.8, 1)
     raw = []
+    A_cc = A[n:, n:]
+    x_scale = np.sqrt(np.diag(A[:n, :n]))[:, None]
     for e in effects:
         ix = idx_of[e.id]
         S = S_all[np.ix_(ix, ix)]
-        Acc = A[n:, n:][np.ix_(ix, ix)]
+        Acc = A_cc[np.ix_(ix, ix)]
         gc = g_all[ix]
         dchi, dof, est, sig, absorbed = _score(S, Acc, gc)
         # aliases with the state: largest regression weights of the candidate's signature
-        weights = np.abs(Bc[:, ix]) * np.sqrt(np.diag(A[:n, :n]))[:, None]
+        weights = np.abs(Bc[:, ix]) * x_scale
         wsum = weights.sum(axis=1)
         order = np.argsort(-wsum)
         total = wsum.sum() or 1.0
@@ -239,17 +246,22 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
     m = max(len(raw), 1)
     n_meas = sum(int(np.count_nonzero(r.used)) * r.residual.shape[1] for r in result.residuals.values())
     log_n = float(np.log(max(n_meas, 2)))
-    # aliasing between candidates (canonical correlation of conditional signatures)
+    # aliasing between candidates (canonical correlation of conditional signatures). The
+    # pairs are O(k²), and at short spans their algebra cost as much as the pass over the
+    # data: each candidate's information is pseudo-inverted once, a bound on every pair's
+    # ρ² comes from one product, and only pairs that may pass ALIAS_TOL are computed.
+    pinvs = [_pinv(S_all[np.ix_(idx_of[e.id], idx_of[e.id])]) for e in effects]
+    may_alias = _alias_bound(S_all, [idx_of[e.id] for e in effects], pinvs) >= ALIAS_TOL ** 2 - 1e-3
     out = []
-    for item in raw:
+    for ia, item in enumerate(raw):
         e, dchi, dof, est, sigma, mdb, absorbed, aliases, shares = item
         p = float(stats.chi2.sf(dchi, dof)) if dof > 0 else 1.0
         cand_alias = []
-        for other in raw:
+        for ib, other in enumerate(raw):
             oe = other[0]
-            if oe.id == e.id:
+            if oe.id == e.id or not may_alias[ia, ib]:
                 continue
-            rho = _canonical_corr(S_all, idx_of[e.id], idx_of[oe.id])
+            rho = _canonical_corr(S_all, idx_of[e.id], idx_of[oe.id], pinvs[ia], pinvs[ib])
             if rho > ALIAS_TOL:
                 cand_alias.append((oe.id, rho, other[1], other[2]))
         # an alias "wins" when it explains the data better after a BIC penalty per dof
@@ -295,18 +307,56 @@ def _score(S: np.ndarray, Acc: np.ndarray, gc: np.ndarray):
     return dchi, int(np.count_nonzero(keep)), step, sig, absorbed
 
 
-def _canonical_corr(S_all: np.ndarray, ia: Sequence[int], ib: Sequence[int]) -> float:
-    Saa = S_all[np.ix_(ia, ia)]
-    Sbb = S_all[np.ix_(ib, ib)]
-    Sab = S_all[np.ix_(ia, ib)]
+def _pinv(S: np.ndarray) -> np.ndarray | None:
+    """Pseudo-inverse of one candidate's conditional information (None if it fails)."""
     try:
-        La = np.linalg.pinv(Saa, rcond=1e-10, hermitian=True)
-        Lb = np.linalg.pinv(Sbb, rcond=1e-10, hermitian=True)
+        return np.linalg.pinv(S, rcond=1e-10, hermitian=True)
     except np.linalg.LinAlgError:
+        return None
+
+
+def _alias_bound(S_all: np.ndarray, ixs: Sequence[Sequence[int]],
+                 pinvs: Sequence[np.ndarray | None]) -> np.ndarray:
+    """(E, E) upper bounds of every candidate pair's squared canonical correlation.
+
+    ``M_ab = S_aa⁺ S_ab S_bb⁺ S_ba`` is similar to a positive semi-definite matrix, so its
+    eigenvalues (the squared canonical correlations) are ≥ 0 and ``ρ²_ab ≤ tr M_ab``.
+    With ``P_ab = S_aa⁺ S_ab`` (the rows of every candidate stacked: one product),
+    ``tr M_ab = Σ P_ab ∘ P_baᵀ``, a block sum. Accurate to rounding, which callers allow
+    for; a failed pseudo-inverse (None) gives 0 (no alias, as in :func:`_canonical_corr`).
+    """
+    flat = np.array([i for ix in ixs for i in ix], dtype=int)
+    member = np.zeros((flat.size, len(ixs)))          # stacked row -> its candidate
+    blocks = []
+    r = 0
+    for j, (ix, L) in enumerate(zip(ixs, pinvs)):
+        member[r:r + len(ix), j] = 1.0
+        r += len(ix)
+        blocks.append(L @ S_all[np.ix_(ix, flat)] if L is not None else np.zeros((len(ix), flat.size)))
+    P = np.concatenate(blocks, axis=0) if blocks else np.zeros((0, 0))
+    return member.T @ (P * P.T) @ member
+
+
+def _canonical_corr(S_all: np.ndarray, ia: Sequence[int], ib: Sequence[int],
+                    La: np.ndarray | None = None, Lb: np.ndarray | None = None) -> float:
+    """Largest canonical correlation of candidates ``ia`` and ``ib`` given the state:
+    ``ρ² = λ_max(S_aa⁺ S_ab S_bb⁺ S_ba)``. ``La``, ``Lb``: the pseudo-inverses
+    :func:`_pinv` of ``S_aa``, ``S_bb`` if already computed."""
+    Sab = S_all[np.ix_(ia, ib)]
+    if La is None:
+        La = _pinv(S_all[np.ix_(ia, ia)])
+    if Lb is None:
+        Lb = _pinv(S_all[np.ix_(ib, ib)])
+    if La is None or Lb is None:
         return 0.0
     M = La @ Sab @ Lb @ Sab.T
     ev = np.linalg.eigvals(M).real
     return float(np.sqrt(np.clip(np.max(ev) if ev.size else 0.0, 0.0, 1.0)))
+
+
+def _p_text(p: float) -> str:
+    """``p = 0.0031``; below double precision's resolution of 1 − P, ``p < 1e-16``."""
+    return "p < 1e-16" if p < 1e-16 else f"p = {p:.2g}"
 
 
 def explain(c: Candidate, alpha: float) -> str:
@@ -314,7 +364,7 @@ def explain(c: Candidate, alpha: float) -> str:
     seen = ", ".join(f"{s} ({100 * v:.0f}%)" for s, v in sorted(c.sensors.items(), key=lambda kv: -kv[1])
                      if v > 0.05) or "no sensor"
     head = (f"{c.id}: adding it would remove Δχ² = {c.delta_chi2:.1f} on {c.dof} degree"
-            f"{'s' if c.dof != 1 else ''} of freedom (p = {c.p_value:.2g}, "
+            f"{'s' if c.dof != 1 else ''} of freedom ({_p_text(c.p_value)}, "
             f"{'significant' if c.p_adjusted < alpha else 'not significant'} at family-wise "
             f"α = {alpha:g}); the signature is seen in {seen}.")
     if not c.identifiable:
