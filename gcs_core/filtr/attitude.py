@@ -31,12 +31,15 @@ memory does not grow with the span.
 
 from __future__ import annotations
 
+import operator
 import sys
+import weakref
 from dataclasses import dataclass
 from typing import Mapping
 
 import numpy as np
 
+from gcs_core.filtr import batch_kernels as kernels
 from gcs_core.frames.reference import reference_dcm, spin_axis, spin_axis_partials
 from gcs_core.frames.rotations import (dcm_to_euler123, euler123_partials, euler123_to_dcm,
                                        quat_from_dcm, quat_multiply, quat_normalize)
@@ -50,7 +53,7 @@ RPY = ("att.roll", "att.pitch", "att.yaw")
 BIAS_RATE_NAMES = ("bias_rate_x", "bias_rate_y", "bias_rate_z")
 RADEC = ("att.ra", "att.dec")
 #: gyro rows per block of the propagation (bounded memory, see GyroAttitude)
-BLOCK_KNOTS = 50_000
+BLOCK_KNOTS = 16_384
 
 
 @dataclass(frozen=True)
@@ -116,15 +119,23 @@ class FrameAttitude:
             self._J = self._gyro_chain(eye, self.C_BI, np.arange(len(self.names)))
         return self._J
 
-    def chain(self, D: np.ndarray, sel, out: np.ndarray | None = None) -> np.ndarray:
-        """``D @ J[:, :, sel]``, (N, m, len(sel)); ``sel`` ascending positions in ``names``.
+    def chain(self, D: np.ndarray, sel, out: np.ndarray | None = None, *,
+              w: np.ndarray | None = None) -> np.ndarray:
+        """``(w D) @ J[:, :, sel]``, (N, m, len(sel)); ``sel`` ascending positions in ``names``.
 
         ``out`` (N, m, len(sel)) may be a view into a larger array (written in place).
+        ``w`` (N, m) scales the rows (the whitening ``R^-1/2`` of the batch); a row of
+        weight zero may come out as zeros or as NaN when ``D`` is NaN there, so a caller
+        that weights unused rows zero clears them afterwards.
         """
         sel = np.asarray(sel, dtype=int)
         n, m = D.shape[:2]
         if out is None:
             out = np.empty((n, m, sel.size))
+        if self.fill_rows(D, sel, out, w=w):
+            return out
+        if w is not None:
+            D = D * w[:, :, None]
         if self._gyro is None or self._J is not None:
             J = self.J
             if J.ndim == 3 and J.strides[0] == 0:                 # one matrix for every frame
@@ -136,6 +147,37 @@ class FrameAttitude:
                     o += b - a
             return out
         return self._gyro_chain(D, D @ self.C_BI, sel, out)
+
+    @property
+    def can_fill_rows(self) -> bool:
+        """True when :meth:`fill_rows` can run (gyro-carried, factored, numba)."""
+        return self._gyro is not None and self._J is None and kernels.COMPILED
+
+    def fill_rows(self, D: np.ndarray, sel, out: np.ndarray, *, w: np.ndarray | None = None,
+                  P: np.ndarray | None = None, pcol=()) -> bool:
+        """Whole rows in one compiled pass, when this attitude can (gyro-carried, numba):
+        ``(w D) J[:, :, sel]`` into ``out[..., :len(sel)]`` and the prepared columns
+        ``P`` (q, N, m) into ``out[..., pcol]`` (added where ``pcol`` < len(sel)); a row of
+        weight zero comes out as zeros (:func:`~gcs_core.filtr.batch_kernels.chain_rows`),
+        except that the ``D W s`` term of frames between knots is added after it.
+        Returns False (and writes nothing) when it cannot.
+        """
+        if not self.can_fill_rows:
+            return False
+        sel = np.asarray(sel, dtype=int)
+        Ma, (E, j), gen = self._gyro
+        n, m = D.shape[:2]
+        jidx = np.arange(j.start, j.stop, j.step or 1) if isinstance(j, slice) else np.asarray(j)
+        rs, ps = sel[sel < 3], sel[sel >= 3] - 3
+        if P is None:
+            P = np.empty((0, n, m))
+        kernels.chain_rows(D, np.ones((n, m)) if w is None else w, self.C_BI, E, jidx, Ma, rs, ps,
+                           P, np.asarray(pcol, dtype=np.int64), out)
+        if gen is not None and ps.size:
+            g, Wg, sg = gen
+            Dg = D[g] if w is None else D[g] * w[g][:, :, None]
+            out[g, :, rs.size:rs.size + ps.size] += (Dg @ Wg[:, :, ps]) * sg[:, None, None]
+        return True
 
     def _gyro_chain(self, D, DC, sel, out=None):
         """``D J`` with ``J = [C M_a | C X + W s]``: ``DC M_a``, ``DC X`` (+ ``D W s``);
@@ -367,6 +409,53 @@ def _rate_partials(c: _GyroConsts, Gy, u, tau) -> np.ndarray:
     return W
 
 
+def _progression(idx: np.ndarray):
+    """A slice for ascending indices in arithmetic progression (views instead of gathers),
+    else the indices as int32 (row numbers within a block; they are kept, see _Where)."""
+    if idx.size == 1:
+        return slice(int(idx[0]), int(idx[0]) + 1)
+    if idx.size:
+        step = int(idx[1] - idx[0])
+        if step > 0 and idx[-1] - idx[0] == step * (idx.size - 1) and np.all(np.diff(idx) == step):
+            return slice(int(idx[0]), int(idx[-1]) + 1, step)
+    return idx.astype(np.int32)
+
+
+class _Where:
+    """Where N frame times fall among the knots of a :class:`GyroAttitude` (state-free).
+
+    b : the block holding every frame (None when the frames straddle blocks);
+    j : rows of the block's ``C``/``E`` to read (``X = E_k`` on knot k, ``E_{k−1}`` off a
+    knot), a slice when regular; w : rows of the block's rates; g : (N,) frames off a knot
+    (None when all are on knots), ig : their rows, s : (N_g,) their time past knot k − 1.
+    Kept per chunk by :meth:`GyroAttitude._locate`, so irregular rows are int32 arrays.
+    """
+
+    __slots__ = ("b", "j", "w", "g", "ig", "s")
+
+    @classmethod
+    def of(cls, att: "GyroAttitude", t: np.ndarray) -> "_Where":
+        self = cls()
+        k = att._rows(t)
+        b = (k - 1) // att._block_knots
+        self.b = self.j = self.w = self.g = self.ig = self.s = None
+        if not t.size or b[0] != b[-1] or not np.all(b == b[0]):
+            return self
+        self.b = int(b[0])
+        i = k - 1 - self.b * att._block_knots                    # row within the block
+        on_knot = att.knots[k] == t                              # frame on knot k: C_k, E_k
+        if np.all(on_knot):
+            self.j = _progression(i + 1)
+            self.w = _progression(i)
+            return self
+        self.j = _progression(np.where(on_knot, i + 1, i))
+        self.w = i.astype(np.int32)
+        self.g = ~on_knot
+        self.ig = self.w[self.g]
+        self.s = t[self.g] - att.knots[k[self.g] - 1]
+        return self
+
+
 class GyroAttitude:
     """Attitude carried by the gyros from roll/pitch/yaw at ``t_ref`` (module docstring).
 
@@ -406,6 +495,8 @@ class GyroAttitude:
         self._checkpoints: list = []
         self._blocks: dict[int, _Block] = {}
         self._spare: np.ndarray | None = None
+        self._where: dict = {}
+        self._getter = operator.itemgetter(*self.names)          # the state key: this provider's values
 
     @property
     def dt(self) -> np.ndarray:
@@ -420,6 +511,7 @@ class GyroAttitude:
     def block_knots(self, value: int) -> None:
         self._block_knots = max(1, int(value))
         self._key = None
+        self._where = {}
 
     @property
     def n_blocks(self) -> int:
@@ -447,7 +539,7 @@ class GyroAttitude:
         return {n.split(".", 1)[1]: values[n] for n in self.param_names}
 
     def _state(self, values) -> _GyroConsts:
-        key = tuple(float(values[n]) for n in self.names)
+        key = tuple(map(float, self._getter(values)))
         if key != self._key:
             c = _GyroConsts(self, values)
             self._key, self._consts = key, c
@@ -476,6 +568,11 @@ class GyroAttitude:
     def _rate_terms(self, c: _GyroConsts, r0: int, r1: int):
         """``ω``, ``G⁻¹ y``, ``u = G⁻¹ y − b(t)`` (n, 3) and ``τ = t − t_mid`` (n,) of rows r0..r1−1."""
         tau = self.knots[r0 + 1:r1 + 1] - c.t_mid
+        if kernels.COMPILED:
+            n = r1 - r0
+            Gy, u, omega = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+            kernels.rates(self.y[r0:r1], c.Ginv, c.b, c.bdot, c.M, tau, Gy, u, omega)
+            return omega, Gy, u, tau
         Gy = self.y[r0:r1] @ c.Ginv.T                            # G⁻¹ y
         u = Gy - c.b - tau[:, None] * c.bdot                     # G⁻¹ y − b(t)   (n, 3)
         return u @ c.M, Gy, u, tau                               # ω = Mᵀ u
@@ -489,7 +586,9 @@ class GyroAttitude:
             C_jᵀ ∂ω/∂G_ac = −(C_jᵀ Mᵀ G⁻¹)_{:,a} (G⁻¹ y)_c,   C_jᵀ ∂ω/∂b = −C_jᵀ Mᵀ,
             C_jᵀ ∂ω/∂a_k = C_jᵀ (∂M/∂a_k)ᵀ u,               C_jᵀ ∂ω/∂ḃ = −C_jᵀ Mᵀ τ_j
 
-        Without ``with_E`` (predictions only) the sums are skipped.
+        Without ``with_E`` (predictions only) the sums are skipped. With numba
+        (:mod:`gcs_core.filtr.batch_kernels`) the knots and the sums are one compiled pass
+        each; the numpy form below composes the steps by a blocked scan.
         """
         c = self._consts
         L = self._block_knots
@@ -498,13 +597,20 @@ class GyroAttitude:
         q_s, C_s, E_s = self._checkpoints[b]
         omega, Gy, u, tau = self._rate_terms(c, r0, r1)
         dt = self.knots[r0 + 1:r1 + 1] - self.knots[r0:r1]
-        steps = _step_quaternions(omega, dt)
-        Q = quat_multiply(_quat_scan(steps), np.broadcast_to(q_s, steps.shape))
         C = np.empty((n + 1, 3, 3))
         C[0] = C_s
-        C[1:] = _dcm(Q)
+        if kernels.COMPILED:
+            Q = np.empty((n, 4))
+            kernels.propagate(q_s, omega, dt, Q, C[1:])
+        else:
+            steps = _step_quaternions(omega, dt)
+            Q = quat_multiply(_quat_scan(steps), np.broadcast_to(q_s, steps.shape))
+            C[1:] = _dcm(Q)
         E = None
-        if with_E:
+        if with_E and kernels.COMPILED:
+            E = self._spare_E(n + 1)
+            kernels.gyro_sums(C, c.MtGinv, c.M, c.dM, Gy, u, tau, dt, E_s, E)
+        elif with_E:
             Ct = np.ascontiguousarray(np.swapaxes(C[1:], 1, 2))          # C_jᵀ (n, 3, 3)
             E = self._spare_E(n + 1)
             E[0] = E_s
@@ -570,21 +676,38 @@ class GyroAttitude:
         # interval k (1-based) holding t: τ_{k-1} < t ≤ τ_k; t = τ_0 maps to k = 1 with s = 0
         return np.clip(np.searchsorted(self.knots, t, side="left"), 1, K)
 
-    def _frames_in_block(self, blk: _Block, t, k) -> FrameAttitude:
-        i = k - 1 - blk.r0                                       # row within the block
-        on_knot = self.knots[k] == t                             # frame on knot k: C_k, E_k
+    def _locate(self, t) -> "_Where":
+        """Where the times ``t`` fall among the knots (:class:`_Where`).
+
+        State-independent, so it is kept for times that view a longer array (a chunk of a
+        sensor's frame times, asked again at every pass), keyed by that array's identity,
+        the offset and the end values (frame times are never changed in place).
+        """
+        base = t.base if isinstance(t.base, np.ndarray) and t.base.ndim == 1 else None
+        key = None
+        if base is not None and t.size and t.strides == base.strides:
+            off = (t.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // t.itemsize
+            key = (id(base), int(off), t.size, float(t[0]), float(t[-1]), self._block_knots)
+            hit = self._where.get(key)
+            if hit is not None and hit[0]() is base:
+                return hit[1]
+        where = _Where.of(self, t)
+        if key is not None:
+            if len(self._where) >= 1024:                 # bounded: a long span's chunks
+                self._where.clear()
+            # a weak reference: the entry neither keeps the array alive nor outlives it
+            self._where[key] = (weakref.ref(base), where)
+        return where
+
+    def _frames_in_block(self, blk: _Block, t, where: "_Where") -> FrameAttitude:
         c = self._consts
-        j = np.where(on_knot, i + 1, i)                          # X = E_k on a knot, E_{k−1} off
-        if j.size and j[-1] - j[0] == j.size - 1 and np.all(np.diff(j) == 1):
-            j = slice(int(j[0]), int(j[-1]) + 1)                 # consecutive: views, no gathers
-        general = not np.all(on_knot)
-        C = blk.C[j].copy() if general and isinstance(j, slice) else blk.C[j]
-        w = blk.omega[i] if general or not isinstance(j, slice) else blk.omega[j.start - 1:j.stop - 1]
-        if not general:
-            return FrameAttitude(C, None, w, self.names, gyro=(c.Ma, (blk.E, j), None))
-        g = ~on_knot
-        ig = i[g]
-        s = t[g] - self.knots[k[g] - 1]
+        j, g = where.j, where.g
+        if g is None:                                            # every frame on a knot
+            w = blk.omega[where.w]
+            return FrameAttitude(blk.C[j], None, w, self.names, gyro=(c.Ma, (blk.E, j), None))
+        C = blk.C[j].copy() if isinstance(j, slice) else blk.C[j]
+        w = blk.omega[where.w]
+        ig, s = where.ig, where.s
         # C(t) = exp(−[ω_k s ×]) C_{k−1};  C(t)ᵀ δθ(t) = C_0ᵀ δθ_0 + E_{k−1} + C(t)ᵀ W_k s δp
         C[g] = _dcm(_step_quaternions(blk.omega[ig], s)) @ blk.C[ig]
         Gy, u, tau = blk.W
@@ -599,19 +722,17 @@ class GyroAttitude:
         """
         t = np.atleast_1d(np.asarray(t, float))
         self._state(values)
-        k = self._rows(t)
-        b = (k - 1) // self._block_knots
-        if t.size and b[0] == b[-1] and np.all(b == b[0]):
-            blk = self._block(values, int(b[0]), partials)
+        where = self._locate(t) if t.size else None
+        if where is not None and where.b is not None:
+            blk = self._block(values, where.b, partials)
             if not partials:
-                i = k - 1 - blk.r0
-                C = blk.C[np.where(self.knots[k] == t, i + 1, i)]
-                g = self.knots[k] != t
-                if np.any(g):
-                    s = t[g] - self.knots[k[g] - 1]
-                    C[g] = _dcm(_step_quaternions(blk.omega[i[g]], s)) @ blk.C[i[g]]
-                return FrameAttitude(C, None, blk.omega[i], self.names)
-            return self._frames_in_block(blk, t, k)
+                C = blk.C[where.j]
+                if where.g is not None:
+                    if isinstance(where.j, slice):
+                        C = C.copy()
+                    C[where.g] = _dcm(_step_quaternions(blk.omega[where.ig], where.s)) @ blk.C[where.ig]
+                return FrameAttitude(C, None, blk.omega[where.w], self.names)
+            return self._frames_in_block(blk, t, where)
         return FrameAttitude.of(self.evaluate(values, t))
 
     def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
@@ -624,11 +745,11 @@ class GyroAttitude:
             if n == 0:
                 return AttitudeEval(np.zeros((0, 3, 3)), None, self.names, np.zeros((0, 3, P)),
                                     omega_B=np.zeros((0, 3)))
-            ev = self._frames_in_block(self._block(values, int(b[0])), t, k).as_eval()
+            ev = self._frames_in_block(self._block(values, int(b[0])), t, _Where.of(self, t)).as_eval()
             return AttitudeEval(np.array(ev.C_BI), None, ev.names, ev.J, omega_B=np.array(ev.omega_B))
         C, J, w = np.empty((n, 3, 3)), np.empty((n, 3, P)), np.empty((n, 3))
         for bb in np.unique(b):
             sel = np.flatnonzero(b == bb)
-            fr = self._frames_in_block(self._block(values, int(bb)), t[sel], k[sel])
+            fr = self._frames_in_block(self._block(values, int(bb)), t[sel], _Where.of(self, t[sel]))
             C[sel], J[sel], w[sel] = fr.C_BI, fr.J, fr.omega_B
         return AttitudeEval(C, None, self.names, J, omega_B=w)

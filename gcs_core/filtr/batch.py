@@ -256,7 +256,7 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     chi2 = 0.0
     m_used = 0
     for blk in iter_blocks(problem, values, columns if jacobian else (), exclude=edited or {},
-                           weighted=True, jacobian=jacobian, chunk=chunk, work=work):
+                           weighted=True, jacobian=jacobian, chunk=chunk, work=work, augmented=True):
         if store is not None:
             if blk.name in store.y_pred:
                 store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
@@ -265,18 +265,23 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
         nu = int(np.count_nonzero(blk.used))
         if not nu:
             continue
-        rw = blk.weighted_residual()
-        chi2 += float(rw @ rw)
         m_used += nu * blk.r.shape[1]
-        if n and blk.H is not None:
-            c = blk.cols
-            Hm = blk.H.reshape(-1, c.size)
-            if c.size == n and np.array_equal(c, np.arange(n)):
-                A += Hm.T @ Hm
-                b += Hm.T @ rw
-            else:
-                A[np.ix_(c, c)] += Hm.T @ Hm
-                b[c] += Hm.T @ rw
+        if not (n and blk.Hr is not None):
+            rw = blk.weighted_residual()
+            chi2 += float(rw @ rw)
+            continue
+        # [H r]ᵀ [H r] (one symmetric product over the block's columns, BLAS syrk) holds
+        # Hᵀ R⁻¹ H, Hᵀ R⁻¹ r and rᵀ R⁻¹ r
+        c = blk.cols
+        k = c.size
+        G = blk.Hr.T @ blk.Hr
+        chi2 += float(G[k, k])
+        if k == n and np.array_equal(c, np.arange(n)):
+            A += G[:k, :k]
+            b += G[:k, k]
+        else:
+            A[np.ix_(c, c)] += G[:k, :k]
+            b[c] += G[:k, k]
     return A, b, chi2, m_used
 
 

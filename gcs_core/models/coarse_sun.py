@@ -45,6 +45,9 @@ class CoarseSunModel(ObservationModel):
     book_keys = ("scale", "bias", "fov_deg")
 
     def parameters(self) -> tuple[ParamSpec, ...]:
+        return common.cached_parameters(self, self._parameters)
+
+    def _parameters(self) -> tuple[ParamSpec, ...]:
         scale = common.book_vector(self.sensor, "scale", 2)
         if np.any(scale == 0.0):
             raise InputError("'scale' [rad/count] must not be 0", key=common.book_key(self.sensor, "scale"))
@@ -89,9 +92,10 @@ class CoarseSunModel(ObservationModel):
                 den = K * (S[:, 0] ** 2 + S[:, comp] ** 2)
                 J[:, row, 0] = -S[:, comp] / den
                 J[:, row, comp] = S[:, 0] / den
-            d_att = J @ (M @ bv.d_att)
+            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(n, 2, 3))     # J M ∂S_B/∂δθ
+            # formed when read (common.Partials): usually held
             for k, name in enumerate(common.ALIGN_NAMES):
-                d_par[name] = np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T)
-            d_par["time_offset"] = np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
+                d_par[name] = lambda k=k: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T)
+            d_par["time_offset"] = lambda: np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
             valid = common.fov_square_ok(S, common.fov_rad(self.sensor))
         return common.finish(y, d_att, d_par, valid, specs)

@@ -88,6 +88,9 @@ class FineSunModel(ObservationModel):
     book_keys = ("coeff_alpha", "coeff_beta", "fov_deg")
 
     def parameters(self) -> tuple[ParamSpec, ...]:
+        return common.cached_parameters(self, self._parameters)
+
+    def _parameters(self) -> tuple[ParamSpec, ...]:
         specs = []
         for axis, key, names, _, _ in AXES:
             c = common.book_vector(self.sensor, key, 4)
@@ -113,15 +116,20 @@ class FineSunModel(ObservationModel):
         return np.full(2, common.noise_value(self.sensor))
 
     def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
-        """Eq 4-23 at N frames: y (N, 2) [counts], d_att (N, 2, 3), d_par (N, 2)."""
+        """Eq 4-23 at N frames: y (N, 2) [counts], d_att (N, 2, 3), d_par (N, 2).
+
+        The parameter partials are registered as functions (formed when read,
+        :class:`~gcs_core.models.common.Partials`); with the harmonic at zero (held, the
+        usual case) its ``sin(2k tan α)`` terms are zero and are not evaluated for ``y``.
+        """
         specs = self.parameters()
         p = common.merged_params(specs, params)
         if geom.sun_I is None:
             raise ValueError("fine Sun sensor model needs sun_I in the geometry")
         n = geom.n
         M, dM = common.alignment_matrix(p)
-        d_par: dict[str, np.ndarray] = {}
-        y = np.zeros((n, 2))
+        d_par: dict[str, common.PartialSource] = {}
+        y = np.empty((n, 2))
         J = np.zeros((n, 2, 3))                     # ∂n/∂S_S
         with np.errstate(all="ignore"):
             bv = common.body_vector(geom, geom.sun_I, p["time_offset"])
@@ -130,21 +138,28 @@ class FineSunModel(ObservationModel):
                 c1, c2, c3, k = (p[nm] for nm in names)
                 h = p[harm]
                 x = S[:, comp] / S[:, 0]                                  # tan α or tan β
-                s1, co1 = np.sin(k * x), np.cos(k * x)
-                s2, co2 = np.sin(2.0 * k * x), np.cos(2.0 * k * x)
-                cnt = (x - c1 - c3 * s1 - h * s2) / c2
+                kx = k * x
+                s1, co1 = np.sin(kx), np.cos(kx)
+                if h != 0.0:
+                    s2, co2 = np.sin(2.0 * kx), np.cos(2.0 * kx)
+                    cnt = (x - c1 - c3 * s1 - h * s2) / c2
+                    dn_dx = (1.0 - k * c3 * co1 - 2.0 * k * h * co2) / c2
+                    dk = -x * (c3 * co1 + 2.0 * h * co2) / c2
+                else:
+                    cnt = (x - c1 - c3 * s1) / c2
+                    dn_dx = (1.0 - k * c3 * co1) / c2
+                    dk = -x * (c3 * co1) / c2
                 y[:, row] = cnt
-                for name, value in ((names[0], -1.0 / c2), (names[1], -cnt / c2), (names[2], -s1 / c2),
-                                    (names[3], -x * (c3 * co1 + 2.0 * h * co2) / c2), (harm, -s2 / c2)):
-                    col = np.zeros((n, 2))
-                    col[:, row] = value
-                    d_par[name] = col
-                dn_dx = (1.0 - k * c3 * co1 - 2.0 * k * h * co2) / c2
+                d_par[names[0]] = lambda row=row, v=-1.0 / c2: common.column(n, 2, row, v)
+                d_par[names[1]] = lambda row=row, v=cnt, c2=c2: common.column(n, 2, row, -v / c2)
+                d_par[names[2]] = lambda row=row, v=s1, c2=c2: common.column(n, 2, row, -v / c2)
+                d_par[names[3]] = lambda row=row, v=dk: common.column(n, 2, row, v)
+                d_par[harm] = lambda row=row, kx=kx, c2=c2: common.column(n, 2, row, -np.sin(2.0 * kx) / c2)
                 J[:, row, 0] = -dn_dx * S[:, comp] / S[:, 0] ** 2
                 J[:, row, comp] = dn_dx / S[:, 0]
-            d_att = J @ (M @ bv.d_att)
+            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(n, 2, 3))     # J M ∂S_B/∂δθ
             for k_, name in enumerate(common.ALIGN_NAMES):
-                d_par[name] = np.einsum("nij,nj->ni", J, bv.v_B @ dM[k_].T)
-            d_par["time_offset"] = np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
+                d_par[name] = lambda k_=k_: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k_].T)
+            d_par["time_offset"] = lambda: np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
             valid = common.fov_square_ok(S, common.fov_rad(self.sensor))
         return common.finish(y, d_att, d_par, valid, specs)

@@ -57,6 +57,9 @@ class MagnetometerModel(ObservationModel):
     book_keys = ("bias",)
 
     def parameters(self) -> tuple[ParamSpec, ...]:
+        return common.cached_parameters(self, self._parameters)
+
+    def _parameters(self) -> tuple[ParamSpec, ...]:
         bias = common.book_vector(self.sensor, "bias", 3, default=(0.0, 0.0, 0.0))
         specs = [ParamSpec(f"bias_{ax}", "nT", float(bias[i]), 200.0, seed=True, effect="bias",
                            description=f"magnetometer bias along sensor {ax} (Eq 4-27)")
@@ -95,7 +98,12 @@ class MagnetometerModel(ObservationModel):
         return (b_plus - b_minus) / (2.0 * h)
 
     def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
-        """Eq 4-27 (extended form) at N frames: y (N, 3), d_att (N, 3, 3), d_par (N, 3)."""
+        """Eq 4-27 (extended form) at N frames: y (N, 3), d_att (N, 3, 3), d_par (N, 3).
+
+        The parameter partials are registered as functions (formed when read,
+        :class:`~gcs_core.models.common.Partials`); an auxiliary channel whose three
+        contamination coefficients are all zero does not enter ``y`` (its term is zero).
+        """
         specs = self.parameters()
         p = common.merged_params(specs, params)
         if geom.B_I is None:
@@ -106,36 +114,36 @@ class MagnetometerModel(ObservationModel):
         for name, i, j in NONORTH:
             D[i, j] = D[j, i] = p[name]
         ID = np.eye(3) + D
+        IDM = ID @ M
+        unit = np.eye(3)
+        for ch in self.aux_channels:
+            if ch not in geom.aux:
+                raise InputError(f"auxiliary channel '{ch}' is not in the aux data",
+                                 key=common.book_key(self.sensor, "aux"))
         with np.errstate(all="ignore"):
-            bv = common.body_vector(geom, geom.B_I, p["time_offset"], self._field_rate(geom))
+            bv = common.body_vector(geom, geom.B_I, p["time_offset"], lambda: self._field_rate(geom))
             w = bv.v_B @ M.T                                   # M B_B (N, 3)
-            y = w @ ID.T + np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
-            d_par: dict[str, np.ndarray] = {}
+            y = w @ ID.T
+            y += np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
+            d_par: dict[str, common.PartialSource] = {}
             for i, ax in enumerate(AXES):
-                e = np.zeros((n, 3))
-                e[:, i] = 1.0
-                d_par[f"bias_{ax}"] = e
-                s = np.zeros((n, 3))
-                s[:, i] = w[:, i]
-                d_par[f"scale_{ax}"] = s
+                d_par[f"bias_{ax}"] = np.broadcast_to(unit[i], (n, 3))          # e_i
+                d_par[f"scale_{ax}"] = lambda i=i: common.column(n, 3, i, w[:, i])
             for name, i, j in NONORTH:
-                s = np.zeros((n, 3))
-                s[:, i] = w[:, j]
-                s[:, j] = w[:, i]
-                d_par[name] = s
+                def nonorth(i=i, j=j):
+                    s_ = common.column(n, 3, i, w[:, j])
+                    s_[:, j] = w[:, i]
+                    return s_
+                d_par[name] = nonorth
             for k, name in enumerate(common.ALIGN_NAMES):
-                d_par[name] = bv.v_B @ (ID @ dM[k]).T
+                d_par[name] = lambda k=k: bv.v_B @ (ID @ dM[k]).T
             for ch in self.aux_channels:
-                if ch not in geom.aux:
-                    raise InputError(f"auxiliary channel '{ch}' is not in the aux data",
-                                     key=common.book_key(self.sensor, "aux"))
-                a = np.asarray(geom.aux[ch], dtype=float)
+                k_ch = np.array([p[f"contam_{ch}_{ax}"] for ax in AXES])
+                if np.any(k_ch != 0.0):
+                    y += np.asarray(geom.aux[ch], dtype=float)[:, None] * k_ch
                 for i, ax in enumerate(AXES):
-                    name = f"contam_{ch}_{ax}"
-                    y[:, i] += p[name] * a
-                    s = np.zeros((n, 3))
-                    s[:, i] = a
-                    d_par[name] = s
-            d_par["time_offset"] = bv.d_dt @ (ID @ M).T
-            d_att = (ID @ M) @ bv.d_att
+                    d_par[f"contam_{ch}_{ax}"] = lambda ch=ch, i=i: common.column(
+                        n, 3, i, np.asarray(geom.aux[ch], dtype=float))
+            d_par["time_offset"] = lambda: bv.d_dt @ IDM.T
+            d_att = bv.left(IDM)
         return common.finish(y, d_att, d_par, np.ones(n, dtype=bool), specs)

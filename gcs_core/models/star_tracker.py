@@ -43,6 +43,9 @@ class StarTrackerModel(ObservationModel):
     book_keys = ("scale", "fov_deg")
 
     def parameters(self) -> tuple[ParamSpec, ...]:
+        return common.cached_parameters(self, self._parameters)
+
+    def _parameters(self) -> tuple[ParamSpec, ...]:
         scale = common.book_vector(self.sensor, "scale", 2, default=(1.0, 1.0))
         specs = list(common.alignment_specs(self.sensor, seed=True, sigma=0.01))
         specs += [ParamSpec("scale_h", "1", float(scale[0]), 1e-3, seed=True, effect="scale",
@@ -79,12 +82,13 @@ class StarTrackerModel(ObservationModel):
             rho2 = F[:, 0] ** 2 + F[:, 1] ** 2
             J[:, 1, 0] = -F[:, 1] / (S_V * rho2)
             J[:, 1, 1] = F[:, 0] / (S_V * rho2)
-            d_att = J @ (M @ bv.d_att)
-            d_par = {name: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T)
+            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(-1, 2, 3))    # J M ∂F_B/∂δθ
+            # parameter partials, formed when read (common.Partials)
+            d_par = {name: (lambda k=k: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T))
                      for k, name in enumerate(common.ALIGN_NAMES)}
-            zero = np.zeros(geom.n)
-            d_par["scale_h"] = np.column_stack([-asin_z / S_H ** 2, zero])
-            d_par["scale_v"] = np.column_stack([zero, -atan_yx / S_V ** 2])
-            d_par["time_offset"] = np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
+            n = geom.n
+            d_par["scale_h"] = lambda: common.column(n, 2, 0, -asin_z / S_H ** 2)
+            d_par["scale_v"] = lambda: common.column(n, 2, 1, -atan_yx / S_V ** 2)
+            d_par["time_offset"] = lambda: np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
             valid = common.fov_square_ok(F, common.fov_rad(self.sensor))
         return common.finish(y, d_att, d_par, valid, specs)

@@ -119,10 +119,13 @@ class HeldChannels(Mapping):
     chunked linearization reads chunk by chunk without ever holding a whole channel.
     """
 
-    def __init__(self, aux: Table | None, t: np.ndarray, *, keep: bool = True):
+    def __init__(self, aux: Table | None, t: np.ndarray, *, keep: bool = True,
+                 names: tuple[str, ...] | None = None):
         self._aux = aux
         self._t = t
-        self._names = aux_channel_names(aux) if aux is not None and len(aux) else ()
+        if names is None:
+            names = aux_channel_names(aux) if aux is not None and len(aux) else ()
+        self._names = names
         self._keep = keep
         self._done: dict[str, np.ndarray] = {}
         self._idx: np.ndarray | None = None
@@ -155,12 +158,12 @@ class HeldChannels(Mapping):
         return len(self._names)
 
     def window(self, lo: int, hi: int) -> "HeldChannels":
-        w = HeldChannels(self._aux, self._t[lo:hi], keep=False)
+        w = HeldChannels(self._aux, self._t[lo:hi], keep=False, names=self._names)   # not listed again
         w._done = {k: v[lo:hi] for k, v in self._done.items()}
         return w
 
     def subset(self, mask: np.ndarray) -> "HeldChannels":
-        return HeldChannels(self._aux, self._t[mask], keep=self._keep)
+        return HeldChannels(self._aux, self._t[mask], keep=self._keep, names=self._names)
 
 
 class GeometryBuilder:
