@@ -10,15 +10,14 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Callable, Mapping
 
 import numpy as np
 
-from gcs_core.config import AnalysisConfig, ElementConfig
+from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
-from gcs_core.errors import ConfigError, EstimationError
+from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit
 from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.models.base import HELD, SOLVE_FOR

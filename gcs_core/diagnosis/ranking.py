@@ -234,7 +234,6 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
         total = wsum.sum() or 1.0
         aliases = tuple(x_names[i] for i in order[:4] if wsum[i] / total > 0.15) if absorbed > 0.5 else ()
         names = list(e.elements) if e.elements else [e.id]
-        estimate = {nm: float(est[i]) + (state[nm].value if nm in state else 0.0) for i, nm in enumerate(names)}
         sigma = {nm: float(sig[i]) for i, nm in enumerate(names)}
         mdb = {nm: float(np.sqrt(lam0 / S[i, i])) if S[i, i] > 0 else float("inf") for i, nm in enumerate(names)}
         shares = {}

@@ -20,10 +20,9 @@ import numpy as np
 from gcs_core.errors import ConfigError, InputError
 from gcs_core.filtr.attitude import (RADEC, RPY, FrameAttitude, GyroAttitude, ReferenceAttitude,
                                      SpinAttitude, rpy_specs)
-from gcs_core.frames.reference import ra_dec_from_vector
 from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
-from gcs_core.models.base import CONSIDER, HELD, SOLVE_FOR, ParamSpec
+from gcs_core.models.base import HELD, SOLVE_FOR, ParamSpec
 from gcs_core.sidp.prepare import (GeometryBuilder, HeldChannels, PhysicsOptions, SensorData,
                                    prepare_sensors)
 from gcs_core.sodl.state import Element, StateVector

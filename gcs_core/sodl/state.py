@@ -21,7 +21,7 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 
 from gcs_core.errors import ConfigError
-from gcs_core.models.base import CONSIDER, HELD, ROLES, SOLVE_FOR
+from gcs_core.models.base import CONSIDER, ROLES, SOLVE_FOR
 
 
 @dataclass(frozen=True)
