@@ -26,6 +26,9 @@ from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
 
+#: BIC difference below which two aliased candidates count as equally supported
+BIC_TIE = 2.0
+
 
 @dataclass(frozen=True)
 class Step:
@@ -359,11 +362,24 @@ class Analysis:
         """Among candidates the data cannot tell from ``top`` (canonical correlation above
         the alias threshold), prefer the one with the best Bayesian information criterion
         ``Δχ² − dof·ln(n)``: equal fits, fewer parameters (e.g. a Sun-sensor bias against a
-        sensor rotation, which differ only at second order)."""
+        sensor rotation, which differ only at second order). Within ``BIC_TIE`` of the
+        best, where the data give no real preference (Kass & Raftery 1995: a difference
+        under 2 is "not worth more than a bare mention"), the seed's own calibration
+        parameter wins over an extended effect (an Earth-radius bias Δρ over a horizon
+        height on a circular orbit); the report names the aliases either way."""
         n = max(2, sum(r.n * len(r.components) for r in self.result.residuals.values()))
         group = [top] + [c for c in cands if c.id in {a for a, _ in top.aliases_candidates}
                          and c.p_adjusted < self.config.significance and c.dof > 0]
-        return max(group, key=lambda c: c.delta_chi2 - c.dof * math.log(n))
+        bic = {c.id: c.delta_chi2 - c.dof * math.log(n) for c in group}
+        best = max(bic.values())
+        close = [c for c in group if bic[c.id] >= best - BIC_TIE]
+        state = self.problem.state
+
+        def seed_effect(c: Candidate) -> bool:
+            return bool(c.effect.elements) and all(state[nm].seed for nm in c.effect.elements
+                                                   if nm in state)
+
+        return max(close, key=lambda c: (seed_effect(c), bic[c.id]))
 
     # ------------------------------------------------------------------ report (ICD §7)
     def report(self) -> dict:
