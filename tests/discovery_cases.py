@@ -62,6 +62,7 @@ CASES = [
     Case("HS1.oblateness", 1.0, kind="spinning"),             # WGS-84 flattening, data book spherical
     Case("model.field_model", 1.0, physics_off="field_model"),   # IGRF data, dipole in the config
     Case("FHST2.time_offset", 0.5),
+    Case("IRU.bias_instability", 1e-10, exclude=("IRU.bias_instability",)),   # ḃ: 0.36 µrad/s in 1 h
 ]
 
 
@@ -77,7 +78,9 @@ def scenario(kind: str, seed: int, duration_s: float, sweep_deg: float = 0.0):
     return cfg
 
 
-def simulate(case: Case, seed: int, folder: Path, duration_s: float = ONE_HOUR) -> Path:
+def simulate(case: Case, seed: int, folder: Path, duration_s: float | None = None) -> Path:
+    if duration_s is None:
+        duration_s = case.options.get("hours", 1.0) * ONE_HOUR
     base = scenario(case.kind, seed, duration_s, case.options.get("sweep_deg", 0.0))
     if case.options.get("rippled"):
         base = _fss_rippled(base)

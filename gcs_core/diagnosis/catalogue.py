@@ -38,6 +38,10 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
     "scale_misalignment": ("gyro", "The gyro scale factors and axis misalignments (the 3×3 matrix G of "
                            "Eq 4-32): attitude errors that build up during slews in proportion to "
                            "the angle turned."),
+    "bias_instability": ("gyro", "Gyro bias instability: the drift-rate bias is not constant but "
+                         "drifts (a rate random walk, thermal settling), here as a linear trend "
+                         "ḃ over the span. The attitude the gyros carry then bends away from the "
+                         "other sensors quadratically in time, most at the span's ends."),
     "horizon_height": ("horizon", "The height of the CO2 horizon differs from the data book; the "
                        "Earth looks larger or smaller, changing the Earth width most."),
     "oblateness": ("horizon", "The Earth is oblate: its angular radius depends on the latitude of the "

@@ -220,6 +220,9 @@ EFFECTS: dict[str, EffectSpec] = {
     "nonorthogonality": EffectSpec(("magnetometer",), "1",
                                    "symmetric off-diagonal TAM response m·[[0,1,-.6],[1,0,.8],[-.6,.8,0]]",
                                    _nonorth),
+    "bias_instability": EffectSpec(("gyro",), "rad/s^2", "linear gyro bias drift ḃ = m·(0.6, -0.48, 0.64)",
+                                   lambda s, m, kw: s.true.__setitem__(
+                                       "bias_rate", [0.6 * float(m), -0.48 * float(m), 0.64 * float(m)])),
     "scale_misalignment": EffectSpec(("gyro",), "1", "G = I + m·P, P = [[1,.6,-.4],[-.3,-.7,.5],[.8,.2,.5]] "
                                      "unless pattern= (Eq 4-32)", _gyro_g),
     "contamination_mtb_x": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_x",

@@ -188,6 +188,8 @@ class GyroSim:
         self.sig_e = float(sensor.value("electronic", 0.0) or 0.0)
         self.tau = float(sensor.value("time_offset_s", 0.0))
         self.bias = np.asarray(sensor.value("bias", (0.0, 0.0, 0.0)), dtype=float).copy()
+        # a deterministic linear drift of the bias (hidden effect ``bias_instability``)
+        self.bias_rate = np.asarray(sensor.value("bias_rate", (0.0, 0.0, 0.0)), dtype=float)
         self.e_prev = self.rng_e.standard_normal(3) * self.sig_e
         self.bias_log: list[tuple[float, list[float]]] = [(0.0, self.bias.tolist())]
 
@@ -208,11 +210,12 @@ class GyroSim:
             e_prev = np.vstack([self.e_prev[None, :], e[:-1]])
             noise = noise + (e - e_prev) / dt
             self.e_prev = e[-1]
-        y = (w_avg @ self.M.T + 0.5 * (b_start + b_end)) @ self.G.T + noise
+        drift = self.bias_rate[None, :] * (t_rows - 0.5 * dt)[:, None]   # its interval mean
+        y = (w_avg @ self.M.T + 0.5 * (b_start + b_end) + drift) @ self.G.T + noise
         self.bias = b_end[-1].copy()
         every = max(1, int(round(60.0 / dt)))              # the true bias once a minute
         for k in range(every - 1, n, every):
-            self.bias_log.append((float(t_rows[k]), b_end[k].tolist()))
+            self.bias_log.append((float(t_rows[k]), (b_end[k] + self.bias_rate * t_rows[k]).tolist()))
         return {"t": t_rows, "wx": y[:, 0], "wy": y[:, 1], "wz": y[:, 2]}
 
 
