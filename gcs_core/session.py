@@ -424,7 +424,7 @@ def _holdout_rms(problem: Problem, res: BatchResult, masks: Mapping[str, np.ndar
     """Normalized RMS of the held-out frames, each residual standardized by its full
     prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
     training fit carried to that frame), so 1.0 is the expected value for a right model."""
-    from gcs_core.filtr.problem import linearize
+    from gcs_core.filtr.linearization import linearize
 
     lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
     out = {}

@@ -47,7 +47,8 @@ from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
 from gcs_core.filtr.batch import BatchResult
-from gcs_core.filtr.problem import Problem, iter_blocks, window_geometry
+from gcs_core.filtr.linearization import iter_blocks, window_geometry
+from gcs_core.filtr.problem import Problem
 
 #: canonical correlation above which two candidates are called indistinguishable
 ALIAS_TOL = 0.98

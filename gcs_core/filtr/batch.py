@@ -43,7 +43,8 @@ import numpy as np
 from scipy import linalg
 
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr.problem import Linearization, Problem, iter_blocks
+from gcs_core.filtr.linearization import Linearization, iter_blocks
+from gcs_core.filtr.problem import Problem
 from gcs_core.models.base import ObservationModel
 from gcs_core.sodl.state import StateVector
 

@@ -44,7 +44,8 @@ import numpy as np
 from gcs_core.errors import EstimationError
 from gcs_core.filtr.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval
 from gcs_core.filtr.kalman import LinearBlock
-from gcs_core.filtr.problem import Problem, linearize
+from gcs_core.filtr.linearization import linearize
+from gcs_core.filtr.problem import Problem
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix

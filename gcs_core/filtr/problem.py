@@ -5,20 +5,21 @@ the state vector automatically (seed §3.2.2, Table 3-1): every parameter of eve
 chosen model becomes a named element, the attitude provider adds its own, and roles
 and a-priori values come from the analysis configuration.
 
-:func:`linearize` is the single place where predictions and partials of all sensors are
-assembled into residuals ``r = y − h(x)`` and Jacobian columns ``H = ∂h/∂x`` for any
-list of elements; the batch estimator, the Kalman filter and the diagnosis all call it.
+:mod:`gcs_core.filtr.linearization` (:func:`~gcs_core.filtr.linearization.iter_blocks`,
+:func:`~gcs_core.filtr.linearization.linearize`) is the single place where predictions
+and partials of all sensors are assembled into residuals ``r = y − h(x)`` and Jacobian
+columns ``H = ∂h/∂x``; its names are re-exported here.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from typing import Iterator, Mapping, Sequence
+from typing import Mapping
 
 import numpy as np
 
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.filtr.attitude import (RADEC, RPY, FrameAttitude, GyroAttitude, ReferenceAttitude,
+from gcs_core.filtr.attitude import (RADEC, RPY, GyroAttitude, ReferenceAttitude,
                                      SpinAttitude, rpy_specs)
 from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
@@ -323,274 +324,14 @@ def _slim_table(tab, sd: SensorData, sensor_type: str):
                    columns={k: (sd.t if k == "t" else v) for k, v in tab.columns.items() if k in keep or k == "t"})
 
 
-# ----------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class Linearization:
-    """One sensor's residuals and Jacobian at a state.
-
-    Attributes
-    ----------
-    name : sensor name.
-    y_pred : (N, m) predicted measurements.
-    r : (N, m) residual ``y − h(x)`` (wrapped where the model says so).
-    H : (N, m, k) partials with respect to ``columns``.
-    valid : (N,) frames where the model is defined.
-    sigma : (m,) measurement noise.
-    """
-
-    name: str
-    y_pred: np.ndarray
-    r: np.ndarray
-    H: np.ndarray
-    valid: np.ndarray
-    sigma: np.ndarray
+#: names that live in :mod:`gcs_core.filtr.linearization` (which builds on this module),
+#: re-exported on first use (PEP 562): no circular import
+_LINEARIZATION = ("Linearization", "Block", "sensor_geometry", "window_geometry", "chunk_windows",
+                  "iter_blocks", "linearize")
 
 
-@dataclass(frozen=True)
-class Block:
-    """One sensor's residuals and partials over one chunk of its frames (:func:`iter_blocks`).
-
-    Attributes
-    ----------
-    sensor : the sensor; lo, hi : its frames ``lo..hi−1``.
-    geom : the chunk's geometry with the attitude.
-    y_pred, r : (n, m) prediction and residual (NaN where the model is undefined).
-    valid : (n,) frames where the model is defined (finite residual).
-    used : (n,) valid and not excluded.
-    cols : (k_s,) positions in the requested columns of the columns this sensor's
-        measurements depend on (the attitude's elements and its own parameters).
-    H : (n, m, k_s) partials over ``cols``; weighted (``R^-1/2 H``, zero rows where not
-        used) when the blocks were asked weighted, raw (NaN where invalid) otherwise.
-    Hr : (n·m, k_s + 1) ``[R^-1/2 H | R^-1/2 r]`` (unused rows zero) when the blocks were
-        asked ``augmented`` (``H`` is then a view of its first k_s columns), else None.
-    """
-
-    sensor: SensorData
-    lo: int
-    hi: int
-    geom: object
-    y_pred: np.ndarray
-    r: np.ndarray
-    valid: np.ndarray
-    used: np.ndarray
-    cols: np.ndarray
-    H: np.ndarray | None
-    Hr: np.ndarray | None = None
-
-    @property
-    def name(self) -> str:
-        return self.sensor.name
-
-    def weighted_residual(self) -> np.ndarray:
-        """(n·m,) ``R^-1/2 r`` with unused frames zero."""
-        return (np.where(self.used[:, None], self.r, 0.0) / self.sensor.sigma).reshape(-1)
-
-
-def sensor_geometry(problem: Problem, sd: SensorData, values: Mapping[str, float], geom=None):
-    att = problem.attitude.evaluate(values, sd.t)
-    g = geom if geom is not None else sd.geom
-    if att.C_BI is not None:
-        g = replace(g, C_BI=att.C_BI, omega_B=att.omega_B)
-    else:
-        g = replace(g, spin_axis_I=att.spin_axis_I)
-    return g, att
-
-
-def window_geometry(g, lo: int, hi: int, n: int):
-    """Frames ``lo..hi−1`` of an N-frame geometry (views; the aux channels stay lazy)."""
-    def cut(a):
-        return a[lo:hi] if isinstance(a, np.ndarray) and a.ndim >= 1 and a.shape[0] == n else a
-
-    aux = g.aux.window(lo, hi) if isinstance(g.aux, HeldChannels) else {k: cut(v) for k, v in g.aux.items()}
-    return replace(g, t=g.t[lo:hi], C_BI=cut(g.C_BI), spin_axis_I=cut(g.spin_axis_I), r_I=cut(g.r_I),
-                   v_I=cut(g.v_I), sun_I=cut(g.sun_I), B_I=cut(g.B_I), star_I=cut(g.star_I),
-                   omega_B=cut(g.omega_B), aux=aux, extra={k: cut(v) for k, v in g.extra.items()})
-
-
-def chunk_windows(problem: Problem, sensors: Sequence[SensorData], chunk: int | None = None
-                  ) -> list[list[tuple[int, int]]]:
-    """Time windows of at most ``chunk`` frames of any sensor: per window, each sensor's
-    frame range ``(lo, hi)``. Windows end on the gyro-carried attitude's block edges, so
-    that a window needs one block of its propagation."""
-    chunk = max(1, int(chunk or problem.chunk_frames))
-    edges = problem.attitude.block_edges() if hasattr(problem.attitude, "block_edges") else np.zeros(0)
-    pos = [0] * len(sensors)
-    cur, e = -np.inf, 0
-    out = []
-    while any(p < sd.n for p, sd in zip(pos, sensors)):
-        cand = [sd.t[p + chunk - 1] for p, sd in zip(pos, sensors) if p + chunk - 1 < sd.n]
-        while e < edges.size and edges[e] <= cur:
-            e += 1
-        if e < edges.size:
-            cand.append(edges[e])
-        edge = min(cand) if cand else np.inf
-        hi = [int(np.searchsorted(sd.t, edge, side="right")) if np.isfinite(edge) else sd.n
-              for sd in sensors]
-        if any(h > p for h, p in zip(hi, pos)):
-            out.append(list(zip(pos, hi)))
-        pos, cur = hi, edge
-    return out
-
-
-def _frames(att, values, t, partials: bool):
-    if hasattr(att, "frames"):
-        return att.frames(values, t, partials=partials)
-    return FrameAttitude.of(att.evaluate(values, t))
-
-
-def _sensor_columns(problem: Problem, sd: SensorData, att_names, col_index):
-    """This sensor's columns: attitude elements first (positions in ``att_names``), then
-    its own parameters; returns (att positions, param (local name, block column), cols)."""
-    att_sel = [a for a, nm in enumerate(att_names) if nm in col_index]
-    cols = [col_index[att_names[a]] for a in att_sel]
-    where = {c: i for i, c in enumerate(cols)}
-    par = []
-    for local, el in problem.param_map[sd.name].items():
-        j = col_index.get(el)
-        if j is None:
-            continue
-        if j not in where:
-            where[j] = len(cols)
-            cols.append(j)
-        par.append((local, where[j]))
-    return np.array(att_sel, int), par, np.array(cols, int)
-
-
-def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence[str] = (), *,
-                exclude: Mapping[str, np.ndarray] | None = None, weighted: bool = False,
-                sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None,
-                chunk: int | None = None, jacobian: bool = True,
-                work: dict | None = None, augmented: bool = False) -> Iterator[Block]:
-    """Residuals and partials of every (or the named) sensor at ``values``, chunk by chunk.
-
-    Windows of time (:func:`chunk_windows`) are visited in order; in each, the attitude is
-    evaluated and every sensor's frames are predicted and linearized. A block holds only
-    the columns its sensor depends on (``Block.cols``), so memory is O(chunk · k_s) and
-    the work is that of the non-zero part of H.
-
-    ``exclude`` flags frames (True = not used); ``weighted`` returns ``R^-1/2 H`` with the
-    unused frames' rows zero, ready for ``Hᵀ H``; ``jacobian=False`` skips H.
-
-    ``work`` (a dict kept by the caller across calls) lends chunk-sized buffers for H:
-    fresh pages cost more than the arithmetic on them. A block's H is then valid until
-    the next block of the same sensor is produced.
-
-    ``augmented`` (with ``weighted``) writes the weighted residual as one more column of
-    the same buffer, ``Block.Hr = [R^-1/2 H | R^-1/2 r]``: one product ``Hrᵀ Hr`` then
-    gives ``Hᵀ R⁻¹ H``, ``Hᵀ R⁻¹ r`` and ``rᵀ R⁻¹ r`` in a single pass over the block.
-    """
-    col_index = {c: j for j, c in enumerate(columns)}
-    sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
-    att_names = tuple(problem.attitude.names)
-    layout = {sd.name: _sensor_columns(problem, sd, att_names, col_index) for sd in sds}
-    for window in chunk_windows(problem, sds, chunk):
-        for sd, (lo, hi) in zip(sds, window):
-            if hi <= lo:
-                continue
-            base = geoms.get(sd.name) if geoms is not None and sd.name in geoms else sd.geom
-            geom = window_geometry(base, lo, hi, sd.n)
-            att_sel, par, cols = layout[sd.name]
-            fr = _frames(problem.attitude, values, sd.t[lo:hi], jacobian and att_sel.size > 0)
-            if fr.C_BI is not None:
-                geom = replace(geom, C_BI=fr.C_BI, omega_B=fr.omega_B)
-            else:
-                geom = replace(geom, spin_axis_I=fr.spin_axis_I)
-            pred = sd.model.predict(geom, problem.params_of(sd.name, values))
-            r = sd.model.residual(sd.y[lo:hi], pred.y, geom=geom)
-            valid = np.array(pred.valid, bool)
-            for c in range(r.shape[1]):       # column by column: a reduction over axis 1 is slow
-                valid &= np.isfinite(r[:, c])
-            used = valid if exclude is None or sd.name not in exclude else \
-                valid & ~np.asarray(exclude[sd.name][lo:hi], bool)
-            H = Hr = None
-            if jacobian and cols.size:
-                w = (used[:, None] * (1.0 / sd.sigma)[None, :]) if weighted else None    # R^-1/2
-                aug = int(augmented and weighted)
-                m = len(sd.sigma)
-                buf = _buffer(work, sd.name, (hi - lo, m, cols.size + aug))
-                P = _buffer(work, (sd.name, "P"), (len(par) + aug, hi - lo, m)) \
-                    if getattr(fr, "can_fill_rows", False) else None
-                _block_jacobian(pred, fr, att_sel, par, cols.size, w, buf, r if aug else None, P)
-                if weighted and not np.all(used):
-                    buf[~used] = 0.0              # NaN partials/residuals of unused frames
-                H = buf[:, :, :cols.size] if aug else buf
-                Hr = buf.reshape(-1, cols.size + 1) if aug else None
-            del fr                        # the attitude's block buffers may be reused
-            yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H, Hr)
-
-
-def _buffer(work: dict | None, key, shape) -> np.ndarray:
-    """An uninitialized array of ``shape``, from the caller's workspace when given."""
-    if work is None:
-        return np.empty(shape)
-    size = int(np.prod(shape))
-    buf = work.get(key)
-    if buf is None or buf.size < size:
-        buf = work[key] = np.empty(size)
-    return buf[:size].reshape(shape)
-
-
-def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None,
-                    P: np.ndarray | None = None) -> np.ndarray:
-    """(n, m, k) partials of one block, into the first k columns of ``H`` (n, m, ≥ k):
-    ``∂y/∂δθ · ∂δθ/∂x`` in the attitude columns, the model's own partials in the
-    parameter columns; rows scaled by ``w`` (n, m) if given. With ``r`` (weighted
-    blocks), ``w r`` goes into column k.
-
-    Where the attitude can fill whole rows in one pass (:meth:`FrameAttitude.fill_rows`),
-    the parameter columns are first formed contiguously in ``P`` (len(par) (+1), n, m)
-    and copied in that pass: a strided column-by-column write costs several times more.
-    """
-    D = pred.d_att
-    ka = att_sel.size
-    if P is not None and ka:
-        for q, (local, _) in enumerate(par):
-            if w is None:
-                P[q] = pred.d_par[local]
-            else:
-                np.multiply(pred.d_par[local], w, out=P[q])
-        pcol = [j for _, j in par]
-        if r is not None:
-            np.multiply(r, w, out=P[len(par)])                            # R^-1/2 r
-            pcol.append(k)
-        if fr.fill_rows(D, att_sel, H, w=w, P=P, pcol=pcol):
-            return H
-    if ka:
-        fr.chain(D, att_sel, out=H[:, :, :ka], w=w)
-    for local, j in par:
-        d = pred.d_par[local]
-        if j < ka:
-            H[:, :, j] += d if w is None else d * w
-        elif w is None:
-            H[:, :, j] = d
-        else:
-            np.multiply(d, w, out=H[:, :, j])
-    if r is not None:
-        np.multiply(r, w, out=H[:, :, k])                                 # R^-1/2 r
-    return H
-
-
-def linearize(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
-              *, sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None
-              ) -> list[Linearization]:
-    """Residuals and partials of every (or the named) sensor at ``values``, whole span.
-
-    The (N, m, k) arrays of this form grow with the span; the estimators stream
-    :func:`iter_blocks` instead.
-    """
-    k = len(columns)
-    sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
-    out = {}
-    for sd in sds:
-        m = len(sd.sigma)
-        out[sd.name] = (np.full((sd.n, m), np.nan), np.full((sd.n, m), np.nan), np.zeros(sd.n, bool),
-                        np.zeros((sd.n, m, k)))
-    for blk in iter_blocks(problem, values, columns, sensors=sensors, geoms=geoms):
-        y_pred, r, valid, H = out[blk.name]
-        y_pred[blk.lo:blk.hi] = blk.y_pred
-        r[blk.lo:blk.hi] = blk.r
-        valid[blk.lo:blk.hi] = blk.valid
-        if blk.H is not None:
-            H[blk.lo:blk.hi, :, blk.cols] = blk.H
-    return [Linearization(sd.name, *out[sd.name][:2], out[sd.name][3], out[sd.name][2], sd.sigma)
-            for sd in sds]
+def __getattr__(name: str):
+    if name in _LINEARIZATION:
+        from gcs_core.filtr import linearization
+        return getattr(linearization, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -37,7 +37,8 @@ from gcs_core.filtr.filter_results import (BlockReport, FilterOptions, FilterRes
                                            FrameDiagnostics, InnovationStats)
 from gcs_core.filtr.kalman import solve_block
 from gcs_core.filtr.mekf import GyroSegment, assemble, block_epochs, gyro_noise, gyro_rates, make_layout
-from gcs_core.filtr.problem import Problem, linearize
+from gcs_core.filtr.linearization import linearize
+from gcs_core.filtr.problem import Problem
 from gcs_core.filtr.smoother import EpochStore, block_records, gyro_residuals, rts_smooth, trajectory
 from gcs_core.frames.rotations import (dcm_to_rotvec, euler123_to_dcm, quat_from_dcm,
                                        rotvec_to_dcm)

@@ -45,7 +45,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from gcs_core.filtr.attitude import RPY
-from gcs_core.filtr.problem import Problem, linearize
+from gcs_core.filtr.linearization import linearize
+from gcs_core.filtr.problem import Problem
 from gcs_core.frames.rotations import dcm_to_euler123
 from gcs_core.models import common
 from gcs_core.predictor.information import weighted_rows

@@ -27,7 +27,8 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.errors import InputError
 from gcs_core.filtr.attitude import RPY, GyroAttitude
 from gcs_core.filtr.batch import name_combinations
-from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, linearize
+from gcs_core.filtr.linearization import linearize
+from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions
 from gcs_core.models import common
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history

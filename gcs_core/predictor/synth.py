@@ -33,7 +33,8 @@ import numpy as np
 from gcs_core.ephem.ephemeris import EPHEMERIS_COLUMNS, Ephemeris
 from gcs_core.errors import InputError
 from gcs_core.filtr.attitude import RPY, GyroAttitude, ReferenceAttitude
-from gcs_core.filtr.problem import Problem, StateOptions, build_problem, linearize
+from gcs_core.filtr.linearization import linearize
+from gcs_core.filtr.problem import Problem, StateOptions, build_problem
 from gcs_core.frames.reference import ra_dec_from_vector
 from gcs_core.frames.rotations import dcm_to_euler123, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
