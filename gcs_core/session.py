@@ -212,7 +212,7 @@ class Analysis:
         return [f"batch method: the gyro's angle random walk makes the attitude wander by about "
                 f"{wander / finest:.2f} of the star-tracker noise over this {span / 3600:.1f} h span, "
                 "which the batch does not model; its attitude and gyro σ are optimistic and "
-                "candidate p-values too small. Use method = \"kalman\" for honest σ."]
+                "candidate p-values too small. Use method = \"kalman\" for honest σ and p-values."]
 
     def filter_options(self):
         from gcs_core.filtr.stepping import FilterOptions
@@ -235,7 +235,8 @@ class Analysis:
         if self.result is None:
             self.fit()
         self.candidates = rank_candidates(self.problem, self.result, self.candidate_effects(),
-                                          alpha=self.config.significance)
+                                          alpha=self.config.significance,
+                                          smoothed=self.config.method == "kalman")
         return self.candidates
 
     def physics_needed(self) -> list[dict]:

@@ -149,13 +149,20 @@ def _physics_block(problem: Problem, blk, values, phys_ids: Sequence[str]) -> li
 def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Effect], *,
                     alpha: float = 0.001, edited: Mapping[str, np.ndarray] | None = None,
                     exclude_frames: Mapping[str, np.ndarray] | None = None,
-                    chunk: int | None = None) -> list[Candidate]:
+                    chunk: int | None = None, smoothed: bool = False) -> list[Candidate]:
     """Score every candidate effect (module docstring); most significant first.
 
     ``effects`` are the candidates (effects not in the state); physics effects must be
     ones whose option is currently off. One streaming pass over the data (chunks of
     ``chunk`` frames, default the problem's) accumulates the information of the state
     and every candidate together; memory does not grow with the span.
+
+    ``smoothed``: the score ``g`` is formed from the result's own post-fit residuals (the
+    Kalman smoother's, at the smoothed attitude) rather than from the deterministic
+    gyro-carried linearization. The smoother has removed the attitude wander of the gyro
+    noise, which the Q = 0 residuals would otherwise offer as a signature (a time offset
+    correlates with it); the information ``S`` stays that of the deterministic model,
+    which makes the test conservative for wander-like signatures and exact otherwise.
     """
     state = result.state
     values = state.values()
@@ -196,6 +203,9 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
             c = np.concatenate([c, [n + len(c_names) + j for j, _ in extra]])
         Hm = H.reshape(-1, c.size)
         rw = blk.weighted_residual()
+        if smoothed and sd.name in result.residuals:
+            rr = result.residuals[sd.name].residual[blk.lo:blk.hi]
+            rw = (np.where(blk.used[:, None], np.nan_to_num(rr), 0.0) / sd.sigma).reshape(-1)
         A[np.ix_(c, c)] += Hm.T @ Hm
         gs = Hm.T @ rw
         g[c] += gs
