@@ -253,13 +253,17 @@ class Analysis:
 
         if self.result is None:
             self.fit()
+        cached = getattr(self, "_physics_needed", None)
+        if cached is not None and cached[0] is self.result:
+            return cached[1]
         on_ids = set(self.effects_in_state())
         phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
         if not phys:
             return []
         crit = float(stats.chi2.isf(self.config.significance, 1))
         out = []
-        for c in rank_candidates(self.problem, self.result, phys, alpha=self.config.significance):
+        for c in rank_candidates(self.problem, self.result, phys, alpha=self.config.significance,
+                                 smoothed=self.config.method == "kalman"):
             sig = c.sigma.get(c.id, float("inf"))
             c_hat = c.estimate.get(c.id, 0.0)
             cost = (1.0 - 2.0 * c_hat) / sig ** 2 if np.isfinite(sig) and sig > 0 else 0.0
@@ -274,6 +278,7 @@ class Analysis:
             out.append({"id": c.id, "delta_chi2_if_removed": round(float(cost), 3),
                         "needed": bool(needed), "why": why, "physics": c.effect.explanation})
         out.sort(key=lambda d: -d["delta_chi2_if_removed"])
+        self._physics_needed = (self.result, out)         # one score pass per fit
         return out
 
     def rms(self) -> dict[str, float]:
