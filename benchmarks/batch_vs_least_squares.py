@@ -46,6 +46,7 @@ from gcs_core.filtr.problem import build_problem, iter_blocks  # noqa: E402
 from gcs_core.sidp.importer import load_mission  # noqa: E402
 from gcs_core.sim.scenarios import nominal_threeaxis  # noqa: E402
 from gcs_core.sim.writer import write_mission  # noqa: E402
+from _timing import best_of  # noqa: E402  (benchmarks/_timing.py)
 
 
 #: The benchmark's gyro (data book = truth): angle random walk σ_v [rad/s^½] and rate random
@@ -72,15 +73,6 @@ def make_mission(hours: float, folder: Path) -> Path:
         if s.type == "gyro":                  # this copy only: the scenario's default stays
             s.book = {**s.book, "arw": BENCH_ARW, "rrw": BENCH_RRW}
     return write_mission(cfg, out, truth_path=folder / f"truth-quiet-iru-{hours:g}h.json")
-
-
-def best_of(fn, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 #: least_squares methods tried (both handle the unbounded problem; "lm" is MINPACK's

@@ -65,6 +65,7 @@ from gcs_core.filtr.batch import normal_equations  # noqa: E402
 from gcs_core.session import Analysis  # noqa: E402
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect  # noqa: E402
 from gcs_core.sim.writer import write_mission  # noqa: E402
+from _timing import best_of  # noqa: E402  (benchmarks/_timing.py)
 
 #: the hidden effects: (catalogue id, magnitude in the unit of ``gcs_core.sim.EFFECTS``, options)
 HIDDEN = (("TAM1.contamination_mtb_x", 0.3, {}),
@@ -83,15 +84,6 @@ def make_mission(hours: float, folder: Path, seed: int) -> Path:
     for eid, magnitude, kw in HIDDEN:
         cfg = with_effect(cfg, eid, magnitude, **kw)
     return write_mission(cfg, out, truth_path=folder / f"ranking-truth-{hours:g}h-seed{seed}.json")
-
-
-def best_of(fn, repeats: int) -> float:
-    best = np.inf
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def n_edited(result) -> int:

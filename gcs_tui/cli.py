@@ -115,9 +115,13 @@ def _fit_failed(a) -> bool:
     return False
 
 
-def _write_json(path: str | None, data: dict) -> None:
+def _write_json(path: str | None, data) -> None:
+    """Write the report to ``path`` if one was asked for; ``data`` is the dict or a
+    function making it (a report can cost a scoring pass: not made when not written)."""
     if not path:
         return
+    if callable(data):
+        data = data()
     from gcs_core.reporting import write_json_atomic
     try:
         write_json_atomic(Path(path), data)
@@ -196,7 +200,7 @@ def cmd_batch(args, prog: Progress) -> int:
         with prog.task(f"appending the calibration to {args.scds}"):
             v = save_calibration(a, _output(args.scds), note=args.note or "")
         _out(f"calibration saved as version {v} in {args.scds}")
-    _write_json(args.report, analysis_report(a, command="batch"))
+    _write_json(args.report, lambda: analysis_report(a, command="batch"))
     _export_plots(args, a)
     return EXIT_ESTIMATION if _fit_failed(a) else EXIT_OK
 
@@ -232,7 +236,7 @@ def cmd_discover(args, prog: Progress) -> int:
     if a.candidates:
         _out("")
         _lines(candidate_table(a.candidates, alpha=a.config.significance, limit=5))
-    _write_json(args.report, analysis_report(a, command="discover"))
+    _write_json(args.report, lambda: analysis_report(a, command="discover"))
     _export_plots(args, a)
     if _fit_failed(a):
         return EXIT_ESTIMATION

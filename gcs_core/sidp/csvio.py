@@ -152,34 +152,40 @@ def _parse_bulk(rows: list[str], linenos: list[int], names: list[str],
     return data
 
 
-def _split_lines(text: str, path: Path, required: tuple[str, ...], what: str):
-    """Header names, data rows and their 1-based line numbers."""
-    lines = text.split("\n")
-    header_at = None
-    for i, line in enumerate(lines):
-        s = line.strip()
-        if s and not s.startswith("#"):
-            header_at = i
-            break
-    if header_at is None:
-        raise InputError(f"empty file: no header line ({what} needs "
-                         f"{', '.join(required)})", file=path)
-    names = _parse_header(lines[header_at].rstrip("\r"), header_at + 1, path, required, what)
-    body = lines[header_at + 1:]
+def _header(text: str, path: Path, required: tuple[str, ...], what: str):
+    """The header line, found without splitting the file: ``(names, header_at, eol)``, the
+    0-based index of the header line and the offset of the newline that ends it."""
+    pos, header_at, n = 0, 0, len(text)
+    while pos < n:                                   # the first non-comment, non-blank line
+        eol = text.find("\n", pos)
+        eol = n if eol < 0 else eol
+        stripped = text[pos:eol].strip()
+        if stripped and not stripped.startswith("#"):
+            names = _parse_header(text[pos:eol].rstrip("\r"), header_at + 1, path, required, what)
+            return names, header_at, eol
+        pos, header_at = eol + 1, header_at + 1
+    raise InputError(f"empty file: no header line ({what} needs "
+                     f"{', '.join(required)})", file=path)
+
+
+def _split_lines(text: str, header_at: int, eol: int):
+    """Data rows after the header and their 1-based line numbers (comments and blank
+    lines skipped)."""
+    body = text[eol + 1:].split("\n")
     while body and not body[-1].strip():
         body.pop()  # trailing newline(s)
+    first = header_at + 2                            # line number of the first body line
     joined = "\n".join(body)
     if "#" not in joined and not _BLANK_LINE.search("\n" + joined):  # the usual case: no skips
-        return names, body, list(range(header_at + 2, header_at + 2 + len(body))), header_at + 1
+        return body, list(range(first, first + len(body)))
     rows, linenos = [], []
-    for i in range(header_at + 1, len(lines)):
-        line = lines[i]
+    for i, line in enumerate(body):
         s = line.strip()
         if not s or s[0] == "#":
             continue
         rows.append(line)
-        linenos.append(i + 1)
-    return names, rows, linenos, header_at + 1
+        linenos.append(first + i)
+    return rows, linenos
 
 
 def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",),
@@ -216,11 +222,11 @@ def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",),
         lineno = text[:text.index("\x00")].count("\n") + 1
         raise InputError("NUL byte in a text file (binary data?)", file=path, line=lineno)
     del raw
-    fast = _read_plain(path, text, required, what)
+    names, header_at, eol = _header(text, path, required, what)
+    fast = _read_plain(path, text, names, header_at, eol)
     if fast is not None:
-        names, data, lines = fast
-        return _finish(path, names, data, lines)
-    names, rows, linenos, _ = _split_lines(text, path, required, what)
+        return _finish(path, names, *fast)
+    rows, linenos = _split_lines(text, header_at, eol)
     data = _parse_bulk(rows, linenos, names, path)
     lines = np.asarray(linenos, dtype=np.int64)
     return _finish(path, names, data, lines)
@@ -229,33 +235,21 @@ def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",),
 _TRAILING_BLANKS = " \t\r\n\f\v"
 
 
-def _read_plain(path: Path, text: str, required: tuple[str, ...], what: str):
+def _read_plain(path: Path, text: str, names: list[str], header_at: int, eol: int):
     """The usual file, read without holding its lines as Python strings.
 
     A file whose data rows hold no comment, no blank line and no empty field is parsed by
     numpy's C reader straight from the file, in chunks: the memory it needs is the
     result's, not several times the text's (a week of 1 Hz telemetry stays flat). Returns
-    ``(names, data, line numbers)``, or None when the file needs the general path (which
-    also finds and names any bad field).
+    ``(data, line numbers)``, or None when the file needs the general path (which also
+    finds and names any bad field).
     """
-    pos = 0
-    header_at = 0
     n = len(text)
-    while pos < n:                                   # the header: first non-comment line
-        eol = text.find("\n", pos)
-        eol = n if eol < 0 else eol
-        stripped = text[pos:eol].strip()
-        if stripped and not stripped.startswith("#"):
-            break
-        pos, header_at = eol + 1, header_at + 1
-    else:
-        return None
-    names = _parse_header(text[pos:eol].rstrip("\r"), header_at + 1, path, required, what)
     end = n
     while end > eol and text[end - 1] in _TRAILING_BLANKS:
         end -= 1
     if end <= eol + 1:
-        return names, np.zeros((0, len(names))), np.zeros(0, np.int64)
+        return np.zeros((0, len(names))), np.zeros(0, np.int64)
     body_start = eol + 1
     # comments, blank lines, empty fields (NaN) and a lone CR (a line break to the C
     # reader, not to the ICD) take the general path
@@ -275,7 +269,7 @@ def _read_plain(path: Path, text: str, required: tuple[str, ...], what: str):
     if inf.any():
         i, k = np.argwhere(inf)[0]
         raise _field_error(path, int(header_at + 2 + i), int(k), names, "infinite value")
-    return names, data, np.arange(header_at + 2, header_at + 2 + rows, dtype=np.int64)
+    return data, np.arange(header_at + 2, header_at + 2 + rows, dtype=np.int64)
 
 
 def _finish(path: Path, names: list[str], data: np.ndarray, lines: np.ndarray) -> Table:
