@@ -86,6 +86,7 @@ class Analysis:
         self.candidates: list[Candidate] = []
         self.steps: list[Step] = []
         self.holdout_rms: dict[str, float] = {}
+        self._physics_needed: tuple | None = None      # (result it was scored on, rows)
         self._rebuild()
 
     # ------------------------------------------------------------------ set-up
@@ -253,9 +254,8 @@ class Analysis:
 
         if self.result is None:
             self.fit()
-        cached = getattr(self, "_physics_needed", None)
-        if cached is not None and cached[0] is self.result:
-            return cached[1]
+        if self._physics_needed is not None and self._physics_needed[0] is self.result:
+            return self._physics_needed[1]
         on_ids = set(self.effects_in_state())
         phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
         if not phys:
