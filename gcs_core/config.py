@@ -44,6 +44,8 @@ sample mission)::
     end = 7200.0
     step = 10.0
     gaps = [[1800.0, 2400.0]]
+    stars = "catalog"             # catalog | telemetry | sky | uniform (tracker stars)
+    catalog = "star_catalog.csv"  # CSV ra, dec, mag; relative to the mission directory
     [[prediction.maneuvers]]
     start = 3000.0
     duration = 600.0
@@ -80,6 +82,8 @@ from gcs_core.sidp.types import SENSOR_TYPES
 METHODS = ("batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole")
 AXES = ("roll", "pitch", "yaw")
+#: the predictor's star models for tracker frames (:mod:`gcs_core.predictor.stars`)
+STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")
 #: value of ``[models]`` that drops a sensor from the analysis
 MODEL_OFF = "off"
 #: the tables of a config and the keys each holds
@@ -90,7 +94,7 @@ TABLES: dict[str, tuple[str, ...]] = {
     "state": ("effects", "exclude", "attitude_sigma_deg", "elements"),
     "filter": ("block_seconds", "edit_k", "max_iterations", "edit_k_sensor"),
     "diagnosis": ("significance", "holdout_fraction"),
-    "prediction": ("start", "end", "step", "gaps", "maneuvers"),
+    "prediction": ("start", "end", "step", "gaps", "maneuvers", "stars", "catalog"),
     "verification": ("requirement_deg",),
 }
 ELEMENT_KEYS = ("role", "value", "sigma")
@@ -137,6 +141,10 @@ class AnalysisConfig:
         (Kalman), 0 for none, overriding ``edit_k``.
     significance, holdout_fraction : diagnosis options.
     pred_start, pred_end, pred_step, gaps, maneuvers : predictor data plan.
+    pred_stars : the predictor's star model (:data:`STAR_MODELS`); None: the plan's default
+        (``"catalog"`` when a catalog is given, else ``"sky"``).
+    pred_catalog : star catalog file (``prediction.catalog``, resolved against the
+        mission directory), or None (``star_catalog.csv`` of the mission, if any).
     requirement_deg : VERIF attitude accuracy requirement.
     name : an optional label (not part of :meth:`digest`).
     """
@@ -162,6 +170,8 @@ class AnalysisConfig:
     pred_step: float = 10.0
     gaps: tuple[tuple[float, float], ...] = ()
     maneuvers: tuple[Maneuver, ...] = ()
+    pred_stars: str | None = None
+    pred_catalog: Path | None = None
     requirement_deg: float = 0.01
     name: str | None = None
 
@@ -379,6 +389,13 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     if pred_start is not None and pred_end is not None:
         _require(pred_end > pred_start, "prediction.end",
                  f"must be later than prediction.start ({pred_start}), not {pred_end}", f)
+    pred_stars = _choice(pr, "stars", STAR_MODELS, None, "prediction.stars", f) if "stars" in pr else None
+    pred_catalog = None
+    if "catalog" in pr:
+        cat = pr["catalog"]      # a file beside any stars but "catalog": DataPlan refuses it
+        _require(isinstance(cat, str) and cat.strip() != "" and "\0" not in cat, "prediction.catalog",
+                 f"must be a string, not {_show(cat)}", f)
+        pred_catalog = Path(os.path.normpath(mission / cat))
     vf = tables["verification"]
     _unknown(vf, TABLES["verification"], "verification.", f)
     return AnalysisConfig(
@@ -393,6 +410,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         pred_start=pred_start, pred_end=pred_end,
         pred_step=_number(pr, "step", 10.0, f, positive=True, prefix="prediction."),
         gaps=tuple((float(a), float(b)) for a, b in gaps), maneuvers=tuple(mans),
+        pred_stars=pred_stars, pred_catalog=pred_catalog,
         requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
                                 prefix="verification."),
         name=name)
@@ -467,6 +485,13 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
         out["prediction"]["start"] = cfg.pred_start
     if cfg.pred_end is not None:
         out["prediction"]["end"] = cfg.pred_end
+    if cfg.pred_stars is not None:
+        out["prediction"]["stars"] = cfg.pred_stars
+    if cfg.pred_catalog is not None:             # relative to the mission, as it is read
+        try:
+            out["prediction"]["catalog"] = Path(_relpath(cfg.pred_catalog, cfg.mission)).as_posix()
+        except ValueError:
+            out["prediction"]["catalog"] = Path(cfg.pred_catalog).as_posix()
     return out
 
 

@@ -32,11 +32,12 @@ Sensor availability (seed §4.3, "the times at which the data is available"):
   starts at the Sun sighting); whether the Sun crosses the slit and the scan cone crosses the
   Earth is the models' own ``valid`` flag;
 * magnetometer, gyro: always.
+
+Which star a tracker frame identifies (the star models) is :mod:`gcs_core.predictor.stars`.
 """
 
 from __future__ import annotations
 
-import functools
 from typing import Mapping
 
 import numpy as np
@@ -56,9 +57,6 @@ EARTH_EXCLUSION_DEG = 10.0
 SUN_EXCLUSION_DEG = 30.0
 #: visible fraction of the solar disk that counts as full sunlight (round-off margin)
 FULL_SUN = 1.0 - 1e-9
-#: stars in the synthetic sky (about the count brighter than visual magnitude 6) and its seed
-SKY_STARS = 5000
-SKY_SEED = 1988
 #: body error angle element names of :class:`BodyErrorAttitude`
 ERR = ("err.x", "err.y", "err.z")
 
@@ -204,93 +202,6 @@ def available(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np
         near_sun = np.einsum("ni,ni->n", bore, sun_hat) > np.cos(sun_margin)
         return ~earth_occults(r, bore, earth_margin) & ~near_sun
     return np.ones(t.shape, dtype=bool)
-
-
-# ----------------------------------------------------------------------------------------
-#: the plastic number's powers: R2 low-discrepancy sequence in the unit square
-_PLASTIC = 1.324717957244746
-_R2 = (1.0 / _PLASTIC, 1.0 / _PLASTIC ** 2)
-
-
-def synthetic_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np.ndarray:
-    """(N, 3) GCI unit vectors of one star per frame, spread evenly over the field of view.
-
-    "Headers only" (seed §3.2.2): no catalog. The k-th frame's star sits at
-    ``(h, v) = fov · (2 u_k − 1)`` in the tracker's square field, ``u_k`` the R2
-    low-discrepancy sequence, so that its partials (Eq 4-29, 4-31) sample the field as
-    real stars do; then ``F_I = (M C)ᵀ F_S``.
-    """
-    fov = common.fov_rad(sensor) or 4.0 * DEG
-    k = np.arange(1, t.size + 1, dtype=float)
-    u = np.mod(0.5 + np.outer(k, _R2), 1.0)
-    h = fov * (2.0 * u[:, 0] - 1.0)
-    v = fov * (2.0 * u[:, 1] - 1.0)
-    F_S = np.column_stack([np.cos(h) * np.cos(v), np.cos(h) * np.sin(v), np.sin(h)])
-    M_C = _alignment(sensor)[None] @ nominal.dcm(t)
-    return np.einsum("nji,nj->ni", M_C, F_S)
-
-
-class SyntheticSky:
-    """A fixed pseudo-random sky for star-tracker headers (:func:`sky_stars`).
-
-    ``n`` stars uniform on the sphere with magnitudes ``m ∈ [m_lo, m_hi]`` whose
-    cumulative count grows as ``10^(0.48 m)`` (the bright-star counts), drawn once from
-    a fixed seed so that every prediction sees the same sky.
-    """
-
-    def __init__(self, n: int = SKY_STARS, m_lo: float = 1.0, m_hi: float = 6.0, seed: int = SKY_SEED):
-        from scipy.spatial import cKDTree
-
-        rng = np.random.default_rng(seed)
-        z = rng.uniform(-1.0, 1.0, n)
-        lon = rng.uniform(0.0, 2.0 * np.pi, n)
-        c = np.sqrt(1.0 - z * z)
-        self.u_I = np.column_stack([c * np.cos(lon), c * np.sin(lon), z])
-        k = 0.48 * np.log(10.0)
-        x = rng.uniform(0.0, 1.0, n)
-        self.mag = np.log(np.exp(k * m_lo) + x * (np.exp(k * m_hi) - np.exp(k * m_lo))) / k
-        self.tree = cKDTree(self.u_I)
-
-
-@functools.lru_cache(maxsize=1)
-def default_sky() -> SyntheticSky:
-    """The shared synthetic sky (built once)."""
-    return SyntheticSky()
-
-
-def sky_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude,
-              sky: SyntheticSky) -> tuple[np.ndarray, np.ndarray]:
-    """Stars of a fixed sky seen by a tracker: ``(ok, F_I)``.
-
-    At each frame the stars inside the square field ``|h|, |v| ≤ fov`` are the
-    candidates and one is reported with probability proportional to its brightness
-    ``10^(−0.4 m)``, drawn with the golden-ratio sequence (deterministic). A pointing
-    that stays put keeps seeing the same few stars, as a tracker on the real sky does.
-    Returns (N,) frames with a star and (N, 3) its GCI direction (NaN where none).
-    """
-    fov = common.fov_rad(sensor) or 4.0 * DEG
-    M_C = _alignment(sensor)[None] @ nominal.dcm(t)
-    bore = M_C[:, 0, :]
-    radius = 2.0 * np.sin(0.5 * fov * np.sqrt(2.0) * 1.01)
-    cand = sky.tree.query_ball_point(bore, radius)
-    u = np.mod(0.5 + np.arange(1, t.size + 1) * 0.6180339887498949, 1.0)
-    F = np.full((t.size, 3), np.nan)
-    ok = np.zeros(t.size, dtype=bool)
-    for k, idx in enumerate(cand):
-        if not idx:
-            continue
-        idx = np.asarray(idx)
-        FS = sky.u_I[idx] @ M_C[k].T
-        inside = (FS[:, 0] > 0) & (np.abs(np.arcsin(np.clip(FS[:, 2], -1, 1))) <= fov) & \
-            (np.abs(np.arctan2(FS[:, 1], FS[:, 0])) <= fov)
-        if not np.any(inside):
-            continue
-        sel = idx[inside]
-        w = np.cumsum(10.0 ** (-0.4 * sky.mag[sel]))
-        j = sel[min(int(np.searchsorted(w, u[k] * w[-1])), sel.size - 1)]
-        F[k] = sky.u_I[j]
-        ok[k] = True
-    return ok, F
 
 
 def nominal_spin_axis(ra_deg: float, dec_deg: float) -> np.ndarray:

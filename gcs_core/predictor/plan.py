@@ -12,7 +12,10 @@ segments interleaved with specified data gaps is usually adequate" (§4.3). A
   ``φ = φ0 + φ̇ (t − t_m)`` (roll; pitch and yaw alike), and holds its new value after;
 * per-sensor cadences (otherwise taken from the telemetry, a ``cadence`` data-book key,
   or 1 s — 10 s for star trackers);
-* the nominal roll/pitch/yaw at ``start`` (or the spin rate of a spinner).
+* the nominal roll/pitch/yaw at ``start`` (or the spin rate of a spinner);
+* the star model of the tracker frames (which star each frame identifies,
+  :mod:`gcs_core.predictor.stars`): a star catalog file, the stars of the mission's own
+  tracker telemetry, a synthetic sky, or stars spread evenly over the field.
 
 Gaps are telemetry gaps of the *observation* sensors. The gyro, which carries the
 attitude between observations (Eq 4-38), is taken to run through them.
@@ -21,12 +24,13 @@ attitude between observations (Eq 4-38), is taken to run through them.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Mapping
 
 import numpy as np
 
-from gcs_core.config import AXES, AnalysisConfig, Maneuver
+from gcs_core.config import AXES, STAR_MODELS, AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.units import DEG
 
@@ -35,7 +39,6 @@ DEFAULT_CADENCE_S = 1.0
 #: default cadence of star trackers [s] (one identified star every 10 s)
 DEFAULT_TRACKER_CADENCE_S = 10.0
 FRAME_SOURCES = ("plan", "telemetry")
-STAR_MODELS = ("sky", "uniform")
 
 
 @dataclass(frozen=True)
@@ -56,10 +59,15 @@ class DataPlan:
     frames : ``"plan"`` — generate the frame times from the cadences, the gaps and the
         sensor availability; ``"telemetry"`` — use the telemetry's own frame times and
         star identifications (values ignored), minus the gaps.
-    stars : star-tracker headers: ``"sky"`` — the stars of a fixed synthetic sky that
-        the nominal boresight sweeps (a still pointing sees the same few stars);
-        ``"uniform"`` — one star per frame spread evenly over the field of view (the
-        expected geometry, slightly optimistic for scale factors at a still pointing).
+    stars : star-tracker headers (:data:`~gcs_core.config.STAR_MODELS`), the stars the
+        nominal boresight sweeps, one per frame drawn ∝ brightness: ``"catalog"`` — of
+        the star catalog ``catalog`` (CSV ``ra, dec, mag``); ``"telemetry"`` — the
+        distinct stars identified in the mission's tracker telemetry; ``"sky"`` — of a
+        fixed synthetic sky (right on average, but a still pointing's σ of the scale
+        factors depends on exactly which stars are in the field); ``"uniform"`` — one
+        star per frame spread evenly over the field of view (no catalog at all).
+    catalog : the star catalog file of ``stars = "catalog"``; a relative path is taken
+        from the mission directory; None: the mission's ``star_catalog.csv``.
     """
 
     start: float
@@ -72,6 +80,7 @@ class DataPlan:
     spin_rate: float | None = None
     frames: str = "plan"
     stars: str = "sky"
+    catalog: Path | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.start) and math.isfinite(self.end) and self.end > self.start):
@@ -94,6 +103,13 @@ class DataPlan:
                 raise InputError(f"cadence must be > 0, got {c}", key=f"cadence.{name}")
         if self.stars not in STAR_MODELS:
             raise InputError(f"stars must be one of {', '.join(STAR_MODELS)}", key="prediction.stars")
+        if self.catalog is not None:
+            if self.stars != "catalog":
+                raise InputError(f"a catalog goes with stars = \"catalog\", not {self.stars!r}",
+                                 key="prediction.catalog")
+            if not str(self.catalog).strip():
+                raise InputError("must be the star catalog file, not an empty name", key="prediction.catalog")
+            object.__setattr__(self, "catalog", Path(self.catalog))
         if self.frames not in FRAME_SOURCES:
             raise InputError(f"frames must be one of {', '.join(FRAME_SOURCES)}",
                              key="prediction.frames")
@@ -105,7 +121,8 @@ class DataPlan:
         """The plan of an analysis config's ``[prediction]`` table.
 
         ``span`` supplies start/end where the config leaves them out (e.g. the
-        telemetry span); keyword ``overrides`` replace any field.
+        telemetry span); keyword ``overrides`` replace any field. A config that names a
+        catalog but no star model means ``stars = "catalog"``.
         """
         start, end = cfg.pred_start, cfg.pred_end
         if (start is None or end is None) and span is None:
@@ -114,8 +131,20 @@ class DataPlan:
         kw = dict(start=float(span[0] if start is None else start),
                   end=float(span[1] if end is None else end),
                   step=cfg.pred_step, gaps=tuple(cfg.gaps), maneuvers=tuple(cfg.maneuvers))
+        stars = cfg.pred_stars or ("catalog" if cfg.pred_catalog is not None else None)
+        if stars is not None:
+            kw["stars"] = stars
+        if cfg.pred_catalog is not None:
+            kw["catalog"] = Path(cfg.pred_catalog)
         kw.update(overrides)
-        return cls(**kw)
+        if kw.get("stars", "sky") != "catalog" and "catalog" not in overrides and "stars" in overrides:
+            kw.pop("catalog", None)         # an override to another star model drops the file
+        try:
+            return cls(**kw)
+        except InputError as err:
+            if err.file is None and err.key is not None and err.key.startswith("prediction."):
+                raise replace(err, file=cfg.path) from None
+            raise
 
     # ------------------------------------------------------------------ times
     def output_times(self) -> np.ndarray:

@@ -108,6 +108,8 @@ class PredictionResult:
                 "plan": None if self.plan is None else {
                     "start": self.plan.start, "end": self.plan.end, "step": self.plan.step,
                     "gaps": [list(g) for g in self.plan.gaps], "frames": self.plan.frames,
+                    "stars": self.plan.stars,
+                    "catalog": None if self.plan.catalog is None else str(self.plan.catalog),
                     "maneuvers": [{"start": m.start, "duration": m.duration, "axis": m.axis,
                                    "rate_deg_s": m.rate_deg_s} for m in self.plan.maneuvers]},
                 "state": [{"name": r["name"], "unit": r["unit"], "sigma": num(r["sigma"]),

@@ -8,14 +8,16 @@ same SODL state, same models, same reference vectors — from frame *times* only
 
 1. frame times per sensor: the cadence slots of the span, minus the gaps, minus the
    slots where the sensor cannot see (:func:`gcs_core.predictor.nominal.available`)
-   and, for a star tracker on the synthetic sky, those with no star in the field;
+   and, for a star tracker with a catalog, those with no catalog star in the field;
    or, with ``plan.frames = "telemetry"``, the telemetry's own times;
 2. telemetry tables holding those times and placeholder values, except what the
-   geometry needs: the identified star of a tracker frame (a star of the fixed
-   synthetic sky, :func:`~gcs_core.predictor.nominal.sky_stars`, or with
-   ``plan.stars = "uniform"`` one spread evenly over the field,
-   :func:`~gcs_core.predictor.nominal.synthetic_stars`), a spinner's spin rate, and
-   the gyro rates that carry the nominal attitude (Eq 4-32 with Eq 4-33 rates);
+   geometry needs: the identified star of a tracker frame
+   (:mod:`gcs_core.predictor.stars`: with ``plan.stars`` = ``"catalog"``,
+   ``"telemetry"`` or ``"sky"`` a star of that catalog in the field, drawn ∝
+   brightness by :func:`~gcs_core.predictor.stars.catalog_stars`; with ``"uniform"``
+   one spread evenly over the field, :func:`~gcs_core.predictor.stars.synthetic_stars`),
+   a spinner's spin rate, and the gyro rates that carry the nominal attitude (Eq 4-32
+   with Eq 4-33 rates);
 3. :func:`~gcs_core.filtr.problem.build_problem` on those tables, the attitude
    elements set to the nominal attitude at ``start``, and each sensor's ``y`` replaced
    by its prediction at the nominal state, so every residual is zero and only the
@@ -39,8 +41,9 @@ from gcs_core.frames.reference import ra_dec_from_vector
 from gcs_core.frames.rotations import dcm_to_euler123, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry
-from gcs_core.predictor.nominal import (ManeuverAttitude, NominalAttitude, available, default_sky,
-                                        nominal_spin_axis, sky_stars, synthetic_stars)
+from gcs_core.predictor.nominal import ManeuverAttitude, NominalAttitude, available, nominal_spin_axis
+from gcs_core.predictor.stars import (STAR_CATALOG_FILE, catalog_stars, default_sky, read_catalog,
+                                      synthetic_stars, telemetry_catalog)
 from gcs_core.predictor.plan import DEFAULT_CADENCE_S, DEFAULT_TRACKER_CADENCE_S, DataPlan
 from gcs_core.sidp.importer import TELEMETRY_COLUMNS, ImportedMission
 from gcs_core.sidp.prepare import PhysicsOptions
@@ -164,6 +167,39 @@ def _gyro_table(sensor: SensorSpec, plan: DataPlan, cadence: float, nominal: Nom
     return _table(sensor.name, rows, {"wx": y[:, 0], "wy": y[:, 1], "wz": y[:, 2]})
 
 
+def star_catalog(spec: MissionSpec, plan: DataPlan, telemetry: Mapping[str, Table]):
+    """The catalog of ``plan.stars`` (None for ``"uniform"``).
+
+    ``"catalog"``: ``plan.catalog`` (relative to the mission directory), else the
+    mission's ``star_catalog.csv``; ``"telemetry"``: the distinct stars of the trackers'
+    telemetry; ``"sky"``: the synthetic sky.
+    """
+    if plan.stars == "uniform":
+        return None
+    if plan.stars == "sky":
+        return default_sky()
+    if plan.stars == "telemetry":
+        cat = telemetry_catalog(telemetry[s.name] for s in spec.sensors
+                                if s.type == "star_tracker" and s.name in telemetry)
+        if cat is None:
+            raise InputError('stars = "telemetry" needs star-tracker telemetry with identified stars '
+                             '(none in this mission): give a catalog instead', key="prediction.stars")
+        return cat
+    path = plan.catalog
+    root = Path(spec.root) if spec.root is not None else None
+    if path is None:
+        if root is None or not (root / STAR_CATALOG_FILE).is_file():
+            raise InputError(f'stars = "catalog" needs a star catalog: give prediction.catalog (CSV ra, '
+                             f'dec, mag) or put {STAR_CATALOG_FILE} in the mission directory',
+                             key="prediction.catalog")
+        path = root / STAR_CATALOG_FILE
+    elif not path.is_absolute() and root is not None:
+        path = root / path
+    if not path.is_file():
+        raise InputError("star catalog file not found", file=path, key="prediction.catalog")
+    return read_catalog(path)
+
+
 def _rpy0(spec: MissionSpec, plan: DataPlan, eph: Ephemeris, onboard: Table | None) -> np.ndarray:
     """Nominal roll/pitch/yaw at ``start``: the plan's, the onboard attitude's, or zeros."""
     if plan.rpy0 is not None:
@@ -209,6 +245,8 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
         nominal = NominalAttitude(spec.attitude_mode, eph, plan, _rpy0(spec, plan, eph, onboard))
     gyros = [s for s in spec.sensors if s.type == "gyro"]
     gyro = gyros[0] if (gyros and use_gyro and not spinning) else None
+    trackers = any(s.type == "star_tracker" for s in spec.sensors)
+    catalog = star_catalog(spec, plan, telemetry) if (trackers and not from_tm) else None
 
     tables: dict[str, Table] = {}
     cadence: dict[str, float] = {}
@@ -239,8 +277,8 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
             t = t[~plan.in_gap(t)]
             t = t[available(s, t, nominal)] if t.size else t
             stars_I = None
-            if s.type == "star_tracker" and plan.stars == "sky":
-                seen, stars_I = sky_stars(s, t, nominal, default_sky())
+            if s.type == "star_tracker" and catalog is not None:
+                seen, stars_I = catalog_stars(s, t, nominal, catalog)
                 t, stars_I = t[seen], stars_I[seen]
             table = _synthetic_table(s, t, nominal, spin_rate, stars_I)
         if len(table) == 0:

@@ -8,6 +8,10 @@
     out_dir/telemetry/<SENSOR>.csv  one file per sensor
     out_dir/aux.csv                 torquer dipoles and tam_temp (three-axis missions)
     out_dir/onboard_attitude.csv    onboard quaternions (three-axis missions)
+    out_dir/star_catalog.csv        the simulation's star catalog ``ra, dec, mag`` (deg, deg,
+                                    visual magnitude), when the mission has a star tracker:
+                                    the run catalog an analyst would hold (the predictor's
+                                    ``stars = "catalog"``); not named in mission.toml
 
 and, at a separate place chosen by the caller, ``truth.json``: the true parameters of every
 sensor, the hidden effects (ids ``<SENSOR>.<effect>`` / ``model.<effect>``), the orbit,
@@ -45,7 +49,10 @@ from gcs_core.sim.truth import World, onboard_quaternions
 
 log = logging.getLogger(__name__)
 
-__all__ = ["write_mission", "validate", "time_grid", "mission_toml"]
+__all__ = ["write_mission", "write_catalog", "validate", "time_grid", "mission_toml", "STAR_CATALOG_FILE"]
+
+#: the catalog file of the mission directory (read by :mod:`gcs_core.predictor.stars`)
+STAR_CATALOG_FILE = "star_catalog.csv"
 
 _EPH_COLS = ("t", "rx", "ry", "rz", "vx", "vy", "vz", "sx", "sy", "sz")
 _SPINNER_TYPES = ("plane_field_sun", "horizon")
@@ -148,6 +155,15 @@ def mission_toml(cfg: MissionConfig) -> str:
     return "\n".join(out) + "\n"
 
 
+def write_catalog(catalog: StarCatalog, path: Path, seed: int) -> None:
+    """``star_catalog.csv``: one row ``ra, dec, mag`` per star (telemetry's number format)."""
+    with open(path, "w", newline="\n") as fh:
+        fh.write(f"# star catalog of the simulation (catalog_seed {seed}): J2000 ra, dec [deg], "
+                 "visual magnitude\nra,dec,mag\n")
+        np.savetxt(fh, np.column_stack([catalog.ra_deg, catalog.dec_deg, catalog.mag]),
+                   fmt="%.12g", delimiter=",")
+
+
 # --- generation ----------------------------------------------------------------------------
 def _generate(cfg: MissionConfig, root: Path) -> dict:
     world = World(cfg)
@@ -165,6 +181,8 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
             files["onboard"] = _Csv(root / "onboard_attitude.csv", ("t", "q1", "q2", "q3", "q4"),
                                     ["%.12f"] * 5)
         catalog = StarCatalog(cfg.catalog_seed) if any(s.type == "star_tracker" for s in cfg.sensors) else None
+        if catalog is not None:
+            write_catalog(catalog, root / STAR_CATALOG_FILE, cfg.catalog_seed)
         sightings = None
         t_max = D
         if cfg.spinning:
