@@ -160,7 +160,7 @@ def run(hours: float, folder: Path, skip_scipy: bool, *, repeats: int = 3, scipy
     _, _, _, m = iteration()
     t_iter = best_of(iteration, 5 * repeats)
     H = np.random.default_rng(0).standard_normal((m, len(names)))
-    t_roof = best_of(lambda: H.T @ H, 5 * repeats)
+    t_roof = best_of(lambda H=H: H.T @ H, 5 * repeats)
     del H
     print(f"one gcs iteration: {t_iter:.3f} s; bare HᵀWH ({m}×{len(names)}): {t_roof:.3f} s; "
           f"ratio {t_iter / t_roof:.1f}× the roofline")

@@ -28,7 +28,8 @@ def test_partials_central_difference(case, seed):
     report = assert_partials_match(model, geom, params, scheme="central", rtol=CENTRAL_DIFFERENCE_RTOL)
     assert report.n_valid == geom.n            # the fixtures keep every frame usable
     names = {e.name for e in report.elements}
-    assert names == {p.name for p in model.parameters()} | {"att_1", "att_2", "att_3"}
+    second = {f"d2:{a},{b}" for a, b in model.predict(geom, params).d2_par}
+    assert names == {p.name for p in model.parameters()} | {"att_1", "att_2", "att_3"} | second
 
 
 @pytest.mark.parametrize("case", sorted(CASES))

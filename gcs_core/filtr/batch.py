@@ -10,6 +10,17 @@ iteration k linearizes every sensor at ``x_k`` and takes the Gauss–Newton step
 equilibrated (scaled to unit diagonal) and solved by Cholesky; nothing is inverted
 except the final covariance, which is formed from the Cholesky factor.
 
+Steps. A step that raises the cost is re-solved with Levenberg–Marquardt damping. Near
+the noise floor the step adds the Newton terms of the models' parameter pairs
+(:mod:`~gcs_core.filtr.curvature`) and, after a step that lands there and moves a
+sensor's own non-linear parameters (the FSS transfer function), minimizes over those
+with everything else held before the next linearization
+(:mod:`~gcs_core.filtr.local_refine`). Both only shorten the path: the fixed point is
+Eq 3-1's, and the covariance is Eq 3-2's (the Gauss–Newton information). The iteration
+stops when the next step is below ``tol_step_sigma`` of every σ (the solution is then the
+last linearization point, whose residuals and covariance are those reported) or the cost
+stops falling.
+
 Observability. The *data* information ``Hᵀ R⁻¹ H`` is examined after equilibration: an
 eigenvalue below ``rank_tol`` of the largest marks a combination of elements the data
 cannot separate (e.g. a magnetometer misalignment against the attitude at an inertial
@@ -43,10 +54,11 @@ import numpy as np
 from scipy import linalg
 
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr.linearization import Linearization, iter_blocks
+from gcs_core.filtr import curvature, local_refine
+from gcs_core.filtr.batch_results import (BatchResult, Residuals, SensorResiduals, accumulate,  # noqa: F401
+                                         make_residuals, residuals_from, weighted_masks)
+from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.problem import Problem
-from gcs_core.models.base import ObservationModel
-from gcs_core.sodl.state import StateVector
 
 log = logging.getLogger(__name__)
 
@@ -84,165 +96,10 @@ class BatchOptions:
         return k or None
 
 
-@dataclass(frozen=True)
-class SensorResiduals:
-    """Post-fit residuals of one sensor.
-
-    Attributes
-    ----------
-    t : (N,) frame times; y, y_pred, residual, normalized : (N, m).
-    used : (N,) frames used in the fit (valid and not edited).
-    valid : (N,) frames where the model is defined.
-    edited : (N,) frames flagged by k-σ editing.
-    rms : (m,) RMS of used residuals per component; rms_normalized : scalar, 1.0 = noise.
-
-    ``normalized`` (``residual / sigma``) and, for a model whose residual is the plain
-    difference, ``y_pred`` (``y − residual``, to round-off) may be passed as None: they
-    are then formed when read rather than stored (two (N, m) arrays less on long spans).
-    """
-
-    name: str
-    components: tuple[str, ...]
-    unit: str
-    t: np.ndarray
-    y: np.ndarray
-    y_pred_: np.ndarray | None = field(repr=False)
-    residual: np.ndarray
-    normalized_: np.ndarray | None = field(repr=False)
-    sigma: np.ndarray
-    used: np.ndarray
-    valid: np.ndarray
-    edited: np.ndarray
-
-    @property
-    def y_pred(self) -> np.ndarray:
-        return self.y - self.residual if self.y_pred_ is None else self.y_pred_
-
-    @property
-    def normalized(self) -> np.ndarray:
-        return self.residual / self.sigma if self.normalized_ is None else self.normalized_
-
-    @property
-    def n(self) -> int:
-        return int(np.count_nonzero(self.used))
-
-    @property
-    def rms(self) -> np.ndarray:
-        r = self.residual[self.used]
-        return np.sqrt(np.mean(r ** 2, axis=0)) if r.size else np.full(self.residual.shape[1], np.nan)
-
-    @property
-    def rms_normalized(self) -> float:
-        r = self.normalized[self.used]
-        return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
-
-    @property
-    def chi2(self) -> float:
-        return float(np.sum(self.normalized[self.used] ** 2))
-
-
-@dataclass(frozen=True)
-class BatchResult:
-    """Outcome of a batch fit, with its diagnostics.
-
-    Attributes
-    ----------
-    state : the state with solve-for values updated.
-    solve_for, consider : element names.
-    x : (n,) solve-for estimates; P : (n, n) their covariance (noise only);
-    P_consider : (n, n) covariance including consider elements.
-    sigma : dict name -> 1-sigma (with consider contributions).
-    residuals : sensor -> :class:`SensorResiduals`.
-    chi2, dof : data chi-square and degrees of freedom (used components − n).
-    cost_history : cost per iteration; iterations; status; message.
-    information : (n, n) data-only information Hᵀ R⁻¹ H.
-    unobservable : human-readable combinations the data cannot separate.
-    """
-
-    state: StateVector
-    solve_for: tuple[str, ...]
-    consider: tuple[str, ...]
-    x: np.ndarray
-    P: np.ndarray
-    P_consider: np.ndarray
-    residuals: dict[str, SensorResiduals]
-    chi2: float
-    dof: int
-    cost_history: tuple[float, ...]
-    iterations: int
-    status: str
-    message: str
-    information: np.ndarray
-    unobservable: tuple[str, ...] = ()
-    consider_budget: Mapping[str, np.ndarray] = field(default_factory=dict)
-
-    @property
-    def sigma(self) -> dict[str, float]:
-        return {n: float(np.sqrt(self.P_consider[i, i])) for i, n in enumerate(self.solve_for)}
-
-    @property
-    def values(self) -> dict[str, float]:
-        return self.state.values()
-
-    def correlation(self) -> np.ndarray:
-        d = np.sqrt(np.diag(self.P))
-        return self.P / np.outer(d, d)
-
-
-# ----------------------------------------------------------------------------------------
-def weighted_masks(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray]):
-    for lin in lins:
-        used = lin.valid & ~edited.get(lin.name, np.zeros(lin.valid.shape, bool))
-        yield lin, used
-
-
-def accumulate(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray], n: int):
-    """``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ² = Σ rᵀ R⁻¹ r`` over used frames
-    (whole-span :class:`Linearization` form; the estimators use :func:`normal_equations`)."""
-    A = np.zeros((n, n))
-    b = np.zeros(n)
-    chi2 = 0.0
-    m_used = 0
-    for lin, used in weighted_masks(lins, edited):
-        if not np.any(used):
-            continue
-        # R^-1/2 with unused frames weighted zero (cheaper than copying the used rows)
-        w = used[:, None] / lin.sigma[None, :]                # (N, m)
-        rw = (lin.r * w).reshape(-1)                          # R^-1/2 r
-        if n:
-            Hw = (lin.H * w[:, :, None]).reshape(-1, n)       # R^-1/2 H
-            A += Hw.T @ Hw
-            b += Hw.T @ rw
-        chi2 += float(rw @ rw)
-        m_used += int(np.count_nonzero(used)) * lin.r.shape[1]
-    return A, b, chi2, m_used
-
-
-@dataclass
-class Residuals:
-    """Per-sensor buffers of one pass, reused across passes: r (N, m), valid (N,), and
-    y_pred (N, m) for models whose residual is not the plain difference ``y − y_pred``
-    (the others give it back as ``y − r``, :class:`SensorResiduals`)."""
-
-    y_pred: dict[str, np.ndarray] = field(default_factory=dict)
-    r: dict[str, np.ndarray] = field(default_factory=dict)
-    valid: dict[str, np.ndarray] = field(default_factory=dict)
-
-    def ensure(self, problem: Problem) -> "Residuals":
-        for sd in problem.sensors:
-            if sd.name not in self.r:
-                m = len(sd.sigma)
-                if type(sd.model).residual is not ObservationModel.residual:
-                    self.y_pred[sd.name] = np.empty((sd.n, m))
-                self.r[sd.name] = np.empty((sd.n, m))
-                self.valid[sd.name] = np.empty(sd.n, bool)
-        return self
-
-
 def normal_equations(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
                      edited: Mapping[str, np.ndarray] | None = None, *, jacobian: bool = True,
                      store: Residuals | None = None, chunk: int | None = None,
-                     work: dict | None = None):
+                     work: dict | None = None, second_order: np.ndarray | None = None):
     """One streaming pass: ``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ²`` and the number of
     used measurements, over used frames (valid and not ``edited``), chunk by chunk.
 
@@ -250,6 +107,8 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     the predictions, residuals and validity of every frame are written into its buffers
     (O(N·m), the post-fit residuals). Memory otherwise: one chunk (``work``, a dict the
     caller keeps across passes, holds the chunk buffers so that they are reused).
+    ``second_order`` (n, n), if given, receives the Newton terms of the models' parameter
+    pairs (:mod:`gcs_core.filtr.curvature`).
     """
     n = len(columns) if jacobian else 0
     A = np.zeros((n, n))
@@ -257,7 +116,8 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     chi2 = 0.0
     m_used = 0
     for blk in iter_blocks(problem, values, columns if jacobian else (), exclude=edited or {},
-                           weighted=True, jacobian=jacobian, chunk=chunk, work=work, augmented=True):
+                           weighted=True, jacobian=jacobian, chunk=chunk, work=work, augmented=True,
+                           second_order=second_order is not None):
         if store is not None:
             if blk.name in store.y_pred:
                 store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
@@ -275,6 +135,8 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
         # Hᵀ R⁻¹ H, Hᵀ R⁻¹ r and rᵀ R⁻¹ r
         c = blk.cols
         k = c.size
+        if blk.curv:
+            curvature.add_block(second_order, c, blk.curv)
         G = blk.Hr.T @ blk.Hr
         chi2 += float(G[k, k])
         if k == n and np.array_equal(c, np.arange(n)):
@@ -352,22 +214,29 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     buffers = Residuals().ensure(problem)
     work: dict = {}                     # chunk buffers, reused by every pass
     stored = [None]                     # (x, edits, A, χ², m) of the pass the buffers hold
+    near = [False]                      # the last linearization is near the noise floor
 
     def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):
             values[nm] = x_eval[j]
+        # the Newton terms of the models' parameter pairs, unless the sensors' own
+        # refinement (local_refine) takes care of them
+        K_ = np.zeros((n, n)) if with_jacobian else None
         A_, b_, chi2_, m_ = normal_equations(problem, values, names, edits, jacobian=with_jacobian,
-                                             store=buffers if with_jacobian else None, work=work)
+                                             store=buffers if with_jacobian else None, work=work,
+                                             second_order=K_)
         if with_jacobian:
             stored[0] = (x_eval.copy(), edits, A_, chi2_, m_)
+            near[0] = curvature.near_floor(chi2_, m_)
         counts[0] = m_
         d_ = x_bar - x_eval
         cost_ = chi2_ + float(np.sum(prior_info * d_ ** 2))
-        return A_, b_, cost_, d_
+        return A_, b_, cost_, d_, K_
 
     edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
+    groups = local_refine.own_nonlinear(problem, names)   # a sensor's own non-linear elements
     for edit_pass in range(opts.edit_passes if edits_on else 1):
-        A, b, cost, dx_prior = evaluate(x)
+        A, b, cost, dx_prior, K = evaluate(x)
         lam_state = 0.0
         if not np.isfinite(cost):
             raise EstimationError("the initial state gives non-finite residuals; check the a-priori values")
@@ -382,7 +251,16 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                 raise UnobservableError("the normal matrix is singular: the data cannot separate "
                                         + "; ".join(combos or ["(unidentified)"]), combos) from None
             sig = np.sqrt(np.diag(P))
-            small = np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300))
+            N_newton = None if K is None else curvature.newton_matrix(Nmat, K, cost, counts[0])
+            if N_newton is not None:        # near the noise floor: the Newton step (curvature.py)
+                Nmat = N_newton
+                step = _solve_normal(Nmat, b + prior_info * dx_prior)[0]
+            if it and np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)):
+                # converged: the next step is negligible against σ; the solution is this
+                # point, whose residuals and covariance the last pass already holds
+                status, message = "converged", f"converged after {it} iterations"
+                it_total -= 1
+                break
             # Levenberg–Marquardt safeguard: a Gauss–Newton step that raises the cost (a
             # model far from the data, or a nearly unobservable non-linear direction such
             # as an FSS frequency k with amplitude A3 ≈ 0) is re-solved with the normal
@@ -396,6 +274,13 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                 if lam > 0:
                     step, _ = _solve_normal(Nmat + lam * np.diag(np.diag(Nmat)), rhs)
                 x_try = x + step
+                # a step expected to land near the noise floor (the Gauss–Newton prediction
+                # cost − rhsᵀ step) that moves a sensor's own non-linear elements: minimize
+                # over those first (local_refine)
+                if attempt == 0 and groups and curvature.near_floor(cost - float(rhs @ step), counts[0]) \
+                        and local_refine.worth(step, sig, names, groups):
+                    x_try = local_refine.refine_local(problem, values, names, x_try, x_bar, prior_info,
+                                                      edits, groups, opts.tol_step_sigma)
                 trial = evaluate(x_try, with_jacobian=attempt == 0)
                 cost_t = trial[2]
                 if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
@@ -408,7 +293,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             frac = 1.0 if lam == 0 else 0.0
             lam_state = lam / 10.0 if lam > 1e-4 else 0.0
             change = cost - cost_t
-            A, b, cost, dx_prior = trial if attempt == 0 else evaluate(x_try)
+            A, b, cost, dx_prior, K = trial if attempt == 0 else evaluate(x_try)
             m_meas = counts[0]
             x = x_try
             history.append(cost)
@@ -417,7 +302,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             # a model far from the data (χ² > 2 per measurement) crawls along flat valleys;
             # its precise minimum is meaningless, so it stops at a relative change of 1e-4
             tol = opts.tol_chi2 if cost < 2.0 * max(m_meas, 1) else max(opts.tol_chi2, 1e-4 * cost)
-            if small or ((frac == 1.0 or it >= 2) and change < tol):
+            if (frac == 1.0 or it >= 2) and change < tol:
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:
@@ -516,37 +401,3 @@ def _stored_at(stored, x, edits) -> bool:
     return stored is not None and stored[1] is edits and np.array_equal(stored[0], x)
 
 
-def residuals_from(problem: Problem, buffers: Residuals,
-                   edits: Mapping[str, np.ndarray]) -> dict[str, SensorResiduals]:
-    """:class:`SensorResiduals` from the buffers of a pass (taken over, not copied)."""
-    out = {}
-    for sd in problem.sensors:
-        valid = buffers.valid[sd.name]
-        ed = edits.get(sd.name, np.zeros(valid.shape, bool)) & valid
-        r = buffers.r[sd.name]
-        r[~valid] = np.nan
-        out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t, sd.y,
-                                       buffers.y_pred.get(sd.name), r, None, sd.sigma, valid & ~ed,
-                                       valid, ed)
-    return out
-
-
-def _zero_invalid(lin: Linearization) -> Linearization:
-    if np.all(lin.valid):
-        return lin
-    H = np.where(lin.valid[:, None, None], lin.H, 0.0)
-    r = np.where(lin.valid[:, None], lin.r, 0.0)
-    return Linearization(lin.name, lin.y_pred, r, H, lin.valid, lin.sigma)
-
-
-def make_residuals(problem: Problem, lins: Sequence[Linearization],
-                   edits: Mapping[str, np.ndarray]) -> dict[str, SensorResiduals]:
-    out = {}
-    for lin in lins:
-        sd = problem.sensor(lin.name)
-        ed = edits.get(lin.name, np.zeros(lin.valid.shape, bool)) & lin.valid
-        used = lin.valid & ~ed
-        r = np.where(lin.valid[:, None], lin.r, np.nan)
-        out[lin.name] = SensorResiduals(lin.name, tuple(sd.model.components), sd.model.unit, sd.t, sd.y,
-                                        lin.y_pred, r, r / lin.sigma, lin.sigma, used, lin.valid, ed)
-    return out

@@ -43,6 +43,7 @@ __all__ = ["COMPILED", "rates", "propagate", "gyro_sums", "chain_rows"]
 
 #: ``@numba.njit(cache=True, fastmath=False)``, or the identity without numba.
 _jit = numba.njit(cache=True, fastmath=False) if COMPILED else (lambda fn: fn)
+_jit_fast = numba.njit(cache=True, fastmath={"contract", "arcp", "nsz"}) if COMPILED else (lambda fn: fn)
 
 
 @_jit
@@ -97,7 +98,7 @@ def propagate(q_s, omega, dt, Q, C):
         C[k, 2, 1] = e23 - c1
 
 
-@_jit
+@_jit_fast
 def gyro_sums(C, MtGinv, M, dM, Gy, u, tau, dt, E_s, E):
     """``E[0] = E_s``, ``E[j+1] = E[j] + C_jᵀ ∂ω_j/∂p Δ_j`` (module docstring), in place.
 
@@ -136,7 +137,7 @@ def gyro_sums(C, MtGinv, M, dM, Gy, u, tau, dt, E_s, E):
             row[q] = s[q]
 
 
-@_jit
+@_jit_fast
 def chain_rows(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, out):
     """One block's rows: ``w_ir D_ir C_i [M_a[:, rsel] | E[jidx_i][:, psel]]`` in columns
     ``0 .. len(rsel) + len(psel) − 1`` of ``out``, then the prepared columns ``P`` (module

@@ -16,6 +16,7 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 
 from gcs_core.filtr.attitude import (FrameAttitude)
+from gcs_core.filtr.curvature import block_curvature
 from gcs_core.sidp.prepare import (HeldChannels, SensorData)
 from gcs_core.filtr.problem import Problem
 
@@ -59,6 +60,10 @@ class Block:
         used) when the blocks were asked weighted, raw (NaN where invalid) otherwise.
     Hr : (n·m, k_s + 1) ``[R^-1/2 H | R^-1/2 r]`` (unused rows zero) when the blocks were
         asked ``augmented`` (``H`` is then a view of its first k_s columns), else None.
+    curv : ``((i, j, K_ij), ...)`` over block columns, the Newton terms of the model's
+        parameter pairs when asked ``second_order``
+        (:func:`~gcs_core.filtr.curvature.block_curvature`).
+    pred : the model's :class:`~gcs_core.models.base.Prediction` of the chunk.
     """
 
     sensor: SensorData
@@ -72,6 +77,8 @@ class Block:
     cols: np.ndarray
     H: np.ndarray | None
     Hr: np.ndarray | None = None
+    curv: tuple = ()
+    pred: object = None
 
     @property
     def name(self) -> str:
@@ -156,7 +163,8 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
                 exclude: Mapping[str, np.ndarray] | None = None, weighted: bool = False,
                 sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None,
                 chunk: int | None = None, jacobian: bool = True,
-                work: dict | None = None, augmented: bool = False) -> Iterator[Block]:
+                work: dict | None = None, augmented: bool = False,
+                second_order: bool = False) -> Iterator[Block]:
     """Residuals and partials of every (or the named) sensor at ``values``, chunk by chunk.
 
     Windows of time (:func:`chunk_windows`) are visited in order; in each, the attitude is
@@ -174,6 +182,9 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
     ``augmented`` (with ``weighted``) writes the weighted residual as one more column of
     the same buffer, ``Block.Hr = [R^-1/2 H | R^-1/2 r]``: one product ``Hrᵀ Hr`` then
     gives ``Hᵀ R⁻¹ H``, ``Hᵀ R⁻¹ r`` and ``rᵀ R⁻¹ r`` in a single pass over the block.
+
+    ``second_order`` (with the Jacobian) also contracts the model's second partials with
+    the weighted residuals (``Block.curv``, :mod:`gcs_core.filtr.curvature`).
     """
     col_index = {c: j for j, c in enumerate(columns)}
     sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
@@ -199,6 +210,7 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
             used = valid if exclude is None or sd.name not in exclude else \
                 valid & ~np.asarray(exclude[sd.name][lo:hi], bool)
             H = Hr = None
+            curv = block_curvature(pred.d2_par, par, r, used, sd.sigma) if second_order and jacobian else ()
             if jacobian and cols.size:
                 w = (used[:, None] * (1.0 / sd.sigma)[None, :]) if weighted else None    # R^-1/2
                 aug = int(augmented and weighted)
@@ -212,7 +224,7 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
                 H = buf[:, :, :cols.size] if aug else buf
                 Hr = buf.reshape(-1, cols.size + 1) if aug else None
             del fr                        # the attitude's block buffers may be reused
-            yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H, Hr)
+            yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H, Hr, curv, pred)
 
 
 def _buffer(work: dict | None, key, shape) -> np.ndarray:

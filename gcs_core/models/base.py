@@ -126,12 +126,38 @@ class Prediction:
     d_par : parameter name -> (N, m) partials, for every parameter of the model.
     valid : (N,) False where the model is undefined (Sun outside the field of view,
         no horizon crossing, ...); those frames must not be used.
+    d2_par : ``(a, b)`` -> ``(component, ∂²y_c/∂a∂b)``: the second partials of the
+        parameter pairs that make the model non-linear in its own parameters (a product
+        such as the FSS's ``A3 sin(k tan α)``, :attr:`ObservationModel.nonlinear_pairs`),
+        each in the one component it enters, as an (N,) array, a scalar or a function of
+        no arguments giving one (formed when read); undefined at invalid frames. Optional;
+        each unordered pair appears once. The batch uses them for Newton steps near the
+        solution (:mod:`gcs_core.filtr.curvature`).
     """
 
     y: np.ndarray
     d_att: np.ndarray
     d_par: Mapping[str, np.ndarray]
     valid: np.ndarray
+    d2_par: Mapping[tuple[str, str], tuple[int, Any]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class HeldPrediction:
+    """A model's answer with its geometry held (:meth:`ObservationModel.held`), in the
+    parameters of its non-linear pairs only, component by component.
+
+    Attributes
+    ----------
+    y : (N, m) predicted measurements.
+    d_par : name -> ``(component, ∂y_c/∂name)``, the partial (N,) or scalar of the one
+        component the parameter enters.
+    d2_par : ``(a, b)`` -> ``(component, ∂²y_c/∂a∂b)``, likewise.
+    """
+
+    y: np.ndarray
+    d_par: Mapping[str, tuple[int, np.ndarray | float]]
+    d2_par: Mapping[tuple[str, str], tuple[int, np.ndarray | float]]
 
 
 class ObservationModel:
@@ -153,6 +179,9 @@ class ObservationModel:
     #: "three_axis", "spinning" or "rate" (the gyro: ``d_att`` is ∂y/∂ω): what the
     #: partials ``d_att`` refer to.
     attitude_kind: ClassVar[str] = "three_axis"
+    #: parameter pairs whose second partials :meth:`predict` gives (``Prediction.d2_par``),
+    #: the pairs that make the model non-linear in its own parameters; () for none.
+    nonlinear_pairs: ClassVar[tuple[tuple[str, str], ...]] = ()
     #: data-book keys this type knows (besides name/type/telemetry/alignment_deg/noise).
     book_keys: ClassVar[tuple[str, ...]] = ()
 
@@ -183,6 +212,16 @@ class ObservationModel:
     def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
         """Predicted measurements and all partials at the frames of ``geom``."""
         raise NotImplementedError
+
+    def held(self, geom: Geometry, params: Mapping[str, float], rows: np.ndarray | None = None
+             ) -> Callable[[Mapping[str, float]], "HeldPrediction"] | None:
+        """A fast evaluation in the :attr:`nonlinear_pairs` parameters with everything else
+        held (the attitude, the ephemeris and the other parameters at ``params``): a
+        function ``(params, wanted=None) -> HeldPrediction`` at the frames ``rows`` of
+        ``geom`` (all by default), equal to :meth:`predict` there in ``y`` and in the
+        partials of those parameters (or of the ``wanted`` ones), its residual the plain
+        difference ``y − ŷ``. None: the model has none."""
+        return None
 
     def residual(self, y_meas: np.ndarray, y_pred: np.ndarray, geom: Geometry | None = None) -> np.ndarray:
         """Measured minus predicted; models with wrapping observables override it (the

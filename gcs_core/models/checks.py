@@ -21,7 +21,9 @@ Steps: parameter ``p`` uses ``h_p = rel_step · max(|x_p|, σ_p)`` with ``σ_p``
 parameter's a-priori sigma (its natural scale); the attitude uses ``rel_step`` rad (or
 unit-vector components, or ``rel_step · max(|ω|, 1e-3 rad/s)`` for rates). Differences
 of predictions go through the model's ``residual`` (given the geometry when it accepts
-one), so observables that wrap (horizon times) difference correctly.
+one), so observables that wrap (horizon times) difference correctly. Second partials
+(``Prediction.d2_par``, pair ``(a, b)``) are checked as differences in ``b`` of the
+analytic ``∂y/∂a``, reported as ``d2:a,b``.
 
 An element passes when ``max |analytic − numeric| ≤ atol_p + rtol · max |analytic|
 + ROUNDOFF · max |y| / h`` (the last term is the cancellation error of the quotient).
@@ -37,6 +39,7 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.frames.rotations import rotvec_to_dcm
+from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel
 
 #: relative tolerance of each scheme with the default steps (truncation + round-off).
@@ -181,15 +184,15 @@ def check_partials(model: ObservationModel, geom: Geometry, params: Mapping[str,
     diff = _differ(model, geom)
     y_scale = float(np.max(np.abs(base.y[base.valid]), initial=0.0))
 
-    def compare(name, step, analytic, run):
+    def compare(name, step, analytic, run, base_y=None, sub=diff):
         plus = run(+1)
         if scheme == "central":
             minus = run(-1)
             ok = base.valid & plus.valid & minus.valid
-            numeric = diff(plus.y, minus.y) / (2.0 * step)
+            numeric = sub(plus.y, minus.y) / (2.0 * step)
         else:
             ok = base.valid & plus.valid
-            numeric = diff(plus.y, base.y) / step
+            numeric = sub(plus.y, base.y if base_y is None else base_y) / step
         a, d = analytic[ok], numeric[ok]
         err = float(np.max(np.abs(a - d), initial=0.0))
         scale = float(np.max(np.abs(a), initial=0.0))
@@ -206,6 +209,17 @@ def check_partials(model: ObservationModel, geom: Geometry, params: Mapping[str,
         def run(sign, _name=p.name, _x=x, _h=h):
             return model.predict(geom, {**values, _name: _x + sign * _h})
         elements.append(compare(p.name, h, np.asarray(base.d_par[p.name]), run))
+
+    steps = {p.name: rel_step * max(abs(values[p.name]), abs(p.sigma)) for p in specs}
+    for a, b in base.d2_par:                     # second partials: differences of ∂y/∂a in b
+        def run2(sign, _a=a, _b=b):
+            pr = model.predict(geom, {**values, _b: values[_b] + sign * steps[_b]})
+            return dataclasses.replace(pr, y=np.asarray(pr.d_par[_a]))
+        c, v = common.component_values(base.d2_par[(a, b)], geom.n)
+        analytic = np.zeros_like(base.y)
+        analytic[:, c] = v
+        elements.append(compare(f"d2:{a},{b}", steps[b], analytic, run2,
+                                base_y=np.asarray(base.d_par[a]), sub=np.subtract))
 
     h_att, make = _attitude_perturbations(model, geom, rel_step)
     for k, name in enumerate(ATTITUDE_NAMES):

@@ -395,9 +395,11 @@ def column(n: int, m: int, i: int, value) -> np.ndarray:
 
 
 def finish(y: np.ndarray, d_att: np.ndarray, d_par: Mapping[str, PartialSource], valid: np.ndarray,
-           specs: tuple[ParamSpec, ...]) -> Prediction:
+           specs: tuple[ParamSpec, ...], d2_par: Mapping[tuple[str, str], PartialSource] | None = None
+           ) -> Prediction:
     """Check that every parameter has a partial, NaN-out invalid frames, build the Prediction
-    (partials given as functions are formed when read, :class:`Partials`)."""
+    (partials given as functions are formed when read, :class:`Partials`); ``d2_par`` the
+    optional second partials (:attr:`Prediction.d2_par`), kept as given."""
     missing = [p.name for p in specs if p.name not in d_par]
     if missing:  # a bug in the model, not bad input
         raise RuntimeError(f"model gives no partials for {missing}")
@@ -410,12 +412,23 @@ def finish(y: np.ndarray, d_att: np.ndarray, d_par: Mapping[str, PartialSource],
         # nothing to NaN out: the model's own arrays are the prediction (no copies)
         y = np.asarray(y, dtype=float)
         return Prediction(y=y, d_att=np.asarray(d_att, dtype=float), d_par=Partials(entries, y.shape),
-                          valid=valid)
+                          valid=valid, d2_par=dict(d2_par or {}))
     y = np.array(y, dtype=float)
     d_att = np.array(d_att, dtype=float)
     y[bad] = np.nan
     d_att[bad] = np.nan
-    return Prediction(y=y, d_att=d_att, d_par=Partials(entries, y.shape, bad), valid=valid)
+    return Prediction(y=y, d_att=d_att, d_par=Partials(entries, y.shape, bad), valid=valid,
+                      d2_par=dict(d2_par or {}))
+
+
+def component_values(entry, n: int) -> tuple[int, np.ndarray]:
+    """``(component, (n,) values)`` of a component-sparse entry ``(component, source)``
+    (``Prediction.d2_par``, ``HeldPrediction``): the source is an array, a scalar or a
+    function of no arguments giving one."""
+    c, src = entry
+    with np.errstate(all="ignore"):
+        v = src() if callable(src) else src
+    return c, np.broadcast_to(np.asarray(v, dtype=float), (n,))
 
 
 def unit_rows(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -32,6 +32,15 @@ Partials (Eq 4-26a/b, α shown)::
     ∂n/∂tan α = (1 − k A3 cos(k tan α) − 2 k A4h cos(2k tan α)) / A2
     ∂tan α/∂S_S = (−S_Sy/S_Sx², 1/S_Sx, 0),   ∂S_S/∂δθ = M R [S_B ×]
 
+Second partials in the transfer-function parameters (``Prediction.d2_par``; t = tan α,
+c_j = cos(j k t), s_j = sin(j k t)): the products ``A3 sin(k t)`` and ``1/A2`` make the
+model bilinear, and with ``A3 ≈ 0`` the Gauss–Newton matrix alone leaves ``k`` flat while
+the data still bend the cost along ``A3·k``::
+
+    ∂²n/∂A1∂A2 = 1/A2²,   ∂²n/∂A2² = 2n/A2²,   ∂²n/∂A2∂A3 = s₁/A2²,   ∂²n/∂A2∂A4h = s₂/A2²
+    ∂²n/∂A2∂k = t (A3 c₁ + 2 A4h c₂)/A2²,   ∂²n/∂A3∂k = −t c₁/A2,   ∂²n/∂A4h∂k = −2t c₂/A2
+    ∂²n/∂k² = t² (A3 s₁ + 4 A4h s₂)/A2
+
 A frame is valid when ``S_Sx > 0`` and both ``α`` and ``β`` lie within ``fov_deg`` (half
 width) plus a 10 % margin.
 """
@@ -44,7 +53,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.models import common
-from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
+from gcs_core.models.base import Geometry, HeldPrediction, ObservationModel, ParamSpec, Prediction
 
 #: (axis, data-book key, parameter names A1, A2, A3, k, harmonic, tangent component)
 AXES = (("alpha", "coeff_alpha", ("A1", "A2", "A3", "k_alpha"), "A4h", 1),
@@ -86,6 +95,9 @@ class FineSunModel(ObservationModel):
     unit = "counts"
     attitude_kind = "three_axis"
     book_keys = ("coeff_alpha", "coeff_beta", "fov_deg")
+    nonlinear_pairs = tuple((a, b) for _, _, (c1, c2, c3, k), h, _ in AXES
+                            for a, b in ((c1, c2), (c2, c2), (c2, c3), (c3, k), (c2, k), (k, k), (c2, h),
+                                         (h, k)))
 
     def parameters(self) -> tuple[ParamSpec, ...]:
         return common.cached_parameters(self, self._parameters)
@@ -115,6 +127,19 @@ class FineSunModel(ObservationModel):
     def sigma(self) -> np.ndarray:
         return np.full(2, common.noise_value(self.sensor))
 
+    def held(self, geom: Geometry, params: Mapping[str, float], rows=None):
+        """The transfer function (Eq 4-23) at the ``tan α, tan β`` of the held attitude,
+        alignment and time offset (:meth:`ObservationModel.held`)."""
+        p = common.merged_params(self.parameters(), params)
+        if geom.sun_I is None:
+            raise ValueError("fine Sun sensor model needs sun_I in the geometry")
+        M, _ = common.alignment_matrix(p)
+        with np.errstate(all="ignore"):
+            S = common.body_vector(geom, geom.sun_I, p["time_offset"]).v_B @ M.T
+            if rows is not None:
+                S = S[rows]
+            return _HeldTransfer((S[:, 1] / S[:, 0], S[:, 2] / S[:, 0]))
+
     def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
         """Eq 4-23 at N frames: y (N, 2) [counts], d_att (N, 2, 3), d_par (N, 2).
 
@@ -129,6 +154,7 @@ class FineSunModel(ObservationModel):
         n = geom.n
         M, dM = common.alignment_matrix(p)
         d_par: dict[str, common.PartialSource] = {}
+        d2: dict[tuple[str, str], common.PartialSource] = {}
         y = np.empty((n, 2))
         J = np.zeros((n, 2, 3))                     # ∂n/∂S_S
         with np.errstate(all="ignore"):
@@ -155,6 +181,7 @@ class FineSunModel(ObservationModel):
                 d_par[names[2]] = lambda row=row, v=s1, c2=c2: common.column(n, 2, row, -v / c2)
                 d_par[names[3]] = lambda row=row, v=dk: common.column(n, 2, row, v)
                 d_par[harm] = lambda row=row, kx=kx, c2=c2: common.column(n, 2, row, -np.sin(2.0 * kx) / c2)
+                _second_partials(d2, n, row, names, harm, x, kx, cnt, c2, c3, h, s1, co1)
                 J[:, row, 0] = -dn_dx * S[:, comp] / S[:, 0] ** 2
                 J[:, row, comp] = dn_dx / S[:, 0]
             d_att = bv.left((J.reshape(-1, 3) @ M).reshape(n, 2, 3))     # J M ∂S_B/∂δθ
@@ -162,4 +189,68 @@ class FineSunModel(ObservationModel):
                 d_par[name] = lambda k_=k_: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k_].T)
             d_par["time_offset"] = lambda: np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
             valid = common.fov_square_ok(S, common.fov_rad(self.sensor))
-        return common.finish(y, d_att, d_par, valid, specs)
+        return common.finish(y, d_att, d_par, valid, specs, d2)
+
+
+class _HeldTransfer:
+    """Eq 4-23 at held ``tan α, tan β`` (N,) each: the transfer function alone, in its
+    parameters (:meth:`FineSunModel.held`)."""
+
+    def __init__(self, tans):
+        self.tans = tans
+
+    def __call__(self, params: Mapping[str, float], wanted=None) -> HeldPrediction:
+        n = self.tans[0].size
+        y = np.empty((n, 2))
+        d_par: dict = {}
+        d2: dict = {}
+        for row, (_, _, names, harm, _) in enumerate(AXES):
+            a1, a2, a3, k_ = names
+            c1, c2, c3, k = (float(params[nm]) for nm in names)
+            h = float(params.get(harm, 0.0))
+            x = self.tans[row]
+            kx = k * x
+            s1, co1 = np.sin(kx), np.cos(kx)
+            xc = x * co1
+            if h != 0.0:
+                s2, xc2 = np.sin(2.0 * kx), x * np.cos(2.0 * kx)
+                cnt = (x - c1 - c3 * s1 - h * s2) / c2
+                dk = -(c3 * xc + 2.0 * h * xc2) / c2
+                kk = x * x * (c3 * s1 + 4.0 * h * s2) / c2
+            else:
+                s2 = xc2 = None
+                cnt = (x - c1 - c3 * s1) / c2
+                dk = -(c3 / c2) * xc
+                kk = (c3 / c2) * (x * x * s1)
+            y[:, row] = cnt
+            inv, inv2 = 1.0 / c2, 1.0 / c2 ** 2
+            d_par.update({a1: (row, -inv), a2: (row, -inv * cnt), a3: (row, -inv * s1), k_: (row, dk)})
+            d2.update({(a1, a2): (row, inv2), (a2, a2): (row, (2.0 * inv2) * cnt), (a2, a3): (row, inv2 * s1),
+                       (a3, k_): (row, -inv * xc), (a2, k_): (row, -inv * dk), (k_, k_): (row, kk)})
+            if harm in params and (wanted is None or harm in wanted):
+                if s2 is None:
+                    s2, xc2 = np.sin(2.0 * kx), x * np.cos(2.0 * kx)
+                d_par[harm] = (row, -inv * s2)
+                d2.update({(a2, harm): (row, inv2 * s2), (harm, k_): (row, (-2.0 * inv) * xc2)})
+        return HeldPrediction(y, d_par, d2)
+
+
+def _second_partials(d2: dict, n: int, row: int, names, harm: str, x, kx, cnt, c2: float, c3: float,
+                     h: float, s1, co1) -> None:
+    """Register the second partials of one axis (module docstring, ``Prediction.d2_par``)
+    as ``(row, function)`` entries formed when read: ``x`` = tan, ``kx`` = k tan, ``cnt``
+    = n, ``s1``, ``co1`` = sin, cos of ``kx`` (N,)."""
+    a1, a2, a3, k = names
+    inv, inv2 = 1.0 / c2, 1.0 / c2 ** 2
+    d2[(a1, a2)] = (row, inv2)
+    d2[(a2, a2)] = (row, lambda: (2.0 * inv2) * cnt)
+    d2[(a2, a3)] = (row, lambda: inv2 * s1)
+    d2[(a3, k)] = (row, lambda: -inv * (x * co1))
+    if h == 0.0:
+        d2[(a2, k)] = (row, lambda: (c3 * inv2) * (x * co1))
+        d2[(k, k)] = (row, lambda: (c3 * inv) * (x * x * s1))
+    else:
+        d2[(a2, k)] = (row, lambda: inv2 * x * (c3 * co1 + 2.0 * h * np.cos(2.0 * kx)))
+        d2[(k, k)] = (row, lambda: inv * x * x * (c3 * s1 + 4.0 * h * np.sin(2.0 * kx)))
+    d2[(a2, harm)] = (row, lambda: inv2 * np.sin(2.0 * kx))
+    d2[(harm, k)] = (row, lambda: (-2.0 * inv) * x * np.cos(2.0 * kx))
