@@ -13,7 +13,11 @@ mode and model, the worst ratio over the seeds. For an element outside the band 
 prints the ratio when the same plan (catalog stars) is linearized at the *fitted* state
 instead of the nominal one: a ratio near 1 there says the difference is the
 linearization point (an element whose information depends on the estimate of another),
-not the data modeling.
+not the data modeling. Elements the plan does not determine at all
+(:attr:`~gcs_core.predictor.predict.PredictionResult.undetermined`: predicted σ = the a
+priori, e.g. an FSS sine frequency whose amplitude is nominally zero) are listed apart
+with their ratio: their post-fit σ mirrors the a priori and the noise in the fitted
+amplitude, not the plan.
 
 Usage: ``python benchmarks/predictor_vs_fit.py [--hours 1] [--seeds 5] [--stars catalog,sky]``
 """
@@ -93,6 +97,7 @@ def main() -> None:
     span = args.hours * 3600.0
     models = tuple(args.stars.split(","))
     worst_of: dict = {}
+    undetermined_of: dict = {}
     outside_total = {m: 0 for m in models}
     with tempfile.TemporaryDirectory() as tmp:
         for mode in args.modes.split(","):
@@ -104,6 +109,15 @@ def main() -> None:
                 print(f"{mode:14s} seed {seed}: fit {t_fit:5.2f} s, predict {t_pred[models[0]]:5.2f} s; "
                       f"frames ({models[0]}, fitted) {frames}")
                 for model, (pred, ratio) in preds.items():
+                    # the elements the plan does not determine (σ = a priori) are listed apart
+                    und = set(pred.undetermined)
+                    if und:
+                        ratio = np.where([n in und for n in pred.names], 1.0, ratio)
+                        post = np.sqrt(np.diag(fit.P))
+                        for i, n in enumerate(pred.names):
+                            if n in und:
+                                undetermined_of.setdefault((mode, model), {}).setdefault(
+                                    n, [pred.noise_only[i]]).append(post[i])
                     worst = int(np.argmax(np.abs(ratio - 1.0)))
                     outside = [f"{n} {r:.2f}" for n, r in zip(pred.names, ratio) if abs(r - 1.0) > TOLERANCE]
                     outside_total[model] += len(outside)
@@ -127,7 +141,12 @@ def main() -> None:
             cells = [worst_of[(mode, m, group)] for m in models]
             print(f"  {mode + ' ' + group:20s} "
                   + " ".join(f"{f'{n} {r:.3f} (seed {sd})':>32s}" for n, r, sd in cells))
-    print("elements outside ±15 %: " + ", ".join(f"{m} {outside_total[m]}" for m in models))
+    print("elements outside ±15 %: " + ", ".join(f"{m} {outside_total[m]}" for m in models)
+          + " (the elements the plan determines)")
+    for (mode, model), items in undetermined_of.items():
+        print(f"undetermined by the plan ({mode}, {model}): " + "; ".join(
+            f"{n} predicted {v[0]:.3g} (the a priori), post-fit {min(v[1:]):.3g}–{max(v[1:]):.3g}"
+            for n, v in items.items()))
 
 
 if __name__ == "__main__":

@@ -43,6 +43,8 @@ log = logging.getLogger(__name__)
 METHODS = ("information", "kalman")
 #: margin of an orbit-built ephemeris beyond the plan span [s] (time-tag and crossing shifts)
 EPHEMERIS_MARGIN_S = 120.0
+#: an element whose predicted σ is within this fraction of its a priori is "undetermined"
+UNDETERMINED_FRACTION = 0.01
 
 
 @dataclass(frozen=True)
@@ -66,6 +68,7 @@ class PredictionResult:
     method : ``"information"`` (Eq 3-2) or ``"kalman"`` (Eq 3-4).
     plan : the data plan.
     unobservable : combinations of elements the data cannot separate (final time).
+    prior : (n,) a-priori 1-σ of the solve-for elements.
     """
 
     times: np.ndarray
@@ -84,6 +87,7 @@ class PredictionResult:
     method: str
     plan: DataPlan | None = None
     unobservable: tuple[str, ...] = ()
+    prior: np.ndarray | None = None
 
     def index(self, name: str) -> int:
         try:
@@ -94,6 +98,18 @@ class PredictionResult:
     def sigma_of(self, name: str, *, noise_only: bool = False) -> np.ndarray:
         """(T,) σ history of one element."""
         return (self.sigma_noise if noise_only else self.sigma)[:, self.index(name)]
+
+    @property
+    def undetermined(self) -> tuple[str, ...]:
+        """Elements the plan does not determine: a final noise-only σ within
+        :data:`UNDETERMINED_FRACTION` of the a priori (the data add under about 2 % of the
+        prior information). A post-fit σ of such an element mirrors its a priori and the
+        state the fit is linearized at (e.g. a sine frequency whose amplitude is nominally
+        zero), not the data plan."""
+        if self.prior is None:
+            return ()
+        ok = np.isfinite(self.prior) & (self.noise_only >= (1.0 - UNDETERMINED_FRACTION) * self.prior)
+        return tuple(n for n, u in zip(self.names, ok) if u)
 
     @property
     def final_sigma(self) -> dict[str, float]:
@@ -118,7 +134,8 @@ class PredictionResult:
                           for r in self.budget_rows()],
                 "attitude_sigma_rad": [num(x) for x in self.attitude_sigma[-1]],
                 "availability": {k: float(v) for k, v in self.availability.items()},
-                "frames": dict(self.frames), "unobservable": list(self.unobservable)}
+                "frames": dict(self.frames), "unobservable": list(self.unobservable),
+                "undetermined": list(self.undetermined)}
 
     def budget_rows(self) -> list[dict[str, Any]]:
         """One row per solve-for element: total, noise-only and each consider contribution."""
@@ -315,7 +332,8 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
         P=hist["P"], P_consider=hist["P_consider"], consider=cons,
         budget={c: hist["budget"][j] for j, c in enumerate(cons)},
         noise_only=hist["sigma_noise"][-1].copy(), availability=availability, frames=frames,
-        method="kalman" if use_kalman else "information", plan=plan, unobservable=unobs)
+        method="kalman" if use_kalman else "information", plan=plan, unobservable=unobs,
+        prior=sigma0.copy())
 
 
 def _attitude_partials(problem: Problem, values, names, times) -> np.ndarray:
