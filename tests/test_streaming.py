@@ -15,7 +15,7 @@ import pytest
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.ranking import rank_candidates
-from gcs_core.filtr.batch import BatchOptions, batch_fit
+from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
 from gcs_core.filtr.problem import chunk_windows, iter_blocks, linearize
 from gcs_core.session import Analysis
 from gcs_core.sidp.prepare import HeldChannels, hold_channels
@@ -111,6 +111,28 @@ def test_legacy_linearize_equals_the_blocks(fits):
         np.testing.assert_array_equal(full[blk.valid], blk.H[blk.valid])
         others = np.setdiff1d(np.arange(len(names)), blk.cols)
         assert not np.any(lin.H[blk.lo:blk.hi][:, :, others])     # no data depends on them
+
+
+@pytest.mark.parametrize("label", ["one", "tiny"])
+def test_summed_rows_equal_the_stored_rows(fits, label, monkeypatch):
+    """The normal equations from rows summed a tile at a time (``chain_gram``, BLAS dsyrk)
+    equal those from the stored rows (``chain_rows`` and ``Hrᵀ Hr``), and the blocks that
+    were summed are most of them."""
+    from gcs_core.filtr import batch_kernels
+
+    a, r = fits[label]
+    names = list(r.solve_for)
+    values = r.state.values()
+    summed = [blk.G is not None for blk in iter_blocks(a.problem, values, names, weighted=True,
+                                                        augmented=True, gram=True)]
+    A1, b1, c1, m1 = normal_equations(a.problem, values, names, {})
+    monkeypatch.setattr(batch_kernels, "DSYRK", None)
+    A2, b2, c2, m2 = normal_equations(a.problem, values, names, {})
+    if batch_kernels.COMPILED:
+        assert sum(summed) >= 0.5 * len(summed)
+    np.testing.assert_allclose(A1, A2, rtol=round_off, atol=round_off * np.max(np.abs(A2)))
+    np.testing.assert_allclose(b1, b2, rtol=round_off, atol=round_off * np.max(np.abs(b2)))
+    assert c1 == pytest.approx(c2, rel=round_off) and m1 == m2
 
 
 def test_gyro_attitude_by_blocks_equals_one_block(fits):

@@ -174,6 +174,32 @@ class FrameAttitude:
             out[g, :, rs.size:rs.size + ps.size] += (Dg @ Wg[:, :, ps]) * sg[:, None, None]
         return True
 
+    def fill_gram(self, D: np.ndarray, sel, G: np.ndarray, buf: np.ndarray, *, w: np.ndarray,
+                  P: np.ndarray, pcol) -> bool:
+        """``G += Σ rowᵀ row`` over the rows :meth:`fill_rows` would write, without writing
+        them (:func:`~gcs_core.filtr.batch_kernels.chain_gram`; ``G`` (K, K) gets its lower
+        triangle, ``buf`` (T, K) is the tile; the ``D W s`` term of frames between knots is
+        included). Returns False (and adds nothing) when it cannot: no compiled kernel or
+        BLAS pointer.
+        """
+        if not self.can_fill_rows or kernels.DSYRK is None:
+            return False
+        sel = np.asarray(sel, dtype=int)
+        Ma, (E, j), gen = self._gyro
+        rs, ps = sel[sel < 3], sel[sel >= 3] - 3
+        n = D.shape[0]
+        jidx = np.arange(j.start, j.stop, j.step or 1) if isinstance(j, slice) else np.asarray(j)
+        gidx = np.full(n, -1, dtype=np.int64)
+        if gen is not None and ps.size:
+            g, Wg, sg = gen
+            gidx[g] = np.arange(np.count_nonzero(g) if np.asarray(g).dtype == bool else np.asarray(g).size)
+            Wg, sg = np.ascontiguousarray(Wg, dtype=float), np.ascontiguousarray(sg, dtype=float)
+        else:
+            Wg, sg = np.zeros((1, 3, 1)), np.zeros(1)
+        kernels.chain_gram(D, w, self.C_BI, E, jidx, Ma, rs, ps, P, np.asarray(pcol, dtype=np.int64), gidx,
+                           Wg, sg, G, buf, kernels.DSYRK)
+        return True
+
     def _gyro_chain(self, D, DC, sel, out=None):
         """``D J`` with ``J = [C M_a | C X + W s]``: ``DC M_a``, ``DC X`` (+ ``D W s``);
         ``X = E[j]`` is read column run by column run (a view when ``j`` is a slice)."""

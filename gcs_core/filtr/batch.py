@@ -117,7 +117,7 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     m_used = 0
     for blk in iter_blocks(problem, values, columns if jacobian else (), exclude=edited or {},
                            weighted=True, jacobian=jacobian, chunk=chunk, work=work, augmented=True,
-                           second_order=second_order is not None):
+                           second_order=second_order is not None, gram=True):
         if store is not None:
             if blk.name in store.y_pred:
                 store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
@@ -127,7 +127,7 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
         if not nu:
             continue
         m_used += nu * blk.r.shape[1]
-        if not (n and blk.Hr is not None):
+        if not (n and (blk.Hr is not None or blk.G is not None)):
             rw = blk.weighted_residual()
             chi2 += float(rw @ rw)
             continue
@@ -137,7 +137,7 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
         k = c.size
         if blk.curv:
             curvature.add_block(second_order, c, blk.curv)
-        G = blk.Hr.T @ blk.Hr
+        G = blk.G if blk.G is not None else blk.Hr.T @ blk.Hr
         chi2 += float(G[k, k])
         if k == n and np.array_equal(c, np.arange(n)):
             A += G[:k, :k]

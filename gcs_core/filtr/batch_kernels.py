@@ -24,6 +24,11 @@ temporaries; compiled, each is one pass over its data.
   and the model's own (weighted) parameter columns, written row by row into the
   block's H, so that each row is written once (column-by-column writes into an (n, m, k)
   array touch every cache line k times); a row weighted zero is written as exact zeros.
+* :func:`chain_gram` — the same rows, never stored: formed a tile at a time in a small
+  buffer that stays in cache and folded into ``Σ rowᵀ row`` by BLAS ``dsyrk`` (scipy's
+  ``cython_blas``, called through a ctypes pointer given as an argument so that the
+  compiled code can be cached). The normal equations need only that sum; writing and
+  re-reading the whole (N·m, k) H was a third of a linearization.
 
 Engine selection is :data:`gcs_core.filtr.kalman_kernels.COMPILED` (numba importable and
 ``GCS_NO_NUMBA`` unset); without it the callers use their numpy forms (the same numbers
@@ -33,17 +38,36 @@ first use and cached on disk (``__pycache__``), like the Kalman kernel.
 
 from __future__ import annotations
 
+import ctypes
 import math
 
 import numpy as np
 
 from gcs_core.filtr.kalman_kernels import COMPILED, numba
 
-__all__ = ["COMPILED", "rates", "propagate", "gyro_sums", "chain_rows"]
+__all__ = ["COMPILED", "DSYRK", "rates", "propagate", "gyro_sums", "chain_rows", "chain_gram"]
 
 #: ``@numba.njit(cache=True, fastmath=False)``, or the identity without numba.
 _jit = numba.njit(cache=True, fastmath=False) if COMPILED else (lambda fn: fn)
 _jit_fast = numba.njit(cache=True, fastmath={"contract", "arcp", "nsz"}) if COMPILED else (lambda fn: fn)
+
+
+def _blas_syrk():
+    """BLAS ``dsyrk`` (Fortran calling convention: every argument by pointer) as a ctypes
+    function, or None where scipy's ``cython_blas`` cannot be reached."""
+    try:
+        from numba.extending import get_cython_function_address
+
+        addr = get_cython_function_address("scipy.linalg.cython_blas", "dsyrk")
+    except Exception:                     # noqa: BLE001 — any failure: the unfused path
+        return None
+    return ctypes.CFUNCTYPE(None, *([ctypes.c_void_p] * 10))(addr)
+
+
+#: ``dsyrk`` for :func:`chain_gram` (None: use :func:`chain_rows` and numpy's product)
+DSYRK = _blas_syrk() if COMPILED else None
+#: rows per tile of :func:`chain_gram` (a tile of 27 columns is 28 KB: it stays in L1/L2)
+GRAM_TILE_ROWS = 128
 
 
 @_jit
@@ -182,3 +206,65 @@ def chain_rows(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, out):
                     row[c] += P[q, i, r]
                 else:
                     row[c] = P[q, i, r]
+
+
+@_jit_fast
+def chain_gram(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, gidx, Wg, sg, G, buf, syrk):
+    """``G += Σ rowᵀ row`` over the rows :func:`chain_rows` would write (same arguments
+    but ``out``), with the term of frames between gyro knots included: frame i with
+    ``gidx[i] = g ≥ 0`` adds ``sg[g] (w D)_i Wg[g]`` in the gyro columns (what
+    :meth:`~gcs_core.filtr.attitude.FrameAttitude.fill_rows` adds after :func:`chain_rows`).
+    Each row is formed in the tile ``buf`` (T, K) and every T rows (or fewer at the end)
+    the tile is folded in by ``syrk`` (BLAS dsyrk, uplo "U", trans "N" on the Fortran view
+    ``bufᵀ``). ``G`` (K, K) C-ordered receives the Fortran upper triangle, i.e. its own
+    lower triangle (the caller mirrors it). K = G.shape[0].
+    """
+    K = G.shape[0]
+    T = buf.shape[0]
+    m = D.shape[1]
+    nr = rsel.shape[0]
+    npp = psel.shape[0]
+    ka = nr + npp
+    uplo = np.array([85], np.uint8)                # "U"
+    trans = np.array([78], np.uint8)               # "N"
+    kk = np.array([K], np.int32)
+    nn = np.array([0], np.int32)
+    one = np.array([1.0])
+    T0, T1, T2 = np.empty(ka), np.empty(ka), np.empty(ka)
+    for o in range(nr):
+        a = rsel[o]
+        T0[o], T1[o], T2[o] = Ma[0, a], Ma[1, a], Ma[2, a]
+    cnt = 0
+    for i in range(D.shape[0]):
+        Ej = E[jidx[i]]
+        for o in range(npp):
+            p = psel[o]
+            T0[nr + o], T1[nr + o], T2[nr + o] = Ej[0, p], Ej[1, p], Ej[2, p]
+        for r in range(m):
+            wr = w[i, r]
+            if wr == 0.0:
+                continue                           # a zero row adds nothing
+            row = buf[cnt]
+            d0, d1, d2 = D[i, r, 0] * wr, D[i, r, 1] * wr, D[i, r, 2] * wr
+            x0 = d0 * C[i, 0, 0] + d1 * C[i, 1, 0] + d2 * C[i, 2, 0]
+            x1 = d0 * C[i, 0, 1] + d1 * C[i, 1, 1] + d2 * C[i, 2, 1]
+            x2 = d0 * C[i, 0, 2] + d1 * C[i, 1, 2] + d2 * C[i, 2, 2]
+            for o in range(ka):
+                row[o] = x0 * T0[o] + x1 * T1[o] + x2 * T2[o]
+            g = gidx[i]
+            if g >= 0:
+                sgg = sg[g]
+                for o in range(npp):
+                    p = psel[o]
+                    row[nr + o] += sgg * (d0 * Wg[g, 0, p] + d1 * Wg[g, 1, p] + d2 * Wg[g, 2, p])
+            for o in range(ka, K):
+                row[o] = 0.0
+            for q in range(P.shape[0]):
+                c = pcol[q]
+                row[c] += P[q, i, r]
+            cnt += 1
+        if cnt + m > T or (i == D.shape[0] - 1 and cnt > 0):
+            nn[0] = cnt
+            syrk(uplo.ctypes, trans.ctypes, kk.ctypes, nn.ctypes, one.ctypes, buf.ctypes, kk.ctypes,
+                 one.ctypes, G.ctypes, kk.ctypes)
+            cnt = 0

@@ -16,6 +16,7 @@ from typing import Iterator, Mapping, Sequence
 import numpy as np
 
 from gcs_core.filtr.attitude import (FrameAttitude)
+from gcs_core.filtr.batch_kernels import GRAM_TILE_ROWS
 from gcs_core.filtr.curvature import block_curvature
 from gcs_core.sidp.prepare import (HeldChannels, SensorData)
 from gcs_core.filtr.problem import Problem
@@ -64,6 +65,8 @@ class Block:
         parameter pairs when asked ``second_order``
         (:func:`~gcs_core.filtr.curvature.block_curvature`).
     pred : the model's :class:`~gcs_core.models.base.Prediction` of the chunk.
+    G : (k_s + 1, k_s + 1) ``Hrᵀ Hr`` when the blocks were asked ``gram`` and it was formed
+        without storing the rows (then ``H`` and ``Hr`` are None).
     """
 
     sensor: SensorData
@@ -79,6 +82,7 @@ class Block:
     Hr: np.ndarray | None = None
     curv: tuple = ()
     pred: object = None
+    G: np.ndarray | None = None
 
     @property
     def name(self) -> str:
@@ -164,7 +168,7 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
                 sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None,
                 chunk: int | None = None, jacobian: bool = True,
                 work: dict | None = None, augmented: bool = False,
-                second_order: bool = False) -> Iterator[Block]:
+                second_order: bool = False, gram: bool = False) -> Iterator[Block]:
     """Residuals and partials of every (or the named) sensor at ``values``, chunk by chunk.
 
     Windows of time (:func:`chunk_windows`) are visited in order; in each, the attitude is
@@ -185,6 +189,10 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
 
     ``second_order`` (with the Jacobian) also contracts the model's second partials with
     the weighted residuals (``Block.curv``, :mod:`gcs_core.filtr.curvature`).
+
+    ``gram`` (with ``augmented``) asks for ``Hrᵀ Hr`` only: where the attitude can form
+    it without storing the rows (:meth:`FrameAttitude.fill_gram`) the block carries
+    ``Block.G`` and no H; elsewhere it carries ``Hr`` as above.
     """
     col_index = {c: j for j, c in enumerate(columns)}
     sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
@@ -218,7 +226,15 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
                 buf = _buffer(work, sd.name, (hi - lo, m, cols.size + aug))
                 P = _buffer(work, (sd.name, "P"), (len(par) + aug, hi - lo, m)) \
                     if getattr(fr, "can_fill_rows", False) else None
-                _block_jacobian(pred, fr, att_sel, par, cols.size, w, buf, r if aug else None, P)
+                G = np.zeros((cols.size + 1, cols.size + 1)) if gram and aug and P is not None else None
+                tile = _buffer(work, (sd.name, "tile"), (max(GRAM_TILE_ROWS, m), cols.size + 1)) \
+                    if G is not None else None
+                if _block_jacobian(pred, fr, att_sel, par, cols.size, w, buf, r if aug else None, P,
+                                   gram=None if G is None else (G, tile)) is None:
+                    del fr
+                    G = np.tril(G) + np.tril(G, -1).T      # chain_gram fills the lower triangle
+                    yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, None, None, curv, pred, G)
+                    continue
                 if weighted and not np.all(used):
                     buf[~used] = 0.0              # NaN partials/residuals of unused frames
                 H = buf[:, :, :cols.size] if aug else buf
@@ -239,7 +255,7 @@ def _buffer(work: dict | None, key, shape) -> np.ndarray:
 
 
 def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None,
-                    P: np.ndarray | None = None) -> np.ndarray:
+                    P: np.ndarray | None = None, gram=None) -> np.ndarray | None:
     """(n, m, k) partials of one block, into the first k columns of ``H`` (n, m, ≥ k):
     ``∂y/∂δθ · ∂δθ/∂x`` in the attitude columns, the model's own partials in the
     parameter columns; rows scaled by ``w`` (n, m) if given. With ``r`` (weighted
@@ -248,6 +264,8 @@ def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None,
     Where the attitude can fill whole rows in one pass (:meth:`FrameAttitude.fill_rows`),
     the parameter columns are first formed contiguously in ``P`` (len(par) (+1), n, m)
     and copied in that pass: a strided column-by-column write costs several times more.
+    With ``gram = (G, tile)`` the rows are summed into ``G`` instead where the attitude
+    can (:meth:`FrameAttitude.fill_gram`), and None is returned.
     """
     D = pred.d_att
     ka = att_sel.size
@@ -261,6 +279,8 @@ def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None,
         if r is not None:
             np.multiply(r, w, out=P[len(par)])                            # R^-1/2 r
             pcol.append(k)
+        if gram is not None and fr.fill_gram(D, att_sel, gram[0], gram[1], w=w, P=P, pcol=pcol):
+            return None
         if fr.fill_rows(D, att_sel, H, w=w, P=P, pcol=pcol):
             return H
     if ka:
