@@ -83,9 +83,11 @@ def prediction_table(res) -> list[str]:
         lines.append(f"plan t = {plan.start:g} to {plan.end:g} s, {len(plan.gaps)} gap(s), "
                      f"{len(plan.maneuvers)} maneuver(s); method {res.method}")
     lines.append(f"{'element':28s} predicted 1-sigma at end of plan")
+    undetermined = set(getattr(res, "undetermined", ()))
     for n, u, s in zip(names, units, final):
         _, s_disp, u_disp = display_unit(u, 0.0, float(s))
-        lines.append(f"{n:28s} {s_disp:.3g} {u_disp}")
+        note = "   not determined by the plan (the a priori)" if n in undetermined else ""
+        lines.append(f"{n:28s} {s_disp:.3g} {u_disp}{note}")
     att = getattr(res, "attitude_sigma", None)
     if att is not None and len(att):
         # three-axis: about the body axes; spinning: of the spin-axis unit vector (≈ angles)

@@ -56,7 +56,8 @@ class PredictorScreen(GcsScreen):
         info.update(Text.assemble(
             (" method ", "bold"), p.method, f" · {fmt.span(float(p.times[0]), float(p.times[-1]))}",
             " · final attitude σ ", (" / ".join(fmt.quantity(v, "rad", digits=2, shown="arcsec") for v in att), "bold"),
-            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations" if p.unobservable else "")))
+            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations" if p.unobservable else "")
+            + (f" · {len(p.undetermined)} not determined by the plan (σ = a priori, dim)" if p.undetermined else "")))
         choices = ["attitude"] + list(p.names)
         self.element_i %= len(choices)
         what = choices[self.element_i]
@@ -85,7 +86,9 @@ class PredictorScreen(GcsScreen):
 
     def _budget(self, table: DataTable, p, what: str) -> None:
         table.clear(columns=True)
-        table.add_column("element")
+        undetermined = set(p.undetermined)
+        table.add_column("element" + (" (dim: not determined by the plan)" if undetermined and not self.compact
+                                      else ""))
         table.add_column(Text("σ final", justify="right"))
         table.add_column(Text("noise only", justify="right"))
         cons = list(p.consider)[: (2 if self.compact else 5)]
@@ -94,7 +97,8 @@ class PredictorScreen(GcsScreen):
         for row in p.budget_rows():
             unit = row["unit"]
             shown = fmt.display_unit(unit, row["sigma"])
-            cells = [Text(row["name"], style="bold" if row["name"] == what else ""),
+            style = ("bold " if row["name"] == what else "") + ("dim" if row["name"] in undetermined else "")
+            cells = [Text(row["name"], style=style.strip()),
                      Text(fmt.quantity(row["sigma"], unit, digits=2, shown=shown), justify="right"),
                      Text(fmt.quantity(row["noise_only"], unit, digits=2, shown=shown), justify="right")]
             cells += [Text(fmt.quantity(row["consider"].get(c, 0.0), unit, digits=2, shown=shown), justify="right")
