@@ -63,11 +63,15 @@ def fit_table(analysis) -> list[str]:
 def state_table(analysis) -> list[str]:
     res = analysis.result
     sig = res.sigma
+    loose = analysis.not_determined() if hasattr(analysis, "not_determined") else {}
     lines = [f"{'element':28s} {'role':10s} estimate"]
     for e in res.state:
         if e.role == "held":
             continue
-        lines.append(f"{e.name:28s} {e.role:10s} {format_estimate(e.value, sig.get(e.name, e.sigma0), e.unit)}")
+        note = "   (not determined by the data)" if e.name in loose else ""
+        lines.append(f"{e.name:28s} {e.role:10s} {format_estimate(e.value, sig.get(e.name, e.sigma0), e.unit)}{note}")
+    for name, why in loose.items():
+        lines.append(f"{name}: {why}")
     return lines
 
 

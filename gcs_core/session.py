@@ -15,6 +15,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
+from gcs_core.diagnosis import determination
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
@@ -388,6 +389,14 @@ class Analysis:
         return max(close, key=lambda c: (seed_effect(c), bic[c.id]))
 
     # ------------------------------------------------------------------ report (ICD §7)
+    def not_determined(self) -> dict[str, str]:
+        """Solve-for elements the latest fit did not determine, with the reason
+        (:func:`gcs_core.diagnosis.determination.not_determined`); {} before a fit."""
+        res = self.result
+        if res is None:
+            return {}
+        return determination.not_determined(self.problem, res.state.values(), res.sigma)
+
     def report(self) -> dict:
         res = self.result
         spec = self.mission.spec
@@ -403,11 +412,17 @@ class Analysis:
         state = []
         if res is not None:
             sig = res.sigma
+            loose = self.not_determined()
             for e in res.state:
                 if e.role == HELD:
                     continue
-                state.append({"name": e.name, "estimate": e.value, "sigma": sig.get(e.name, e.sigma0),
-                              "unit": e.unit, "role": e.role})
+                row = {"name": e.name, "estimate": e.value, "sigma": sig.get(e.name, e.sigma0),
+                       "unit": e.unit, "role": e.role}
+                if e.role == SOLVE_FOR:
+                    row["determined"] = e.name not in loose
+                    if e.name in loose:
+                        row["note"] = loose[e.name]
+                state.append(row)
         return {
             "mission": spec.name,
             "method": self.config.method,

@@ -353,6 +353,10 @@ class Workbench:
         """Effects in the state that can be removed (every one but the attitude)."""
         return [e for e in self.analysis.effects_in_state() if not e.endswith(".attitude")]
 
+    def not_determined(self) -> dict[str, str]:
+        """Solve-for elements the latest fit did not determine, with the reason."""
+        return {} if self.result is None or self.stale else self.analysis.not_determined()
+
     def estimates(self) -> dict[str, tuple[float, float]]:
         """Solve-for element -> (estimate, σ) of the latest fit."""
         res = self.result
@@ -365,7 +369,7 @@ class Workbench:
 def fit_key(cfg: AnalysisConfig) -> str:
     """Digest of the settings that change a fit (not the plan, path or requirement)."""
     return replace(cfg, path=None, pred_start=None, pred_end=None, pred_step=10.0, gaps=(), maneuvers=(),
-                   requirement_deg=0.01).digest()
+                   pred_stars=None, pred_catalog=None, requirement_deg=0.01).digest()
 
 
 def _show(v) -> str:

@@ -182,6 +182,9 @@ class ObservationModel:
     #: parameter pairs whose second partials :meth:`predict` gives (``Prediction.d2_par``),
     #: the pairs that make the model non-linear in its own parameters; () for none.
     nonlinear_pairs: ClassVar[tuple[tuple[str, str], ...]] = ()
+    #: parameter -> the amplitudes through which alone the data see it (e.g. a sine
+    #: frequency through its amplitude); see :mod:`gcs_core.diagnosis.determination`.
+    seen_through: ClassVar[Mapping[str, tuple[str, ...]]] = {}
     #: data-book keys this type knows (besides name/type/telemetry/alignment_deg/noise).
     book_keys: ClassVar[tuple[str, ...]] = ()
 

@@ -95,6 +95,7 @@ class FineSunModel(ObservationModel):
     unit = "counts"
     attitude_kind = "three_axis"
     book_keys = ("coeff_alpha", "coeff_beta", "fov_deg")
+    seen_through = {"k_alpha": ("A3", "A4h"), "k_beta": ("B3", "B4h")}
     nonlinear_pairs = tuple((a, b) for _, _, (c1, c2, c3, k), h, _ in AXES
                             for a, b in ((c1, c2), (c2, c2), (c2, c3), (c3, k), (c2, k), (k, k), (c2, h),
                                          (h, k)))

@@ -8,6 +8,7 @@ state; press ``f`` to refit.
 from __future__ import annotations
 
 import math
+import textwrap
 
 import numpy as np
 from rich.text import Text
@@ -55,11 +56,13 @@ class StateScreen(GcsScreen):
         if not self.compact:
             table.add_column(Text("estimate ± σ", justify="right"), key="estimate")
         est = wb.estimates() if not wb.stale else {}
+        loose = wb.not_determined()
         overridden = set(wb.config.elements)
         for e in wb.analysis.problem.state:
             if self.hide_held and e.role == "held":
                 continue
-            name = Text(e.name + (" *" if e.name in overridden else ""))
+            # dim: an element the fit did not determine (its σ is not to be trusted)
+            name = Text(e.name + (" *" if e.name in overridden else ""), style="dim" if e.name in loose else "")
             cells = [name, role_text(e.role), Text(fmt.estimate(e.value, e.sigma0, e.unit), justify="right")]
             if not self.compact:
                 v = est.get(e.name)
@@ -73,7 +76,8 @@ class StateScreen(GcsScreen):
         held = sum(1 for e in wb.analysis.problem.state if e.role == "held")
         self.query_one("#state-title", Label).update(
             f"Elements{' (held hidden)' if self.hide_held else ''} — {held} held · "
-            "s/c/h role · e edit · v held · * = set in config")
+            + (f"{len(loose)} not determined (dim) · " if loose else "")
+            + "s/c/h role · e edit · v held · * = set in config")
         self._detail()
 
     def _selected(self) -> str | None:
@@ -96,6 +100,9 @@ class StateScreen(GcsScreen):
         if res is not None and not wb.stale and name in res.solve_for:
             i = res.solve_for.index(name)
             lines.append(f"  estimate {fmt.estimate(res.x[i], res.sigma[name], e.unit)}")
+            why = wb.not_determined().get(name)
+            if why:
+                lines += textwrap.wrap(why, width=44, initial_indent="  ", subsequent_indent="    ")
             corr = res.correlation()[i]
             order = [j for j in np.argsort(-np.abs(corr)) if j != i][:5]
             lines.append("  strongest correlations:")

@@ -1,0 +1,55 @@
+"""Elements a fit does not determine (gcs_core.diagnosis.determination).
+
+The fine Sun sensor's frequencies ``k_α``, ``k_β`` reach the data only through the sine
+amplitudes ``A3``, ``B3`` of Eq 4-23. With the data-book amplitudes 0 (the truth here) the
+fitted amplitudes are noise, so the frequencies are flagged; with a hidden amplitude of
+many σ (the transfer-function effect) they are not.
+"""
+
+from __future__ import annotations
+
+import pytest
+
+from gcs_core.config import AnalysisConfig
+from gcs_core.diagnosis import determination
+from gcs_core.reporting import state_table
+from gcs_core.session import Analysis
+from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
+from gcs_core.sim.writer import write_mission
+
+
+def _fit(folder, cfg):
+    a = Analysis(AnalysisConfig(mission=write_mission(cfg, folder), holdout_fraction=0.0))
+    a.fit(holdout=False)
+    return a
+
+
+@pytest.fixture(scope="module")
+def nominal(tmp_path_factory):
+    return _fit(tmp_path_factory.mktemp("det") / "m", nominal_threeaxis("sun_pointing", seed=4, duration_s=1200.0))
+
+
+def test_frequencies_with_zero_amplitude_are_not_determined(nominal):
+    loose = nominal.not_determined()
+    assert {"FSS1.k_alpha", "FSS1.k_beta"} <= set(loose)
+    assert "FSS1.B3" in loose["FSS1.k_beta"] and "consistent with 0" in loose["FSS1.k_beta"]
+    assert all(n.startswith("FSS1.k_") for n in loose)          # nothing else is flagged
+    rows = {r["name"]: r for r in nominal.report()["state"]}
+    assert rows["FSS1.k_beta"]["determined"] is False and "note" in rows["FSS1.k_beta"]
+    assert rows["att.roll"]["determined"] is True
+    assert any("not determined by the data" in line for line in state_table(nominal))
+
+
+def test_a_clear_amplitude_determines_its_frequency(tmp_path):
+    cfg = with_effect(nominal_threeaxis("sun_pointing", seed=4, duration_s=1200.0), "FSS1.transfer_function", 2e-3)
+    a = _fit(tmp_path / "m", cfg)
+    loose = a.not_determined()
+    assert "FSS1.k_alpha" not in loose
+
+
+def test_a_held_zero_amplitude_counts_as_zero(nominal):
+    res = nominal.result
+    values = res.state.values()
+    sigma = dict(res.sigma)
+    sigma["FSS1.A3"] = abs(values["FSS1.A3"]) / (2 * determination.AMPLITUDE_Z)   # A3 now "clear"
+    assert "FSS1.k_alpha" not in determination.not_determined(nominal.problem, values, sigma)
