@@ -214,20 +214,17 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     buffers = Residuals().ensure(problem)
     work: dict = {}                     # chunk buffers, reused by every pass
     stored = [None]                     # (x, edits, A, χ², m) of the pass the buffers hold
-    near = [False]                      # the last linearization is near the noise floor
 
     def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):
             values[nm] = x_eval[j]
-        # the Newton terms of the models' parameter pairs, unless the sensors' own
-        # refinement (local_refine) takes care of them
+        # the Newton terms of the models' parameter pairs (used near the noise floor)
         K_ = np.zeros((n, n)) if with_jacobian else None
         A_, b_, chi2_, m_ = normal_equations(problem, values, names, edits, jacobian=with_jacobian,
                                              store=buffers if with_jacobian else None, work=work,
                                              second_order=K_)
         if with_jacobian:
             stored[0] = (x_eval.copy(), edits, A_, chi2_, m_)
-            near[0] = curvature.near_floor(chi2_, m_)
         counts[0] = m_
         d_ = x_bar - x_eval
         cost_ = chi2_ + float(np.sum(prior_info * d_ ** 2))

@@ -84,9 +84,13 @@ def newton_matrix(N_gn: np.ndarray, K: np.ndarray, chi2: float, m: int) -> np.nd
     if not np.any(K) or not near_floor(chi2, m):
         return None
     N = N_gn + K
-    d = np.sqrt(np.diag(N_gn))
+    return N if positive_definite(N, np.sqrt(np.diag(N_gn))) else None
+
+
+def positive_definite(N: np.ndarray, scale: np.ndarray | None = None) -> bool:
+    """Whether ``N`` (equilibrated by ``scale`` when given) has a Cholesky factor."""
     try:
-        np.linalg.cholesky(N / np.outer(d, d))
+        np.linalg.cholesky(N if scale is None else N / np.outer(scale, scale))
     except np.linalg.LinAlgError:
-        return None
-    return N
+        return False
+    return True

@@ -32,8 +32,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from gcs_core.filtr import curvature
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.problem import Problem
+from gcs_core.models import common
 from gcs_core.models.base import ObservationModel
 
 #: inner Newton iterations per sensor and refinement
@@ -110,7 +112,7 @@ def refine_local(problem: Problem, values: dict, names: Sequence[str], x: np.nda
             Ag, bg, cost, Kg, d = cur
             N_gn = Ag + np.diag(prior_info[sel])
             N = N_gn + Kg
-            if not _positive_definite(N):
+            if not curvature.positive_definite(N, np.sqrt(np.diag(N_gn))):
                 N = N_gn
             step = np.linalg.solve(N + lam * np.diag(np.diag(N)), bg + prior_info[sel] * d)
             if np.all(np.abs(step) <= tol_step_sigma * np.sqrt(np.diag(np.linalg.inv(N_gn)))):
@@ -144,14 +146,6 @@ def _held_chunks(problem: Problem, sd, values, edits) -> list:
     return chunks
 
 
-def _positive_definite(N: np.ndarray) -> bool:
-    try:
-        np.linalg.cholesky(N)
-    except np.linalg.LinAlgError:
-        return False
-    return True
-
-
 def _held_normal(sd, chunks, params, par):
     """``(A, b, χ², K)`` of one sensor's held chunks over the elements ``par`` ((local
     name, position) pairs), from component-sparse partials
@@ -181,12 +175,10 @@ def _held_normal(sd, chunks, params, par):
                 A[np.ix_(idx, idx)] += G[:-1, :-1]
                 b[idx] += G[:-1, -1]
             chi2 += float(G[-1, -1])
-        for (a, bb), (c, v) in hp.d2_par.items():
+        curv = []
+        for (a, bb), entry in hp.d2_par.items():
             if a in where and bb in where:
-                s_ = float(rc[c] @ v) if np.ndim(v) else float(v) * float(rc[c].sum())
-                val = -s_ / sd.sigma[c] ** 2
-                i, j = where[a], where[bb]
-                K[i, j] += val
-                if i != j:
-                    K[j, i] += val
+                c, v = common.component_values(entry, nrow)
+                curv.append((where[a], where[bb], -float(rc[c] @ v) / sd.sigma[c] ** 2))
+        curvature.add_block(K, np.arange(p), curv)
     return A, b, chi2, K

@@ -202,15 +202,12 @@ def check_partials(model: ObservationModel, geom: Geometry, params: Mapping[str,
         return ElementCheck(name, step, err, scale, tol)
 
     elements = []
-    for p in specs:
-        x = values[p.name]
-        h = rel_step * max(abs(x), abs(p.sigma))
-
-        def run(sign, _name=p.name, _x=x, _h=h):
-            return model.predict(geom, {**values, _name: _x + sign * _h})
-        elements.append(compare(p.name, h, np.asarray(base.d_par[p.name]), run))
-
     steps = {p.name: rel_step * max(abs(values[p.name]), abs(p.sigma)) for p in specs}
+    for p in specs:
+        def run(sign, _name=p.name, _x=values[p.name], _h=steps[p.name]):
+            return model.predict(geom, {**values, _name: _x + sign * _h})
+        elements.append(compare(p.name, steps[p.name], np.asarray(base.d_par[p.name]), run))
+
     for a, b in base.d2_par:                     # second partials: differences of ∂y/∂a in b
         def run2(sign, _a=a, _b=b):
             pr = model.predict(geom, {**values, _b: values[_b] + sign * steps[_b]})

@@ -214,25 +214,17 @@ class _HeldTransfer:
             s1, co1 = np.sin(kx), np.cos(kx)
             xc = x * co1
             if h != 0.0:
-                s2, xc2 = np.sin(2.0 * kx), x * np.cos(2.0 * kx)
+                s2 = np.sin(2.0 * kx)
                 cnt = (x - c1 - c3 * s1 - h * s2) / c2
-                dk = -(c3 * xc + 2.0 * h * xc2) / c2
-                kk = x * x * (c3 * s1 + 4.0 * h * s2) / c2
+                dk = -(c3 * xc + 2.0 * h * x * np.cos(2.0 * kx)) / c2
             else:
-                s2 = xc2 = None
                 cnt = (x - c1 - c3 * s1) / c2
                 dk = -(c3 / c2) * xc
-                kk = (c3 / c2) * (x * x * s1)
             y[:, row] = cnt
-            inv, inv2 = 1.0 / c2, 1.0 / c2 ** 2
-            d_par.update({a1: (row, -inv), a2: (row, -inv * cnt), a3: (row, -inv * s1), k_: (row, dk)})
-            d2.update({(a1, a2): (row, inv2), (a2, a2): (row, (2.0 * inv2) * cnt), (a2, a3): (row, inv2 * s1),
-                       (a3, k_): (row, -inv * xc), (a2, k_): (row, -inv * dk), (k_, k_): (row, kk)})
+            d_par.update({a1: (row, -1.0 / c2), a2: (row, -cnt / c2), a3: (row, -s1 / c2), k_: (row, dk)})
             if harm in params and (wanted is None or harm in wanted):
-                if s2 is None:
-                    s2, xc2 = np.sin(2.0 * kx), x * np.cos(2.0 * kx)
-                d_par[harm] = (row, -inv * s2)
-                d2.update({(a2, harm): (row, inv2 * s2), (harm, k_): (row, (-2.0 * inv) * xc2)})
+                d_par[harm] = (row, -np.sin(2.0 * kx) / c2)
+            _second_partials(d2, n, row, names, harm, x, kx, cnt, c2, c3, h, s1, co1)
         return HeldPrediction(y, d_par, d2)
 
 
