@@ -117,8 +117,15 @@ class DiagnosisScreen(GcsScreen):
                 ho_plot.paint(lambda plt: self._chart(plt, steps, sensors, "holdout_after", "held-out RMS"))
             else:
                 ho_plot.paint(None, empty="no held-out score (diagnosis.holdout_fraction)")
-        legend = "  ".join(f"{i}: {step_label(s)}" for i, s in enumerate(steps))
-        self.query_one("#steps-legend", Static).update(f" steps — {legend}" if steps else "")
+        # the sensors' colours here, not in the charts: plotext draws its legend over the
+        # top-left corner, where step 0 (the highest RMS) is
+        legend = Text(" ")
+        for k, name in enumerate(sensors if steps else ()):
+            legend.append("● " + name, style="rgb({},{},{})".format(*series(k)))
+            legend.append("  ")
+        if steps:
+            legend.append("· steps — " + "  ".join(f"{i}: {step_label(s)}" for i, s in enumerate(steps)))
+        self.query_one("#steps-legend", Static).update(legend if steps else "")
 
     @staticmethod
     def _chart(plt, steps, sensors, attr, title) -> None:
@@ -130,7 +137,7 @@ class DiagnosisScreen(GcsScreen):
             if not finite:
                 continue
             top = max(top, max(finite) * 1.02)
-            plt.plot(x, [v if math.isfinite(v) else 0.0 for v in y], color=series(k), marker="dot", label=name)
+            plt.plot(x, [v if math.isfinite(v) else 0.0 for v in y], color=series(k), marker="dot")
         plt.horizontal_line(1.0, color="gray")
         plt.horizontal_line(1.05, color="red")
         plt.ylim(0.9, top)
