@@ -7,8 +7,6 @@ acceptance level of issue 3 (a 5 % excess of the noise floor).
 
 from __future__ import annotations
 
-from dataclasses import replace
-
 import pytest
 
 from gcs_core.config import AnalysisConfig

@@ -163,8 +163,9 @@ class Ephemeris:
         self.check_covers(t_arr, what=what)
         k, s, h = self._locate(t_arr)
         s2, s3 = s * s, s * s * s
-        h00, h10, h01, h11 = 2 * s3 - 3 * s2 + 1, s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
-        d00, d10, d01, d11 = 6 * s2 - 6 * s, 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s
+        # Hermite basis (h00 = 1 − h01 and d00 = −d01 enter through r1 − r0 below)
+        h10, h01, h11 = s3 - 2 * s2 + s, -2 * s3 + 3 * s2, s3 - s2
+        d10, d01, d11 = 3 * s2 - 4 * s + 1, -6 * s2 + 6 * s, 3 * s2 - 2 * s
         r0, r1 = self.r_I_km[k], self.r_I_km[k + 1]
         v0, v1 = self.v_I_km_s[k], self.v_I_km_s[k + 1]
         hc = h[:, None]
