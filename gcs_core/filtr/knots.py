@@ -1,0 +1,347 @@
+"""Gyro process noise as dynamic attitude and bias corrections at knots (seed §3.2.1, Eq 4-38).
+
+The batch carries the attitude with the gyros from the roll/pitch/yaw at ``t_ref`` and
+treats the propagation as exact between its static parameters. The gyro's angle random
+walk (σ_v) and rate random walk (σ_u) make the true attitude wander away from that
+trajectory. Here the wander is a correction to the gyro-carried attitude, held at knots
+``τ_0 < τ_1 < … < τ_{K−1}`` along the span: per knot ``z_j = (α_j, β_j)``, ``α`` a
+small GCI-frame rotation (the body-frame error is ``δθ = C α``, the convention of
+:mod:`gcs_core.filtr.attitude` where ``Cᵀ δθ`` is the cumulative sum) and ``β`` a
+body-axis drift-bias correction. Between knots the correction is carried by the bias::
+
+    α(t) = α_j + Γ_j(t) β_j,   Γ_j(t) = −(t − τ_j) R_j,   R_j = C(τ_j + Δ_j/2)ᵀ
+
+and from knot to knot the increments are the process noise of Farrenkopf's model
+(:func:`gcs_core.filtr.mekf.farrenkopf_q` with ``W_b = −R``; ``R`` is a rotation)::
+
+    z_{j+1} = Φ_j z_j + w_j,   Φ_j = [[I, −Δ_j R_j], [0, I]],   w_j ~ N(0, Q_j)
+    Q_j = [[a I, c R_j], [c R_jᵀ, e I]],  a = σ_v² Δ + σ_u² Δ³/3,  c = −σ_u² Δ²/2,  e = σ_u² Δ
+    Q_j⁻¹ = [[e I, −c R_j], [−c R_jᵀ, a I]] / (a e − c²)
+
+``z_0 = 0``: the static roll/pitch/yaw and gyro bias carry the initial condition, so the
+prior on the increments alone defines the problem and ``Q → 0`` forces ``z ≡ 0`` (the
+batch). Without a rate random walk (σ_u = 0) only ``α`` is dynamic (d = 3).
+
+The whole-span MAP problem in ``(x, z_1 … z_{K−1})`` has a normal matrix that is
+block-tridiagonal in the knots with a dense border to the p static columns.
+:class:`KnotSystem` accumulates the knot blocks from the measurement rows and
+eliminates them (forward block Cholesky, the information filter), leaving the p × p
+reduced (marginal) normal matrix of the static elements, whose inverse is their
+covariance; back-substitution (the RTS smoother) gives the knot steps, and a backward
+recursion the knots' marginal covariances and their cross-covariance with ``x``.
+
+References
+----------
+Farrenkopf, R. L., "Analytic steady-state accuracy solutions for two common spacecraft
+attitude estimators", J. Guidance Control 1(4), 1978 (the Q above). Bell, B. M., "The
+iterated Kalman smoother as a Gauss–Newton method", SIAM J. Optim. 4(3), 1994.
+Rauch, Tung & Striebel, AIAA J. 3(8), 1965. Golub & Van Loan, *Matrix Computations*,
+4th ed., §4.5 (block tridiagonal elimination).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from gcs_core.filtr.kalman_kernels import COMPILED, numba
+
+_jit = numba.njit(cache=True) if COMPILED else (lambda fn: fn)
+
+#: intra-interval wander variance allowed against the attitude variance the data give
+#: over one knot interval (the knot-spacing rule of :func:`knot_spacing`)
+SPACING_EPS = 0.05
+
+
+@dataclass(frozen=True)
+class KnotGrid:
+    """Knot times and the gyro noise of the dynamic corrections (module docstring).
+
+    tau : (K,) knot times [s]; sigma_v [rad/s^0.5], sigma_u [rad/s^1.5]; d : 3 or 6.
+    """
+
+    tau: np.ndarray
+    sigma_v: float
+    sigma_u: float
+
+    @property
+    def d(self) -> int:
+        return 6 if self.sigma_u > 0 else 3
+
+    @property
+    def K(self) -> int:
+        return int(self.tau.size)
+
+    def index(self, t) -> np.ndarray:
+        """(N,) knot of each time: ``τ_j ≤ t < τ_{j+1}`` (clipped to the grid)."""
+        return np.clip(np.searchsorted(self.tau, t, side="right") - 1, 0, self.K - 1)
+
+    def mid_times(self) -> np.ndarray:
+        return 0.5 * (self.tau[:-1] + self.tau[1:])
+
+
+def make_grid(t0: float, t1: float, spacing: float, sigma_v: float, sigma_u: float) -> KnotGrid:
+    """Knots from ``t0`` to past ``t1`` at (about) ``spacing`` seconds, equally spaced."""
+    span = max(float(t1 - t0), 1e-9)
+    n = max(1, int(np.ceil(span / max(spacing, 1e-9))))
+    tau = t0 + np.arange(n + 1) * (span / n)
+    tau[-1] = t1 + 1e-6 * (span / n)            # the last knot closes the span
+    return KnotGrid(tau, float(sigma_v), float(sigma_u))
+
+
+def knot_spacing(sigma_v: float, info_rate: float, *, dt_min: float = 1.0, dt_max: float = 300.0,
+                 eps: float = SPACING_EPS) -> float:
+    """Knot spacing Δ that makes the wander not modelled inside an interval negligible
+    against what the data determine over it.
+
+    Inside an interval the random walk's variance about the carried correction averages
+    ``σ_v² Δ/2``; the data give the attitude to a variance ``1/(I Δ)`` over the interval
+    (``I`` the attitude information per second of the best-determined axis). Their ratio
+    ``σ_v² I Δ²/2 ≤ eps`` gives ``Δ = sqrt(2 eps/(σ_v² I))``, clipped to
+    ``[dt_min, dt_max]``.
+    """
+    if sigma_v <= 0 or info_rate <= 0:
+        return dt_max
+    return float(np.clip(np.sqrt(2.0 * eps / (sigma_v ** 2 * info_rate)), dt_min, dt_max))
+
+
+def transitions(grid: KnotGrid, R: np.ndarray):
+    """Φ_j, Q_j⁻¹ (K−1, d, d) of every interval from the mid-interval ``R_j`` (K−1, 3, 3)."""
+    dt = np.diff(grid.tau)
+    n, d = dt.size, grid.d
+    v2, u2 = grid.sigma_v ** 2, grid.sigma_u ** 2
+    Phi = np.zeros((n, d, d))
+    W = np.zeros((n, d, d))
+    eye = np.eye(3)
+    Phi[:, :3, :3] = eye
+    if d == 3:
+        W[:, :3, :3] = eye / (v2 * dt)[:, None, None]
+        return Phi, W
+    Phi[:, 3:, 3:] = eye
+    Phi[:, :3, 3:] = -dt[:, None, None] * R
+    a = v2 * dt + u2 * dt ** 3 / 3.0
+    c = -u2 * dt ** 2 / 2.0
+    e = u2 * dt
+    det = (a * e - c * c)[:, None, None]
+    W[:, :3, :3] = (e[:, None, None] * eye) / det
+    W[:, 3:, 3:] = (a[:, None, None] * eye) / det
+    W[:, :3, 3:] = -(c[:, None, None] * R) / det
+    W[:, 3:, :3] = np.swapaxes(W[:, :3, 3:], 1, 2)
+    return Phi, W
+
+
+def knot_rows(D: np.ndarray, C: np.ndarray, t: np.ndarray, j: np.ndarray, grid: KnotGrid,
+              R: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+    """(N, m, d) partials of the measurements with respect to their knot's ``z_j``:
+    ``∂y/∂α = D C`` and ``∂y/∂β = D C Γ_j(t)`` (module docstring), rows scaled by ``w``.
+
+    D : (N, m, 3) model attitude partials; C : (N, 3, 3) attitude; t, j : (N,) times and
+    knots; R : (K−1, 3, 3) mid-interval rotations.
+    """
+    DC = np.matmul(D, C)
+    if w is not None:
+        DC *= w[:, :, None]
+    if grid.d == 3:
+        return DC
+    out = np.empty(D.shape[:2] + (6,))
+    out[:, :, :3] = DC
+    Rj = R[np.minimum(j, R.shape[0] - 1)] if R.shape[0] else np.broadcast_to(np.eye(3), (t.size, 3, 3))
+    s = -(t - grid.tau[j])
+    np.matmul(DC, Rj * s[:, None, None], out=out[:, :, 3:])
+    return out
+
+
+def alpha_at(grid: KnotGrid, z: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(N, 3) GCI-frame attitude correction ``α(t) = α_j + Γ_j(t) β_j``."""
+    j = grid.index(t)
+    a = z[j, :3].copy()
+    if grid.d == 6 and R.shape[0]:
+        s = -(t - grid.tau[j])
+        a += s[:, None] * np.einsum("nab,nb->na", R[np.minimum(j, R.shape[0] - 1)], z[j, 3:])
+    return a
+
+
+# ----------------------------------------------------------------------------------------
+@_jit
+def _accumulate(U, H, rw, knot, cols, Dk, Bk):
+    """``Dk[j] += Σ uᵀu``, ``Bk[j][:, cols] += Σ uᵀh``, ``Bk[j][:, -1] += Σ uᵀ r`` over the
+    rows of each frame (U (N, m, d), H (N, m, k), rw (N, m), knot (N,), cols (k,))."""
+    d = U.shape[2]
+    last = Bk.shape[2] - 1
+    for i in range(U.shape[0]):
+        jj = knot[i]
+        for r in range(U.shape[1]):
+            for a in range(d):
+                ua = U[i, r, a]
+                if ua == 0.0:
+                    continue
+                for b in range(d):
+                    Dk[jj, a, b] += ua * U[i, r, b]
+                for q in range(cols.shape[0]):
+                    Bk[jj, a, cols[q]] += ua * H[i, r, q]
+                Bk[jj, a, last] += ua * rw[i, r]
+
+
+def _accumulate_numpy(U, H, rw, knot, cols, Dk, Bk):
+    """The numpy form of :func:`_accumulate` (frames are in time order: segment sums)."""
+    if not U.shape[0]:
+        return
+    starts = np.flatnonzero(np.r_[True, knot[1:] != knot[:-1]])
+    js = knot[starts]
+    Dk[js] += np.add.reduceat(np.einsum("nra,nrb->nab", U, U), starts, axis=0)
+    HB = np.add.reduceat(np.einsum("nra,nrq->naq", U, H), starts, axis=0)
+    for q, c in enumerate(cols):
+        Bk[js, :, c] += HB[:, :, q]
+    Bk[js, :, -1] += np.add.reduceat(np.einsum("nra,nr->na", U, rw), starts, axis=0)
+
+
+class KnotSystem:
+    """Knot blocks of the whole-span normal equations over ``p`` static columns.
+
+    Dk (K, d, d) ``Σ Uᵀ U``; Bk (K, d, p+1) ``Σ Uᵀ [H | r]`` (weighted rows).
+    """
+
+    def __init__(self, grid: KnotGrid, p: int, R: np.ndarray, z: np.ndarray):
+        self.grid, self.p, self.R, self.z = grid, p, R, z
+        d = grid.d
+        self.Dk = np.zeros((grid.K, d, d))
+        self.Bk = np.zeros((grid.K, d, p + 1))
+        self.Phi, self.W = transitions(grid, R)
+        self.knot_gain = 0.0
+
+    def add(self, U, H, rw, t, cols) -> None:
+        """Add one block's weighted rows: U (N, m, d), H (N, m, k) over static ``cols``,
+        rw (N, m) the weighted residuals; t (N,) frame times."""
+        knot = self.grid.index(t).astype(np.int64)
+        args = (np.ascontiguousarray(U), np.ascontiguousarray(H), np.ascontiguousarray(rw), knot,
+                np.asarray(cols, np.int64), self.Dk, self.Bk)
+        (_accumulate if COMPILED else _accumulate_numpy)(*args)
+
+    def prior_cost(self) -> float:
+        """``Σ e_jᵀ Q_j⁻¹ e_j``, ``e_j = z_{j+1} − Φ_j z_j``."""
+        e = self.increments()
+        return float(np.einsum("na,nab,nb->", e, self.W, e))
+
+    def increments(self) -> np.ndarray:
+        z = self.z
+        return z[1:] - np.einsum("nab,nb->na", self.Phi, z[:-1])
+
+    def eliminate(self, N: np.ndarray, g: np.ndarray):
+        """Reduce ``[N | g]`` (p × p and p, the static block with its prior) by the knots.
+
+        Returns (N_red, g_red, factors); ``factors`` feed :meth:`back_substitute` and
+        :meth:`covariance`.
+        """
+        e = self.increments()
+        We = np.einsum("nab,nb->na", self.W, e)
+        gz = self.Bk[:, :, -1].copy()
+        gz[1:] -= We                                   # −∂/∂z_{j+1} of ½ eᵀWe
+        gz[:-1] += np.einsum("nba,nb->na", self.Phi, We)
+        Baug = self.Bk.copy()
+        Baug[:, :, -1] = gz
+        M = np.zeros((self.p + 1, self.p + 1))
+        M[:self.p, :self.p] = N
+        M[:self.p, self.p] = g
+        M[self.p, :self.p] = g
+        Sinv, Bh, O = _forward(self.Dk, Baug, self.Phi, self.W, M)
+        self.knot_gain = -float(M[self.p, self.p])     # Σ ĝ_jᵀ S_j⁻¹ ĝ_j: the knots' part of gᵀN⁻¹g
+        N_red = 0.5 * (M[:self.p, :self.p] + M[:self.p, :self.p].T)
+        return N_red, M[:self.p, self.p].copy(), (Sinv, Bh, O)
+
+    @staticmethod
+    def back_substitute(factors, dx: np.ndarray) -> np.ndarray:
+        """(K, d) knot steps given the static step (``δz_0 = 0``)."""
+        Sinv, Bh, O = factors
+        return _backward(Sinv, Bh, O, np.ascontiguousarray(dx))
+
+    @staticmethod
+    def covariance(factors, P: np.ndarray):
+        """Marginal covariance of each knot (K, d, d) and with the statics (K, d, p)."""
+        Sinv, Bh, O = factors
+        return _cov_backward(Sinv, Bh, O, np.ascontiguousarray(P))
+
+
+@_jit
+def _sym_inv(S):
+    """Inverse of a small symmetric positive definite matrix (equilibrated Cholesky)."""
+    n = S.shape[0]
+    dg = np.sqrt(np.abs(np.diag(S.copy())))
+    for i in range(n):
+        if dg[i] == 0.0:
+            dg[i] = 1.0
+    Ss = S / np.outer(dg, dg)
+    L = np.linalg.cholesky(Ss)
+    Li = np.linalg.inv(L)
+    inv = Li.T @ Li
+    return inv / np.outer(dg, dg)
+
+
+@_jit
+def _forward(Dk, Baug, Phi, W, M):
+    """Forward block elimination of knots 1 … K−1 (module docstring), in place on ``M``
+    ((p+1) × (p+1), the static normal matrix bordered by its right-hand side).
+
+    Knot j's diagonal is ``Dk_j + W_{j−1} + Φ_jᵀ W_j Φ_j``, its coupling to j+1 is
+    ``O_j = −Φ_jᵀ W_j``. Returns S_j⁻¹ (K, d, d), the reduced borders B̂_j (K, d, p+1)
+    and O_j (K, d, d).
+    """
+    K, d = Dk.shape[0], Dk.shape[1]
+    q = Baug.shape[2]
+    Sinv = np.zeros((K, d, d))
+    Bh = np.zeros((K, d, q))
+    O = np.zeros((K, d, d))
+    for j in range(1, K):
+        S = Dk[j] + W[j - 1]
+        B = Baug[j].copy()
+        if j < K - 1:
+            PtW = Phi[j].T @ W[j]
+            S = S + PtW @ Phi[j]
+            O[j] = -PtW
+        if j > 1:
+            Op = O[j - 1]                      # coupling (j−1, j)
+            T = Sinv[j - 1] @ Op
+            S = S - Op.T @ T
+            B = B - T.T @ Bh[j - 1]
+        S = 0.5 * (S + S.T)
+        Si = _sym_inv(S)
+        Sinv[j] = Si
+        Bh[j] = B
+        M -= B.T @ (Si @ B)
+    return Sinv, Bh, O
+
+
+@_jit
+def _backward(Sinv, Bh, O, dx):
+    K, d = Sinv.shape[0], Sinv.shape[1]
+    p = dx.shape[0]
+    dz = np.zeros((K, d))
+    for j in range(K - 1, 0, -1):
+        rhs = Bh[j][:, p] - Bh[j][:, :p] @ dx
+        if j < K - 1:
+            rhs = rhs - O[j] @ dz[j + 1]
+        dz[j] = Sinv[j] @ rhs
+    return dz
+
+
+@_jit
+def _cov_backward(Sinv, Bh, O, P):
+    """``z_j = −S_j⁻¹ (O_j z_{j+1} + B̂_j x) + e_j``, ``e_j ~ N(0, S_j⁻¹)`` independent of
+    ``(z_{j+1}, x)``: Σ_j = S_j⁻¹ + L Cov(f) Lᵀ, Cov(z_j, x) = (L Cov(f))_x."""
+    K, d = Sinv.shape[0], Sinv.shape[1]
+    p = P.shape[0]
+    Sig = np.zeros((K, d, d))
+    X = np.zeros((K, d, p))
+    for j in range(K - 1, 0, -1):
+        Bx = Bh[j][:, :p]
+        if j < K - 1:
+            # L Cov(f) with f = (z_{j+1}, x), L = −S⁻¹ [O_j, B̂_j]
+            LC_z = -(Sinv[j] @ (O[j] @ Sig[j + 1] + Bx @ X[j + 1].T))
+            LC_x = -(Sinv[j] @ (O[j] @ X[j + 1] + Bx @ P))
+            Sig[j] = Sinv[j] - LC_z @ (Sinv[j] @ O[j]).T - LC_x @ (Sinv[j] @ Bx).T
+        else:
+            LC_x = -(Sinv[j] @ (Bx @ P))
+            Sig[j] = Sinv[j] - LC_x @ (Sinv[j] @ Bx).T
+        Sig[j] = 0.5 * (Sig[j] + Sig[j].T)
+        X[j] = LC_x
+    return Sig, X

@@ -1,0 +1,398 @@
+"""Whole-span least squares with gyro process noise: the default estimator (seed §3.2.1).
+
+The batch (:mod:`gcs_core.filtr.batch`, Eq 3-1/3-2) carries the attitude with the
+gyros and takes that propagation as exact. Here the gyro's angle and rate random walks
+(σ_v, σ_u, ICD §5 ``arw``, ``rrw``) enter as process noise: dynamic attitude and
+drift-bias corrections at knots along the span, tied together by Farrenkopf's Q on their
+increments (:mod:`gcs_core.filtr.knots`), estimated jointly with the static elements.
+The problem is one maximum a posteriori fit over the whole span::
+
+    J(x, z) = Σ ‖R^-1/2 (y − h(x, z))‖² + ‖x − x̄‖²_{P̄⁻¹} + Σ_j ‖z_{j+1} − Φ_j z_j‖²_{Q_j⁻¹}
+
+solved by Gauss–Newton: every iteration linearizes all sensors about the current
+whole-span solution (the gyro-carried attitude corrected by ``z``), eliminates the knots
+(information filter forward, RTS back-substitution) and steps ``x`` with the reduced
+normal matrix, whose inverse is the covariance of ``x``. The iterated Kalman smoother is
+this Gauss–Newton method (Bell 1994); the minimum, covariance and residuals do not
+depend on how the span is cut into blocks.
+
+The iteration starts from the batch solution (never from a one-pass filter's track),
+and a step that raises ``J`` is shortened. Data are edited on the whole-span residuals
+with the batch's robust k-σ rule (:func:`~gcs_core.filtr.batch.robust_outliers`); a
+sensor with more than ``max_edit_fraction`` of its frames beyond k σ is not edited but
+reported (the model, not the data, is wrong). With no gyro noise in the data book the
+knots are empty and the fit is the batch's.
+
+``chi2`` of the result is the data χ² plus the process term (``J`` without the static
+prior), on ``m − n`` degrees of freedom: the increments are pseudo-measurements that
+bring as many equations as knot unknowns.
+
+References
+----------
+Bell, B. M., "The iterated Kalman smoother as a Gauss–Newton method", SIAM J. Optim.
+4(3), 1994. Crassidis & Junkins, *Optimal Estimation of Dynamic Systems*, 2nd ed.,
+CRC 2012, §5.3 (fixed-interval smoothing), §7.2 (attitude estimation with gyros).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field, replace
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.errors import EstimationError, UnobservableError
+from gcs_core.filtr import knots as kn
+from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitude
+from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
+                                  name_combinations, residuals_from, robust_outliers)
+from gcs_core.filtr.linearization import iter_blocks
+from gcs_core.filtr.mekf import GyroNoise, gyro_noise
+from gcs_core.filtr.problem import Problem
+from gcs_core.frames.rotations import rotvec_to_dcm
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class Dynamics:
+    """The knot corrections of a whole-span fit and what their covariance needs.
+
+    grid : the knots; z : (K, d) corrections; R : (K−1, 3, 3) mid-interval rotations;
+    names : the static columns of ``factors`` and ``P``; factors : the elimination at the
+    solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics.
+    """
+
+    grid: kn.KnotGrid
+    z: np.ndarray
+    R: np.ndarray
+    names: tuple = ()
+    factors: tuple | None = None
+    P: np.ndarray | None = None
+    _cov: tuple | None = field(default=None, repr=False)
+
+    def attitude(self, base) -> "CorrectedAttitude":
+        return CorrectedAttitude(base, self.grid, self.z, self.R)
+
+    def problem(self, problem: Problem) -> Problem:
+        """The problem with its attitude corrected by the knots (caches shared)."""
+        base = problem.attitude.base if isinstance(problem.attitude, CorrectedAttitude) else problem.attitude
+        out = replace(problem, attitude=self.attitude(base))
+        out.__dict__["_variant_cache"] = problem.__dict__.setdefault("_variant_cache", {})
+        return out
+
+    def covariance(self):
+        """(Σ_j (K, d, d), Cov(z_j, x) (K, d, n)) at the solution (computed once)."""
+        if self._cov is None and self.factors is not None:
+            self._cov = kn.KnotSystem.covariance(self.factors, self.P)
+        return self._cov
+
+    def knot_sigma(self) -> np.ndarray:
+        """(K, d) 1-sigma of the corrections."""
+        S = self.covariance()[0]
+        return np.sqrt(np.clip(np.einsum("kaa->ka", S), 0, None))
+
+
+class CorrectedAttitude:
+    """The gyro-carried attitude with the knot corrections applied exactly:
+    ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.filtr.knots`).
+    Partials stay factored as the base provider's (chained through the corrected C)."""
+
+    def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray):
+        self.base, self.grid, self.z, self.R = base, grid, z, R
+
+    def __getattr__(self, name):
+        return getattr(self.base, name)
+
+    @property
+    def names(self):
+        return self.base.names
+
+    def _correct(self, C, t):
+        if not np.any(self.z):
+            return C
+        a = kn.alpha_at(self.grid, self.z, self.R, t)
+        return rotvec_to_dcm(np.einsum("nab,nb->na", C, a)) @ C
+
+    def frames(self, values, t, *, partials: bool = True) -> FrameAttitude:
+        t = np.atleast_1d(np.asarray(t, float))
+        fr = self.base.frames(values, t, partials=partials)
+        return FrameAttitude(self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro)
+
+    def evaluate(self, values, t) -> AttitudeEval:
+        t = np.atleast_1d(np.asarray(t, float))
+        ev = self.base.evaluate(values, t)
+        return AttitudeEval(self._correct(ev.C_BI, t), None, ev.names, ev.J, omega_B=ev.omega_B)
+
+
+@dataclass(frozen=True)
+class SmoothedResult(BatchResult):
+    """A :class:`BatchResult` of the whole-span fit, with its knot corrections.
+
+    dynamics : the knots (None when there is no process noise); chi2_process : the
+    process term of ``chi2``; batch_delta_sigma : (n,) the batch solution's distance from
+    this one in this fit's σ.
+    """
+
+    dynamics: Dynamics | None = None
+    chi2_process: float = 0.0
+    batch_delta_sigma: np.ndarray | None = None
+
+
+def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
+    """``C_gyro(t)ᵀ`` (N, 3, 3) at times ``t``, block by block of the propagation."""
+    out = np.empty((t.size, 3, 3))
+    if not t.size:
+        return out
+    b = (att._rows(t) - 1) // att.block_knots
+    for bb in np.unique(b):
+        sel = np.flatnonzero(b == bb)
+        out[sel] = np.swapaxes(att.frames(values, t[sel], partials=False).C_BI, 1, 2)
+    return out
+
+
+def process_noise(problem: Problem) -> GyroNoise | None:
+    """The gyro noise of the data book when the attitude is gyro-carried and noisy."""
+    if problem.gyro_name is None or not isinstance(problem.attitude, GyroAttitude):
+        return None
+    noise = gyro_noise(problem)
+    return noise if (noise.sigma_v > 0 or noise.sigma_u > 0) else None
+
+
+def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, names, *,
+               spacing: float | None = None) -> kn.KnotGrid:
+    """Knots over the span of the gyro knots, spaced by :func:`knots.knot_spacing` from the
+    information per second the data give the attitude (the batch's roll/pitch/yaw block)."""
+    att = problem.attitude
+    t0, t1 = float(att.knots[0]), float(att.knots[-1])
+    for sd in problem.sensors:
+        if sd.n:
+            t1 = max(t1, float(sd.t[-1]))
+    if spacing is None:
+        ix = [names.index(nm) for nm in RPY if nm in names]
+        rate = float(np.linalg.eigvalsh(information[np.ix_(ix, ix)])[-1]) / max(t1 - t0, 1.0) if ix else 0.0
+        dt = float(np.median(att.dt)) if att.dt.size else 1.0
+        spacing = kn.knot_spacing(noise.sigma_v if noise.sigma_v > 0 else noise.sigma_u * 1e3, rate,
+                                  dt_min=max(dt, 1e-3))
+    return kn.make_grid(t0, t1, spacing, noise.sigma_v, noise.sigma_u)
+
+
+class _Passes:
+    """Linearization passes of the whole-span problem at (x, z)."""
+
+    def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info):
+        self.problem, self.names, self.grid = problem, tuple(names), grid
+        self.base = problem.attitude
+        self.x_bar, self.prior_info = x_bar, prior_info
+        self.values = problem.state.values()
+        self.work: dict = {}
+        self.buffers = Residuals().ensure(problem)
+
+    def set_x(self, x, names=None):
+        for j, nm in enumerate(names or self.names):
+            self.values[nm] = x[j]
+
+    def run(self, x, z, edits, *, columns=None, jacobian=True):
+        """One pass: (A, b, χ², m, system) at (x, z); the residual buffers are filled."""
+        cols = tuple(columns or self.names)
+        self.set_x(x)
+        R = mid_rotations(self.base, self.values, self.grid.mid_times())
+        sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z)
+        prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R))
+        n = len(cols) if jacobian else 0
+        A, b = np.zeros((n, n)), np.zeros(n)
+        chi2, m_used = 0.0, 0
+        for blk in iter_blocks(prob, self.values, cols if jacobian else (), exclude=edits, weighted=True,
+                               jacobian=jacobian, work=self.work, augmented=True):
+            if blk.name in self.buffers.y_pred:
+                self.buffers.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
+            self.buffers.r[blk.name][blk.lo:blk.hi] = blk.r
+            self.buffers.valid[blk.name][blk.lo:blk.hi] = blk.valid
+            nu = int(np.count_nonzero(blk.used))
+            if not nu:
+                continue
+            m_used += nu * blk.r.shape[1]
+            sd = blk.sensor
+            rw = np.where(blk.used[:, None], blk.r, 0.0) / sd.sigma
+            chi2 += float(np.sum(rw * rw))
+            if not jacobian:
+                continue
+            c = blk.cols
+            if blk.Hr is not None:
+                A[np.ix_(c, c)] += blk.Hr[:, :-1].T @ blk.Hr[:, :-1]
+                b[c] += blk.Hr[:, :-1].T @ blk.Hr[:, -1]
+            D = getattr(blk.pred, "d_att", None)
+            if D is None or blk.geom.C_BI is None:
+                continue
+            t = sd.t[blk.lo:blk.hi]
+            j = self.grid.index(t)
+            w = blk.used[:, None] / sd.sigma[None, :]
+            U = kn.knot_rows(np.nan_to_num(D), blk.geom.C_BI, t, j, self.grid, R, w)
+            H = blk.H if blk.H is not None else np.zeros(blk.r.shape + (0,))
+            sysk.add(U, H, rw, t, c if blk.H is not None else np.zeros(0, np.int64))
+        return A, b, chi2, m_used, sysk, R
+
+    def cost(self, x, chi2, sysk) -> float:
+        d = self.x_bar - x
+        return chi2 + float(np.sum(self.prior_info * d * d)) + sysk.prior_cost()
+
+
+def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
+                   edited: Mapping[str, np.ndarray] | None = None,
+                   initial: Mapping[str, float] | None = None,
+                   noise: GyroNoise | None = None, spacing: float | None = None,
+                   start: BatchResult | None = None) -> BatchResult:
+    """The whole-span fit with gyro process noise (module docstring).
+
+    ``noise`` overrides the data book's gyro noise (None: the book's); ``spacing`` the
+    knot spacing [s]; ``start`` a batch result on the same problem and edits to start
+    from (else the batch is run first). Without gyro noise the batch's result is returned.
+    """
+    opts = options or BatchOptions()
+    batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
+    noise = noise if noise is not None else process_noise(problem)
+    if noise is None or (noise.sigma_v <= 0 and noise.sigma_u <= 0) \
+            or not isinstance(problem.attitude, GyroAttitude):
+        return batch
+    state = problem.state
+    names = tuple(batch.solve_for)
+    cons = tuple(batch.consider)
+    n = len(names)
+    x_bar = np.array([state[nm].value for nm in names])
+    s0 = np.array([state[nm].sigma0 for nm in names])
+    prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
+    grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
+    passes = _Passes(problem, names, grid, x_bar, prior_info)
+    x = np.array(batch.x, float)
+    z = np.zeros((grid.K, grid.d))
+    preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
+    edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool))
+             for nm, r in batch.residuals.items()}
+    edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
+    suspect_all: set[str] = set()
+    history: list[float] = []
+    it_total = 0
+    status, message = "max_iterations", ""
+    for edit_pass in range(opts.edit_passes if edits_on else 1):
+        A, b, chi2, m_used, sysk, R = passes.run(x, z, edits)
+        cost = passes.cost(x, chi2, sysk)
+        history.append(cost)
+        for it in range(opts.max_iterations):
+            it_total += 1
+            N = A + np.diag(prior_info)
+            g = b + prior_info * (x_bar - x)
+            N_red, g_red, fac = sysk.eliminate(N, g)
+            try:
+                dx, P = _solve_normal(N_red, g_red)
+            except np.linalg.LinAlgError:
+                combos = name_combinations(N_red - np.diag(prior_info), names, opts.rank_tol)
+                raise UnobservableError("the normal matrix is singular: the data cannot separate "
+                                        + "; ".join(combos or ["(unidentified)"]), combos) from None
+            dz = kn.KnotSystem.back_substitute(fac, dx)
+            gain = float(g_red @ dx) + sysk.knot_gain
+            sig = np.sqrt(np.diag(P))
+            if it and np.all(np.abs(dx) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)) \
+                    and gain < opts.tol_chi2:
+                status, message = "converged", f"converged after {it} iterations"
+                it_total -= 1
+                break
+            step = 1.0
+            for attempt in range(10):
+                x_try, z_try = x + step * dx, z + step * dz
+                trial = passes.run(x_try, z_try, edits, jacobian=attempt == 0)
+                cost_t = passes.cost(x_try, trial[2], trial[4])
+                if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
+                    break
+                step *= 0.5
+            else:
+                status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
+                                               "(the model cannot describe these data)")
+                passes.run(x, z, edits)
+                break
+            change = cost - cost_t
+            x, z = x_try, z_try
+            A, b, chi2, m_used, sysk, R = trial if attempt == 0 else passes.run(x, z, edits)
+            cost = passes.cost(x, chi2, sysk)
+            history.append(cost)
+            tol = opts.tol_chi2 if cost < 2.0 * max(m_used, 1) else max(opts.tol_chi2, 1e-4 * cost)
+            if it >= 1 and change < tol and gain < 10 * tol:
+                status, message = "converged", f"converged after {it + 1} iterations"
+                break
+        else:
+            status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
+        if not edits_on:
+            break
+        new_edits, suspect = _edit(problem, passes.buffers, preflag, opts)
+        suspect_all |= suspect
+        changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
+                      for k in new_edits)
+        edits = new_edits
+        if not changed:
+            break
+        log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in edits.values()))
+        # the buffers now hold the residuals at (x, z); the next pass relinearizes there
+
+    # final normal equations at the solution (with the consider columns)
+    cols = names + cons
+    A_all, b_all, chi2, m_used, sysk, R = passes.run(x, z, edits, columns=cols)
+    pi_all = np.concatenate([prior_info, np.zeros(len(cons))])
+    N_all = A_all + np.diag(pi_all)
+    g_all = b_all.copy()
+    g_all[:n] += prior_info * (x_bar - x)
+    N_red_all, _, fac = sysk.eliminate(N_all, g_all)
+    N_red = N_red_all[:n, :n]
+    _, P = _solve_normal(N_red, np.zeros(n))
+    P_cons, budget = P.copy(), {}
+    if cons:
+        S = -P @ N_red_all[:n, n:]
+        for j, c in enumerate(cons):
+            contrib = np.outer(S[:, j], S[:, j]) * state[c].sigma0 ** 2
+            budget[c] = np.sqrt(np.diag(contrib))
+            P_cons += contrib
+        fac = (fac[0], np.concatenate([fac[1][:, :, :n], fac[1][:, :, -1:]], axis=2), fac[2])
+    info = N_red - np.diag(prior_info)
+    unobs = tuple(name_combinations(info, names, opts.rank_tol * 1e3))
+    chi2_proc = sysk.prior_cost()
+    message = (f"whole-span fit with gyro process noise ({grid.K} knots every "
+               f"{float(np.median(np.diff(grid.tau))):.3g} s): {message}")
+    if suspect_all:
+        message += ("; not edited (more than "
+                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
+                    "is suspect): " + ", ".join(sorted(suspect_all)))
+    new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
+    residuals = residuals_from(problem, passes.buffers, edits)
+    dyn = Dynamics(grid, z, R, names, fac, P)
+    sig = np.sqrt(np.diag(P))
+    return SmoothedResult(new_state, names, cons, x, P, P_cons, residuals, chi2 + chi2_proc, m_used - n,
+                          tuple(history), it_total + batch.iterations, status, message, info, unobs, budget,
+                          dynamics=dyn, chi2_process=chi2_proc,
+                          batch_delta_sigma=(np.asarray(batch.x) - x) / sig)
+
+
+def _edit(problem: Problem, buffers: Residuals, preflag, opts: BatchOptions):
+    """The batch's k-σ editing on the whole-span residuals (never a sensor wholesale)."""
+    new_edits, suspect = {}, set()
+    for sd in problem.sensors:
+        valid = buffers.valid[sd.name]
+        pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
+        k = opts.k_for(sd.name)
+        if k is None:
+            new_edits[sd.name] = pre
+            continue
+        out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, k)
+        n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
+        if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
+            suspect.add(sd.name)
+            out[:] = False
+        new_edits[sd.name] = pre | out
+    return new_edits, suspect
+
+
+def fit_problem(problem: Problem, method: str, options: BatchOptions | None = None, **kw) -> BatchResult:
+    """``batch`` or ``whole_span`` fit of a problem (the Kalman method lives in FILTR)."""
+    if method == "batch":
+        return batch_fit(problem, options, **kw)
+    if method == "whole_span":
+        return whole_span_fit(problem, options, **kw)
+    raise EstimationError(f"unknown method {method!r}")
