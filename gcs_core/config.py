@@ -6,7 +6,7 @@ sample mission)::
     [analysis]
     mission = "../missions/nominal-sunpoint"   # relative to this file
     name = "nominal, first look"  # optional label
-    method = "batch"              # batch | kalman
+    method = "whole_span"         # whole_span | batch | kalman
 
     [physics]
     stellar_aberration = true
@@ -79,7 +79,7 @@ from gcs_core.errors import ConfigError
 from gcs_core.models.base import ROLES
 from gcs_core.sidp.types import SENSOR_TYPES
 
-METHODS = ("batch", "kalman")
+METHODS = ("whole_span", "batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole")
 AXES = ("roll", "pitch", "yaw")
 #: the predictor's star models for tracker frames (:mod:`gcs_core.predictor.stars`)
@@ -129,8 +129,10 @@ class AnalysisConfig:
     ----------
     path : where the config was read from (relative paths resolve against its folder).
     mission : mission directory.
-    method : ``batch`` (static states, gyro-propagated attitude with Q = 0) or
-        ``kalman`` (filter and smoother with gyro process noise).
+    method : ``whole_span`` (the default: whole-span least squares with the gyro noise
+        as process noise on the attitude and drift bias, :mod:`gcs_core.filtr.smoothing_batch`),
+        ``batch`` (static states, gyro-propagated attitude with Q = 0) or ``kalman``
+        (one-pass filter and smoother with gyro process noise, the FILTR stepping engine).
     physics : always-on physics switches (see :mod:`gcs_core.sidp.prepare`).
     models : sensor -> its type, or ``"off"`` to leave the sensor out.
     effects, exclude : catalogue effect ids added to / removed from the solve-for set.
@@ -151,7 +153,7 @@ class AnalysisConfig:
 
     path: Path | None = None
     mission: Path = Path(".")
-    method: str = "batch"
+    method: str = "whole_span"
     physics: dict = field(default_factory=lambda: {"stellar_aberration": True, "solar_aberration": True,
                                                    "sun_parallax": True, "field_model": "igrf"})
     models: dict = field(default_factory=dict)
@@ -323,7 +325,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         mission = Path(os.path.normpath(base / mission))
     name = an.get("name")
     _require(name is None or isinstance(name, str), "analysis.name", f"must be a string, not {_show(name)}", f)
-    method = _choice(an, "method", METHODS, "batch", "analysis.method", f)
+    method = _choice(an, "method", METHODS, "whole_span", "analysis.method", f)
 
     ph = dict(AnalysisConfig().physics)
     phys = tables["physics"]

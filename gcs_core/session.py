@@ -19,7 +19,8 @@ from gcs_core.diagnosis import determination
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
-from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit
+from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit  # noqa: F401
+from gcs_core.filtr.smoothing_batch import batch_wander_cost, fit_problem, smoothed_holdout_rms
 from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.models.base import HELD, SOLVE_FOR
 from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
@@ -176,12 +177,15 @@ class Analysis:
         if self.config.method == "kalman":
             res = self._kalman_fit()
         else:
-            res = batch_fit(self.problem, self.batch_options(), initial=initial)
+            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial)
         masks = self.holdout_masks() if holdout else {}
         if masks:
-            res_train = batch_fit(self.problem, self.batch_options(), edited=masks,
-                                  initial=res.state.values())
-            self.holdout_rms = _holdout_rms(self.problem, res_train, masks)
+            method = "batch" if self.config.method == "kalman" else self.config.method
+            res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks,
+                                    initial=res.state.values())
+            self.holdout_rms = (smoothed_holdout_rms(self.problem, res_train, masks)
+                                if getattr(res_train, "dynamics", None) is not None
+                                else _holdout_rms(self.problem, res_train, masks))
         self.result = res
         self.candidates = []
         self.warnings = self._method_warnings()
@@ -192,29 +196,24 @@ class Analysis:
     def _method_warnings(self) -> list[str]:
         """Honesty checks on the chosen method.
 
-        The batch treats the gyro-propagated attitude as exact between its parameters. A
-        gyro's angle random walk makes the attitude wander by about σ_v·sqrt(T/12) about the
-        best-fit trajectory over a span T; when that is not small against the finest
-        attitude sensor's noise, the batch σ of the attitude and gyro elements are too small
-        and the candidate p-values too optimistic. The Kalman method carries that noise.
+        The batch treats the gyro-propagated attitude as exact between its parameters.
+        When the data book gives the gyro noise, what that costs on these data is computed
+        (:func:`~gcs_core.filtr.smoothing_batch.batch_wander_cost`): the batch's
+        understatement of σ and its expected error from the wander, in its own σ, from the
+        reduced normal matrices with and without the process noise, and the χ² the wander
+        leaves in the residuals.
         """
-        if self.config.method != "batch" or self.problem.gyro_name is None:
+        if self.config.method != "batch" or self.problem.gyro_name is None or self.result is None:
             return []
-        spec = self.mission.spec.sensor(self.problem.gyro_name)
-        arw = float(spec.get("arw", 0.0) or 0.0)
-        if arw <= 0 or not self.problem.sensors:
+        cost = batch_wander_cost(self.problem, self.result)
+        if cost is None or cost["worst_bias_sigma"] < 0.5:
             return []
-        t = np.concatenate([sd.t for sd in self.problem.sensors])
-        span = float(t.max() - t.min())
-        wander = arw * math.sqrt(span / 12.0)
-        finest = min((float(np.min(sd.sigma)) for sd in self.problem.sensors
-                      if sd.model.type_name in ("star_tracker",)), default=None)
-        if finest is None or wander < 0.1 * finest:
-            return []
-        return [f"batch method: the gyro's angle random walk makes the attitude wander by about "
-                f"{wander / finest:.2f} of the star-tracker noise over this {span / 3600:.1f} h span, "
-                "which the batch does not model; its attitude and gyro σ are optimistic and "
-                "candidate p-values too small. Use method = \"kalman\" for honest σ and p-values."]
+        worst = ", ".join(f"{k} ×{v:.2f}" for k, v in cost["sigma_ratio"][:4])
+        return [f"batch method: the gyro noise (not modelled by the batch) makes its σ too small "
+                f"(σ with the process noise / batch σ: {worst}); the expected error of those "
+                f"elements from the wander reaches {cost['worst_bias_sigma']:.1f} batch σ, and the "
+                f"wander leaves Δχ² = {cost['delta_chi2']:.1f} in the residuals. Use method = "
+                "\"whole_span\" (the default) for honest σ and p-values."]
 
     def filter_options(self):
         from gcs_core.filtr.stepping import FilterOptions

@@ -373,7 +373,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp = add(name, func, helptext)
         target(sp)
         sp.add_argument("--report", help="write the JSON report (ICD §7) here")
-        sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
+        sp.add_argument("--method", choices=("whole_span", "batch", "kalman"), help="override the config's method")
         sp.add_argument("--plots", help="export residual plots to this folder")
         sp.add_argument("--plot-format", choices=("txt", "html"), default="txt",
                         help="plain-text plots, one per component, or one HTML page")

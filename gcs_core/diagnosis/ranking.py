@@ -47,6 +47,7 @@ from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
 from gcs_core.filtr.batch import BatchResult
+from gcs_core.filtr.knots import KnotSystem, knot_rows
 from gcs_core.filtr.linearization import iter_blocks, window_geometry
 from gcs_core.filtr.problem import Problem
 
@@ -191,7 +192,12 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
     g = np.zeros(K)
     per_sensor_g: dict[str, np.ndarray] = {}
     work: dict = {}                     # chunk buffers, reused from chunk to chunk
-    for blk in iter_blocks(problem, values, cols, exclude=exclude, weighted=True, chunk=chunk, work=work):
+    # a whole-span fit with gyro process noise: linearize at its corrected attitude and
+    # take out what its knot corrections absorb (smoothing_batch, knots)
+    dyn = getattr(result, "dynamics", None)
+    knots = KnotSystem(dyn.grid, K, dyn.R, dyn.z) if dyn is not None else None
+    src = dyn.problem(problem) if dyn is not None else problem
+    for blk in iter_blocks(src, values, cols, exclude=exclude, weighted=True, chunk=chunk, work=work):
         if not np.any(blk.used):
             continue
         sd = blk.sensor
@@ -208,6 +214,12 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
             rw = (np.where(blk.used[:, None], np.nan_to_num(rr), 0.0) / sd.sigma).reshape(-1)
         A[np.ix_(c, c)] += Hm.T @ Hm
         gs = Hm.T @ rw
+        D = getattr(blk.pred, "d_att", None)
+        if knots is not None and D is not None and blk.geom.C_BI is not None:
+            t = sd.t[blk.lo:blk.hi]
+            U = knot_rows(np.nan_to_num(D), blk.geom.C_BI, t, dyn.grid.index(t), dyn.grid, dyn.R,
+                          blk.used[:, None] / sd.sigma[None, :])
+            knots.add(U, H, rw.reshape(blk.r.shape), t, c)
         g[c] += gs
         acc = per_sensor_g.setdefault(sd.name, np.zeros(K))
         acc[c] += gs
@@ -219,10 +231,19 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
     # the score of c given x re-optimized is g_c − A_cx N⁻¹ g_x'
     gx = g[:n] + prior * (np.array([state[nm].value for nm in x_names]) -
                           np.array([result.state[nm].value for nm in x_names]))
+    A_c, g_c = A[n:, n:], g[n:]
+    if knots is not None:
+        # the knots eliminated from [x c] together: what they absorb is projected out
+        N_all = A.copy()
+        N_all[:n, :n] = Nxx
+        g_full = np.concatenate([gx, g[n:]])
+        N_red, g_red, _ = knots.eliminate(N_all, g_full)
+        Nxx, Axc, A_c = N_red[:n, :n], N_red[:n, n:], N_red[n:, n:]
+        gx, g_c = g_red[:n], g_red[n:]
     B = np.linalg.solve(Nxx, np.column_stack([Axc, gx]))
     Bc, bx = B[:, :-1], B[:, -1]
-    S_all = A[n:, n:] - Axc.T @ Bc                   # conditional information, all candidates
-    g_all = g[n:] - Axc.T @ bx
+    S_all = A_c - Axc.T @ Bc                         # conditional information, all candidates
+    g_all = g_c - Axc.T @ bx
     idx_of: dict[str, list[int]] = {}
     for e in sensor_effects:
         idx_of[e.id] = [c_names.index(nm) for nm in e.elements]

@@ -68,7 +68,8 @@ def ground_attitude(analysis, t) -> GroundAttitude:
     ref = _reference(att_provider)
     t = np.asarray(t, dtype=float)
     values = res.state.values()
-    att = att_provider.evaluate(values, t)
+    dyn = getattr(res, "dynamics", None)
+    att = (dyn.attitude(att_provider) if dyn is not None else att_provider).evaluate(values, t)
     names = list(res.solve_for)
     col = {nm: j for j, nm in enumerate(names)}
     J = np.zeros((t.size, 3, len(names)))
@@ -76,6 +77,10 @@ def ground_attitude(analysis, t) -> GroundAttitude:
         if nm in col:
             J[:, :, col[nm]] = att.J[:, :, a]
     S_body = np.einsum("nia,ab,njb->nij", J, res.P_consider, J)
+    if dyn is not None:                                # the gyro wander the knots carry
+        from gcs_core.filtr.smoothing_batch import attitude_covariance
+
+        S_body = S_body + attitude_covariance(dyn, att.C_BI, t, J)
     A = np.asarray(ref.reference(t))
     rpy = np.column_stack(dcm_to_euler123(att.C_BI @ np.swapaxes(A, -1, -2)))
     Jr_inv = np.linalg.solve(rpy_error_jacobians(rpy), np.broadcast_to(np.eye(3), (t.size, 3, 3)))
