@@ -58,7 +58,7 @@ BASE = f'[analysis]\nmission = "{MISSION.as_posix()}"\n'
 def test_documented_example_loads_with_every_key(tmp_path):
     path = write(tmp_path, example_text(MISSION))
     cfg = C.load_config(path)
-    assert cfg.mission == MISSION and cfg.method == "batch" and cfg.name == "nominal, first look"
+    assert cfg.mission == MISSION and cfg.method == "whole_span" and cfg.name == "nominal, first look"
     assert cfg.physics == {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True,
                            "field_model": "igrf"}
     assert cfg.models == {"CSS1": "coarse_sun", "IRU": "gyro"}
@@ -113,7 +113,7 @@ def test_relative_mission_resolves_against_the_config_folder(tmp_path):
 # ---------------------------------------------------------------------------- refusals
 REFUSALS = [
     # (TOML after the [analysis] table, key named, part of the message)
-    ('method = "fast"\n', "analysis.method", "must be one of batch, kalman"),
+    ('method = "fast"\n', "analysis.method", "must be one of whole_span, batch, kalman"),
     ('name = 3\n', "analysis.name", "must be a string"),
     ('colour = "red"\n', "analysis.colour", "unknown key"),
     ('[physcs]\n', "physcs", "did you mean 'physics'"),
