@@ -47,7 +47,7 @@ from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
 from gcs_core.filtr.batch import BatchResult
-from gcs_core.filtr.knots import KnotSystem, knot_rows
+from gcs_core.filtr.knots import KnotSystem
 from gcs_core.filtr.linearization import iter_blocks, window_geometry
 from gcs_core.filtr.problem import Problem
 
@@ -216,10 +216,8 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
         gs = Hm.T @ rw
         D = getattr(blk.pred, "d_att", None)
         if knots is not None and D is not None and blk.geom.C_BI is not None:
-            t = sd.t[blk.lo:blk.hi]
-            U = knot_rows(np.nan_to_num(D), blk.geom.C_BI, t, dyn.grid.index(t), dyn.grid, dyn.R,
-                          blk.used[:, None] / sd.sigma[None, :])
-            knots.add(U, H, rw.reshape(blk.r.shape), t, c)
+            knots.add_rows(D, blk.geom.C_BI, blk.used[:, None] / sd.sigma[None, :], sd.t[blk.lo:blk.hi],
+                           np.ascontiguousarray(Hm), np.ascontiguousarray(rw), c)
         g[c] += gs
         acc = per_sensor_g.setdefault(sd.name, np.zeros(K))
         acc[c] += gs

@@ -54,6 +54,9 @@ from gcs_core.frames.rotations import rotvec_to_dcm
 
 log = logging.getLogger(__name__)
 
+#: a Gauss–Newton step that would lower the cost by less than this is negligible
+GAIN_TOL = 1e-3
+
 
 @dataclass
 class Dynamics:
@@ -112,6 +115,11 @@ class CorrectedAttitude:
     def _correct(self, C, t):
         if not np.any(self.z):
             return C
+        if kn.COMPILED:
+            out = np.empty_like(C)
+            kn.correct_attitude(np.ascontiguousarray(C), t, self.grid.index(t).astype(np.int64), self.grid.tau,
+                                self.z, self.R if self.R.shape[0] else np.eye(3)[None], out)
+            return out
         a = kn.alpha_at(self.grid, self.z, self.R, t)
         return rotvec_to_dcm(np.einsum("nab,nb->na", C, a)) @ C
 
@@ -214,23 +222,30 @@ class _Passes:
                 continue
             m_used += nu * blk.r.shape[1]
             sd = blk.sensor
-            rw = np.where(blk.used[:, None], blk.r, 0.0) / sd.sigma
-            chi2 += float(np.sum(rw * rw))
+            c = blk.cols
+            if jacobian and blk.Hr is not None:
+                # [H r]ᵀ [H r]: Hᵀ R⁻¹ H, Hᵀ R⁻¹ r and χ² in one product
+                G = blk.Hr.T @ blk.Hr
+                k = c.size
+                chi2 += float(G[k, k])
+                A[np.ix_(c, c)] += G[:k, :k]
+                b[c] += G[:k, k]
+                rw = None
+            else:
+                rw = np.where(blk.used[:, None], blk.r, 0.0) / sd.sigma
+                chi2 += float(np.sum(rw * rw))
             if not jacobian:
                 continue
-            c = blk.cols
-            if blk.Hr is not None:
-                A[np.ix_(c, c)] += blk.Hr[:, :-1].T @ blk.Hr[:, :-1]
-                b[c] += blk.Hr[:, :-1].T @ blk.Hr[:, -1]
             D = getattr(blk.pred, "d_att", None)
             if D is None or blk.geom.C_BI is None:
                 continue
             t = sd.t[blk.lo:blk.hi]
-            j = self.grid.index(t)
             w = blk.used[:, None] / sd.sigma[None, :]
-            U = kn.knot_rows(np.nan_to_num(D), blk.geom.C_BI, t, j, self.grid, R, w)
-            H = blk.H if blk.H is not None else np.zeros(blk.r.shape + (0,))
-            sysk.add(U, H, rw, t, c if blk.H is not None else np.zeros(0, np.int64))
+            if blk.Hr is not None:
+                sysk.add_rows(D, blk.geom.C_BI, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], c)
+            else:
+                sysk.add_rows(D, blk.geom.C_BI, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
+                              np.zeros(0, np.int64))
         return A, b, chi2, m_used, sysk, R
 
     def cost(self, x, chi2, sysk) -> float:
@@ -274,8 +289,11 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     history: list[float] = []
     it_total = 0
     status, message = "max_iterations", ""
+    lin = None                          # (A, b, χ², m, system, R) at (x, z) with the edits
     for edit_pass in range(opts.edit_passes if edits_on else 1):
-        A, b, chi2, m_used, sysk, R = passes.run(x, z, edits)
+        if lin is None:
+            lin = passes.run(x, z, edits)
+        A, b, chi2, m_used, sysk, R = lin
         cost = passes.cost(x, chi2, sysk)
         history.append(cost)
         for it in range(opts.max_iterations):
@@ -292,8 +310,13 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
             dz = kn.KnotSystem.back_substitute(fac, dx)
             gain = float(g_red @ dx) + sysk.knot_gain
             sig = np.sqrt(np.diag(P))
-            if it and np.all(np.abs(dx) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)) \
-                    and gain < opts.tol_chi2:
+            log.debug("whole-span iteration %d: cost %.6g, max |dx|/σ %.2e, predicted gain %.3g",
+                      it, cost, float(np.max(np.abs(dx) / np.maximum(sig, 1e-300))), gain)
+            # converged: the next Gauss–Newton step is negligible, below tol_step_sigma of
+            # every σ, or lowering the cost by less than GAIN_TOL (its Mahalanobis length is
+            # then below sqrt(GAIN_TOL) ≈ 0.03 σ); the solution is this point, whose
+            # residuals and normal equations the last pass holds
+            if np.all(np.abs(dx) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)) or gain < GAIN_TOL:
                 status, message = "converged", f"converged after {it} iterations"
                 it_total -= 1
                 break
@@ -308,15 +331,17 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
             else:
                 status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
                                                "(the model cannot describe these data)")
-                passes.run(x, z, edits)
+                lin = passes.run(x, z, edits)
                 break
             change = cost - cost_t
             x, z = x_try, z_try
-            A, b, chi2, m_used, sysk, R = trial if attempt == 0 else passes.run(x, z, edits)
+            lin = trial if attempt == 0 else passes.run(x, z, edits)
+            A, b, chi2, m_used, sysk, R = lin
             cost = passes.cost(x, chi2, sysk)
             history.append(cost)
+            # a model far from the data (χ² > 2 per measurement) stops at a relative change
             tol = opts.tol_chi2 if cost < 2.0 * max(m_used, 1) else max(opts.tol_chi2, 1e-4 * cost)
-            if it >= 1 and change < tol and gain < 10 * tol:
+            if change < tol and gain < 10 * tol and step == 1.0 and it >= 1:
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:
@@ -330,12 +355,15 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
         edits = new_edits
         if not changed:
             break
+        lin = None
         log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in edits.values()))
-        # the buffers now hold the residuals at (x, z); the next pass relinearizes there
 
-    # final normal equations at the solution (with the consider columns)
+    # final normal equations at the solution (the last pass when it was there, with these
+    # edits and no consider column)
     cols = names + cons
-    A_all, b_all, chi2, m_used, sysk, R = passes.run(x, z, edits, columns=cols)
+    if cons or lin is None:
+        lin = passes.run(x, z, edits, columns=cols)
+    A_all, b_all, chi2, m_used, sysk, R = lin
     pi_all = np.concatenate([prior_info, np.zeros(len(cons))])
     N_all = A_all + np.diag(pi_all)
     g_all = b_all.copy()
