@@ -66,7 +66,7 @@ def inertial(request, tmp_path_factory):
 def test_inertial_plan_with_the_catalog_matches_post_fit_sigma_within_15_percent(inertial):
     analysis, fit, plan = inertial
     assert fit.status == "converged"
-    pred = predict(analysis.mission, plan=plan)
+    pred = predict(analysis.mission, plan=plan, method="whole_span")      # the fit's method
     assert pred.names == fit.solve_for
     ratio = pred.noise_only / np.sqrt(np.diag(fit.P))
     # the plan does not determine k_beta (B3 nominally 0): the predictor says so, and the

@@ -72,11 +72,17 @@ def test_plan_prediction_matches_simulated_calibration_within_15_percent(sim_dir
 def test_problem_frames_reproduce_batch_covariance_and_ignore_values():
     """Seed Eq 3-2 at the solution is the batch covariance: predicting the example
     mission's own frames (values ignored) gives the fit's P."""
-    analysis = Analysis(AnalysisConfig(mission=EXAMPLE, holdout_fraction=0.0, edit_k=0.0))
+    analysis = Analysis(AnalysisConfig(mission=EXAMPLE, holdout_fraction=0.0, edit_k=0.0, method="batch"))
     fit = analysis.fit(holdout=False)
     problem = analysis.problem.with_state(fit.state)
     pred = predict(problem)
     np.testing.assert_allclose(pred.P, fit.P, rtol=1e-6, atol=0.0)
+    # the default whole-span fit: its covariance (knots eliminated) is predicted the same way
+    # (the prediction linearizes with the knot corrections at zero: agreement to 1 %)
+    a_ws = Analysis(AnalysisConfig(mission=EXAMPLE, holdout_fraction=0.0, edit_k=0.0))
+    ws = a_ws.fit(holdout=False)
+    pred_ws = predict(a_ws.problem.with_state(ws.state), method="whole_span")
+    np.testing.assert_allclose(np.sqrt(np.diag(pred_ws.P)), np.sqrt(np.diag(ws.P)), rtol=1e-2)
     # the measured values play no part
     problem.sensors = [replace(sd, y=np.zeros_like(sd.y)) for sd in problem.sensors]
     again = predict(problem)
@@ -85,7 +91,7 @@ def test_problem_frames_reproduce_batch_covariance_and_ignore_values():
 
 
 def test_consider_budget_matches_batch_and_adds_up(sim_dir):
-    cfg = AnalysisConfig(mission=sim_dir, holdout_fraction=0.0, edit_k=0.0,
+    cfg = AnalysisConfig(mission=sim_dir, holdout_fraction=0.0, edit_k=0.0, method="batch",
                          elements={f"TAM1.bias_{a}": ElementConfig(role="consider") for a in "xyz"})
     analysis = Analysis(cfg)
     fit = analysis.fit(holdout=False)

@@ -198,7 +198,7 @@ class _Passes:
         self.buffers = Residuals().ensure(problem)
 
     def set_x(self, x, names=None):
-        for j, nm in enumerate(names or self.names):
+        for j, nm in enumerate(self.names if names is None else names):
             self.values[nm] = x[j]
 
     def run(self, x, z, edits, *, columns=None, jacobian=True):
@@ -526,3 +526,38 @@ def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarr
     S = np.einsum("nia,nab,njb->nij", U, Sig[j], U, optimize=True)
     cross = np.einsum("nia,nak,njk->nij", U, X[j], J, optimize=True)
     return S + cross + np.swapaxes(cross, 1, 2)
+
+
+def predicted_covariance(problem: Problem, values: Mapping[str, float], names, cons, exclude,
+                         information: np.ndarray, sigma0: np.ndarray, sigma_c: np.ndarray):
+    """Covariance of the whole-span fit at ``values`` without data (the predictor).
+
+    One linearization with the knots at zero, eliminated: ``P = N_red⁻¹`` over ``names``,
+    and the consider elements' ``S P_c Sᵀ`` with ``S = −P N_red[x, c]``. ``exclude``
+    flags frames outside the plan; ``information`` (n, n) the statics' data information
+    (for the knot spacing). Returns (P, P_consider, budget (c, n) σ) or None when the
+    gyro carries no process noise.
+    """
+    noise = process_noise(problem)
+    if noise is None:
+        return None
+    names, cons = tuple(names), tuple(cons)
+    n = len(names)
+    prior = np.where(np.isfinite(sigma0) & (sigma0 > 0), 1.0 / np.where(sigma0 > 0, sigma0, 1.0) ** 2, 0.0)
+    grid = make_knots(problem, noise, information, names)
+    passes = _Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior)
+    passes.values = dict(values)
+    x = np.array([values[nm] for nm in names])
+    A, _, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), exclude, columns=names + cons)
+    N = A + np.diag(np.concatenate([prior, np.zeros(len(cons))]))
+    N_red, _, _ = sysk.eliminate(N, np.zeros(N.shape[0]))
+    _, P = _solve_normal(N_red[:n, :n], np.zeros(n))
+    P_cons = P.copy()
+    budget = np.zeros((len(cons), n))
+    if cons:
+        S = -P @ N_red[:n, n:]
+        for j in range(len(cons)):
+            contrib = np.outer(S[:, j], S[:, j]) * sigma_c[j] ** 2
+            budget[j] = np.sqrt(np.diag(contrib))
+            P_cons += contrib
+    return P, P_cons, budget

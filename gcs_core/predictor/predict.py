@@ -40,7 +40,7 @@ from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
 
-METHODS = ("information", "kalman")
+METHODS = ("information", "kalman", "whole_span")
 #: margin of an orbit-built ephemeris beyond the plan span [s] (time-tag and crossing shifts)
 EPHEMERIS_MARGIN_S = 120.0
 #: an element whose predicted σ is within this fraction of its a priori is "undetermined"
@@ -157,7 +157,8 @@ def state_options(cfg: AnalysisConfig | None) -> StateOptions:
 
 def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
     if method is None:
-        method = "kalman" if (cfg is not None and cfg.method == "kalman") else "information"
+        method = "information" if cfg is None else {"kalman": "kalman", "whole_span": "whole_span"}.get(
+            cfg.method, "information")
     if method not in METHODS:
         raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}",
                          key="prediction.method")
@@ -229,7 +230,10 @@ def predict(source, *, plan: DataPlan | None = None, mission=None, orbit=None,
     orbit : :class:`~gcs_core.ephem.orbit.KeplerOrbit` / ``TleOrbit``, used when the
         mission has no ephemeris covering the plan (:func:`~gcs_core.ephem.orbit.build_ephemeris`).
     method : ``"information"`` (Eq 3-2) or ``"kalman"`` (Eq 3-4, gyro process noise);
-        default from the config (``kalman`` for ``method = "kalman"``).
+        default from the config (``kalman`` for ``method = "kalman"``); ``"whole_span"``
+        (the default fit's setting) is Eq 3-2's history whose final covariance is the
+        whole-span fit's, the gyro noise carried as process noise
+        (:func:`~gcs_core.filtr.smoothing_batch.predicted_covariance`).
     ephemeris_step : tabulation step of an orbit-built ephemeris [s].
 
     Returns
@@ -322,6 +326,17 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
         A_cum = info.binned_information(rows, times, n + len(cons))
         hist = info.static_history(A_cum, n, info.prior_information(sigma0), sigma_c,
                                    _attitude_partials(problem, values, names, times))
+    if method == "whole_span" and not use_kalman:
+        from gcs_core.filtr.smoothing_batch import predicted_covariance
+
+        final = predicted_covariance(problem, values, names, cons,
+                                     {k: ~np.asarray(v, bool) for k, v in masks.items()},
+                                     A_final, sigma0, sigma_c)
+        if final is not None:               # the end of the plan: the whole-span covariance
+            P, P_cons, budget = final
+            hist["P"], hist["P_consider"], hist["budget"] = P, P_cons, budget
+            hist["sigma_noise"][-1] = np.sqrt(np.diag(P))
+            hist["sigma"][-1] = np.sqrt(np.diag(P_cons))
     slots = planned.slots
     availability = {k: (frames.get(k, 0) / slots[k] if slots.get(k) else 0.0)
                     for k in slots if k in frames}
