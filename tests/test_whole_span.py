@@ -48,6 +48,7 @@ def _small(seed=3, duration_s=300.0, spacing=20.0):
     noise = gyro_noise(problem)
     grid = sb.make_knots(problem, noise, batch.information, names, spacing=spacing)
     passes = sb._Passes(problem, names, grid, x_bar, prior)
+    passes.stream = False                  # every knot's blocks kept (Dk, Bk) for inspection
     return problem, batch, grid, passes, x_bar, prior
 
 
@@ -90,11 +91,17 @@ def test_elimination_equals_dense_solve():
     z[1:, :3] = rng.normal(0, 2e-5, (grid.K - 1, 3))
     z[1:, 3:] = rng.normal(0, 2e-8, (grid.K - 1, 3))
     A, b, _, _, sysk, _ = passes.run(x, z, {})
+    N, g = _dense(A, b, prior, x, x_bar, sysk)
     N_red, g_red, fac = sysk.eliminate(A + np.diag(prior), b + prior * (x_bar - x))
     dx, P = sb._solve_normal(N_red, g_red)
     dz = kn.KnotSystem.back_substitute(fac, dx)
     Sig, X = kn.KnotSystem.covariance(fac, P)
-    N, g = _dense(A, b, prior, x, x_bar, sysk)
+    # streaming (knots eliminated while the data pass) gives the same reduced system
+    passes.stream = True
+    _, _, _, _, streamed, _ = passes.run(x, z, {})
+    N_s, g_s, _ = streamed.eliminate(A + np.diag(prior), b + prior * (x_bar - x))
+    np.testing.assert_allclose(N_s, N_red, rtol=1e-10, atol=1e-12 * np.abs(N_red).max())
+    np.testing.assert_allclose(g_s, g_red, rtol=1e-8, atol=1e-10 * np.abs(g_red).max())
     dsc = np.sqrt(np.diag(N))
     Ninv = np.linalg.inv(N / np.outer(dsc, dsc)) / np.outer(dsc, dsc)
     step = Ninv @ g

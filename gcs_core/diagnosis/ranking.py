@@ -195,7 +195,9 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
     # a whole-span fit with gyro process noise: linearize at its corrected attitude and
     # take out what its knot corrections absorb (smoothing_batch, knots)
     dyn = getattr(result, "dynamics", None)
-    knots = KnotSystem(dyn.grid, K, dyn.R, dyn.z) if dyn is not None else None
+    knots = KnotSystem(dyn.grid, K, dyn.R, dyn.z, stream=True, keep=False) if dyn is not None else None
+    if knots is not None:
+        knots.track(problem.sensors)
     src = dyn.problem(problem) if dyn is not None else problem
     for blk in iter_blocks(src, values, cols, exclude=exclude, weighted=True, chunk=chunk, work=work):
         if not np.any(blk.used):
@@ -218,6 +220,8 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
         if knots is not None and D is not None and blk.geom.C_BI is not None:
             knots.add_rows(D, blk.geom.C_BI, blk.used[:, None] / sd.sigma[None, :], sd.t[blk.lo:blk.hi],
                            np.ascontiguousarray(Hm), np.ascontiguousarray(rw), c)
+        if knots is not None:
+            knots.passed(sd, blk.hi)
         g[c] += gs
         acc = per_sensor_g.setdefault(sd.name, np.zeros(K))
         acc[c] += gs

@@ -296,16 +296,49 @@ def correct_attitude(C, t, knot, tau, z, R, out):
 class KnotSystem:
     """Knot blocks of the whole-span normal equations over ``p`` static columns.
 
-    Dk (K, d, d) ``Σ Uᵀ U``; Bk (K, d, p+1) ``Σ Uᵀ [H | r]`` (weighted rows).
+    Per knot ``Σ uᵀu`` (d, d) and ``Σ uᵀ [H | r]`` (d, p+1) over the weighted rows, and the
+    forward elimination (:func:`_forward_range`). With ``stream`` the knots are eliminated
+    as soon as the data have passed them (:meth:`flush`), so only the knots still open are
+    held (bounded memory whatever the span), and ``keep`` stores the factors the
+    back-substitution and covariances need (d × (p+1) per knot); without ``stream`` the
+    full ``Dk`` (K, d, d), ``Bk`` (K, d, p+1) are kept until :meth:`eliminate`.
     """
 
-    def __init__(self, grid: KnotGrid, p: int, R: np.ndarray, z: np.ndarray):
+    def __init__(self, grid: KnotGrid, p: int, R: np.ndarray, z: np.ndarray, *,
+                 stream: bool = False, keep: bool = True):
         self.grid, self.p, self.R, self.z = grid, p, R, z
-        d = grid.d
-        self.Dk = np.zeros((grid.K, d, d))
-        self.Bk = np.zeros((grid.K, d, p + 1))
+        self.stream, self.keep = stream, keep
+        d, K = grid.d, grid.K
         self.Phi, self.W = transitions(grid, R)
+        e = z[1:] - np.einsum("nab,nb->na", self.Phi, z[:-1])
+        self._We = np.einsum("nab,nb->na", self.W, e)
+        self._prior = float(np.einsum("na,na->", e, self._We))
+        self.base = 0                                  # first knot not yet eliminated
+        cap = K if not stream else min(K, 64)
+        self.Dk = np.zeros((cap, d, d))
+        self.Bk = np.zeros((cap, d, p + 1))
+        self.Msub = np.zeros((p + 1, p + 1))           # Σ B̂ᵀ S⁻¹ B̂ over eliminated knots
+        self._carry = (np.zeros((d, d)), np.zeros((d, p + 1)), np.zeros((d, d)))
+        if keep:
+            self._fac = (np.zeros((K, d, d)), np.zeros((K, d, p + 1)), np.zeros((K, d, d)))
+        else:
+            self._fac = (np.zeros((1, d, d)), np.zeros((1, d, p + 1)), np.zeros((1, d, d)))
         self.knot_gain = 0.0
+
+    # ----------------------------------------------------------------- accumulation
+    def _local(self, knot: np.ndarray) -> np.ndarray:
+        """Knot indices relative to the held buffer (grown to hold them)."""
+        if knot.size and int(knot[0]) < self.base:
+            raise AssertionError("knot data arrived after the knot was eliminated")
+        top = int(knot.max()) - self.base + 1 if knot.size else 0
+        if top > self.Dk.shape[0]:
+            cap = max(top, 2 * self.Dk.shape[0])
+            for name in ("Dk", "Bk"):
+                old = getattr(self, name)
+                new = np.zeros((cap,) + old.shape[1:])
+                new[:old.shape[0]] = old
+                setattr(self, name, new)
+        return knot - self.base
 
     def add_rows(self, D, C, w, t, Hm, rw, cols) -> None:
         """Add one block from the model's attitude partials ``D`` (N, m, 3), the attitude
@@ -317,49 +350,85 @@ class KnotSystem:
             m = D.shape[1]
             self.add(U, Hm.reshape(D.shape[0], m, -1), rw.reshape(D.shape[0], m), t, cols)
             return
-        knot = self.grid.index(t).astype(np.int64)
+        knot = self._local(self.grid.index(t).astype(np.int64))
         R = self.R if self.R.shape[0] else np.eye(3)[None]
-        _accumulate_fused(np.nan_to_num(D), C, w, t, knot, self.grid.tau, R, Hm, rw, D.shape[1],
+        # the fused kernel reads the knot times through the held buffer's offset
+        _accumulate_fused(np.nan_to_num(D), C, w, t, knot, self.grid.tau[self.base:], R[self.base:]
+                          if self.base < R.shape[0] else R[-1:], Hm, rw, D.shape[1],
                           np.asarray(cols, np.int64), self.Dk, self.Bk)
 
     def add(self, U, H, rw, t, cols) -> None:
         """Add one block's weighted rows: U (N, m, d), H (N, m, k) over static ``cols``,
         rw (N, m) the weighted residuals; t (N,) frame times."""
-        knot = self.grid.index(t).astype(np.int64)
+        knot = self._local(self.grid.index(t).astype(np.int64))
         args = (np.ascontiguousarray(U), np.ascontiguousarray(H), np.ascontiguousarray(rw), knot,
                 np.asarray(cols, np.int64), self.Dk, self.Bk)
         (_accumulate if COMPILED else _accumulate_numpy)(*args)
 
+    def track(self, sensors) -> None:
+        """Follow the data of ``sensors`` (their frame times) for :meth:`passed`."""
+        self._last = {sd.name: (-np.inf if sd.n else np.inf) for sd in sensors}
+
+    def passed(self, sd, hi: int) -> None:
+        """Sensor ``sd`` has delivered its frames up to ``hi``; eliminate (when streaming)
+        the knots no frame still to come can reach (every later frame of a sensor is past
+        its last delivered one)."""
+        self._last[sd.name] = np.inf if hi >= sd.n else float(sd.t[hi - 1])
+        if self.stream:
+            self.flush(min(self._last.values()))
+
+    # ----------------------------------------------------------------- elimination
     def prior_cost(self) -> float:
         """``Σ e_jᵀ Q_j⁻¹ e_j``, ``e_j = z_{j+1} − Φ_j z_j``."""
-        e = self.increments()
-        return float(np.einsum("na,nab,nb->", e, self.W, e))
+        return self._prior
 
     def increments(self) -> np.ndarray:
         z = self.z
         return z[1:] - np.einsum("nab,nb->na", self.Phi, z[:-1])
 
+    def flush(self, t_done: float) -> None:
+        """Eliminate the held knots that no later frame can reach (``τ_{j+1} ≤ t_done``)."""
+        K = self.grid.K
+        if t_done == -np.inf:
+            return
+        j1 = K if t_done == np.inf else int(np.searchsorted(self.grid.tau, t_done, side="right")) - 1
+        j1 = min(max(j1, self.base), K)
+        if j1 <= self.base:
+            return
+        n = j1 - self.base
+        self._local(np.array([j1 - 1]))                # knots without data are held too
+        j = np.arange(self.base, j1)
+        Baug = self.Bk[:n].copy()
+        gz = Baug[:, :, -1]
+        lo = j >= 1
+        gz[lo] -= self._We[j[lo] - 1]                  # −∂/∂z_{j} of ½ e_{j−1}ᵀ W e_{j−1}
+        hi = j <= K - 2
+        gz[hi] += np.einsum("nba,nb->na", self.Phi[j[hi]], self._We[j[hi]])
+        Sc, Bc, Oc = self._carry
+        _forward_range(self.Dk[:n], Baug, self.Phi, self.W, self.Msub, self.base, K, Sc, Bc, Oc,
+                       self._fac[0], self._fac[1], self._fac[2], self.keep)
+        # the held buffer moves past the eliminated knots
+        rest = self.Dk.shape[0] - n
+        self.Dk[:rest] = self.Dk[n:].copy()
+        self.Dk[rest:] = 0.0
+        self.Bk[:rest] = self.Bk[n:].copy()
+        self.Bk[rest:] = 0.0
+        self.base = j1
+
     def eliminate(self, N: np.ndarray, g: np.ndarray):
         """Reduce ``[N | g]`` (p × p and p, the static block with its prior) by the knots.
 
-        Returns (N_red, g_red, factors); ``factors`` feed :meth:`back_substitute` and
-        :meth:`covariance`.
+        Returns (N_red, g_red, factors); ``factors`` (with ``keep``) feed
+        :meth:`back_substitute` and :meth:`covariance`. May be called again (with other
+        static blocks) once the knots are eliminated.
         """
-        e = self.increments()
-        We = np.einsum("nab,nb->na", self.W, e)
-        gz = self.Bk[:, :, -1].copy()
-        gz[1:] -= We                                   # −∂/∂z_{j+1} of ½ eᵀWe
-        gz[:-1] += np.einsum("nba,nb->na", self.Phi, We)
-        Baug = self.Bk.copy()
-        Baug[:, :, -1] = gz
-        M = np.zeros((self.p + 1, self.p + 1))
-        M[:self.p, :self.p] = N
-        M[:self.p, self.p] = g
-        M[self.p, :self.p] = g
-        Sinv, Bh, O = _forward(self.Dk, Baug, self.Phi, self.W, M)
-        self.knot_gain = -float(M[self.p, self.p])     # Σ ĝ_jᵀ S_j⁻¹ ĝ_j: the knots' part of gᵀN⁻¹g
-        N_red = 0.5 * (M[:self.p, :self.p] + M[:self.p, :self.p].T)
-        return N_red, M[:self.p, self.p].copy(), (Sinv, Bh, O)
+        if self.base < self.grid.K:
+            self.flush(np.inf)
+        p = self.p
+        self.knot_gain = float(self.Msub[p, p])        # Σ ĝ_jᵀ S_j⁻¹ ĝ_j: the knots' part of gᵀN⁻¹g
+        N_red = N - self.Msub[:p, :p]
+        N_red = 0.5 * (N_red + N_red.T)
+        return N_red, g - self.Msub[:p, p], (self._fac if self.keep else None)
 
     @staticmethod
     def back_substitute(factors, dx: np.ndarray) -> np.ndarray:
@@ -375,6 +444,42 @@ class KnotSystem:
 
 
 @_jit
+def _forward_range(Dk, Baug, Phi, W, Msub, j0, K, Sc, Bc, Oc, Sinv, Bh, O, keep):
+    """Forward block elimination of knots ``j0 … j0 + n − 1`` (held in ``Dk``, ``Baug``
+    from row 0), continuing from the carry ``(S⁻¹, B̂, O)`` of knot ``j0 − 1`` (updated in
+    place); knot 0 is fixed (z_0 = 0) and skipped. ``Msub += B̂ᵀ S⁻¹ B̂`` per knot.
+
+    Knot j's diagonal is ``Dk_j + W_{j−1} + Φ_jᵀ W_j Φ_j``, its coupling to j+1 is
+    ``O_j = −Φ_jᵀ W_j``. With ``keep`` S_j⁻¹, B̂_j, O_j go to row j of ``Sinv``, ``Bh``, ``O``.
+    """
+    for r in range(Dk.shape[0]):
+        j = j0 + r
+        if j == 0:
+            continue
+        S = Dk[r] + W[j - 1]
+        B = Baug[r].copy()
+        Oj = np.zeros_like(S)
+        if j < K - 1:
+            PtW = np.ascontiguousarray(Phi[j].T) @ W[j]
+            S = S + PtW @ Phi[j]
+            Oj = -PtW
+        if j > 1:
+            T = Sc @ Oc                                 # coupling (j−1, j)
+            S = S - np.ascontiguousarray(Oc.T) @ T
+            B = B - np.ascontiguousarray(T.T) @ Bc
+        S = 0.5 * (S + S.T)
+        Si = _sym_inv(S)
+        Msub += np.ascontiguousarray(B.T) @ (Si @ B)
+        Sc[:, :] = Si
+        Bc[:, :] = B
+        Oc[:, :] = Oj
+        if keep:
+            Sinv[j] = Si
+            Bh[j] = B
+            O[j] = Oj
+
+
+@_jit
 def _sym_inv(S):
     """Inverse of a small symmetric positive definite matrix (equilibrated Cholesky)."""
     n = S.shape[0]
@@ -387,40 +492,6 @@ def _sym_inv(S):
     Li = np.linalg.inv(L)
     inv = Li.T @ Li
     return inv / np.outer(dg, dg)
-
-
-@_jit
-def _forward(Dk, Baug, Phi, W, M):
-    """Forward block elimination of knots 1 … K−1 (module docstring), in place on ``M``
-    ((p+1) × (p+1), the static normal matrix bordered by its right-hand side).
-
-    Knot j's diagonal is ``Dk_j + W_{j−1} + Φ_jᵀ W_j Φ_j``, its coupling to j+1 is
-    ``O_j = −Φ_jᵀ W_j``. Returns S_j⁻¹ (K, d, d), the reduced borders B̂_j (K, d, p+1)
-    and O_j (K, d, d).
-    """
-    K, d = Dk.shape[0], Dk.shape[1]
-    q = Baug.shape[2]
-    Sinv = np.zeros((K, d, d))
-    Bh = np.zeros((K, d, q))
-    O = np.zeros((K, d, d))
-    for j in range(1, K):
-        S = Dk[j] + W[j - 1]
-        B = Baug[j].copy()
-        if j < K - 1:
-            PtW = Phi[j].T @ W[j]
-            S = S + PtW @ Phi[j]
-            O[j] = -PtW
-        if j > 1:
-            Op = O[j - 1]                      # coupling (j−1, j)
-            T = Sinv[j - 1] @ Op
-            S = S - Op.T @ T
-            B = B - T.T @ Bh[j - 1]
-        S = 0.5 * (S + S.T)
-        Si = _sym_inv(S)
-        Sinv[j] = Si
-        Bh[j] = B
-        M -= B.T @ (Si @ B)
-    return Sinv, Bh, O
 
 
 @_jit

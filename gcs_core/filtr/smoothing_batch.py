@@ -196,6 +196,7 @@ class _Passes:
         self.values = problem.state.values()
         self.work: dict = {}
         self.buffers = Residuals().ensure(problem)
+        self.stream, self.keep = True, True        # knots eliminated as the data pass them
 
     def set_x(self, x, names=None):
         for j, nm in enumerate(self.names if names is None else names):
@@ -206,7 +207,9 @@ class _Passes:
         cols = tuple(columns or self.names)
         self.set_x(x)
         R = mid_rotations(self.base, self.values, self.grid.mid_times())
-        sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z)
+        sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream,
+                             keep=self.keep)
+        sysk.track(self.problem.sensors)
         prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R))
         n = len(cols) if jacobian else 0
         A, b = np.zeros((n, n)), np.zeros(n)
@@ -219,6 +222,7 @@ class _Passes:
             self.buffers.valid[blk.name][blk.lo:blk.hi] = blk.valid
             nu = int(np.count_nonzero(blk.used))
             if not nu:
+                sysk.passed(blk.sensor, blk.hi)
                 continue
             m_used += nu * blk.r.shape[1]
             sd = blk.sensor
@@ -236,17 +240,23 @@ class _Passes:
                 chi2 += float(np.sum(rw * rw))
             if not jacobian:
                 continue
-            D = getattr(blk.pred, "d_att", None)
-            if D is None or blk.geom.C_BI is None:
-                continue
-            t = sd.t[blk.lo:blk.hi]
-            w = blk.used[:, None] / sd.sigma[None, :]
-            if blk.Hr is not None:
-                sysk.add_rows(D, blk.geom.C_BI, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], c)
-            else:
-                sysk.add_rows(D, blk.geom.C_BI, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
-                              np.zeros(0, np.int64))
+            self._knot_rows(blk, sysk, rw, R)
+            sysk.passed(sd, blk.hi)
         return A, b, chi2, m_used, sysk, R
+
+    def _knot_rows(self, blk, sysk, rw, R) -> None:
+        """The block's rows in the knot columns, added to the knot system."""
+        sd = blk.sensor
+        D = getattr(blk.pred, "d_att", None)
+        if D is None or blk.geom.C_BI is None:
+            return
+        t = sd.t[blk.lo:blk.hi]
+        w = blk.used[:, None] / sd.sigma[None, :]
+        if blk.Hr is not None:
+            sysk.add_rows(D, blk.geom.C_BI, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+        else:
+            sysk.add_rows(D, blk.geom.C_BI, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
+                          np.zeros(0, np.int64))
 
     def cost(self, x, chi2, sysk) -> float:
         d = self.x_bar - x
@@ -501,6 +511,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     grid = make_knots(problem, noise, res.information, names)
     passes = _Passes(problem, names, grid, x_bar, prior_info)
+    passes.keep = False
     edits = {nm: r.edited for nm, r in res.residuals.items()}
     x = np.asarray(res.x, float)
     A, b, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), edits)
@@ -547,6 +558,7 @@ def predicted_covariance(problem: Problem, values: Mapping[str, float], names, c
     grid = make_knots(problem, noise, information, names)
     passes = _Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior)
     passes.values = dict(values)
+    passes.keep = False
     x = np.array([values[nm] for nm in names])
     A, _, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), exclude, columns=names + cons)
     N = A + np.diag(np.concatenate([prior, np.zeros(len(cons))]))
