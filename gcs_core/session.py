@@ -181,8 +181,10 @@ class Analysis:
         masks = self.holdout_masks() if holdout else {}
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
-            res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks,
-                                    initial=res.state.values())
+            # the whole-span training fit starts from the full fit's solution and knots
+            warm = {"start": res} if getattr(res, "dynamics", None) is not None else \
+                {"initial": res.state.values()}
+            res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
             self.holdout_rms = (smoothed_holdout_rms(self.problem, res_train, masks)
                                 if getattr(res_train, "dynamics", None) is not None
                                 else _holdout_rms(self.problem, res_train, masks))

@@ -271,8 +271,9 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     """The whole-span fit with gyro process noise (module docstring).
 
     ``noise`` overrides the data book's gyro noise (None: the book's); ``spacing`` the
-    knot spacing [s]; ``start`` a batch result on the same problem and edits to start
-    from (else the batch is run first). Without gyro noise the batch's result is returned.
+    knot spacing [s]; ``start`` a result on the same problem to start from, with its edits
+    (a batch result, or a whole-span one whose knots are reused; else the batch is run
+    first). Without gyro noise the batch's result is returned.
     """
     opts = options or BatchOptions()
     batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
@@ -287,10 +288,15 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     x_bar = np.array([state[nm].value for nm in names])
     s0 = np.array([state[nm].sigma0 for nm in names])
     prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
-    grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
+    warm = getattr(batch, "dynamics", None)
+    if warm is not None and spacing is None and warm.grid.sigma_v == noise.sigma_v \
+            and warm.grid.sigma_u == noise.sigma_u:
+        grid, z = warm.grid, warm.z.copy()           # a whole-span start: its knots too
+    else:
+        grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
+        z = np.zeros((grid.K, grid.d))
     passes = _Passes(problem, names, grid, x_bar, prior_info)
     x = np.array(batch.x, float)
-    z = np.zeros((grid.K, grid.d))
     preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
     edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool))
              for nm, r in batch.residuals.items()}
