@@ -59,7 +59,7 @@ from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Predicti
 from gcs_core.sidp.types import SensorSpec, Table
 
 TWO_PI = 2.0 * np.pi
-FLATTENING = 1.0 / 298.257223563          # WGS-84
+FLATTENING = 1.0 / 298.257223563          # WGS-84 (NIMA TR8350.2, 3rd ed., 2000, Table 3.1)
 SUN_RATE_STEP_S = 1.0                     # central-difference step for Ŝ̇ [s]
 MAX_ITERATIONS = 30
 TOLERANCE_S = 1e-12
@@ -243,7 +243,7 @@ class HorizonModel(ObservationModel):
             ParamSpec("horizon_height", "km", 0.0, 5.0, seed=False, effect="horizon_height",
                       description="horizon (CO2 layer) height error Δh_H"),
             ParamSpec("oblateness", "1", 0.0, 1.0, seed=False, effect="oblateness",
-                      description="scale κ of the oblate-Earth angular radius correction"),
+                      description="flattening beyond the physics' in units of WGS-84 f (κ)"),
         )
 
     def sigma(self) -> np.ndarray:
