@@ -249,8 +249,9 @@ EFFECTS: dict[str, EffectSpec] = {
     "eps_H": EffectSpec(("horizon",), "rad", "horizon sensor plane tilt ε_H (Eq 4-12e)", _set("eps_H")),
     "horizon_height": EffectSpec(("horizon",), "km", "true horizon height = book + m",
                                  _set("horizon_height_km", "horizon_height_km")),
-    "oblateness": EffectSpec(("horizon",), "1 (x WGS-84 f)", "oblate Earth, flattening m/298.257",
-                             _set("flattening", None, lambda m: m / 298.257223563)),
+    "oblateness": EffectSpec(("horizon",), "1 (x WGS-84 f)", "the Earth this scanner sees is flattened "
+                             "by m/298.257 more than the physics' (WGS-84, or none with "
+                             "model.earth_oblateness off)", _set("flattening_excess")),
     "d_t": EffectSpec(("horizon",), "s", "in-track time error of the ephemeris: row t holds the orbit "
                       "at t - m (Eq 4-13; affects every sensor of the mission)", None),
 }
@@ -260,6 +261,8 @@ MODEL_EFFECTS = {
     "stellar_aberration": ("1 (on)", "star directions aberrated by (v_earth + v_sc)/c, up to 26 arcsec"),
     "solar_aberration": ("1 (on)", "Sun direction aberrated by the spacecraft velocity v_sc/c, up to 5 arcsec"),
     "sun_parallax": ("1 (on)", "Sun seen from the spacecraft (s - r) instead of the Earth's centre, ~9 arcsec"),
+    "earth_oblateness": ("1 (on)", "horizon on the WGS-84 ellipsoid (f = 1/298.257) under the CO2 layer, "
+                         "crossed exactly at each scan's tangent point"),
 }
 
 
