@@ -84,6 +84,26 @@ def _vdot(u, du):
     return np.einsum("ni,nki->nk", u, du)
 
 
+def crossing_direction(A, r, S, gamma_p, rho_p, sign):
+    """Φ of Eq 4-12b without tangents (the fixed-point iterations): phi (N,), ok (N,),
+    w (N, 3); the same construction as :func:`crossing_phase`."""
+    n = A.shape[0]
+    rn = np.linalg.norm(r, axis=1)
+    E = -r / rn[:, None]
+    c = np.einsum("ni,ni->n", A, E)
+    s = np.sqrt(1.0 - c ** 2)
+    m = np.cross(A, E) / s[:, None]
+    nv = (A - c[:, None] * E) / s[:, None]
+    cr, sr = np.cos(rho_p) * np.ones(n), np.sin(rho_p) * np.ones(n)
+    cL = (np.cos(gamma_p) - cr * c) / (sr * s)
+    ok = (np.abs(cL) < 1.0) & (s > 0.0)
+    w = m * (sign * np.sqrt(1.0 - cL ** 2))[:, None] + nv * cL[:, None]
+    H = cr[:, None] * E + sr[:, None] * w
+    Y = np.einsum("ni,ni->n", A, np.cross(S, H))
+    X = np.einsum("ni,ni->n", S, H) - np.einsum("ni,ni->n", S, A) * np.einsum("ni,ni->n", H, A)
+    return np.arctan2(Y, X), ok, w
+
+
 def crossing_phase(A, r, S, gamma_p, rho_p, sign):
     """Φ of Eq 4-12b and its forward-mode tangents.
 
@@ -302,17 +322,26 @@ class HorizonModel(ObservationModel):
         for _ in range(TANGENT_PASSES):
             # the crossing on the current horizon, and the tangent point it touches
             rho_p, drho_p = rho + p["d_rho"], drho + E_DRHO
-            _, _, ok_k, w, dw = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+            if want_partials:
+                _, _, ok_k, w, dw = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+            else:
+                _, ok_k, w = crossing_direction(A, r, S, gamma_p, rho_p, sign)
             ok &= ok_k
-            dwz = _lift(dw[:, :, 2], drho_p)
             cr, sr = np.cos(rho), np.sin(rho)
             s_lat = sr * rhat[:, 2] + cr * w[:, 2]          # sin φ_T, T̂ = sin ρ r̂ + cos ρ ŵ
-            ds_lat = (cr * rhat[:, 2] - sr * w[:, 2])[:, None] * drho + cr[:, None] * dwz
-            ds_lat[:, IX_R] += sr[:, None] * drhat_z
+            if want_partials:
+                ds_lat = (cr * rhat[:, 2] - sr * w[:, 2])[:, None] * drho \
+                    + cr[:, None] * _lift(dw[:, :, 2], drho_p)
+                ds_lat[:, IX_R] += sr[:, None] * drhat_z
+            else:
+                ds_lat = np.zeros((n, NX))
             R, dR = _ellipsoid_radius(s_lat, ds_lat, a, b, da, db)
             rho, drho = _limb_angle(R, dR, rn, rhat)
         rho_p, drho_p = rho + p["d_rho"], drho + E_DRHO
-        phi, dphi, ok_k, _, _ = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+        if want_partials:
+            phi, dphi, ok_k, _, _ = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+        else:
+            phi, ok_k, _ = crossing_direction(A, r, S, gamma_p, rho_p, sign)
         ok &= ok_k
         cb = np.einsum("ni,ni->n", A, S)
         sb = np.sqrt(1.0 - cb ** 2)

@@ -173,7 +173,7 @@ class HorizonSim:
 
     columns = ("t", "spin_rate", "dt_in", "dt_out")
     formats = ("%.9f", "%.12e", "%.9f", "%.9f")
-    grid = 720          # samples per spin when looking for crossings (0.5 deg)
+    grid = 240          # samples per spin when looking for crossings (1.5 deg)
 
     def __init__(self, sensor: SensorConfig, world, rng: np.random.Generator, sightings: SunSightings):
         self.s, self.world, self.rng, self.sightings = sensor, world, rng, sightings
