@@ -15,7 +15,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import determination
+from gcs_core.diagnosis import aliases, determination
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
@@ -395,7 +395,23 @@ class Analysis:
         res = self.result
         if res is None:
             return {}
-        return determination.not_determined(self.problem, res.state.values(), res.sigma)
+        out = determination.not_determined(self.problem, res.state.values(), res.sigma)
+        sigma0 = {n: self.problem.state[n].sigma0 for n in res.solve_for}
+        for name, why in aliases.set_by_prior(self.aliases(), res.sigma, sigma0).items():
+            out.setdefault(name, why)
+        return out
+
+    def aliases(self) -> list:
+        """The combinations of elements the latest fit left to the a priori, named
+        (:func:`gcs_core.diagnosis.aliases.problem_aliases`); [] before a fit."""
+        res = self.result
+        if res is None:
+            return []
+        cache = getattr(self, "_aliases", None)
+        if cache is None or cache[0] is not res:
+            cache = (res, aliases.problem_aliases(self.problem, res))
+            self._aliases = cache
+        return cache[1]
 
     def report(self) -> dict:
         res = self.result
@@ -435,6 +451,7 @@ class Analysis:
             "physics": dict(self.config.physics),
             "physics_needed": self.physics_needed() if res is not None else [],
             "unobservable": list(res.unobservable) if res else [],
+            "aliases": [al.as_report() for al in self.aliases()],
             "warnings": list(getattr(self, "warnings", [])),
             "stop_reason": getattr(self, "stop_reason", ""),
             "config_digest": self.config.digest(),

@@ -221,6 +221,9 @@ class HorizonModel(ObservationModel):
     unit = "s"
     attitude_kind = "spinning"
     book_keys = ("gamma_deg", "phi_h_deg", "horizon_height_km", "sun_sensor", "observable")
+    #: parameters the data see only in one combination (:mod:`gcs_core.diagnosis.aliases`)
+    aliases = {("d_phi", "eps_H"): "only ΔΦ − asin(cot γ' tan ε_H) enters the timing (Eq 4-12a, e): "
+                                   "a constant azimuth either way, so one of the two is set by its a priori"}
 
     def __init__(self, sensor: SensorSpec, *, aux_channels: tuple[str, ...] = ()):
         super().__init__(sensor, aux_channels=aux_channels)
