@@ -373,7 +373,9 @@ class Analysis:
         best, where the data give no real preference (Kass & Raftery 1995: a difference
         under 2 is "not worth more than a bare mention"), the seed's own calibration
         parameter wins over an extended effect (an Earth-radius bias Δρ over a horizon
-        height on a circular orbit); the report names the aliases either way."""
+        height on a circular orbit), then an always-on physics option over a free parameter
+        with the same signature (the WGS-84 flattening over a fitted κ); the report names
+        the aliases either way."""
         n = max(2, sum(r.n * len(r.components) for r in self.result.residuals.values()))
         group = [top] + [c for c in cands if c.id in {a for a, _ in top.aliases_candidates}
                          and c.p_adjusted < self.config.significance and c.dof > 0]
@@ -386,7 +388,8 @@ class Analysis:
             return bool(c.effect.elements) and all(state[nm].seed for nm in c.effect.elements
                                                    if nm in state)
 
-        return max(close, key=lambda c: (seed_effect(c), bic[c.id]))
+        # then known physics (no new parameter) over a free one: WGS-84 over a fitted κ
+        return max(close, key=lambda c: (seed_effect(c), c.effect.physics, bic[c.id]))
 
     # ------------------------------------------------------------------ report (ICD §7)
     def not_determined(self) -> dict[str, str]:

@@ -14,7 +14,7 @@ and the a-priori σ₀, form the information relative to the a priori,
 An eigenvalue ``λ`` of ``Ã`` is the data's information along its direction in units of the
 a priori's: the posterior variance there is ``1/(1 + λ)`` of the a priori's. A direction
 with ``λ <`` :data:`WEAK_INFORMATION` is *set by the a priori*; ``λ <``
-:data:`EXACT_INFORMATION` (round-off) is an exact alias. Degenerate exact directions are
+:data:`EXACT_INFORMATION` (round-off, not data) is an exact alias. Degenerate exact directions are
 rotated to the sparsest basis (reduced row echelon form of the null space, pivoting on the
 largest weight) so that each named combination involves as few elements as possible
 (one sensor's ΔΦ and ε_H, not a blend of two sensors').
@@ -35,8 +35,8 @@ import numpy as np
 
 #: data information below this share of the a priori's along a direction: set by the a priori
 WEAK_INFORMATION = 0.25
-#: ... below this (relative to the largest eigenvalue): exact (round-off only)
-EXACT_INFORMATION = 1e-9
+#: ... below this: exact (a millionth of the a priori's information is round-off, not data)
+EXACT_INFORMATION = 1e-6
 #: weight (unit vector in a-priori σ) from which an element takes part in a combination
 MEMBER_WEIGHT = 0.3
 #: posterior σ / a-priori σ from which a member of a near alias counts as set by the a priori
@@ -119,8 +119,7 @@ def weak_directions(information: np.ndarray, sigma0: Sequence[float], names: Seq
     S = s0[f]
     At = 0.5 * (Af + Af.T) * np.outer(S, S)
     lam, V = np.linalg.eigh(At)
-    top = max(float(lam[-1]), 1e-300)
-    exact = lam < EXACT_INFORMATION * top
+    exact = lam < EXACT_INFORMATION
     weak = (lam < WEAK_INFORMATION) & ~exact
     out: list[Alias] = []
     fn = [names[j] for j in f]
@@ -131,8 +130,7 @@ def weak_directions(information: np.ndarray, sigma0: Sequence[float], names: Seq
         if v[order[0]] < 0:
             v = -v
         els = tuple(fn[j] for j in order)
-        members = frozenset(fn[j] for j in order if abs(v[j]) >= MEMBER_WEIGHT)
-        reason = next((t for key, t in reasons.items() if key <= members and key), "")
+        reason = next((t for key, t in reasons.items() if key and key <= frozenset(els)), "")
         return Alias(els, tuple(float(v[j]) for j in order), max(0.0, float(info)), is_exact, reason)
 
     if np.any(exact):

@@ -312,10 +312,11 @@ def _check_covered(table: Table, eph: Table, sensor: str, margin: float) -> None
         return
     i = _first(out)
     lo, hi = float(np.min(t[out])), float(np.max(t[out]))
+    spans = [f"t = {a:.6g} to {b:.6g} s" for a, b, on in ((lo, e0, lo < e0), (e1, hi, hi > e1)) if on]
+    uncovered = " and ".join(spans)
     raise _refuse(table, i, "t", f"{int(np.count_nonzero(out))} rows of {sensor} (t = {lo:.6g} to "
-                  f"{hi:.6g} s) lie outside the ephemeris {eph.path}, which covers t = {e0:.6g} to "
-                  f"{e1:.6g} s (the models may extrapolate it by {margin:.3g} s only): "
-                  f"t = {lo:.6g} to {hi:.6g} s is not covered")
+                  f"{hi:.6g} s) lie more than {margin:.3g} s (the models' extrapolation margin) outside "
+                  f"the ephemeris {eph.path}, which covers t = {e0:.6g} to {e1:.6g} s: {uncovered} is not covered")
 
 
 def _fit_to_ephemeris(telemetry: dict, types: Mapping[str, str], eph: Table, margin: float,
