@@ -50,6 +50,7 @@ class Outcome:
     z_expected: dict[str, float]
     set_by_prior: dict[str, str]
     aliases: list[str] = field(default_factory=list)
+    hidden_aliases: tuple[str, ...] = ()
     seconds: float = 0.0
 
     @property
@@ -116,6 +117,8 @@ def run_case(inclination, hidden: str, seed: int, folder: Path, duration_s: floa
     z_exp = {k: v for k, v in normalized_errors(res, {**tv, **expected_estimates(a, tv)}).items()
              if k not in loose}
     rep = a.report()
+    cand = next((c for c in a.candidates if c.id == effect), None)
+    hidden_aliases = tuple(cand.aliases_state) + tuple(x for x, _ in cand.aliases_candidates) if cand else ()
     return Outcome(inclination, hidden, seed, [s.effect for s in a.steps if s.action == "add"], a.rms(),
-                   dict(a.holdout_rms), z, z_exp, loose, list(rep.get("aliases", [])),
-                   time.perf_counter() - t0)
+                   dict(a.holdout_rms), z, z_exp, loose, [al["text"] for al in rep.get("aliases", [])],
+                   hidden_aliases, time.perf_counter() - t0)
