@@ -6,7 +6,8 @@ to the horizon-in and horizon-out crossings, at the measured spin rate ``ω``
 At the crossing time ``τ = t + dt + Δt`` (``Δt``: orbit in-track time error; the
 ephemeris ``(r, v, Ŝ) = geom.ephemeris(τ)`` is read there), with ``Ê = −r/|r|``::
 
-    ρ  = asin((R_E + h_H + Δh_H)/|r|) + κ δρ_obl,   ρ' = ρ + Δρ,   γ' = γ + Δγ,   η = acos(Â·Ê)
+    ρ  = asin(R(φ_T)/|r|)  (the horizon at the tangent point, below),   ρ' = ρ + Δρ,
+    γ' = γ + Δγ,   η = acos(Â·Ê)
     M̂ = Â × Ê / sin η,   N̂ = Ê × M̂
     cos Λ = (cos γ' − cos ρ' cos η) / (sin ρ' sin η),   sin Λ = ∓sqrt(1 − cos²Λ)  (− in, + out)
     Ĥ = cos ρ' Ê + sin ρ' (M̂ sin Λ + N̂ cos Λ)                               (Eq 4-12c)
@@ -27,13 +28,22 @@ State (Eq 4-13): ``d_gamma`` (Δγ), ``d_rho`` (Δρ), ``d_phi`` (ΔΦ), ``eps_S
 tilt of the Sun sensor that starts the timing, shared with that sensor's ``tilt``:
 ``element = "<sun_sensor>.tilt"`` when the data book names ``sun_sensor``), ``eps_H``
 (ε_H), ``d_t`` (Δt). Extended: ``horizon_height`` (Δh_H [km]) and ``oblateness`` (κ,
-nominal 0) scaling the first-order oblate-Earth correction
+nominal 0, a flattening beyond the physics' in units of the WGS-84 f).
 
-    δρ_obl = −f R_E sin²φ / sqrt(|r|² − (R_E + h_H)²),   sin φ = r_z/|r|,
-
-i.e. the horizon drawn on an Earth of radius ``R_E (1 − f sin²φ)`` at the sub-satellite
-geocentric latitude φ (κ = 1: WGS-84 flattening f; the tangent points' own latitudes
-are not modelled, κ absorbs the mean difference).
+The Earth (``docs/horizon.md``). The horizon is the ellipsoid of semi-axes
+``a = R_E + h_H + Δh_H`` and ``b = R_E (1 − f_geo − κ f) + h_H + Δh_H``, where ``f_geo`` is
+the flattening the geometry carries (``geom.extra["earth_flattening"]``: WGS-84 with the
+physics option ``earth_oblateness``, 0 for the ICD's sphere). The ray of nadir angle ρ
+towards the horizontal direction ``ŵ`` of a crossing (``Ĥ = cos ρ Ê + sin ρ ŵ``) comes
+closest to the Earth's centre in the direction ``T̂ = sin ρ r̂ + cos ρ ŵ``, the tangent
+point, at geocentric latitude ``sin φ_T = T̂_z``. To first order in f it grazes the
+ellipsoid when ``|r| sin ρ = R(φ_T)``, ``R(φ) = a (1 + e sin²φ)^(−1/2)``, ``e = (a/b)² − 1``.
+So Eq 4-12c takes ``ρ = asin(R(φ_T)/|r|)``, each crossing at its own tangent point, found
+in :data:`TANGENT_PASSES` passes from the sphere of radius ``a`` (``ρ₀ → ŵ₀ → φ_T → ρ₁ →
+ŵ₁ → φ_T → ρ₂``): within 0.15 σ of an exact ray–ellipsoid crossing at every orbit for the
+1.5 ms scanners (``tests/test_horizon_oblate.py``), where one pass leaves up to 1 σ, the
+radius at the sub-satellite latitude up to 100 σ (RMS 1–7 σ) and the sphere up to 36 σ. Tangents over ``(Â, r, Ŝ, γ', Δρ, Δh_H, κ)`` are carried
+through every pass.
 
 The attitude partials are with respect to the components of Â (normalized inside; the
 gradient is tangent to the sphere). Residuals are wrapped into ``(−π/ω, π/ω]``.
