@@ -42,8 +42,8 @@ So Eq 4-12c takes ``ρ = asin(R(φ_T)/|r|)``, each crossing at its own tangent p
 in :data:`TANGENT_PASSES` passes from the sphere of radius ``a`` (``ρ₀ → ŵ₀ → φ_T → ρ₁ →
 ŵ₁ → φ_T → ρ₂``): within 0.15 σ of an exact ray–ellipsoid crossing at every orbit for the
 1.5 ms scanners (``tests/test_horizon_oblate.py``), where one pass leaves up to 1 σ, the
-radius at the sub-satellite latitude up to 100 σ (RMS 1–7 σ) and the sphere up to 36 σ. Tangents over ``(Â, r, Ŝ, γ', Δρ, Δh_H, κ)`` are carried
-through every pass.
+radius at the sub-satellite latitude up to 100 σ (RMS 1–7 σ) and the sphere up to 36 σ.
+Tangents over ``(Â, r, Ŝ, γ', Δρ, Δh_H, κ)`` are carried through every pass.
 
 The attitude partials are with respect to the components of Â (normalized inside; the
 gradient is tangent to the sphere). Residuals are wrapped into ``(−π/ω, π/ω]``.

@@ -30,7 +30,8 @@ from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
                                  SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
 
-__all__ = ["nominal_threeaxis", "spinner_nominal", "spinner_two_scanners", "sun_synchronous_inclination_deg", "with_effect", "EFFECTS", "list_effects"]
+__all__ = ["nominal_threeaxis", "spinner_nominal", "spinner_two_scanners", "sun_synchronous_inclination_deg",
+           "with_effect", "EFFECTS", "list_effects"]
 
 ARCSEC = np.pi / 180.0 / 3600.0
 
