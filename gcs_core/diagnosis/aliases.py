@@ -19,6 +19,8 @@ rotated to the sparsest basis (reduced row echelon form of the null space, pivot
 largest weight) so that each named combination involves as few elements as possible
 (one sensor's ΔΦ and ε_H, not a blend of two sensors').
 
+Only directions with at least two elements of weight ≥ :data:`COMBINATION_WEIGHT` are
+named (a combination); one element weak on its own is left to the generic determination marks.
 An element with weight ≥ :data:`MEMBER_WEIGHT` in an exact direction, or in a weak one
 while its posterior σ is at least :data:`PRIOR_SHARE` of its a priori, is marked *set by
 the a priori* (not determined), with the combination named. Models may declare their
@@ -39,6 +41,8 @@ WEAK_INFORMATION = 0.25
 EXACT_INFORMATION = 1e-6
 #: weight (unit vector in a-priori σ) from which an element takes part in a combination
 MEMBER_WEIGHT = 0.3
+#: a direction is a combination when two elements or more weigh at least this
+COMBINATION_WEIGHT = 0.15
 #: posterior σ / a-priori σ from which a member of a near alias counts as set by the a priori
 PRIOR_SHARE = 0.5
 
@@ -137,7 +141,9 @@ def weak_directions(information: np.ndarray, sigma0: Sequence[float], names: Seq
         B = _sparse_basis(V[:, exact])
         out += [alias(B[:, c], 0.0, True) for c in range(B.shape[1])]
     out += [alias(V[:, c], lam[c], False) for c in np.flatnonzero(weak)]
-    return out
+    # a combination names two elements or more; one element the data leave to its a priori
+    # on its own is not an alias (the generic determination marks speak for it)
+    return [a for a in out if sum(abs(w) >= COMBINATION_WEIGHT for w in a.weights) >= 2]
 
 
 def set_by_prior(aliases: Sequence[Alias], sigma: Mapping[str, float],
