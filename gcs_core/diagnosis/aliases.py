@@ -170,8 +170,9 @@ def problem_aliases(problem, result) -> list[Alias]:
     (``aliases`` of each model: tuple of local parameter names -> text) and, for a
     spinner, how much the Sun angle moved over the span."""
     names = list(result.solve_for)
-    if not names:
-        return []
+    info = getattr(result, "information", None)
+    if not names or info is None or not np.any(info):
+        return []                       # a filter/smoother result carries no data information
     state = problem.state
     reasons: dict[frozenset, str] = {}
     for sd in problem.sensors:
