@@ -335,18 +335,22 @@ def _fit_to_ephemeris(telemetry: dict, types: Mapping[str, str], eph: Table, mar
             trimmed[name] = int(np.count_nonzero(~keep))
             telemetry[name] = replace(table, t=table.t[keep], lines=np.asarray(table.lines)[keep],
                                       columns={k: np.asarray(v)[keep] for k, v in table.columns.items()})
-            repairs.append(f"{_rel(table.path, root)}: trimmed {trimmed[name]} rows that need the orbit "
-                           f"more than {margin:.3g} s past the ephemeris's ends")
+            repairs.append(f"{_rel(table.path, root)}: trimmed {trimmed[name]} rows that would need the "
+                           f"orbit more than {margin:.3g} s past the ephemeris's ends")
             early, late = early[keep], late[keep]
         if early.size and (early.min() < e0 or late.max() > e1):
             before = max(before, e0 - float(early.min()))
             after = max(after, float(late.max()) - e1)
             users.append(name)
     if users:
-        ends = [f"{d:.3g} s before its first row (t = {e:.6g} s)" for d, e in ((before, e0),) if d > 0]
-        ends += [f"{d:.3g} s past its last row (t = {e:.6g} s)" for d, e in ((after, e1),) if d > 0]
-        warnings.append(f"ephemeris {eph.path.name if hasattr(eph.path, 'name') else eph.path} extrapolated "
-                        f"(cubic Hermite) by up to " + " and ".join(ends) + f" for {', '.join(users)}")
+        ends = []
+        if before > 0:
+            ends.append(f"{before:.3g} s before its first row (t = {e0:.6g} s)")
+        if after > 0:
+            ends.append(f"{after:.3g} s past its last row (t = {e1:.6g} s)")
+        by = " and ".join(ends)
+        warnings.append(f"ephemeris {Path(eph.path).name} extrapolated (cubic Hermite) by up to {by} "
+                        f"for {', '.join(users)}")
     return trimmed
 
 
