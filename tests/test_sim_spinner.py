@@ -151,3 +151,14 @@ def test_horizon_oblateness_and_time_offset_act_as_physics():
     assert 0.0 < np.max(width(nominal)[:n] - width(oblate)[:n]) < 0.02
     assert np.allclose(shifted["t"], nominal["t"] - 0.5)
     assert np.allclose(shifted["dt_in"], nominal["dt_in"])
+
+
+def test_simulator_imports_no_model_code():
+    """The simulator checks the models, so it must not share their code (issue 11)."""
+    import subprocess
+    import sys
+    code = ("import sys, gcs_core.sim, gcs_core.sim.spinner, gcs_core.sim.writer; "
+            "print(sorted(m for m in sys.modules if m.startswith(('gcs_core.models', 'gcs_core.ephem', "
+            "'gcs_core.frames'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
