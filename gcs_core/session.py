@@ -121,7 +121,7 @@ class Analysis:
         for e in self.catalogue():
             if e.physics:
                 on, _ = PHYSICS_EFFECTS[e.effect]
-                if self.config.physics.get(e.effect) == on:
+                if getattr(self.physics, e.effect) == on:      # a config may omit a key: its default
                     out.append(e.id)
             elif all(self.problem.state[n].role == SOLVE_FOR for n in e.elements):
                 out.append(e.id)
@@ -133,7 +133,7 @@ class Analysis:
         for e in self.catalogue():
             if e.physics:
                 on, _ = PHYSICS_EFFECTS[e.effect]
-                if self.config.physics.get(e.effect) != on:
+                if getattr(self.physics, e.effect) != on:
                     out.append(e)
             elif e.effect != "attitude" and all(self.problem.state[n].role == HELD for n in e.elements):
                 out.append(e)
