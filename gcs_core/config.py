@@ -12,6 +12,7 @@ sample mission)::
     stellar_aberration = true
     solar_aberration = true
     sun_parallax = true
+    earth_oblateness = true       # WGS-84 horizon for horizon scanners
     field_model = "igrf"          # igrf | dipole
 
     [models]                      # per sensor: its type (as in mission.toml) or "off"
@@ -89,7 +90,7 @@ MODEL_OFF = "off"
 #: the tables of a config and the keys each holds
 TABLES: dict[str, tuple[str, ...]] = {
     "analysis": ("mission", "name", "method"),
-    "physics": ("stellar_aberration", "solar_aberration", "sun_parallax", "field_model"),
+    "physics": ("stellar_aberration", "solar_aberration", "sun_parallax", "earth_oblateness", "field_model"),
     "models": (),
     "state": ("effects", "exclude", "attitude_sigma_deg", "elements"),
     "filter": ("block_seconds", "edit_k", "max_iterations", "edit_k_sensor"),
@@ -155,7 +156,8 @@ class AnalysisConfig:
     mission: Path = Path(".")
     method: str = "whole_span"
     physics: dict = field(default_factory=lambda: {"stellar_aberration": True, "solar_aberration": True,
-                                                   "sun_parallax": True, "field_model": "igrf"})
+                                                   "sun_parallax": True, "earth_oblateness": True,
+                                                   "field_model": "igrf"})
     models: dict = field(default_factory=dict)
     effects: tuple[str, ...] = ()
     exclude: tuple[str, ...] = ()

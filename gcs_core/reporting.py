@@ -161,6 +161,7 @@ def import_table(mission) -> list[str]:
     lines.append("")
     lines.append("unknown keys (kept, not used): " + (", ".join(rep.unknown_keys) or "none"))
     lines += [f"repair: {r}" for r in rep.repairs] or ["repairs: none"]
+    lines += [f"warning: {w}" for w in getattr(rep, "warnings", ())]
     return lines
 
 

@@ -15,7 +15,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import determination
+from gcs_core.diagnosis import aliases, determination
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
@@ -122,7 +122,7 @@ class Analysis:
         for e in self.catalogue():
             if e.physics:
                 on, _ = PHYSICS_EFFECTS[e.effect]
-                if self.config.physics.get(e.effect) == on:
+                if getattr(self.physics, e.effect) == on:      # a config may omit a key: its default
                     out.append(e.id)
             elif all(self.problem.state[n].role == SOLVE_FOR for n in e.elements):
                 out.append(e.id)
@@ -134,7 +134,7 @@ class Analysis:
         for e in self.catalogue():
             if e.physics:
                 on, _ = PHYSICS_EFFECTS[e.effect]
-                if self.config.physics.get(e.effect) != on:
+                if getattr(self.physics, e.effect) != on:
                     out.append(e)
             elif e.effect != "attitude" and all(self.problem.state[n].role == HELD for n in e.elements):
                 out.append(e)
@@ -374,7 +374,9 @@ class Analysis:
         best, where the data give no real preference (Kass & Raftery 1995: a difference
         under 2 is "not worth more than a bare mention"), the seed's own calibration
         parameter wins over an extended effect (an Earth-radius bias Δρ over a horizon
-        height on a circular orbit); the report names the aliases either way."""
+        height on a circular orbit), then an always-on physics option over a free parameter
+        with the same signature (the WGS-84 flattening over a fitted κ); the report names
+        the aliases either way."""
         n = max(2, sum(r.n * len(r.components) for r in self.result.residuals.values()))
         group = [top] + [c for c in cands if c.id in {a for a, _ in top.aliases_candidates}
                          and c.p_adjusted < self.config.significance and c.dof > 0]
@@ -387,7 +389,8 @@ class Analysis:
             return bool(c.effect.elements) and all(state[nm].seed for nm in c.effect.elements
                                                    if nm in state)
 
-        return max(close, key=lambda c: (seed_effect(c), bic[c.id]))
+        # then known physics (no new parameter) over a free one: WGS-84 over a fitted κ
+        return max(close, key=lambda c: (seed_effect(c), c.effect.physics, bic[c.id]))
 
     # ------------------------------------------------------------------ report (ICD §7)
     def not_determined(self) -> dict[str, str]:
@@ -396,7 +399,23 @@ class Analysis:
         res = self.result
         if res is None:
             return {}
-        return determination.not_determined(self.problem, res.state.values(), res.sigma)
+        out = determination.not_determined(self.problem, res.state.values(), res.sigma)
+        sigma0 = {n: self.problem.state[n].sigma0 for n in res.solve_for}
+        for name, why in aliases.set_by_prior(self.aliases(), res.sigma, sigma0).items():
+            out.setdefault(name, why)
+        return out
+
+    def aliases(self) -> list:
+        """The combinations of elements the latest fit left to the a priori, named
+        (:func:`gcs_core.diagnosis.aliases.problem_aliases`); [] before a fit."""
+        res = self.result
+        if res is None:
+            return []
+        cache = getattr(self, "_aliases", None)
+        if cache is None or cache[0] is not res:
+            cache = (res, aliases.problem_aliases(self.problem, res))
+            self._aliases = cache
+        return cache[1]
 
     def report(self) -> dict:
         res = self.result
@@ -436,6 +455,7 @@ class Analysis:
             "physics": dict(self.config.physics),
             "physics_needed": self.physics_needed() if res is not None else [],
             "unobservable": list(res.unobservable) if res else [],
+            "aliases": [al.as_report() for al in self.aliases()],
             "warnings": list(getattr(self, "warnings", [])),
             "stop_reason": getattr(self, "stop_reason", ""),
             "config_digest": self.config.digest(),

@@ -60,7 +60,7 @@ def test_documented_example_loads_with_every_key(tmp_path):
     cfg = C.load_config(path)
     assert cfg.mission == MISSION and cfg.method == "whole_span" and cfg.name == "nominal, first look"
     assert cfg.physics == {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True,
-                           "field_model": "igrf"}
+                           "earth_oblateness": True, "field_model": "igrf"}
     assert cfg.models == {"CSS1": "coarse_sun", "IRU": "gyro"}
     assert cfg.effects == ("TAM1.alignment",) and cfg.exclude == ()
     assert cfg.elements == {"TAM1.bias_x": C.ElementConfig("solve-for", 0.0, 200.0)}

@@ -186,14 +186,15 @@ def test_horizon_symmetric_geometry(gamma_deg):
     The scan cone then cuts the Earth disc symmetrically about the nadir azimuth π:
     the half chord Ω obeys cos ρ = sin γ sin η cos Ω + cos γ cos η (spherical law of
     cosines on the triangle spin axis / nadir / line of sight, Wertz 1978 §11.2), so
-    ``dt_in = (π − Ω − Φ_H)/ω`` and ``dt_out = (π + Ω − Φ_H)/ω``.
+    ``dt_in = (π − Ω − Φ_H)/ω`` and ``dt_out = (π + Ω − Φ_H)/ω``. The ICD's spherical
+    Earth: the geometry carries no flattening.
     """
     omega, phi_h = 2.0, 30.0 * units.DEG
     rho = np.arcsin((units.R_EARTH_KM + H_KM) / R_KM)
     half_chord = np.arccos(np.cos(rho) / np.sin(np.radians(gamma_deg)))
     geom = Geometry(t=np.array([0.0]), spin_axis_I=np.array([0.0, 0.0, 1.0]),
                     ephemeris=_static_ephemeris(np.array([R_KM, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])),
-                    extra={"spin_rate": np.array([omega])})
+                    extra={"spin_rate": np.array([omega]), "earth_flattening": 0.0})
     pred = _horizon(gamma_deg, 30.0).predict(geom, {})
     assert pred.valid[0]
     expected = np.array([np.pi - half_chord - phi_h, np.pi + half_chord - phi_h]) / omega

@@ -64,6 +64,7 @@ CASES = [(None, 0.0), ("HS1.d_gamma", 0.01), ("HS1.d_phi", 0.02), ("PSS1.tilt", 
 @pytest.mark.parametrize("effect,magnitude", CASES)
 def test_root_found_crossings_match_icd_closed_form(effect, magnitude):
     base = spinner_nominal(seed=5, duration_s=1000.0)
+    base.physics["earth_oblateness"] = False            # the ICD's spherical Earth
     cfg = base if effect is None else with_effect(base, effect, magnitude)
     hs, pss = cfg.sensor("HS1"), cfg.sensor("PSS1")
     hs.true["noise"] = pss.true["noise"] = 0.0
@@ -84,6 +85,32 @@ def test_root_found_crossings_match_icd_closed_form(effect, magnitude):
     S = apparent_sun(world, p["t"])
     beta = np.arccos((S @ world.spin_axis_I) / math.cos(kw["eps_s"])) + pss.value("bias")
     assert np.max(np.abs(beta - p["beta"])) < 1e-9
+
+
+def test_oblate_crossings_are_tangent_to_the_ellipsoid():
+    """The simulator's closed-form tangent in the beam's vertical plane against a second
+    exact criterion: scaled by ``D = diag(1/a, 1/a, 1/b)`` the ellipsoid is the unit sphere,
+    and the beam at each crossing must be tangent to it: ``∠(D d, −D r) = asin(1/|D r|)``."""
+    cfg = spinner_nominal(seed=5, duration_s=1000.0)
+    cfg.orbit.i_deg = 90.0                               # the poles: the largest flattening effect
+    hs = cfg.sensor("HS1")
+    hs.true["noise"] = 0.0
+    world = World(cfg)
+    sight = SunSightings(world, cfg.sensor("PSS1"))
+    sim = make_sensor_sim(hs, world, np.random.default_rng(0), sightings=sight)
+    d = sim.run_span(0.0, 1000.0, 980.0)
+    assert d["t"].size > 100
+    a, b = sim.axes[0], sim.axes[2]
+    assert a - b == pytest.approx(units.R_EARTH_KM / 298.257223563, rel=1e-9)
+    D = np.array([1 / a, 1 / a, 1 / b])
+    for col in ("dt_in", "dt_out"):
+        t = d["t"] + d[col]
+        r, _ = world.orbit(t)
+        p, q = r * D, sim.los_I(t) * D
+        ang = np.arccos(-np.sum(p * q, 1) / (np.linalg.norm(p, axis=1) * np.linalg.norm(q, axis=1)))
+        off = ang - np.arcsin(1.0 / np.linalg.norm(p, axis=1))
+        # a microsecond of the 10 rpm scan is 1e-6 rad of beam motion
+        assert np.max(np.abs(off)) < 2e-6, col
 
 
 def test_spinner_mission_files_one_row_per_spin(tmp_path):
@@ -124,3 +151,14 @@ def test_horizon_oblateness_and_time_offset_act_as_physics():
     assert 0.0 < np.max(width(nominal)[:n] - width(oblate)[:n]) < 0.02
     assert np.allclose(shifted["t"], nominal["t"] - 0.5)
     assert np.allclose(shifted["dt_in"], nominal["dt_in"])
+
+
+def test_simulator_imports_no_model_code():
+    """The simulator checks the models, so it must not share their code (issue 11)."""
+    import subprocess
+    import sys
+    code = ("import sys, gcs_core.sim, gcs_core.sim.spinner, gcs_core.sim.writer; "
+            "print(sorted(m for m in sys.modules if m.startswith(('gcs_core.models', 'gcs_core.ephem', "
+            "'gcs_core.frames'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"

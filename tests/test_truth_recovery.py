@@ -144,6 +144,7 @@ def truth_values(truth: Mapping, problem, method: str = "batch") -> dict[str, fl
             out |= {f"{name}.{k}": float(tr.get(k, 0.0)) for k in ("d_gamma", "d_rho", "d_phi", "eps_H")}
             out[f"{name}.d_t"] = float(truth.get("ephemeris_time_error_s", 0.0))
             out[f"{name}.horizon_height"] = float(tr["horizon_height_km"]) - float(s["book"]["horizon_height_km"])
+            out[f"{name}.oblateness"] = float(tr.get("flattening_excess", 0.0))
     if truth["attitude_mode"] == "spinning":
         ra, dec = truth["spin_axis_deg"]
         out["att.ra"], out["att.dec"] = ra * DEG, dec * DEG

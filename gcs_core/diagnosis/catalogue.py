@@ -44,8 +44,10 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
                          "other sensors quadratically in time, most at the span's ends."),
     "horizon_height": ("horizon", "The height of the CO2 horizon differs from the data book; the "
                        "Earth looks larger or smaller, changing the Earth width most."),
-    "oblateness": ("horizon", "The Earth is oblate: its angular radius depends on the latitude of the "
-                   "horizon crossing, a residual that follows the orbit's latitude."),
+    "oblateness": ("horizon", "The Earth's flattening differs from WGS-84 by κ f (or, with the "
+                   "earth_oblateness physics off, the Earth is oblate at all): the angular radius at "
+                   "each crossing depends on its tangent point's latitude, a residual that follows "
+                   "the latitudes the scan touches."),
     "d_gamma": ("horizon", "Scanner mounting-angle bias Δγ (Eq 4-12)."),
     "d_rho": ("horizon", "Bias on the Earth's angular radius Δρ (Eq 4-12)."),
     "d_phi": ("horizon", "Azimuth bias ΔΦ between Sun sensor and horizon scanner (Eq 4-12)."),
@@ -60,6 +62,11 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
                          "≈5 arcsec along the orbital velocity, once per orbit."),
     "sun_parallax": ("physics", "Solar parallax: the Sun seen from the spacecraft rather than the "
                      "Earth's centre, up to ≈9 arcsec, once per orbit."),
+    "earth_oblateness": ("physics", "The Earth is oblate (WGS-84, f = 1/298.257): the horizon a scan "
+                         "crosses lies up to 21 km lower over the poles, so the Earth's angular "
+                         "radius at each crossing depends on the latitude of its tangent point, "
+                         "20–25° of arc from the sub-satellite point. Horizon residuals follow the "
+                         "latitudes the scans touch (docs/horizon.md)."),
     "field_model": ("physics", "Geomagnetic model truncation: a dipole leaves out the higher degrees "
                     "of IGRF, hundreds of nT in LEO, following the ground track."),
 }
@@ -126,6 +133,7 @@ def mission_catalogue(problem, physics) -> list[Effect]:
     relevant = {"stellar_aberration": "star_tracker" in types,
                 "solar_aberration": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
                 "sun_parallax": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
+                "earth_oblateness": "horizon" in types,
                 "field_model": "magnetometer" in types}
     for opt in PHYSICS_EFFECTS:
         if relevant.get(opt):

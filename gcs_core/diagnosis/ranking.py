@@ -142,7 +142,7 @@ def _physics_block(problem: Problem, blk, values, phys_ids: Sequence[str]) -> li
         g1 = window_geometry(geom_alt, blk.lo, blk.hi, sd.n)
         g1 = replace(g1, C_BI=blk.geom.C_BI, omega_B=blk.geom.omega_B, spin_axis_I=blk.geom.spin_axis_I)
         y1 = sd.model.predict(g1, problem.params_of(sd.name, values)).y
-        d = y1 - blk.y_pred
+        d = sd.model.residual(y1, blk.y_pred, g1)        # wrapped where the observable wraps
         out.append((j, np.where(np.isfinite(d), d, 0.0)))
     return out
 

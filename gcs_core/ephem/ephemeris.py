@@ -13,6 +13,11 @@ The error of cubic Hermite interpolation is ``h⁴/384 max|r⁗|``; for a low Ea
 The derivative is one order less accurate (≈ 2e-5 km/s at 60 s), but it stays in the
 orbit plane, so the orbit normal (the earth_pointing y axis) is not disturbed.
 
+Past either end, by at most ``margin_s`` (the importer sets it: a spin period plus the
+time-tag bound, for a horizon crossing read after the last Sun sighting), the end
+interval's polynomial is extended (cubic Hermite extrapolation; the error grows as
+``(Δ/h)² · h⁴ |r⁗|``-order terms, about 1 m for Δ = 20 s at a 60 s cadence in LEO).
+
 The geocentric Sun is interpolated linearly (its direction moves 2.5 arcsec/min).
 The Earth's heliocentric velocity, needed for annual aberration, is minus the time
 derivative of the geocentric Sun: ``v_E = −ds/dt``, taken by central differences at the
@@ -52,15 +57,19 @@ class Ephemeris:
     v_I_km_s : (M, 3) spacecraft velocity in GCI [km/s].
     sun_I_km : (M, 3) apparent geocentric Sun position in GCI [km].
     source : name used in messages (the ephemeris file path).
+    margin_s : how far past either end the table may be extrapolated [s] (default 0).
 
     Attributes
     ----------
     t, r_I_km, v_I_km_s, sun_I_km : the table (read-only arrays).
     source : str.
+    margin_s : float.
     """
 
-    def __init__(self, t, r_I_km, v_I_km_s, sun_I_km, *, source: str | Path = "ephemeris"):
+    def __init__(self, t, r_I_km, v_I_km_s, sun_I_km, *, source: str | Path = "ephemeris",
+                 margin_s: float = 0.0):
         self.source = str(source)
+        self.margin_s = max(0.0, float(margin_s))
         t = np.array(t, dtype=float)
         arrays = {"r_I_km": r_I_km, "v_I_km_s": v_I_km_s, "sun_I_km": sun_I_km}
         if t.ndim != 1 or t.size < 2:
@@ -88,8 +97,9 @@ class Ephemeris:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_table(cls, table) -> "Ephemeris":
-        """Build from an ephemeris.csv :class:`gcs_core.sidp.types.Table` (ICD §4 columns)."""
+    def from_table(cls, table, *, margin_s: float = 0.0) -> "Ephemeris":
+        """Build from an ephemeris.csv :class:`gcs_core.sidp.types.Table` (ICD §4 columns),
+        extrapolated by at most ``margin_s`` past either end."""
         for name in EPHEMERIS_COLUMNS:
             if name not in table.columns:
                 raise InputError("missing column of the ephemeris (ICD §4 needs "
@@ -100,7 +110,7 @@ class Ephemeris:
                    np.column_stack([cols["rx"], cols["ry"], cols["rz"]]),
                    np.column_stack([cols["vx"], cols["vy"], cols["vz"]]),
                    np.column_stack([cols["sx"], cols["sy"], cols["sz"]]),
-                   source=table.path)
+                   source=table.path, margin_s=margin_s)
 
     # ------------------------------------------------------------------ coverage
     @property
@@ -114,9 +124,10 @@ class Ephemeris:
         return float(self.t[-1])
 
     def covers(self, t) -> np.ndarray:
-        """Boolean mask of the times inside ``[t_start, t_end]`` (shape of ``t``)."""
+        """Boolean mask of the times inside ``[t_start − margin_s, t_end + margin_s]``."""
         t = np.asarray(t, dtype=float)
-        return (t >= self.t_start - _EDGE_SLACK_S) & (t <= self.t_end + _EDGE_SLACK_S)
+        slack = _EDGE_SLACK_S + self.margin_s
+        return (t >= self.t_start - slack) & (t <= self.t_end + slack)
 
     def check_covers(self, t, *, what: str = "the requested times") -> None:
         """Raise :class:`InputError` unless every time of ``t`` lies in the table's span.
@@ -131,14 +142,16 @@ class Ephemeris:
             raise InputError(f"{what}: non-finite time requested from the ephemeris",
                              file=self.source)
         lo, hi = float(np.min(t)), float(np.max(t))
-        if lo < self.t_start - _EDGE_SLACK_S or hi > self.t_end + _EDGE_SLACK_S:
+        slack = _EDGE_SLACK_S + self.margin_s
+        if lo < self.t_start - slack or hi > self.t_end + slack:
             gaps = []
-            if lo < self.t_start - _EDGE_SLACK_S:
+            if lo < self.t_start - slack:
                 gaps.append(f"{lo:.3f} s to {self.t_start:.3f} s")
-            if hi > self.t_end + _EDGE_SLACK_S:
+            if hi > self.t_end + slack:
                 gaps.append(f"{self.t_end:.3f} s to {hi:.3f} s")
+            ext = f" (extrapolated by at most {self.margin_s:g} s)" if self.margin_s else ""
             raise InputError(f"{what} need ephemeris over {lo:.3f}..{hi:.3f} s but it covers "
-                             f"{self.t_start:.3f}..{self.t_end:.3f} s; uncovered: "
+                             f"{self.t_start:.3f}..{self.t_end:.3f} s{ext}; uncovered: "
                              + " and ".join(gaps), file=self.source)
 
     # ------------------------------------------------------------------ interpolation

@@ -53,6 +53,7 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy import linalg
 
+from gcs_core.diagnosis.aliases import _sparse_basis
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import curvature, local_refine
 from gcs_core.filtr.batch_results import (BatchResult, Residuals, SensorResiduals, accumulate,  # noqa: F401
@@ -156,8 +157,12 @@ def name_combinations(A: np.ndarray, names: Sequence[str], rank_tol: float) -> l
     w, V = np.linalg.eigh(As)
     top = max(float(w[-1]), 1e-300)
     out = []
-    for i in np.nonzero(w <= rank_tol * top)[0]:
-        v = V[:, i]
+    null = np.nonzero(w <= rank_tol * top)[0]
+    # the sparsest basis of the null space: one sensor's aliases apart from another's
+    basis = _sparse_basis(V[:, null]) if null.size else V[:, null]
+    for i in range(basis.shape[1]):
+        v = basis[:, i]
+        v = -v if v[np.argmax(np.abs(v))] < 0 else v
         order = np.argsort(-np.abs(v))
         terms = [f"{v[j]:+.2f}·{names[j]}" for j in order if abs(v[j]) > 0.1][:6]
         out.append(" ".join(terms))

@@ -176,7 +176,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     spec = mission.spec
     physics = physics or PhysicsOptions()
     options = options or StateOptions()
-    eph = Ephemeris.from_table(mission.ephemeris_table)
+    eph = Ephemeris.from_table(mission.ephemeris_table, margin_s=getattr(mission, "ephemeris_margin_s", 0.0))
     builder = GeometryBuilder(spec, eph, physics, mission.aux)
     sensors = prepare_sensors(spec, mission.telemetry, builder)
     mode = spec.attitude_mode

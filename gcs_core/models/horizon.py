@@ -6,7 +6,8 @@ to the horizon-in and horizon-out crossings, at the measured spin rate ``ω``
 At the crossing time ``τ = t + dt + Δt`` (``Δt``: orbit in-track time error; the
 ephemeris ``(r, v, Ŝ) = geom.ephemeris(τ)`` is read there), with ``Ê = −r/|r|``::
 
-    ρ  = asin((R_E + h_H + Δh_H)/|r|) + κ δρ_obl,   ρ' = ρ + Δρ,   γ' = γ + Δγ,   η = acos(Â·Ê)
+    ρ  = asin(R(φ_T)/|r|)  (the horizon at the tangent point, below),   ρ' = ρ + Δρ,
+    γ' = γ + Δγ,   η = acos(Â·Ê)
     M̂ = Â × Ê / sin η,   N̂ = Ê × M̂
     cos Λ = (cos γ' − cos ρ' cos η) / (sin ρ' sin η),   sin Λ = ∓sqrt(1 − cos²Λ)  (− in, + out)
     Ĥ = cos ρ' Ê + sin ρ' (M̂ sin Λ + N̂ cos Λ)                               (Eq 4-12c)
@@ -27,13 +28,22 @@ State (Eq 4-13): ``d_gamma`` (Δγ), ``d_rho`` (Δρ), ``d_phi`` (ΔΦ), ``eps_S
 tilt of the Sun sensor that starts the timing, shared with that sensor's ``tilt``:
 ``element = "<sun_sensor>.tilt"`` when the data book names ``sun_sensor``), ``eps_H``
 (ε_H), ``d_t`` (Δt). Extended: ``horizon_height`` (Δh_H [km]) and ``oblateness`` (κ,
-nominal 0) scaling the first-order oblate-Earth correction
+nominal 0, a flattening beyond the physics' in units of the WGS-84 f).
 
-    δρ_obl = −f R_E sin²φ / sqrt(|r|² − (R_E + h_H)²),   sin φ = r_z/|r|,
-
-i.e. the horizon drawn on an Earth of radius ``R_E (1 − f sin²φ)`` at the sub-satellite
-geocentric latitude φ (κ = 1: WGS-84 flattening f; the tangent points' own latitudes
-are not modelled, κ absorbs the mean difference).
+The Earth (``docs/horizon.md``). The horizon is the ellipsoid of semi-axes
+``a = R_E + h_H + Δh_H`` and ``b = R_E (1 − f_geo − κ f) + h_H + Δh_H``, where ``f_geo`` is
+the flattening the geometry carries (``geom.extra["earth_flattening"]``: WGS-84 with the
+physics option ``earth_oblateness``, 0 for the ICD's sphere). The ray of nadir angle ρ
+towards the horizontal direction ``ŵ`` of a crossing (``Ĥ = cos ρ Ê + sin ρ ŵ``) comes
+closest to the Earth's centre in the direction ``T̂ = sin ρ r̂ + cos ρ ŵ``, the tangent
+point, at geocentric latitude ``sin φ_T = T̂_z``. To first order in f it grazes the
+ellipsoid when ``|r| sin ρ = R(φ_T)``, ``R(φ) = a (1 + e sin²φ)^(−1/2)``, ``e = (a/b)² − 1``.
+So Eq 4-12c takes ``ρ = asin(R(φ_T)/|r|)``, each crossing at its own tangent point, found
+in :data:`TANGENT_PASSES` passes from the sphere of radius ``a`` (``ρ₀ → ŵ₀ → φ_T → ρ₁ →
+ŵ₁ → φ_T → ρ₂``): within 0.15 σ of an exact ray–ellipsoid crossing at every orbit for the
+1.5 ms scanners (``tests/test_horizon_oblate.py``), where one pass leaves up to 1 σ, the
+radius at the sub-satellite latitude up to 100 σ (RMS 1–7 σ) and the sphere up to 36 σ.
+Tangents over ``(Â, r, Ŝ, γ', Δρ, Δh_H, κ)`` are carried through every pass.
 
 The attitude partials are with respect to the components of Â (normalized inside; the
 gradient is tangent to the sphere). Residuals are wrapped into ``(−π/ω, π/ω]``.
@@ -59,13 +69,19 @@ from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Predicti
 from gcs_core.sidp.types import SensorSpec, Table
 
 TWO_PI = 2.0 * np.pi
-FLATTENING = 1.0 / 298.257223563          # WGS-84
+FLATTENING = 1.0 / 298.257223563          # WGS-84 (NIMA TR8350.2, 3rd ed., 2000, Table 3.1)
 SUN_RATE_STEP_S = 1.0                     # central-difference step for Ŝ̇ [s]
 MAX_ITERATIONS = 30
 TOLERANCE_S = 1e-12
 OBSERVABLES = ("in_out", "width_midscan")
 SEED_NAMES = ("d_gamma", "d_rho", "d_phi", "eps_S", "eps_H", "d_t")
 K_TANGENTS = 11                           # Â(3), r(3), Ŝ(3), γ', ρ'
+#: passes from the spherical horizon to the tangent point's (module docstring)
+TANGENT_PASSES = 2
+# tangents carried through the horizon radius, X = (Â, r, Ŝ, γ', Δρ, Δh_H, κ)
+NX = 13
+IX_A, IX_R, IX_S, IX_G, IX_DRHO, IX_H, IX_K = slice(0, 3), slice(3, 6), slice(6, 9), 9, 10, 11, 12
+E_DRHO = np.eye(NX)[IX_DRHO]
 
 
 def wrap_period(x, period):
@@ -76,6 +92,26 @@ def wrap_period(x, period):
 def _vdot(u, du):
     """``u · du_k`` for vector u (N, 3) and tangents du (N, K, 3) -> (N, K)."""
     return np.einsum("ni,nki->nk", u, du)
+
+
+def crossing_direction(A, r, S, gamma_p, rho_p, sign):
+    """Φ of Eq 4-12b without tangents (the fixed-point iterations): phi (N,), ok (N,),
+    w (N, 3); the same construction as :func:`crossing_phase`."""
+    n = A.shape[0]
+    rn = np.linalg.norm(r, axis=1)
+    E = -r / rn[:, None]
+    c = np.einsum("ni,ni->n", A, E)
+    s = np.sqrt(1.0 - c ** 2)
+    m = np.cross(A, E) / s[:, None]
+    nv = (A - c[:, None] * E) / s[:, None]
+    cr, sr = np.cos(rho_p) * np.ones(n), np.sin(rho_p) * np.ones(n)
+    cL = (np.cos(gamma_p) - cr * c) / (sr * s)
+    ok = (np.abs(cL) < 1.0) & (s > 0.0)
+    w = m * (sign * np.sqrt(1.0 - cL ** 2))[:, None] + nv * cL[:, None]
+    H = cr[:, None] * E + sr[:, None] * w
+    Y = np.einsum("ni,ni->n", A, np.cross(S, H))
+    X = np.einsum("ni,ni->n", S, H) - np.einsum("ni,ni->n", S, A) * np.einsum("ni,ni->n", H, A)
+    return np.arctan2(Y, X), ok, w
 
 
 def crossing_phase(A, r, S, gamma_p, rho_p, sign):
@@ -89,7 +125,9 @@ def crossing_phase(A, r, S, gamma_p, rho_p, sign):
 
     Returns
     -------
-    phi (N,), dphi (N, 11) with respect to (A, r, S, γ', ρ') in that order, ok (N,).
+    phi (N,), dphi (N, 11) with respect to (A, r, S, γ', ρ') in that order, ok (N,),
+    w (N, 3) the unit horizontal direction of the crossing about Ê
+    (``Ĥ = cos ρ' Ê + sin ρ' ŵ``), dw (N, 11, 3) its tangents.
     """
     n = A.shape[0]
     eye = np.broadcast_to(np.eye(3), (n, 3, 3))
@@ -147,7 +185,41 @@ def crossing_phase(A, r, S, gamma_p, rho_p, sign):
         - sa[:, None] * (_vdot(A, dH) + _vdot(H, dA))
     phi = np.arctan2(Y, X)
     dphi = (X[:, None] * dY - Y[:, None] * dX) / (X ** 2 + Y ** 2)[:, None]
-    return phi, dphi, ok
+    return phi, dphi, ok, w, dw
+
+
+def _lift(d, drho_p):
+    """Tangents over (Â, r, Ŝ, γ', ρ') (N, 11[, ...]) to tangents over X (N, 13[, ...]),
+    with ``ρ' = ρ'(X)`` of tangents ``drho_p`` (N, 13)."""
+    out = np.zeros(d.shape[:1] + (NX,) + d.shape[2:])
+    out[:, :10] = d[:, :10]
+    extra = (1,) * (d.ndim - 2)
+    out += d[:, 10].reshape(d.shape[:1] + (1,) + d.shape[2:]) * drho_p.reshape(drho_p.shape + extra)
+    return out
+
+
+def _limb_angle(R, dR, rn, rhat):
+    """``ρ = asin(R/|r|)`` (N,) and its tangents over X (N, 13), from R (N,) and dR (N, 13)."""
+    x = R / rn
+    c = np.sqrt(1.0 - x ** 2)
+    d = dR / (rn * c)[:, None]
+    d[:, IX_R] -= (x / (rn * c))[:, None] * rhat
+    return np.arcsin(x), d
+
+
+def _ellipsoid_radius(s, ds, a, b, da, db):
+    """Radius of the ellipsoid of semi-axes (a, a, b) at geocentric latitude φ, ``s = sin φ``:
+    ``R = a b / sqrt(b² cos²φ + a² sin²φ) = a (1 + e s²)^(−1/2)``, ``e = (a/b)² − 1``.
+
+    Returns R (N,) and its tangents over X (N, 13) from ds (N, 13) and da, db (13,).
+    """
+    e = (a / b) ** 2 - 1.0
+    de = 2.0 * a / b ** 2 * da - 2.0 * a ** 2 / b ** 3 * db
+    u = 1.0 + e * s ** 2
+    R = a / np.sqrt(u)
+    dR = (1.0 / np.sqrt(u))[:, None] * da[None, :] \
+        - (0.5 * a * u ** -1.5)[:, None] * ((s ** 2)[:, None] * de[None, :] + (2.0 * e * s)[:, None] * ds)
+    return R, dR
 
 
 class HorizonModel(ObservationModel):
@@ -159,6 +231,9 @@ class HorizonModel(ObservationModel):
     unit = "s"
     attitude_kind = "spinning"
     book_keys = ("gamma_deg", "phi_h_deg", "horizon_height_km", "sun_sensor", "observable")
+    #: parameters the data see only in one combination (:mod:`gcs_core.diagnosis.aliases`)
+    aliases = {("d_phi", "eps_H"): "only ΔΦ − asin(cot γ' tan ε_H) enters the timing (Eq 4-12a, e): "
+                                   "a constant azimuth either way, so one of the two is set by its a priori"}
 
     def __init__(self, sensor: SensorSpec, *, aux_channels: tuple[str, ...] = ()):
         super().__init__(sensor, aux_channels=aux_channels)
@@ -201,7 +276,7 @@ class HorizonModel(ObservationModel):
             ParamSpec("horizon_height", "km", 0.0, 5.0, seed=False, effect="horizon_height",
                       description="horizon (CO2 layer) height error Δh_H"),
             ParamSpec("oblateness", "1", 0.0, 1.0, seed=False, effect="oblateness",
-                      description="scale κ of the oblate-Earth angular radius correction"),
+                      description="flattening beyond the physics' in units of WGS-84 f (κ)"),
         )
 
     def sigma(self) -> np.ndarray:
@@ -230,66 +305,100 @@ class HorizonModel(ObservationModel):
         return wrap_period(d, period.reshape((-1,) + (1,) * (d.ndim - 1)))
 
     # ----------------------------------------------------------------------------------
-    def _psi(self, p, A, t_eph, eph, sign, want_partials):
-        """Ψ (N,) at ephemeris time ``t_eph``; with partials, a dict of ∂Ψ and the ok mask."""
+    def flattening(self, geom: Geometry):
+        """The Earth's flattening the geometry carries (physics option ``earth_oblateness``:
+        WGS-84 when on, 0 when off); WGS-84 when the geometry does not say."""
+        return geom.extra.get("earth_flattening", FLATTENING)
+
+    def _psi(self, p, A, t_eph, eph, sign, want_partials, f_geo=FLATTENING):
+        """Ψ (N,) at ephemeris time ``t_eph``; with partials, a dict of ∂Ψ and the ok mask.
+
+        ``f_geo``: the flattening the physics carries; the horizon is the ellipsoid of
+        semi-axes ``a = R_E + h_H + Δh_H`` and ``b = R_E (1 − f_geo − κ f) + h_H + Δh_H``.
+        """
         r, v, S = (np.asarray(x, dtype=float) for x in eph(t_eph))
-        R_h = units.R_EARTH_KM + self.h_km + p["horizon_height"]
+        n = r.shape[0]
+        a = units.R_EARTH_KM + self.h_km + p["horizon_height"]
+        b = units.R_EARTH_KM * (1.0 - f_geo - p["oblateness"] * FLATTENING) + self.h_km + p["horizon_height"]
+        da = np.zeros(NX)
+        da[IX_H] = 1.0
+        db = da.copy()
+        db[IX_K] = -units.R_EARTH_KM * FLATTENING
         q = np.einsum("ni,ni->n", r, r)
-        root = np.sqrt(q - R_h ** 2)                         # |r| cos ρ0
-        rho0 = np.arcsin(R_h / np.sqrt(q))
-        g = r[:, 2] ** 2 / (q * root)                          # sin²φ / sqrt(|r|² − R_h²)
-        fR = FLATTENING * units.R_EARTH_KM
-        kappa = p["oblateness"]
-        rho_p = rho0 - kappa * fR * g + p["d_rho"]
+        rn = np.sqrt(q)
+        rhat = r / rn[:, None]
         gamma_p = self.gamma + p["d_gamma"]
-        phi, dphi, ok = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+        ok = np.ones(n, dtype=bool)
+        # spherical start: the equatorial radius a (Eq 4-12c, ICD), its tangents over X
+        rho, drho = _limb_angle(a * np.ones(n), np.zeros((n, NX)) + da, rn, rhat)
+        drhat_z = (np.eye(3)[2][None, :] - rhat[:, 2:3] * rhat) / rn[:, None]
+        for _ in range(TANGENT_PASSES):
+            # the crossing on the current horizon, and the tangent point it touches
+            rho_p, drho_p = rho + p["d_rho"], drho + E_DRHO
+            if want_partials:
+                _, _, ok_k, w, dw = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+            else:
+                _, ok_k, w = crossing_direction(A, r, S, gamma_p, rho_p, sign)
+            ok &= ok_k
+            cr, sr = np.cos(rho), np.sin(rho)
+            s_lat = sr * rhat[:, 2] + cr * w[:, 2]          # sin φ_T, T̂ = sin ρ r̂ + cos ρ ŵ
+            if want_partials:
+                ds_lat = (cr * rhat[:, 2] - sr * w[:, 2])[:, None] * drho \
+                    + cr[:, None] * _lift(dw[:, :, 2], drho_p)
+                ds_lat[:, IX_R] += sr[:, None] * drhat_z
+            else:
+                ds_lat = np.zeros((n, NX))
+            R, dR = _ellipsoid_radius(s_lat, ds_lat, a, b, da, db)
+            rho, drho = _limb_angle(R, dR, rn, rhat)
+        rho_p, drho_p = rho + p["d_rho"], drho + E_DRHO
+        if want_partials:
+            phi, dphi, ok_k, _, _ = crossing_phase(A, r, S, gamma_p, rho_p, sign)
+        else:
+            phi, ok_k, _ = crossing_direction(A, r, S, gamma_p, rho_p, sign)
+        ok &= ok_k
         cb = np.einsum("ni,ni->n", A, S)
         sb = np.sqrt(1.0 - cb ** 2)
         tS, tH = np.tan(p["eps_S"]), np.tan(p["eps_H"])
         qS = cb / sb * tS
         qH = tH / np.tan(gamma_p)
         psi = phi - self.phi_h - p["d_phi"] - np.arcsin(qS) + np.arcsin(qH)
-        ok &= (np.abs(qS) < 1.0) & (np.abs(qH) < 1.0) & (sb > 0.0) & (root > 0.0)
+        ok &= (np.abs(qS) < 1.0) & (np.abs(qH) < 1.0) & (sb > 0.0) & (rn > a)
         if not want_partials:
             return psi, ok
+        dphi_x = _lift(dphi, drho_p)
         rS, rH = np.sqrt(1.0 - qS ** 2), np.sqrt(1.0 - qH ** 2)
         dS_dcb = tS / (sb ** 3 * rS)                           # ∂ΔΦ_S/∂(Â·Ŝ)
         dH_dgamma = -tH / (np.sin(gamma_p) ** 2 * rH)          # ∂ΔΦ_H/∂γ'
-        drho0_dr = -(R_h / (q * root))[:, None] * r
-        dg_dr = g[:, None] * (-2.0 * r / q[:, None] - r / (root ** 2)[:, None])
-        dg_dr[:, 2] += 2.0 * r[:, 2] / (q * root)
-        drho_dr = drho0_dr - kappa * fR * dg_dr
-        drho_dh = 1.0 / root - kappa * fR * g * R_h / root ** 2
-        dphi_drho = dphi[:, 10]
-        d = {"A": dphi[:, 0:3] - dS_dcb[:, None] * S,
-             "r": dphi[:, 3:6] + dphi_drho[:, None] * drho_dr,
-             "S": dphi[:, 6:9] - dS_dcb[:, None] * A}
+        d = {"A": dphi_x[:, IX_A] - dS_dcb[:, None] * S,
+             "r": dphi_x[:, IX_R],
+             "S": dphi_x[:, IX_S] - dS_dcb[:, None] * A}
         h = SUN_RATE_STEP_S
         S_dot = (np.asarray(eph(t_eph + h)[2], dtype=float) - np.asarray(eph(t_eph - h)[2], dtype=float)) / (2 * h)
         d["tau"] = np.einsum("ni,ni->n", d["r"], v) + np.einsum("ni,ni->n", d["S"], S_dot)
-        d["d_gamma"] = dphi[:, 9] + dH_dgamma
-        d["d_rho"] = dphi_drho
+        d["d_gamma"] = dphi_x[:, IX_G] + dH_dgamma
+        d["d_rho"] = dphi_x[:, IX_DRHO]
         d["d_phi"] = -np.ones_like(psi)
         d["eps_S"] = -(cb / sb) / (np.cos(p["eps_S"]) ** 2 * rS)
         d["eps_H"] = 1.0 / (np.tan(gamma_p) * np.cos(p["eps_H"]) ** 2 * rH)
         d["d_t"] = d["tau"]
-        d["horizon_height"] = dphi_drho * drho_dh
-        d["oblateness"] = -dphi_drho * fR * g
+        d["horizon_height"] = dphi_x[:, IX_H]
+        d["oblateness"] = dphi_x[:, IX_K]
         return psi, d, ok
 
     def _crossing(self, geom, p, A, P, omega, sign):
         """dt (N,), ∂dt/∂Â (N, 3), ∂dt/∂x dict, ok (N,) for one crossing (implicit solve)."""
         eph = geom.ephemeris
         t = np.asarray(geom.t, dtype=float)
-        psi, ok = self._psi(p, A, t + p["d_t"], eph, sign, False)
+        f_geo = self.flattening(geom)
+        psi, ok = self._psi(p, A, t + p["d_t"], eph, sign, False, f_geo)
         dt = np.mod(psi, TWO_PI) / omega
         for _ in range(MAX_ITERATIONS):
-            psi, _ = self._psi(p, A, t + dt + p["d_t"], eph, sign, False)
+            psi, _ = self._psi(p, A, t + dt + p["d_t"], eph, sign, False, f_geo)
             step = wrap_period(psi - omega * dt, TWO_PI) / omega
             dt = dt + step
             if not np.any(np.abs(step) > TOLERANCE_S):       # NaN steps (no crossing) are ignored
                 break
-        psi, d, ok = self._psi(p, A, t + dt + p["d_t"], eph, sign, True)
+        psi, d, ok = self._psi(p, A, t + dt + p["d_t"], eph, sign, True, f_geo)
         y = np.mod(psi, TWO_PI) / omega
         den = omega - d["tau"]                                  # ω (1 − f_dt)
         d_att = np.einsum("ni,nij->nj", d["A"], P) / den[:, None]

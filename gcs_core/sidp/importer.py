@@ -6,7 +6,12 @@ CSV file it names (:mod:`~gcs_core.sidp.csvio`) and checks, beyond the CSV rules
 * the telemetry columns of each sensor type (ICD §5) and the ephemeris, onboard
   attitude columns (ICD §4, §6);
 * the ephemeris cadence (60 s or finer) and that the ephemeris covers every telemetry
-  span;
+  span, up to a margin: the models read the orbit a little past a row's time (a horizon
+  crossing up to a spin period after the Sun sighting, a time-tag shift being estimated),
+  so the ephemeris may be extrapolated by :func:`ephemeris_margin` (a spin period plus
+  :data:`TIME_TAG_BOUND_S`), with a one-line warning saying by how much. Rows that would
+  need more are trimmed, and counted; telemetry lying outside the ephemeris by more than
+  the margin is refused, naming how many rows and which span;
 * physical ranges that catch unit mistakes: magnetometer components within 1e6 nT,
   |r| between the Earth's surface and 1e6 km, the Sun distance near 1 AU, onboard
   quaternions of unit norm (within 1e-3), gyro rates under 1 rad/s, star right
@@ -22,7 +27,7 @@ from __future__ import annotations
 
 import logging
 import os
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Mapping
 
@@ -63,6 +68,10 @@ AU_KM = 149597870.7
 QUATERNION_NORM_TOL = 1e-3
 MAX_RATE_RAD_S = 1.0                 # deg/s given as rad/s otherwise
 FAR_FUTURE_S = 10 * 365.25 * 86400.0  # ten years
+#: how far from a row's time the models may read the orbit besides the scan [s]: a time-tag
+#: shift or in-track time error at 5σ of its 1 s a priori, plus the horizon model's ±1 s
+#: difference for the Sun's rate, rounded up
+TIME_TAG_BOUND_S = 10.0
 
 
 @dataclass(frozen=True)
@@ -95,11 +104,15 @@ class ImportReport:
     unknown_keys : keys of mission.toml kept but not used, dotted
         (``mission.foo``, ``sensor[TAM1].gain``).
     repairs : one line per repair made (rows dropped, with file and count).
+    warnings : one line per thing accepted with a caveat (the ephemeris extrapolated).
+    trimmed : sensor -> rows trimmed because they need the orbit past the margin.
     """
 
     files: tuple[FileCount, ...]
     unknown_keys: tuple[str, ...] = ()
     repairs: tuple[str, ...] = ()
+    warnings: tuple[str, ...] = ()
+    trimmed: Mapping[str, int] = field(default_factory=dict)
 
     def file(self, what: str) -> FileCount:
         """The count of the file whose role is ``what`` (e.g. ``"telemetry TAM1"``)."""
@@ -122,13 +135,15 @@ class ImportReport:
                f"{f.dropped_duplicates} duplicates dropped ({f.file})" for f in self.files]
         out += [f"unknown key kept but not used: {k}" for k in self.unknown_keys]
         out += [f"repair: {r}" for r in self.repairs]
+        out += [f"warning: {w}" for w in self.warnings]
         return out
 
     def to_dict(self) -> dict:
         return {"files": [{"file": str(f.file), "what": f.what, "rows": f.rows,
                            "dropped_nan": f.dropped_nan,
                            "dropped_duplicates": f.dropped_duplicates} for f in self.files],
-                "unknown_keys": list(self.unknown_keys), "repairs": list(self.repairs)}
+                "unknown_keys": list(self.unknown_keys), "repairs": list(self.repairs),
+                "warnings": list(self.warnings), "trimmed_rows": dict(self.trimmed)}
 
 
 @dataclass(frozen=True)
@@ -143,6 +158,8 @@ class ImportedMission:
     aux : aux.csv, or None.
     onboard : onboard_attitude.csv (``t, q1..q4``), or None.
     report : per-file counts, unknown keys and repairs.
+    ephemeris_margin_s : how far the ephemeris may be extrapolated past its ends [s]
+        (:func:`ephemeris_margin`).
     """
 
     spec: MissionSpec
@@ -151,6 +168,7 @@ class ImportedMission:
     aux: Table | None = None
     onboard: Table | None = None
     report: ImportReport = field(default_factory=lambda: ImportReport(files=()))
+    ephemeris_margin_s: float = 0.0
 
     @property
     def name(self) -> str:
@@ -256,18 +274,84 @@ def _check_onboard(table: Table) -> None:
                        "quaternion norm {norm:.6g} is not 1 (within 1e-3)")
 
 
-def _check_covered(table: Table, eph: Table, sensor: str) -> None:
+def ephemeris_margin(telemetry: Mapping[str, Table], types: Mapping[str, str]) -> float:
+    """How far past its ends the ephemeris may be extrapolated [s]: the longest spin period
+    of the horizon telemetry (a crossing is read up to one spin after the Sun sighting)
+    plus :data:`TIME_TAG_BOUND_S`."""
+    period = 0.0
+    for name, table in telemetry.items():
+        if types.get(name) == "horizon" and len(table):
+            w = np.abs(np.asarray(table.columns["spin_rate"], dtype=float))
+            period = max(period, float(2.0 * np.pi / np.min(w)))
+    return period + TIME_TAG_BOUND_S
+
+
+#: the horizon model reads the Sun ±1 s around each crossing for its rate [s]
+_SUN_RATE_STEP_S = 1.0
+
+
+def _reach(table: Table, stype: str) -> tuple[np.ndarray, np.ndarray]:
+    """Per row, the earliest and latest time the models read the orbit at, with every
+    time-tag parameter at its a-priori value [s]: the row's time, or for a horizon scanner
+    its crossings (``t + dt_in``, ``t + dt_out``) ± the Sun-rate step."""
+    t = np.asarray(table.t, dtype=float)
+    if stype != "horizon":
+        return t, t
+    c = table.columns
+    late = t + np.maximum(np.asarray(c["dt_in"], dtype=float), np.asarray(c["dt_out"], dtype=float))
+    return t + np.minimum(np.asarray(c["dt_in"], dtype=float), 0.0) - _SUN_RATE_STEP_S, late + _SUN_RATE_STEP_S
+
+
+def _check_covered(table: Table, eph: Table, sensor: str, margin: float) -> None:
+    """Refuse telemetry lying outside the ephemeris by more than ``margin`` [s]: one line
+    naming how many rows and which span."""
     e0, e1 = float(eph.t[0]), float(eph.t[-1])
-    t0, t1 = float(table.t[0]), float(table.t[-1])
-    if t0 >= e0 and t1 <= e1:
+    t = np.asarray(table.t, dtype=float)
+    out = (t < e0 - margin) | (t > e1 + margin)
+    if not np.any(out):
         return
-    if t0 < e0:
-        i, span = 0, (t0, min(e0, t1))
-    else:
-        i, span = _first(table.t > e1), (max(e1, t0), t1)
-    raise _refuse(table, i, "t", f"telemetry of {sensor} spans t = {t0:.6g} to {t1:.6g} s "
-                  f"but the ephemeris {eph.path} covers only t = {e0:.6g} to {e1:.6g} s: "
-                  f"t = {span[0]:.6g} to {span[1]:.6g} s is not covered")
+    i = _first(out)
+    lo, hi = float(np.min(t[out])), float(np.max(t[out]))
+    spans = [f"t = {a:.6g} to {b:.6g} s" for a, b, on in ((lo, e0, lo < e0), (e1, hi, hi > e1)) if on]
+    uncovered = " and ".join(spans)
+    raise _refuse(table, i, "t", f"{int(np.count_nonzero(out))} rows of {sensor} (t = {lo:.6g} to "
+                  f"{hi:.6g} s) lie more than {margin:.3g} s (the models' extrapolation margin) outside "
+                  f"the ephemeris {eph.path}, which covers t = {e0:.6g} to {e1:.6g} s: {uncovered} is not covered")
+
+
+def _fit_to_ephemeris(telemetry: dict, types: Mapping[str, str], eph: Table, margin: float,
+                      root: Path, repairs: list, warnings: list) -> dict[str, int]:
+    """Trim the rows that would need the orbit more than ``margin`` past the ephemeris with
+    their time tags moved by :data:`TIME_TAG_BOUND_S`, and say (one line) how far the rest
+    extrapolate it. Returns sensor -> rows trimmed."""
+    e0, e1 = float(eph.t[0]), float(eph.t[-1])
+    trimmed: dict[str, int] = {}
+    before = after = 0.0
+    users = []
+    for name, table in list(telemetry.items()):
+        early, late = _reach(table, types[name])
+        keep = (early - TIME_TAG_BOUND_S >= e0 - margin) & (late + TIME_TAG_BOUND_S <= e1 + margin)
+        if not np.all(keep):
+            trimmed[name] = int(np.count_nonzero(~keep))
+            telemetry[name] = replace(table, t=table.t[keep], lines=np.asarray(table.lines)[keep],
+                                      columns={k: np.asarray(v)[keep] for k, v in table.columns.items()})
+            repairs.append(f"{_rel(table.path, root)}: trimmed {trimmed[name]} rows that would need the "
+                           f"orbit more than {margin:.3g} s past the ephemeris's ends")
+            early, late = early[keep], late[keep]
+        if early.size and (early.min() < e0 or late.max() > e1):
+            before = max(before, e0 - float(early.min()))
+            after = max(after, float(late.max()) - e1)
+            users.append(name)
+    if users:
+        ends = []
+        if before > 0:
+            ends.append(f"{before:.3g} s before its first row (t = {e0:.6g} s)")
+        if after > 0:
+            ends.append(f"{after:.3g} s past its last row (t = {e1:.6g} s)")
+        by = " and ".join(ends)
+        warnings.append(f"ephemeris {Path(eph.path).name} extrapolated (cubic Hermite) by up to {by} "
+                        f"for {', '.join(users)}")
+    return trimmed
 
 
 def _rel(path: Path, root: Path) -> str:
@@ -323,8 +407,17 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
             continue
         _check_not_empty(table, f"{what} ({s.type})")
         _check_sensor(table, s.type)
-        _check_covered(table, eph, s.name)
         telemetry[s.name] = table
+    types = {s.name: s.type for s in spec.sensors}
+    margin = ephemeris_margin(telemetry, types)
+    for name, table in telemetry.items():
+        _check_covered(table, eph, name, margin)
+    warnings: list[str] = []
+    trimmed = _fit_to_ephemeris(telemetry, types, eph, margin, spec.root, repairs, warnings)
+    for name, table in telemetry.items():
+        if trimmed.get(name) and len(table) == 0:
+            raise InputError(f"telemetry of {name}: every row needs the orbit past the ephemeris "
+                             f"(t = {float(eph.t[0]):.6g} to {float(eph.t[-1]):.6g} s)", file=table.path)
     aux = read(spec.aux_file, ("t",), "aux") if spec.aux_file else None
     onboard = None
     if spec.onboard_file:
@@ -339,7 +432,9 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     unknown += [f"sensor[{s.name}].{k}" for s in spec.sensors for k in s.unknown_keys]
     for r in repairs:
         log.info("%s", r)
+    for w in warnings:
+        log.warning("%s", w)
     report = ImportReport(files=tuple(counts), unknown_keys=tuple(unknown),
-                          repairs=tuple(repairs))
+                          repairs=tuple(repairs), warnings=tuple(warnings), trimmed=trimmed)
     return ImportedMission(spec=spec, ephemeris_table=eph, telemetry=telemetry, aux=aux,
-                           onboard=onboard, report=report)
+                           onboard=onboard, report=report, ephemeris_margin_s=margin)

@@ -12,6 +12,8 @@ The *physics options* choose which always-on corrections the reference vectors c
 * ``solar_aberration`` — the Sun seen from the moving spacecraft (orbital aberration;
   the ephemeris Sun is already apparent-geocentric, ICD §4);
 * ``sun_parallax`` — the Sun from the spacecraft (``s − r``) rather than from the Earth;
+* ``earth_oblateness`` — the horizon scanners see the WGS-84 ellipsoid (flattening
+  ``f = 1/298.257223563``) under the CO2 layer, not the ICD's sphere (``docs/horizon.md``);
 * ``field_model`` — ``"igrf"`` (degree 13) or ``"dipole"``.
 
 Each option is also a catalogue effect (``model.<option>``): the diagnosis compares the
@@ -38,6 +40,7 @@ from gcs_core.frames.reference import spin_axis
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry, ObservationModel
 from gcs_core.sidp.types import MissionSpec, Table
+from gcs_core.models.horizon import FLATTENING as WGS84_FLATTENING
 from gcs_core.units import DEG
 
 
@@ -48,11 +51,13 @@ class PhysicsOptions:
     stellar_aberration: bool = True
     solar_aberration: bool = True
     sun_parallax: bool = True
+    earth_oblateness: bool = True
     field_model: str = "igrf"
 
     def as_dict(self) -> dict:
         return {"stellar_aberration": self.stellar_aberration, "solar_aberration": self.solar_aberration,
-                "sun_parallax": self.sun_parallax, "field_model": self.field_model}
+                "sun_parallax": self.sun_parallax, "earth_oblateness": self.earth_oblateness,
+                "field_model": self.field_model}
 
 
 #: frames per chunk when reference vectors are computed (bounded temporaries)
@@ -63,6 +68,7 @@ PHYSICS_EFFECTS = {
     "stellar_aberration": (True, False),
     "solar_aberration": (True, False),
     "sun_parallax": (True, False),
+    "earth_oblateness": (True, False),
     "field_model": ("igrf", "dipole"),
 }
 
@@ -248,6 +254,7 @@ class GeometryBuilder:
                 kw["star_I"][sl] = self.stars(tc, v, ra[sl], dec[sl], ph)
         if sensor_type == "horizon":
             kw["ephemeris"] = self.ephemeris_callable(ph)
+            extra["earth_flattening"] = WGS84_FLATTENING if ph.earth_oblateness else 0.0
             if table is not None:
                 extra["spin_rate"] = np.asarray(table.columns["spin_rate"], dtype=float)
         kw["extra"] = extra
@@ -292,6 +299,7 @@ def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) ->
         "coarse_sun": ("solar_aberration", "sun_parallax"),
         "plane_field_sun": ("solar_aberration", "sun_parallax"),
         "magnetometer": ("field_model",),
+        "horizon": ("earth_oblateness",),
     }.get(sd.model.type_name, ())
     out = {}
     for opt in relevant:

@@ -11,7 +11,7 @@ sensor, horizon scanner), ``aux`` (torquers, temperature), ``writer`` (ICD files
 truth.json), ``scenarios`` (named missions, hidden effects), ``samples`` (bundled data).
 
 The data carry real always-on physics by default (stellar and solar aberration, solar
-parallax; ``MissionConfig.physics``); hidden effects (``with_effect``) are what the data
+parallax, the WGS-84 horizon; ``MissionConfig.physics``); hidden effects (``with_effect``) are what the data
 book does not say. ``list_effects()`` lists them with their units.
 
 Typical use::

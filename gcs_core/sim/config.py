@@ -8,7 +8,7 @@ A sensor carries two sets of values:
   not mention (``misalignment_rad``, ``response`` (TAM 3×3), ``G`` (gyro 3×3),
   ``contamination`` ({channel: (3,)}), ``time_offset_s``, ``harmonic`` (FSS second
   harmonic per axis), ``misid_fraction``, horizon ``d_gamma, d_phi, d_rho, eps_H,
-  flattening``, star-tracker exclusion angles...).
+  flattening_excess`` (in units of the WGS-84 flattening), star-tracker exclusion angles...).
 
 Mission-wide physics (aberrations, solar parallax) is real by default
 (:data:`REAL_PHYSICS`), like the data of a real spacecraft.
@@ -31,7 +31,8 @@ ATTITUDE_MODES = THREE_AXIS_MODES + ("spinning",)
 SENSOR_TYPES = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun",
                 "plane_field_sun", "horizon")
 #: physics present in real data; a switch turned off gives data without it.
-REAL_PHYSICS = {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True}
+REAL_PHYSICS = {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True,
+                "earth_oblateness": True}
 
 __all__ = ["OrbitElements", "Slew", "ThreeAxisProfile", "SpinProfile", "AuxConfig",
            "OnboardConfig", "SensorConfig", "HiddenEffect", "MissionConfig",
@@ -218,7 +219,9 @@ class MissionConfig:
     physics: dict[str, bool] = field(default_factory=lambda: dict(REAL_PHYSICS))
     """always-on physics in the data (the real world by default): ``stellar_aberration``
     (stars shifted by (v_earth + v_sc)/c), ``solar_aberration`` (Sun shifted by v_sc/c),
-    ``sun_parallax`` (Sun seen from the spacecraft, s − r, instead of the Earth's centre)."""
+    ``sun_parallax`` (Sun seen from the spacecraft, s − r, instead of the Earth's centre),
+    ``earth_oblateness`` (horizon scanners see the WGS-84 ellipsoid under the CO2 layer,
+    crossed exactly at each scan's own tangent point, not the ICD's sphere)."""
     ephemeris_time_error_s: float = 0.0
     """in-track timing error Δt of the written ephemeris: row t holds the orbit at t − Δt."""
     chunk_s: float = 21600.0

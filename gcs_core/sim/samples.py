@@ -3,7 +3,7 @@
 Writes ``OUT_DIR/missions/<name>/`` (ICD mission directories, each about 1.3 MB) and the
 answer files ``OUT_DIR/answers/<name>.json`` (truth.json: true parameters and the hidden
 effects). All data carry the real always-on physics (stellar and solar aberration, solar
-parallax), as a real spacecraft's would. The samples:
+parallax, the WGS-84 horizon crossed exactly), as a real spacecraft's would. The samples:
 
 =========================  ===========================================================
 nominal-sunpoint           Sun-pointing, 2 h at 1 Hz, data book = truth

@@ -24,11 +24,14 @@ from typing import Callable
 import numpy as np
 
 from gcs_core.errors import InputError
+from gcs_core.sim import astro
+from gcs_core.sim.astro import R_EARTH_KM
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
                                  SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
 
-__all__ = ["nominal_threeaxis", "spinner_nominal", "with_effect", "EFFECTS", "list_effects"]
+__all__ = ["nominal_threeaxis", "spinner_nominal", "spinner_two_scanners", "sun_synchronous_inclination_deg",
+           "with_effect", "EFFECTS", "list_effects"]
 
 ARCSEC = np.pi / 180.0 / 3600.0
 
@@ -126,6 +129,52 @@ def spinner_nominal(seed: int = 1, duration_s: float = 10800.0, *, name: str = "
                                              argp_deg=60.0, mean_anomaly_deg=10.0),
                          attitude=SpinProfile(ra_deg=320.0, dec_deg=50.0, rate_rpm=10.0, phase0_deg=17.0),
                          sensors=[pss, hs], aux=None, onboard=None, seed=int(seed))
+
+
+#: Earth's J2 and GM, for the Sun-synchronous inclination (Vallado 2013, Table D-2 / D-3)
+_J2, _MU_KM3_S2 = 1.08262668e-3, 398600.4418
+#: nodal rate of a Sun-synchronous orbit: 360° per tropical year [rad/s]
+_SSO_NODE_RATE = 2.0 * np.pi / (365.2421897 * 86400.0)
+
+
+def sun_synchronous_inclination_deg(a_km: float, e: float = 0.0) -> float:
+    """Inclination whose secular J2 nodal drift follows the mean Sun:
+    ``cos i = −Ω̇ 2 a^{7/2} (1 − e²)² / (3 J2 R_E² √μ)`` (Vallado 2013, Eq 11-14)."""
+    c = -_SSO_NODE_RATE * 2.0 * a_km ** 3.5 * (1 - e * e) ** 2 / (3.0 * _J2 * R_EARTH_KM ** 2 * np.sqrt(_MU_KM3_S2))
+    return float(np.degrees(np.arccos(c)))
+
+
+def spinner_two_scanners(seed: int = 1, *, inclination_deg: float | str = 28.5, duration_s: float = 10800.0,
+                         altitude_km: float = 700.0, axis_tilt_deg: float = 30.0,
+                         name: str | None = None, epoch: str = "2024-09-02T10:00:00Z") -> MissionConfig:
+    """A 10 rpm spinner at any inclination (``"sso"``: Sun-synchronous at that altitude):
+    PSS1 (plane-field Sun sensor) and two horizon scanners on the cones the real missions
+    use, HS1 at γ = 60° and HS2 at γ = 110°. The spin axis is the orbit normal at the epoch
+    tilted by ``axis_tilt_deg`` toward the Sun's side, so both cones cross the Earth over
+    the whole orbit (nadir angle 90° ± the tilt) and the Sun stays well off the axis.
+    Data book = truth; the horizon is the WGS-84 ellipsoid (``physics``)."""
+    a_km = R_EARTH_KM + altitude_km
+    inc = sun_synchronous_inclination_deg(a_km, 0.001) if inclination_deg == "sso" else float(inclination_deg)
+    label = "sso" if inclination_deg == "sso" else f"i{inc:g}"
+    raan = 35.0
+    i, O = np.radians(inc), np.radians(raan)
+    normal = np.array([np.sin(i) * np.sin(O), -np.sin(i) * np.cos(O), np.cos(i)])
+    sun = unit(astro.sun_position_km(astro.epoch_jd(astro.parse_epoch(epoch)), np.array([0.0]))[0])
+    side = unit(sun - np.dot(sun, normal) * normal)
+    tilt = np.radians(axis_tilt_deg)
+    A = np.cos(tilt) * normal + np.sin(tilt) * side
+    ra, dec = float(np.degrees(np.arctan2(A[1], A[0])) % 360.0), float(np.degrees(np.arcsin(A[2])))
+    pss = SensorConfig("PSS1", "plane_field_sun", 0.0,
+                       {"tilt_deg": 0.0, "bias": 0.0, "noise": float(np.radians(0.05))})
+    hs = [SensorConfig(n, "horizon", 0.0, {"gamma_deg": g, "phi_h_deg": p, "horizon_height_km": 40.0,
+                                           "noise": 0.0015})
+          for n, g, p in (("HS1", 60.0, 35.0), ("HS2", 110.0, 215.0))]
+    return MissionConfig(name=name or f"spinner-{label}-s{seed}", epoch=epoch, attitude_mode="spinning",
+                         duration_s=float(duration_s),
+                         orbit=OrbitElements(a_km=a_km, e=0.001, i_deg=inc, raan_deg=raan,
+                                             argp_deg=60.0, mean_anomaly_deg=10.0),
+                         attitude=SpinProfile(ra_deg=ra, dec_deg=dec, rate_rpm=10.0, phase0_deg=17.0),
+                         sensors=[pss, *hs], aux=None, onboard=None, seed=int(seed))
 
 
 # --- hidden effects ------------------------------------------------------------------------
@@ -249,8 +298,9 @@ EFFECTS: dict[str, EffectSpec] = {
     "eps_H": EffectSpec(("horizon",), "rad", "horizon sensor plane tilt ε_H (Eq 4-12e)", _set("eps_H")),
     "horizon_height": EffectSpec(("horizon",), "km", "true horizon height = book + m",
                                  _set("horizon_height_km", "horizon_height_km")),
-    "oblateness": EffectSpec(("horizon",), "1 (x WGS-84 f)", "oblate Earth, flattening m/298.257",
-                             _set("flattening", None, lambda m: m / 298.257223563)),
+    "oblateness": EffectSpec(("horizon",), "1 (x WGS-84 f)", "the Earth this scanner sees is flattened "
+                             "by m/298.257 more than the physics' (WGS-84, or none with "
+                             "model.earth_oblateness off)", _set("flattening_excess")),
     "d_t": EffectSpec(("horizon",), "s", "in-track time error of the ephemeris: row t holds the orbit "
                       "at t - m (Eq 4-13; affects every sensor of the mission)", None),
 }
@@ -260,6 +310,8 @@ MODEL_EFFECTS = {
     "stellar_aberration": ("1 (on)", "star directions aberrated by (v_earth + v_sc)/c, up to 26 arcsec"),
     "solar_aberration": ("1 (on)", "Sun direction aberrated by the spacecraft velocity v_sc/c, up to 5 arcsec"),
     "sun_parallax": ("1 (on)", "Sun seen from the spacecraft (s - r) instead of the Earth's centre, ~9 arcsec"),
+    "earth_oblateness": ("1 (on)", "horizon on the WGS-84 ellipsoid (f = 1/298.257) under the CO2 layer, "
+                         "crossed exactly at each scan's tangent point"),
 }
 
 

@@ -21,13 +21,27 @@ Horizon scanner: a pencil beam on the cone of half angle ``γ' = γ + Δγ`` abo
 the intersection of that cone with a detector plane through ``u_H`` (body azimuth
 ``Φ_H + ΔΦ``) tilted by ``ε_H`` like the Sun sensor's: ``w_H = cos ε_H ẑ − sin ε_H (ẑ × u_H)``.
 The line of sight is ``d = a u_H + b w_H`` with ``b = cos γ' / cos ε_H``, ``a = sqrt(1 − b²)``;
-its azimuth is ``Φ_H + ΔΦ − asin(cot γ' tan ε_H) = Φ_H + ΔΦ − ΔΦ_H`` (Eq 4-12e). The
-crossings are the roots of the angular distance of ``d`` from the Earth limb::
+its azimuth is ``Φ_H + ΔΦ − asin(cot γ' tan ε_H) = Φ_H + ΔΦ − ΔΦ_H`` (Eq 4-12e).
 
-    g(t) = ∠(q, −p) − asin(1/|p|) − Δρ,   p = D r(t), q = D d_I(t), D = diag(1/a_H, 1/a_H, 1/b_H)
+The horizon is the ellipsoid ``(x² + y²)/a_H² + z²/b_H² = 1`` (GCI, the true-of-date pole
+taken as the GCI z axis), ``a_H = R_E + h_H``, ``b_H = R_E (1 − f) + h_H``: the WGS-84
+flattening ``f`` when the mission physics ``earth_oblateness`` is on (the default, the real
+Earth), 0 when off (the ICD's sphere), plus ``m f`` for the hidden ``oblateness`` effect.
+The crossings are the roots in time of the beam's angle from the limb, measured in the
+vertical plane of the beam (the plane through the spacecraft, the nadir and ``d``)::
 
-``a_H = R_E + h_H``, ``b_H = R_E (1 − f) + h_H`` (``f = 0``: the ICD's spherical Earth; the
-hidden ``oblateness`` effect sets the WGS-84 flattening). Horizon-in: ``g`` goes + to −;
+    g(t) = ∠(d, Ê) − ρ_T − Δρ
+
+where ``ρ_T`` is the exact nadir angle of the ray in that plane that is tangent to the
+ellipsoid. The plane passes through the Earth's centre, so it cuts the ellipsoid in an
+ellipse, and the tangent from the spacecraft to it is closed-form: with ``e₁ = r̂``,
+``e₂`` the unit vector of ``d`` orthogonal to ``r̂``, ``M = diag(1/a_H², 1/a_H², 1/b_H²)``,
+``m_ij = e_iᵀ M e_j``, ``det = m₁₁ m₂₂ − m₁₂²`` and ``K = m₁₁ |r|² − 1``, a ray of nadir angle
+θ (towards ``e₂``) touches the ellipse when its quadratic has a double root, i.e. when
+``(m₂₂ − |r|² det) tan²θ − 2 m₁₂ tan θ + m₁₁ = 0``, whose positive root is
+``tan ρ_T = (m₁₂ − sqrt(det K)) / (m₂₂ − |r|² det)``. The beam misses the Earth exactly when
+``g > 0``. No tangent-point or first-order approximation is made (the estimator's model,
+``gcs_core.models.horizon``, uses one; this is what checks it). Horizon-in: ``g`` goes + to −;
 horizon-out: − to +; both are the first such events within one spin after the sighting.
 Rows: ``t = t_s − τ`` (τ the time-tag offset), ``spin_rate = ω(t_s)``,
 ``dt_in/out = t_in/out − t_s + N(0, noise²)``. Sightings in eclipse, with the Sun within
@@ -159,7 +173,7 @@ class HorizonSim:
 
     columns = ("t", "spin_rate", "dt_in", "dt_out")
     formats = ("%.9f", "%.12e", "%.9f", "%.9f")
-    grid = 720          # samples per spin when looking for crossings (0.5 deg)
+    grid = 240          # samples per spin when looking for crossings (1.5 deg)
 
     def __init__(self, sensor: SensorConfig, world, rng: np.random.Generator, sightings: SunSightings):
         self.s, self.world, self.rng, self.sightings = sensor, world, rng, sightings
@@ -171,8 +185,10 @@ class HorizonSim:
         b = np.cos(gamma) / np.cos(eps_h)
         self.d_B = np.sqrt(1.0 - b * b) * u + b * wv
         h = float(sensor.value("horizon_height_km"))
-        f = float(sensor.value("flattening", 0.0))
+        f = WGS84_F if bool(world.cfg.physics.get("earth_oblateness", True)) else 0.0
+        f += float(sensor.value("flattening_excess", 0.0)) * WGS84_F
         self.axes = np.array([astro.R_EARTH_KM + h, astro.R_EARTH_KM + h, astro.R_EARTH_KM * (1 - f) + h])
+        self._M = 1.0 / self.axes ** 2
         self.d_rho = float(sensor.value("d_rho", 0.0))
         self.noise = float(sensor.value("noise"))
         self.tau = float(sensor.value("time_offset_s", 0.0))
@@ -192,11 +208,20 @@ class HorizonSim:
         shape = t.shape
         t = t.ravel()
         r, _ = self.world.orbit(t)
-        p = r / self.axes
-        q = self.los_I(t) / self.axes
-        pn = np.linalg.norm(p, axis=-1)
-        cosang = -np.einsum("ij,ij->i", p, q) / (pn * np.linalg.norm(q, axis=-1))
-        g = np.arccos(np.clip(cosang, -1, 1)) - np.arcsin(np.clip(1.0 / pn, -1, 1)) - self.d_rho
+        d = self.los_I(t)
+        rn = np.linalg.norm(r, axis=-1)
+        e1 = r / rn[:, None]
+        c = -np.einsum("ij,ij->i", d, e1)                    # cos ∠(d, Ê)
+        e2 = d + c[:, None] * e1
+        e2 /= np.maximum(np.linalg.norm(e2, axis=-1), 1e-300)[:, None]
+        M = self._M
+        m11 = np.einsum("ij,j,ij->i", e1, M, e1)
+        m12 = np.einsum("ij,j,ij->i", e1, M, e2)
+        m22 = np.einsum("ij,j,ij->i", e2, M, e2)
+        det = m11 * m22 - m12 ** 2
+        K = m11 * rn ** 2 - 1.0
+        rho_t = np.arctan((m12 - np.sqrt(det * np.maximum(K, 0.0))) / (m22 - rn ** 2 * det))
+        g = np.arccos(np.clip(c, -1, 1)) - rho_t - self.d_rho
         return g.reshape(shape)
 
     def run_span(self, t0: float, t1: float, t_max: float) -> dict[str, np.ndarray]:
