@@ -126,7 +126,8 @@ def mission_catalogue(problem, physics) -> list[Effect]:
     relevant = {"stellar_aberration": "star_tracker" in types,
                 "solar_aberration": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
                 "sun_parallax": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
-                "field_model": "magnetometer" in types}
+                "field_model": "magnetometer" in types
+                and getattr(problem.builder.physics, "field_model", "igrf") != "constant"}
     for opt in PHYSICS_EFFECTS:
         if relevant.get(opt):
             fam, text = explanation(opt)

@@ -12,7 +12,10 @@ The *physics options* choose which always-on corrections the reference vectors c
 * ``solar_aberration`` — the Sun seen from the moving spacecraft (orbital aberration;
   the ephemeris Sun is already apparent-geocentric, ICD §4);
 * ``sun_parallax`` — the Sun from the spacecraft (``s − r``) rather than from the Earth;
-* ``field_model`` — ``"igrf"`` (degree 13) or ``"dipole"``.
+* ``field_model`` — ``"igrf"`` (degree 13), ``"dipole"``, or ``"constant"``: one unknown
+  field vector of the reference frame, estimated with the rest (a laboratory on the
+  ground, docs/ground.md); the geometry then carries no field and the magnetometer model
+  holds the three elements ``field.B_x/y/z``.
 
 Each option is also a catalogue effect (``model.<option>``): the diagnosis compares the
 predictions with and without it (:func:`geometry_variants`).
@@ -227,6 +230,9 @@ class GeometryBuilder:
         star = sensor_type == "star_tracker" and table is not None
         if sun:
             kw["sun_I"] = np.empty((n, 3))
+        if mag and ph.field_model == "constant":
+            mag = False                         # the field is a state element (module docstring)
+            kw["B_I"], extra["B_I_dot"] = np.zeros((n, 3)), np.zeros((n, 3))
         if mag:
             fld = self.field(ph.field_model)
             kw["B_I"], extra["B_I_dot"] = np.empty((n, 3)), np.empty((n, 3))
@@ -263,7 +269,8 @@ def prepare_sensors(spec: MissionSpec, telemetry: Mapping[str, Table], builder: 
         if s.type == "gyro" and not include_gyro:
             continue
         table = telemetry[s.name]
-        model = make_model(s, aux_channels=channels if s.type == "magnetometer" else ())
+        model = make_model(s, aux_channels=channels if s.type == "magnetometer" else (),
+                           constant_field=builder.physics.field_model == "constant")
         t, y = model.measurements(table)
         geom = builder.geometry(s.type, t, table)
         out.append(SensorData(s.name, model, np.asarray(t, float), np.asarray(y, float),
@@ -293,6 +300,8 @@ def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) ->
         "plane_field_sun": ("solar_aberration", "sun_parallax"),
         "magnetometer": ("field_model",),
     }.get(sd.model.type_name, ())
+    if builder.physics.field_model == "constant":
+        relevant = tuple(o for o in relevant if o != "field_model")   # no model to truncate
     out = {}
     for opt in relevant:
         on, off = PHYSICS_EFFECTS[opt]
