@@ -188,7 +188,7 @@ def cmd_convert(args, prog: Progress) -> int:
 
     span = tuple(args.span) if args.span else None
     with prog.task(f"converting {args.source} ({args.format})"):
-        report = convert(args.format, args.source, args.out, span=span)
+        report = convert(args.format, args.source, args.out, span=span, name=args.name)
     _lines(report.lines())
     return EXIT_OK
 
@@ -396,6 +396,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", required=True, help="mission directory to create")
     sp.add_argument("--span", nargs=2, type=float, metavar=("START", "END"),
                     help="keep only the samples in this window [s from the first sample]")
+    sp.add_argument("--name", help="mission name (default from the source file)")
 
     sp = add("noise", cmd_noise, "each sensor's white noise and Allan deviation from its telemetry")
     sp.add_argument("mission", help="mission directory (ICD §1)")

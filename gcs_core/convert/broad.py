@@ -27,7 +27,8 @@ sensor: BROAD's ``(w, x, y, z)`` rotates unit-frame vectors into ENU, which is G
 
 Noise figures are not published with the data; each sensor's is estimated from its own
 telemetry (:mod:`gcs_core.sidp.noise`) and written with a comment saying so. The gyro's
-data-book bias is its mean over the rest before the motion phase (written likewise).
+data-book bias is its mean at rest (the middle half of the longest run outside the motion
+phase; written likewise).
 Every sample is kept: untracked optical samples are written as ``nan`` (the import
 drops and counts them), and a start-up transient (samples in the first
 :data:`TRANSIENT_WINDOW_S` whose robust z-score against the rest that follows exceeds
@@ -135,6 +136,21 @@ def _transients(t: np.ndarray, y: np.ndarray, rest: np.ndarray, what: str) -> li
             f"{z.max():.0f} robust σ from the rest level that follows; kept, flagged"]
 
 
+def _rest(moving: np.ndarray) -> np.ndarray:
+    """(N,) the samples the noise and the gyro's rest bias are measured on: the middle
+    half of the longest run outside the motion phase (the unit is often picked up, or
+    still swinging, a few seconds on either side of the phase flagged as motion)."""
+    still = ~np.asarray(moving, dtype=bool)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
+    runs = edges.reshape(-1, 2)
+    out = np.zeros(still.size, dtype=bool)
+    if runs.size:
+        lo, hi = runs[int(np.argmax(runs[:, 1] - runs[:, 0]))]
+        q = (hi - lo) // 4
+        out[lo + q:hi - q] = True
+    return out
+
+
 def _write_csv(path: Path, header: str, cols: list[np.ndarray], fmt: list[str]) -> int:
     a = np.column_stack(cols)
     with open(path, "w", encoding="utf-8", newline="\n") as fh:
@@ -185,11 +201,7 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
     d = {k: v[keep] for k, v in data.items()}
     t = t[keep]
     moving = d["movement"].astype(bool)
-    # the first half of the rest before the motion phase (the unit is often picked up
-    # a few seconds before the phase flagged as motion begins)
-    lead_rest = np.flatnonzero(~moving & (np.cumsum(moving) == 0))
-    rest0 = np.zeros(t.size, dtype=bool)
-    rest0[lead_rest[: lead_rest.size // 2]] = True
+    rest0 = _rest(moving)
     gyr, mag_nT, acc = d["imu_gyr"], d["imu_mag"] * UT_TO_NT, d["imu_acc"]
     q = d["opt_quat"]
     q_gcs = np.column_stack([q[:, 1:4], q[:, 0]])          # (w,x,y,z) -> (x,y,z,w), same C_BI
@@ -224,14 +236,21 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
     rrw = _rms([g.rrw for g in g_terms])
     m_line = np.array([noise_mod.white_level(c, dt)[0]
                        for c in noise_mod.allan_deviation(t[rest0], mag_nT[rest0])])
+    opt_rest = rest0 & tracked
+    if opt_rest.sum() < 64:
+        raise InputError(f"only {int(opt_rest.sum())} tracked optical samples at rest: too few to "
+                         "measure the noise", file=source, key="opt_quat")
+    o_line = np.array([noise_mod.white_level(c, dt)[0]
+                       for c in noise_mod.allan_deviation(t[opt_rest], q_gcs[opt_rest], quaternion=True)])
     bias0 = gyr[rest0].mean(axis=0)
     notes.append(f"noise estimated from the telemetry: per-sample spread (second differences) "
                  f"gyro {np.array2string(s_gyr, precision=4)} rad/s, magnetometer "
                  f"{np.array2string(s_mag, precision=1)} nT, optical "
-                 f"{np.array2string(s_opt, precision=7)} rad; white-noise lines of the first rest "
+                 f"{np.array2string(s_opt, precision=7)} rad; white-noise lines at rest "
                  f"(Allan deviation): gyro ARW {arw:.4g} rad/s^0.5, magnetometer "
-                 f"{np.array2string(m_line, precision=1)} nT per sample")
-    notes.append(f"gyro data-book bias = mean over the first rest ({int(rest0.sum())} samples)")
+                 f"{np.array2string(m_line, precision=1)} nT, optical "
+                 f"{np.array2string(o_line, precision=7)} rad per sample")
+    notes.append(f"gyro data-book bias = mean over the rest ({int(rest0.sum())} samples)")
 
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent if out.parent.exists() else None))
     try:
@@ -251,7 +270,8 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
         rows["extra/movement.csv"] = _write_csv(tmp / "extra/movement.csv", "t,movement",
                                                 [t, moving.astype(float)], ["%.6f", "%d"])
         mname = name or f"broad-{source.stem}"
-        toml = _mission_toml(mname, source, bias0, arw, rrw, m_line, s_mag, s_opt, s_gyr, rest0.sum())
+        toml = _mission_toml(mname, source, bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s_gyr,
+                             rest0.sum())
         (tmp / "mission.toml").write_text(toml, encoding="utf-8")
         (tmp / "SOURCE.md").write_text(_source_md(source, info, rate, n_all, span, keep, transients,
                                                   warnings), encoding="utf-8")
@@ -275,7 +295,7 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
     return report
 
 
-def _mission_toml(name, source, bias0, arw, rrw, m_line, s_mag, s_opt, s_gyr, n_rest) -> str:
+def _mission_toml(name, source, bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s_gyr, n_rest) -> str:
     b = ", ".join(f"{v:.6g}" for v in bias0)
     return f"""# Converted by `gcs convert broad` from {source.name}, a trial of BROAD:
 # {CITATION}
@@ -294,16 +314,16 @@ name = "GYR"                      # myon aktos-t gyro
 type = "gyro"
 telemetry = "telemetry/GYR.csv"
 alignment_deg = [0.0, 0.0, 0.0]
-bias = [{b}]   # rad/s, measured: mean over the {int(n_rest)} samples of the first rest
-arw = {arw:.6g}   # rad/s^0.5, ESTIMATED from the telemetry: Allan deviation of the first rest, -1/2 line (per-sample spread {np.array2string(s_gyr, precision=4)} rad/s)
-rrw = {rrw:.6g}   # rad/s^1.5, ESTIMATED: Allan deviation of the first rest, +1/2 line (an upper bound where it never shows)
+bias = [{b}]   # rad/s, measured: mean over {int(n_rest)} samples at rest (the middle half of the longest rest)
+arw = {arw:.6g}   # rad/s^0.5, ESTIMATED from the telemetry: Allan deviation at rest, -1/2 line (per-sample spread {np.array2string(s_gyr, precision=4)} rad/s)
+rrw = {rrw:.6g}   # rad/s^1.5, ESTIMATED: Allan deviation at rest, +1/2 line (an upper bound where it never shows)
 
 [[sensor]]
 name = "MAG"                      # myon aktos-t magnetometer (converted from µT)
 type = "magnetometer"
 telemetry = "telemetry/MAG.csv"
 alignment_deg = [0.0, 0.0, 0.0]
-noise = {_rms(m_line):.6g}   # nT, ESTIMATED from the telemetry: white-noise line of the first rest's Allan deviation (per axis {np.array2string(m_line, precision=1)}; per-sample spread {np.array2string(s_mag, precision=1)})
+noise = {_rms(m_line):.6g}   # nT, ESTIMATED from the telemetry: white-noise line of the Allan deviation at rest (per axis {np.array2string(m_line, precision=1)}; per-sample spread {np.array2string(s_mag, precision=1)})
 bias = [0.0, 0.0, 0.0]
 
 [[sensor]]
@@ -311,7 +331,7 @@ name = "OPT"                      # OptiTrack motion capture, eight Flex13 camer
 type = "attitude_reference"
 telemetry = "telemetry/OPT.csv"
 alignment_deg = [0.0, 0.0, 0.0]   # aligned to the unit by the data's authors
-noise = {_rms(s_opt):.6g}   # rad, ESTIMATED from the telemetry (per axis {np.array2string(s_opt, precision=7)})
+noise = {_rms(o_line):.6g}   # rad, ESTIMATED from the telemetry: white-noise line of the Allan deviation at rest (per axis {np.array2string(o_line, precision=7)}; per-sample spread {np.array2string(s_opt, precision=7)})
 """
 
 

@@ -223,8 +223,7 @@ def _check_sensor(table: Table, stype: str, ground: bool = False) -> None:
     elif stype == "gyro":
         top = MAX_RATE_GROUND_RAD_S if ground else MAX_RATE_RAD_S
         _check_vector_norm(table, ("wx", "wy", "wz"), 0.0, top,
-                           "|omega| = {norm:.6g} rad/s exceeds " + f"{top:g}"
-                           + " rad/s (rates in rad/s?)")
+                           f"|omega| = {{norm:.6g}} rad/s exceeds {top:g} rad/s (rates in rad/s?)")
     elif stype == "attitude_reference":
         _check_onboard(table)
     elif stype == "star_tracker":

@@ -30,7 +30,13 @@ only as meaningful as the σ they are divided by. This module measures the noise
   samples are correlated.
 
 Attitude references (quaternions) are differenced as rotations: the increments
-``rotvec(C_{k+1} C_kᵀ)`` stand for the first differences.
+``rotvec(C_{k+1} C_kᵀ)`` stand for the first differences; their Allan curve is of the small
+angles from the mean attitude (:func:`small_angles`), meaningful over a still span.
+
+Consecutive samples of real units are often correlated (a sensor read faster than it
+updates and interpolated, or filtered): the second differences then see only part of
+the noise, and the white-noise line of the Allan curve over a still span is the figure
+that makes the σ of slowly varying parameters honest.
 
 References
 ----------
@@ -198,12 +204,24 @@ def white_level(curve: "AllanCurve", dt: float) -> tuple[float, float, bool]:
             bool(abs(slope[i] + 0.5) > SLOPE_TOLERANCE))
 
 
+def small_angles(q: np.ndarray) -> np.ndarray:
+    """(N, 3) [rad] the rotation of each attitude (N, 4) from their mean attitude, about
+    the mean's axes: ``e_k = rotvec(C_k C̄ᵀ)``, ``C̄`` the first attitude corrected by the
+    mean of the angles from it. Small, and meaningful, over a still span only."""
+    C = quat_to_dcm(quat_normalize(np.asarray(q, dtype=float)))
+    e0 = dcm_to_rotvec(C @ C[0].T)
+    from gcs_core.frames.rotations import rotvec_to_dcm
+    Cbar = rotvec_to_dcm(e0.mean(axis=0)) @ C[0]
+    return dcm_to_rotvec(C @ Cbar.T)
+
+
 def allan_deviation(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> list[AllanCurve]:
     """Overlapping Allan deviation per component at octave τ (module docstring).
 
     The samples are taken on their median interval τ0 over the longest run without a
-    gap. For a quaternion sensor the "rate" integrated is the rotation increment per
-    interval divided by τ0 (an angular rate [rad/s]).
+    gap. For a quaternion sensor the samples are its small angles from the mean attitude
+    (:func:`small_angles`, rad). A curve of a sensor's values (not of a rate integrated
+    by the sensor) says something about its noise over a still span only.
 
     Returns one :class:`AllanCurve` per component.
     """
@@ -217,8 +235,7 @@ def allan_deviation(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -
     k = int(np.argmax(ends - starts))
     lo, hi = int(starts[k]), int(ends[k])
     if quaternion:
-        d, _ = _increments(t[lo:hi], np.asarray(y)[lo:hi], True)
-        rate = d / dt
+        rate = small_angles(np.asarray(y)[lo:hi])
     else:
         rate = np.asarray(y, dtype=float)[lo:hi]
     n = rate.shape[0]
@@ -269,12 +286,11 @@ class SensorNoise:
     Attributes
     ----------
     name, type : the sensor.
-    components : names of the components; unit : their unit (rad/s for the curve of a
-        quaternion sensor, whose white noise is in rad).
+    components : names of the components; unit : their unit (rad for a quaternion
+        sensor's small angles).
     dt : median sample interval [s]; n : samples used.
     white : (m,) per-sample noise σ (robust second differences).
-    line : (m,) the white-noise line as a per-sample σ (:func:`white_level`; NaN for an
-        attitude reference, whose curve is of rates).
+    line : (m,) the white-noise line as a per-sample σ (:func:`white_level`).
     curves : one :class:`AllanCurve` per component.
     gyro : per-axis :class:`GyroTerms` (gyros only), else ().
     stated : the data book's noise figure per sample (None if it gives none).
@@ -328,8 +344,8 @@ def sensor_noise(name: str, stype: str, t: np.ndarray, table_columns, *, stated:
     comps = ("x", "y", "z") if quat else cols
     gyro = tuple(gyro_terms(c) for c in curves) if stype == "gyro" else ()
     dt = sample_interval(t)
-    line = np.array([np.nan if quat else white_level(c, dt)[0] for c in curves])
-    return SensorNoise(name, stype, comps, "rad/s" if quat else unit, dt, int(t.size),
+    line = np.array([white_level(c, dt)[0] for c in curves])
+    return SensorNoise(name, stype, comps, unit, dt, int(t.size),
                        white, line, curves, gyro, stated)
 
 
@@ -361,7 +377,7 @@ def noise_lines(results: list[SensorNoise]) -> list[str]:
     for r in results:
         stated = "none" if r.stated is None else _fmt(r.stated)
         rms = float(np.sqrt(np.mean(r.white ** 2)))
-        white_unit = "rad" if r.type == "attitude_reference" else r.unit
+        white_unit = r.unit
         out.append(f"{r.name} ({r.type}), {r.n} samples every {r.dt:.6g} s")
         out.append(f"  white noise per sample [{white_unit}]: "
                    + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.white))
