@@ -22,6 +22,7 @@ RATE_HZ = 100.0
 N = 1200
 GYRO_NOISE = 2e-3          # rad/s per sample
 MAG_NOISE_UT = 0.5         # µT per sample
+OPT_NOISE = 1e-4           # rad per axis
 one_percent = 0.01
 
 
@@ -34,7 +35,7 @@ def _trial(path, *, drop=None, rate=RATE_HZ, bad_quat=False):
     C[0] = np.eye(3)
     for k in range(1, N):
         C[k] = rotvec_to_dcm(omega[k] / rate) @ C[k - 1]
-    q_xyzw = quat_from_dcm(C)
+    q_xyzw = quat_from_dcm(rotvec_to_dcm(rng.normal(scale=OPT_NOISE, size=(N, 3))) @ C)
     q = np.column_stack([q_xyzw[:, 3], q_xyzw[:, :3]])
     q[:15] = np.nan                                                   # untracked start
     if bad_quat:
@@ -71,6 +72,7 @@ def test_converts_to_a_mission_that_imports(tmp_path):
     # µT -> nT, and the noise written is the one the telemetry shows (white here)
     mag = m.spec.sensor("MAG")
     assert abs(mag.noise / (MAG_NOISE_UT * 1000.0) - 1.0) < 0.15
+    assert abs(m.spec.sensor("OPT").noise / OPT_NOISE - 1.0) < 0.15
     assert np.allclose(m.telemetry["MAG"].columns["bx"][:3] / 1000.0,
                        h5py.File(src)["imu_mag"][:3, 0], atol=1e-6)
     # the quaternion keeps its C_BI: reordered scalar-last, unchanged otherwise
@@ -108,8 +110,33 @@ def test_malformed_file_is_one_clear_error(tmp_path, kind, message):
     assert not (tmp_path / "m").exists()            # nothing half-written
 
 
+def test_a_reference_without_noise_at_rest_gets_a_floor_and_a_warning(tmp_path, monkeypatch):
+    import gcs_core.convert.broad as broad
+    monkeypatch.setattr(broad.noise_mod, "white_level", lambda curve, dt: (0.0, dt, True))
+    rep = convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m")
+    assert any("no noise measurable at rest" in w for w in rep.warnings)
+    load_mission(tmp_path / "m")                     # every noise written is > 0
+
+
 def test_refuses_a_full_output_directory(tmp_path):
     (tmp_path / "m").mkdir()
     (tmp_path / "m" / "x").write_text("")
     with pytest.raises(InputError, match="not empty"):
         convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m")
+
+
+def test_cli_convert_import_and_noise(tmp_path, capsys):
+    from gcs_tui.cli import EXIT_INPUT, EXIT_OK, main
+
+    src = _trial(tmp_path / "t.hdf5")
+    assert main(["-q", "convert", "broad", str(src), "--out", str(tmp_path / "m")]) == EXIT_OK
+    assert "telemetry/OPT.csv: 1200 rows" in capsys.readouterr().out
+    assert main(["-q", "import", str(tmp_path / "m")]) == EXIT_OK
+    capsys.readouterr()
+    assert main(["-q", "noise", str(tmp_path / "m"), "--start", "0.5", "--end", "5.5"]) == EXIT_OK
+    out = capsys.readouterr().out
+    assert "ARW N =" in out and "Allan deviation [nT]" in out
+    (tmp_path / "bad.hdf5").write_text("no")
+    assert main(["-q", "convert", "broad", str(tmp_path / "bad.hdf5"), "--out", str(tmp_path / "n")]) == EXIT_INPUT
+    err = capsys.readouterr().err
+    assert "bad.hdf5" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1

@@ -151,6 +151,19 @@ def _rest(moving: np.ndarray) -> np.ndarray:
     return out
 
 
+def _floor(line: np.ndarray, spread: np.ndarray, tiny: float, what: str, unit: str,
+           warnings: list[str]) -> np.ndarray:
+    """``line`` where it is a positive number; elsewhere the per-sample spread, else ``tiny``."""
+    bad = ~(np.isfinite(line) & (line > 0))
+    if not bad.any():
+        return line
+    out = np.where(bad, np.where(np.isfinite(spread) & (spread > 0), spread, tiny), line)
+    warnings.append(f"{what}: no noise measurable at rest on {int(bad.sum())} axis(es); "
+                    f"written {np.array2string(out, precision=4)} {unit} from the per-sample "
+                    "spread (or a floor): check it")
+    return out
+
+
 def _write_csv(path: Path, header: str, cols: list[np.ndarray], fmt: list[str]) -> int:
     a = np.column_stack(cols)
     with open(path, "w", encoding="utf-8", newline="\n") as fh:
@@ -242,6 +255,13 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
                          "measure the noise", file=source, key="opt_quat")
     o_line = np.array([noise_mod.white_level(c, dt)[0]
                        for c in noise_mod.allan_deviation(t[opt_rest], q_gcs[opt_rest], quaternion=True)])
+    # a channel constant at rest (or quantized coarser than its noise) shows no noise there:
+    # its per-sample spread over the whole span, else a floor, stands in (and is reported)
+    m_line = _floor(m_line, s_mag, 1e-3, "magnetometer", "nT", warnings)
+    o_line = _floor(o_line, s_opt, 1e-9, "optical reference", "rad", warnings)
+    if not arw > 0:
+        arw = float(_floor(np.array([0.0]), np.array([_rms(s_gyr)]), 1e-9, "gyro", "rad/s",
+                           warnings)[0]) * np.sqrt(dt)
     bias0 = gyr[rest0].mean(axis=0)
     notes.append(f"noise estimated from the telemetry: per-sample spread (second differences) "
                  f"gyro {np.array2string(s_gyr, precision=4)} rad/s, magnetometer "

@@ -91,7 +91,8 @@ class AllanCurve:
         """(K,) local log-log slope (centred differences, one-sided at the ends)."""
         if self.tau.size < 2:
             return np.full(self.tau.shape, np.nan)
-        return np.gradient(np.log(self.adev), np.log(self.tau))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.gradient(np.log(self.adev), np.log(self.tau))
 
 
 @dataclass(frozen=True)
