@@ -380,15 +380,16 @@ def noise_lines(results: list[SensorNoise]) -> list[str]:
         rms = float(np.sqrt(np.mean(r.white ** 2)))
         white_unit = r.unit
         out.append(f"{r.name} ({r.type}), {r.n} samples every {r.dt:.6g} s")
-        out.append(f"  white noise per sample [{white_unit}]: "
+        lr = float(np.sqrt(np.mean(r.line ** 2)))
+        out.append(f"  per-sample spread [{white_unit}] (second differences): "
                    + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.white))
-                   + f"  (RMS {_fmt(rms)}; data book {stated}"
-                   + (f", ratio {rms / r.stated:.3f})" if r.stated else ")"))
-        if np.all(np.isfinite(r.line)):
-            lr = float(np.sqrt(np.mean(r.line ** 2)))
-            out.append(f"  white-noise line as per-sample σ [{white_unit}]: "
-                       + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.line))
-                       + f"  (RMS {_fmt(lr)}; above the per-sample spread when samples are correlated)")
+                   + f"  (RMS {_fmt(rms)})")
+        note = ("consecutive samples are correlated: this, not the spread, is the noise slow "
+                "parameters see" if rms < 0.7 * lr else "agrees with the spread: white")
+        out.append(f"  white-noise line as per-sample σ [{white_unit}]: "
+                   + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.line))
+                   + f"  (RMS {_fmt(lr)}; data book {stated}"
+                   + (f", ratio {lr / r.stated:.3f}" if r.stated else "") + f"; {note})")
         out.append(f"  Allan deviation [{r.unit}] (overlapping, IEEE 952 Annex C):")
         out.append("    " + f"{'tau [s]':>10}" + "".join(f"{c:>12}" for c in r.components))
         for k in range(r.curves[0].tau.size):
