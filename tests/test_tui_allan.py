@@ -46,3 +46,29 @@ def test_allan_screen_snapshot(snap_compare):
 def test_summary_reads_the_gyro_terms():
     text = summary(_results()[0])
     assert text.count(" N ") == 3 and "data book 0.01" in text
+
+
+async def test_palette_command_on_the_broad_sample(tmp_path):
+    """``noise: allan deviation`` on the bundled BROAD mission (real data, Laidig et al.,
+    Data 6(7), 2021, doi:10.3390/data6070072, CC BY 4.0) opens the dialog, one chart per
+    sensor; escape closes it."""
+    from pathlib import Path
+
+    from gcs_tui.app import GcsApp
+    from gcs_tui.testing import settle
+    from gcs_tui.workbench import Workbench
+
+    config = Path(__file__).resolve().parents[1] / "sample_data/configs/real-broad-02-slow-rotation.toml"
+    if not config.is_file():
+        pytest.skip("the BROAD sample mission is not bundled")
+    wb = Workbench.open(config, save_path=tmp_path / "a.toml", scds_path=tmp_path / "h.scds.h5")
+    app = GcsApp(workbench=wb, start_view="mission")
+    async with app.run_test(size=(120, 40)) as pilot:
+        await settle(pilot)
+        await app.run_action("noise")
+        await pilot.pause()
+        assert isinstance(app.screen, AllanScreen)
+        assert [r.name for r in app.screen.results] == ["GYR", "MAG", "OPT"]
+        await pilot.press("escape")
+        await pilot.pause()
+        assert not isinstance(app.screen, AllanScreen)
