@@ -138,7 +138,7 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
         "observable": BookKey(-1, "", required=False, default="in_out",
                               choices=HORIZON_OBSERVABLES),
     },
-    # an attitude quaternion measured by another instrument (docs/attitude_reference.md)
+    # an attitude quaternion measured by another instrument (docs/ground.md)
     "attitude_reference": {
         "noise": BookKey(0, "rad", check=_positive),
     },
