@@ -62,6 +62,9 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
                      "Earth's centre, up to ≈9 arcsec, once per orbit."),
     "field_model": ("physics", "Geomagnetic model truncation: a dipole leaves out the higher degrees "
                     "of IGRF, hundreds of nT in LEO, following the ground track."),
+    "field": ("reference", "The reference field of a ground calibration (field_model = \"constant\"): "
+              "one unknown vector of the laboratory frame, the Earth's field as the room distorts "
+              "it. Its magnitude and a magnetometer's common scale factor are one quantity."),
 }
 
 
