@@ -45,7 +45,7 @@ def test_allan_screen_snapshot(snap_compare):
 
 def test_summary_reads_the_gyro_terms():
     text = summary(_results()[0])
-    assert text.count(" N ") == 3 and "data book 0.01" in text
+    assert text.count(" N ") == 3 and "data book 0.01 (spread 1.00" in text
 
 
 async def test_palette_command_on_the_broad_sample(tmp_path):

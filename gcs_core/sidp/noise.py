@@ -315,7 +315,6 @@ NOISE_COLUMNS = {
     "magnetometer": (("bx", "by", "bz"), "nT"),
     "gyro": (("wx", "wy", "wz"), "rad/s"),
     "attitude_reference": (("q1", "q2", "q3", "q4"), "rad"),
-    "star_tracker": (("h", "v"), "rad"),
     "fine_sun": (("n_alpha", "n_beta"), "counts"),
     "coarse_sun": (("n_alpha", "n_beta"), "counts"),
 }
@@ -326,7 +325,8 @@ def sensor_noise(name: str, stype: str, t: np.ndarray, table_columns, *, stated:
     """The noise one sensor's telemetry shows, over ``[start, end]`` (all by default).
 
     ``table_columns`` maps column name -> (N,) array. Returns None for a type whose
-    samples are not a measured vector (horizon crossing times, plane-field angles).
+    samples are not one measured quantity followed in time (horizon crossing times,
+    plane-field angles, star-tracker angles of a different star at each frame).
     """
     if stype not in NOISE_COLUMNS:
         return None
@@ -383,13 +383,15 @@ def noise_lines(results: list[SensorNoise]) -> list[str]:
         lr = float(np.sqrt(np.mean(r.line ** 2)))
         out.append(f"  per-sample spread [{white_unit}] (second differences): "
                    + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.white))
-                   + f"  (RMS {_fmt(rms)})")
-        note = ("consecutive samples are correlated: this, not the spread, is the noise slow "
-                "parameters see" if rms < 0.7 * lr else "agrees with the spread: white")
+                   + f"  (RMS {_fmt(rms)}; data book {stated}"
+                   + (f", ratio {rms / r.stated:.3f})" if r.stated else ")"))
+        note = ("above the spread: consecutive samples are correlated, or the values move "
+                "(over a still span, this is the noise slow parameters see)"
+                if rms < 0.7 * lr else "agrees with the spread: white")
         out.append(f"  white-noise line as per-sample σ [{white_unit}]: "
                    + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.line))
-                   + f"  (RMS {_fmt(lr)}; data book {stated}"
-                   + (f", ratio {lr / r.stated:.3f}" if r.stated else "") + f"; {note})")
+                   + f"  (RMS {_fmt(lr)}"
+                   + (f", ratio to the data book {lr / r.stated:.3f}" if r.stated else "") + f"; {note})")
         out.append(f"  Allan deviation [{r.unit}] (overlapping, IEEE 952 Annex C):")
         out.append("    " + f"{'tau [s]':>10}" + "".join(f"{c:>12}" for c in r.components))
         for k in range(r.curves[0].tau.size):

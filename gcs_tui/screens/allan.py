@@ -31,7 +31,8 @@ def summary(r) -> str:
     """The lines under one sensor's chart (white noise, data book, gyro terms)."""
     rms = math.sqrt(sum(w * w for w in r.white) / len(r.white))
     line = math.sqrt(sum(w * w for w in r.line) / len(r.line))
-    book = "none" if r.stated is None else f"{_fmt(r.stated)} (ratio {line / r.stated:.2f})"
+    book = "none" if r.stated is None else \
+        f"{_fmt(r.stated)} (spread {rms / r.stated:.2f}, line {line / r.stated:.2f} of it)"
     text = [f"white noise per sample [{r.unit}]: spread {_fmt(rms)}, Allan white line {_fmt(line)}; "
             f"data book {book}"]
     for c, g in zip(r.components, r.gyro):
