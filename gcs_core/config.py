@@ -13,7 +13,7 @@ sample mission)::
     solar_aberration = true
     sun_parallax = true
     earth_oblateness = true       # WGS-84 horizon for horizon scanners
-    field_model = "igrf"          # igrf | dipole
+    field_model = "igrf"          # igrf | dipole | constant (an unknown field in a lab, docs/ground.md)
 
     [models]                      # per sensor: its type (as in mission.toml) or "off"
     CSS1 = "coarse_sun"
@@ -81,7 +81,7 @@ from gcs_core.models.base import ROLES
 from gcs_core.sidp.types import SENSOR_TYPES
 
 METHODS = ("whole_span", "batch", "kalman")
-FIELD_MODELS = ("igrf", "dipole")
+FIELD_MODELS = ("igrf", "dipole", "constant")
 AXES = ("roll", "pitch", "yaw")
 #: the predictor's star models for tracker frames (:mod:`gcs_core.predictor.stars`)
 STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")

@@ -233,6 +233,21 @@ class GcsApp(App):
         self.job = JobState(self.job.label, self.job.done, self.job.total, "cancelling…")
         self._update_status()
 
+    def action_noise(self) -> None:
+        """Each sensor's Allan deviation from its own telemetry (gcs noise), in a dialog."""
+        if not self.workbench.ready:
+            self.notify("open a mission first (o)", severity="warning")
+            return
+        from gcs_core.sidp.noise import mission_noise
+        from gcs_tui.screens.allan import AllanScreen
+
+        try:
+            results = mission_noise(self.workbench.mission)
+        except GcsError as err:
+            self.notify(str(err), severity="error")
+            return
+        self.push_screen(AllanScreen(results, f"Allan deviation · {self.workbench.mission.spec.name}"))
+
     def action_help(self) -> None:
         self.push_screen(HelpScreen(self.current_mode))
 

@@ -183,6 +183,28 @@ def cmd_import(args, prog: Progress) -> int:
     return EXIT_OK
 
 
+def cmd_convert(args, prog: Progress) -> int:
+    from gcs_core.convert import convert
+
+    span = tuple(args.span) if args.span else None
+    with prog.task(f"converting {args.source} ({args.format})"):
+        report = convert(args.format, args.source, args.out, span=span, name=args.name)
+    _lines(report.lines())
+    return EXIT_OK
+
+
+def cmd_noise(args, prog: Progress) -> int:
+    from gcs_core.sidp.importer import load_mission
+    from gcs_core.sidp.noise import mission_noise, noise_lines
+
+    with prog.task(f"reading mission {args.mission}"):
+        m = load_mission(args.mission)
+    with prog.task("Allan deviations"):
+        res = mission_noise(m, start=args.start, end=args.end)
+    _lines(noise_lines(res))
+    return EXIT_OK
+
+
 def cmd_batch(args, prog: Progress) -> int:
     from gcs_core.reporting import analysis_report, candidate_table
 
@@ -367,6 +389,19 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("mission", help="mission directory (ICD §1)")
     sp.add_argument("--sdf", help="write the Standard Data File (HDF5) here")
     sp.add_argument("--report", help="write the import counts (JSON) here")
+
+    sp = add("convert", cmd_convert, "convert a foreign format to a mission directory")
+    sp.add_argument("format", help="source format (broad)")
+    sp.add_argument("source", help="the source file")
+    sp.add_argument("--out", required=True, help="mission directory to create")
+    sp.add_argument("--span", nargs=2, type=float, metavar=("START", "END"),
+                    help="keep only the samples in this window [s from the first sample]")
+    sp.add_argument("--name", help="mission name (default from the source file)")
+
+    sp = add("noise", cmd_noise, "each sensor's white noise and Allan deviation from its telemetry")
+    sp.add_argument("mission", help="mission directory (ICD §1)")
+    sp.add_argument("--start", type=float, help="first time used [s since the epoch]")
+    sp.add_argument("--end", type=float, help="last time used [s since the epoch]")
 
     for name, func, helptext in (("batch", cmd_batch, "fit the configured state"),
                                  ("discover", cmd_discover, "stepwise missing-effect discovery")):

@@ -29,6 +29,7 @@ COMMANDS: tuple[tuple[str, str, str], ...] = tuple(
     ("verification: run", "Compare onboard and ground attitude (key r on Verification)", "verify"),
     ("calibration: save", "Append the fitted calibration to the SCDS", "save_calibration"),
     ("config: save", "Save the analysis config (key ctrl+s)", "save_config"),
+    ("noise: allan deviation", "Each sensor's noise and Allan deviation from its telemetry", "noise"),
     ("app: help", "Every key (key ?)", "help"),
     ("app: quit", "Quit GCS (key q)", "quit"),
 )

@@ -240,7 +240,31 @@ def gyro_case(rng, n=N_FRAMES):
     return model, geom, params
 
 
+def attitude_reference_case(rng, n=N_FRAMES):
+    model = make_model(sensor("MOCAP", "attitude_reference", alignment_deg=_aligned(rng), noise=1e-3))
+    params = {"time_offset": rng.uniform(-0.05, 0.05)}
+    _jitter_alignment(rng, model, params)
+    geom = Geometry(t=_times(rng, n), C_BI=random_dcm(rng, n), omega_B=rng.normal(scale=1.0, size=(n, 3)))
+    return model, geom, params
+
+
+def magnetometer_constant_field_case(rng, n=N_FRAMES):
+    model = make_model(sensor("MAG", "magnetometer", alignment_deg=_aligned(rng), noise=300.0,
+                              bias=tuple(rng.uniform(-500, 500, 3))), constant_field=True)
+    t = _times(rng, n)
+    geom = Geometry(t=t, C_BI=random_dcm(rng, n), B_I=np.zeros((n, 3)),
+                    omega_B=rng.normal(scale=1.0, size=(n, 3)))
+    params = {f"bias_{a}": rng.uniform(-2000, 2000) for a in "xyz"}
+    params.update({f"field_{a}": v for a, v in zip("xyz", (300.0, 17000.0, -45000.0))})
+    _jitter_alignment(rng, model, params)
+    params.update({f"scale_{a}": rng.uniform(-2e-2, 2e-2) for a in "xyz"})
+    params["time_offset"] = rng.uniform(-0.02, 0.02)
+    return model, geom, params
+
+
 CASES = {
+    "attitude_reference": attitude_reference_case,
+    "magnetometer_constant_field": magnetometer_constant_field_case,
     "magnetometer": magnetometer_case,
     "star_tracker": star_tracker_case,
     "fine_sun": fine_sun_case,

@@ -69,6 +69,9 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
                          "latitudes the scans touch (docs/horizon.md)."),
     "field_model": ("physics", "Geomagnetic model truncation: a dipole leaves out the higher degrees "
                     "of IGRF, hundreds of nT in LEO, following the ground track."),
+    "field": ("reference", "The reference field of a ground calibration (field_model = \"constant\"): "
+              "one unknown vector of the laboratory frame, the Earth's field as the room distorts "
+              "it. Its magnitude and a magnetometer's common scale factor are one quantity."),
 }
 
 
@@ -134,7 +137,8 @@ def mission_catalogue(problem, physics) -> list[Effect]:
                 "solar_aberration": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
                 "sun_parallax": bool(types & {"fine_sun", "coarse_sun", "plane_field_sun"}),
                 "earth_oblateness": "horizon" in types,
-                "field_model": "magnetometer" in types}
+                "field_model": "magnetometer" in types
+                and getattr(problem.builder.physics, "field_model", "igrf") != "constant"}
     for opt in PHYSICS_EFFECTS:
         if relevant.get(opt):
             fam, text = explanation(opt)

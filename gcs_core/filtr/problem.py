@@ -142,7 +142,8 @@ def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
     """A-priori attitude element values.
 
     Spinning: the mission's ``spin_axis_guess_deg``. Three-axis: roll/pitch/yaw of the
-    first onboard quaternion at ``t_ref`` relative to the reference frame, else zeros.
+    first onboard quaternion at ``t_ref`` relative to the reference frame, else of the
+    first attitude reference sensor's quaternion there, else zeros.
     """
     spec = mission.spec
     if mode == "spinning":
@@ -151,13 +152,24 @@ def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
             raise InputError("a spinning mission needs spin_axis_guess_deg = [RA, Dec]",
                              file=spec.root / "mission.toml", key="mission.spin_axis_guess_deg")
         return {"att.ra": guess[0] * DEG, "att.dec": guess[1] * DEG}
-    if mission.onboard is not None and len(mission.onboard):
-        ob = mission.onboard
+    ob = mission.onboard
+    alignment = np.eye(3)
+    if ob is None or not len(ob):
+        # no onboard attitude: the first attitude reference sensor (its instrument frame
+        # taken through its data-book alignment, C = Mᵀ C_SI)
+        refs = [s for s in spec.sensors if s.type == "attitude_reference"
+                and s.name in mission.telemetry and len(mission.telemetry[s.name])]
+        if refs:
+            ob = mission.telemetry[refs[0].name]
+            a = [v * DEG for v in (refs[0].alignment_deg or (0.0, 0.0, 0.0))]
+            from gcs_core.frames.rotations import euler123_to_dcm
+            alignment = euler123_to_dcm(*a)
+    if ob is not None and len(ob):
         t_ref = getattr(attitude, "t_ref", float(ob.t[0]))
         k = int(np.argmin(np.abs(ob.t - t_ref)))
         q = quat_normalize(np.array([ob.columns[c][k] for c in ("q1", "q2", "q3", "q4")]))
         ref = attitude.ref if isinstance(attitude, GyroAttitude) else attitude
-        roll, pitch, yaw = ref.rpy_from_dcm(quat_to_dcm(q), t_ref)
+        roll, pitch, yaw = ref.rpy_from_dcm(alignment.T @ quat_to_dcm(q), t_ref)
         return {"att.roll": roll, "att.pitch": pitch, "att.yaw": yaw}
     return {n: 0.0 for n in RPY}
 

@@ -8,6 +8,7 @@ the shared partial-derivative checker in :mod:`gcs_core.models.checks`.
 from __future__ import annotations
 
 from gcs_core.errors import InputError
+from gcs_core.models.attitude_reference import AttitudeReferenceModel
 from gcs_core.models.base import ObservationModel
 from gcs_core.models.coarse_sun import CoarseSunModel
 from gcs_core.models.fine_sun import FineSunModel
@@ -19,19 +20,23 @@ from gcs_core.models.star_tracker import StarTrackerModel
 from gcs_core.sidp.types import SensorSpec
 
 __all__ = ["MODEL_TYPES", "make_model", "ObservationModel", "MagnetometerModel", "GyroModel",
-           "StarTrackerModel", "FineSunModel", "CoarseSunModel", "PlaneFieldSunModel", "HorizonModel"]
+           "StarTrackerModel", "FineSunModel", "CoarseSunModel", "PlaneFieldSunModel", "HorizonModel",
+           "AttitudeReferenceModel"]
 
 #: ICD §5 type key -> model class.
 MODEL_TYPES: dict[str, type[ObservationModel]] = {
     cls.type_name: cls
     for cls in (MagnetometerModel, GyroModel, StarTrackerModel, FineSunModel, CoarseSunModel,
-                PlaneFieldSunModel, HorizonModel)
+                PlaneFieldSunModel, HorizonModel, AttitudeReferenceModel)
 }
 
 
-def make_model(sensor: SensorSpec, *, aux_channels: tuple[str, ...] = ()) -> ObservationModel:
+def make_model(sensor: SensorSpec, *, aux_channels: tuple[str, ...] = (),
+               constant_field: bool = False) -> ObservationModel:
     """The observation model of ``sensor``; ``aux_channels`` feed the magnetometer's
-    contamination parameters (ignored by the other types).
+    contamination parameters (ignored by the other types); ``constant_field`` gives a
+    magnetometer the unknown constant reference field ``field.B_x/y/z`` (physics
+    ``field_model = "constant"``, docs/ground.md).
 
     Raises :class:`~gcs_core.errors.InputError` naming the type key if it is unknown.
     """
@@ -39,4 +44,6 @@ def make_model(sensor: SensorSpec, *, aux_channels: tuple[str, ...] = ()) -> Obs
     if cls is None:
         raise InputError(f"sensor '{sensor.name}' has unknown type '{sensor.type}' "
                          f"(known: {', '.join(MODEL_TYPES)})", key=f"{sensor.name}.type")
+    if constant_field and cls is MagnetometerModel:
+        return cls(sensor, aux_channels=tuple(aux_channels), constant_field=True)
     return cls(sensor, aux_channels=tuple(aux_channels))

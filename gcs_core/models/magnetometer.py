@@ -19,6 +19,11 @@ Partials (Eq 4-28 and after; attitude per base.py)::
     ∂y/∂k_ch,i = e_i aux_ch
     ∂y/∂Δt    = (I + D) M (−ω_B × B_B + R C Ḃ_I)
 
+Constant field (physics ``field_model = "constant"``, a laboratory on the ground,
+docs/ground.md): ``B_I`` is one unknown vector of the reference frame, the shared state
+elements ``field.B_x/y/z`` [nT] (solve-for by default, nominal 0, a-priori σ
+:data:`FIELD_SIGMA_NT`), with ``∂y/∂B_I = (I + D) M R C`` and ``Ḃ_I = 0``.
+
 ``Ḃ_I`` (the field's rate along the orbit) is taken, in this order, from
 ``geom.extra["B_I_dot"]`` (N, 3) [nT/s] when the caller has precomputed it, else from a
 central difference of ``geom.field_model`` at ``(t ± h, r ± v h)`` with h = 1 s (two
@@ -44,6 +49,9 @@ AXES = ("x", "y", "z")
 NONORTH = (("nonorth_xy", 0, 1), ("nonorth_xz", 0, 2), ("nonorth_yz", 1, 2))
 #: step [s] of the central difference giving Ḃ_I from the field model.
 FIELD_RATE_STEP_S = 1.0
+#: a-priori 1-sigma of each component of an unknown constant field [nT] (the Earth's
+#: field is below 7e4 nT; a laboratory may distort it by tens of percent)
+FIELD_SIGMA_NT = 1e5
 
 
 class MagnetometerModel(ObservationModel):
@@ -55,6 +63,10 @@ class MagnetometerModel(ObservationModel):
     unit = "nT"
     attitude_kind = "three_axis"
     book_keys = ("bias",)
+
+    def __init__(self, sensor, *, aux_channels: tuple[str, ...] = (), constant_field: bool = False):
+        super().__init__(sensor, aux_channels=aux_channels)
+        self.constant_field = bool(constant_field)
 
     def parameters(self) -> tuple[ParamSpec, ...]:
         return common.cached_parameters(self, self._parameters)
@@ -78,6 +90,11 @@ class MagnetometerModel(ObservationModel):
                       for ax in AXES]
         specs.append(ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
                                description="time-tag offset: the sample is of time t + Δt"))
+        if self.constant_field:
+            specs += [ParamSpec(f"field_{ax}", "nT", 0.0, FIELD_SIGMA_NT, seed=True, effect="field",
+                                description=f"constant reference field along reference {ax} "
+                                            "(field_model = constant)", element=f"field.B_{ax}")
+                      for ax in AXES]
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:
@@ -106,9 +123,13 @@ class MagnetometerModel(ObservationModel):
         """
         specs = self.parameters()
         p = common.merged_params(specs, params)
-        if geom.B_I is None:
-            raise ValueError("magnetometer model needs B_I in the geometry")
         n = geom.n
+        B_I, rate = geom.B_I, (lambda: self._field_rate(geom))
+        if self.constant_field:
+            B_I = np.broadcast_to(np.array([p["field_x"], p["field_y"], p["field_z"]]), (n, 3))
+            rate = None
+        if B_I is None:
+            raise ValueError("magnetometer model needs B_I in the geometry")
         M, dM = common.alignment_matrix(p)
         D = np.diag([p["scale_x"], p["scale_y"], p["scale_z"]])
         for name, i, j in NONORTH:
@@ -121,7 +142,7 @@ class MagnetometerModel(ObservationModel):
                 raise InputError(f"auxiliary channel '{ch}' is not in the aux data",
                                  key=common.book_key(self.sensor, "aux"))
         with np.errstate(all="ignore"):
-            bv = common.body_vector(geom, geom.B_I, p["time_offset"], lambda: self._field_rate(geom))
+            bv = common.body_vector(geom, B_I, p["time_offset"], rate)
             w = bv.v_B @ M.T                                   # M B_B (N, 3)
             y = w @ ID.T
             y += np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
@@ -145,5 +166,10 @@ class MagnetometerModel(ObservationModel):
                     d_par[f"contam_{ch}_{ax}"] = lambda ch=ch, i=i: common.column(
                         n, 3, i, np.asarray(geom.aux[ch], dtype=float))
             d_par["time_offset"] = lambda: bv.d_dt @ IDM.T
+            if self.constant_field:
+                C = np.asarray(geom.C_BI, dtype=float)
+                RC = C if bv._R is None else bv._R @ C
+                for k, ax in enumerate(AXES):
+                    d_par[f"field_{ax}"] = lambda k=k: RC[:, :, k] @ IDM.T      # (I+D) M R C e_k
             d_att = bv.left(IDM)
         return common.finish(y, d_att, d_par, np.ones(n, dtype=bool), specs)

@@ -49,6 +49,7 @@ TELEMETRY_COLUMNS: dict[str, tuple[str, ...]] = {
     "coarse_sun": ("t", "n_alpha", "n_beta"),
     "plane_field_sun": ("t", "beta"),
     "horizon": ("t", "spin_rate", "dt_in", "dt_out"),
+    "attitude_reference": ("t", "q1", "q2", "q3", "q4"),
 }
 #: units of the telemetry columns (ICD §5); extra columns have no stated unit.
 COLUMN_UNITS: dict[str, str] = {
@@ -67,6 +68,9 @@ SUN_DISTANCE_AU = (0.9, 1.1)         # the geocentric Sun is 0.983 to 1.017 AU a
 AU_KM = 149597870.7
 QUATERNION_NORM_TOL = 1e-3
 MAX_RATE_RAD_S = 1.0                 # deg/s given as rad/s otherwise
+MAX_RATE_GROUND_RAD_S = 40.0         # a unit moved by hand: MEMS full scale is 35 rad/s
+#: a ground mission's ephemeris rows are this far outside the telemetry span [s]
+GROUND_MARGIN_S = 1.0
 FAR_FUTURE_S = 10 * 365.25 * 86400.0  # ten years
 #: how far from a row's time the models may read the orbit besides the scan [s]: a time-tag
 #: shift or in-track time error at 5σ of its 1 s a priori, plus the horizon model's ±1 s
@@ -226,7 +230,7 @@ def _check_vector_norm(table: Table, names: tuple[str, ...], lo: float, hi: floa
         raise _refuse(table, i, names[k], message.format(norm=norm[i]))
 
 
-def _check_sensor(table: Table, stype: str) -> None:
+def _check_sensor(table: Table, stype: str, ground: bool = False) -> None:
     c = table.columns
     if stype == "magnetometer":
         for name in ("bx", "by", "bz"):
@@ -235,8 +239,11 @@ def _check_sensor(table: Table, stype: str) -> None:
                 raise _refuse(table, i, name, f"magnetic field component {c[name][i]:.6g} nT "
                               f"exceeds {MAX_FIELD_COMPONENT_NT:g} nT (telemetry in nT?)")
     elif stype == "gyro":
-        _check_vector_norm(table, ("wx", "wy", "wz"), 0.0, MAX_RATE_RAD_S,
-                           "|omega| = {norm:.6g} rad/s exceeds 1 rad/s (rates in rad/s?)")
+        top = MAX_RATE_GROUND_RAD_S if ground else MAX_RATE_RAD_S
+        _check_vector_norm(table, ("wx", "wy", "wz"), 0.0, top,
+                           f"|omega| = {{norm:.6g}} rad/s exceeds {top:g} rad/s (rates in rad/s?)")
+    elif stype == "attitude_reference":
+        _check_onboard(table)
     elif stype == "star_tracker":
         i = _first((c["ra"] < 0.0) | (c["ra"] > 360.0))
         if i is not None:
@@ -392,8 +399,10 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
         _check_times(table, spec)
         return table
 
-    eph = read(spec.ephemeris_file, EPHEMERIS_COLUMNS, "ephemeris")
-    _check_ephemeris(eph)
+    ground = spec.ground_position_km is not None
+    if not ground:
+        eph = read(spec.ephemeris_file, EPHEMERIS_COLUMNS, "ephemeris")
+        _check_ephemeris(eph)
     telemetry: dict[str, Table] = {}
     empty: list[str] = []
     for s in spec.sensors:
@@ -406,14 +415,18 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
             repairs.append(f"{_rel(s.telemetry, spec.root)}: no data rows; sensor {s.name} left out")
             continue
         _check_not_empty(table, f"{what} ({s.type})")
-        _check_sensor(table, s.type)
+        _check_sensor(table, s.type, ground)
         telemetry[s.name] = table
+    if ground and telemetry:
+        eph = ground_ephemeris(spec, telemetry)
     types = {s.name: s.type for s in spec.sensors}
     margin = ephemeris_margin(telemetry, types)
-    for name, table in telemetry.items():
-        _check_covered(table, eph, name, margin)
     warnings: list[str] = []
-    trimmed = _fit_to_ephemeris(telemetry, types, eph, margin, spec.root, repairs, warnings)
+    trimmed: dict = {}
+    if not ground:
+        for name, table in telemetry.items():
+            _check_covered(table, eph, name, margin)
+        trimmed = _fit_to_ephemeris(telemetry, types, eph, margin, spec.root, repairs, warnings)
     for name, table in telemetry.items():
         if trimmed.get(name) and len(table) == 0:
             raise InputError(f"telemetry of {name}: every row needs the orbit past the ephemeris "
@@ -438,3 +451,27 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
                           repairs=tuple(repairs), warnings=tuple(warnings), trimmed=trimmed)
     return ImportedMission(spec=spec, ephemeris_table=eph, telemetry=telemetry, aux=aux,
                            onboard=onboard, report=report, ephemeris_margin_s=margin)
+
+
+def ground_ephemeris(spec: MissionSpec, telemetry: Mapping[str, Table]) -> Table:
+    """The ephemeris table of a ground mission (docs/ground.md): the fixed position
+    ``ground_position_km`` at rest, on rows every 60 s (ICD §4 cadence) from
+    :data:`GROUND_MARGIN_S` before the first telemetry sample to as far after the last.
+
+    The laboratory frame stands where GCI stands in flight. A ground mission has no Sun
+    (sensors that need one are refused by the mission reader); the Sun columns hold a
+    fixed placeholder 1 AU along +x that no model reads.
+    """
+    t0 = min(float(tab.t[0]) for tab in telemetry.values()) - GROUND_MARGIN_S
+    t1 = max(float(tab.t[-1]) for tab in telemetry.values()) + GROUND_MARGIN_S
+    n = max(2, int(np.ceil((t1 - t0) / MAX_EPHEMERIS_STEP_S)) + 1)
+    t = np.linspace(t0, t1, n)
+    cols = {"t": t}
+    for k, name in enumerate(("rx", "ry", "rz")):
+        cols[name] = np.full(n, float(spec.ground_position_km[k]))
+    for name in ("vx", "vy", "vz", "sy", "sz"):
+        cols[name] = np.zeros(n)
+    cols["sx"] = np.full(n, AU_KM)
+    cols = {k: cols[k] for k in EPHEMERIS_COLUMNS}
+    return Table(path=spec.root / "mission.toml", t=t, columns=cols,
+                 lines=np.zeros(n, dtype=np.int64))

@@ -34,7 +34,9 @@ MISSION_FILE = "mission.toml"
 #: sensor types that only make sense on a spinning mission (placed by their own keys).
 SPINNER_TYPES = ("plane_field_sun", "horizon")
 #: sensor names that would collide with non-sensor state elements (``att.*``, ``model.*``).
-RESERVED_NAMES = ("att", "model")
+RESERVED_NAMES = ("att", "model", "field")
+#: sensor types that need the Sun, which a ground mission has none of (docs/ground.md).
+SUN_TYPES = ("fine_sun", "coarse_sun", "plane_field_sun", "horizon")
 HORIZON_OBSERVABLES = ("in_out", "width_midscan")
 _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_\-]{0,63}")
 
@@ -135,6 +137,10 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
         "sun_sensor": BookKey(-1, "", required=False, default=None),
         "observable": BookKey(-1, "", required=False, default="in_out",
                               choices=HORIZON_OBSERVABLES),
+    },
+    # an attitude quaternion measured by another instrument (docs/ground.md)
+    "attitude_reference": {
+        "noise": BookKey(0, "rad", check=_positive),
     },
 }
 #: keys every [[sensor]] table may hold besides its type's data-book keys.
@@ -499,10 +505,16 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     unknown += [f"mission.{k}" for k in m if k not in _MISSION_KEYS]
 
     e = doc.get("ephemeris")
-    if not isinstance(e, dict) or "file" not in e:
-        raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3)",
-                        "ephemeris.file", "ephemeris")
-    ephemeris = _optional_file(ctx, root, doc, "ephemeris", unknown)
+    ground = None
+    if isinstance(e, dict) and "ground_position_km" in e and "file" not in e:
+        ground = _ground(ctx, e, mode, unknown)
+        ephemeris = None
+    else:
+        if not isinstance(e, dict) or "file" not in e:
+            raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3), or "
+                            "'ground_position_km' for a ground mission",
+                            "ephemeris.file", "ephemeris")
+        ephemeris = _optional_file(ctx, root, doc, "ephemeris", unknown)
     aux = _optional_file(ctx, root, doc, "aux", unknown)
     onboard = _optional_file(ctx, root, doc, "onboard_attitude", unknown)
 
@@ -524,9 +536,34 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         seen[s.name] = index
         sensors.append(s)
     _check_links(ctx, sensors)
+    if ground is not None:
+        for index, s in enumerate(sensors, start=1):
+            if s.type in SUN_TYPES:
+                raise ctx.error(f"a ground mission has no Sun: sensor {s.name!r} of type "
+                                f"{s.type} cannot be used (docs/ground.md)",
+                                f"sensor[{index}].type", "sensor", index, "type")
     for k in unknown:
         log.warning("%s: unknown key '%s' kept but not used", path, k)
     return MissionSpec(root=root, name=name, epoch=epoch, attitude_mode=mode,
                        ephemeris_file=ephemeris, sensors=tuple(sensors),
                        spin_axis_guess_deg=spin_guess, aux_file=aux, onboard_file=onboard,
-                       unknown_keys=tuple(unknown))
+                       unknown_keys=tuple(unknown), ground_position_km=ground)
+
+
+def _ground(ctx: _Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[float, float, float]:
+    """``[ephemeris] ground_position_km = [x, y, z]``: a laboratory on the ground
+    (docs/ground.md). The reference frame is the laboratory's own (it stands where GCI
+    stands in flight), so the mission must be ``inertial``."""
+    pos = _numbers(ctx, e["ground_position_km"], 3, "ephemeris.ground_position_km",
+                   "ephemeris", 1, "ground_position_km")
+    norm = math.sqrt(sum(v * v for v in pos))
+    if not 6300.0 <= norm <= 6400.0:
+        raise ctx.error(f"|position| = {norm:.6g} km is not on the Earth's surface "
+                        "(6300 to 6400 km; position in km?)", "ephemeris.ground_position_km",
+                        "ephemeris", 1, "ground_position_km")
+    if mode != "inertial":
+        raise ctx.error(f"a ground mission (ground_position_km) needs attitude_mode = "
+                        f"\"inertial\" (the laboratory frame), not {mode!r}",
+                        "mission.attitude_mode", "mission", 1, "attitude_mode")
+    unknown += [f"ephemeris.{k}" for k in e if k != "ground_position_km"]
+    return pos

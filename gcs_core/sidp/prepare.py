@@ -14,7 +14,10 @@ The *physics options* choose which always-on corrections the reference vectors c
 * ``sun_parallax`` — the Sun from the spacecraft (``s − r``) rather than from the Earth;
 * ``earth_oblateness`` — the horizon scanners see the WGS-84 ellipsoid (flattening
   ``f = 1/298.257223563``) under the CO2 layer, not the ICD's sphere (``docs/horizon.md``);
-* ``field_model`` — ``"igrf"`` (degree 13) or ``"dipole"``.
+* ``field_model`` — ``"igrf"`` (degree 13), ``"dipole"``, or ``"constant"``: one unknown
+  field vector of the reference frame, estimated with the rest (a laboratory on the
+  ground, docs/ground.md); the geometry then carries no field and the magnetometer model
+  holds the three elements ``field.B_x/y/z``.
 
 Each option is also a catalogue effect (``model.<option>``): the diagnosis compares the
 predictions with and without it (:func:`geometry_variants`).
@@ -233,6 +236,9 @@ class GeometryBuilder:
         star = sensor_type == "star_tracker" and table is not None
         if sun:
             kw["sun_I"] = np.empty((n, 3))
+        if mag and ph.field_model == "constant":
+            mag = False                         # the field is a state element (module docstring)
+            kw["B_I"], extra["B_I_dot"] = np.zeros((n, 3)), np.zeros((n, 3))
         if mag:
             fld = self.field(ph.field_model)
             kw["B_I"], extra["B_I_dot"] = np.empty((n, 3)), np.empty((n, 3))
@@ -270,7 +276,8 @@ def prepare_sensors(spec: MissionSpec, telemetry: Mapping[str, Table], builder: 
         if s.type == "gyro" and not include_gyro:
             continue
         table = telemetry[s.name]
-        model = make_model(s, aux_channels=channels if s.type == "magnetometer" else ())
+        model = make_model(s, aux_channels=channels if s.type == "magnetometer" else (),
+                           constant_field=builder.physics.field_model == "constant")
         t, y = model.measurements(table)
         geom = builder.geometry(s.type, t, table)
         out.append(SensorData(s.name, model, np.asarray(t, float), np.asarray(y, float),
@@ -301,6 +308,8 @@ def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) ->
         "magnetometer": ("field_model",),
         "horizon": ("earth_oblateness",),
     }.get(sd.model.type_name, ())
+    if builder.physics.field_model == "constant":
+        relevant = tuple(o for o in relevant if o != "field_model")   # no model to truncate
     out = {}
     for opt in relevant:
         on, off = PHYSICS_EFFECTS[opt]

@@ -16,7 +16,7 @@ import numpy as np
 
 ATTITUDE_MODES = ("inertial", "earth_pointing", "sun_pointing", "spinning")
 SENSOR_TYPES = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun",
-                "plane_field_sun", "horizon")
+                "plane_field_sun", "horizon", "attitude_reference")
 
 
 @dataclass(frozen=True)
@@ -85,12 +85,15 @@ class MissionSpec:
     name: str
     epoch: datetime                      # UTC, timezone-aware
     attitude_mode: str
-    ephemeris_file: Path
+    ephemeris_file: Path | None
     sensors: tuple[SensorSpec, ...]
     spin_axis_guess_deg: tuple[float, float] | None = None
     aux_file: Path | None = None
     onboard_file: Path | None = None
     unknown_keys: tuple[str, ...] = ()
+    #: a ground (laboratory) mission: the fixed position [km] given by
+    #: ``[ephemeris] ground_position_km`` instead of an ephemeris file (docs/ground.md).
+    ground_position_km: tuple[float, float, float] | None = None
 
     def sensor(self, name: str) -> SensorSpec:
         for s in self.sensors:

@@ -1,0 +1,142 @@
+"""The BROAD converter on a tiny trial written in the test, a malformed file, and the
+ground mission it gives (``gcs import`` accepts it).
+
+The tiny trial imitates the layout of BROAD (Laidig et al., Data 6(7), 2021,
+doi:10.3390/data6070072): datasets ``imu_gyr`` [rad/s], ``imu_acc`` [m/s²], ``imu_mag``
+[µT], ``opt_quat`` (w, x, y, z; NaN while untracked), ``opt_pos`` [m], ``movement`` and the
+attribute ``sampling_rate`` [Hz]. Its numbers are simulated (seeded), not BROAD's.
+"""
+
+from __future__ import annotations
+
+import h5py
+import numpy as np
+import pytest
+
+from gcs_core.convert import CONVERTERS, ConversionReport, convert
+from gcs_core.errors import InputError
+from gcs_core.frames.rotations import quat_to_dcm, rotvec_to_dcm, quat_from_dcm
+from gcs_core.sidp.importer import load_mission
+
+RATE_HZ = 100.0
+N = 1200
+GYRO_NOISE = 2e-3          # rad/s per sample
+MAG_NOISE_UT = 0.5         # µT per sample
+OPT_NOISE = 1e-4           # rad per axis
+one_percent = 0.01
+
+
+def _trial(path, *, drop=None, rate=RATE_HZ, bad_quat=False):
+    rng = np.random.default_rng(7)
+    t = np.arange(N) / rate
+    moving = t > 6.0
+    omega = np.where(moving[:, None], np.column_stack([0.5 * np.sin(t), 0.3 * np.cos(0.7 * t), 0.2 + 0 * t]), 0.0)
+    C = np.empty((N, 3, 3))
+    C[0] = np.eye(3)
+    for k in range(1, N):
+        C[k] = rotvec_to_dcm(omega[k] / rate) @ C[k - 1]
+    q_xyzw = quat_from_dcm(rotvec_to_dcm(rng.normal(scale=OPT_NOISE, size=(N, 3))) @ C)
+    q = np.column_stack([q_xyzw[:, 3], q_xyzw[:, :3]])
+    q[:15] = np.nan                                                   # untracked start
+    if bad_quat:
+        q[100] *= 2.0
+    B_enu = np.array([0.5, 17.0, -45.0])
+    mag = np.einsum("nij,j->ni", C, B_enu) + rng.normal(scale=MAG_NOISE_UT, size=(N, 3))
+    gyr = omega + 0.003 + rng.normal(scale=GYRO_NOISE, size=(N, 3))
+    data = {"imu_gyr": gyr, "imu_acc": rng.normal(size=(N, 3)), "imu_mag": mag, "opt_quat": q,
+            "opt_pos": rng.normal(size=(N, 3)), "movement": moving}
+    with h5py.File(path, "w") as f:
+        for k, v in data.items():
+            if k != drop:
+                f[k] = v
+        f.attrs["sampling_rate"] = rate
+        f.attrs["info"] = "a simulated trial in BROAD's layout"
+    return path
+
+
+def test_registered():
+    assert CONVERTERS["broad"] == "gcs_core.convert.broad"
+
+
+def test_converts_to_a_mission_that_imports(tmp_path):
+    src = _trial(tmp_path / "trial.hdf5")
+    (tmp_path / "LICENSE").write_text("CC BY 4.0\n")
+    rep = convert("broad", src, tmp_path / "m")
+    assert isinstance(rep, ConversionReport)
+    assert rep.rows["telemetry/GYR.csv"] == rep.rows["telemetry/OPT.csv"] == N    # every sample
+    assert any("untracked for its first 15 samples" in t for t in rep.transients)
+    m = load_mission(tmp_path / "m")
+    assert m.spec.ground_position_km is not None
+    assert [s.type for s in m.spec.sensors] == ["gyro", "magnetometer", "attitude_reference"]
+    assert len(m.telemetry["OPT"]) == N - 15 and m.telemetry["OPT"].dropped_nan == 15
+    # µT -> nT, and the noise written is the one the telemetry shows (white here)
+    mag = m.spec.sensor("MAG")
+    assert abs(mag.noise / (MAG_NOISE_UT * 1000.0) - 1.0) < 0.15
+    assert abs(m.spec.sensor("OPT").noise / OPT_NOISE - 1.0) < 0.15
+    assert np.allclose(m.telemetry["MAG"].columns["bx"][:3] / 1000.0,
+                       h5py.File(src)["imu_mag"][:3, 0], atol=1e-6)
+    # the quaternion keeps its C_BI: reordered scalar-last, unchanged otherwise
+    q_src = h5py.File(src)["opt_quat"][20]
+    q_gcs = np.array([m.telemetry["OPT"].columns[c][5] for c in ("q1", "q2", "q3", "q4")])
+    assert np.allclose(quat_to_dcm(q_gcs), quat_to_dcm(np.r_[q_src[1:], q_src[0]]), atol=1e-9)
+    for f in ("SOURCE.md", "LICENSE", "conversion.json"):
+        assert (tmp_path / "m" / f).is_file()
+    assert "doi:10.3390/data6070072" in (tmp_path / "m" / "mission.toml").read_text()
+    assert "ESTIMATED" in (tmp_path / "m" / "mission.toml").read_text()
+
+
+def test_span_extract(tmp_path):
+    rep = convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m", span=(1.0, 9.0))
+    assert rep.rows["telemetry/MAG.csv"] == 801
+    assert any("extract" in w for w in rep.warnings)
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("missing", "dataset 'imu_mag'"),
+    ("text", "not an HDF5 file"),
+    ("quat", "not a unit quaternion at sample 100"),
+])
+def test_malformed_file_is_one_clear_error(tmp_path, kind, message):
+    src = tmp_path / "t.hdf5"
+    if kind == "missing":
+        _trial(src, drop="imu_mag")
+    elif kind == "text":
+        src.write_text("t,wx\n0,1\n")
+    else:
+        _trial(src, bad_quat=True)
+    with pytest.raises(InputError, match=message) as err:
+        convert("broad", src, tmp_path / "m")
+    assert "t.hdf5" in str(err.value)
+    assert not (tmp_path / "m").exists()            # nothing half-written
+
+
+def test_a_reference_without_noise_at_rest_gets_a_floor_and_a_warning(tmp_path, monkeypatch):
+    import gcs_core.convert.broad as broad
+    monkeypatch.setattr(broad.noise_mod, "white_level", lambda curve, dt: (0.0, dt, True))
+    rep = convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m")
+    assert any("no noise measurable at rest" in w for w in rep.warnings)
+    load_mission(tmp_path / "m")                     # every noise written is > 0
+
+
+def test_refuses_a_full_output_directory(tmp_path):
+    (tmp_path / "m").mkdir()
+    (tmp_path / "m" / "x").write_text("")
+    with pytest.raises(InputError, match="not empty"):
+        convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m")
+
+
+def test_cli_convert_import_and_noise(tmp_path, capsys):
+    from gcs_tui.cli import EXIT_INPUT, EXIT_OK, main
+
+    src = _trial(tmp_path / "t.hdf5")
+    assert main(["-q", "convert", "broad", str(src), "--out", str(tmp_path / "m")]) == EXIT_OK
+    assert "telemetry/OPT.csv: 1200 rows" in capsys.readouterr().out
+    assert main(["-q", "import", str(tmp_path / "m")]) == EXIT_OK
+    capsys.readouterr()
+    assert main(["-q", "noise", str(tmp_path / "m"), "--start", "0.5", "--end", "5.5"]) == EXIT_OK
+    out = capsys.readouterr().out
+    assert "ARW N =" in out and "Allan deviation [nT]" in out
+    (tmp_path / "bad.hdf5").write_text("no")
+    assert main(["-q", "convert", "broad", str(tmp_path / "bad.hdf5"), "--out", str(tmp_path / "n")]) == EXIT_INPUT
+    err = capsys.readouterr().err
+    assert "bad.hdf5" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
