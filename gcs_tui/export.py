@@ -14,11 +14,14 @@ from pathlib import Path
 import numpy as np
 import plotext as plt
 
+from gcs_core.fileperm import make_usual
+
 
 def _atomic_write(path: Path, text: str) -> None:
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     with os.fdopen(fd, "w", encoding="utf-8") as fh:
         fh.write(text)
+    make_usual(tmp)
     os.replace(tmp, path)
 
 
