@@ -90,6 +90,8 @@ class GcsApp(App):
         self.job = JobState()
         self._done: dict[str, Callable[[Any], None]] = {}
         self.last_notice = ""
+        self.selected_candidate: str | None = None
+        """The candidate highlighted on the Diagnosis screen (the Residuals screen draws its line)."""
         self.job_errors: dict[str, str] = {}
         """Job id -> the error of its latest failed run (views show why they are empty)."""
         self.messages: list[tuple[str, str]] = []

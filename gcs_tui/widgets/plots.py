@@ -39,3 +39,28 @@ class GcsPlot(PlotextPlot):
             plt.xticks([])
             plt.yticks([])
         return super().render()
+
+
+def nice_y(plt, lo: float, hi: float, n: int = 5) -> None:
+    """Round y ticks (1, 2, 2.5, 5 × 10^k) over [lo, hi], a little margin around the data."""
+    from gcs_tui import format as fmt
+
+    if not (lo < hi):
+        return
+    pad = 0.05 * (hi - lo)
+    lo, hi = lo - pad, hi + pad
+    ticks = fmt.nice_ticks(lo, hi, n)
+    plt.ylim(lo, hi)
+    if len(ticks) >= 2:
+        plt.yticks(ticks, fmt.tick_labels(ticks))
+
+
+def nice_x(plt, lo: float, hi: float, n: int = 6) -> None:
+    """Round x ticks over [lo, hi] (see :func:`nice_y`)."""
+    from gcs_tui import format as fmt
+
+    if not (lo < hi):
+        return
+    ticks = fmt.nice_ticks(lo, hi, n)
+    if len(ticks) >= 2:
+        plt.xticks(ticks, fmt.tick_labels(ticks))
