@@ -29,7 +29,8 @@ COMMANDS: tuple[tuple[str, str, str], ...] = tuple(
     ("verification: run", "Compare onboard and ground attitude (key r on Verification)", "verify"),
     ("calibration: save", "Append the fitted calibration to the SCDS", "save_calibration"),
     ("config: save", "Save the analysis config (key ctrl+s)", "save_config"),
-    ("app: help", "Every key (key ?)", "help"),
+    ("app: help", "Every key and what the numbers mean (key ?)", "help"),
+    ("app: messages", "Every warning the engine gave, whole (key w)", "messages"),
     ("app: quit", "Quit GCS (key q)", "quit"),
 )
 
