@@ -25,7 +25,7 @@ from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import color, marker, series
 from gcs_tui.theme import rgb as color_rgb
-from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.widgets.plots import GcsPlot, nice_y
 
 
 def step_label(step) -> str:
@@ -117,7 +117,9 @@ class DiagnosisScreen(GcsScreen):
         cand_al = ", ".join(f"{a} (ρ {rho:.3f})" for a, rho in c.aliases_candidates) or "none"
         lines += ["", f"Aliases in the state: {state_al}", f"Aliases among the candidates: {cand_al}", "", RULE]
         box.update("\n".join(lines))
-        self.query_one("#explanation-box", VerticalScroll).scroll_home(animate=False)
+        pane = self.query_one("#explanation-box", VerticalScroll)
+        pane.border_title = "explanation · tab here, ↑/↓ scroll"
+        pane.scroll_home(animate=False)
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         self._explain()
@@ -160,10 +162,12 @@ class DiagnosisScreen(GcsScreen):
             if not finite:
                 continue
             top = max(top, max(finite) * 1.02)
-            plt.plot(x, [v if math.isfinite(v) else 0.0 for v in y], color=series(k), marker=marker(k))
+            yy = [v if math.isfinite(v) else 0.0 for v in y]
+            plt.plot(x, yy, color=series(k), marker="braille")          # the line thin,
+            plt.scatter(x, yy, color=series(k), marker=marker(k))       # the steps by shape
         plt.horizontal_line(1.0, color=(158, 158, 158))
         plt.horizontal_line(1.05, color=color_rgb("gcs-bad"))
-        plt.ylim(0.9, top)
+        nice_y(plt, 0.9, top, 4)
         plt.xticks(x, [str(i) for i in x])
         if len(x) == 1:
             plt.xlim(-0.5, 0.5)

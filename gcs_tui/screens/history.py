@@ -91,11 +91,11 @@ class HistoryScreen(GcsScreen):
         vb = jobs.scds_version(path, b)
         va = jobs.scds_version(path, a)
         table.add_column("element")
+        table.add_column("unit")
         table.add_column(Text(f"v{a}", justify="right"))
         table.add_column(Text(f"v{b}", justify="right"))
         table.add_column(Text("Δ", justify="right"))
         table.add_column(Text("Δ/σ", justify="right"))
-        table.add_column("unit")
         for name, xa, xb, delta, z in rows:
             unit = (vb.params.get(name) or va.params.get(name))[2]
             sa = va.params[name][1] if name in va.params else math.nan
@@ -107,12 +107,14 @@ class HistoryScreen(GcsScreen):
             def est(x, s):
                 return fmt.estimate(x, s, unit, shown=shown, with_unit=False) if math.isfinite(x) else "—"
 
-            cells = [name, Text(est(xa, sa), justify="right")]
-            cells += [Text(est(xb, sb), justify="right"),
-                      Text(fmt.quantity(delta, unit, digits=2, shown=shown, with_unit=False)
-                           if math.isfinite(delta) else "new" if math.isfinite(xb) else "gone", justify="right"),
-                      Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else ""),
-                      fmt.unit_column(shown)]
+            # Δ at the decimal place of the combined σ, like the estimates
+            s_comb = math.hypot(sa, sb) if math.isfinite(sa) and math.isfinite(sb) else ref_s
+            k = fmt.scale(unit, shown)
+            d_text = (fmt.value_sigma(delta * k, s_comb * k)[0] if math.isfinite(delta)
+                      else "new" if math.isfinite(xb) else "gone")
+            cells = [name, Text(fmt.unit_column(shown)), Text(est(xa, sa), justify="right"),
+                     Text(est(xb, sb), justify="right"), Text(d_text, justify="right"),
+                     Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else "")]
             table.add_row(*cells, key=name)
 
     def action_mark(self, which: str) -> None:

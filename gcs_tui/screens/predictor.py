@@ -16,7 +16,7 @@ from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import marker, series
-from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.widgets.plots import GcsPlot, marked_line, nice_x, nice_y
 
 EMPTY = "No prediction yet — p predicts σ along the data plan (screen 4 edits the plan)."
 
@@ -72,7 +72,9 @@ class PredictorScreen(GcsScreen):
             u = fmt.display_unit("rad", float(np.nanmax(p.attitude_sigma)) if p.attitude_sigma.size else 0.0)
             for k, axis in enumerate(("x", "y", "z")):
                 y = p.attitude_sigma[:, k] * fmt.scale("rad", u)
-                plt.plot(t, y.tolist(), color=series(k), marker=marker(k))
+                marked_line(plt, t, y.tolist(), series(k), marker(k))
+            if p.attitude_sigma.size:
+                nice_y(plt, 0.0, float(np.nanmax(p.attitude_sigma)) * fmt.scale("rad", u))
             plt.title(f"attitude σ about the body axes [{u}] · "
                       + " ".join(f"{marker(k)} {a}" for k, a in enumerate("xyz")))
         else:
@@ -81,13 +83,16 @@ class PredictorScreen(GcsScreen):
             shown = fmt.display_unit(unit, float(np.nanmax(p.sigma[:, i])))
             y = (p.sigma[:, i] * fmt.scale(unit, shown)).tolist()
             yn = (p.sigma_noise[:, i] * fmt.scale(unit, shown)).tolist()
-            plt.plot(t, y, color=series(0), marker=marker(0))
+            marked_line(plt, t, y, series(0), marker(0))
+            nice_y(plt, 0.0, max(y) if y else 1.0)
             legend = f"{marker(0)} total"
             if p.consider:
-                plt.plot(t, yn, color=series(1), marker=marker(1))
+                marked_line(plt, t, yn, series(1), marker(1))
                 legend += f" {marker(1)} noise only"
             lab = fmt.unit_label(shown)
             plt.title(f"σ of {what}" + (f" [{lab}]" if lab else "") + f" · {legend} · [ ] other elements")
+        if t:
+            nice_x(plt, t[0], t[-1])
         plt.xlabel("t [s]")
 
     def _budget(self, table: DataTable, p, what: str) -> None:

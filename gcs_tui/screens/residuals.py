@@ -62,8 +62,10 @@ def candidate_line(cand, sensor: str, comp: str, xname: str, unit: str, shown: s
     if cand is None or not xname.startswith("aux "):
         return None
     channel = xname[4:]
-    name = f"{sensor}.contam_{channel}_{comp}"
-    if name not in cand.estimate:
+    # the elements are named by axis (``_x``), the components may carry a prefix (``bx``)
+    name = next((n for n in (f"{sensor}.contam_{channel}_{comp}", f"{sensor}.contam_{channel}_{comp[-1:]}")
+                 if n in cand.estimate), None)
+    if name is None:
         return None
     return fmt.scale(unit, shown) * float(cand.estimate[name]), f"{cand.id} fitted: {name} × {channel}"
 

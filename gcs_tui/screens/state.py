@@ -94,7 +94,7 @@ class StateScreen(GcsScreen):
         wb = self.wb
         e = wb.analysis.problem.state[name]
         lines = [name, f"  {e.description or e.effect}",
-                 f"  effect {e.effect or '—'} · unit {fmt.unit_column(fmt.shown_unit(e.unit, e.value, e.sigma0))}",
+                 f"  effect {e.effect or '—'} · internal unit {fmt.unit_column(e.unit)}",
                  f"  a priori {fmt.estimate(e.value, e.sigma0, e.unit)}"]
         res = wb.result
         if res is not None and not wb.stale and name in res.solve_for:

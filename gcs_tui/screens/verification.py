@@ -18,7 +18,7 @@ from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import color, marker, rgb, series
-from gcs_tui.widgets.plots import GcsPlot, nice_y
+from gcs_tui.widgets.plots import GcsPlot, marked_line, nice_x, nice_y
 
 EMPTY = "No verification yet — press r to compare the onboard attitude with the ground solution."
 AXES = ("roll", "pitch", "yaw")
@@ -68,7 +68,7 @@ class VerificationScreen(GcsScreen):
         u = shown_unit(v)
         diff_plot.paint(lambda plt: self._diff(plt, v, u))
         trend_plot.paint(lambda plt: self._trend(plt, v, u))
-        table.add_column(f"axis [{u}]")
+        table.add_column(Text(f"axis [{u}]"))
         table.add_column(Text("mean", justify="right"))
         table.add_column(Text("§4.4 σ (RMS)", justify="right"))
         table.add_column(Text("ground σ", justify="right"))
@@ -91,12 +91,13 @@ class VerificationScreen(GcsScreen):
         if v.n:
             t = v.t.tolist()
             for k, axis in enumerate(AXES):
-                plt.scatter(t, (v.diff[:, k] * k_u).tolist(), color=series(k), marker=marker(k))
+                marked_line(plt, t, (v.diff[:, k] * k_u).tolist(), series(k), marker(k), line=False)
             req = float(np.max(v.requirement)) * k_u
             plt.horizontal_line(req, color=rgb("gcs-bad"))
             plt.horizontal_line(-req, color=rgb("gcs-bad"))
             vals = np.concatenate([v.diff.ravel() * k_u, [req, -req]])
             nice_y(plt, float(np.nanmin(vals)), float(np.nanmax(vals)))
+            nice_x(plt, float(v.t[0]), float(v.t[-1]))
         plt.title(f"onboard − ground [{u}] {VerificationScreen._legend()} ── ±req.")
         plt.xlabel("t [s]")
 
@@ -106,10 +107,11 @@ class VerificationScreen(GcsScreen):
         if len(v.trend_t):
             t = v.trend_t.tolist()
             for k, axis in enumerate(AXES):
-                plt.plot(t, (v.trend_sigma[:, k] * k_u).tolist(), color=series(k), marker=marker(k))
+                marked_line(plt, t, (v.trend_sigma[:, k] * k_u).tolist(), series(k), marker(k))
             req = float(np.max(v.requirement)) * k_u
             plt.horizontal_line(req, color=rgb("gcs-bad"))
             vals = np.concatenate([v.trend_sigma.ravel() * k_u, [req, 0.0]])
             nice_y(plt, float(np.nanmin(vals)), float(np.nanmax(vals)))
+            nice_x(plt, float(v.trend_t[0]), float(v.trend_t[-1]), 4)
         plt.title(f"σ per window [{u}] {VerificationScreen._legend()}")
         plt.xlabel("t [s]")

@@ -64,3 +64,16 @@ def nice_x(plt, lo: float, hi: float, n: int = 6) -> None:
     ticks = fmt.nice_ticks(lo, hi, n)
     if len(ticks) >= 2:
         plt.xticks(ticks, fmt.tick_labels(ticks))
+
+
+def marked_line(plt, x, y, colour, mark: str, *, marks: int = 12, line: bool = True) -> None:
+    """A series drawn thin (braille) with its marker at about ``marks`` evenly spaced points,
+    so that series differ by shape as well as colour without the markers hiding the data."""
+    x, y = list(x), list(y)
+    if line:
+        plt.plot(x, y, color=colour, marker="braille")
+    else:
+        plt.scatter(x, y, color=colour, marker="braille")
+    if x:
+        step = max(1, len(x) // marks)
+        plt.scatter(x[step // 2::step], y[step // 2::step], color=colour, marker=mark)
