@@ -163,8 +163,9 @@ def _print_fit(a) -> None:
 
 # ---------------------------------------------------------------------------- commands
 def terminal_problem() -> str:
-    """Why the TUI cannot run here ('' when it can): it needs a terminal on stdin and stdout."""
-    for name, stream in (("stdin", sys.stdin), ("stdout", sys.stdout)):
+    """Why the TUI cannot run here ('' when it can): it needs a terminal on stdin, stdout and stderr."""
+    # Textual draws on stderr and reads stdin: all three must be the terminal
+    for name, stream in (("stdin", sys.stdin), ("stdout", sys.stdout), ("stderr", sys.stderr)):
         try:
             tty = stream is not None and stream.isatty()
         except (AttributeError, ValueError, OSError):
@@ -173,6 +174,18 @@ def terminal_problem() -> str:
             return (f"gcs tui needs a terminal, but {name} is not one (redirected or piped); "
                     "for headless runs use gcs batch, discover, predict or verify")
     return ""
+
+
+def step_messages(prog: Progress, task):
+    """The discovery's message callback: each step once — above the live line and as its text
+    on a terminal, one ``gcs: ...`` line in plain mode (not once per channel)."""
+    if prog.mode != "bar":
+        return prog.message
+
+    def say(message: str) -> None:
+        prog.message(message)
+        task(text=message)
+    return say
 
 
 def cmd_tui(args, prog: Progress) -> int:
@@ -235,10 +248,7 @@ def cmd_discover(args, prog: Progress) -> int:
     if _fit_failed(a):
         return EXIT_ESTIMATION
     with prog.task("discovering missing effects (score tests, refits)") as task:
-        def say(message: str) -> None:
-            prog.message(message)
-            task(text=message)
-        steps = a.discover(max_steps=args.max_steps, progress=say if prog.mode == "bar" else prog.message)
+        steps = a.discover(max_steps=args.max_steps, progress=step_messages(prog, task))
     added = [s.effect for s in steps if s.action == "add"]
     _print_fit(a)
     _out("")

@@ -226,3 +226,13 @@ def test_missing_mission_names_the_key(tmp_path, capsys):
     code, err = _cli(["batch", str(cfg)], capsys)
     assert code == 2 and "analysis.mission" in err and str(cfg) in err
     assert not math.isnan(code)
+
+
+def test_plain_progress_prints_each_discovery_step_once():
+    from gcs_tui.cli import step_messages
+
+    out = io.StringIO()
+    prog = Progress(out, mode="plain")
+    with prog.task("discovering missing effects") as task:
+        step_messages(prog, task)("adding TAM1.scale (Δχ² = 812.0)")
+    assert out.getvalue().count("adding TAM1.scale") == 1

@@ -92,10 +92,11 @@ class HistoryScreen(GcsScreen):
         va = jobs.scds_version(path, a)
         table.add_column("element")
         table.add_column("unit")
-        table.add_column(Text(f"v{a}", justify="right"))
+        # the newer version and the change first (what fits in 80 columns), the older after
         table.add_column(Text(f"v{b}", justify="right"))
-        table.add_column(Text("Δ", justify="right"))
+        table.add_column(Text(f"Δ (v{b} − v{a})", justify="right"))
         table.add_column(Text("Δ/σ", justify="right"))
+        table.add_column(Text(f"v{a}", justify="right"))
         for name, xa, xb, delta, z in rows:
             unit = (vb.params.get(name) or va.params.get(name))[2]
             sa = va.params[name][1] if name in va.params else math.nan
@@ -112,9 +113,10 @@ class HistoryScreen(GcsScreen):
             k = fmt.scale(unit, shown)
             d_text = (fmt.value_sigma(delta * k, s_comb * k)[0] if math.isfinite(delta)
                       else "new" if math.isfinite(xb) else "gone")
-            cells = [name, Text(fmt.unit_column(shown)), Text(est(xa, sa), justify="right"),
-                     Text(est(xb, sb), justify="right"), Text(d_text, justify="right"),
-                     Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else "")]
+            cells = [name, Text(fmt.unit_column(shown)), Text(est(xb, sb), justify="right"),
+                     Text(d_text, justify="right"),
+                     Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else ""),
+                     Text(est(xa, sa), justify="right")]
             table.add_row(*cells, key=name)
 
     def action_mark(self, which: str) -> None:

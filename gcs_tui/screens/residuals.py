@@ -23,7 +23,7 @@ from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import color, rgb
-from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.widgets.plots import GcsPlot, marked_line
 
 KINDS = ("residual", "histogram", "autocorrelation")
 #: normalized RMS above this is flagged (5 % above the noise floor)
@@ -67,7 +67,7 @@ def candidate_line(cand, sensor: str, comp: str, xname: str, unit: str, shown: s
                  if n in cand.estimate), None)
     if name is None:
         return None
-    return fmt.scale(unit, shown) * float(cand.estimate[name]), f"{cand.id} fitted: {name} × {channel}"
+    return fmt.scale(unit, shown) * float(cand.estimate[name]), f"{cand.id} (its estimate × {channel})"
 
 
 class ResidualsScreen(GcsScreen):
@@ -106,8 +106,15 @@ class ResidualsScreen(GcsScreen):
         self.comp_i %= max(len(r.components), 1)
         return name, r, self.wb.analysis.problem.sensor(name)
 
+    def on_screen_resume(self) -> None:
+        # the candidate selected on Diagnosis changes what the channel plot draws
+        if getattr(self, "_drawn_for", None) != self.app.selected_candidate and self.wb.result is not None:
+            self.update_view(force=True)
+        super().on_screen_resume()
+
     # ------------------------------------------------------------------ drawing
     def refresh_view(self) -> None:
+        self._drawn_for = self.app.selected_candidate
         name, r, sd = self._current()
         j = self.comp_i
         shown = fmt.display_unit(r.unit, float(np.nanmax(np.abs(r.sigma))) if r.sigma.size else 0.0)
@@ -187,12 +194,13 @@ class ResidualsScreen(GcsScreen):
             b = derive.binned_means(x[all_used], y[all_used], sigma)
             plt.error(b.centers.tolist(), b.mean.tolist(), yerr=b.err.tolist(), color=rgb("gcs-holdout"))
             plt.scatter(b.centers.tolist(), b.mean.tolist(), marker="●", color=rgb("gcs-holdout"))
-            legend.append("● binned mean ± s.e.")
+            legend.append("● mean ± s.e.")
         if line is not None and all_used.size:
             slope, label = line
             x0, x1 = float(np.min(x[all_used])), float(np.max(x[all_used]))
-            plt.plot([x0, x1], [slope * x0, slope * x1], color=rgb("gcs-warn"), marker="■")
-            legend.append(f"■ {label}")
+            xs = np.linspace(x0, x1, 41)
+            marked_line(plt, xs.tolist(), (slope * xs).tolist(), rgb("gcs-warn"), "■", marks=6)
+            xlabel = f"{xlabel} · ■ {label}"
         if idx.size or ed.size:
             plt.horizontal_line(3 * sigma, color=rgb("gcs-band"))
             plt.horizontal_line(-3 * sigma, color=rgb("gcs-band"))
