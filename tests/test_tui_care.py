@@ -19,6 +19,7 @@ import time
 from pathlib import Path
 from types import SimpleNamespace
 
+import numpy as np
 import pytest
 from textual.widgets import DataTable, Label, Static
 
@@ -236,3 +237,34 @@ def test_plain_progress_prints_each_discovery_step_once():
     with prog.task("discovering missing effects") as task:
         step_messages(prog, task)("adding TAM1.scale (Δχ² = 812.0)")
     assert out.getvalue().count("adding TAM1.scale") == 1
+
+
+def test_verification_speaks_one_unit_in_both_faces():
+    """The CLI summary, the flag's reason and the TUI table use the unit chosen from the largest
+    σ or threshold: a 100″ offset against a 36″ requirement reads in arcsec everywhere."""
+    from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm
+    from gcs_core.verif import verify
+    from gcs_tui.screens.verification import shown_unit
+
+    t = np.arange(0.0, 600.0, 10.0)
+    q_g = np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1))
+    off = 100 * one_arcsecond
+    q_ob = np.tile(quat_from_dcm(euler123_to_dcm(np.array([off]), np.zeros(1), np.zeros(1)))[0], (t.size, 1))
+    v = verify(t, q_ob, t, q_g, np.full(3, 1 * one_arcsecond), requirement_rad=0.01 * DEG)
+    assert v.flag
+    assert shown_unit(v) == "arcsec"
+    assert "arcsec" in v.reason and "°" not in v.reason
+    summary = v.summary()
+    assert "[arcsec]" in summary and "[deg]" not in summary and "RMS" in summary
+
+
+def test_kalman_passes_and_unobservable_are_said_in_words():
+    from gcs_core.filtr.stepping import _passes_text
+
+    assert _passes_text(3, "max_passes").startswith("3 passes done, as configured")
+    assert _passes_text(2, "converged") == "converged after 2 passes"
+    assert "pass(es)" not in _passes_text(1, "single_pass")
+    res = SimpleNamespace(residuals={}, message="converged", chi2=10.0, dof=10,
+                          unobservable=["TAM1.align_1 + att.roll"])
+    lines = reporting.fit_table(SimpleNamespace(result=res, holdout_rms={}))
+    assert lines[-1] == reporting.UNOBSERVABLE_NOTE and "a priori" in lines[-1]

@@ -57,7 +57,8 @@ class PredictorScreen(GcsScreen):
             (" method ", "bold"), p.method, f" · {fmt.span(float(p.times[0]), float(p.times[-1]))}",
             " · final attitude σ ", (" / ".join(fmt.quantity(v, "rad", digits=2, shown=fmt.display_unit(
                 "rad", float(np.nanmax(att)))) for v in att), "bold"),
-            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations" if p.unobservable else "")
+            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations (the plan fixes only "
+                                   "combinations of those elements; their σ is the a priori)" if p.unobservable else "")
             + (f" · {len(p.undetermined)} not determined by the plan (σ = a priori, dim)" if p.undetermined else "")))
         choices = ["attitude"] + list(p.names)
         self.element_i %= len(choices)
