@@ -26,6 +26,7 @@ from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import color, marker, series
 from gcs_tui.theme import rgb as color_rgb
 from gcs_tui.widgets.plots import GcsPlot, nice_y
+from gcs_tui.widgets.tables import fill
 
 
 def step_label(step) -> str:
@@ -56,15 +57,9 @@ class DiagnosisScreen(GcsScreen):
         a = self.wb.analysis
         alpha = a.config.significance
         table = self.query_one("#candidates", DataTable)
-        table.clear(columns=True)
-        table.add_column(Text("#", justify="right"))
-        table.add_column("candidate")
-        table.add_column(Text("Δχ²", justify="right"))
-        table.add_column(Text("dof", justify="right"))
-        table.add_column(Text("p", justify="right"))
-        table.add_column(Text("p adj", justify="right"))
-        table.add_column("id?")
-        table.add_column("aliases")
+        labels = [Text("#", justify="right"), "candidate", Text("Δχ²", justify="right"), Text("dof", justify="right"),
+                  Text("p", justify="right"), Text("p adj", justify="right"), "id?", "aliases"]
+        rows = []
         for i, c in enumerate(a.candidates):
             signif = c.p_adjusted < alpha
             style = f"bold {color('gcs-warn')}" if signif and c.identifiable else ""
@@ -75,7 +70,8 @@ class DiagnosisScreen(GcsScreen):
                      Text(fmt.pvalue(c.p_value), justify="right"), Text(fmt.pvalue(c.p_adjusted), justify="right")]
             cells += [Text("yes" if c.identifiable else "no",
                            style=color("gcs-ok" if c.identifiable else "gcs-bad")), Text(aliases)]
-            table.add_row(*cells, key=c.id)
+            rows.append((cells, c.id))
+        fill(table, labels, rows)
         if table.row_count:
             table.move_cursor(row=0)
         self._explain()

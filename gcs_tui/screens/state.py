@@ -21,6 +21,7 @@ from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.screens.dialogs import Field, FormScreen
 from gcs_tui.screens.models import role_text
+from gcs_tui.widgets.tables import fill
 
 
 class StateScreen(GcsScreen):
@@ -49,12 +50,9 @@ class StateScreen(GcsScreen):
         wb = self.wb
         table = self.query_one("#elements", DataTable)
         selected = self._selected()
-        table.clear(columns=True)
         # every width keeps every column: the estimate first, the table scrolls sideways
-        table.add_column("element", key="name")
-        table.add_column(Text("estimate ± σ", justify="right"), key="estimate")
-        table.add_column("role", key="role")
-        table.add_column(Text("a priori ± σ₀", justify="right"), key="prior")
+        labels = ["element", Text("estimate ± σ", justify="right"), "role", Text("a priori ± σ₀", justify="right")]
+        rows = []
         est = wb.estimates() if not wb.stale else {}
         loose = wb.not_determined()
         overridden = set(wb.config.elements)
@@ -66,7 +64,8 @@ class StateScreen(GcsScreen):
             v = est.get(e.name)
             cells = [name, Text(fmt.estimate(v[0], v[1], e.unit) if v else "", justify="right"), role_text(e.role),
                      Text(fmt.estimate(e.value, e.sigma0, e.unit), justify="right")]
-            table.add_row(*cells, key=e.name)
+            rows.append((cells, e.name))
+        fill(table, labels, rows)
         if selected is not None:
             try:
                 table.move_cursor(row=table.get_row_index(selected))
