@@ -12,7 +12,6 @@ Entry point for the CLI: :func:`run_tui`.
 from __future__ import annotations
 
 import logging
-import os
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -23,6 +22,7 @@ from textual.app import App
 from textual.worker import get_current_worker
 
 from gcs_core.errors import GcsError
+from gcs_core.fileperm import make_usual
 from gcs_tui import jobs
 from gcs_tui.commands import GcsCommands
 from gcs_tui.keys import APP, VIEWS, bindings
@@ -292,7 +292,7 @@ class GcsApp(App):
         try:
             folder.mkdir(parents=True, exist_ok=True)
             out = Path(self.save_screenshot(filename, str(folder)))
-            os.chmod(out, 0o644)
+            make_usual(out)
         except OSError as err:
             self.notify(f"cannot write {folder / filename}: {err.strerror or err}", title="screenshot not saved",
                         severity="error", timeout=15)

@@ -69,7 +69,7 @@ def test_tui_without_a_terminal_exits_2_at_once():
 
 
 # ---------------------------------------------------------------------------- the session
-async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_copy):
+async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_copy, capfd):
     """A fit's warning shows inside the app, whole, and nothing reaches the terminal behind it;
     the estimates and p adj are on screen at 80×24; the explanation scrolls; a poor
     candidate is asked about; the screenshot and config go beside the mission (0644);
@@ -126,7 +126,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
 
                 shot = Path(app.deliver_screenshot())                # palette: Screenshot
                 assert shot.parent == mission_copy.parent and shot.is_file()
-                assert (os.stat(shot).st_mode & 0o777) == 0o644
+                assert (os.stat(shot).st_mode & 0o777) == 0o666 & ~_umask()
 
                 await pilot.press("3", "s")                          # an edit: the role of att.roll
                 await settle(pilot)
@@ -146,6 +146,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
         for name in LOGGERS:
             logging.getLogger(name).removeHandler(cli_handler)
     assert terminal.getvalue() == "", terminal.getvalue()       # nothing behind the TUI
+    assert capfd.readouterr().err == ""                          # nor on the process's stderr
 
 
 async def test_dialog_labels_keep_their_units():
