@@ -119,10 +119,16 @@ class GcsApp(App):
             self._log_handler = None
 
     def on_engine_log(self, message: EngineLog) -> None:
-        """A warning from the engine: shown whole in a notification and kept in :attr:`messages`."""
+        """A warning from the engine: kept in :attr:`messages` and shown whole in a notification —
+        the first time; a repeat (every refit gives the same one) only counts in the status line."""
+        seen = (message.level, message.text) in self.messages
         self.messages.append((message.level, message.text))
-        self.notify(message.text, title=message.level, severity="error" if message.level == "error" else "warning",
-                    timeout=30)
+        if seen:
+            self.last_notice = f"{message.level} repeated (w shows all {len(self.messages)})"
+            self._update_status()
+            return
+        self.notify(message.text, title=f"{message.level} (w lists every one)",
+                    severity="error" if message.level == "error" else "warning", timeout=20)
 
     def open_path(self, path: str | Path) -> None:
         """Import a mission (directory or config) in the background."""
