@@ -13,6 +13,7 @@ app                       o          open a mission directory or config
 app                       f          fit (from the config, in the background)
 app                       ctrl+s     save the analysis config
 app                       escape     cancel the running job
+app                       w          every warning the engine gave, whole
 app                       ?          help: every key
 app                       q          quit
 ========================  =========  ===============================================

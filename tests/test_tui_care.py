@@ -269,3 +269,13 @@ def test_kalman_passes_and_unobservable_are_said_in_words():
                           unobservable=["TAM1.align_1 + att.roll"])
     lines = reporting.fit_table(SimpleNamespace(result=res, holdout_rms={}))
     assert lines[-1] == reporting.UNOBSERVABLE_NOTE and "a priori" in lines[-1]
+
+
+def test_reports_and_configs_get_the_usual_permissions(tmp_path):
+    from gcs_core.config import AnalysisConfig, save_config
+
+    usual = 0o666 & ~_umask()
+    rep = reporting.write_json_atomic(tmp_path / "report.json", {"mission": "x"})
+    cfg = save_config(AnalysisConfig(mission=tmp_path), tmp_path / "a.toml")
+    for p in (rep, cfg):
+        assert (os.stat(p).st_mode & 0o777) == usual, oct(os.stat(p).st_mode)
