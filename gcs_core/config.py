@@ -77,6 +77,7 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core.errors import ConfigError
+from gcs_core.fileperm import make_usual
 from gcs_core.models.base import ROLES
 from gcs_core.sidp.types import SENSOR_TYPES
 
@@ -516,6 +517,7 @@ def save_config(cfg: AnalysisConfig, path: str | Path) -> Path:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
+        make_usual(tmp)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

@@ -21,42 +21,45 @@ from typing import Any, Iterable, Mapping
 
 import numpy as np
 
-from gcs_core.units import ARCSEC, DEG
+from gcs_core import display
+from gcs_core.fileperm import make_usual
 
 
 def display_unit(unit: str, value: float, sigma: float | None = None) -> tuple[float, float | None, str]:
-    """(value, sigma, unit) converted for display: rad → arcsec (or deg when large)."""
-    if unit == "rad":
-        big = abs(value) > 1.0 * DEG and (sigma is None or not math.isfinite(sigma) or sigma > 0.01 * DEG)
-        if big:
-            return value / DEG, (sigma / DEG if sigma is not None else None), "deg"
-        return value / ARCSEC, (sigma / ARCSEC if sigma is not None else None), "arcsec"
-    if unit == "rad/s":
-        return value / DEG * 3600, (sigma / DEG * 3600 if sigma is not None else None), "deg/h"
-    return value, sigma, unit
+    """(value, sigma, unit) converted for display by the one rule of :mod:`gcs_core.display`
+    (the unit chosen from σ, or from |value| without one)."""
+    shown = display.shown_unit(unit, value, sigma)
+    k = display.scale(unit, shown)
+    return value * k, (sigma * k if sigma is not None else None), display.unit_label(shown)
 
 
 def format_estimate(value: float, sigma: float | None, unit: str) -> str:
-    """``value ± sigma unit`` rounded to the σ's second significant digit."""
-    v, s, u = display_unit(unit, value, sigma)
-    if s is None or not math.isfinite(s) or s <= 0:
-        return f"{v:.6g} {u}".strip()
-    digits = max(0, 1 - int(math.floor(math.log10(s))))
-    return f"{v:.{digits}f} ± {s:.{digits}f} {u}".strip()
+    """``value ± sigma unit`` rounded to the σ's second significant digit (:mod:`gcs_core.display`)."""
+    return display.estimate(value, sigma, unit)
+
+
+#: what "unobservable" means, said once under the list
+UNOBSERVABLE_NOTE = ("(unobservable: the data constrain only the combination named; each element's σ "
+                     "there comes from its a priori, not from the data)")
 
 
 def fit_table(analysis) -> list[str]:
     res = analysis.result
     lines = [f"{'sensor':10s} {'n':>7s} {'edited':>6s} {'norm. RMS':>9s} {'held-out':>9s}  RMS per component"]
     for name, r in res.residuals.items():
-        rms = r.rms
-        comp = ", ".join(f"{c} {v:.3g}" for c, v in zip(r.components, rms))
+        rms = np.atleast_1d(np.asarray(r.rms, dtype=float))
+        shown = display.display_unit(r.unit, float(np.nanmax(rms)) if rms.size else float("nan"))
+        comp = ", ".join(f"{c} {display.quantity(v, r.unit, shown=shown, with_unit=False)}"
+                         for c, v in zip(r.components, rms))
         ho = analysis.holdout_rms.get(name, float("nan"))
+        lab = display.unit_label(shown)
         lines.append(f"{name:10s} {r.n:7d} {int(np.count_nonzero(r.edited)):6d} {r.rms_normalized:9.3f} "
-                     f"{ho:9.3f}  {comp} [{r.unit}]")
+                     f"{ho:9.3f}  {comp}" + (f" [{lab}]" if lab else ""))
     lines.append(f"status: {res.message}; χ² {res.chi2:.1f} on {res.dof} dof")
     for u in res.unobservable:
         lines.append(f"unobservable from the data: {u}")
+    if res.unobservable:
+        lines.append(UNOBSERVABLE_NOTE)
     return lines
 
 
@@ -89,15 +92,15 @@ def prediction_table(res) -> list[str]:
     lines.append(f"{'element':28s} predicted 1-sigma at end of plan")
     undetermined = set(getattr(res, "undetermined", ()))
     for n, u, s in zip(names, units, final):
-        _, s_disp, u_disp = display_unit(u, 0.0, float(s))
         note = "   not determined by the plan (the a priori)" if n in undetermined else ""
-        lines.append(f"{n:28s} {s_disp:.3g} {u_disp}{note}")
+        lines.append(f"{n:28s} {display.quantity(float(s), u, shown=display.display_unit(u, float(s)))}{note}")
     att = getattr(res, "attitude_sigma", None)
     if att is not None and len(att):
         # three-axis: about the body axes; spinning: of the spin-axis unit vector (≈ angles)
         axes = ("roll", "pitch", "yaw") if "att.roll" in names else ("spin axis x", "spin axis y", "spin axis z")
+        shown = display.display_unit("rad", float(np.nanmax(att[-1])))
         lines.append("attitude 1-sigma at end of plan: " + ", ".join(
-            f"{ax} {v / ARCSEC:.3g} arcsec" for ax, v in zip(axes, att[-1])))
+            f"{ax} {display.quantity(float(v), 'rad', shown=shown)}" for ax, v in zip(axes, att[-1])))
     frames = getattr(res, "frames", None)
     if frames:
         avail = getattr(res, "availability", {})
@@ -105,21 +108,27 @@ def prediction_table(res) -> list[str]:
             f"{k} {v}" + (f" ({100 * avail[k]:.0f}%)" if k in avail else "") for k, v in frames.items()))
     for u in getattr(res, "unobservable", ()):
         lines.append(f"unobservable from the plan: {u}")
+    if getattr(res, "unobservable", ()):
+        lines.append(UNOBSERVABLE_NOTE.replace("the data constrain", "the plan constrains"))
     return lines
 
 
 def candidate_table(candidates: Iterable, *, alpha: float, limit: int | None = 10) -> list[str]:
     """Ranked candidate effects: Δχ², dof, p, Bonferroni-adjusted p, identifiable, and
-    ``*`` where the adjusted p passes the family-wise level ``alpha``."""
+    ``*`` where the adjusted p passes the family-wise level ``alpha`` (the ranking and
+    significance rule of :data:`gcs_core.diagnosis.ranking.RULE`)."""
+    from gcs_core.diagnosis.ranking import RULE
+
     cands = list(candidates)
-    lines = [f"{'candidate':38s} {'Δχ²':>10s} {'dof':>3s} {'p':>9s} {'adj. p':>9s}  identifiable"]
+    lines = [f"{'candidate':38s} {'Δχ²':>10s} {'dof':>3s} {'p':>9s} {'p adj':>9s}  identifiable"]
     for c in cands[:limit] if limit else cands:
         mark = " *" if c.identifiable and c.p_adjusted < alpha else ""
-        lines.append(f"{c.id:38s} {c.delta_chi2:10.1f} {c.dof:3d} {c.p_value:9.2g} {c.p_adjusted:9.2g}  "
-                     f"{'yes' if c.identifiable else 'no'}{mark}")
+        lines.append(f"{c.id:38s} {c.delta_chi2:10.1f} {c.dof:3d} {display.pvalue(c.p_value):>9s} "
+                     f"{display.pvalue(c.p_adjusted):>9s}  {'yes' if c.identifiable else 'no'}{mark}")
     if limit and len(cands) > limit:
         lines.append(f"... {len(cands) - limit} more (all are in the JSON report)")
-    lines.append(f"* significant at family-wise α = {alpha:g} (Bonferroni over {len(cands)} candidates)")
+    lines.append(f"* significant and identifiable at family-wise α = {alpha:g}: p adj = min(1, {len(cands)}·p) < α")
+    lines.append(RULE)
     return lines
 
 
@@ -300,6 +309,7 @@ def write_json_atomic(path: Path, data: dict) -> Path:
             fh.write(text)
             fh.flush()
             os.fsync(fh.fileno())
+        make_usual(tmp)
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):

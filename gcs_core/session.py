@@ -15,6 +15,7 @@ from typing import Callable, Mapping
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
+from gcs_core.display import p_text
 from gcs_core.diagnosis import aliases, determination
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
@@ -290,7 +291,10 @@ class Analysis:
     def _set_effect(self, effect_id: str, on: bool) -> None:
         cat = {e.id: e for e in self.catalogue()}
         if effect_id not in cat:
-            raise ConfigError(f"unknown effect '{effect_id}' (see `gcs effects`)", key="state.effects")
+            import difflib
+            close = difflib.get_close_matches(effect_id, list(cat), n=1, cutoff=0.75)
+            hint = f"; did you mean '{close[0]}'?" if close else ""
+            raise ConfigError(f"unknown effect '{effect_id}'{hint} (see `gcs effects`)", key="state.effects")
         e = cat[effect_id]
         if e.physics:
             on_val, off_val = PHYSICS_EFFECTS[e.effect]
@@ -355,11 +359,13 @@ class Analysis:
                 best = cands[0] if cands else None
                 self.stop_reason = ("no candidate is significant at family-wise α = "
                                     f"{self.config.significance:g}" +
-                                    (f" (best: {best.id}, adjusted p = {best.p_adjusted:.2g})" if best else ""))
+                                    (f" (best: {best.id}, {p_text(best.p_adjusted, 'p adj')}"
+                                     + ("" if best.identifiable else ", not identifiable") + ")" if best else ""))
                 say(self.stop_reason)
                 break
             top = self._parsimonious(ok[0], cands)
-            say(f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, p = {top.p_value:.2g})")
+            say(f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
+                f"{p_text(top.p_adjusted, 'p adj')})")
             self.add_effect(top.id)
         else:
             self.stop_reason = f"stopped after {max_steps} steps"

@@ -12,20 +12,23 @@ Entry point for the CLI: :func:`run_tui`.
 from __future__ import annotations
 
 import logging
+import time
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from textual import work
 from textual.app import App
 from textual.worker import get_current_worker
 
 from gcs_core.errors import GcsError
+from gcs_core.fileperm import make_usual
 from gcs_tui import jobs
 from gcs_tui.commands import GcsCommands
 from gcs_tui.keys import APP, VIEWS, bindings
-from gcs_tui.messages import FiltrBlock, JobFinished, JobProgress, JobStarted
+from gcs_tui.messages import EngineLog, FiltrBlock, JobFinished, JobProgress, JobStarted
 from gcs_tui.screens.diagnosis import DiagnosisScreen
-from gcs_tui.screens.dialogs import ChoiceScreen, Field, FormScreen
+from gcs_tui.screens.dialogs import ChoiceScreen, ConfirmScreen, Field, FormScreen, MessagesScreen
 from gcs_tui.screens.filtr import FiltrScreen
 from gcs_tui.screens.help import HelpScreen
 from gcs_tui.screens.history import HistoryScreen
@@ -47,6 +50,9 @@ SCREENS_BY_VIEW = {
     "filtr": FiltrScreen, "residuals": ResidualsScreen, "diagnosis": DiagnosisScreen,
     "predictor": PredictorScreen, "verification": VerificationScreen, "history": HistoryScreen,
 }
+
+#: loggers whose warnings the app shows (and whose CLI handlers it detaches while it runs)
+LOGGERS = ("gcs", "gcs_core", "gcs_tui", "py.warnings")
 
 JobFn = Callable[[Callable[..., None], Callable[[], bool]], Any]
 """``fn(progress, cancelled)``: the work of a job; ``progress(done, total, text)``."""
@@ -84,8 +90,14 @@ class GcsApp(App):
         self.job = JobState()
         self._done: dict[str, Callable[[Any], None]] = {}
         self.last_notice = ""
+        self.selected_candidate: str | None = None
+        """The candidate highlighted on the Diagnosis screen (the Residuals screen draws its line)."""
         self.job_errors: dict[str, str] = {}
         """Job id -> the error of its latest failed run (views show why they are empty)."""
+        self.messages: list[tuple[str, str]] = []
+        """Every warning the engine logged while the app ran, ``(level, text)``, whole (palette:
+        "app: messages")."""
+        self._log_handler: AppLogHandler | None = None
 
     # ------------------------------------------------------------------ theme
     def get_theme_variable_defaults(self) -> dict[str, str]:
@@ -93,9 +105,30 @@ class GcsApp(App):
 
     # ------------------------------------------------------------------ start
     def on_mount(self) -> None:
+        self._log_handler = AppLogHandler(self)
+        for name in LOGGERS:
+            logging.getLogger(name).addHandler(self._log_handler)
         self.switch_mode(self.start_view)
         if self.source is not None and not self.workbench.ready:
             self.open_path(self.source)
+
+    def on_unmount(self) -> None:
+        if self._log_handler is not None:
+            for name in LOGGERS:
+                logging.getLogger(name).removeHandler(self._log_handler)
+            self._log_handler = None
+
+    def on_engine_log(self, message: EngineLog) -> None:
+        """A warning from the engine: kept in :attr:`messages` and shown whole in a notification —
+        the first time; a repeat (every refit gives the same one) only counts in the status line."""
+        seen = (message.level, message.text) in self.messages
+        self.messages.append((message.level, message.text))
+        if seen:
+            self.last_notice = f"{message.level} repeated (w shows all {len(self.messages)})"
+            self._update_status()
+            return
+        self.notify(message.text, title=f"{message.level} (w lists every one)",
+                    severity="error" if message.level == "error" else "warning", timeout=20)
 
     def open_path(self, path: str | Path) -> None:
         """Import a mission (directory or config) in the background."""
@@ -251,6 +284,45 @@ class GcsApp(App):
     def action_help(self) -> None:
         self.push_screen(HelpScreen(self.current_mode))
 
+    def action_messages(self) -> None:
+        self.push_screen(MessagesScreen("Warnings from the engine", self.messages))
+
+    def action_quit(self) -> None:
+        """Quit; with unsaved config edits, ask first (saving is ctrl+s)."""
+        if not self.workbench.unsaved:
+            self.exit()
+            return
+        self.push_screen(ConfirmScreen(
+            "Quit with unsaved edits?",
+            "The analysis config has changes not saved to a file (models, roles, σ, the data plan). "
+            "Quitting loses them; esc stays, ctrl+s saves.", yes="quit", no="stay"),
+            lambda ok: ok and self.exit())
+
+    def work_dir(self) -> Path:
+        """Where the app writes what the user did not name: beside the analysis config the
+        user opened or saved, else beside the mission directory (never the working directory
+        by accident)."""
+        return self.workbench.work_dir()
+
+    def deliver_screenshot(self, filename: str | None = None, path: str | None = None,
+                           time_format: str | None = None) -> str | None:
+        """Save an SVG screenshot in the work directory (:meth:`work_dir`) and say where."""
+        folder = Path(path) if path else self.work_dir()
+        if not filename:
+            filename = f"gcs-{self.current_mode}-{time.strftime('%Y%m%dT%H%M%S')}.svg"
+        try:
+            folder.mkdir(parents=True, exist_ok=True)
+            out = Path(self.save_screenshot(filename, str(folder)))
+            make_usual(out)
+        except OSError as err:
+            self.notify(f"cannot write {folder / filename}: {err.strerror or err}", title="screenshot not saved",
+                        severity="error", timeout=15)
+            return None
+        self.last_notice = f"screenshot saved to {out}"
+        self.notify(str(out), title="screenshot saved", timeout=15)
+        self._update_status()
+        return str(out)
+
     def action_save_config(self) -> None:
         wb = self.workbench
         if not wb.ready:
@@ -282,10 +354,17 @@ class GcsApp(App):
             self.notify("no ranked candidates — fit first (f)", severity="warning")
             return
         ok = [c for c in wb.analysis.candidates if c.identifiable]
-        if not ok:
-            self.notify("no identifiable candidate", severity="warning")
+        self.add_candidate(ok[0] if ok else wb.analysis.candidates[0])
+
+    def add_candidate(self, c) -> None:
+        """Add candidate ``c`` and refit; ask first when it is a poor choice (not significant
+        at the family-wise α or not identifiable), saying why."""
+        why = poor_choice(c, self.workbench.config.significance)
+        if not why:
+            self.change_effect(c.id, True)
             return
-        self.change_effect(ok[0].id, True)
+        self.push_screen(ConfirmScreen(f"Add {c.id}?", why + " Add it anyway?", yes="add", no="cancel"),
+                         lambda ok: ok and self.change_effect(c.id, True))
 
     def action_remove_effect(self) -> None:
         wb = self.workbench
@@ -330,9 +409,75 @@ class GcsApp(App):
         self.call_later(lambda: self.screen.run_action("run_to_end"))
 
 
-def run_tui(path: str | Path | None = None) -> None:
-    """Run the TUI on a mission directory or analysis config (the CLI's ``gcs tui``)."""
-    GcsApp(path).run()
+def poor_choice(c, alpha: float) -> str:
+    """Why adding candidate ``c`` is a poor choice ('' when it is significant and identifiable)."""
+    from gcs_tui import format as fmt
+
+    reasons = []
+    if not c.p_adjusted < alpha:
+        reasons.append(f"It is not significant: {fmt.p_text(c.p_adjusted, 'p adj')} is not below the family-wise "
+                       f"α = {alpha:g}, so its Δχ² = {fmt.sig(c.delta_chi2, 3)} is what noise alone often gives "
+                       "with this many candidates tried.")
+    if not c.identifiable:
+        with_what = ", ".join(list(c.aliases_state) + [a for a, _ in c.aliases_candidates])
+        reasons.append("It is not identifiable: the data cannot tell it apart from "
+                       + (with_what if with_what else "what is already estimated")
+                       + ", so its estimate would be set by the a priori and trade off against those.")
+    return " ".join(reasons)
 
 
-__all__ = ["GcsApp", "run_tui", "VIEWS"]
+class AppLogHandler(logging.Handler):
+    """Engine warnings into the app (from any thread): each becomes an :class:`EngineLog`."""
+
+    def __init__(self, app: "GcsApp") -> None:
+        super().__init__(logging.WARNING)
+        self.app = app
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self.app.post_message(EngineLog(record.levelname.lower(), record.getMessage()))
+        except Exception:  # noqa: BLE001 — logging must never raise into the engine
+            self.handleError(record)
+
+
+@contextmanager
+def detached_terminal_logging() -> Iterator[None]:
+    """While the TUI runs, no log handler may write to the terminal behind it: detach every
+    handler of the GCS loggers (the CLI's stderr line printer among them) and the root
+    logger's stream handlers, and send Python warnings to logging; restore them after."""
+    import warnings
+
+    saved = []
+    for name in LOGGERS + ("",):
+        lg = logging.getLogger(name)
+        for h in list(lg.handlers):
+            if name or isinstance(h, logging.StreamHandler):
+                lg.removeHandler(h)
+                saved.append((lg, h))
+    for name in LOGGERS:                        # warnings still reach the app's own handler
+        lg = logging.getLogger(name)
+        if lg.level > logging.WARNING or lg.level == logging.NOTSET:
+            lg.setLevel(logging.WARNING)
+    captured = logging.captureWarnings
+    captured(True)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("default")
+            yield
+    finally:
+        captured(False)
+        for lg, h in saved:
+            lg.addHandler(h)
+
+
+def run_tui(path: str | Path | None = None, *, work_dir: str | Path | None = None) -> None:
+    """Run the TUI on a mission directory or analysis config (the CLI's ``gcs tui``);
+    files it writes unasked go to ``work_dir`` (default: beside the config or mission)."""
+    app = GcsApp(path)
+    if work_dir is not None:
+        app.workbench.out_dir = Path(work_dir)
+    with detached_terminal_logging():
+        app.run()
+
+
+__all__ = ["GcsApp", "run_tui", "detached_terminal_logging", "poor_choice", "VIEWS"]

@@ -89,6 +89,8 @@ def _setup(args, prog: Progress):
 
     cfg = _load(args)
     with prog.task(f"reading mission {cfg.mission}"):
+        if cfg.path is not None and not Path(cfg.mission).is_dir():
+            raise ConfigError(f"no mission directory at {cfg.mission}", key="analysis.mission", file=cfg.path)
         mission = load_mission(cfg.mission)
     check_against_mission(cfg, mission.spec)
     return cfg, mission
@@ -160,10 +162,39 @@ def _print_fit(a) -> None:
 
 
 # ---------------------------------------------------------------------------- commands
+def terminal_problem() -> str:
+    """Why the TUI cannot run here ('' when it can): it needs a terminal on stdin, stdout and stderr."""
+    # Textual draws on stderr and reads stdin: all three must be the terminal
+    for name, stream in (("stdin", sys.stdin), ("stdout", sys.stdout), ("stderr", sys.stderr)):
+        try:
+            tty = stream is not None and stream.isatty()
+        except (AttributeError, ValueError, OSError):
+            tty = False
+        if not tty:
+            return (f"gcs tui needs a terminal, but {name} is not one (redirected or piped); "
+                    "for headless runs use gcs batch, discover, predict or verify")
+    return ""
+
+
+def step_messages(prog: Progress, task):
+    """The discovery's message callback: each step once — above the live line and as its text
+    on a terminal, one ``gcs: ...`` line in plain mode (not once per channel)."""
+    if prog.mode != "bar":
+        return prog.message
+
+    def say(message: str) -> None:
+        prog.message(message)
+        task(text=message)
+    return say
+
+
 def cmd_tui(args, prog: Progress) -> int:
+    problem = terminal_problem()
+    if problem:                      # a full-screen app on a pipe would spin; refuse at once
+        raise InputError(problem)
     from gcs_tui.app import run_tui
 
-    run_tui(args.target)
+    run_tui(args.target, work_dir=args.out)
     return EXIT_OK
 
 
@@ -239,10 +270,7 @@ def cmd_discover(args, prog: Progress) -> int:
     if _fit_failed(a):
         return EXIT_ESTIMATION
     with prog.task("discovering missing effects (score tests, refits)") as task:
-        def say(message: str) -> None:
-            prog.message(message)
-            task(text=message)
-        steps = a.discover(max_steps=args.max_steps, progress=say)
+        steps = a.discover(max_steps=args.max_steps, progress=step_messages(prog, task))
     added = [s.effect for s in steps if s.action == "add"]
     _print_fit(a)
     _out("")
@@ -384,6 +412,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp = add("tui", cmd_tui, "the analyst's terminal UI")
     sp.add_argument("target", nargs="?", default="sample_data/missions/hidden-tam-contamination",
                     help="analysis config (.toml) or mission directory")
+    sp.add_argument("--out", help="folder for the files the TUI writes unasked (config, SCDS, screenshots); "
+                                  "default: beside the config, else beside the mission directory")
 
     sp = add("import", cmd_import, "validate a mission directory, show what was read, write the SDF")
     sp.add_argument("mission", help="mission directory (ICD §1)")

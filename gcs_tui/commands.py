@@ -30,7 +30,8 @@ COMMANDS: tuple[tuple[str, str, str], ...] = tuple(
     ("calibration: save", "Append the fitted calibration to the SCDS", "save_calibration"),
     ("config: save", "Save the analysis config (key ctrl+s)", "save_config"),
     ("noise: allan deviation", "Each sensor's noise and Allan deviation from its telemetry", "noise"),
-    ("app: help", "Every key (key ?)", "help"),
+    ("app: help", "Every key and what the numbers mean (key ?)", "help"),
+    ("app: messages", "Every warning the engine gave, whole (key w)", "messages"),
     ("app: quit", "Quit GCS (key q)", "quit"),
 )
 

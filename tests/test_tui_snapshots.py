@@ -62,3 +62,21 @@ def test_help_screen(snap_compare, workbench):
     """The key help over the Diagnosis screen (every key the app and the screen know)."""
     app = GcsApp(workbench=workbench, start_view="diagnosis")
     assert snap_compare(app, terminal_size=SIZES["80x24"], run_before=settle, press=["question_mark"])
+
+
+def test_diagnosis_explanation_scrolled_at_80x24(snap_compare, workbench):
+    """At 80×24 the explanation pane scrolls: its end (estimates, MDB, aliases, the rule)."""
+    app = GcsApp(workbench=workbench, start_view="diagnosis")
+    assert snap_compare(app, terminal_size=SIZES["80x24"], run_before=settle, press=["tab", "end"])
+
+
+def test_state_details_at_80x24(snap_compare, workbench):
+    """At 80×24 `i` shows the selected element's details under the table."""
+    app = GcsApp(workbench=workbench, start_view="state")
+    assert snap_compare(app, terminal_size=SIZES["80x24"], run_before=settle, press=["i"])
+
+
+def test_residuals_against_a_torquer_channel(snap_compare, workbench):
+    """Residual against the channel mtb_x: binned means with error bars, the channel's unit."""
+    app = GcsApp(workbench=workbench, start_view="residuals")
+    assert snap_compare(app, terminal_size=SIZES["160x48"], run_before=settle, press=["x"] * 5)

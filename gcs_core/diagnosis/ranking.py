@@ -387,9 +387,15 @@ def _canonical_corr(S_all: np.ndarray, ia: Sequence[int], ib: Sequence[int],
     return float(np.sqrt(np.clip(np.max(ev) if ev.size else 0.0, 0.0, 1.0)))
 
 
-def _p_text(p: float) -> str:
+#: The one ranking and significance rule, said wherever candidates are shown.
+RULE = ("Candidates are ranked by p, the chance of a Δχ² this large on its dof if the effect were absent "
+        "(equal p: the larger Δχ² first); p adj = min(1, m·p) over the m candidates tried (Bonferroni), and a "
+        "candidate is significant when p adj < α, the family-wise level.")
+
+
+def _p_text(p: float, name: str = "p") -> str:
     """``p = 0.0031``; below double precision's resolution of 1 − P, ``p < 1e-16``."""
-    return "p < 1e-16" if p < 1e-16 else f"p = {p:.2g}"
+    return f"{name} < 1e-16" if p < 1e-16 else f"{name} = {p:.2g}"
 
 
 def explain(c: Candidate, alpha: float) -> str:
@@ -397,7 +403,8 @@ def explain(c: Candidate, alpha: float) -> str:
     seen = ", ".join(f"{s} ({100 * v:.0f}%)" for s, v in sorted(c.sensors.items(), key=lambda kv: -kv[1])
                      if v > 0.05) or "no sensor"
     head = (f"{c.id}: adding it would remove Δχ² = {c.delta_chi2:.1f} on {c.dof} degree"
-            f"{'s' if c.dof != 1 else ''} of freedom ({_p_text(c.p_value)}, "
+            f"{'s' if c.dof != 1 else ''} of freedom ({_p_text(c.p_value)}; corrected for the "
+            f"candidates tried, {_p_text(c.p_adjusted, 'p adj')}, "
             f"{'significant' if c.p_adjusted < alpha else 'not significant'} at family-wise "
             f"α = {alpha:g}); the signature is seen in {seen}.")
     if not c.identifiable:

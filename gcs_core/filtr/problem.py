@@ -293,7 +293,8 @@ def apply_state_options(state: StateVector, options: StateOptions) -> StateVecto
     state = state.with_roles(roles)
     for name, ov in options.overrides.items():
         if name not in state:
-            raise ConfigError(f"no state element named '{name}'", key=f"state.{name}")
+            raise ConfigError(f"no state element named '{name}'{_did_you_mean(name, [e.name for e in state])}",
+                              key=f'state.elements."{name}"')
         changes = {k: v for k, v in (("role", ov.role), ("value", ov.value), ("sigma0", ov.sigma))
                    if v is not None}
         state = state.replace_element(name, **changes)
@@ -304,9 +305,18 @@ def _effect_elements(state: StateVector, effect_id: str) -> list[str]:
     sensor, _, effect = effect_id.partition(".")
     names = [e.name for e in state if (e.sensor or "model") == sensor and e.effect == effect]
     if not names:
-        raise ConfigError(f"no effect '{effect_id}' in the state definition "
+        known = sorted({f"{e.sensor or 'model'}.{e.effect}" for e in state if e.effect})
+        raise ConfigError(f"no effect '{effect_id}' in the state definition{_did_you_mean(effect_id, known)} "
                           "(see `gcs effects` for the catalogue)", key="state.effects")
     return names
+
+
+def _did_you_mean(name: str, known) -> str:
+    """``; did you mean 'X'?`` for the closest known name, '' when none is close."""
+    import difflib
+
+    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
+    return f"; did you mean '{close[0]}'?" if close else ""
 
 
 def _subset(sd: SensorData, mask: np.ndarray) -> SensorData:

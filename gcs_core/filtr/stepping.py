@@ -441,7 +441,7 @@ class Filtr:
         used = [(f.nis[f.used], f.innovation.shape[1] * int(f.used.sum())) for f in diag.values()]
         nis, dof = float(sum(np.sum(a) for a, _ in used)), int(sum(k for _, k in used))
         status = "cancelled" if not self._done else self._status
-        msg = f"{self._pass + 1} pass(es), {status}"
+        msg = _passes_text(self._pass + 1, status)
         if prob.state.consider:
             msg += "; consider elements held at their values: " + ", ".join(prob.state.consider)
         return FilterResult(prob.state.with_values(values), tuple(prob.state.solve_for), x[perm],
@@ -451,3 +451,14 @@ class Filtr:
 
 def _pvalue(nis: float, dof: int) -> float:
     return float(special.chdtrc(dof, nis)) if dof > 0 else float("nan")   # P(χ²_dof ≥ nis)
+
+
+def _passes_text(n: int, status: str) -> str:
+    """The run's status in words: the iterated smoother's passes are a refinement, and
+    ending at the pass limit is normal, not a failure."""
+    passes = f"{n} pass{'es' if n != 1 else ''}"
+    return {"converged": f"converged after {passes}",
+            "max_passes": f"{passes} done, as configured (max_passes): each relinearizes about the smoothed "
+                          "estimate",
+            "single_pass": "one pass (filter and smoother)",
+            "cancelled": f"cancelled during pass {n}"}.get(status, f"{passes}, {status}")

@@ -31,6 +31,7 @@ from typing import Iterable, Mapping
 import numpy as np
 
 from gcs_core.errors import InputError
+from gcs_core.fileperm import make_usual
 from gcs_core.sidp.types import Table
 
 log = logging.getLogger(__name__)
@@ -345,6 +346,7 @@ def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray], *,
                 np.savetxt(fh, data, fmt=fmt, delimiter=",")
             fh.flush()
             os.fsync(fh.fileno())
+        make_usual(tmp)
         os.replace(tmp, path)
     except BaseException:
         try:

@@ -43,6 +43,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gcs_core import display
+
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import (dcm_to_euler123, dcm_to_rotvec, quat_normalize,
                                        quat_to_dcm)
@@ -92,12 +94,15 @@ class VerifResult:
 
     def summary(self) -> str:
         """A few lines for a terminal: per-axis mean and σ against both thresholds, the flag."""
-        lines = [f"{self.n} onboard attitudes compared ({self.angles} angles)",
-                 f"{'axis':6s} {'mean [deg]':>12s} {'sigma [deg]':>12s} {'ground [deg]':>12s} "
-                 f"{'required [deg]':>14s}  flag"]
+        u = _shown(self.sigma, self.ground_accuracy, self.requirement)
+        q = lambda x: display.quantity(float(x), "rad", shown=u, with_unit=False)  # noqa: E731
+        lines = [f"{self.n} onboard attitudes compared ({self.angles} angles); "
+                 "§4.4 σ = RMS of onboard − ground about zero (N − 1)",
+                 f"{'axis':6s} {f'mean [{u}]':>14s} {f'§4.4 σ [{u}]':>14s} {f'ground [{u}]':>14s} "
+                 f"{f'required [{u}]':>16s}  flag"]
         for k, a in enumerate(AXES):
-            lines.append(f"{a:6s} {self.mean[k] / DEG:12.5f} {self.sigma[k] / DEG:12.5f} "
-                         f"{self.ground_accuracy[k] / DEG:12.5f} {self.requirement[k] / DEG:14.5f}  "
+            lines.append(f"{a:6s} {q(self.mean[k]):>14s} {q(self.sigma[k]):>14s} "
+                         f"{q(self.ground_accuracy[k]):>14s} {q(self.requirement[k]):>16s}  "
                          f"{'FLAG' if self.flag_axes[k] else '-'}")
         lines.append(("FLAG: " if self.flag else "ok: ") + self.reason)
         return "\n".join(lines)
@@ -197,15 +202,25 @@ def _reason(sigma, ground, req, flags, n) -> str:
     if n < 2:
         return f"{n} onboard attitude(s) overlap the ground attitude: at least 2 are needed"
     parts = []
+    u = _shown(sigma, ground, req)
+    q = lambda x: display.quantity(float(x), "rad", shown=u)  # noqa: E731
     for a, s, g, r, f in zip(AXES, sigma, ground, req, flags):
         if f:
-            parts.append(f"{a}: σ = {s / DEG:.4g}° exceeds both the ground accuracy {g / DEG:.3g}° "
-                         f"and the requirement {r / DEG:.3g}°")
+            parts.append(f"{a}: σ = {q(s)} exceeds both the ground accuracy {q(g)} "
+                         f"and the requirement {q(r)}")
     if parts:
         return "; ".join(parts) + " — the onboard sensor calibration needs an update"
     worst = int(np.nanargmax(sigma / np.maximum(np.maximum(ground, req), 1e-300)))
-    return (f"no axis exceeds both thresholds (largest: {AXES[worst]} σ = {sigma[worst] / DEG:.4g}° "
-            f"vs ground {ground[worst] / DEG:.3g}°, requirement {req[worst] / DEG:.3g}°)")
+    return (f"no axis exceeds both thresholds (largest: {AXES[worst]} σ = {q(sigma[worst])} "
+            f"vs ground {q(ground[worst])}, requirement {q(req[worst])})")
+
+
+def _shown(*arrays) -> str:
+    """One display unit for a verification's angles, chosen from the largest σ or threshold
+    (:mod:`gcs_core.display`)."""
+    vals = np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in arrays])
+    vals = vals[np.isfinite(vals)]
+    return display.display_unit("rad", float(np.max(np.abs(vals))) if vals.size else float("nan"))
 
 
 def verify(onboard_t, onboard_q, ground_t, ground_q, ground_sigma_rad, *, requirement_rad,

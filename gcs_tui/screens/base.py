@@ -45,7 +45,7 @@ class GcsScreen(Screen):
             with Container(id="content"):
                 yield from self.compose_body()
         yield StatusBar()
-        yield Footer()
+        yield Footer(compact=True)
 
     def compose_body(self) -> ComposeResult:
         """The screen's own widgets."""

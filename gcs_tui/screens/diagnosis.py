@@ -2,8 +2,11 @@
 explanation of the selected one, and the add/refit history — normalized RMS per step
 on the fitted span with the held-out span beside it.
 
-``a`` adds the selected candidate and refits in the background; ``r`` removes an
-effect already in the state.
+``a`` adds the selected candidate and refits in the background (asking first when it
+is not significant or not identifiable); ``r`` removes an effect already in the state.
+Every width keeps every column (the table scrolls sideways); the explanation pane
+scrolls and holds the whole paragraph, the full aliases and the estimates. Below 120
+columns the charts share the lower pane with the explanation (``g`` switches).
 """
 
 from __future__ import annotations
@@ -12,14 +15,18 @@ import math
 
 from rich.text import Text
 from textual.app import ComposeResult
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Static
+
+from gcs_core.diagnosis.ranking import RULE
 
 from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
-from gcs_tui.theme import color, series
-from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.theme import color, marker, series
+from gcs_tui.theme import rgb as color_rgb
+from gcs_tui.widgets.plots import GcsPlot, nice_y
+from gcs_tui.widgets.tables import fill
 
 
 def step_label(step) -> str:
@@ -38,7 +45,8 @@ class DiagnosisScreen(GcsScreen):
         with Horizontal(id="diag-top"):
             with Vertical(id="diag-cands-box"):
                 yield DataTable(id="candidates", cursor_type="row", zebra_stripes=True)
-            yield Static("", id="explanation", markup=False)
+            with VerticalScroll(id="explanation-box", can_focus=True):
+                yield Static("", id="explanation", markup=False)
         with Horizontal(id="diag-charts"):
             yield GcsPlot(id="steps-fit", title="normalized RMS per step")
             yield GcsPlot(id="steps-holdout", title="held-out RMS per step")
@@ -49,29 +57,21 @@ class DiagnosisScreen(GcsScreen):
         a = self.wb.analysis
         alpha = a.config.significance
         table = self.query_one("#candidates", DataTable)
-        table.clear(columns=True)
-        table.add_column(Text("#", justify="right"))
-        table.add_column("candidate")
-        table.add_column(Text("Δχ²", justify="right"))
-        table.add_column(Text("dof", justify="right"))
-        table.add_column(Text("p", justify="right"))
-        if not self.compact:
-            table.add_column(Text("p adj", justify="right"))
-        table.add_column("id?")
-        table.add_column("aliases")
+        labels = [Text("#", justify="right"), "candidate", Text("Δχ²", justify="right"), Text("dof", justify="right"),
+                  Text("p", justify="right"), Text("p adj", justify="right"), "id?", "aliases"]
+        rows = []
         for i, c in enumerate(a.candidates):
             signif = c.p_adjusted < alpha
             style = f"bold {color('gcs-warn')}" if signif and c.identifiable else ""
             names = list(c.aliases_state) + [x for x, _ in c.aliases_candidates]
-            aliases = ", ".join(names[:2]) + (f" +{len(names) - 2}" if len(names) > 2 else "") if names else "—"
+            aliases = ", ".join(names) if names else "—"
             cells = [Text(str(i + 1), justify="right"), Text(c.id, style=style),
                      Text(fmt.sig(c.delta_chi2, 3), justify="right"), Text(str(c.dof), justify="right"),
-                     Text(fmt.pvalue(c.p_value), justify="right")]
-            if not self.compact:
-                cells.append(Text(fmt.pvalue(c.p_adjusted), justify="right"))
+                     Text(fmt.pvalue(c.p_value), justify="right"), Text(fmt.pvalue(c.p_adjusted), justify="right")]
             cells += [Text("yes" if c.identifiable else "no",
                            style=color("gcs-ok" if c.identifiable else "gcs-bad")), Text(aliases)]
-            table.add_row(*cells, key=c.id)
+            rows.append((cells, c.id))
+        fill(table, labels, rows)
         if table.row_count:
             table.move_cursor(row=0)
         self._explain()
@@ -91,14 +91,31 @@ class DiagnosisScreen(GcsScreen):
         if c is None:
             box.update("No candidate effects: every catalogue effect is in the state.")
             return
+        self.app.selected_candidate = c.id
         units = {e.name: e.unit for e in self.wb.analysis.problem.state}
-        lines = [c.explanation, ""]
+        alpha = self.wb.analysis.config.significance
+        verdict = ("significant and identifiable: a good candidate to add (a)" if c.identifiable and c.p_adjusted < alpha
+                   else "not significant" if c.identifiable else
+                   "not identifiable" + ("" if c.p_adjusted < alpha else ", not significant"))
+        lines = [f"{c.id} — {verdict}",
+                 f"Δχ² {fmt.sig(c.delta_chi2, 3)} on {c.dof} dof · {fmt.p_text(c.p_value)} · "
+                 f"{fmt.p_text(c.p_adjusted, 'p adj')} (α = {alpha:g})", "", c.explanation, ""]
+        lines.append("If added (one linearization, first order), with MDB = the smallest value this test "
+                     "detects 80 % of the time:")
         for name, value in c.estimate.items():
             s = c.sigma.get(name, math.nan)
             mdb = c.mdb.get(name, math.nan)
             unit = units.get(name, "1")
-            lines.append(f"{name}: {fmt.estimate(value, s, unit)}   (MDB {fmt.quantity(mdb, unit, digits=2)})")
+            shown = fmt.shown_unit(unit, value, s)
+            lines.append(f"  {name}: {fmt.estimate(value, s, unit, shown=shown)}   "
+                         f"(MDB {fmt.quantity(mdb, unit, digits=2, shown=shown)})")
+        state_al = ", ".join(c.aliases_state) or "none"
+        cand_al = ", ".join(f"{a} (ρ {rho:.3f})" for a, rho in c.aliases_candidates) or "none"
+        lines += ["", f"Aliases in the state: {state_al}", f"Aliases among the candidates: {cand_al}", "", RULE]
         box.update("\n".join(lines))
+        pane = self.query_one("#explanation-box", VerticalScroll)
+        pane.border_title = "explanation · tab here, ↑/↓ scroll"
+        pane.scroll_home(animate=False)
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
         self._explain()
@@ -121,9 +138,13 @@ class DiagnosisScreen(GcsScreen):
         # top-left corner, where step 0 (the highest RMS) is
         legend = Text(" ")
         for k, name in enumerate(sensors if steps else ()):
-            legend.append("● " + name, style="rgb({},{},{})".format(*series(k)))
+            legend.append(f"{marker(k)} {name}", style="rgb({},{},{})".format(*series(k)))
             legend.append("  ")
         if steps:
+            legend.append("┄ 1.0 noise floor", style="grey62")
+            legend.append("  ")
+            legend.append("── 1.05 limit", style=color("gcs-bad"))
+            legend.append("  ")
             legend.append("· steps — " + "  ".join(f"{i}: {step_label(s)}" for i, s in enumerate(steps)))
         self.query_one("#steps-legend", Static).update(legend if steps else "")
 
@@ -137,10 +158,12 @@ class DiagnosisScreen(GcsScreen):
             if not finite:
                 continue
             top = max(top, max(finite) * 1.02)
-            plt.plot(x, [v if math.isfinite(v) else 0.0 for v in y], color=series(k), marker="dot")
-        plt.horizontal_line(1.0, color="gray")
-        plt.horizontal_line(1.05, color="red")
-        plt.ylim(0.9, top)
+            yy = [v if math.isfinite(v) else 0.0 for v in y]
+            plt.plot(x, yy, color=series(k), marker="braille")          # the line thin,
+            plt.scatter(x, yy, color=series(k), marker=marker(k))       # the steps by shape
+        plt.horizontal_line(1.0, color=(158, 158, 158))
+        plt.horizontal_line(1.05, color=color_rgb("gcs-bad"))
+        nice_y(plt, 0.9, top, 4)
         plt.xticks(x, [str(i) for i in x])
         if len(x) == 1:
             plt.xlim(-0.5, 0.5)
@@ -153,9 +176,11 @@ class DiagnosisScreen(GcsScreen):
         if c is None:
             self.app.notify("no candidate selected", severity="warning")
             return
-        if not c.identifiable:
-            self.app.notify(f"{c.id} is not identifiable with these data; adding it anyway", severity="warning")
-        self.app.change_effect(c.id, True)
+        self.app.add_candidate(c)
+
+    def action_toggle_charts(self) -> None:
+        """Below 120 columns: the lower pane shows the charts instead of the explanation."""
+        self.toggle_class("-charts")
 
     def action_remove_effect(self) -> None:
         self.app.action_remove_effect()

@@ -1,8 +1,12 @@
-"""Small modal dialogs: a form of typed fields and a list to pick from.
+"""Small modal dialogs: a form of typed fields, a list to pick from, a yes/no question
+and a scrollable list of messages.
 
 A form is described by :class:`Field` rows and returns ``{name: value}`` with every
 value parsed (numbers as float) — or None when cancelled. Enter in any field submits,
 Tab moves, Escape cancels; errors name the field and keep the dialog open.
+
+Every text shown here is plain text, never Textual markup: labels such as
+``value [deg]`` or ``start [s]`` keep their units (markup would read ``[deg]`` as a tag).
 """
 
 from __future__ import annotations
@@ -12,9 +16,10 @@ from dataclasses import dataclass
 
 from textual.app import ComposeResult
 from textual.binding import Binding
-from textual.containers import Horizontal, Vertical
+from rich.text import Text
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.screen import ModalScreen
-from textual.widgets import Input, Label, OptionList, Static
+from textual.widgets import Button, Input, Label, OptionList, Static
 from textual.widgets.option_list import Option
 
 
@@ -76,16 +81,16 @@ class FormScreen(ModalScreen[dict | None]):
 
     def compose(self) -> ComposeResult:
         with Vertical(id="dialog"):
-            yield Label(self.form_title, id="dialog-title")
+            yield Label(self.form_title, id="dialog-title", markup=False)
             if self.note:
                 yield Static(self.note, classes="dialog-note", markup=False)
             for f in self.fields:
                 with Horizontal(classes="form-row"):
-                    yield Label(f.label, classes="form-label")
+                    yield Label(f.label, classes="form-label", markup=False)
                     placeholder = " | ".join(f.choices) if f.kind == "choice" else ""
                     yield Input(f.value, id=f"field-{f.name}", placeholder=placeholder, select_on_focus=False)
             yield Static("", id="dialog-error", markup=False)
-            yield Label("enter: OK   tab: next field   esc: cancel", classes="dialog-help")
+            yield Label("enter: OK   tab: next field   esc: cancel", classes="dialog-help", markup=False)
 
     def on_mount(self) -> None:
         if self.fields:
@@ -122,18 +127,74 @@ class ChoiceScreen(ModalScreen[str | None]):
 
     def compose(self) -> ComposeResult:
         with Vertical(id="dialog"):
-            yield Label(self.choice_title, id="dialog-title")
+            yield Label(self.choice_title, id="dialog-title", markup=False)
             if self.note:
                 yield Static(self.note, classes="dialog-note", markup=False)
             if self.options:
-                yield OptionList(*[Option(label, id=value) for value, label in self.options], id="choices")
+                yield OptionList(*[Option(Text(label), id=value) for value, label in self.options], id="choices")
             else:
                 yield Static("(nothing to choose)", classes="dialog-note")
-            yield Label("enter: choose   esc: cancel", classes="dialog-help")
+            yield Label("enter: choose   esc: cancel", classes="dialog-help", markup=False)
 
     def on_option_list_option_selected(self, event: OptionList.OptionSelected) -> None:
         event.stop()
         self.dismiss(event.option.id)
 
     def action_cancel(self) -> None:
+        self.dismiss(None)
+
+
+class ConfirmScreen(ModalScreen[bool]):
+    """A yes/no question with the reason: ``y``/enter answers yes, ``n``/esc no."""
+
+    CSS_PATH = "dialogs.tcss"
+    BINDINGS = [Binding("escape,n", "answer(False)", "No"), Binding("y", "answer(True)", "Yes")]
+
+    def __init__(self, title: str, text: str, *, yes: str = "yes", no: str = "no") -> None:
+        super().__init__()
+        self.confirm_title, self.text, self.yes, self.no = title, text, yes, no
+
+    def compose(self) -> ComposeResult:
+        with Vertical(id="dialog"):
+            yield Label(self.confirm_title, id="dialog-title", markup=False)
+            yield Static(self.text, classes="dialog-text", markup=False)
+            with Horizontal(classes="dialog-buttons"):
+                yield Button(f"{self.yes} (y)", id="yes", variant="warning")
+                yield Button(f"{self.no} (n, esc)", id="no", variant="primary")
+
+    def on_mount(self) -> None:
+        self.query_one("#no", Button).focus()
+
+    def on_button_pressed(self, event: Button.Pressed) -> None:
+        event.stop()
+        self.dismiss(event.button.id == "yes")
+
+    def action_answer(self, yes: bool) -> None:
+        self.dismiss(yes)
+
+
+class MessagesScreen(ModalScreen[None]):
+    """Messages (level, text), each whole and wrapped, in a scrollable box; esc closes."""
+
+    CSS_PATH = "dialogs.tcss"
+    BINDINGS = [Binding("escape,q", "close", "Close")]
+
+    def __init__(self, title: str, messages: list[tuple[str, str]]) -> None:
+        super().__init__()
+        self.box_title, self.messages = title, list(messages)
+
+    def compose(self) -> ComposeResult:
+        with Vertical(id="dialog"):
+            yield Label(self.box_title, id="dialog-title", markup=False)
+            with VerticalScroll(id="messages"):
+                if not self.messages:
+                    yield Static("(none)", classes="dialog-note", markup=False)
+                for level, text in self.messages:
+                    yield Static(f"{level}: {text}", classes="dialog-text", markup=False)
+            yield Label("esc: close   ↑/↓: scroll", classes="dialog-help", markup=False)
+
+    def on_mount(self) -> None:
+        self.query_one("#messages", VerticalScroll).focus()
+
+    def action_close(self) -> None:
         self.dismiss(None)

@@ -16,8 +16,8 @@ from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.messages import FiltrBlock
 from gcs_tui.screens.base import GcsScreen
-from gcs_tui.theme import color, rgb, series
-from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.theme import color, marker, rgb, series
+from gcs_tui.widgets.plots import GcsPlot, nice_y
 
 EMPTY = "FILTR not started — n processes one block, r runs to the end, x cancels, z resets."
 
@@ -89,16 +89,21 @@ class FiltrScreen(GcsScreen):
         for p in range(v.pass_index + 1):
             rows = [b for b in v.blocks if b[0] == p]
             x = [b[1] + 1 for b in rows]
-            plt.plot(x, [b[2] for b in rows], color=series(p), marker="dot", label=f"pass {p + 1}")
+            plt.plot(x, [b[2] for b in rows], color=series(p), marker="braille")
+            plt.scatter(x, [b[2] for b in rows], color=series(p), marker=marker(p))
         rows = [b for b in v.blocks if b[0] == v.pass_index]
         x = [b[1] + 1 for b in rows]
         plt.plot(x, [b[3] for b in rows], color=rgb("gcs-band"), marker="braille")
         plt.plot(x, [b[4] for b in rows], color=rgb("gcs-band"), marker="braille")
+        vals = [b[k] for b in v.blocks for k in (2, 3, 4) if b[k] == b[k]]
+        if vals:
+            nice_y(plt, min(vals), max(vals), 4)
         plt.xlim(0.5, v.n_blocks + 0.5)
         every = max(1, -(-v.n_blocks // 8))
         ticks = list(range(1, v.n_blocks + 1, every))
         plt.xticks(ticks, [str(k) for k in ticks])
-        plt.title("NIS/dof per block (95 % χ² band)")
+        passes = " ".join(f"{marker(p)} pass {p + 1}" for p in range(v.pass_index + 1))
+        plt.title(f"NIS/dof per block · {passes} · ⠒ 95 % χ² band")
         plt.xlabel("block")
 
     # ------------------------------------------------------------------ actions

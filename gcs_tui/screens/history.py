@@ -74,15 +74,13 @@ class HistoryScreen(GcsScreen):
         versions_t.add_column("mark")
         versions_t.add_column("created (UTC)")
         versions_t.add_column(Text("params", justify="right"))
-        if not self.compact:
-            versions_t.add_column("data span")
-            versions_t.add_column("note")
+        versions_t.add_column("data span")
+        versions_t.add_column("note")
         for v in versions:
             mark = "".join(k.upper() for k in ("a", "b") if self.marks.get(k) == v.version)
             cells = [Text(str(v.version), justify="right"), Text(mark, style="bold"), v.created_utc[:19],
                      Text(str(v.n_params), justify="right")]
-            if not self.compact:
-                cells += [fmt.span(v.data_t0, v.data_t1) if math.isfinite(v.data_t0) else "—", v.note]
+            cells += [fmt.span(v.data_t0, v.data_t1) if math.isfinite(v.data_t0) else "—", v.note]
             versions_t.add_row(*cells, key=str(v.version))
         self._diff(path, diff_t)
 
@@ -93,12 +91,12 @@ class HistoryScreen(GcsScreen):
         vb = jobs.scds_version(path, b)
         va = jobs.scds_version(path, a)
         table.add_column("element")
-        if not self.compact:
-            table.add_column(Text(f"v{a}", justify="right"))
-        table.add_column(Text(f"v{b}", justify="right"))
-        table.add_column(Text("Δ", justify="right"))
-        table.add_column(Text("Δ/σ", justify="right"))
         table.add_column("unit")
+        # the newer version and the change first (what fits in 80 columns), the older after
+        table.add_column(Text(f"v{b}", justify="right"))
+        table.add_column(Text(f"Δ (v{b} − v{a})", justify="right"))
+        table.add_column(Text("Δ/σ", justify="right"))
+        table.add_column(Text(f"v{a}", justify="right"))
         for name, xa, xb, delta, z in rows:
             unit = (vb.params.get(name) or va.params.get(name))[2]
             sa = va.params[name][1] if name in va.params else math.nan
@@ -110,14 +108,15 @@ class HistoryScreen(GcsScreen):
             def est(x, s):
                 return fmt.estimate(x, s, unit, shown=shown, with_unit=False) if math.isfinite(x) else "—"
 
-            cells = [name]
-            if not self.compact:
-                cells.append(Text(est(xa, sa), justify="right"))
-            cells += [Text(est(xb, sb), justify="right"),
-                      Text(fmt.quantity(delta, unit, digits=2, shown=shown, with_unit=False)
-                           if math.isfinite(delta) else "new" if math.isfinite(xb) else "gone", justify="right"),
-                      Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else ""),
-                      fmt.unit_label(shown)]
+            # Δ at the decimal place of the combined σ, like the estimates
+            s_comb = math.hypot(sa, sb) if math.isfinite(sa) and math.isfinite(sb) else ref_s
+            k = fmt.scale(unit, shown)
+            d_text = (fmt.value_sigma(delta * k, s_comb * k)[0] if math.isfinite(delta)
+                      else "new" if math.isfinite(xb) else "gone")
+            cells = [name, Text(fmt.unit_column(shown)), Text(est(xb, sb), justify="right"),
+                     Text(d_text, justify="right"),
+                     Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else ""),
+                     Text(est(xa, sa), justify="right")]
             table.add_row(*cells, key=name)
 
     def action_mark(self, which: str) -> None:

@@ -60,7 +60,7 @@ class MissionScreen(GcsScreen):
                 Text(f"{r.dropped_nan} NaN, {r.dropped_duplicates} dup" if dropped else "0", justify="right"),
                 key=r.name)
         for f in m.report.files:
-            if f.what.startswith("telemetry ") or self.compact:
+            if f.what.startswith("telemetry "):
                 continue
             table.add_row(Text(f.what, style="italic"), "file", "", Text(str(f.rows), justify="right"), "", "", "",
                           Text(str(f.dropped_nan + f.dropped_duplicates), justify="right"), key=f"file:{f.what}")

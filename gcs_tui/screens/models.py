@@ -60,7 +60,7 @@ class ModelsScreen(GcsScreen):
         for e in state:
             counts[e.role] += 1
             shown = fmt.display_unit(e.unit, e.sigma0)
-            st.add_row(e.name, fmt.unit_label(shown) or "1", role_text(e.role),
+            st.add_row(e.name, fmt.unit_column(shown), role_text(e.role),
                        Text(fmt.quantity(e.sigma0, e.unit, digits=2, shown=shown), justify="right"), key=e.name)
         self.query_one("#state-title", Label).update(
             f"State vector: {len(state)} elements — {counts['solve-for']} solve-for, "

@@ -21,6 +21,11 @@ from gcs_tui.widgets.plots import GcsPlot
 from gcs_tui.workbench import maneuver
 
 
+def _num(v: float) -> str:
+    """A time [s] or rate as a dialog prefill: to the thousandth, without float noise."""
+    return f"{round(float(v), 3):.12g}"
+
+
 def _count(n: int, noun: str) -> str:
     return f"{n} {noun}{'' if n == 1 else 's'}"
 
@@ -100,8 +105,8 @@ class PlanScreen(GcsScreen):
     def action_edit_span(self) -> None:
         cfg = self.wb.config
         t0, t1 = self.wb.plan_span()
-        fields = [Field("start", "start [s]", repr(t0)), Field("end", "end [s]", repr(t1)),
-                  Field("step", "step [s]", repr(cfg.pred_step), positive=True)]
+        fields = [Field("start", "start [s]", _num(t0)), Field("end", "end [s]", _num(t1)),
+                  Field("step", "step [s]", _num(cfg.pred_step), positive=True)]
         self.app.push_screen(FormScreen("Plan span and output step", fields),
                              lambda v: v and self._apply(start=v["start"], end=v["end"], step=v["step"]))
 
@@ -116,8 +121,8 @@ class PlanScreen(GcsScreen):
                 gaps[index] = (v["start"], v["end"])
             self._apply(gaps=tuple(gaps))
 
-        self.app.push_screen(FormScreen(title, [Field("start", "start [s]", repr(a)),
-                                                Field("end", "end [s]", repr(b))]), done)
+        self.app.push_screen(FormScreen(title, [Field("start", "start [s]", _num(a)),
+                                                Field("end", "end [s]", _num(b))]), done)
 
     def action_add_gap(self) -> None:
         t0, t1 = self.wb.plan_span()
@@ -136,10 +141,10 @@ class PlanScreen(GcsScreen):
                 mans[index] = new
             self._apply(maneuvers=tuple(mans))
 
-        fields = [Field("start", "start [s]", repr(m.start)),
-                  Field("duration", "duration [s]", repr(m.duration), positive=True),
+        fields = [Field("start", "start [s]", _num(m.start)),
+                  Field("duration", "duration [s]", _num(m.duration), positive=True),
                   Field("axis", "axis", m.axis, kind="choice", choices=AXES),
-                  Field("rate", "rate [deg/s]", repr(m.rate_deg_s))]
+                  Field("rate", "rate [deg/s]", _num(m.rate_deg_s))]
         self.app.push_screen(FormScreen(title, fields, note="Constant-rate rotation about one reference "
                                         "axis (Eq 4-35, 4-36)."), done)
 

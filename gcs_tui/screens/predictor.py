@@ -15,8 +15,8 @@ from textual.widgets import DataTable, Static
 from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
-from gcs_tui.theme import series
-from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.theme import marker, series
+from gcs_tui.widgets.plots import GcsPlot, marked_line, nice_x, nice_y
 
 EMPTY = "No prediction yet — p predicts σ along the data plan (screen 4 edits the plan)."
 
@@ -55,8 +55,10 @@ class PredictorScreen(GcsScreen):
         avail = ", ".join(f"{k} {100 * v:.0f}%" for k, v in p.availability.items())
         info.update(Text.assemble(
             (" method ", "bold"), p.method, f" · {fmt.span(float(p.times[0]), float(p.times[-1]))}",
-            " · final attitude σ ", (" / ".join(fmt.quantity(v, "rad", digits=2, shown="arcsec") for v in att), "bold"),
-            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations" if p.unobservable else "")
+            " · final attitude σ ", (" / ".join(fmt.quantity(v, "rad", digits=2, shown=fmt.display_unit(
+                "rad", float(np.nanmax(att)))) for v in att), "bold"),
+            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations (the plan fixes only "
+                                   "combinations of those elements; their σ is the a priori)" if p.unobservable else "")
             + (f" · {len(p.undetermined)} not determined by the plan (σ = a priori, dim)" if p.undetermined else "")))
         choices = ["attitude"] + list(p.names)
         self.element_i %= len(choices)
@@ -68,30 +70,39 @@ class PredictorScreen(GcsScreen):
     def _plot(plt, p, what) -> None:
         t = p.times.tolist()
         if what == "attitude":
+            u = fmt.display_unit("rad", float(np.nanmax(p.attitude_sigma)) if p.attitude_sigma.size else 0.0)
             for k, axis in enumerate(("x", "y", "z")):
-                y = p.attitude_sigma[:, k] * fmt.scale("rad", "arcsec")
-                plt.plot(t, y.tolist(), color=series(k), marker="braille", label=f"body {axis}")
-            plt.title("attitude σ about the body axes [arcsec]")
+                y = p.attitude_sigma[:, k] * fmt.scale("rad", u)
+                marked_line(plt, t, y.tolist(), series(k), marker(k))
+            if p.attitude_sigma.size:
+                nice_y(plt, 0.0, float(np.nanmax(p.attitude_sigma)) * fmt.scale("rad", u))
+            plt.title(f"attitude σ about the body axes [{u}] · "
+                      + " ".join(f"{marker(k)} {a}" for k, a in enumerate("xyz")))
         else:
             i = p.index(what)
             unit = p.units[i]
             shown = fmt.display_unit(unit, float(np.nanmax(p.sigma[:, i])))
             y = (p.sigma[:, i] * fmt.scale(unit, shown)).tolist()
             yn = (p.sigma_noise[:, i] * fmt.scale(unit, shown)).tolist()
-            plt.plot(t, y, color=series(0), marker="braille", label="total")
+            marked_line(plt, t, y, series(0), marker(0))
+            nice_y(plt, 0.0, max(y) if y else 1.0)
+            legend = f"{marker(0)} total"
             if p.consider:
-                plt.plot(t, yn, color=series(1), marker="braille", label="noise only")
-            plt.title(f"σ of {what} [{fmt.unit_label(shown) or '1'}]   ([ ] other elements)")
+                marked_line(plt, t, yn, series(1), marker(1))
+                legend += f" {marker(1)} noise only"
+            lab = fmt.unit_label(shown)
+            plt.title(f"σ of {what}" + (f" [{lab}]" if lab else "") + f" · {legend} · [ ] other elements")
+        if t:
+            nice_x(plt, t[0], t[-1])
         plt.xlabel("t [s]")
 
     def _budget(self, table: DataTable, p, what: str) -> None:
         table.clear(columns=True)
         undetermined = set(p.undetermined)
-        table.add_column("element" + (" (dim: not determined by the plan)" if undetermined and not self.compact
-                                      else ""))
+        table.add_column("element" + (" (dim: not determined by the plan)" if undetermined else ""))
         table.add_column(Text("σ final", justify="right"))
         table.add_column(Text("noise only", justify="right"))
-        cons = list(p.consider)[: (2 if self.compact else 5)]
+        cons = list(p.consider)
         for c in cons:
             table.add_column(Text(c, justify="right"))
         for row in p.budget_rows():

@@ -21,6 +21,7 @@ from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.screens.dialogs import Field, FormScreen
 from gcs_tui.screens.models import role_text
+from gcs_tui.widgets.tables import fill
 
 
 class StateScreen(GcsScreen):
@@ -49,12 +50,9 @@ class StateScreen(GcsScreen):
         wb = self.wb
         table = self.query_one("#elements", DataTable)
         selected = self._selected()
-        table.clear(columns=True)
-        table.add_column("element", key="name")
-        table.add_column("role", key="role")
-        table.add_column(Text("a priori ± σ₀", justify="right"), key="prior")
-        if not self.compact:
-            table.add_column(Text("estimate ± σ", justify="right"), key="estimate")
+        # every width keeps every column: the estimate first, the table scrolls sideways
+        labels = ["element", Text("estimate ± σ", justify="right"), "role", Text("a priori ± σ₀", justify="right")]
+        rows = []
         est = wb.estimates() if not wb.stale else {}
         loose = wb.not_determined()
         overridden = set(wb.config.elements)
@@ -63,11 +61,11 @@ class StateScreen(GcsScreen):
                 continue
             # dim: an element the fit did not determine (its σ is not to be trusted)
             name = Text(e.name + (" *" if e.name in overridden else ""), style="dim" if e.name in loose else "")
-            cells = [name, role_text(e.role), Text(fmt.estimate(e.value, e.sigma0, e.unit), justify="right")]
-            if not self.compact:
-                v = est.get(e.name)
-                cells.append(Text(fmt.estimate(v[0], v[1], e.unit) if v else "", justify="right"))
-            table.add_row(*cells, key=e.name)
+            v = est.get(e.name)
+            cells = [name, Text(fmt.estimate(v[0], v[1], e.unit) if v else "", justify="right"), role_text(e.role),
+                     Text(fmt.estimate(e.value, e.sigma0, e.unit), justify="right")]
+            rows.append((cells, e.name))
+        fill(table, labels, rows)
         if selected is not None:
             try:
                 table.move_cursor(row=table.get_row_index(selected))
@@ -77,7 +75,7 @@ class StateScreen(GcsScreen):
         self.query_one("#state-title", Label).update(
             f"Elements{' (held hidden)' if self.hide_held else ''} — {held} held · "
             + (f"{len(loose)} not determined (dim) · " if loose else "")
-            + "s/c/h role · e edit · v held · * = set in config")
+            + "s/c/h role · e edit · v held · i details · * = set in config")
         self._detail()
 
     def _selected(self) -> str | None:
@@ -94,7 +92,8 @@ class StateScreen(GcsScreen):
             return
         wb = self.wb
         e = wb.analysis.problem.state[name]
-        lines = [name, f"  {e.description or e.effect}", f"  effect {e.effect or '—'} · unit {e.unit}",
+        lines = [name, f"  {e.description or e.effect}",
+                 f"  effect {e.effect or '—'} · internal unit {fmt.unit_column(e.unit)}",
                  f"  a priori {fmt.estimate(e.value, e.sigma0, e.unit)}"]
         res = wb.result
         if res is not None and not wb.stale and name in res.solve_for:
@@ -107,6 +106,8 @@ class StateScreen(GcsScreen):
             order = [j for j in np.argsort(-np.abs(corr)) if j != i][:5]
             lines.append("  strongest correlations:")
             lines += [f"    {res.solve_for[j]:<22s} {corr[j]:+.2f}" for j in order if math.isfinite(corr[j])]
+            if why is None and e.name in {u for text in res.unobservable for u in text.replace(",", " ").split()}:
+                lines.append("  unobservable: the data fix only a combination; σ here is from the a priori")
             budget = {c: float(v[i]) for c, v in res.consider_budget.items() if v[i] > 0}
             if budget:
                 lines.append("  consider contributions:")
@@ -124,6 +125,10 @@ class StateScreen(GcsScreen):
             return
         self.app.run_job("state", f"{name} → {role}", lambda p, c: self.wb.set_element(name, role=role))
 
+    def action_toggle_details(self) -> None:
+        """Show or hide the selected element's details (always shown at 150+ columns)."""
+        self.toggle_class("-details")
+
     def action_toggle_held(self) -> None:
         self.hide_held = not self.hide_held
         self.refresh_view()
@@ -133,11 +138,12 @@ class StateScreen(GcsScreen):
         if name is None:
             return
         e = self.wb.analysis.problem.state[name]
-        shown = fmt.display_unit(e.unit, max(abs(e.value), e.sigma0 if math.isfinite(e.sigma0) else 0.0))
-        lab = fmt.unit_label(shown) or "1"
-        v0 = repr(round(fmt.to_display(e.value, e.unit, shown), 12))
-        s0 = repr(round(fmt.to_display(e.sigma0, e.unit, shown), 12))
-        fields = [Field("value", f"value [{lab}]", v0), Field("sigma", f"σ [{lab}]", s0, positive=True)]
+        shown = fmt.shown_unit(e.unit, e.value, e.sigma0)
+        lab = fmt.unit_label(shown)
+        tail = f" [{lab}]" if lab else " (no unit)"
+        v0 = fmt.value_text(e.value, e.sigma0, e.unit, shown)
+        s0 = fmt.sig(fmt.to_display(e.sigma0, e.unit, shown), 3)
+        fields = [Field("value", f"value{tail}", v0), Field("sigma", f"σ{tail}", s0, positive=True)]
 
         def done(values):
             if not values:
@@ -145,6 +151,7 @@ class StateScreen(GcsScreen):
             # only what the user changed goes into the config (the shown text is rounded)
             value = fmt.from_display(values["value"], e.unit, shown) if values["value"] != float(v0) else None
             sigma = fmt.from_display(values["sigma"], e.unit, shown) if values["sigma"] != float(s0) else None
+            # σ₀ shown to 3 digits: an untouched field keeps the exact configured value
             if value is None and sigma is None:
                 return
             self.app.run_job("state", f"edit {name}",

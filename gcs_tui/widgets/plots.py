@@ -39,3 +39,41 @@ class GcsPlot(PlotextPlot):
             plt.xticks([])
             plt.yticks([])
         return super().render()
+
+
+def nice_y(plt, lo: float, hi: float, n: int = 5) -> None:
+    """Round y ticks (1, 2, 2.5, 5 × 10^k) over [lo, hi], a little margin around the data."""
+    from gcs_tui import format as fmt
+
+    if not (lo < hi):
+        return
+    pad = 0.05 * (hi - lo)
+    lo, hi = lo - pad, hi + pad
+    ticks = fmt.nice_ticks(lo, hi, n)
+    plt.ylim(lo, hi)
+    if len(ticks) >= 2:
+        plt.yticks(ticks, fmt.tick_labels(ticks))
+
+
+def nice_x(plt, lo: float, hi: float, n: int = 6) -> None:
+    """Round x ticks over [lo, hi] (see :func:`nice_y`)."""
+    from gcs_tui import format as fmt
+
+    if not (lo < hi):
+        return
+    ticks = fmt.nice_ticks(lo, hi, n)
+    if len(ticks) >= 2:
+        plt.xticks(ticks, fmt.tick_labels(ticks))
+
+
+def marked_line(plt, x, y, colour, mark: str, *, marks: int = 12, line: bool = True) -> None:
+    """A series drawn thin (braille) with its marker at about ``marks`` evenly spaced points,
+    so that series differ by shape as well as colour without the markers hiding the data."""
+    x, y = list(x), list(y)
+    if line:
+        plt.plot(x, y, color=colour, marker="braille")
+    else:
+        plt.scatter(x, y, color=colour, marker="braille")
+    if x:
+        step = max(1, len(x) // marks)
+        plt.scatter(x[step // 2::step], y[step // 2::step], color=colour, marker=mark)
