@@ -96,6 +96,8 @@ TABLES: dict[str, tuple[str, ...]] = {
     "diagnosis": ("significance", "holdout_fraction"),
     "prediction": ("start", "end", "step", "gaps", "maneuvers", "stars", "catalog"),
     "verification": ("requirement_deg",),
+    "trade": ("vary", "targets", "orbit", "top", "output", "optimize"),
+    "montecarlo": ("runs", "seed", "output"),
 }
 ELEMENT_KEYS = ("role", "value", "sigma")
 MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
@@ -146,6 +148,8 @@ class AnalysisConfig:
     pred_catalog : star catalog file (``prediction.catalog``, resolved against the
         mission directory), or None (``star_catalog.csv`` of the mission, if any).
     requirement_deg : VERIF attitude accuracy requirement.
+    trade, montecarlo : the ``[trade]`` and ``[montecarlo]`` tables as read (checked in
+        detail by :mod:`gcs_core.trade`).
     name : an optional label (not part of :meth:`digest`).
     """
 
@@ -174,6 +178,8 @@ class AnalysisConfig:
     pred_catalog: Path | None = None
     requirement_deg: float = 0.01
     name: str | None = None
+    trade: dict = field(default_factory=dict)
+    montecarlo: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------------ derived
     def with_changes(self, **kw) -> "AnalysisConfig":
@@ -398,6 +404,8 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         pred_catalog = Path(os.path.normpath(mission / cat))
     vf = tables["verification"]
     _unknown(vf, TABLES["verification"], "verification.", f)
+    for name in ("trade", "montecarlo"):
+        _unknown(tables[name], TABLES[name], f"{name}.", f)
     return AnalysisConfig(
         path=path, mission=mission, method=method, physics=ph, models=dict(models),
         effects=lists["effects"], exclude=lists["exclude"], elements=elements, attitude_sigma_deg=att_sig,
@@ -413,7 +421,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         pred_stars=pred_stars, pred_catalog=pred_catalog,
         requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
                                 prefix="verification."),
-        name=name)
+        name=name, trade=dict(tables["trade"]), montecarlo=dict(tables["montecarlo"]))
 
 
 def _edit_k_sensor(fl: dict, f) -> dict[str, float]:
@@ -481,6 +489,9 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
     }
     if cfg.edit_k_sensor:
         out["filter"]["edit_k_sensor"] = dict(cfg.edit_k_sensor)
+    for name in ("trade", "montecarlo"):
+        if getattr(cfg, name):
+            out[name] = dict(getattr(cfg, name))
     if cfg.pred_start is not None:
         out["prediction"]["start"] = cfg.pred_start
     if cfg.pred_end is not None:
