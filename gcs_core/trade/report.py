@@ -18,13 +18,13 @@ def sigma_display(value: float, unit: str) -> tuple[float, str]:
     return value, unit
 
 
-def _cell(v: float, unit: str) -> str:
+def _cell(v: float, unit: str, prior: bool = False) -> str:
     if math.isnan(v):
         return "—"
     if math.isinf(v):
         return "undet."
     x, _ = sigma_display(v, unit)
-    return f"{x:.3g}"
+    return f"{x:.3g}" + ("*" if prior else "")
 
 
 def _short(name: str) -> str:
@@ -45,14 +45,16 @@ def study_table(rows: Sequence[PlanRow], *, limit: int | None = 20) -> list[str]
             break
         score = "failed" if r.status != "ok" else ("∞" if math.isinf(sc) else f"{sc:.3g}")
         body.append([str(rank), score] + [str(r.values.get(k)) for k in keys]
-                    + [_cell(v, u) for v, u in zip(r.sigma, r.units)])
+                    + [_cell(v, u, bool(r.prior_limited and r.prior_limited[i]))
+                       for i, (v, u) in enumerate(zip(r.sigma, r.units))])
     widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(heads)]
     out = ["  ".join(h.rjust(w) for h, w in zip(heads, widths))]
     out += ["  ".join(c.rjust(w) for c, w in zip(b, widths)) for b in body]
     shown = min(len(rows), limit or len(rows))
     failed = [r for r in rows if r.status != "ok"]
     out.append(f"{shown} of {len(rows)} plans shown (score: geometric mean of σ / best σ over the "
-               "targets; 1 = best at every target; 'undet.' = not determined by the plan)")
+               "targets; 1 = best at every target; * = set by the a priori: the data alone cannot "
+               "separate the element; '—' = not in the plan's state)")
     if failed:
         out.append(f"{len(failed)} plans could not be predicted, e.g. {failed[0].plan_id}: {failed[0].status}")
     return out

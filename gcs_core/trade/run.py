@@ -25,7 +25,8 @@ def row_from_record(rec: dict) -> PlanRow:
     return PlanRow(int(rec["index"]), rec["plan_id"], rec["values"], rec["description"],
                    tuple(rec["elements"]), tup(rec["sigma"]), tup(rec["noise_only"]), tuple(rec["units"]),
                    {k: tup(v) for k, v in rec["budget"].items()}, tuple(rec["undetermined"]),
-                   tuple(rec["unobservable"]), dict(rec["frames"]), rec["status"], float(rec["seconds"]))
+                   tuple(rec["unobservable"]), dict(rec["frames"]), rec["status"], float(rec["seconds"]),
+                   tuple(bool(x) for x in rec.get("prior_limited", ())))
 
 
 def read_study(path: str | Path) -> tuple[StudyDefinition | None, list[PlanRow]]:

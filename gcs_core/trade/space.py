@@ -22,6 +22,9 @@ Keys (times in minutes from the plan start; angles in degrees):
 ``maneuver.duration_min`` its duration (or ``maneuver.angle_deg``: duration = angle / rate)
 ``maneuver.angle_deg``    the angle turned
 ``maneuver.back``         true: turn back by the same angle right after (out and back)
+``maneuvers``             a sequence ``axis:rate:minutes[,axis:rate:minutes...]`` flown one
+                          after the other from ``maneuver.start_min`` (default: centred in
+                          the span), or ``none``
 ``attitude_mode``         inertial | sun_pointing | earth_pointing (the reference frame)
 ``models.NAME``           on | off: the sensor NAME used or left out
 ``NAME.alignment_deg[i]`` mounting angle a_i (i = 1, 2, 3, ICD §2) of sensor NAME
@@ -51,7 +54,7 @@ from gcs_core.sidp.types import MissionSpec
 
 PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min",
              "gap_min", "maneuver.axis", "maneuver.rate_deg_s", "maneuver.start_min",
-             "maneuver.duration_min", "maneuver.angle_deg", "maneuver.back", "attitude_mode",
+             "maneuver.duration_min", "maneuver.angle_deg", "maneuver.back", "maneuvers", "attitude_mode",
              "effects")
 ATTITUDE_MODES = ("inertial", "sun_pointing", "earth_pointing")
 _ALIGN = re.compile(r"^([A-Za-z][A-Za-z0-9_-]*)\.alignment_deg\[([123])\]$")
@@ -243,7 +246,43 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
     return PlanSetup(new_cfg, new_spec, plan)
 
 
+def parse_maneuvers(text: str) -> list[tuple[str, float, float]]:
+    """``"yaw:0.1:5,roll:-0.1:5"`` -> ``[(axis, rate [deg/s], minutes), ...]`` (``none``: [])."""
+    text = str(text).strip()
+    if text.lower() in ("", "none"):
+        return []
+    out = []
+    for part in text.replace("+", ",").split(","):
+        bits = part.strip().split(":")
+        try:
+            axis, rate, minutes = bits[0], float(bits[1]), float(bits[2])
+        except (IndexError, ValueError):
+            raise InputError(f"a maneuver is axis:rate_deg_s:minutes, not {part!r}",
+                             key="trade.vary.maneuvers") from None
+        if axis not in AXES or not rate or not minutes > 0:
+            raise InputError(f"a maneuver needs an axis ({', '.join(AXES)}), a rate ≠ 0 and "
+                             f"minutes > 0, not {part!r}", key="trade.vary.maneuvers")
+        out.append((axis, rate, minutes))
+    return out
+
+
+def _sequence(plan: DataPlan, combo: Mapping[str, Any]) -> DataPlan:
+    seq = parse_maneuvers(combo["maneuvers"])
+    total = 60.0 * sum(m for _, _, m in seq)
+    if "maneuver.start_min" in combo:
+        t = plan.start + 60.0 * _num(combo, "maneuver.start_min")
+    else:
+        t = plan.start + max(0.0, 0.5 * (plan.end - plan.start - total))
+    mans = []
+    for axis, rate, minutes in seq:
+        mans.append(Maneuver(t, 60.0 * minutes, axis, rate))
+        t += 60.0 * minutes
+    return replace(plan, maneuvers=tuple(mans))
+
+
 def _maneuver(plan: DataPlan, combo: Mapping[str, Any], base: DataPlan) -> DataPlan:
+    if "maneuvers" in combo:
+        return _sequence(plan, combo)
     keys = [k for k in combo if k.startswith("maneuver.")]
     if not keys:
         return plan

@@ -37,6 +37,11 @@ log = logging.getLogger(__name__)
 #: the pseudo-target of the three attitude angles (σ about the body axes at the plan end)
 ATTITUDE = "attitude"
 ATTITUDE_NAMES = ("attitude.roll", "attitude.pitch", "attitude.yaw")
+#: the pseudo-target ``NAME.misalignment``: small rotations of sensor NAME about its own
+#: axes x (a tracker's boresight), y, z, from the covariance of ``align_1..3``
+MISALIGN = ("misalign_x", "misalign_y", "misalign_z")
+#: a noise-only σ above this fraction of the a-priori σ is mostly the a priori's
+PRIOR_LIMITED = 0.3
 ORBIT_KEYS = ("a_km", "e", "i_deg", "raan_deg", "argp_deg", "mean_anomaly_deg")
 
 
@@ -103,6 +108,9 @@ class PlanRow:
     budget : consider element -> (n,) its σ contribution to each target.
     undetermined, unobservable : from the prediction.
     frames : sensor -> usable frames.
+    prior_limited : (n,) True where the data alone cannot determine the element (it is in
+        a combination the data cannot separate, or σ is its a priori): its σ is the a
+        priori's doing, not the plan's.
     status : ``"ok"`` or the one-line reason the plan could not be predicted.
     seconds : time the prediction took (not part of the numbers compared across runs).
     """
@@ -121,6 +129,7 @@ class PlanRow:
     frames: Mapping[str, int] = field(default_factory=dict)
     status: str = "ok"
     seconds: float = 0.0
+    prior_limited: tuple[bool, ...] = ()
 
     def sigma_of(self, name: str) -> float:
         return self.sigma[self.elements.index(name)]
@@ -196,6 +205,8 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
     for t in targets:
         if t == ATTITUDE:
             found = [(n, "rad") for n in ATTITUDE_NAMES]
+        elif t.endswith(".misalignment") and f"{t[:-len('.misalignment')]}.alignment" in params:
+            found = [(f"{t[:-len('.misalignment')]}.{m}", "rad") for m in MISALIGN]
         elif t in params:
             found = params[t]
         elif gyro and t.startswith(f"{gyro[0]}.bias_rate"):
@@ -244,11 +255,48 @@ def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str
     return out
 
 
+def sensor_axes_covariance(spec, sensor: str, P_align: np.ndarray) -> np.ndarray:
+    """(3, 3) covariance of the small rotation ``φ_S`` about the sensor's own axes, from the
+    covariance of its alignment angles (ICD §2: ``M = T3(a3) T2(a2) T1(a1)``, ``v_S = M v_B``).
+
+    ``M(a + δa) ≈ (I − [φ_S×]) M(a)`` gives ``[φ_S×] = −Σ_k ∂M/∂a_k Mᵀ δa_k``, so
+    ``φ_S = J δa`` with column k of J the axial vector of ``−∂M/∂a_k Mᵀ``; ``P_φ = J P_a Jᵀ``.
+    (``a1`` turns about the *body* x axis, the sensor's x only when ``a2 = a3 = 0``.)
+    """
+    from gcs_core.frames.rotations import euler123_partials, euler123_to_dcm
+    from gcs_core.units import DEG
+
+    a = np.asarray(spec.sensor(sensor).alignment_deg or (0.0, 0.0, 0.0), float) * DEG
+    M, dM = euler123_to_dcm(*a), euler123_partials(*a)
+    J = np.zeros((3, 3))
+    for k in range(3):
+        W = -dM[k] @ M.T
+        J[:, k] = (W[2, 1], W[0, 2], W[1, 0])
+    return J @ P_align @ J.T
+
+
+def _misalignment(res, spec, name: str, total: bool) -> float:
+    sensor, _, axis = name.rpartition(".")
+    al = [f"{sensor}.align_{k}" for k in (1, 2, 3)]
+    if not all(a in res.names for a in al):
+        return math.nan
+    idx = [res.index(a) for a in al]
+    P = (res.P_consider if total else res.P)[np.ix_(idx, idx)]
+    if not np.all(np.isfinite(res.noise_only[idx])):
+        return math.inf
+    Pphi = sensor_axes_covariance(spec, sensor, P)
+    return float(np.sqrt(max(Pphi[MISALIGN.index(axis), MISALIGN.index(axis)], 0.0)))
+
+
 def _row(index, pid, combo, setup, res, names, units, seconds) -> PlanRow:
     sig, noise = [], []
     cols = []
     for n in names:
-        if n in ATTITUDE_NAMES:
+        if n.rpartition(".")[2] in MISALIGN:
+            sig.append(_misalignment(res, setup.spec, n, True))
+            noise.append(_misalignment(res, setup.spec, n, False))
+            cols.append(None)
+        elif n in ATTITUDE_NAMES:
             a = float(res.attitude_sigma[-1, ATTITUDE_NAMES.index(n)])
             sig.append(a)
             noise.append(a)
@@ -265,7 +313,30 @@ def _row(index, pid, combo, setup, res, names, units, seconds) -> PlanRow:
     budget = {c: tuple(float(v[i]) if i is not None else 0.0 for i in cols) for c, v in res.budget.items()}
     return PlanRow(index, pid, dict(combo), setup.describe(), names, tuple(sig), tuple(noise), units,
                    budget, tuple(res.undetermined), tuple(res.unobservable), dict(res.frames),
-                   "ok", seconds)
+                   "ok", seconds, tuple(_prior_limited(n, res, setup.spec, x) for n, x in zip(names, noise)))
+
+
+def _prior_limited(name: str, res, spec, noise: float) -> bool:
+    """The σ is mostly the a priori's (:attr:`PlanRow.prior_limited`): the noise-only σ is
+    above :data:`PRIOR_LIMITED` of the a-priori σ (the data give less than about ten
+    times the prior information about the element)."""
+    if res.prior is None or not math.isfinite(noise):
+        return False
+    if name in ATTITUDE_NAMES:
+        prior = float(np.max(res.prior[[res.index(n) for n in ("att.roll", "att.pitch", "att.yaw")]])) \
+            if all(n in res.names for n in ("att.roll", "att.pitch", "att.yaw")) else math.inf
+    elif name.rpartition(".")[2] in MISALIGN:
+        sensor, _, axis = name.rpartition(".")
+        al = [f"{sensor}.align_{k}" for k in (1, 2, 3)]
+        if not all(a in res.names for a in al):
+            return False
+        P0 = np.diag(np.square(res.prior[[res.index(a) for a in al]]))
+        prior = float(np.sqrt(sensor_axes_covariance(spec, sensor, P0)[MISALIGN.index(axis), MISALIGN.index(axis)]))
+    elif name in res.names:
+        prior = float(res.prior[res.index(name)])
+    else:
+        return False
+    return bool(math.isfinite(prior) and noise > PRIOR_LIMITED * prior)
 
 
 # ---------------------------------------------------------------------------- ranking
@@ -301,13 +372,16 @@ def row_to_dict(row: PlanRow) -> dict:
 def definition_from_config(cfg: AnalysisConfig, vary: Mapping[str, tuple] | None = None,
                            targets: Sequence[str] | None = None, *, method: str | None = None,
                            top: int | None = None) -> StudyDefinition:
-    """The study of a config's ``[trade]`` table, with command-line ``vary``/``targets``
-    added to (and overriding) it."""
+    """The study of a config's ``[trade]`` table; command-line ``vary`` and ``targets``,
+    when given, replace the table's."""
     if cfg.path is None:
         raise InputError("a trade study needs its analysis config on disk", key="trade")
     tr = dict(getattr(cfg, "trade", {}) or {})
-    v = {k: tuple(val) if isinstance(val, (list, tuple)) else (val,) for k, val in tr.get("vary", {}).items()}
-    v.update(vary or {})
+    table = tr.get("vary", {})
+    if not isinstance(table, dict):
+        raise InputError("must be a table of KEY = [values]", key="trade.vary")
+    v = dict(vary) if vary else {k: tuple(val) if isinstance(val, (list, tuple)) else (val,)
+                                 for k, val in table.items()}
     if not v:
         raise InputError("nothing to vary: give --vary KEY=VALUES or a [trade.vary] table", key="trade.vary")
     tg = tuple(targets) if targets else tuple(tr.get("targets", ()))
