@@ -121,5 +121,5 @@ def connect(workers: int | None, scheduler: str | None):
     dask.config.set({"distributed.nanny.pre-spawn-environ": dict(PIN_ENV),
                      "distributed.worker.daemon": False})
     cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                           dashboard_address=None, silence_logs=logging.ERROR)
+                           dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster), cluster
