@@ -9,7 +9,10 @@ allowed ``rates``.
 Plan space. Spans from :data:`SPANS_H` up to the budget; no maneuver, or a sequence of
 one maneuver per allowed axis (one axis, or two, in the order given), each
 :data:`SLEW_MINUTES` long at an allowed rate, flown back to back and centred in the span.
-Cost is lexicographic: the fewest minutes of slewing first (the operationally expensive
+A plan meets a target when its predicted σ is below the limit by the margin
+(:data:`MARGIN`, the accuracy the predictor is held to against Monte Carlo), so the
+flown plan still meets it if the true σ is that much above the prediction. Cost is
+lexicographic: the fewest minutes of slewing first (the operationally expensive
 part, seed §2.1.2: "performing slew maneuvers during the early phase of the mission may
 not be permissible"), then the fewest hours of data. The plans are predicted cheapest
 first (serially, stopping at the first that meets every target; on Dask all at once).
@@ -37,6 +40,8 @@ from gcs_core.units import ARCSEC, DEG
 SPANS_H = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
 SLEW_MINUTES = (1.0, 2.0, 3.0, 5.0, 7.5, 10.0, 15.0, 20.0, 30.0)
 DEFAULT_RATES = (0.05, 0.1, 0.2)
+#: a target is met when σ·(1 + MARGIN) is below its limit
+MARGIN = 0.15
 #: unit suffix -> factor to the internal unit
 UNITS = {"deg": DEG, "°": DEG, "arcsec": ARCSEC, "″": ARCSEC, "rad": 1.0, "nT": 1.0, "ppm": 1e-6,
          "deg/h": DEG / 3600.0, "": 1.0, "1": 1.0}
@@ -127,6 +132,7 @@ class OptimizeResult:
     targets: list[Target]
     budget: Budget
     searched: int
+    margin: float
     best: PlanRow | None
     config: AnalysisConfig | None
     closest: PlanRow | None = None
@@ -156,19 +162,21 @@ class OptimizeResult:
                 i = row.elements.index(n)
                 s, u = sigma_display(row.sigma[i], row.units[i])
                 lim, _ = sigma_display(t.limit, row.units[i])
-                ok = row.sigma[i] < t.limit
-                out.append(f"  σ {n:<16} {s:10.4g} {u:<3} (target < {lim:g}) {'met' if ok else 'NOT met'}")
+                ok = row.sigma[i] * (1.0 + self.margin) < t.limit
+                out.append(f"  σ {n:<16} {s:10.4g} {u:<3} (target < {lim:g} with a "
+                           f"{100 * self.margin:g} % margin) {'met' if ok else 'NOT met'}")
         out += self.why
         return out
 
 
-def _meets(row: PlanRow, targets: Sequence[Target], elements: Mapping[str, list[str]]) -> bool:
+def _meets(row: PlanRow, targets: Sequence[Target], elements: Mapping[str, list[str]],
+           margin: float = MARGIN) -> bool:
     if row.status != "ok":
         return False
     for t in targets:
         for n in elements[t.name]:
             s = row.sigma_of(n)
-            if not (math.isfinite(s) and s < t.limit):
+            if not (math.isfinite(s) and s * (1.0 + margin) < t.limit):
                 return False
     return True
 
@@ -185,7 +193,7 @@ def _shortfall(row: PlanRow, targets, elements) -> float:
 
 
 def optimize(cfg: AnalysisConfig, targets: Sequence[Target], budget: Budget, *, method: str | None = None,
-             workers: int | None = None, scheduler: str | None = None,
+             margin: float = MARGIN, workers: int | None = None, scheduler: str | None = None,
              progress: Callable[[int, int], None] | None = None) -> OptimizeResult:
     """Search the plan space (module docstring)."""
     from gcs_core.sidp.mission import read_mission_spec
@@ -209,11 +217,11 @@ def optimize(cfg: AnalysisConfig, targets: Sequence[Target], budget: Budget, *, 
             rows.extend(evaluate_plans(defn, [item]))
             if progress:
                 progress(k + 1, len(items))
-            if _meets(rows[-1], targets, elements):
+            if _meets(rows[-1], targets, elements, margin):
                 break
-    best = next((r for r in rows if _meets(r, targets, elements)), None)
+    best = next((r for r in rows if _meets(r, targets, elements, margin)), None)
     closest = None if best is not None else min(rows, key=lambda r: _shortfall(r, targets, elements), default=None)
-    res = OptimizeResult(list(targets), budget, len(rows), best, None, closest, elements=elements)
+    res = OptimizeResult(list(targets), budget, len(rows), margin, best, None, closest, elements=elements)
     chosen = best or closest
     if chosen is not None:
         res.config = plan_config(cfg, chosen)
@@ -250,9 +258,10 @@ def why_lines(defn: StudyDefinition, row: PlanRow, spec) -> list[str]:
         for (label, _), r in zip(variants, rows):
             s = r.sigma_of(n) if r.status == "ok" else math.nan
             if math.isnan(s):
-                parts.append(f"{label}: n/a")
-            elif math.isinf(s) or s > 1e6 * base:
-                parts.append(f"{label}: not determined")
+                continue                                  # its own sensor: nothing to say
+            limited = bool(r.prior_limited) and r.prior_limited[r.elements.index(n)]
+            if math.isinf(s) or limited:
+                parts.append(f"{label}: not determined (σ = a priori)")
             else:
                 parts.append(f"{label}: ×{s / base:.3g}")
         out.append(f"  {n:<16} " + "; ".join(parts))

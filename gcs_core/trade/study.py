@@ -205,6 +205,10 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
     for t in targets:
         if t == ATTITUDE:
             found = [(n, "rad") for n in ATTITUDE_NAMES]
+        elif t in ATTITUDE_NAMES:
+            found = [(t, "rad")]
+        elif t.rpartition(".")[2] in MISALIGN and f"{t.rpartition('.')[0]}.alignment" in params:
+            found = [(t, "rad")]
         elif t.endswith(".misalignment") and f"{t[:-len('.misalignment')]}.alignment" in params:
             found = [(f"{t[:-len('.misalignment')]}.{m}", "rad") for m in MISALIGN]
         elif t in params:
@@ -213,7 +217,9 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
             found = [(t, "rad/s²")]
         else:
             raise InputError(f"unknown target '{t}': give an element (TAM1.bias_x), an effect id "
-                             "(TAM1.alignment, see gcs effects) or 'attitude'", key="trade.targets")
+                             "(TAM1.alignment, see gcs effects), a sensor's misalignment about its "
+                             "own axes (FHST1.misalignment, FHST1.misalign_x) or 'attitude'",
+                             key="trade.targets")
         for n, u in found:
             if n not in names:
                 names.append(n)
