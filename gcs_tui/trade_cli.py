@@ -127,7 +127,8 @@ def cmd_trade(args, prog) -> int:
     if args.plot:
         from gcs_tui.trade_plot import study_plot
         path = Path(args.plot)
-        _write(path, study_plot(rows, tuple(defn.vary)))
+        from gcs_core.trade.run import varied_keys
+        _write(path, study_plot(rows, varied_keys([r for r in rows if r.status == "ok"]) or tuple(defn.vary)))
         _out(f"plot written to {path}")
     return EXIT_OK
 

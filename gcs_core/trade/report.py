@@ -10,11 +10,14 @@ from gcs_core.units import ARCSEC
 
 
 def sigma_display(value: float, unit: str) -> tuple[float, str]:
-    """A σ in the unit an analyst reads: rad → arcsec, rad/s → deg/h, others as they are."""
+    """A σ in the unit an analyst reads: rad → arcsec, rad/s → deg/h, dimensionless → ppm,
+    others as they are."""
     if unit == "rad":
         return value / ARCSEC, "″"
     if unit == "rad/s":
         return value * 180.0 / math.pi * 3600.0, "°/h"
+    if unit == "1":
+        return value * 1e6, "ppm"
     return value, unit
 
 

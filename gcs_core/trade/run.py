@@ -8,6 +8,7 @@ it had written; ``resume=True`` computes only what is missing.
 
 from __future__ import annotations
 
+import json
 import math
 from dataclasses import asdict
 from pathlib import Path
@@ -76,6 +77,14 @@ def run_study(defn: StudyDefinition, output: str | Path | None = None, *, worker
         _, rows = read_study(output)
         return rows
     return sorted(new, key=lambda r: r.index)
+
+
+def varied_keys(rows: list[PlanRow]) -> tuple[str, ...]:
+    """The keys that take more than one value among ``rows``, the one with the most values
+    first (the x axis of a plot), then in study order."""
+    keys = list(rows[0].values) if rows else []
+    count = {k: len({json.dumps(r.values.get(k)) for r in rows}) for k in keys}
+    return tuple(sorted((k for k in keys if count[k] > 1), key=lambda k: -count[k]))
 
 
 def sigma_grid(rows: list[PlanRow], element: str, keys: tuple[str, ...]) -> tuple[list, list, np.ndarray]:
