@@ -55,6 +55,29 @@ sample mission)::
     [verification]
     requirement_deg = 0.01
 
+    [trade]                       # gcs trade / gcs optimize (gcs_core/trade)
+    targets = ["TAM1.bias", "FHST1.misalignment", "attitude"]
+    output = "trade.h5"           # results file, relative to this config
+    top = 3                       # error budgets printed for the best plans
+    [trade.vary]                  # keys of gcs_core.trade.space and their values
+    span_min = [10, 20, 48, 95]
+    "models.FHST2" = ["on", "off"]
+    [trade.orbit]                 # Kepler elements, for plans the ephemeris does not cover
+    a_km = 6898.137
+    e = 0.0012
+    i_deg = 28.5
+    raan_deg = 35.0
+    argp_deg = 60.0
+    mean_anomaly_deg = 10.0
+    [trade.optimize]
+    targets = ["TAM1.alignment<0.01deg", "FHST1.misalignment<10arcsec"]
+    budget = {slew_min = 10.0, hours = 2.0, axes = ["roll", "yaw"], rates = [0.1]}
+
+    [montecarlo]                  # gcs montecarlo
+    runs = 100
+    seed = 20261202               # entropy of the SeedSequence
+    output = "montecarlo.h5"
+
 Every error names the key and says what is wrong (:class:`~gcs_core.errors.ConfigError`);
 ``docs/input_checks.md`` lists the messages. Keys are dotted as in TOML: a state element
 name holds a dot and is quoted (``state.elements."TAM1.bias_x".sigma``), list entries
