@@ -131,6 +131,16 @@ def test_output_refused_without_resume_and_other_study(tmp_path):
     assert head["study_digest"] and len(recs) == 1
 
 
+def test_serial_path_never_imports_dask(tmp_path):
+    code = ("import sys; from gcs_core.config import load_config; from gcs_core.trade import "
+            "definition_from_config; from gcs_core.trade.run import run_study; "
+            f"run_study(definition_from_config(load_config({str(CONFIG)!r}), {{'span_min': (10,)}})); "
+            "print('dask' in sys.modules, 'distributed' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
+                         env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=120)
+    assert out.stdout.split() == ["False", "False"], out.stderr
+
+
 def test_identical_numbers_serially_and_on_a_local_cluster(tmp_path):
     pytest.importorskip("distributed")
     vary = ["span_min=10,20", "start_min=0,30"]
