@@ -311,8 +311,10 @@ def run_montecarlo(mc: MonteCarlo, output=None, *, workers=None, scheduler=None,
 
     items = [i for i in range(mc.runs) if i not in skip]
     prog = None if progress is None else (lambda d, _n: progress(len(skip) + d, mc.runs))
+    # a run (simulation and fit) takes seconds, far over Dask's per-task overhead: one
+    # run per task balances the load and loses at most one run per worker to a Ctrl-C
     engine.run_jobs(_runs, mc, items, on_batch=on_batch, workers=workers, scheduler=scheduler,
-                    batch=batch, progress=prog)
+                    batch=batch or 1, progress=prog)
     if output is not None:
         _, records = store.read(output, store.MONTECARLO)
         records = [r for r in records if int(r["index"]) < mc.runs]

@@ -189,8 +189,9 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
           combo: Mapping[str, Any]) -> PlanSetup:
     """The config, mission description and plan of one combination (module docstring).
 
-    Keys not in ``combo`` keep the base's values; a maneuver key replaces the base
-    plan's maneuvers by the one maneuver it describes.
+    Keys not in ``combo`` keep the base's values; the base plan's gaps and maneuvers
+    move with ``start_min``; a maneuver key replaces the base plan's maneuvers by the
+    one maneuver (or sequence) it describes.
     """
     start = base_plan.start if "start_min" not in combo else 60.0 * _num(combo, "start_min")
     span = base_plan.end - base_plan.start
@@ -216,8 +217,10 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
             gaps.append((g0, g1))
     if not span > 0:
         raise InputError(f"the plan needs a positive span, not {span / 60.0:g} min", key="trade.vary.span_min")
+    shift = start - base_plan.start
     plan = replace(base_plan, start=start, end=start + span,
                    gaps=tuple((start + a, start + b) for a, b in gaps if b > 0 and a < span),
+                   maneuvers=tuple(replace(m, start=m.start + shift) for m in base_plan.maneuvers),
                    step=min(base_plan.step, span))
     plan = _maneuver(plan, combo, base_plan)
 

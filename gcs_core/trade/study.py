@@ -22,13 +22,13 @@ import json
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.config import AnalysisConfig, load_config, to_dict
+from gcs_core.config import AnalysisConfig, load_config
 from gcs_core.errors import GcsError, InputError
 from gcs_core.trade import space
 
@@ -54,7 +54,8 @@ class StudyDefinition:
     config_path : the base analysis config (TOML), read again by every worker.
     vary : key -> values (:mod:`gcs_core.trade.space`); the first key varies slowest.
     targets : element names (``TAM1.bias_x``), effect ids (``TAM1.alignment``: all its
-        elements) or ``"attitude"``.
+        elements), a sensor's misalignment about its own axes (``FHST1.misalignment`` or
+        ``FHST1.misalign_x``), or ``"attitude"`` (the default).
     orbit : Kepler elements (:data:`ORBIT_KEYS`) for plans the ephemeris does not cover.
     method : ``"batch"``/``"kalman"`` to override the config's, or None.
     top : how many best plans get their error budget printed.
@@ -227,17 +228,12 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
     return tuple(names), tuple(units)
 
 
-def default_targets(cfg: AnalysisConfig, spec) -> tuple[str, ...]:
-    """Without targets: the attitude and the seed's calibration effects of the sensors in use."""
-    return (ATTITUDE,)
-
-
 def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str, Any]]]) -> list[PlanRow]:
     """Predict each ``(index, combination)`` of ``items`` (a batch of one task)."""
     from gcs_core.predictor import predict
 
     cfg, spec, base, orbit = _context(defn)
-    targets = defn.targets or default_targets(cfg, spec)
+    targets = defn.targets or (ATTITUDE,)          # without targets: the attitude
     names, units = target_elements(targets, spec)
     out = []
     for index, combo in items:
@@ -371,10 +367,6 @@ def ranked(rows: Sequence[PlanRow]) -> list[tuple[float, PlanRow]]:
     return [(float(sc[i]), rows[i]) for i in order]
 
 
-def row_to_dict(row: PlanRow) -> dict:
-    return asdict(row)
-
-
 def definition_from_config(cfg: AnalysisConfig, vary: Mapping[str, tuple] | None = None,
                            targets: Sequence[str] | None = None, *, method: str | None = None,
                            top: int | None = None) -> StudyDefinition:
@@ -396,4 +388,4 @@ def definition_from_config(cfg: AnalysisConfig, vary: Mapping[str, tuple] | None
 
 
 __all__ = ["ATTITUDE", "PlanRow", "StudyDefinition", "definition_from_config", "evaluate_plans",
-           "make_orbit", "ranked", "scores", "target_elements", "to_dict"]
+           "make_orbit", "ranked", "scores", "sensor_axes_covariance", "target_elements"]
