@@ -1,6 +1,6 @@
 """The optimizer's plan checked by Monte Carlo (issue acceptance: ≥ 100 runs, within 15 %).
 
-1. ``gcs optimize`` on ``sample_data/configs/optimize-tam-fhst.toml`` (targets: TAM1
+1. ``gcs optimize`` on ``sample_data/trade/optimize-tam-fhst.toml`` (targets: TAM1
    alignment below 0.01°, FHST1's misalignment about its boresight below 10″; budget
    10 min of slewing, 2 h of data) writes the chosen plan as a config;
 2. ``gcs montecarlo`` simulates that plan with the truth simulator ``--runs`` times (seeds
@@ -38,7 +38,7 @@ from gcs_core.trade.montecarlo import MATCH_FRACTION, MonteCarlo, run_montecarlo
 from gcs_core.trade.optimize import Budget, optimize, parse_target  # noqa: E402
 from gcs_core.trade.study import sensor_axes_covariance  # noqa: E402
 
-CONFIG = ROOT / "sample_data" / "configs" / "optimize-tam-fhst.toml"
+CONFIG = ROOT / "sample_data" / "trade" / "optimize-tam-fhst.toml"
 
 
 def main() -> int:

@@ -1,6 +1,6 @@
 """A trade study of ≥ 200 plans serially and on a 2-worker Dask LocalCluster.
 
-The gyro study of seed §2.3.2 (``sample_data/configs/trade-smm-gyro.toml``: one hour of
+The gyro study of seed §2.3.2 (``sample_data/trade/smm-gyro.toml``: one hour of
 trackers, Sun sensor and gyro) over slew axis × slew angle × slew start: 3 × 12 × 6 = 216
 plans. Prints the serial time, the LocalCluster time (cluster start included, and
 without it), their ratio, and checks that both give identical numbers.
@@ -30,7 +30,7 @@ from gcs_core.trade import definition_from_config  # noqa: E402
 from gcs_core.trade.engine import connect  # noqa: E402
 from gcs_core.trade.run import run_study  # noqa: E402
 
-CONFIG = ROOT / "sample_data" / "configs" / "trade-smm-gyro.toml"
+CONFIG = ROOT / "sample_data" / "trade" / "smm-gyro.toml"
 
 
 def main() -> int:

@@ -1,6 +1,6 @@
 """The seed's SMM conclusions (§2.1–§2.3) from the trade study: the README table.
 
-Runs the studies of ``sample_data/configs/trade-smm-*.toml`` (the tests in
+Runs the studies of ``sample_data/trade/smm-*.toml`` (the tests in
 ``tests/test_trade_smm.py`` assert the same statements on the same studies) and prints
 one markdown row per conclusion with the predicted σ that shows it.
 
@@ -32,12 +32,12 @@ from gcs_core.trade.run import run_study  # noqa: E402
 from gcs_core.trade.study import make_orbit  # noqa: E402
 from gcs_core.units import ARCSEC  # noqa: E402
 
-CONFIGS = ROOT / "sample_data" / "configs"
+CONFIGS = ROOT / "sample_data" / "trade"
 STARTS = tuple(range(0, 95, 5))
 
 
 def study(name, vary, targets=None):
-    cfg = load_config(CONFIGS / f"trade-smm-{name}.toml")
+    cfg = load_config(CONFIGS / f"smm-{name}.toml")
     return cfg, run_study(definition_from_config(cfg, vary, targets))
 
 

@@ -119,6 +119,9 @@ TABLES: dict[str, tuple[str, ...]] = {
     "diagnosis": ("significance", "holdout_fraction"),
     "prediction": ("start", "end", "step", "gaps", "maneuvers", "stars", "catalog"),
     "verification": ("requirement_deg",),
+}
+#: the planning tables (gcs trade / optimize / montecarlo), checked in detail by gcs_core.trade
+PLANNING_TABLES: dict[str, tuple[str, ...]] = {
     "trade": ("vary", "targets", "orbit", "top", "output", "optimize"),
     "montecarlo": ("runs", "seed", "output"),
 }
@@ -337,8 +340,8 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     """Validate the TOML tables of a config (relative paths resolve against ``path``'s folder)."""
     f = path
     _require(isinstance(data, dict), "", "a config is a TOML document of tables", f)
-    _unknown(data, TABLES, "", f)
-    tables = {name: _table(data, name, name, f) for name in TABLES}
+    _unknown(data, {**TABLES, **PLANNING_TABLES}, "", f)
+    tables = {name: _table(data, name, name, f) for name in {**TABLES, **PLANNING_TABLES}}
 
     an = tables["analysis"]
     _unknown(an, TABLES["analysis"], "analysis.", f)
@@ -427,8 +430,8 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         pred_catalog = Path(os.path.normpath(mission / cat))
     vf = tables["verification"]
     _unknown(vf, TABLES["verification"], "verification.", f)
-    for name in ("trade", "montecarlo"):
-        _unknown(tables[name], TABLES[name], f"{name}.", f)
+    for extra, keys in PLANNING_TABLES.items():
+        _unknown(tables[extra], keys, f"{extra}.", f)
     return AnalysisConfig(
         path=path, mission=mission, method=method, physics=ph, models=dict(models),
         effects=lists["effects"], exclude=lists["exclude"], elements=elements, attitude_sigma_deg=att_sig,
@@ -512,9 +515,9 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
     }
     if cfg.edit_k_sensor:
         out["filter"]["edit_k_sensor"] = dict(cfg.edit_k_sensor)
-    for name in ("trade", "montecarlo"):
-        if getattr(cfg, name):
-            out[name] = dict(getattr(cfg, name))
+    for extra in ("trade", "montecarlo"):
+        if getattr(cfg, extra):
+            out[extra] = dict(getattr(cfg, extra))
     if cfg.pred_start is not None:
         out["prediction"]["start"] = cfg.pred_start
     if cfg.pred_end is not None:

@@ -1,6 +1,6 @@
 """The plan optimizer: the cheapest plan meeting σ targets within a budget, and why.
 
-On the gyro study (``trade-smm-gyro.toml``: trackers and Sun sensor, the gyro's scale and
+On the gyro study (``smm-gyro.toml``: trackers and Sun sensor, the gyro's scale and
 misalignment solved for), the target ``IRU.G_11 < 50 ppm`` cannot be met without a roll
 slew (seed §2.3.2): the optimizer must return a plan with one, whose predicted σ meets
 the target with the margin, while every cheaper plan it tried does not; the explanation
@@ -18,7 +18,7 @@ from gcs_core.errors import InputError
 from gcs_core.trade.optimize import MARGIN, Budget, candidates, optimize, parse_target
 from gcs_core.units import ARCSEC, DEG
 
-CONFIG = Path(__file__).resolve().parents[1] / "sample_data" / "configs" / "trade-smm-gyro.toml"
+CONFIG = Path(__file__).resolve().parents[1] / "sample_data" / "trade" / "smm-gyro.toml"
 
 
 def test_parse_target_units():

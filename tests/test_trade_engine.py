@@ -27,7 +27,7 @@ from gcs_core.trade.run import read_study, run_study
 from gcs_core.trade.space import parse_values, parse_vary
 
 ROOT = Path(__file__).resolve().parents[1]
-CONFIG = ROOT / "sample_data" / "configs" / "trade-smm-tam-bias.toml"
+CONFIG = ROOT / "sample_data" / "trade" / "smm-tam-bias.toml"
 #: the kill test's study: 2 spans × 48 starts = 96 short plans (a few seconds serially,
 #: written at least once a second)
 KILL_VARY = ["span_min=10,20", "start_min=0:94:2"]

@@ -1,6 +1,6 @@
 """The seed's SMM conclusions (§2.1.1, §2.1.2, §2.2.2, §2.3.2) out of the trade study.
 
-Each test runs the trade study of one ``sample_data/configs/trade-smm-*.toml`` (the
+Each test runs the trade study of one ``sample_data/trade/smm-*.toml`` (the
 nominal Sun-pointing sample mission, SMM-like: 520 km, 28.5°, TAM, gyro, two FHSTs, fine
 Sun sensor) and checks the seed's statement against the predicted σ. The README table
 (``benchmarks/trade_smm.py``) prints the same numbers.
@@ -38,7 +38,7 @@ from gcs_core.trade.geometry import field_turn_deg
 from gcs_core.trade.run import run_study
 from gcs_core.trade.study import make_orbit
 
-CONFIGS = Path(__file__).resolve().parents[1] / "sample_data" / "configs"
+CONFIGS = Path(__file__).resolve().parents[1] / "sample_data" / "trade"
 #: "several times larger": at least this factor
 several_times = 3.0
 #: "much worse" / "highly improved": at least this factor
@@ -54,7 +54,7 @@ def _rss(row) -> float:
 
 
 def _study(name: str, vary: dict, targets=None):
-    cfg = load_config(CONFIGS / f"trade-smm-{name}.toml")
+    cfg = load_config(CONFIGS / f"smm-{name}.toml")
     rows = run_study(definition_from_config(cfg, vary, targets))
     assert all(r.status == "ok" for r in rows), [r.status for r in rows if r.status != "ok"]
     return cfg, rows

@@ -15,7 +15,7 @@ from gcs_tui.screens.trade import TradeScreen
 from gcs_tui.testing import sample_mission, settle
 from gcs_tui.workbench import Workbench
 
-CONFIG = Path(__file__).resolve().parents[1] / "sample_data" / "configs" / "trade-smm-tam-bias.toml"
+CONFIG = Path(__file__).resolve().parents[1] / "sample_data" / "trade" / "smm-tam-bias.toml"
 
 
 @pytest.fixture(scope="module")
