@@ -27,6 +27,7 @@ from __future__ import annotations
 import itertools
 import math
 import re
+from pathlib import Path
 from dataclasses import dataclass, field, replace
 from typing import Any, Callable, Mapping, Sequence
 
@@ -204,7 +205,7 @@ def optimize(cfg: AnalysisConfig, targets: Sequence[Target], budget: Budget, *, 
     elements = {t.name: list(target_elements([t.name], spec)[0]) for t in targets}
     names = tuple(dict.fromkeys(n for t in targets for n in elements[t.name]))
     cands = candidates(budget)
-    defn = StudyDefinition(str(cfg.path), {"span_min": (), "maneuvers": ()}, names,
+    defn = StudyDefinition(str(Path(cfg.path).resolve()), {"span_min": (), "maneuvers": ()}, names,
                            cfg.trade.get("orbit"), method)
     items = list(enumerate(cands))
     rows: list[PlanRow] = []
@@ -220,7 +221,10 @@ def optimize(cfg: AnalysisConfig, targets: Sequence[Target], budget: Budget, *, 
             if _meets(rows[-1], targets, elements, margin):
                 break
     best = next((r for r in rows if _meets(r, targets, elements, margin)), None)
-    closest = None if best is not None else min(rows, key=lambda r: _shortfall(r, targets, elements), default=None)
+    ok = [r for r in rows if r.status == "ok"]
+    if not ok and rows:
+        raise InputError(f"no plan could be predicted: {rows[0].status}", key="trade.optimize")
+    closest = None if best is not None else min(ok, key=lambda r: _shortfall(r, targets, elements), default=None)
     res = OptimizeResult(list(targets), budget, len(rows), margin, best, None, closest, elements=elements)
     chosen = best or closest
     if chosen is not None:
