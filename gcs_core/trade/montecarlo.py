@@ -224,7 +224,7 @@ def predicted(mc: MonteCarlo):
         trackers = any(s.type == "star_tracker" for s in spec.sensors)
         p = replace(plan, stars="catalog", catalog=Path(path) / "star_catalog.csv") if trackers else plan
         from gcs_core.trade.study import make_orbit
-        return predict(cfg, mission=replace(spec, root=sim_spec.root), plan=p,
+        return predict(cfg, mission=replace(spec, root=sim_spec.root, ephemeris_file=None), plan=p,
                        orbit=make_orbit(cfg.trade.get("orbit"), spec.epoch))
 
 

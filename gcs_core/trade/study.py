@@ -56,7 +56,9 @@ class StudyDefinition:
     targets : element names (``TAM1.bias_x``), effect ids (``TAM1.alignment``: all its
         elements), a sensor's misalignment about its own axes (``FHST1.misalignment`` or
         ``FHST1.misalign_x``), or ``"attitude"`` (the default).
-    orbit : Kepler elements (:data:`ORBIT_KEYS`) for plans the ephemeris does not cover.
+    orbit : Kepler elements (:data:`ORBIT_KEYS`); when given, every plan's ephemeris is
+        tabulated from it (one ephemeris source for the whole study, any span or start),
+        otherwise the mission's ephemeris file must cover each plan.
     method : ``"batch"``/``"kalman"`` to override the config's, or None.
     top : how many best plans get their error budget printed.
     """
@@ -241,7 +243,9 @@ def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str
         pid = space.plan_id(combo)
         try:
             setup = space.apply(cfg, spec, base, combo)
-            res = predict(setup.config, mission=setup.spec, plan=setup.plan, orbit=orbit)
+            # with an orbit, every plan's ephemeris comes from it (one source for the study)
+            mspec = replace(setup.spec, ephemeris_file=None) if orbit is not None else setup.spec
+            res = predict(setup.config, mission=mspec, plan=setup.plan, orbit=orbit)
         except (GcsError, np.linalg.LinAlgError) as err:
             log.info("plan %s: %s", pid, err)
             desc = {}
