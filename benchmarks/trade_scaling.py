@@ -6,7 +6,11 @@ plans. Prints the serial time, the LocalCluster time (cluster start included, an
 without it), their ratio, and checks that both give identical numbers.
 
 The machine's other load disturbs the ratio (two workers compete with every other
-process for two cores): the load average before and after is printed with it.
+process for two cores): the load average is printed with it, and so is what the machine
+gives two plain processes at that moment (a pure-Python loop, serially and on a 2-process
+``multiprocessing`` pool): the ceiling any scale-out can reach then. "Running cluster"
+times the study on a LocalCluster whose workers have already imported GCS (one plan
+each); "cold" includes starting the cluster, the workers' imports, and stopping it.
 
 Usage: ``python benchmarks/trade_scaling.py [--workers 2] [--angles 12] [--starts 6]``
 """
@@ -33,6 +37,28 @@ from gcs_core.trade.run import run_study  # noqa: E402
 CONFIG = ROOT / "sample_data" / "trade" / "smm-gyro.toml"
 
 
+def _spin(n: int) -> float:
+    t = time.perf_counter()
+    x = 0.0
+    for i in range(n):
+        x += (i % 7) * 0.5
+    return time.perf_counter() - t
+
+
+def parallel_ceiling(n: int = 10_000_000) -> float:
+    """Serial time / 2-process time of a pure-Python loop, now, on this machine."""
+    from multiprocessing import get_context
+
+    t = time.perf_counter()
+    _spin(n)
+    _spin(n)
+    serial = time.perf_counter() - t
+    with get_context("spawn").Pool(2) as pool:
+        t = time.perf_counter()
+        pool.map(_spin, [n, n])
+        return serial / (time.perf_counter() - t)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--workers", type=int, default=2)
@@ -45,7 +71,8 @@ def main() -> int:
             "maneuver.back": (True,)}
     defn = definition_from_config(load_config(CONFIG), vary)
     n = len(defn.combos())
-    print(f"{n} plans; load average before: {os.getloadavg()[0]:.2f}")
+    print(f"{n} plans; load average before: {os.getloadavg()[0]:.2f}; two plain processes run "
+          f"{parallel_ceiling():.2f}× faster than one now")
     run_study(definition_from_config(load_config(CONFIG), {"maneuver.axis": ("roll",)}))  # warm the caches
     t0 = time.perf_counter()
     serial = run_study(defn)
@@ -57,6 +84,8 @@ def main() -> int:
     address = cluster.scheduler_address
     t_start = time.perf_counter() - t0
     try:
+        warm = definition_from_config(load_config(CONFIG), {"maneuver.axis": ("roll", "yaw")})
+        run_study(warm, scheduler=address, batch=1)          # every worker imports GCS once
         t1 = time.perf_counter()
         dask_rows = run_study(defn, scheduler=address)
         t_dask = time.perf_counter() - t1
@@ -73,7 +102,8 @@ def main() -> int:
     print(f"ratio serial / LocalCluster: {t_serial / t_dask:.2f} (running cluster), "
           f"{t_serial / t_cold:.2f} (cluster started and stopped by the study)")
     print(f"identical numbers serially and on the cluster: {'yes' if same else 'NO'}")
-    print(f"load average after: {os.getloadavg()[0]:.2f} (cores: {os.cpu_count()})")
+    print(f"load average after: {os.getloadavg()[0]:.2f} (cores: {os.cpu_count()}); two plain processes "
+          f"{parallel_ceiling():.2f}× faster than one")
     return 0 if same else 1
 
 
