@@ -41,10 +41,22 @@ def _progress(task, what: str):
     return cb
 
 
+def _count(text: str) -> int:
+    import argparse
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must be ≥ 0, not {v}")
+    return v
+
+
 def _scale_args(sp) -> None:
-    sp.add_argument("--workers", type=int, default=0, help="run on a local Dask cluster of N processes")
+    sp.add_argument("--workers", type=_count, default=0, help="run on a local Dask cluster of N processes")
     sp.add_argument("--scheduler", help="run on an existing Dask cluster (tcp://host:port)")
-    sp.add_argument("--batch", type=int, help="plans (runs) per Dask task (default: about 4 tasks per worker)")
+    sp.add_argument("--batch", type=_count, help="plans (runs) per Dask task (default: about 4 tasks per "
+                                                 "worker; Monte Carlo: 1)")
     sp.add_argument("--resume", action="store_true", help="compute only what the output file lacks")
     sp.add_argument("--overwrite", action="store_true", help="replace an existing output file")
 
@@ -59,8 +71,8 @@ def add_commands(add, target) -> None:
                     help="element, effect id or 'attitude' whose σ ranks the plans (repeatable)")
     sp.add_argument("--output", help="HDF5 results file (default: [trade] output)")
     sp.add_argument("--plot", help="write the plot of σ against the varied keys here (text)")
-    sp.add_argument("--top", type=int, help="error budgets of this many best plans")
-    sp.add_argument("--limit", type=int, default=20, help="rows of the table")
+    sp.add_argument("--top", type=_count, help="error budgets of this many best plans")
+    sp.add_argument("--limit", type=_count, default=20, help="rows of the table")
     sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
     _scale_args(sp)
 
@@ -74,12 +86,12 @@ def add_commands(add, target) -> None:
     sp.add_argument("--rates", help="allowed maneuver rates [deg/s], e.g. 0.05,0.1")
     sp.add_argument("--write-config", help="write the chosen plan as an analysis config here")
     sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
-    sp.add_argument("--workers", type=int, default=0, help="run on a local Dask cluster of N processes")
+    sp.add_argument("--workers", type=_count, default=0, help="run on a local Dask cluster of N processes")
     sp.add_argument("--scheduler", help="run on an existing Dask cluster")
 
     sp = add("montecarlo", cmd_montecarlo, "simulate and fit the plan N times: scatter against predicted σ")
     target(sp)
-    sp.add_argument("--runs", type=int, help="number of runs (default: [montecarlo] runs, else 100)")
+    sp.add_argument("--runs", type=_count, help="number of runs (default: [montecarlo] runs, else 100)")
     sp.add_argument("--seed", type=int, help="entropy of the SeedSequence (default: [montecarlo] seed)")
     sp.add_argument("--output", help="HDF5 results file (default: [montecarlo] output)")
     sp.add_argument("--plot", help="write the plot of scatter / predicted σ here (text)")
