@@ -62,7 +62,7 @@ sample mission)::
     [trade.vary]                  # keys of gcs_core.trade.space and their values
     span_min = [10, 20, 48, 95]
     "models.FHST2" = ["on", "off"]
-    [trade.orbit]                 # Kepler elements, for plans the ephemeris does not cover
+    [trade.orbit]                 # Kepler elements: every plan's ephemeris (any span or start)
     a_km = 6898.137
     e = 0.0012
     i_deg = 28.5
@@ -212,9 +212,12 @@ class AnalysisConfig:
         return replace(self, **kw)
 
     def digest(self) -> str:
-        """A short hash of the settings (provenance of calibrations); the label is left out."""
+        """A short hash of the settings (provenance of calibrations); the label and the
+        planning tables are left out."""
         d = to_dict(self)
         d["analysis"].pop("name", None)
+        for extra in PLANNING_TABLES:         # planning settings do not change a calibration
+            d.pop(extra, None)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 

@@ -62,7 +62,8 @@ class MonteCarlo:
         import hashlib
 
         from gcs_core.config import load_config
-        d = {"config": load_config(self.config_path).digest(), "seed": self.seed}
+        cfg = load_config(self.config_path)
+        d = {"config": cfg.digest(), "orbit": cfg.trade.get("orbit"), "seed": self.seed}
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
     def run_seed(self, i: int) -> tuple[int, list[int]]:
