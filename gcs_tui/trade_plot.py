@@ -4,6 +4,7 @@ for two, and the Monte-Carlo scatter against the predicted σ."""
 from __future__ import annotations
 
 import math
+import re
 from typing import Sequence
 
 import numpy as np
@@ -14,6 +15,12 @@ from gcs_core.trade.run import sigma_grid
 
 #: shades of a text heat map, light (small σ) to dark (large σ)
 SHADES = " .:-=+*#%@"
+_ANSI = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def _plain(text: str) -> str:
+    """plotext's text without its terminal colour codes (the plot goes to a file)."""
+    return _ANSI.sub("", text)
 
 
 def _numeric(values) -> bool:
@@ -45,7 +52,7 @@ def study_plot(rows: Sequence, keys: tuple[str, ...], *, width: int = 100, heigh
             plt.xticks(x, [str(v) for v in v1])
         plt.title(f"σ {name} [{sigma_display(1.0, unit)[1]}] against {keys[0]}")
         plt.xlabel(keys[0])
-        out.append(plt.build())
+        out.append(_plain(plt.build()))
     return "\n\n".join(out) + "\n"
 
 
@@ -74,9 +81,11 @@ def heat_map(rows: Sequence, name: str, unit: str, keys: tuple[str, str]) -> str
 
 
 def montecarlo_plot(result, *, width: int = 100, height: int = 22) -> str:
-    """Ratio Monte-Carlo scatter / predicted σ per element, with the 15 % band."""
-    names = list(result.names)
-    ratio = [float(r) if math.isfinite(r) else 0.0 for r in result.ratio]
+    """Ratio Monte-Carlo scatter / predicted σ per element the plan determines, with the
+    15 % band."""
+    keep = [k for k in range(len(result.names)) if result.determined[k]]
+    names = [result.names[k] for k in keep]
+    ratio = [float(result.ratio[k]) if math.isfinite(result.ratio[k]) else 0.0 for k in keep]
     plt.clear_figure()
     plt.plotsize(width, height)
     plt.theme("clear")
@@ -85,4 +94,4 @@ def montecarlo_plot(result, *, width: int = 100, height: int = 22) -> str:
     plt.hline(0.85)
     plt.xticks(list(range(len(names))), [n.split(".")[-1] for n in names])
     plt.title(f"Monte-Carlo scatter / predicted σ ({result.runs} runs; lines: ±15 %)")
-    return plt.build() + "\n"
+    return _plain(plt.build()) + "\n"
