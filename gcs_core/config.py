@@ -56,6 +56,29 @@ sample mission)::
     [verification]
     requirement_deg = 0.01
 
+    [trade]                       # gcs trade / gcs optimize (gcs_core/trade)
+    targets = ["TAM1.bias", "FHST1.misalignment", "attitude"]
+    output = "trade.h5"           # results file, relative to this config
+    top = 3                       # error budgets printed for the best plans
+    [trade.vary]                  # keys of gcs_core.trade.space and their values
+    span_min = [10, 20, 48, 95]
+    "models.FHST2" = ["on", "off"]
+    [trade.orbit]                 # Kepler elements: every plan's ephemeris (any span or start)
+    a_km = 6898.137
+    e = 0.0012
+    i_deg = 28.5
+    raan_deg = 35.0
+    argp_deg = 60.0
+    mean_anomaly_deg = 10.0
+    [trade.optimize]
+    targets = ["TAM1.alignment<0.01deg", "FHST1.misalignment<10arcsec"]
+    budget = {slew_min = 10.0, hours = 2.0, axes = ["roll", "yaw"], rates = [0.1]}
+
+    [montecarlo]                  # gcs montecarlo
+    runs = 100
+    seed = 20261202               # entropy of the SeedSequence
+    output = "montecarlo.h5"
+
 Every error names the key and says what is wrong (:class:`~gcs_core.errors.ConfigError`);
 ``docs/input_checks.md`` lists the messages. Keys are dotted as in TOML: a state element
 name holds a dot and is quoted (``state.elements."TAM1.bias_x".sigma``), list entries
@@ -98,6 +121,11 @@ TABLES: dict[str, tuple[str, ...]] = {
     "diagnosis": ("significance", "holdout_fraction"),
     "prediction": ("start", "end", "step", "gaps", "maneuvers", "stars", "catalog"),
     "verification": ("requirement_deg",),
+}
+#: the planning tables (gcs trade / optimize / montecarlo), checked in detail by gcs_core.trade
+PLANNING_TABLES: dict[str, tuple[str, ...]] = {
+    "trade": ("vary", "targets", "orbit", "top", "output", "optimize"),
+    "montecarlo": ("runs", "seed", "output"),
 }
 ELEMENT_KEYS = ("role", "value", "sigma")
 MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
@@ -150,6 +178,8 @@ class AnalysisConfig:
     pred_catalog : star catalog file (``prediction.catalog``, resolved against the
         mission directory), or None (``star_catalog.csv`` of the mission, if any).
     requirement_deg : VERIF attitude accuracy requirement.
+    trade, montecarlo : the ``[trade]`` and ``[montecarlo]`` tables as read (checked in
+        detail by :mod:`gcs_core.trade`).
     name : an optional label (not part of :meth:`digest`).
     """
 
@@ -179,15 +209,20 @@ class AnalysisConfig:
     pred_catalog: Path | None = None
     requirement_deg: float = 0.01
     name: str | None = None
+    trade: dict = field(default_factory=dict)
+    montecarlo: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------------ derived
     def with_changes(self, **kw) -> "AnalysisConfig":
         return replace(self, **kw)
 
     def digest(self) -> str:
-        """A short hash of the settings (provenance of calibrations); the label is left out."""
+        """A short hash of the settings (provenance of calibrations); the label and the
+        planning tables are left out."""
         d = to_dict(self)
         d["analysis"].pop("name", None)
+        for extra in PLANNING_TABLES:         # planning settings do not change a calibration
+            d.pop(extra, None)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
 
@@ -313,8 +348,8 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     """Validate the TOML tables of a config (relative paths resolve against ``path``'s folder)."""
     f = path
     _require(isinstance(data, dict), "", "a config is a TOML document of tables", f)
-    _unknown(data, TABLES, "", f)
-    tables = {name: _table(data, name, name, f) for name in TABLES}
+    _unknown(data, {**TABLES, **PLANNING_TABLES}, "", f)
+    tables = {name: _table(data, name, name, f) for name in {**TABLES, **PLANNING_TABLES}}
 
     an = tables["analysis"]
     _unknown(an, TABLES["analysis"], "analysis.", f)
@@ -403,6 +438,8 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         pred_catalog = Path(os.path.normpath(mission / cat))
     vf = tables["verification"]
     _unknown(vf, TABLES["verification"], "verification.", f)
+    for extra, keys in PLANNING_TABLES.items():
+        _unknown(tables[extra], keys, f"{extra}.", f)
     return AnalysisConfig(
         path=path, mission=mission, method=method, physics=ph, models=dict(models),
         effects=lists["effects"], exclude=lists["exclude"], elements=elements, attitude_sigma_deg=att_sig,
@@ -418,7 +455,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         pred_stars=pred_stars, pred_catalog=pred_catalog,
         requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
                                 prefix="verification."),
-        name=name)
+        name=name, trade=dict(tables["trade"]), montecarlo=dict(tables["montecarlo"]))
 
 
 def _edit_k_sensor(fl: dict, f) -> dict[str, float]:
@@ -486,6 +523,9 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
     }
     if cfg.edit_k_sensor:
         out["filter"]["edit_k_sensor"] = dict(cfg.edit_k_sensor)
+    for extra in ("trade", "montecarlo"):
+        if getattr(cfg, extra):
+            out[extra] = dict(getattr(cfg, extra))
     if cfg.pred_start is not None:
         out["prediction"]["start"] = cfg.pred_start
     if cfg.pred_end is not None:

@@ -400,6 +400,28 @@ class GcsApp(App):
         self.push_screen(FormScreen("Append the fitted calibration to the SCDS", fields,
                                     note="Every element not held, with σ and covariance (append-only)."), done)
 
+    def open_trade(self, path: str | Path) -> bool:
+        """Show a trade study's results file (``gcs trade --output``) in the Trade screen."""
+        from gcs_core.trade.run import read_study
+        from gcs_tui.screens.trade import TradeScreen
+
+        try:
+            _, rows = read_study(path)
+        except GcsError as err:
+            self.notify(str(err), title="trade study not opened", severity="error")
+            return False
+        self.push_screen(TradeScreen(rows, source=Path(path).name))
+        return True
+
+    def action_trade_results(self) -> None:
+        cfg = self.workbench.config if self.workbench.ready else None
+        start = ""
+        if cfg is not None and cfg.trade.get("output") and cfg.path is not None:
+            start = str(Path(cfg.path).parent / cfg.trade["output"])
+        self.push_screen(FormScreen("Open a trade study's results (gcs trade --output)",
+                                    [Field("path", "HDF5 file", start, kind="text")]),
+                         lambda v: v and self.open_trade(v["path"]))
+
     def action_filtr_step(self) -> None:
         self.switch_mode("filtr")
         self.call_later(lambda: self.screen.run_action("step_block"))

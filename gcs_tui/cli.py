@@ -9,7 +9,9 @@ Commands (``gcs COMMAND --help`` for options):
 * ``gcs discover TARGET`` — stepwise missing-effect discovery;
 * ``gcs effects [TARGET]`` — the catalogue of candidate effects (generic, or the mission's);
 * ``gcs predict TARGET`` — covariance-only accuracy prediction for the data plan;
-* ``gcs verify TARGET`` — onboard against ground attitudes, §4.4 flag.
+* ``gcs verify TARGET`` — onboard against ground attitudes, §4.4 flag;
+* ``gcs trade``, ``gcs optimize``, ``gcs montecarlo`` — plan before launch
+  (:mod:`gcs_tui.trade_cli`).
 
 ``TARGET`` is an analysis config (``.toml``, see :mod:`gcs_core.config` and
 ``sample_data/configs/``) or a mission directory (default config). ``--report R`` writes
@@ -463,6 +465,9 @@ def build_parser() -> argparse.ArgumentParser:
     target(sp)
     sp.add_argument("--report", help="write a JSON report here")
     sp.add_argument("--asf", help="append the ground attitudes to this Attitude Status File")
+
+    from gcs_tui.trade_cli import add_commands
+    add_commands(add, target)
     return p
 
 

@@ -26,6 +26,8 @@ COMMANDS: tuple[tuple[str, str, str], ...] = tuple(
     ("filtr: step block", "Process the next FILTR block", "filtr_step"),
     ("filtr: run to end", "Process every remaining FILTR block", "filtr_run"),
     ("predictor: run", "Predict σ of every element along the data plan (key p on Plan/Predictor)", "predict"),
+    ("trade: open results", "Show a trade study's ranked plans and open one in the Data plan screen",
+     "trade_results"),
     ("verification: run", "Compare onboard and ground attitude (key r on Verification)", "verify"),
     ("calibration: save", "Append the fitted calibration to the SCDS", "save_calibration"),
     ("config: save", "Save the analysis config (key ctrl+s)", "save_config"),
