@@ -3,6 +3,8 @@
 Commands (``gcs COMMAND --help`` for options):
 
 * ``gcs tui [TARGET]`` — the analyst's terminal UI;
+* ``gcs convert FORMAT SOURCE --out DIR [--tle TLE]`` — foreign data (``astropi``,
+  ``broad``) to a mission directory (:mod:`gcs_core.convert`);
 * ``gcs import MISSION [--sdf FILE] [--report R]`` — validate a mission directory, print what
   was read (rows kept, NaN and duplicate rows dropped per file, unknown keys), write the SDF;
 * ``gcs batch TARGET`` — fit the configured state, print residuals and estimates;
@@ -180,6 +182,18 @@ def cmd_import(args, prog: Progress) -> int:
             path = write_sdf(_output(args.sdf), m)
         _out(f"SDF written to {path}")
     _write_json(args.report, {"mission": m.spec.name, "command": "import", **m.report.to_dict()})
+    return EXIT_OK
+
+
+def cmd_convert(args, prog: Progress) -> int:
+    from gcs_core.convert import convert
+
+    options = {"overwrite": args.force}
+    if args.tle is not None:
+        options["tle"] = args.tle
+    with prog.task(f"converting {args.source} ({args.format})"):
+        report = convert(args.format, args.source, args.out, **options)
+    _lines(report.lines())
     return EXIT_OK
 
 
@@ -367,6 +381,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("mission", help="mission directory (ICD §1)")
     sp.add_argument("--sdf", help="write the Standard Data File (HDF5) here")
     sp.add_argument("--report", help="write the import counts (JSON) here")
+
+    sp = add("convert", cmd_convert, "convert foreign data (astropi, broad) to a mission directory")
+    sp.add_argument("format", help="the source format: astropi | broad")
+    sp.add_argument("source", help="the file to convert")
+    sp.add_argument("--out", required=True, help="the mission directory to write")
+    sp.add_argument("--tle", help="two-line elements of the orbit (astropi)")
+    sp.add_argument("--force", action="store_true", help="replace a non-empty output directory")
 
     for name, func, helptext in (("batch", cmd_batch, "fit the configured state"),
                                  ("discover", cmd_discover, "stepwise missing-effect discovery")):

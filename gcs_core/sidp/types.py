@@ -85,12 +85,16 @@ class MissionSpec:
     name: str
     epoch: datetime                      # UTC, timezone-aware
     attitude_mode: str
-    ephemeris_file: Path
+    ephemeris_file: Path | None
     sensors: tuple[SensorSpec, ...]
     spin_axis_guess_deg: tuple[float, float] | None = None
     aux_file: Path | None = None
     onboard_file: Path | None = None
     unknown_keys: tuple[str, ...] = ()
+    #: ``[orbit]``: two-line elements instead of an ephemeris file (gcs_core.ephem.tle)
+    orbit_tle: Path | None = None
+    orbit_frame: str = "teme"
+    orbit_step_s: float = 10.0
 
     def sensor(self, name: str) -> SensorSpec:
         for s in self.sensors:
