@@ -222,7 +222,7 @@ def cmd_batch(args, prog: Progress) -> int:
 def cmd_discover(args, prog: Progress) -> int:
     from dataclasses import replace
 
-    from gcs_core.reporting import analysis_report, candidate_table, steps_table
+    from gcs_core.reporting import analysis_report, candidate_table, remaining_lines, steps_table
 
     a = _analysis(args, prog)
     if args.significance is not None:
@@ -241,6 +241,7 @@ def cmd_discover(args, prog: Progress) -> int:
     _out("effects added: " + (", ".join(added) if added else "none"))
     _lines("  " + line for line in steps_table(steps))
     _out("stopped: " + a.stop_reason)
+    _lines("remaining: " + line for line in remaining_lines(a))
     needed = a.physics_needed()
     if needed:
         _out("")

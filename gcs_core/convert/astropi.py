@@ -56,8 +56,12 @@ SENSOR = "MAG"
 TIME_COLUMN = "Date/Time"
 FIELD_COLUMNS = ("MagX", "MagY", "MagZ")
 #: source column -> aux channel name (written when the source has the column)
-AUX_COLUMNS = {"Temperature": "temperature_c", "Humidity": "humidity_pct",
-               "Pressure": "pressure_hpa", "C": "light_clear"}
+AUX_COLUMNS = {"Temperature": "dtemp_c", "Humidity": "dhumidity_pct",
+               "Pressure": "dpressure_hpa", "C": "light_clear"}
+#: channels written as the deviation from their median over the file: a contamination
+#: ``k (T − T_med)`` is then not 99.99 % a bias (T varies by 0.3 °C about 33.7 °C), so the
+#: diagnosis can tell the two apart; light has a physical zero (dark) and stays as read
+CENTRED = ("Temperature", "Humidity", "Pressure")
 UT_TO_NT = 1000.0
 _TIME_FORMAT = "%Y-%m-%d %H:%M:%S"
 
@@ -139,7 +143,7 @@ noise = {noise_nT:.1f}                      # nT
 
 
 def _provenance(source, digest, tle, rows, n_transient, sigma_axes, noise, align, bias,
-                rigid_rms, aux_names, epoch) -> str:
+                rigid_rms, aux_names, epoch, medians) -> str:
     return f"""# Provenance
 
 Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
@@ -151,7 +155,10 @@ Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
 - Magnetometer `MagX, MagY, MagZ` [µT] × 1000 → `telemetry/{SENSOR}.csv` `bx, by, bz` [nT], every
   row kept. The first {n_transient} rows are the unit's start-up transient (the field settling
   from zero; second differences above 3σ until then) and carry `flag = 1`: kept, not used.
-- Auxiliary channels → `aux.csv`: {', '.join(aux_names) or 'none'}.
+- Auxiliary channels → `aux.csv`: {', '.join(aux_names) or 'none'}; `dtemp_c`,
+  `dhumidity_pct`, `dpressure_hpa` are `Temperature` [°C], `Humidity` [%], `Pressure` [hPa]
+  minus their median over the file ({medians}), so that a contamination by them is not
+  almost all a bias; `light_clear` is the `C` (clear) light channel as read.
 - Not converted: `Latitude, Longitude` (written onboard from an orbit known to be several
   minutes of track off: the position comes from the TLE), `Compass, Pitch, Roll, Yaw` (the
   HAT's own fusion), `AccelX..Z` (zero), `R, G, B` (light), `Motion`.
@@ -196,6 +203,11 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
     epoch, t = _times(table)
     B = np.column_stack([table.numbers(c) for c in FIELD_COLUMNS]) * UT_TO_NT
     aux = {AUX_COLUMNS[c]: table.numbers(c) for c in AUX_COLUMNS if c in table.header}
+    medians = {}
+    for c in CENTRED:
+        if AUX_COLUMNS[c] in aux:
+            medians[c] = float(np.median(aux[AUX_COLUMNS[c]]))
+            aux[AUX_COLUMNS[c]] = aux[AUX_COLUMNS[c]] - medians[c]
 
     sigma = white_noise_from_differences(B)
     n_tr = leading_transient(B, sigma)
@@ -222,7 +234,9 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
         if aux:
             write_csv(stage / "aux.csv", ("t", *aux), (t, *aux.values()),
                       ("%.3f",) + ("%.6g",) * len(aux),
-                      comments=("Astro Pi channels beside the magnetometer (PROVENANCE.md)",))
+                      comments=("Astro Pi channels beside the magnetometer (PROVENANCE.md); "
+                                "d* = deviation from the median: "
+                                + ", ".join(f"{c} {m:g}" for c, m in medians.items()),))
             files.append("aux.csv")
         shutil.copyfile(tle, stage / "orbit.tle")
         text = _mission_toml(name, epoch, noise, sigma, n_tr, align, bias, rigid_rms)
@@ -235,7 +249,8 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
                 files.append(extra)
         (stage / "PROVENANCE.md").write_text(
             _provenance(source, sha256(source), tle, len(table), n_tr, sigma, noise, align,
-                        bias, rigid_rms, list(aux), epoch), encoding="utf-8")
+                        bias, rigid_rms, list(aux), epoch,
+                        ", ".join(f"{c} {m:g}" for c, m in medians.items())), encoding="utf-8")
         files.append("PROVENANCE.md")
     notes = (f"MagX..Z µT -> bx..bz nT; epoch {epoch:%Y-%m-%dT%H:%M:%SZ} (first row)",
              f"start-up transient: first {n_tr} samples flagged (flag = 1), kept",
