@@ -210,7 +210,7 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
             aux[AUX_COLUMNS[c]] = aux[AUX_COLUMNS[c]] - medians[c]
 
     sigma = white_noise_from_differences(B)
-    n_tr = leading_transient(B, sigma)
+    n_tr = leading_transient(B, sigma, t=t)
     sigma = white_noise_from_differences(B[n_tr:])
     noise = float(np.sqrt(np.mean(sigma ** 2)))
     flag = np.zeros(t.size, dtype=int)

@@ -192,19 +192,36 @@ def white_noise_from_differences(y: np.ndarray) -> np.ndarray:
     return np.array([_clipped_std(d[:, j]) for j in range(d.shape[1])]) / math.sqrt(6.0)
 
 
-def leading_transient(y: np.ndarray, sigma: np.ndarray, *, window: int = 12,
-                      k: float = 3.0) -> int:
-    """Number of leading samples of a start-up transient.
+def leading_transient(y: np.ndarray, sigma: np.ndarray, *, t: np.ndarray | None = None,
+                      window: int = 12, k: float = 3.0) -> int:
+    """Number of leading samples of a start-up transient (a settle, e.g. from zero).
 
-    The transient ends at the first sample ``s`` from which the normalized second
-    differences ``|d_i|/(√6 σ)`` stay within ``k`` on every axis for ``window``
-    differences; samples ``0 .. s−1`` are the transient (0 when the data start steady).
+    Two passes. (1) The settle is steep at first: it lasts at least until the first
+    sample ``s`` from which the normalized second differences ``|d_i|/(√6 σ)`` stay within
+    ``k`` on every axis for ``window`` differences. (2) Its tail can be smaller than the
+    noise of a second difference yet larger than ``σ``: a quadratic in time, fitted per axis
+    to the ``3 window`` samples after ``s + window``, is extrapolated back, and the transient
+    extends over the samples from ``s`` on that lie more than ``k σ`` from it on some axis.
+    Samples ``0 .. n−1`` are the transient; 0 when the data start steady.
     """
     y = np.asarray(y, dtype=float)
+    sigma = np.asarray(sigma, dtype=float)
+    t = np.arange(len(y), dtype=float) if t is None else np.asarray(t, dtype=float)
     d = y[2:] - 2.0 * y[1:-1] + y[:-2]
-    z = np.max(np.abs(d) / (math.sqrt(6.0) * np.asarray(sigma)), axis=1)
+    z = np.max(np.abs(d) / (math.sqrt(6.0) * sigma), axis=1)
     quiet = z <= k
-    for s in range(len(z) - window + 1):
-        if np.all(quiet[s:s + window]):
-            return s
-    return 0
+    s = next((i for i in range(len(z) - window + 1) if np.all(quiet[i:i + window])), None)
+    if s is None:
+        return 0
+    ref = slice(s + window, s + 4 * window)
+    if t[ref].size < 3 * window:
+        return s
+    tc = t[ref] - t[s]
+    coef = np.polynomial.polynomial.polyfit(tc, y[ref], 2)            # (3, m)
+    e = s
+    while e < ref.start:
+        fit = np.polynomial.polynomial.polyval(t[e] - t[s], coef)
+        if np.all(np.abs(y[e] - fit) <= k * sigma):
+            break
+        e += 1
+    return e
