@@ -19,7 +19,8 @@ and PROVENANCE.md:
 
 - **noise**: white noise from second differences (:func:`~gcs_core.convert.common.
   white_noise_from_differences`), the RMS over the three axes;
-- **the start-up transient**: the leading samples before the second differences settle
+- **the start-up transient**: the leading samples before the second differences settle and
+  while they lie more than 3σ from the steady field extrapolated back
   (:func:`~gcs_core.convert.common.leading_transient`), written with ``flag = 1``;
 - **the mounting** (``alignment_deg``) and a first **bias**: the rotation ``M`` and offset
   ``b`` minimizing ``Σ |B_S − M B_L − b|²``, ``B_L`` the IGRF field along the TLE orbit in
@@ -154,7 +155,8 @@ Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
 - Time: `Date/Time` read as UTC; `t` = seconds since {epoch:%Y-%m-%dT%H:%M:%SZ}, the first row.
 - Magnetometer `MagX, MagY, MagZ` [µT] × 1000 → `telemetry/{SENSOR}.csv` `bx, by, bz` [nT], every
   row kept. The first {n_transient} rows are the unit's start-up transient (the field settling
-  from zero; second differences above 3σ until then) and carry `flag = 1`: kept, not used.
+  from zero, then more than 3σ off the steady field extrapolated back; `leading_transient` in
+  gcs_core/convert/common.py) and carry `flag = 1`: kept in the file, not used.
 - Auxiliary channels → `aux.csv`: {', '.join(aux_names) or 'none'}; `dtemp_c`,
   `dhumidity_pct`, `dpressure_hpa` are `Temperature` [°C], `Humidity` [%], `Pressure` [hPa]
   minus their median over the file ({medians}), so that a contamination by them is not

@@ -27,7 +27,8 @@ from 1999 (before, the 1999 value: a few seconds of TT move precession by < 1e-4
 
 Choosing J2000 puts the spacecraft, in the ICD's Earth rotation, where precession says
 it is not: the geomagnetic field is then evaluated 0.31° of longitude away in 2022
-(22 years of precession), ≈ 0.1 µT at the ISS. That is why GCS keeps TEME unless told.
+(22 years of precession), 53 nT RMS per LVLH component along the ISS orbit (180 nT at
+most). That is why GCS keeps TEME unless told.
 
 References
 ----------

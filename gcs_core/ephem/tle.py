@@ -22,7 +22,8 @@ and onboard-attitude file of the mission plus :data:`MARGIN_S` on each side:
    defines GCI by the same Earth rotation as TEME (:mod:`gcs_core.ephem.teme`).
    ``frame = "j2000"``: rotated to J2000 (IAU 1976/1980, 0.4 m), for missions whose star
    catalog is J2000; the geomagnetic field is then evaluated ≈ 0.3° of Earth rotation off
-   (ICD §2 has no precession), so magnetometer-only missions keep TEME.
+   (ICD §2 has no precession: 53 nT RMS at the ISS in 2022), so magnetometer-only
+   missions keep TEME.
 3. **Sun.** GCS's analytic Sun (Vallado Algorithm 29, mean equator and equinox of date,
    0.01°), rotated into the chosen frame (nutation and the equation of the equinoxes for
    TEME, precession undone for J2000). It is the geometric, not the apparent, Sun: annual
