@@ -211,6 +211,8 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
             medians[c] = float(np.median(aux[AUX_COLUMNS[c]]))
             aux[AUX_COLUMNS[c]] = aux[AUX_COLUMNS[c]] - medians[c]
 
+    # white noise from the data; to be replaced by gcs_core.sidp.noise (Allan deviation at
+    # the shortest τ) when that module is present, keeping the "ESTIMATED" note it writes
     sigma = white_noise_from_differences(B)
     n_tr = leading_transient(B, sigma, t=t)
     sigma = white_noise_from_differences(B[n_tr:])
