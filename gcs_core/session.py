@@ -354,7 +354,9 @@ class Analysis:
                 best = cands[0] if cands else None
                 self.stop_reason = ("no candidate is significant at family-wise α = "
                                     f"{self.config.significance:g}" +
-                                    (f" (best: {best.id}, adjusted p = {best.p_adjusted:.2g})" if best else ""))
+                                    (f" (best: {best.id}, adjusted p = {best.p_adjusted:.2g}"
+                                     + ("" if best.identifiable else ", not identifiable") + ")"
+                                     if best else ""))
                 say(self.stop_reason)
                 break
             top = self._parsimonious(ok[0], cands)
