@@ -182,7 +182,7 @@ derived from them and is distributed under the same licence, with that attributi
 
 
 def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite: bool = False,
-            name: str | None = None) -> ConversionReport:
+            mission_name: str | None = None) -> ConversionReport:
     """Convert an Astro Pi CSV and the station's TLE into the mission directory ``out``.
 
     Parameters
@@ -190,7 +190,7 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
     source : the Astro Pi CSV file.
     out : the mission directory to create (refused when non-empty unless ``overwrite``).
     tle : the two-line element file of the station (required).
-    name : mission name (default: the output directory's name).
+    mission_name : mission name (default: the output directory's name).
     """
     from gcs_core.ephem.tle import read_tle
     from gcs_core.frames.rotations import dcm_to_euler123
@@ -226,7 +226,7 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
     rigid_rms = float(np.sqrt(np.mean(np.sum((B[use] - B_L[use] @ M.T - bias) ** 2, axis=1) / 3)))
     align = np.degrees(np.array(dcm_to_euler123(M), dtype=float))
 
-    name = name or out.name
+    name = mission_name or out.name
     with staged_directory(out, overwrite=overwrite) as stage:
         (stage / "telemetry").mkdir()
         write_csv(stage / "telemetry" / f"{SENSOR}.csv", ("t", "bx", "by", "bz", "flag"),
