@@ -181,3 +181,16 @@ def test_extract_keeps_the_original_unchanged(tmp_path):
     before = copy.read_bytes()
     _convert(tmp_path, source=copy)
     assert copy.read_bytes() == before
+
+
+def test_a_new_format_is_one_module_and_options_it_does_not_take_are_refused(monkeypatch):
+    import sys
+    import types
+    mod = types.ModuleType("fake_format_converter")
+    mod.convert = lambda source, out: ("converted", source, out)
+    monkeypatch.setitem(sys.modules, "fake_format_converter", mod)
+    monkeypatch.setitem(CONVERTERS, "fake", "fake_format_converter")
+    assert convert("fake", "a.csv", "m", tle=None, overwrite=False)[0] == "converted"
+    with pytest.raises(InputError) as err:
+        convert("fake", "a.csv", "m", tle="x.tle")
+    assert err.value.key == "tle" and "does not apply" in str(err.value)

@@ -14,6 +14,7 @@ A new format is one module here and one line in :data:`CONVERTERS`.
 from __future__ import annotations
 
 import importlib
+import inspect
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -80,5 +81,18 @@ def converter(name: str):
 
 
 def convert(name: str, source, out, **options) -> ConversionReport:
-    """Convert ``source`` in format ``name`` into the mission directory ``out``."""
-    return converter(name).convert(Path(source), Path(out), **options)
+    """Convert ``source`` in format ``name`` into the mission directory ``out``.
+
+    Options the format's ``convert`` does not take are dropped when unset (None or False)
+    and refused otherwise (e.g. ``--tle`` given to a format that has no orbit).
+    """
+    func = converter(name).convert
+    params = inspect.signature(func).parameters
+    if not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        for key in [k for k in options if k not in params]:
+            if options[key] is None or options[key] is False:
+                del options[key]
+            else:
+                raise InputError(f"option '{key}' does not apply to the {name!r} converter",
+                                 key=key)
+    return func(Path(source), Path(out), **options)
