@@ -193,3 +193,14 @@ def test_tle_file_errors(tmp_path):
     with pytest.raises(InputError) as err:
         read_tle(p)
     assert err.value.line == 2
+
+
+def test_stale_elements_warn(caplog):
+    import logging
+    with caplog.at_level(logging.WARNING, logger="gcs_core.ephem.tle"):
+        tle_ephemeris_table(TLE, EPOCH, 10 * 86400.0, 10 * 86400.0 + 600.0)
+    assert "days from the elements' epoch" in caplog.text
+    caplog.clear()
+    with caplog.at_level(logging.WARNING, logger="gcs_core.ephem.tle"):
+        tle_ephemeris_table(TLE, EPOCH, 0.0, 70200.0)
+    assert not caplog.text

@@ -35,6 +35,7 @@ the TLE file, so everything downstream (SDF, fit, diagnosis) treats it as one.
 
 from __future__ import annotations
 
+import logging
 import os
 from pathlib import Path
 
@@ -47,6 +48,8 @@ from gcs_core.ephem.sun import sun_position_km
 from gcs_core.errors import InputError
 from gcs_core.sidp.types import Table
 
+log = logging.getLogger(__name__)
+
 __all__ = ["MARGIN_S", "DEFAULT_STEP_S", "read_tle", "tle_ephemeris_table", "tle_states"]
 
 #: span added before the first and after the last telemetry time [s] (time-offset
@@ -54,6 +57,8 @@ __all__ = ["MARGIN_S", "DEFAULT_STEP_S", "read_tle", "tle_ephemeris_table", "tle
 MARGIN_S = 120.0
 #: default tabulation step [s]
 DEFAULT_STEP_S = 10.0
+#: data further than this from the elements' epoch [days] get a warning
+STALE_DAYS = 3.0
 
 
 def _checksum_ok(line: str) -> bool:
@@ -126,6 +131,11 @@ def tle_ephemeris_table(tle_file: str | os.PathLike, epoch, t_start: float, t_en
     line1, line2 = read_tle(tle_file)
     orbit = TleOrbit(line1, line2, epoch)
     lo, hi = float(t_start) - margin_s, float(t_end) + margin_s
+    jd_lo, jd_hi = timescale.julian_date(epoch, np.array([lo, hi]))
+    far = max(abs(jd_lo - orbit.tle_epoch_jd), abs(jd_hi - orbit.tle_epoch_jd))
+    if far > STALE_DAYS:
+        log.warning("%s: the data reach %.1f days from the elements' epoch; SGP4's error grows "
+                    "by 1-3 km a day in low orbit (use elements of the data's days)", tle_file, far)
     n = max(int(np.ceil((hi - lo) / step_s - 1e-9)), 1)
     t = lo + step_s * np.arange(n + 1)
     t[-1] = hi
