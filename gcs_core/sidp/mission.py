@@ -140,9 +140,6 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 #: keys every [[sensor]] table may hold besides its type's data-book keys.
 COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
-#: keys of [orbit] (two-line elements instead of an ephemeris file, gcs_core.ephem.tle)
-_ORBIT_KEYS = ("tle", "frame", "step_s")
-_ORBIT_FRAMES = ("teme", "j2000")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
 
 # --- epoch --------------------------------------------------------------------------
@@ -430,30 +427,6 @@ def _optional_file(ctx: _Ctx, root: Path, doc: dict, table: str, unknown: list[s
     return _existing_file(ctx, root, t["file"], f"{table}.file", table, table.replace("_", " "))
 
 
-def _read_orbit(ctx: _Ctx, root: Path, t: Any, unknown: list[str]
-                ) -> tuple[Path, str, float]:
-    """``[orbit]``: ``tle`` (file), optional ``frame`` and ``step_s`` (gcs_core.ephem.tle)."""
-    if not isinstance(t, dict):
-        raise ctx.error("[orbit] must be a table with a 'tle' key", "orbit", "orbit")
-    if "tle" not in t:
-        raise ctx.error("missing key 'tle' in [orbit] (the two-line element file)",
-                        "orbit.tle", "orbit")
-    tle = _existing_file(ctx, root, t["tle"], "orbit.tle", "orbit", "two-line element",
-                         tkey="tle")
-    frame = _string(ctx, t.get("frame", "teme"), "orbit.frame", "orbit", 1, "frame")
-    if frame not in _ORBIT_FRAMES:
-        raise ctx.error(f"must be one of {', '.join(_ORBIT_FRAMES)}, not {frame!r}",
-                        "orbit.frame", "orbit", 1, "frame")
-    step = 10.0
-    if "step_s" in t:
-        step = _number(ctx, t["step_s"], "orbit.step_s", "orbit", 1, "step_s")
-        if not 0.0 < step <= 60.0:
-            raise ctx.error(f"must be in (0, 60] s (ICD §4), not {step:g}", "orbit.step_s",
-                            "orbit", 1, "step_s")
-    unknown += [f"orbit.{k}" for k in t if k not in _ORBIT_KEYS]
-    return tle, frame, step
-
-
 def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     """Read and check ``mission.toml`` (ICD §3, §5).
 
@@ -525,19 +498,8 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         spin_guess = (ra, dec)
     unknown += [f"mission.{k}" for k in m if k not in _MISSION_KEYS]
 
-    e = doc.get("ephemeris")
-    if "orbit" in doc:
-        if e is not None:
-            raise ctx.error("give either [ephemeris] (a file) or [orbit] (two-line elements), "
-                            "not both", "orbit", "orbit")
-        ephemeris = None
-        tle, frame, step = _read_orbit(ctx, root, doc["orbit"], unknown)
-    else:
-        if not isinstance(e, dict) or "file" not in e:
-            raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3), or an "
-                            "[orbit] table with 'tle'", "ephemeris.file", "ephemeris")
-        ephemeris = _optional_file(ctx, root, doc, "ephemeris", unknown)
-        tle, frame, step = None, "teme", 10.0
+    from gcs_core.sidp.orbit_spec import ephemeris_or_orbit
+    ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
     aux = _optional_file(ctx, root, doc, "aux", unknown)
     onboard = _optional_file(ctx, root, doc, "onboard_attitude", unknown)
 
@@ -564,5 +526,4 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     return MissionSpec(root=root, name=name, epoch=epoch, attitude_mode=mode,
                        ephemeris_file=ephemeris, sensors=tuple(sensors),
                        spin_axis_guess_deg=spin_guess, aux_file=aux, onboard_file=onboard,
-                       unknown_keys=tuple(unknown), orbit_tle=tle, orbit_frame=frame,
-                       orbit_step_s=step)
+                       unknown_keys=tuple(unknown), **orbit)
