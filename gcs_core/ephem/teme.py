@@ -20,7 +20,7 @@ A mission whose GCI must be the frame of a J2000 star catalog can ask for J2000 
 
 ``ζ, θ, z`` and ``ε̄`` are Lieske's (1977) polynomials in TT centuries; ``Δψ, Δε`` the
 IAU 1980 series (Seidelmann 1982) truncated to its 40 largest terms: the 66 terms left out
-are each below 0.6 mas and together below 10 mas (0.4 m at 8000 km); the EOP corrections
+are each below 0.6 mas, ≈ 3 mas root-sum-square (0.1 m at 8000 km); the EOP corrections
 ``δΔψ, δΔε`` (≈ 0.05 arcsec, the celestial-pole offsets) are inputs, zero by default
 (J2000 "of FK5" rather than GCRF). TT is UTC + ΔAT + 32.184 s from a leap-second table
 from 1999 (before, the 1999 value: a few seconds of TT move precession by < 1e-4 arcsec).
