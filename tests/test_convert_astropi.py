@@ -194,3 +194,14 @@ def test_a_new_format_is_one_module_and_options_it_does_not_take_are_refused(mon
     with pytest.raises(InputError) as err:
         convert("fake", "a.csv", "m", tle="x.tle")
     assert err.value.key == "tle" and "does not apply" in str(err.value)
+
+
+def test_prediction_beyond_the_data_propagates_the_tle(tmp_path):
+    """A plan past the telemetry (the next hour) takes its orbit from the mission's TLE."""
+    from gcs_core.predictor.plan import DataPlan
+    from gcs_core.predictor.predict import predict
+    _convert(tmp_path)
+    m = load_mission(tmp_path / "m")
+    res = predict(m, plan=DataPlan(3600.0, 7200.0, step=60.0))
+    assert res.times[0] >= 3600.0 and res.times[-1] <= 7200.0
+    assert np.all(np.isfinite(res.sigma)) and res.frames["MAG"] > 0
