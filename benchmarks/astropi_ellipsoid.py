@@ -157,6 +157,25 @@ def ellipsoid(target: Path):
     return (_rms(dm[train]) / UT, _rms(dm[held]) / UT, vec(train), vec(held))
 
 
+def residual_structure(a: Analysis) -> str:
+    """The final residual's correlation over time and its RMS [µT] by latitude band."""
+    r = a.result.residuals["MAG"]
+    sd = next(s for s in a.problem.sensors if s.name == "MAG")
+    eph = Ephemeris.from_table(a.mission.ephemeris_table)
+    pos, _ = eph.state(sd.t)
+    lat = np.degrees(np.arcsin(pos[:, 2] / np.linalg.norm(pos, axis=1)))
+    x = r.residual - r.residual[r.used].mean(axis=0)
+    lags = {"1 min": 12, "10 min": 120, "30 min": 360}
+    corr = {k: float(np.mean([np.corrcoef(x[:-n, j], x[n:, j])[0, 1] for j in range(3)]))
+            for k, n in lags.items()}
+    bands = [(0, 15), (15, 30), (30, 45), (45, 90)]
+    rms = [_rms(r.residual[(np.abs(lat) >= lo) & (np.abs(lat) < hi) & r.used]) / UT
+           for lo, hi in bands]
+    return ("residual correlation after " + ", ".join(f"{k}: {v:.2f}" for k, v in corr.items())
+            + "; RMS by |latitude| " + ", ".join(f"{lo}-{hi}°: {v:.2f} µT"
+                                               for (lo, hi), v in zip(bands, rms)))
+
+
 def linear_fit_rms(B_S, B_L, train, held):
     """RMS per component [µT] of the linear fit ``B_S ≈ A B_L + b`` (bias and a general
     3×3, least squares on ``train``), on ``train`` and ``held``."""
@@ -210,6 +229,7 @@ def main(argv=None) -> int:
           "across the predicted field, as a direction error)")
     print("after the last step, a separate best rotation per window leaves "
           + ", ".join(f"{windowed_rotation(a, w):.3f} µT ({w / 60:.0f} min)" for w in (5400.0, 600.0)))
+    print(residual_structure(a))
     mag_fit, mag_held, vec_fit, vec_held = ellipsoid(target)
     print()
     source = Path("/work/shared/real/astropi-iss/astro-pi-mk2-commissioning-ir.csv")
