@@ -220,7 +220,75 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     if command:
         out["command"] = command
     out.update(rep)
+    if res is not None:
+        out["remaining"] = remaining_summary(analysis)
     return out
+
+
+#: χ²/n within this many standard deviations (√(2/n)) of 1 is "consistent with the noise"
+NOISE_CONSISTENCY_SIGMAS = 3.0
+
+
+def remaining_summary(analysis) -> dict[str, dict[str, Any]]:
+    """What remains after the fit, per sensor, against the noise the data book states.
+
+    With white noise of the stated σ, ``χ²/n = rms_normalized²`` has mean 1 and standard
+    deviation ``√(2/n)`` (n measurements); the residual is called consistent with the
+    noise when ``|χ²/n − 1| ≤ 3 √(2/n)``. ``noise_estimated`` is true when the mission
+    says its noise was estimated from the data (a converter's note).
+    """
+    res = analysis.result
+    if res is None:
+        return {}
+    out: dict[str, dict[str, Any]] = {}
+    spec = analysis.mission.spec
+    for name, r in res.residuals.items():
+        comp = np.atleast_1d(np.asarray(r.rms, dtype=float))
+        n = int(np.count_nonzero(r.used)) * len(r.components) if hasattr(r, "used") else r.n
+        ratio = float(r.rms_normalized) ** 2
+        bound = NOISE_CONSISTENCY_SIGMAS * float(np.sqrt(2.0 / max(n, 1)))
+        try:
+            sensor = spec.sensor(name)
+        except KeyError:
+            sensor = None
+        noise = getattr(sensor, "noise", None)
+        estimated = _noise_estimated(spec, name)
+        held = analysis.holdout_rms.get(name, float("nan"))
+        out[name] = {
+            "rms": float(np.sqrt(np.mean(comp ** 2))) if comp.size else float("nan"),
+            "rms_normalized": float(r.rms_normalized),
+            "holdout_rms_normalized": float(held),
+            "noise": noise, "unit": r.unit, "noise_estimated": estimated,
+            "chi2_per_measurement": ratio, "consistency_bound": bound,
+            "consistent_with_noise": bool(abs(ratio - 1.0) <= bound),
+        }
+    return out
+
+
+def _noise_estimated(spec, name: str) -> bool:
+    """True when mission.toml marks the sensor's noise as estimated from the data (the
+    converters write ``ESTIMATED from the data`` above the key)."""
+    try:
+        text = (spec.root / "mission.toml").read_text(encoding="utf-8")
+    except OSError:
+        return False
+    block = text.split(f'name = "{name}"', 1)
+    return len(block) == 2 and "ESTIMATED from the data" in block[1].split("[[sensor]]", 1)[0]
+
+
+def remaining_lines(analysis) -> list[str]:
+    """One line per sensor: what remains and whether it is consistent with the noise."""
+    lines = []
+    for name, d in remaining_summary(analysis).items():
+        noise = d["noise"]
+        what = "estimated from the data" if d["noise_estimated"] else "of the data book"
+        src = f" {noise:.4g} {d['unit']} noise ({what})" if noise else " noise"
+        verdict = ("consistent with the noise" if d["consistent_with_noise"] else
+                   f"not consistent with the noise (χ²/n = {d['chi2_per_measurement']:.3g}, "
+                   f"1 ± {d['consistency_bound']:.2g} expected): something is left unexplained")
+        lines.append(f"{name}: residual {d['rms']:.4g} {d['unit']} RMS, {d['rms_normalized']:.3g}× "
+                     f"the{src}, held-out {d['holdout_rms_normalized']:.3g}×; {verdict}")
+    return lines
 
 
 def _is_num(v, *, none_ok: bool = False) -> bool:

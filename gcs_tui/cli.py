@@ -3,6 +3,8 @@
 Commands (``gcs COMMAND --help`` for options):
 
 * ``gcs tui [TARGET]`` — the analyst's terminal UI;
+* ``gcs convert FORMAT SOURCE --out DIR [--tle TLE]`` — foreign data (``astropi``,
+  ``broad``) to a mission directory (:mod:`gcs_core.convert`);
 * ``gcs import MISSION [--sdf FILE] [--report R]`` — validate a mission directory, print what
   was read (rows kept, NaN and duplicate rows dropped per file, unknown keys), write the SDF;
 * ``gcs batch TARGET`` — fit the configured state, print residuals and estimates;
@@ -219,9 +221,10 @@ def cmd_import(args, prog: Progress) -> int:
 def cmd_convert(args, prog: Progress) -> int:
     from gcs_core.convert import convert
 
-    span = tuple(args.span) if args.span else None
+    options = {"overwrite": args.force, "tle": args.tle, "name": args.name,
+               "span": tuple(args.span) if args.span else None}
     with prog.task(f"converting {args.source} ({args.format})"):
-        report = convert(args.format, args.source, args.out, span=span, name=args.name)
+        report = convert(args.format, args.source, args.out, **options)
     _lines(report.lines())
     return EXIT_OK
 
@@ -263,7 +266,7 @@ def cmd_batch(args, prog: Progress) -> int:
 def cmd_discover(args, prog: Progress) -> int:
     from dataclasses import replace
 
-    from gcs_core.reporting import analysis_report, candidate_table, steps_table
+    from gcs_core.reporting import analysis_report, candidate_table, remaining_lines, steps_table
 
     a = _analysis(args, prog)
     if args.significance is not None:
@@ -279,6 +282,7 @@ def cmd_discover(args, prog: Progress) -> int:
     _out("effects added: " + (", ".join(added) if added else "none"))
     _lines("  " + line for line in steps_table(steps))
     _out("stopped: " + a.stop_reason)
+    _lines("remaining: " + line for line in remaining_lines(a))
     needed = a.physics_needed()
     if needed:
         _out("")
@@ -422,13 +426,15 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--sdf", help="write the Standard Data File (HDF5) here")
     sp.add_argument("--report", help="write the import counts (JSON) here")
 
-    sp = add("convert", cmd_convert, "convert a foreign format to a mission directory")
-    sp.add_argument("format", help="source format (broad)")
-    sp.add_argument("source", help="the source file")
-    sp.add_argument("--out", required=True, help="mission directory to create")
+    sp = add("convert", cmd_convert, "convert foreign data (astropi, broad) to a mission directory")
+    sp.add_argument("format", help="the source format: astropi | broad")
+    sp.add_argument("source", help="the file to convert")
+    sp.add_argument("--out", required=True, help="the mission directory to write")
+    sp.add_argument("--tle", help="two-line elements of the orbit (astropi)")
     sp.add_argument("--span", nargs=2, type=float, metavar=("START", "END"),
-                    help="keep only the samples in this window [s from the first sample]")
+                    help="keep only the samples in this window [s from the first sample] (broad)")
     sp.add_argument("--name", help="mission name (default from the source file)")
+    sp.add_argument("--force", action="store_true", help="replace a non-empty output directory")
 
     sp = add("noise", cmd_noise, "each sensor's white noise and Allan deviation from its telemetry")
     sp.add_argument("mission", help="mission directory (ICD §1)")

@@ -63,8 +63,8 @@ def test_converts_to_a_mission_that_imports(tmp_path):
     (tmp_path / "LICENSE").write_text("CC BY 4.0\n")
     rep = convert("broad", src, tmp_path / "m")
     assert isinstance(rep, ConversionReport)
-    assert rep.rows["telemetry/GYR.csv"] == rep.rows["telemetry/OPT.csv"] == N    # every sample
-    assert any("untracked for its first 15 samples" in t for t in rep.transients)
+    assert rep.samples["telemetry/GYR.csv"] == rep.samples["telemetry/OPT.csv"] == N  # every sample
+    assert any("untracked for its first 15 samples" in t for t in rep.notes)
     m = load_mission(tmp_path / "m")
     assert m.spec.ground_position_km is not None
     assert [s.type for s in m.spec.sensors] == ["gyro", "magnetometer", "attitude_reference"]
@@ -87,8 +87,8 @@ def test_converts_to_a_mission_that_imports(tmp_path):
 
 def test_span_extract(tmp_path):
     rep = convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m", span=(1.0, 9.0))
-    assert rep.rows["telemetry/MAG.csv"] == 801
-    assert any("extract" in w for w in rep.warnings)
+    assert rep.samples["telemetry/MAG.csv"] == 801
+    assert any("extract" in w for w in rep.notes)
 
 
 @pytest.mark.parametrize("kind, message", [
@@ -114,7 +114,7 @@ def test_a_reference_without_noise_at_rest_gets_a_floor_and_a_warning(tmp_path, 
     import gcs_core.convert.broad as broad
     monkeypatch.setattr(broad.noise_mod, "white_level", lambda curve, dt: (0.0, dt, True))
     rep = convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m")
-    assert any("no noise measurable at rest" in w for w in rep.warnings)
+    assert any("no noise measurable at rest" in w for w in rep.notes)
     load_mission(tmp_path / "m")                     # every noise written is > 0
 
 

@@ -300,8 +300,11 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
             shutil.copyfile(lic, tmp / "LICENSE")
         else:
             warnings.append(f"no LICENSE beside {source.name}: the mission states CC BY 4.0 in SOURCE.md")
-        report = ConversionReport(out=out, rows=rows, transients=tuple(transients),
-                                  warnings=tuple(warnings), notes=tuple(notes))
+        report = ConversionReport(
+            format="broad", source=source, out=out, rows=int(max(rows.values(), default=0)),
+            samples=dict(rows), files=tuple(sorted(rows)) + ("mission.toml", "SOURCE.md"),
+            notes=tuple(f"transient (kept): {x}" for x in transients)
+            + tuple(f"warning: {x}" for x in warnings) + tuple(notes))
         (tmp / "conversion.json").write_text(json.dumps(
             {"source": str(source), "format": "broad", "rows": rows, "transients": transients,
              "warnings": warnings, "notes": notes, "citation": CITATION}, indent=2) + "\n",

@@ -38,7 +38,8 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.filtr import batch_kernels as kernels
-from gcs_core.frames.reference import reference_dcm, spin_axis, spin_axis_partials
+from gcs_core.frames.reference import (earth_pointing_rate, reference_dcm, spin_axis,
+                                       spin_axis_partials)
 from gcs_core.frames.rotations import dcm_to_euler123, euler123_partials, euler123_to_dcm
 from gcs_core.models.base import ParamSpec
 from gcs_core.units import DEG
@@ -276,11 +277,24 @@ class ReferenceAttitude:
         return reference_dcm(self.mode, r, v, self.ephemeris.sun_geocentric(t))
 
     def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
+        """``C = B A(t)`` (Eq 4-6) and, for ``earth_pointing``, the body rate
+        ``ω_B = B ω_R`` with ``ω_R = (0, −(v·x_R)/|r|, 0)`` the turn of the frame along the
+        orbit (Eq 4-34), which a sensor's time-tag offset needs (the body turns by ``ω Δt``,
+        1.3° in 20 s in low orbit). The Sun-pointing frame turns at 2e-7 rad/s (0.04 arcsec
+        in 1 s) and the inertial one not at all: their ``omega_B`` is None (zero)."""
         rpy = [values[n] for n in RPY]
         B = euler123_to_dcm(*rpy)
-        C = B @ self.reference(t)
+        t = np.atleast_1d(np.asarray(t, float))
+        omega = None
+        if self.mode == "earth_pointing":
+            r, v = self.ephemeris.state(t)
+            A = reference_dcm(self.mode, r, v)
+            omega = earth_pointing_rate(r, v, frame="R") @ B.T           # ω_B = B ω_R
+        else:
+            A = self.reference(t)
+        C = B @ A
         J = np.broadcast_to(rpy_error_jacobian(*rpy), (C.shape[0], 3, 3))
-        return AttitudeEval(C, None, RPY, J)
+        return AttitudeEval(C, None, RPY, J, omega_B=omega)
 
     def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
         return FrameAttitude.of(self.evaluate(values, t))

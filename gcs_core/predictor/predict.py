@@ -195,8 +195,14 @@ def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float)
         eph = Ephemeris.from_table(eph_table)
         if eph.t_start <= plan.start and eph.t_end >= plan.end:
             return eph
-        if orbit is None:
+        if orbit is None and getattr(spec, "orbit_tle", None) is None:
             eph.check_covers(np.array([plan.start, plan.end]), what="the prediction plan")
+    if orbit is None and getattr(spec, "orbit_tle", None) is not None:
+        # the mission's [orbit] tle propagated over the plan (gcs_core.ephem.tle)
+        from gcs_core.ephem.tle import tle_ephemeris_table
+        return Ephemeris.from_table(tle_ephemeris_table(
+            spec.orbit_tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
+            step_s=spec.orbit_step_s, margin_s=EPHEMERIS_MARGIN_S))
     if orbit is None:
         raise InputError("no ephemeris for the plan: give the mission's ephemeris.csv or an orbit "
                          "(KeplerOrbit / TleOrbit)", key="prediction.orbit")

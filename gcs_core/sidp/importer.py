@@ -60,6 +60,9 @@ COLUMN_UNITS: dict[str, str] = {
 EPHEMERIS_COLUMNS = ("t", "rx", "ry", "rz", "vx", "vy", "vz", "sx", "sy", "sz")
 ONBOARD_COLUMNS = ("t", "q1", "q2", "q3", "q4")
 
+#: an optional telemetry column: a non-zero value marks a sample kept in the file but
+#: not used (a start-up transient, say), counted in the import report
+FLAG_COLUMN = "flag"
 MAX_EPHEMERIS_STEP_S = 60.0          # ICD §4: a cadence of 60 s or finer
 MAX_FIELD_COMPONENT_NT = 1e6         # the geomagnetic field is < 7e4 nT
 R_MIN_KM = 6378.0                    # below the Earth's surface
@@ -368,6 +371,30 @@ def _rel(path: Path, root: Path) -> str:
         return str(path)
 
 
+def _drop_flagged(table: Table) -> tuple[Table, int]:
+    """Rows whose ``flag`` column is non-zero left out (kept in the file, counted)."""
+    flag = table.columns.get(FLAG_COLUMN)
+    if flag is None or not np.any(flag != 0.0):
+        return table, 0
+    keep = flag == 0.0
+    cols = {k: np.ascontiguousarray(v[keep]) for k, v in table.columns.items()}
+    return Table(path=table.path, t=cols["t"], columns=cols, lines=table.lines[keep],
+                 dropped_nan=table.dropped_nan,
+                 dropped_duplicates=table.dropped_duplicates), int(np.count_nonzero(~keep))
+
+
+def _tle_ephemeris(spec: MissionSpec, tables) -> Table:
+    """The ephemeris propagated from ``[orbit] tle`` over every table's span (ephem/tle.py)."""
+    from gcs_core.ephem.tle import tle_ephemeris_table
+
+    spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
+    if not spans:
+        raise InputError("no telemetry rows to propagate the orbit over", file=spec.orbit_tle)
+    return tle_ephemeris_table(spec.orbit_tle, spec.epoch, min(a for a, _ in spans),
+                               max(b for _, b in spans), frame=spec.orbit_frame,
+                               step_s=spec.orbit_step_s)
+
+
 def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     """Read and check a mission directory (ICD §1-§6).
 
@@ -389,6 +416,10 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
 
     def read(path: Path, required: tuple[str, ...], what: str) -> Table:
         table = read_table(path, required=required, what=what)
+        table, flagged = _drop_flagged(table) if what.startswith("telemetry") else (table, 0)
+        if flagged:
+            repairs.append(f"{_rel(path, spec.root)}: {flagged} rows flagged (column "
+                           f"'{FLAG_COLUMN}' ≠ 0) kept in the file, not used")
         counts.append(FileCount(path, what, len(table), table.dropped_nan,
                                 table.dropped_duplicates))
         rel = _rel(path, spec.root)
@@ -400,7 +431,8 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
         return table
 
     ground = spec.ground_position_km is not None
-    if not ground:
+    eph = None
+    if spec.ephemeris_file is not None:
         eph = read(spec.ephemeris_file, EPHEMERIS_COLUMNS, "ephemeris")
         _check_ephemeris(eph)
     telemetry: dict[str, Table] = {}
@@ -417,8 +449,16 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
         _check_not_empty(table, f"{what} ({s.type})")
         _check_sensor(table, s.type, ground)
         telemetry[s.name] = table
+    aux = read(spec.aux_file, ("t",), "aux") if spec.aux_file else None
+    onboard = None
+    if spec.onboard_file:
+        onboard = read(spec.onboard_file, ONBOARD_COLUMNS, "onboard attitude")
+        _check_onboard(onboard)
     if ground and telemetry:
         eph = ground_ephemeris(spec, telemetry)
+    elif eph is None:
+        eph = _tle_ephemeris(spec, [*telemetry.values(), aux, onboard])
+        counts.append(FileCount(eph.path, "orbit (TLE)", len(eph), 0, 0))
     types = {s.name: s.type for s in spec.sensors}
     margin = ephemeris_margin(telemetry, types)
     warnings: list[str] = []
@@ -431,11 +471,6 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
         if trimmed.get(name) and len(table) == 0:
             raise InputError(f"telemetry of {name}: every row needs the orbit past the ephemeris "
                              f"(t = {float(eph.t[0]):.6g} to {float(eph.t[-1]):.6g} s)", file=table.path)
-    aux = read(spec.aux_file, ("t",), "aux") if spec.aux_file else None
-    onboard = None
-    if spec.onboard_file:
-        onboard = read(spec.onboard_file, ONBOARD_COLUMNS, "onboard attitude")
-        _check_onboard(onboard)
     if empty:
         from dataclasses import replace as _replace
         spec = _replace(spec, sensors=tuple(x for x in spec.sensors if x.name not in empty))

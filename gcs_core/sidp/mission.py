@@ -145,7 +145,7 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 }
 #: keys every [[sensor]] table may hold besides its type's data-book keys.
 COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
-_TOP_TABLES = ("mission", "ephemeris", "aux", "onboard_attitude", "sensor")
+_TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
 
 # --- epoch --------------------------------------------------------------------------
@@ -506,15 +506,13 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
 
     e = doc.get("ephemeris")
     ground = None
+    orbit: dict = {}
     if isinstance(e, dict) and "ground_position_km" in e and "file" not in e:
         ground = _ground(ctx, e, mode, unknown)
         ephemeris = None
     else:
-        if not isinstance(e, dict) or "file" not in e:
-            raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3), or "
-                            "'ground_position_km' for a ground mission",
-                            "ephemeris.file", "ephemeris")
-        ephemeris = _optional_file(ctx, root, doc, "ephemeris", unknown)
+        from gcs_core.sidp.orbit_spec import ephemeris_or_orbit
+        ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
     aux = _optional_file(ctx, root, doc, "aux", unknown)
     onboard = _optional_file(ctx, root, doc, "onboard_attitude", unknown)
 
@@ -547,7 +545,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     return MissionSpec(root=root, name=name, epoch=epoch, attitude_mode=mode,
                        ephemeris_file=ephemeris, sensors=tuple(sensors),
                        spin_axis_guess_deg=spin_guess, aux_file=aux, onboard_file=onboard,
-                       unknown_keys=tuple(unknown), ground_position_km=ground)
+                       unknown_keys=tuple(unknown), ground_position_km=ground, **orbit)
 
 
 def _ground(ctx: _Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[float, float, float]:

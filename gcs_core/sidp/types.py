@@ -94,6 +94,10 @@ class MissionSpec:
     #: a ground (laboratory) mission: the fixed position [km] given by
     #: ``[ephemeris] ground_position_km`` instead of an ephemeris file (docs/ground.md).
     ground_position_km: tuple[float, float, float] | None = None
+    #: ``[orbit]``: two-line elements instead of an ephemeris file (gcs_core.ephem.tle)
+    orbit_tle: Path | None = None
+    orbit_frame: str = "teme"
+    orbit_step_s: float = 10.0
 
     def sensor(self, name: str) -> SensorSpec:
         for s in self.sensors:

@@ -1,0 +1,62 @@
+"""The ``[orbit]`` table of mission.toml: two-line elements instead of an ephemeris file.
+
+An extension of ICD §3 (``docs/icd_extensions.md``); the orbit itself is built by
+:mod:`gcs_core.ephem.tle`. Errors name mission.toml, the line and the key, as every
+mission.toml check does (:mod:`gcs_core.sidp.mission`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+from gcs_core.sidp.mission import _Ctx, _existing_file, _number, _optional_file, _string
+
+__all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "ephemeris_or_orbit", "read_orbit_table"]
+
+#: keys of [orbit]
+ORBIT_KEYS = ("tle", "frame", "step_s")
+#: frames the orbit can be given in (gcs_core.ephem.teme.ORBIT_FRAMES)
+ORBIT_FRAMES = ("teme", "j2000")
+
+
+def read_orbit_table(ctx: _Ctx, root: Path, t: Any, unknown: list[str]
+                     ) -> tuple[Path, str, float]:
+    """``[orbit]``: ``tle`` (file), optional ``frame`` and ``step_s`` (gcs_core.ephem.tle)."""
+    if not isinstance(t, dict):
+        raise ctx.error("[orbit] must be a table with a 'tle' key", "orbit", "orbit")
+    if "tle" not in t:
+        raise ctx.error("missing key 'tle' in [orbit] (the two-line element file)",
+                        "orbit.tle", "orbit")
+    tle = _existing_file(ctx, root, t["tle"], "orbit.tle", "orbit", "two-line element",
+                         tkey="tle")
+    frame = _string(ctx, t.get("frame", "teme"), "orbit.frame", "orbit", 1, "frame")
+    if frame not in ORBIT_FRAMES:
+        raise ctx.error(f"must be one of {', '.join(ORBIT_FRAMES)}, not {frame!r}",
+                        "orbit.frame", "orbit", 1, "frame")
+    step = 10.0
+    if "step_s" in t:
+        step = _number(ctx, t["step_s"], "orbit.step_s", "orbit", 1, "step_s")
+        if not 0.0 < step <= 60.0:
+            raise ctx.error(f"must be in (0, 60] s (ICD §4), not {step:g}", "orbit.step_s",
+                            "orbit", 1, "step_s")
+    unknown += [f"orbit.{k}" for k in t if k not in ORBIT_KEYS]
+    return tle, frame, step
+
+
+def ephemeris_or_orbit(ctx: _Ctx, root: Path, doc: dict, unknown: list[str]
+                       ) -> tuple[Path | None, dict[str, Any]]:
+    """``[ephemeris] file`` or ``[orbit]`` (one of them): the ephemeris path (None for an
+    orbit) and the MissionSpec fields of the orbit (empty for an ephemeris file)."""
+    e = doc.get("ephemeris")
+    if "orbit" in doc:
+        if e is not None:
+            raise ctx.error("give either [ephemeris] (a file) or [orbit] (two-line elements), "
+                            "not both", "orbit", "orbit")
+        tle, frame, step = read_orbit_table(ctx, root, doc["orbit"], unknown)
+        return None, {"orbit_tle": tle, "orbit_frame": frame, "orbit_step_s": step}
+    if not isinstance(e, dict) or "file" not in e:
+        raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3), or an "
+                        "[orbit] table with 'tle', or 'ground_position_km' for a ground mission",
+                        "ephemeris.file", "ephemeris")
+    return _optional_file(ctx, root, doc, "ephemeris", unknown), {}
