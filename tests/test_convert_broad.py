@@ -130,7 +130,7 @@ def test_cli_convert_import_and_noise(tmp_path, capsys):
 
     src = _trial(tmp_path / "t.hdf5")
     assert main(["-q", "convert", "broad", str(src), "--out", str(tmp_path / "m")]) == EXIT_OK
-    assert "telemetry/OPT.csv: 1200 rows" in capsys.readouterr().out
+    assert "telemetry/OPT.csv: 1200 samples" in capsys.readouterr().out
     assert main(["-q", "import", str(tmp_path / "m")]) == EXIT_OK
     capsys.readouterr()
     assert main(["-q", "noise", str(tmp_path / "m"), "--start", "0.5", "--end", "5.5"]) == EXIT_OK

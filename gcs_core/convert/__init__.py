@@ -80,19 +80,19 @@ def converter(name: str):
         raise
 
 
-def convert(name: str, source, out, **options) -> ConversionReport:
-    """Convert ``source`` in format ``name`` into the mission directory ``out``.
+def convert(fmt: str, source, out, **options) -> ConversionReport:
+    """Convert ``source`` in format ``fmt`` into the mission directory ``out``.
 
     Options the format's ``convert`` does not take are dropped when unset (None or False)
     and refused otherwise (e.g. ``--tle`` given to a format that has no orbit).
     """
-    func = converter(name).convert
+    func = converter(fmt).convert
     params = inspect.signature(func).parameters
     if not any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
         for key in [k for k in options if k not in params]:
             if options[key] is None or options[key] is False:
                 del options[key]
             else:
-                raise InputError(f"option '{key}' does not apply to the {name!r} converter",
+                raise InputError(f"option '{key}' does not apply to the {fmt!r} converter",
                                  key=key)
     return func(Path(source), Path(out), **options)
