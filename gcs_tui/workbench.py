@@ -357,6 +357,14 @@ class Workbench:
         """Solve-for elements the latest fit did not determine, with the reason."""
         return {} if self.result is None or self.stale else self.analysis.not_determined()
 
+    def set_by_prior(self) -> dict[str, str]:
+        """Solve-for elements the a priori set rather than the data, with the reason."""
+        return {} if self.result is None or self.stale else self.analysis.set_by_prior()
+
+    def goodness(self):
+        """The goodness-of-fit tests and verdict of the latest fit (None before one)."""
+        return None if self.result is None or self.stale else self.analysis.goodness()
+
     def estimates(self) -> dict[str, tuple[float, float]]:
         """Solve-for element -> (estimate, σ) of the latest fit."""
         res = self.result

@@ -53,11 +53,11 @@ divergence_limit = 10.0     # normalized RMS no step may show (sensors the effec
 three_sigma = 3.0
 
 
-def nominal(mode: str, seed: int, hours: float):
+def nominal(mode: str, seed: int, hours: float, *, sweep_deg: float = 0.0):
     """The nominal three-axis scenario (data book = truth); the Earth-pointing FSS looks at
     the zenith and sees the Sun only near orbit noon, so short spans drop it (an empty
     telemetry file is refused)."""
-    cfg = nominal_threeaxis(mode, seed=seed, duration_s=hours * ONE_HOUR)
+    cfg = nominal_threeaxis(mode, seed=seed, duration_s=hours * ONE_HOUR, sweep_deg=sweep_deg)
     if mode == "earth_pointing" and hours < 1.5:
         cfg.sensors = [s for s in cfg.sensors if s.name != "FSS1"]
     return cfg
@@ -72,9 +72,10 @@ class Hidden:
     expected: tuple[str, ...]           # catalogue effects discovery must add (exactly)
     exclude: tuple[str, ...] = ()       # seed effects the starting config leaves out
     recover: tuple[str, ...] = ()       # elements whose truth differs from the book
+    sweep_deg: float = 0.0              # a slow pitch/yaw sweep carrying the Sun across the FSS
 
     def build(self, mode: str, seed: int, hours: float):
-        cfg = nominal(mode, seed, hours)
+        cfg = nominal(mode, seed, hours, sweep_deg=self.sweep_deg)
         for eff, mag, kw in self.changes:
             cfg = with_effect(cfg, eff, mag, **kw)
         return cfg
@@ -97,6 +98,8 @@ HIDDEN = (
            ("IRU.scale_misalignment",), exclude=("IRU.scale_misalignment",),
            recover=("IRU.G_11", "IRU.G_22", "IRU.G_33")),
     Hidden("FSS1.harmonic", (("FSS1.harmonic", 6e-4, {}),), ("FSS1.harmonic",),
+           recover=("FSS1.A4h", "FSS1.B4h"), sweep_deg=3.0),
+    Hidden("FSS1.harmonic_no_sweep", (("FSS1.harmonic", 6e-4, {}),), ("FSS1.harmonic",),
            recover=("FSS1.A4h", "FSS1.B4h")),
     Hidden("FSS1.A3", (("FSS1.transfer_function", 6e-4, {}),), (),
            recover=("FSS1.A1", "FSS1.A3", "FSS1.B1", "FSS1.B3")),

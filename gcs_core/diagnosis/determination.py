@@ -121,4 +121,7 @@ def null_at_prior(problem, names, rank_tol: float = 1e-7) -> list[str]:
     if not names:
         return []
     A, _, _, _ = normal_equations(problem, problem.state.values(), names)
-    return name_combinations(A, names, rank_tol)
+    combos = name_combinations(A, names, rank_tol)
+    # an element no data depend on is also an eigen-direction of its own: name it once
+    alone = {c.split(" (no data", 1)[0] for c in combos if c.endswith("(no data depends on it)")}
+    return [c for c in combos if not (c[1:].startswith("1.00·") and c[6:] in alone)]

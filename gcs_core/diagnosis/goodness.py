@@ -167,7 +167,7 @@ class GoodnessOfFit:
     def verdict(self) -> str:
         """One line: "consistent with noise" or "model inadequate: ...", with its numbers."""
         f = self.fit
-        head = f"χ² {f.chi2:.1f} on {f.dof:.1f} dof (per dof {f.reduced:.4f}, p = {_fmt_p(f.p_value)})"
+        head = f"χ² {f.chi2:.1f} on {f.dof:.1f} dof (per dof {f.reduced:.4f}, p {_fmt_p(f.p_value)})"
         bad = self.failing()
         if not bad:
             low = self.below_noise()
@@ -179,7 +179,7 @@ class GoodnessOfFit:
         sensors = [(s, t) for s, t in bad if t.label != ALL]
         s, t = (sensors or bad)[0]
         where = t.label + ("" if s == "fitted" else " on the held-out span")
-        return (f"model inadequate: residuals exceed the noise, p = {_fmt_p(t.p_value)}, worst sensor "
+        return (f"model inadequate: residuals exceed the noise, p {_fmt_p(t.p_value)}, worst sensor "
                 f"{where} (χ²/dof {t.reduced:.3f} on {t.dof:.0f} dof); whole fit {head}; "
                 f"family-wise α = {self.alpha:g} over {len(self.tests)} tests")
 
@@ -211,7 +211,8 @@ def _p(v: float):
 
 
 def _fmt_p(p: float) -> str:
-    return "nan" if not math.isfinite(p) else (f"{p:.2g}" if p >= 1e-300 else "< 1e-300")
+    """``= 0.03`` or ``< 1e-300`` (after "p")."""
+    return "= nan" if not math.isfinite(p) else (f"= {p:.2g}" if p >= 1e-300 else "< 1e-300")
 
 
 # ------------------------------------------------------------------------- effective dof
