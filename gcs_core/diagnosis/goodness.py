@@ -19,7 +19,12 @@ linear Gaussian model with the truth drawn from the a priori, ``E[χ²] = m − 
 exactly (Rodgers 2000, §2.4, §12.1). An estimator with process noise (the gyro's random
 walks carried as attitude freedom) has more effective parameters than its static
 elements: it passes its own ``p_eff`` (its smoother's ``Σ_k tr(H_k P_k|N H_kᵀ R_k⁻¹)``)
-and leverages per sensor, and this module uses them.
+and leverages per sensor, and this module uses them. Without them, a covariance that
+gives ``tr(P A) > n`` is not the static posterior of these partials (a smoother's
+covariance at ``t_ref``, whose attitude freedom is not in ``A``); the static element count
+``n`` is used then, an underestimate of ``p_eff``: the dof are too many, so the verdict
+leans to "consistent" by the attitude freedom the smoother has (such an estimator should
+declare its own).
 
 Held-out span. The frames held out of a training fit are predicted by it; their
 residuals ``r_h`` have covariance ``R_h + H_h P Hᵀ_h`` under a correct model, so::
@@ -36,9 +41,9 @@ Verdict. The tests of one fit form one family: the whole fit and every sensor, o
 fitted span and on the held-out span. Each is read at ``α / K`` (Bonferroni over the
 ``K`` tests), so a correct model is called inadequate on at most α of fits (α is the
 session's family-wise significance, 0.001 by default: the same level at which discovery
-adds an effect). With m of order 10⁴–10⁵ the test is sharp: at α = 0.001 it sees a
-sensor whose normalized RMS exceeds 1 by about ``3.5/sqrt(2 m_s)`` (1.5 % for 3 000
-measurements, 0.5 % for 30 000). A model inadequate by that measure has a signature the
+adds an effect). With m of order 10⁴–10⁵ the test is sharp: at α = 0.001 over about ten
+tests it sees a sensor whose normalized RMS exceeds 1 by about ``3.7/sqrt(2 m_s)`` (5 %
+for 3 000 measurements, 1.5 % for 30 000). A model inadequate by that measure has a signature the
 diagnosis can look for; a noise level wrong in the data book reads the same, and the
 verdict names the sensor so that the analyst can tell which. Residuals *below* the noise
 (lower tail at the same level) are reported too: a data-book σ too large makes every σ
