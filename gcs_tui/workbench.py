@@ -313,6 +313,7 @@ class Workbench:
             return None
         say(2, 3, "ranking candidates")
         fresh.rank()
+        fresh.goodness()                  # the χ² tests, formed here rather than on the UI thread
         if stop():
             return None
         say(3, 3, "done")
@@ -342,6 +343,7 @@ class Workbench:
             return None
         say(2, 3, "ranking candidates")
         a.rank()
+        a.goodness()
         if stop():
             return None
         say(3, 3, "done")
