@@ -41,6 +41,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # small matrices: threads only contend
 
 import argparse  # noqa: E402
+import logging  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -74,6 +75,7 @@ def failure_bound(failures: int, n: int, level: float = 0.95) -> float:
 
 
 def _job(job):
+    logging.getLogger("gcs_core").setLevel(logging.ERROR)   # the per-run method warnings
     mode, hours, run, seed, method = job
     with tempfile.TemporaryDirectory(prefix="gcs-fa-") as d:
         rec = hc.run_discovery(hc.nominal(mode, seed, hours), Path(d), method)

@@ -30,6 +30,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import argparse  # noqa: E402
+import logging  # noqa: E402
 import json  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -54,6 +55,7 @@ def seed_of(entropy: int, case: str, mode: str, hours: float, run: int) -> int:
 
 
 def _job(job):
+    logging.getLogger("gcs_core").setLevel(logging.ERROR)   # the per-run method warnings
     case_id, mode, hours, seed, method = job
     h = hc.HIDDEN_BY_ID[case_id]
     with tempfile.TemporaryDirectory(prefix="gcs-he-") as d:
