@@ -43,6 +43,7 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # small matrices: threads only contend
 
 import argparse  # noqa: E402
+import logging  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
@@ -75,6 +76,7 @@ def one_run(seed: int, folder: Path, minutes: float, method: str, mode: str, bia
 
 
 def _worker(job):
+    logging.getLogger("gcs_core").setLevel(logging.ERROR)   # the per-run method warnings
     seed, minutes, method, mode, bias_form = job
     with tempfile.TemporaryDirectory(prefix="gcs-mc-") as d:
         e, P = one_run(seed, Path(d), minutes, method, mode, bias_form)
