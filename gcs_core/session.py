@@ -457,7 +457,7 @@ class Analysis:
                                  "edited": int(np.count_nonzero(r.edited)),
                                  "holdout_rms_normalized": _round({name: self.holdout_rms.get(name, float("nan"))})[name],
                                  "unit": r.unit, "components": list(r.components)}
-                sensors[name].update(_sensor_gof(gof, name))
+                sensors[name].update(gof.sensor_report(name) if gof is not None else {})
         state = []
         if res is not None:
             sig = res.sigma
@@ -499,19 +499,6 @@ class Analysis:
             "stop_reason": getattr(self, "stop_reason", ""),
             "config_digest": self.config.digest(),
         }
-
-
-def _sensor_gof(gof, name: str) -> dict:
-    """The per-sensor χ² fields of the report (fitted and held-out span)."""
-    if gof is None:
-        return {}
-    out = {}
-    for prefix, tests in (("", gof.sensors), ("holdout_", gof.holdout_sensors)):
-        t = tests.get(name)
-        if t is not None:
-            rep = t.as_report()
-            out |= {f"{prefix}chi2": rep["chi2"], f"{prefix}dof": rep["dof"], f"{prefix}p_value": rep["p_value"]}
-    return out
 
 
 def _holdout_rms(problem: Problem, res: BatchResult, masks: Mapping[str, np.ndarray]) -> dict[str, float]:

@@ -188,6 +188,18 @@ class GoodnessOfFit:
                 f"{where} (χ²/dof {t.reduced:.3f} on {t.dof:.0f} dof); whole fit {head}; "
                 f"family-wise α = {self.alpha:g} over {len(self.tests)} tests")
 
+    def sensor_report(self, name: str) -> dict:
+        """A sensor's χ² fields for the ICD §7 ``sensors`` entry: ``chi2``, ``dof``,
+        ``p_value`` and, with a held-out span, ``holdout_chi2``, ``holdout_dof``,
+        ``holdout_p_value``."""
+        out = {}
+        for prefix, tests in (("", self.sensors), ("holdout_", self.holdout_sensors)):
+            t = tests.get(name)
+            if t is not None:
+                rep = t.as_report()
+                out |= {f"{prefix}{k}": rep[k] for k in ("chi2", "dof", "p_value")}
+        return out
+
     def as_report(self) -> dict:
         worst = self.worst()
         out = {"verdict": self.verdict, "adequate": self.adequate, "alpha": self.alpha,
