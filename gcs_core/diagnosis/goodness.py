@@ -266,6 +266,49 @@ def sensor_leverage(problem, result) -> dict[str, float]:
     return {name: effective_parameters(P, As) for name, As in A.items()}
 
 
+def smoothed_leverage(problem, result) -> dict[str, float] | None:
+    """Sensor -> ``Σ_k tr(R⁻¹ Cov(ŷ_k))`` for a fit with process noise (a result carrying
+    the knot corrections of the whole-span estimator, ``result.dynamics``); None for a
+    static fit.
+
+    For a linear Gaussian smoother the influence of a measurement on its own prediction is
+    ``∂ŷ_k/∂y_k = H_k P H_kᵀ R_k⁻¹`` with ``P`` the joint posterior of the static elements
+    and the knot corrections, i.e. the prediction's variance ``h P hᵀ + u Σ_j uᵀ +
+    2 u Cov(z_j, x) hᵀ`` (the same terms that standardize the held-out residuals) over the
+    noise variance. Summed over the used frames it is the sensor's effective parameters
+    (Hastie et al. §7.6).
+    """
+    dyn = getattr(result, "dynamics", None)
+    if dyn is None:
+        return None
+    from gcs_core.filtr import knots as kn
+    from gcs_core.filtr.linearization import iter_blocks
+    from gcs_core.filtr.smoothing_batch import knot_variance
+
+    names = tuple(result.solve_for)
+    used = {k: np.asarray(r.used, bool) for k, r in result.residuals.items()}
+    out = {k: 0.0 for k in used}
+    for blk in iter_blocks(dyn.problem(problem), result.state.values(), names, weighted=False):
+        u = used.get(blk.name)
+        if u is None:
+            continue
+        sel = u[blk.lo:blk.hi] & blk.valid
+        if not np.any(sel):
+            continue
+        sd = blk.sensor
+        c = blk.cols
+        H = np.nan_to_num(blk.H[sel]) if blk.H is not None else np.zeros((int(sel.sum()), len(sd.sigma), 0))
+        var = np.einsum("nmk,kl,nml->nm", H, result.P[np.ix_(c, c)], H, optimize=True)
+        D = getattr(blk.pred, "d_att", None)
+        if D is not None and blk.geom.C_BI is not None:
+            t = sd.t[blk.lo:blk.hi][sel]
+            j = dyn.grid.index(t)
+            U = kn.knot_rows(np.nan_to_num(D[sel]), blk.geom.C_BI[sel], t, j, dyn.grid, dyn.R)
+            var = var + knot_variance(dyn, U, j, H, c)
+        out[blk.name] += float(np.sum(np.clip(var, 0, None) / sd.sigma[None, :] ** 2))
+    return out
+
+
 # ------------------------------------------------------------------------- held-out span
 def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, ChiSquare]:
     """χ² of the held-out frames under the training fit ``train`` (module docstring),
@@ -347,6 +390,10 @@ def goodness_of_fit(problem, result, *, holdout: Mapping[str, ChiSquare] | None 
     p_eff = effective_parameters if effective_parameters is not None else getattr(result, "effective_parameters", None)
     lev = leverage if leverage is not None else getattr(result, "leverage", None)
     src = "the estimator" if (p_eff is not None or lev is not None) else "trace of P A"
+    if lev is None:
+        lev = smoothed_leverage(problem, result)
+        if lev is not None:
+            src = "trace of the influence matrix (static elements and knots)"
     if lev is None:
         lev = sensor_leverage(problem, result)
         n = len(result.solve_for)
