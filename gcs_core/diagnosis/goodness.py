@@ -266,33 +266,21 @@ def sensor_leverage(problem, result) -> dict[str, float]:
     return {name: effective_parameters(P, As) for name, As in A.items()}
 
 
-def smoothed_leverage(problem, result) -> dict[str, float] | None:
-    """Sensor -> ``Σ_k tr(R⁻¹ Cov(ŷ_k))`` for a fit with process noise (a result carrying
-    the knot corrections of the whole-span estimator, ``result.dynamics``); None for a
-    static fit.
-
-    For a linear Gaussian smoother the influence of a measurement on its own prediction is
-    ``∂ŷ_k/∂y_k = H_k P H_kᵀ R_k⁻¹`` with ``P`` the joint posterior of the static elements
-    and the knot corrections, i.e. the prediction's variance ``h P hᵀ + u Σ_j uᵀ +
-    2 u Cov(z_j, x) hᵀ`` (the same terms that standardize the held-out residuals) over the
-    noise variance. Summed over the used frames it is the sensor's effective parameters
-    (Hastie et al. §7.6).
-    """
-    dyn = getattr(result, "dynamics", None)
-    if dyn is None:
-        return None
+def _smoothed_frames(problem, result, select: Mapping[str, np.ndarray]):
+    """(sensor, residual (k, m), σ (m,), prediction variance (k, m)) of the ``select``-ed
+    valid frames of a fit with knot corrections (``result.dynamics``), chunk by chunk: the
+    variance ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of static elements and knots."""
     from gcs_core.filtr import knots as kn
     from gcs_core.filtr.linearization import iter_blocks
     from gcs_core.filtr.smoothing_batch import knot_variance
 
+    dyn = result.dynamics
     names = tuple(result.solve_for)
-    used = {k: np.asarray(r.used, bool) for k, r in result.residuals.items()}
-    out = {k: 0.0 for k in used}
     for blk in iter_blocks(dyn.problem(problem), result.state.values(), names, weighted=False):
-        u = used.get(blk.name)
-        if u is None:
+        m = select.get(blk.name)
+        if m is None:
             continue
-        sel = u[blk.lo:blk.hi] & blk.valid
+        sel = m[blk.lo:blk.hi] & blk.valid
         if not np.any(sel):
             continue
         sd = blk.sensor
@@ -305,7 +293,44 @@ def smoothed_leverage(problem, result) -> dict[str, float] | None:
             j = dyn.grid.index(t)
             U = kn.knot_rows(np.nan_to_num(D[sel]), blk.geom.C_BI[sel], t, j, dyn.grid, dyn.R)
             var = var + knot_variance(dyn, U, j, H, c)
-        out[blk.name] += float(np.sum(np.clip(var, 0, None) / sd.sigma[None, :] ** 2))
+        yield blk.name, blk.r[sel], sd.sigma, np.clip(var, 0, None)
+
+
+def smoothed_leverage(problem, result) -> dict[str, float] | None:
+    """Sensor -> ``Σ_k tr(R⁻¹ Cov(ŷ_k))`` for a fit with process noise (a result carrying
+    the knot corrections of the whole-span estimator, ``result.dynamics``); None for a
+    static fit.
+
+    For a linear Gaussian smoother the influence of a measurement on its own prediction is
+    ``∂ŷ_k/∂y_k = H_k P H_kᵀ R_k⁻¹`` with ``P`` the joint posterior of the static elements
+    and the knot corrections, i.e. the prediction's variance over the noise variance (the
+    same terms that standardize the held-out residuals). Summed over the used frames it is
+    the sensor's effective parameters (Hastie et al. §7.6).
+    """
+    if getattr(result, "dynamics", None) is None:
+        return None
+    used = {k: np.asarray(r.used, bool) for k, r in result.residuals.items()}
+    out = {k: 0.0 for k in used}
+    for name, _, sigma, var in _smoothed_frames(problem, result, used):
+        out[name] += float(np.sum(var / sigma[None, :] ** 2))
+    return out
+
+
+def _smoothed_holdout(problem, train, masks) -> dict[str, ChiSquare]:
+    """Held-out χ² of a fit with knot corrections: each residual standardized by its full
+    prediction variance, summed (``Σ z²`` on the held-out measurements). The correlation
+    between held-out frames through common errors is neglected here (no joint covariance
+    of the knots across a held-out block is formed), so the test is exact only where the
+    prediction variance is small against the noise."""
+    acc: dict[str, list] = {}
+    for name, r, sigma, var in _smoothed_frames(problem, train, masks):
+        a = acc.setdefault(name, [0.0, 0])
+        a[0] += float(np.sum(r ** 2 / (sigma[None, :] ** 2 + var)))
+        a[1] += r.size
+    out = {k: ChiSquare(k, v[0], v[1], float(v[1])) for k, v in acc.items() if v[1]}
+    if out:
+        out[ALL] = ChiSquare(ALL, sum(t.chi2 for t in out.values()), sum(t.n for t in out.values()),
+                             float(sum(t.n for t in out.values())))
     return out
 
 
@@ -324,6 +349,8 @@ def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, 
     sel = {k: np.asarray(v, bool) for k, v in masks.items() if np.any(v)}
     if not sel:
         return {}
+    if getattr(train, "dynamics", None) is not None:
+        return _smoothed_holdout(problem, train, sel)
     exclude = {sd.name: ~sel.get(sd.name, np.zeros(sd.n, bool)) for sd in problem.sensors}
     acc: dict[str, list] = {}
     for blk in iter_blocks(problem, train.state.values(), names, sensors=list(sel), exclude=exclude,
