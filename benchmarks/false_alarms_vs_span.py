@@ -8,7 +8,9 @@ Issue 10's acceptance on nominal missions (data book = truth, a flight-typical I
 * puts every calibrated element within 3σ of the simulator's truth on ≥ 95 % of seeds
   ("truth 3σ"; the elements flagged "not determined by the data" aside);
 
-and, printed beside them, the goodness-of-fit verdict ("consistent": the fraction whose
+and, printed beside them, the share of seeds a perfect estimator would keep within 3σ
+("ideal": ``0.9973^k`` for k calibrated elements, 90.5 % for 37, so "≥ 95 %" is stricter
+than chance allows on a mission of 37 elements), the goodness-of-fit verdict ("consistent": the fraction whose
 final fit reads "consistent with noise"). Each cell also gives the one-sided 95 %
 Clopper–Pearson bound on the rate of the failures seen (the claim "≥ 95 %" is shown when
 the bound on the failure rate is below 5 %: 0 failures in ≥ 59 seeds, 1 in ≥ 93).
@@ -106,6 +108,10 @@ def summarize(recs: list[dict]) -> dict:
     rms = [v for r in recs for v in list(r.get("rms", {}).values()) + list(r.get("holdout_rms", {}).values())]
     out["worst_rms"] = max(rms) if rms else float("nan")
     zs = [(abs(v), k) for r in recs for k, v in hc.calibrated_z(r).items()]
+    # a perfect estimator puts each |z| above 3 with probability 0.27 %: with k elements
+    # every one is within 3σ on a share 0.9973^k of seeds (0.905 for 37), not 100 %
+    k = float(np.median([len(hc.calibrated_z(r)) for r in recs])) if recs else 0.0
+    out["truth_expected"] = float((1.0 - 2.0 * stats.norm.sf(hc.three_sigma)) ** k)
     out["worst_z"] = max(zs) if zs else (float("nan"), "-")
     alarms: dict[str, int] = {}
     for r in recs:
@@ -120,7 +126,7 @@ def summarize(recs: list[dict]) -> dict:
 def print_table(groups: dict, method: str) -> bool:
     print(f"\nmethod {method}: share of seeds passing (one-sided 95 % bound on the failure rate)")
     print(f"{'mode':9s} {'span':>5s} {'seeds':>5s} {'no effect':>17s} {'RMS ≤ 1.05':>17s} "
-          f"{'truth 3σ':>17s} {'consistent':>10s} {'worst RMS':>9s} {'worst |z|':>24s} {'s/run':>6s}")
+          f"{'truth 3σ':>17s} {'(ideal)':>7s} {'consistent':>10s} {'worst RMS':>9s} {'worst |z|':>24s} {'s/run':>6s}")
     ok_all = True
     for (mode, hours), recs in sorted(groups.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         s = summarize(recs)
@@ -131,7 +137,8 @@ def print_table(groups: dict, method: str) -> bool:
             ok_all &= share >= required_share
         z, zname = s["worst_z"]
         print(f"{MODE_SHORT[mode]:9s} {hours:4g}h {s['n']:5d} {cells[0]:>17s} {cells[1]:>17s} {cells[2]:>17s} "
-              f"{100 * s['consistent']:9.1f}% {s['worst_rms']:9.3f} {z:6.2f} {zname:>17s} {s['seconds']:6.1f}")
+              f"{100 * s['truth_expected']:6.1f}% {100 * s['consistent']:9.1f}% {s['worst_rms']:9.3f} {z:6.2f} "
+              f"{zname:>17s} {s['seconds']:6.1f}")
         if s["alarms"]:
             print("    added: " + ", ".join(f"{k} ×{v}" for k, v in sorted(s["alarms"].items())))
         if s["errors"]:
