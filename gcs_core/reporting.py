@@ -44,8 +44,13 @@ UNOBSERVABLE_NOTE = ("(unobservable: the data constrain only the combination nam
 
 
 def fit_table(analysis) -> list[str]:
+    """Per sensor: frames used and edited, normalized RMS fitted and held-out, the χ²
+    test's p on the fitted and held-out span (:mod:`gcs_core.diagnosis.goodness`), RMS per
+    component; then the status and the goodness-of-fit verdict."""
     res = analysis.result
-    lines = [f"{'sensor':10s} {'n':>7s} {'edited':>6s} {'norm. RMS':>9s} {'held-out':>9s}  RMS per component"]
+    gof = analysis.goodness() if hasattr(analysis, "goodness") else None
+    lines = [f"{'sensor':10s} {'n':>7s} {'edited':>6s} {'norm. RMS':>9s} {'held-out':>9s} "
+             f"{'p fit':>8s} {'p held':>8s}  RMS per component"]
     for name, r in res.residuals.items():
         rms = np.atleast_1d(np.asarray(r.rms, dtype=float))
         shown = display.display_unit(r.unit, float(np.nanmax(rms)) if rms.size else float("nan"))
@@ -53,28 +58,56 @@ def fit_table(analysis) -> list[str]:
                          for c, v in zip(r.components, rms))
         ho = analysis.holdout_rms.get(name, float("nan"))
         lab = display.unit_label(shown)
+        p_fit = _p_cell(gof.sensors.get(name) if gof else None, gof)
+        p_ho = _p_cell(gof.holdout_sensors.get(name) if gof else None, gof)
         lines.append(f"{name:10s} {r.n:7d} {int(np.count_nonzero(r.edited)):6d} {r.rms_normalized:9.3f} "
-                     f"{ho:9.3f}  {comp}" + (f" [{lab}]" if lab else ""))
+                     f"{ho:9.3f} {p_fit:>8s} {p_ho:>8s}  {comp}" + (f" [{lab}]" if lab else ""))
     lines.append(f"status: {res.message}; χ² {res.chi2:.1f} on {res.dof} dof")
+    if gof is not None:
+        lines.append(f"goodness of fit: {gof.verdict}")
+        lines.append(f"  (p: χ² upper tail on the effective dof, {gof.effective_parameters:.1f} effective "
+                     f"parameters; ! marks p below the per-test level {gof.level:.2g})")
     for u in res.unobservable:
         lines.append(f"unobservable from the data: {u}")
     if res.unobservable:
         lines.append(UNOBSERVABLE_NOTE)
+    if hasattr(analysis, "null_at_prior"):
+        shown = set(res.unobservable)
+        for u in analysis.null_at_prior():
+            if u not in shown:
+                lines.append(f"not determined at the a-priori linearization: {u}")
     return lines
+
+
+def _p_cell(test, gof) -> str:
+    """A p-value cell: two significant digits, ``!`` where it fails the per-test level."""
+    if test is None or not math.isfinite(test.p_value):
+        return "-"
+    mark = "!" if test.p_value < gof.level else ""
+    return (f"{test.p_value:.2g}" if test.p_value >= 1e-99 else "<1e-99") + mark
 
 
 def state_table(analysis) -> list[str]:
     res = analysis.result
     sig = res.sigma
     loose = analysis.not_determined() if hasattr(analysis, "not_determined") else {}
+    prior = analysis.set_by_prior() if hasattr(analysis, "set_by_prior") else {}
     lines = [f"{'element':28s} {'role':10s} estimate"]
     for e in res.state:
         if e.role == "held":
             continue
-        note = "   (not determined by the data)" if e.name in loose else ""
+        note = ("   (not determined by the data)" if e.name in loose else
+                "   (set by the a priori)" if e.name in prior else "")
         lines.append(f"{e.name:28s} {e.role:10s} {format_estimate(e.value, sig.get(e.name, e.sigma0), e.unit)}{note}")
     for name, why in loose.items():
         lines.append(f"{name}: {why}")
+    if prior:
+        idx = {n: i for i, n in enumerate(res.solve_for)}
+        ratio = {n: math.sqrt(res.P[idx[n], idx[n]]) / res.state[n].sigma0 for n in prior if n in idx}
+        shown = [f"{n} {ratio[n]:.2f}" for n in prior if n not in loose and n in ratio]
+        if shown:
+            lines.append("set by the a priori (the data give less information than the a priori; "
+                         "posterior σ / a-priori σ): " + ", ".join(shown))
     return lines
 
 

@@ -16,7 +16,7 @@ import numpy as np
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.display import p_text
-from gcs_core.diagnosis import aliases, determination
+from gcs_core.diagnosis import aliases, determination, goodness
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
@@ -89,6 +89,9 @@ class Analysis:
         self.candidates: list[Candidate] = []
         self.steps: list[Step] = []
         self.holdout_rms: dict[str, float] = {}
+        self.holdout_chi2: dict[str, goodness.ChiSquare] = {}   # sensor (and "all sensors") -> test
+        self._goodness: tuple | None = None             # (result it was formed for, GoodnessOfFit)
+        self._null_at_prior: tuple | None = None        # (problem, combinations)
         self._physics_needed: tuple | None = None      # (result it was scored on, rows)
         self._rebuild()
 
@@ -189,6 +192,9 @@ class Analysis:
             self.holdout_rms = (smoothed_holdout_rms(self.problem, res_train, masks)
                                 if getattr(res_train, "dynamics", None) is not None
                                 else _holdout_rms(self.problem, res_train, masks))
+            self.holdout_chi2 = goodness.holdout_tests(self.problem, res_train, masks)
+        else:
+            self.holdout_chi2 = {}
         self.result = res
         self.candidates = []
         self.warnings = self._method_warnings()
@@ -361,7 +367,6 @@ class Analysis:
                                     f"{self.config.significance:g}" +
                                     (f" (best: {best.id}, {p_text(best.p_adjusted, 'p adj')}"
                                      + ("" if best.identifiable else ", not identifiable") + ")" if best else ""))
-                say(self.stop_reason)
                 break
             top = self._parsimonious(ok[0], cands)
             say(f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
@@ -370,6 +375,11 @@ class Analysis:
         else:
             self.stop_reason = f"stopped after {max_steps} steps"
         self.rank()
+        g = self.goodness()
+        if g is not None:
+            # a converged fit of an inadequate model must not read as success
+            self.stop_reason += "; what remains: " + g.verdict
+        say(self.stop_reason)
         return self.steps
 
     def _parsimonious(self, top: Candidate, cands: list[Candidate]) -> Candidate:
@@ -397,6 +407,43 @@ class Analysis:
 
         # then known physics (no new parameter) over a free one: WGS-84 over a fitted κ
         return max(close, key=lambda c: (seed_effect(c), c.effect.physics, bic[c.id]))
+
+    # ------------------------------------------------------------------ honesty
+    def goodness(self) -> goodness.GoodnessOfFit | None:
+        """χ² of the latest fit on its effective dof, per sensor and on the held-out span,
+        with the verdict "consistent with noise" or "model inadequate: ..." at the
+        session's family-wise significance (:mod:`gcs_core.diagnosis.goodness`); None
+        before a fit."""
+        res = self.result
+        if res is None:
+            return None
+        if self._goodness is None or self._goodness[0] is not res:
+            g = goodness.goodness_of_fit(self.problem, res, holdout=self.holdout_chi2,
+                                         alpha=self.config.significance)
+            self._goodness = (res, g)
+        return self._goodness[1]
+
+    def set_by_prior(self) -> dict[str, str]:
+        """Solve-for elements the a priori set rather than the data (prior share of the
+        information above one half, :func:`gcs_core.diagnosis.determination.set_by_prior`),
+        with the reason; {} before a fit."""
+        res = self.result
+        if res is None:
+            return {}
+        return determination.set_by_prior(self.problem, res.solve_for, res.P)
+
+    def null_at_prior(self) -> list[str]:
+        """Combinations the data do not determine at the a-priori linearization
+        (:func:`gcs_core.diagnosis.determination.null_at_prior`), once per state."""
+        if self._null_at_prior is None or self._null_at_prior[0] is not self.problem:
+            try:
+                combos = determination.null_at_prior(self.problem, self.problem.state.solve_for,
+                                                     self.batch_options().rank_tol * 1e3)
+            except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
+                log.info("no linearization at the a priori: %s", exc)
+                combos = []
+            self._null_at_prior = (self.problem, combos)
+        return self._null_at_prior[1]
 
     # ------------------------------------------------------------------ report (ICD §7)
     def not_determined(self) -> dict[str, str]:
@@ -427,6 +474,7 @@ class Analysis:
         res = self.result
         spec = self.mission.spec
         sensors = {}
+        gof = self.goodness()
         if res is not None:
             for name, r in res.residuals.items():
                 rms = r.rms
@@ -435,10 +483,14 @@ class Analysis:
                                  "edited": int(np.count_nonzero(r.edited)),
                                  "holdout_rms_normalized": _round({name: self.holdout_rms.get(name, float("nan"))})[name],
                                  "unit": r.unit, "components": list(r.components)}
+                sensors[name].update(gof.sensor_report(name) if gof is not None else {})
         state = []
         if res is not None:
             sig = res.sigma
             loose = self.not_determined()
+            by_prior = self.set_by_prior()
+            shares = determination.prior_shares(res.solve_for, res.P,
+                                                [res.state[n].sigma0 for n in res.solve_for])
             for e in res.state:
                 if e.role == HELD:
                     continue
@@ -448,6 +500,11 @@ class Analysis:
                     row["determined"] = e.name not in loose
                     if e.name in loose:
                         row["note"] = loose[e.name]
+                    row["set_by_prior"] = e.name in by_prior
+                    if e.name in shares:
+                        row["prior_share"] = round(shares[e.name], 4)
+                    if e.name in by_prior and e.name not in loose:
+                        row["note"] = by_prior[e.name]
                 state.append(row)
         return {
             "mission": spec.name,
@@ -462,6 +519,9 @@ class Analysis:
             "physics_needed": self.physics_needed() if res is not None else [],
             "unobservable": list(res.unobservable) if res else [],
             "aliases": [al.as_report() for al in self.aliases()],
+            "unobservable_at_prior": self.null_at_prior() if res else [],
+            "goodness_of_fit": gof.as_report() if gof is not None else None,
+            "verdict": gof.verdict if gof is not None else "not run",
             "warnings": list(getattr(self, "warnings", [])),
             "stop_reason": getattr(self, "stop_reason", ""),
             "config_digest": self.config.digest(),

@@ -335,6 +335,7 @@ class Workbench:
             return None
         say(2, 3, "ranking candidates")
         fresh.rank()
+        fresh.goodness()                  # the χ² tests, formed here rather than on the UI thread
         if stop():
             return None
         say(3, 3, "done")
@@ -364,6 +365,7 @@ class Workbench:
             return None
         say(2, 3, "ranking candidates")
         a.rank()
+        a.goodness()
         if stop():
             return None
         say(3, 3, "done")
@@ -378,6 +380,14 @@ class Workbench:
     def not_determined(self) -> dict[str, str]:
         """Solve-for elements the latest fit did not determine, with the reason."""
         return {} if self.result is None or self.stale else self.analysis.not_determined()
+
+    def set_by_prior(self) -> dict[str, str]:
+        """Solve-for elements the a priori set rather than the data, with the reason."""
+        return {} if self.result is None or self.stale else self.analysis.set_by_prior()
+
+    def goodness(self):
+        """The goodness-of-fit tests and verdict of the latest fit (None before one)."""
+        return None if self.result is None or self.stale else self.analysis.goodness()
 
     def estimates(self) -> dict[str, tuple[float, float]]:
         """Solve-for element -> (estimate, σ) of the latest fit."""

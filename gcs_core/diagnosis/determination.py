@@ -15,7 +15,10 @@ estimated within :data:`AMPLITUDE_Z` of its σ from 0 (a two-sided 95 % test).
 
 from __future__ import annotations
 
+import math
 from typing import Mapping
+
+import numpy as np
 
 #: an amplitude within this many σ of zero is "consistent with zero" (two-sided 95 %)
 AMPLITUDE_Z = 1.96
@@ -55,3 +58,70 @@ def not_determined(problem, values: Mapping[str, float], sigma: Mapping[str, flo
                                + ", ".join(parts) + ", consistent with 0; its σ mirrors the a priori "
                                "and the noise in that amplitude")
     return out
+
+
+# ------------------------------------------------------------------ set by the a priori
+#: an element whose prior share of information exceeds this is "set by the a priori"
+PRIOR_SHARE = 0.5
+#: ... which covers every element whose posterior σ is within 10 % of its a-priori σ
+#: (share ≥ 0.9² = 0.81)
+SIGMA_RATIO = 0.9
+
+
+def prior_shares(names, P, sigma0) -> dict[str, float]:
+    """Element -> the share of its posterior information that comes from the a priori.
+
+    With the batch information ``P⁻¹ = P̄⁻¹ + A`` (Eq 3-2, ``A`` the data's), the resolution
+    (averaging-kernel) matrix is ``P A = I − P P̄⁻¹``; its complement on the diagonal,
+    ``P_ii / σ̄_i²``, is the a priori's share of what is known about element ``i``: 0 when
+    the data determine it alone, 1 when they add nothing (posterior σ = a-priori σ). It is
+    the square of the posterior-to-prior σ ratio. Elements without a finite a priori
+    (σ̄ = ∞) are left out: the data alone set them.
+
+    References
+    ----------
+    Rodgers, C. D., *Inverse Methods for Atmospheric Sounding*, World Scientific 2000, §2.4
+    (the averaging kernel; an element's information from the measurement and the a priori).
+    """
+    P = np.asarray(P, dtype=float)
+    out = {}
+    for i, name in enumerate(names):
+        s0 = float(sigma0[i])
+        if math.isfinite(s0) and s0 > 0 and math.isfinite(P[i, i]):
+            out[name] = float(P[i, i]) / s0 ** 2
+    return out
+
+
+def set_by_prior(problem, names, P) -> dict[str, str]:
+    """Solve-for element -> why the a priori, not the data, set it: its prior share of
+    information (:func:`prior_shares`) above :data:`PRIOR_SHARE` (the data give less
+    information than the a priori), which includes every element whose posterior σ is
+    within 10 % of its a-priori σ."""
+    state = problem.state
+    sigma0 = [state[n].sigma0 for n in names]
+    out = {}
+    for name, share in prior_shares(names, P, sigma0).items():
+        if share > PRIOR_SHARE:
+            ratio = math.sqrt(share)
+            out[name] = (f"set by the a priori: posterior σ is {100 * ratio:.0f} % of the a-priori σ; "
+                         f"the data give {100 * max(0.0, 1 - share):.0f} % of what is known about it")
+    return out
+
+
+def null_at_prior(problem, names, rank_tol: float = 1e-7) -> list[str]:
+    """Combinations of ``names`` the data do not determine when linearized at the a priori
+    (the configured values): eigen-directions of the equilibrated data information with
+    eigenvalue below ``rank_tol`` of the largest, and elements no data depend on there
+    (:func:`~gcs_core.filtr.batch.name_combinations`). A parameter that reaches the data
+    only through an amplitude whose a priori is 0 (the FSS frequency ``k`` of Eq 4-23)
+    is null here though a fitted amplitude's noise gives it curvature at the solution."""
+    from gcs_core.filtr.batch import name_combinations, normal_equations
+
+    names = tuple(names)
+    if not names:
+        return []
+    A, _, _, _ = normal_equations(problem, problem.state.values(), names)
+    combos = name_combinations(A, names, rank_tol)
+    # an element no data depend on is also an eigen-direction of its own: name it once
+    alone = {c.split(" (no data", 1)[0] for c in combos if c.endswith("(no data depends on it)")}
+    return [c for c in combos if not (c[1:].startswith("1.00·") and c[6:] in alone)]

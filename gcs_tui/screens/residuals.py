@@ -12,6 +12,8 @@ line, outside the data.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 from rich.text import Text
 from textual.app import ComposeResult
@@ -130,7 +132,7 @@ class ResidualsScreen(GcsScreen):
             f" · {kind}" + (f" vs {xname}" if kind == "residual" else ""), " · normalized RMS ",
             (fmt.fixed(r.rms_normalized, 3), f"bold {color('gcs-bad' if r.rms_normalized > RMS_LIMIT else 'gcs-ok')}"),
             f" · held-out {fmt.fixed(ho, 3)} · n {r.n} · edited {n_edit}",
-            f" · χ²/dof {res.chi2 / max(res.dof, 1):.3f}"))
+            *self._verdict(res)))
         z = r.normalized[:, j]
         resid = r.residual[:, j] * fmt.scale(r.unit, shown)
         sigma = fmt.to_display(float(r.sigma[j]), r.unit, shown)
@@ -150,6 +152,18 @@ class ResidualsScreen(GcsScreen):
         self.query_one("#res-hist", GcsPlot).paint(lambda plt: self._hist(plt, z[r.used], "histogram (z)"))
         self.query_one("#res-acf", GcsPlot).paint(lambda plt: self._acf(plt, z[r.used], "autocorrelation (z)"))
         self._table()
+
+    def _verdict(self, res) -> tuple:
+        """The fit's χ² per dof and its goodness-of-fit verdict, short (gcs_core.diagnosis.goodness)."""
+        g = self.wb.goodness()
+        if g is None:
+            return (f" · χ²/dof {res.chi2 / max(res.dof, 1):.3f}",)
+        p = g.fit.p_value
+        head = f" · χ²/dof {g.fit.reduced:.3f} (p {p:.2g}) · " if math.isfinite(p) else " · "
+        if g.adequate:
+            return (head, ("consistent with noise", color("gcs-ok")))
+        worst = g.failing()[0][1].label
+        return (head, (f"model inadequate (worst {worst})", f"bold {color('gcs-bad')}"))
 
     def _table(self) -> None:
         wb = self.wb

@@ -55,12 +55,15 @@ class StateScreen(GcsScreen):
         rows = []
         est = wb.estimates() if not wb.stale else {}
         loose = wb.not_determined()
+        prior = wb.set_by_prior()
         overridden = set(wb.config.elements)
         for e in wb.analysis.problem.state:
             if self.hide_held and e.role == "held":
                 continue
-            # dim: an element the fit did not determine (its σ is not to be trusted)
-            name = Text(e.name + (" *" if e.name in overridden else ""), style="dim" if e.name in loose else "")
+            # dim: an element the fit did not determine (its σ is not to be trusted), or one
+            # the a priori set rather than the data
+            name = Text(e.name + (" *" if e.name in overridden else ""),
+                        style="dim" if e.name in loose or e.name in prior else "")
             v = est.get(e.name)
             cells = [name, Text(fmt.estimate(v[0], v[1], e.unit) if v else "", justify="right"), role_text(e.role),
                      Text(fmt.estimate(e.value, e.sigma0, e.unit), justify="right")]
@@ -75,6 +78,7 @@ class StateScreen(GcsScreen):
         self.query_one("#state-title", Label).update(
             f"Elements{' (held hidden)' if self.hide_held else ''} — {held} held · "
             + (f"{len(loose)} not determined (dim) · " if loose else "")
+            + (f"{len(set(prior) - set(loose))} set by the a priori (dim) · " if set(prior) - set(loose) else "")
             + "s/c/h role · e edit · v held · i details · * = set in config")
         self._detail()
 
@@ -99,7 +103,7 @@ class StateScreen(GcsScreen):
         if res is not None and not wb.stale and name in res.solve_for:
             i = res.solve_for.index(name)
             lines.append(f"  estimate {fmt.estimate(res.x[i], res.sigma[name], e.unit)}")
-            why = wb.not_determined().get(name)
+            why = wb.not_determined().get(name) or wb.set_by_prior().get(name)
             if why:
                 lines += textwrap.wrap(why, width=44, initial_indent="  ", subsequent_indent="    ")
             corr = res.correlation()[i]

@@ -1,0 +1,449 @@
+"""Goodness of fit: is what the model leaves in the residuals noise?
+
+A fit that converged says nothing about whether its model describes the data. Under a
+correct model with the data-book noise (seed §4.3: ``R`` diagonal, the sensors' σ), the
+weighted residual sum of squares is χ²-distributed on the *effective* degrees of freedom::
+
+    χ² = Σ rᵀ R⁻¹ r,      ν = m − p_eff,      p = P(χ²_ν ≥ χ²)
+
+``m`` the measurements used (valid frames × components, edited frames excluded) and
+``p_eff`` the effective number of parameters, the trace of the influence (hat) matrix
+``∂ŷ/∂y``. For the batch with an a priori (Eq 3-1, 3-2) that is::
+
+    p_eff = tr(P A) = Σ_s tr(P A_s) = n − Σ_i (P P̄⁻¹)_ii            (A = Hᵀ R⁻¹ H)
+
+``P A`` the resolution (averaging-kernel) matrix: an element set by its a priori adds
+nothing to ``p_eff``, one set by the data adds 1. ``tr(P A_s)`` is the share of sensor
+``s`` (its leverage), so each sensor has its own test on ``m_s − tr(P A_s)``. For the
+linear Gaussian model with the truth drawn from the a priori, ``E[χ²] = m − tr(P A)``
+exactly (Rodgers 2000, §2.4, §12.1). An estimator with process noise (the gyro's random
+walks carried as attitude freedom) has more effective parameters than its static
+elements: it passes its own ``p_eff`` (its smoother's ``Σ_k tr(H_k P_k|N H_kᵀ R_k⁻¹)``)
+and leverages per sensor, and this module uses them. Without them, a covariance that
+gives ``tr(P A) > n`` is not the static posterior of these partials (a smoother's
+covariance at ``t_ref``, whose attitude freedom is not in ``A``); the static element count
+``n`` is used then, an underestimate of ``p_eff``: the dof are too many, so the verdict
+leans to "consistent" by the attitude freedom the smoother has (such an estimator should
+declare its own).
+
+Held-out span. The frames held out of a training fit are predicted by it; their
+residuals ``r_h`` have covariance ``R_h + H_h P Hᵀ_h`` under a correct model, so::
+
+    χ²_h = r_hᵀ (R_h + H_h P H_hᵀ)⁻¹ r_h  ~  χ²_{m_h}
+         = r_hᵀ R_h⁻¹ r_h − g_hᵀ (P⁻¹ + A_h)⁻¹ g_h      (Woodbury; g_h = H_hᵀ R_h⁻¹ r_h)
+
+exact for a static-state fit, and formed from the held-out frames' normal equations
+(one streaming pass, an n × n solve; no m_h × m_h matrix). Frame by frame
+standardizing would ignore that one parameter error moves every held-out frame alike,
+which makes the sum far wider than χ²_{m_h} when ``H P Hᵀ`` is not small against ``R``.
+
+Verdict. The tests of one fit form one family: the whole fit and every sensor, on the
+fitted span and on the held-out span. Each is read at ``α / K`` (Bonferroni over the
+``K`` tests), so a correct model is called inadequate on at most α of fits (α is the
+session's family-wise significance, 0.001 by default: the same level at which discovery
+adds an effect). With m of order 10⁴–10⁵ the test is sharp: at α = 0.001 over about ten
+tests it sees a sensor whose normalized RMS exceeds 1 by about ``3.7/sqrt(2 m_s)`` (5 %
+for 3 000 measurements, 1.5 % for 30 000). A model inadequate by that measure has a signature the
+diagnosis can look for; a noise level wrong in the data book reads the same, and the
+verdict names the sensor so that the analyst can tell which. Residuals *below* the noise
+(lower tail at the same level) are reported too: a data-book σ too large makes every σ
+and p-value of the fit pessimistic.
+
+References
+----------
+Rodgers, C. D., *Inverse Methods for Atmospheric Sounding*, World Scientific 2000, §2.4
+(averaging kernel, degrees of freedom for signal), §12.1 (χ² test of the retrieval).
+Hastie, Tibshirani & Friedman, *The Elements of Statistical Learning*, 2nd ed., §7.6
+(effective number of parameters, trace of the smoother matrix).
+Tapley, Schutz & Born, *Statistical Orbit Determination*, Elsevier 2004, §4.16.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+import numpy as np
+from scipy import linalg, stats
+
+__all__ = ["ChiSquare", "GoodnessOfFit", "goodness_of_fit", "sensor_leverage", "holdout_tests",
+           "effective_parameters", "FAMILY_ALPHA"]
+
+#: default family-wise level of the verdict (the session passes its ``significance``)
+FAMILY_ALPHA = 1e-3
+
+
+@dataclass(frozen=True)
+class ChiSquare:
+    """One χ² test of residuals against the noise.
+
+    Attributes
+    ----------
+    label : "all sensors" or a sensor name.
+    chi2 : Σ rᵀ R⁻¹ r over the measurements tested.
+    n : measurements (frames × components) tested.
+    dof : effective degrees of freedom, ``n − p_eff`` (may be fractional).
+    """
+
+    label: str
+    chi2: float
+    n: int
+    dof: float
+
+    @property
+    def p_value(self) -> float:
+        """Upper tail ``P(χ²_dof ≥ chi2)``: small when the residuals exceed the noise."""
+        if not (self.dof > 0 and math.isfinite(self.chi2)):
+            return float("nan")
+        return float(stats.chi2.sf(self.chi2, self.dof))
+
+    @property
+    def p_lower(self) -> float:
+        """Lower tail ``P(χ²_dof ≤ chi2)``: small when the residuals are below the noise."""
+        if not (self.dof > 0 and math.isfinite(self.chi2)):
+            return float("nan")
+        return float(stats.chi2.cdf(self.chi2, self.dof))
+
+    @property
+    def reduced(self) -> float:
+        """``chi2 / dof`` (1 for noise)."""
+        return self.chi2 / self.dof if self.dof > 0 else float("nan")
+
+    def as_report(self) -> dict:
+        return {"chi2": round(float(self.chi2), 3), "n": int(self.n), "dof": round(float(self.dof), 2),
+                "chi2_per_dof": _r(self.reduced, 5), "p_value": _p(self.p_value),
+                "p_lower": _p(self.p_lower)}
+
+
+@dataclass(frozen=True)
+class GoodnessOfFit:
+    """The χ² tests of one fit and their verdict (module docstring).
+
+    Attributes
+    ----------
+    fit : all sensors on the fitted span; sensors : sensor -> its own test.
+    holdout : all sensors on the held-out span (None without one); holdout_sensors : per sensor.
+    alpha : family-wise level; effective_parameters : ``p_eff`` of the fit.
+    effective_from : how ``p_eff`` was obtained ("trace of P A" or "the estimator").
+    """
+
+    fit: ChiSquare
+    sensors: Mapping[str, ChiSquare]
+    holdout: ChiSquare | None = None
+    holdout_sensors: Mapping[str, ChiSquare] = field(default_factory=dict)
+    alpha: float = FAMILY_ALPHA
+    effective_parameters: float = 0.0
+    effective_from: str = "trace of P A"
+
+    @property
+    def tests(self) -> list[tuple[str, ChiSquare]]:
+        """Every test of the family, as (span, test), span "fitted" or "held-out"."""
+        out = [("fitted", self.fit)] + [("fitted", t) for t in self.sensors.values()]
+        if self.holdout is not None:
+            out += [("held-out", self.holdout)] + [("held-out", t) for t in self.holdout_sensors.values()]
+        return [(s, t) for s, t in out if t.dof > 0]
+
+    @property
+    def level(self) -> float:
+        """The per-test level ``α / K`` (Bonferroni)."""
+        return self.alpha / max(1, len(self.tests))
+
+    def failing(self) -> list[tuple[str, ChiSquare]]:
+        """Tests whose residuals exceed the noise at the per-test level, worst first."""
+        bad = [(s, t) for s, t in self.tests if t.p_value < self.level]
+        return sorted(bad, key=lambda st: (st[1].p_value, -st[1].reduced))
+
+    def below_noise(self) -> list[tuple[str, ChiSquare]]:
+        """Tests whose residuals are significantly *below* the noise (σ overstated)."""
+        return [(s, t) for s, t in self.tests if t.p_lower < self.level]
+
+    @property
+    def adequate(self) -> bool:
+        """True when no test says the residuals exceed the noise."""
+        return not self.failing()
+
+    def worst(self) -> tuple[str, ChiSquare] | None:
+        """The sensor test (fitted or held-out) with the smallest upper-tail p."""
+        cands = [(s, t) for s, t in self.tests if t.label != ALL]
+        return min(cands, key=lambda st: (st[1].p_value, -st[1].reduced)) if cands else None
+
+    @property
+    def verdict(self) -> str:
+        """One line: "consistent with noise" or "model inadequate: ...", with its numbers."""
+        f = self.fit
+        head = f"χ² {f.chi2:.1f} on {f.dof:.1f} dof (per dof {f.reduced:.4f}, p {_fmt_p(f.p_value)})"
+        bad = self.failing()
+        if not bad:
+            low = self.below_noise()
+            text = f"consistent with noise: {head}"
+            if low:
+                text += ("; residuals below the noise in " + ", ".join(f"{t.label} ({s})" for s, t in low)
+                         + ": the data-book σ may be too large")
+            return text
+        sensors = [(s, t) for s, t in bad if t.label != ALL]
+        s, t = (sensors or bad)[0]
+        where = t.label + ("" if s == "fitted" else " on the held-out span")
+        return (f"model inadequate: residuals exceed the noise, p {_fmt_p(t.p_value)}, worst sensor "
+                f"{where} (χ²/dof {t.reduced:.3f} on {t.dof:.0f} dof); whole fit {head}; "
+                f"family-wise α = {self.alpha:g} over {len(self.tests)} tests")
+
+    def sensor_report(self, name: str) -> dict:
+        """A sensor's χ² fields for the ICD §7 ``sensors`` entry: ``chi2``, ``dof``,
+        ``p_value`` and, with a held-out span, ``holdout_chi2``, ``holdout_dof``,
+        ``holdout_p_value``."""
+        out = {}
+        for prefix, tests in (("", self.sensors), ("holdout_", self.holdout_sensors)):
+            t = tests.get(name)
+            if t is not None:
+                rep = t.as_report()
+                out |= {f"{prefix}{k}": rep[k] for k in ("chi2", "dof", "p_value")}
+        return out
+
+    def as_report(self) -> dict:
+        worst = self.worst()
+        out = {"verdict": self.verdict, "adequate": self.adequate, "alpha": self.alpha,
+               "tests": len(self.tests), "per_test_level": self.level,
+               "effective_parameters": round(float(self.effective_parameters), 3),
+               "effective_parameters_from": self.effective_from,
+               **self.fit.as_report(),
+               "worst_sensor": None if worst is None else {"sensor": worst[1].label, "span": worst[0],
+                                                            "p_value": _p(worst[1].p_value)},
+               "sensors": {k: v.as_report() for k, v in self.sensors.items()}}
+        if self.holdout is not None:
+            out["holdout"] = {**self.holdout.as_report(),
+                              "sensors": {k: v.as_report() for k, v in self.holdout_sensors.items()}}
+        return out
+
+
+ALL = "all sensors"
+
+
+def _r(v: float, nd: int):
+    return round(float(v), nd) if math.isfinite(v) else None
+
+
+def _p(v: float):
+    return float(f"{v:.4g}") if math.isfinite(v) else None
+
+
+def _fmt_p(p: float) -> str:
+    """``= 0.03`` or ``< 1e-300`` (after "p")."""
+    return "= nan" if not math.isfinite(p) else (f"= {p:.2g}" if p >= 1e-300 else "< 1e-300")
+
+
+# ------------------------------------------------------------------------- effective dof
+def effective_parameters(P: np.ndarray, A: np.ndarray) -> float:
+    """``tr(P A)``: the effective number of parameters of a static-state fit (module
+    docstring); ``P`` (n, n) the posterior covariance, ``A`` (n, n) the data information."""
+    return float(np.sum(np.asarray(P) * np.asarray(A).T))
+
+
+def sensor_leverage(problem, result) -> dict[str, float]:
+    """Sensor -> ``tr(P A_s)``, its share of the fit's effective parameters.
+
+    ``A_s = Σ Hᵀ R⁻¹ H`` over the sensor's used frames at the fitted state, one
+    streaming pass (:func:`~gcs_core.filtr.linearization.iter_blocks`); ``P`` the fit's
+    noise-only covariance over ``result.solve_for``.
+    """
+    from gcs_core.filtr.linearization import iter_blocks
+
+    names = tuple(result.solve_for)
+    n = len(names)
+    if not n:
+        return {name: 0.0 for name in result.residuals}
+    P = np.asarray(result.P)
+    edited = {k: np.asarray(r.edited, bool) for k, r in result.residuals.items()}
+    A = {sd.name: np.zeros((n, n)) for sd in problem.sensors}
+    for blk in iter_blocks(problem, result.state.values(), names, exclude=edited, weighted=True,
+                           augmented=True, gram=True):
+        if not np.any(blk.used):
+            continue
+        c = blk.cols
+        k = c.size
+        G = blk.G if blk.G is not None else blk.Hr.T @ blk.Hr
+        A[blk.name][np.ix_(c, c)] += G[:k, :k]
+    return {name: effective_parameters(P, As) for name, As in A.items()}
+
+
+def _smoothed_frames(problem, result, select: Mapping[str, np.ndarray]):
+    """(sensor, residual (k, m), σ (m,), prediction variance (k, m)) of the ``select``-ed
+    valid frames of a fit with knot corrections (``result.dynamics``), chunk by chunk: the
+    variance ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of static elements and knots."""
+    from gcs_core.filtr import knots as kn
+    from gcs_core.filtr.linearization import iter_blocks
+    from gcs_core.filtr.smoothing_batch import knot_variance
+
+    dyn = result.dynamics
+    names = tuple(result.solve_for)
+    for blk in iter_blocks(dyn.problem(problem), result.state.values(), names, weighted=False):
+        m = select.get(blk.name)
+        if m is None:
+            continue
+        sel = m[blk.lo:blk.hi] & blk.valid
+        if not np.any(sel):
+            continue
+        sd = blk.sensor
+        c = blk.cols
+        H = np.nan_to_num(blk.H[sel]) if blk.H is not None else np.zeros((int(sel.sum()), len(sd.sigma), 0))
+        var = np.einsum("nmk,kl,nml->nm", H, result.P[np.ix_(c, c)], H, optimize=True)
+        D = getattr(blk.pred, "d_att", None)
+        if D is not None and blk.geom.C_BI is not None:
+            t = sd.t[blk.lo:blk.hi][sel]
+            j = dyn.grid.index(t)
+            U = kn.knot_rows(np.nan_to_num(D[sel]), blk.geom.C_BI[sel], t, j, dyn.grid, dyn.R)
+            var = var + knot_variance(dyn, U, j, H, c)
+        yield blk.name, blk.r[sel], sd.sigma, np.clip(var, 0, None)
+
+
+def smoothed_leverage(problem, result) -> dict[str, float] | None:
+    """Sensor -> ``Σ_k tr(R⁻¹ Cov(ŷ_k))`` for a fit with process noise (a result carrying
+    the knot corrections of the whole-span estimator, ``result.dynamics``); None for a
+    static fit.
+
+    For a linear Gaussian smoother the influence of a measurement on its own prediction is
+    ``∂ŷ_k/∂y_k = H_k P H_kᵀ R_k⁻¹`` with ``P`` the joint posterior of the static elements
+    and the knot corrections, i.e. the prediction's variance over the noise variance (the
+    same terms that standardize the held-out residuals). Summed over the used frames it is
+    the sensor's effective parameters (Hastie et al. §7.6).
+    """
+    if getattr(result, "dynamics", None) is None:
+        return None
+    used = {k: np.asarray(r.used, bool) for k, r in result.residuals.items()}
+    out = {k: 0.0 for k in used}
+    for name, _, sigma, var in _smoothed_frames(problem, result, used):
+        out[name] += float(np.sum(var / sigma[None, :] ** 2))
+    return out
+
+
+def _smoothed_holdout(problem, train, masks) -> dict[str, ChiSquare]:
+    """Held-out χ² of a fit with knot corrections: each residual standardized by its full
+    prediction variance, summed (``Σ z²`` on the held-out measurements). The correlation
+    between held-out frames through common errors is neglected here (no joint covariance
+    of the knots across a held-out block is formed), so the test is exact only where the
+    prediction variance is small against the noise."""
+    acc: dict[str, list] = {}
+    for name, r, sigma, var in _smoothed_frames(problem, train, masks):
+        a = acc.setdefault(name, [0.0, 0])
+        a[0] += float(np.sum(r ** 2 / (sigma[None, :] ** 2 + var)))
+        a[1] += r.size
+    out = {k: ChiSquare(k, v[0], v[1], float(v[1])) for k, v in acc.items() if v[1]}
+    if out:
+        out[ALL] = ChiSquare(ALL, sum(t.chi2 for t in out.values()), sum(t.n for t in out.values()),
+                             float(sum(t.n for t in out.values())))
+    return out
+
+
+# ------------------------------------------------------------------------- held-out span
+def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, ChiSquare]:
+    """χ² of the held-out frames under the training fit ``train`` (module docstring),
+    per sensor and for all sensors together (key :data:`ALL`); {} without held-out frames.
+
+    ``masks``: sensor -> (N,) True where the frame was held out of ``train``. Every valid
+    held-out frame is tested (none was edited: the training fit never saw them).
+    """
+    from gcs_core.filtr.linearization import iter_blocks
+
+    names = tuple(train.solve_for)
+    n = len(names)
+    sel = {k: np.asarray(v, bool) for k, v in masks.items() if np.any(v)}
+    if not sel:
+        return {}
+    if getattr(train, "dynamics", None) is not None:
+        return _smoothed_holdout(problem, train, sel)
+    exclude = {sd.name: ~sel.get(sd.name, np.zeros(sd.n, bool)) for sd in problem.sensors}
+    acc: dict[str, list] = {}
+    for blk in iter_blocks(problem, train.state.values(), names, sensors=list(sel), exclude=exclude,
+                           weighted=True, augmented=True, gram=True):
+        nu = int(np.count_nonzero(blk.used))
+        if not nu:
+            continue
+        a = acc.setdefault(blk.name, [np.zeros((n, n)), np.zeros(n), 0.0, 0])
+        c = blk.cols
+        k = c.size
+        G = blk.G if blk.G is not None else blk.Hr.T @ blk.Hr
+        a[0][np.ix_(c, c)] += G[:k, :k]
+        a[1][c] += G[:k, k]
+        a[2] += float(G[k, k])
+        a[3] += nu * blk.r.shape[1]
+    if not acc:
+        return {}
+    L = _chol_cov(np.asarray(train.P))
+    out = {name: ChiSquare(name, _woodbury_chi2(L, *v[:3]), v[3], float(v[3])) for name, v in acc.items()}
+    tot = [sum(v[i] for v in acc.values()) for i in range(4)]
+    out[ALL] = ChiSquare(ALL, _woodbury_chi2(L, *tot[:3]), tot[3], float(tot[3]))
+    return out
+
+
+def _chol_cov(P: np.ndarray) -> np.ndarray:
+    """A factor ``L`` with ``L Lᵀ = P`` (equilibrated Cholesky; eigen-factor if P is
+    only semi-definite)."""
+    if P.size == 0:
+        return P
+    d = np.sqrt(np.clip(np.diag(P), 1e-300, None))
+    Ps = P / np.outer(d, d)
+    try:
+        return d[:, None] * linalg.cholesky(Ps, lower=True, check_finite=False)
+    except linalg.LinAlgError:
+        w, V = np.linalg.eigh(0.5 * (Ps + Ps.T))
+        return d[:, None] * (V * np.sqrt(np.clip(w, 0.0, None)))
+
+
+def _woodbury_chi2(L: np.ndarray, A_h: np.ndarray, g: np.ndarray, c: float) -> float:
+    """``c − gᵀ (P⁻¹ + A_h)⁻¹ g`` with ``P = L Lᵀ``: ``(P⁻¹ + A_h)⁻¹ = L (I + Lᵀ A_h L)⁻¹ Lᵀ``,
+    whose middle matrix has every eigenvalue ≥ 1 (well conditioned whatever P is)."""
+    if L.size == 0:
+        return float(c)
+    S = np.eye(L.shape[1]) + L.T @ A_h @ L
+    u = L.T @ g
+    return float(c - u @ linalg.solve(0.5 * (S + S.T), u, assume_a="pos", check_finite=False))
+
+
+# ------------------------------------------------------------------------- the verdict
+def goodness_of_fit(problem, result, *, holdout: Mapping[str, ChiSquare] | None = None,
+                    alpha: float = FAMILY_ALPHA, effective_parameters: float | None = None,
+                    leverage: Mapping[str, float] | None = None,
+                    sensors: Sequence[str] | None = None) -> GoodnessOfFit:
+    """The χ² tests of a fit and their verdict (module docstring).
+
+    ``result`` is a :class:`~gcs_core.filtr.batch.BatchResult` (or any result with
+    ``residuals``, ``solve_for``, ``P`` and ``state``). The effective parameters come, in
+    this order, from the arguments, from the result's own ``effective_parameters`` and
+    ``leverage`` attributes (an estimator with process noise declares them), else from
+    ``tr(P A_s)`` per sensor (:func:`sensor_leverage`). Given only a total, it is shared
+    among the sensors in proportion to ``tr(P A_s)``. ``holdout`` is
+    :func:`holdout_tests` of the training fit.
+    """
+    p_eff = effective_parameters if effective_parameters is not None else getattr(result, "effective_parameters", None)
+    lev = leverage if leverage is not None else getattr(result, "leverage", None)
+    src = "the estimator" if (p_eff is not None or lev is not None) else "trace of P A"
+    if lev is None:
+        lev = smoothed_leverage(problem, result)
+        if lev is not None:
+            src = "trace of the influence matrix (static elements and knots)"
+    if lev is None:
+        lev = sensor_leverage(problem, result)
+        n = len(result.solve_for)
+        if p_eff is None and sum(lev.values()) > n * (1 + 1e-6):
+            # tr(P A) ≤ n for a static fit; above n, P is not the static posterior of these
+            # partials (a smoother's covariance at t_ref under process noise, whose freedom
+            # is not in A): count the static elements only, an underestimate of p_eff
+            p_eff = float(n)
+            src = "static elements only (the estimator's process noise not counted)"
+        if p_eff is not None:
+            tot = sum(lev.values())
+            lev = {k: (v / tot * p_eff if tot > 0 else p_eff / max(1, len(lev))) for k, v in lev.items()}
+    if p_eff is None:
+        p_eff = float(sum(lev.values()))
+    per = {}
+    for name, r in result.residuals.items():
+        if sensors is not None and name not in sensors:
+            continue
+        m = int(r.n) * len(r.components)
+        per[name] = ChiSquare(name, r.chi2, m, m - float(lev.get(name, 0.0)))
+    m_all = sum(t.n for t in per.values())
+    chi_all = float(sum(t.chi2 for t in per.values()))
+    fit = ChiSquare(ALL, chi_all, m_all, m_all - float(p_eff))
+    ho = dict(holdout or {})
+    ho_all = ho.pop(ALL, None)
+    return GoodnessOfFit(fit, per, ho_all, ho, alpha, float(p_eff), src)
