@@ -78,7 +78,10 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
     for name in LOGGERS:
         logging.getLogger(name).addHandler(cli_handler)
     try:
-        app = GcsApp(mission_copy)
+        # the pure batch (gyro taken as exact) warns over 2 h: a warning raised during a fit
+        config = mission_copy.parent / "batch.toml"
+        config.write_text(f'[analysis]\nmission = "{mission_copy}"\nmethod = "batch"\n')
+        app = GcsApp(config)
         with detached_terminal_logging():
             async with app.run_test(size=(80, 24)) as pilot:
                 await settle(pilot)
