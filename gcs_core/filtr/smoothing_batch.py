@@ -56,6 +56,9 @@ log = logging.getLogger(__name__)
 
 #: a Gauss–Newton step that would lower the cost by less than this is negligible
 GAIN_TOL = 1e-3
+#: ... and, when no shortened step lowers the cost, a predicted gain below this fraction
+#: of the cost (the first-order knot partials' accuracy where the corrections are large)
+NOISE_GAIN = 1e-6
 
 
 @dataclass
@@ -345,9 +348,15 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                     break
                 step *= 0.5
             else:
-                status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
-                                               "(the model cannot describe these data)")
                 lin = passes.run(x, z, edits)
+                if gain <= NOISE_GAIN * cost + GAIN_TOL:
+                    # the step the linearization promises is below what the first-order
+                    # knot partials resolve at this cost: the minimum, to their accuracy
+                    status, message = "converged", (f"converged after {it} iterations (no shorter "
+                                                    f"step lowers the cost; predicted gain {gain:.3g})")
+                else:
+                    status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
+                                                   "(the model cannot describe these data)")
                 break
             change = cost - cost_t
             x, z = x_try, z_try
