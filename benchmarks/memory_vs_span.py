@@ -2,7 +2,9 @@
 
 For each span, one child process imports the three-axis sample mission (every sensor:
 TAM, IRU, two FHSTs, FSS, CSS; ``nominal_threeaxis("sun_pointing", duration_s=span)``),
-fits it (:func:`~gcs_core.filtr.batch.batch_fit`, default options: k-σ editing on) and
+fits it with the default estimator (:func:`~gcs_core.filtr.smoothing_batch.whole_span_fit`:
+the batch, then the whole-span fit with the gyro noise as process noise, whose knots are
+eliminated as the data pass them; default options: k-σ editing on) and
 diagnoses it (:func:`~gcs_core.diagnosis.ranking.rank_candidates` over every candidate
 effect), then reports its peak resident set size (``ru_maxrss``). The acceptance is a
 week/day ratio below 1.5: the estimator streams the data by chunks, so only the data
@@ -55,7 +57,8 @@ def child(mission_dir: str) -> None:
 
     from gcs_core.diagnosis.catalogue import mission_catalogue
     from gcs_core.diagnosis.ranking import rank_candidates
-    from gcs_core.filtr.batch import BatchOptions, batch_fit
+    from gcs_core.filtr.batch import BatchOptions
+    from gcs_core.filtr.smoothing_batch import whole_span_fit
     from gcs_core.filtr.problem import build_problem
     from gcs_core.models.base import HELD
     from gcs_core.sidp.importer import load_mission
@@ -72,7 +75,7 @@ def child(mission_dir: str) -> None:
     del mission
     gc.collect()
     stages["prepare"] = peak_mb()
-    result = batch_fit(problem, BatchOptions())
+    result = whole_span_fit(problem, BatchOptions())
     stages["fit"] = peak_mb()
     physics = problem.builder.physics.as_dict()
     effects = [e for e in mission_catalogue(problem, problem.builder.physics)

@@ -21,7 +21,8 @@ from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit  # noqa: F401
-from gcs_core.filtr.smoothing_batch import batch_wander_cost, fit_problem, smoothed_holdout_rms
+from gcs_core.filtr.smoothing_batch import fit_problem
+from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms
 from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.models.base import HELD, SOLVE_FOR
 from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions

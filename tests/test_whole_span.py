@@ -202,3 +202,29 @@ def test_truth_recovery_four_hours_flight_typical_iru(tmp_path):
     assert not outside, outside
     for name, r in res.residuals.items():
         assert r.rms_normalized < 1.05, (name, r.rms_normalized)
+
+
+def test_gross_magnetometer_error_does_not_drag_the_attitude(tmp_path):
+    """A 1 % symmetric TAM matrix error (scale and non-orthogonality, σ_TAM 25 nT) on a
+    2-hour Sun-pointing mission: the whole-span fit, linearized about its whole-span
+    solution, keeps the star trackers within a few times their noise (a one-pass filter
+    following the magnetometer put them at several hundred σ; the issue's bound for a
+    divergence is 10), does not edit the magnetometer away, and the ranking puts TAM1's
+    matrix effect first."""
+    from gcs_core.config import AnalysisConfig
+    from gcs_core.session import Analysis
+    from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
+    from gcs_core.sim.writer import write_mission
+
+    cfg = nominal_threeaxis("sun_pointing", seed=1, duration_s=2 * ONE_HOUR)
+    cfg = with_effect(with_effect(cfg, "TAM1.scale", 0.01), "TAM1.nonorthogonality", 0.01)
+    mission = write_mission(cfg, tmp_path / "mission", truth_path=tmp_path / "truth.json")
+    a = Analysis(AnalysisConfig(mission=mission))
+    res = a.fit(holdout=False)
+    assert res.status == "converged", res.message
+    for name in ("FHST1", "FHST2"):
+        assert res.residuals[name].rms_normalized < 5.0, (name, res.residuals[name].rms_normalized)
+    assert res.residuals["TAM1"].rms_normalized > 3.0                  # the error stays visible
+    assert not res.residuals["TAM1"].edited.any()
+    top = a.rank()[0]
+    assert top.id in ("TAM1.nonorthogonality", "TAM1.scale"), [c.id for c in a.candidates[:3]]

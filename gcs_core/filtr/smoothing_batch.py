@@ -56,6 +56,9 @@ log = logging.getLogger(__name__)
 
 #: a Gauss–Newton step that would lower the cost by less than this is negligible
 GAIN_TOL = 1e-3
+#: ... and, when no shortened step lowers the cost, a predicted gain below this fraction
+#: of the cost (the first-order knot partials' accuracy where the corrections are large)
+NOISE_GAIN = 1e-6
 
 
 @dataclass
@@ -345,9 +348,15 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                     break
                 step *= 0.5
             else:
-                status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
-                                               "(the model cannot describe these data)")
                 lin = passes.run(x, z, edits)
+                if gain <= NOISE_GAIN * cost + GAIN_TOL:
+                    # the step the linearization promises is below what the first-order
+                    # knot partials resolve at this cost: the minimum, to their accuracy
+                    status, message = "converged", (f"converged after {it} iterations (no shorter "
+                                                    f"step lowers the cost; predicted gain {gain:.3g})")
+                else:
+                    status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
+                                                   "(the model cannot describe these data)")
                 break
             change = cost - cost_t
             x, z = x_try, z_try
@@ -440,142 +449,3 @@ def fit_problem(problem: Problem, method: str, options: BatchOptions | None = No
     if method == "whole_span":
         return whole_span_fit(problem, options, **kw)
     raise EstimationError(f"unknown method {method!r}")
-
-
-def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | None = None,
-                  cols=None) -> np.ndarray:
-    """Variance added to predictions by the knot corrections' uncertainty.
-
-    U (N, m, d) rows of ``∂y/∂z_j`` (:func:`knots.knot_rows`, unweighted); HJ (N, m, k)
-    partials over the static ``cols`` (positions in ``dyn.names``). Returns (N, m)::
-
-        u Σ_j uᵀ + 2 u Cov(z_j, x)[:, cols] hᵀ
-    """
-    Sig, X = dyn.covariance()
-    out = np.einsum("nma,nab,nmb->nm", U, Sig[j], U, optimize=True)
-    if HJ is not None and HJ.shape[2]:
-        Xc = X[j][:, :, np.asarray(cols, int)]
-        out += 2.0 * np.einsum("nma,nak,nmk->nm", U, Xc, HJ, optimize=True)
-    return out
-
-
-def smoothed_holdout_rms(problem: Problem, res: SmoothedResult,
-                         masks: Mapping[str, np.ndarray]) -> dict[str, float]:
-    """Normalized RMS of the held-out frames of a whole-span fit trained without them.
-
-    Each residual (at the smoothed attitude, whose knots cross the held-out span on the
-    process prior alone) is standardized by its full prediction uncertainty
-    ``sqrt(σ² + h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ)``: noise, static elements and the
-    knot corrections, so 1.0 is the expected value for a right model.
-    """
-    dyn = res.dynamics
-    names = tuple(res.solve_for)
-    prob = dyn.problem(problem)
-    sums: dict[str, list] = {}
-    for blk in iter_blocks(prob, res.state.values(), names, weighted=False):
-        m = masks.get(blk.name)
-        if m is None:
-            continue
-        sel = m[blk.lo:blk.hi] & blk.valid
-        if not np.any(sel):
-            continue
-        sd = blk.sensor
-        c = blk.cols
-        H = np.nan_to_num(blk.H[sel]) if blk.H is not None else np.zeros((int(sel.sum()), len(sd.sigma), 0))
-        var = np.einsum("nmk,kl,nml->nm", H, res.P[np.ix_(c, c)], H, optimize=True)
-        D = getattr(blk.pred, "d_att", None)
-        if D is not None and blk.geom.C_BI is not None:
-            t = sd.t[blk.lo:blk.hi][sel]
-            j = dyn.grid.index(t)
-            U = kn.knot_rows(np.nan_to_num(D[sel]), blk.geom.C_BI[sel], t, j, dyn.grid, dyn.R)
-            var = var + knot_variance(dyn, U, j, H, c)
-        zz = blk.r[sel] / np.sqrt(sd.sigma[None, :] ** 2 + np.clip(var, 0, None))
-        acc = sums.setdefault(blk.name, [0.0, 0])
-        acc[0] += float(np.sum(zz ** 2))
-        acc[1] += zz.size
-    return {k: float(np.sqrt(v[0] / v[1])) for k, v in sums.items() if v[1]}
-
-
-def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
-    """What ignoring the gyro noise costs a batch solution on these data (one pass).
-
-    At the batch solution the knots of the whole-span problem are added and eliminated:
-    ``P_q`` (the reduced normal matrix with the process noise, inverted) against the
-    batch's ``P_b``. The batch estimate is a linear estimator of the same data, so its
-    error covariance is at least ``P_q``: its σ are too small by ``sqrt(P_q,ii/P_b,ii)``
-    and the wander adds an expected error of ``sqrt((P_q,ii − P_b,ii)/P_b,ii)`` batch σ.
-    ``delta_chi2`` is the χ² the knot corrections remove in one Gauss–Newton step (the
-    residual signature of the wander the batch leaves to the diagnosis).
-    """
-    noise = process_noise(problem)
-    if noise is None or not res.solve_for:
-        return None
-    state = problem.state
-    names = tuple(res.solve_for)
-    x_bar = np.array([state[nm].value for nm in names])
-    s0 = np.array([state[nm].sigma0 for nm in names])
-    prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
-    grid = make_knots(problem, noise, res.information, names)
-    passes = _Passes(problem, names, grid, x_bar, prior_info)
-    passes.keep = False
-    edits = {nm: r.edited for nm, r in res.residuals.items()}
-    x = np.asarray(res.x, float)
-    A, b, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), edits)
-    N_red, g_red, _ = sysk.eliminate(A + np.diag(prior_info), b + prior_info * (x_bar - x))
-    dx, P_q = _solve_normal(N_red, g_red)
-    pb = np.clip(np.diag(res.P), 1e-300, None)
-    ratio = np.sqrt(np.diag(P_q) / pb)
-    extra = np.sqrt(np.clip(np.diag(P_q) - pb, 0, None) / pb)
-    order = np.argsort(-ratio)
-    return {"sigma_ratio": [(names[i], float(ratio[i])) for i in order],
-            "bias_sigma": {names[i]: float(extra[i]) for i in order},
-            "worst_bias_sigma": float(extra.max()) if extra.size else 0.0,
-            "delta_chi2": float(g_red @ dx) + sysk.knot_gain}
-
-
-def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) body-frame attitude error covariance added by the knots at times ``t``:
-    ``δθ = C [I | Γ_j(t)] z_j`` with ``J`` (N, 3, n) the static partials over ``dyn.names``."""
-    eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
-    j = dyn.grid.index(t)
-    U = kn.knot_rows(eye, C, t, j, dyn.grid, dyn.R)             # (N, 3, d): ∂δθ/∂z_j
-    Sig, X = dyn.covariance()
-    S = np.einsum("nia,nab,njb->nij", U, Sig[j], U, optimize=True)
-    cross = np.einsum("nia,nak,njk->nij", U, X[j], J, optimize=True)
-    return S + cross + np.swapaxes(cross, 1, 2)
-
-
-def predicted_covariance(problem: Problem, values: Mapping[str, float], names, cons, exclude,
-                         information: np.ndarray, sigma0: np.ndarray, sigma_c: np.ndarray):
-    """Covariance of the whole-span fit at ``values`` without data (the predictor).
-
-    One linearization with the knots at zero, eliminated: ``P = N_red⁻¹`` over ``names``,
-    and the consider elements' ``S P_c Sᵀ`` with ``S = −P N_red[x, c]``. ``exclude``
-    flags frames outside the plan; ``information`` (n, n) the statics' data information
-    (for the knot spacing). Returns (P, P_consider, budget (c, n) σ) or None when the
-    gyro carries no process noise.
-    """
-    noise = process_noise(problem)
-    if noise is None:
-        return None
-    names, cons = tuple(names), tuple(cons)
-    n = len(names)
-    prior = np.where(np.isfinite(sigma0) & (sigma0 > 0), 1.0 / np.where(sigma0 > 0, sigma0, 1.0) ** 2, 0.0)
-    grid = make_knots(problem, noise, information, names)
-    passes = _Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior)
-    passes.values = dict(values)
-    passes.keep = False
-    x = np.array([values[nm] for nm in names])
-    A, _, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), exclude, columns=names + cons)
-    N = A + np.diag(np.concatenate([prior, np.zeros(len(cons))]))
-    N_red, _, _ = sysk.eliminate(N, np.zeros(N.shape[0]))
-    _, P = _solve_normal(N_red[:n, :n], np.zeros(n))
-    P_cons = P.copy()
-    budget = np.zeros((len(cons), n))
-    if cons:
-        S = -P @ N_red[:n, n:]
-        for j in range(len(cons)):
-            contrib = np.outer(S[:, j], S[:, j]) * sigma_c[j] ** 2
-            budget[j] = np.sqrt(np.diag(contrib))
-            P_cons += contrib
-    return P, P_cons, budget

@@ -333,7 +333,7 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
         hist = info.static_history(A_cum, n, info.prior_information(sigma0), sigma_c,
                                    _attitude_partials(problem, values, names, times))
     if method == "whole_span" and not use_kalman:
-        from gcs_core.filtr.smoothing_batch import predicted_covariance
+        from gcs_core.filtr.smoothing_uses import predicted_covariance
 
         final = predicted_covariance(problem, values, names, cons,
                                      {k: ~np.asarray(v, bool) for k, v in masks.items()},

@@ -78,7 +78,7 @@ def ground_attitude(analysis, t) -> GroundAttitude:
             J[:, :, col[nm]] = att.J[:, :, a]
     S_body = np.einsum("nia,ab,njb->nij", J, res.P_consider, J)
     if dyn is not None:                                # the gyro wander the knots carry
-        from gcs_core.filtr.smoothing_batch import attitude_covariance
+        from gcs_core.filtr.smoothing_uses import attitude_covariance
 
         S_body = S_body + attitude_covariance(dyn, att.C_BI, t, J)
     A = np.asarray(ref.reference(t))
