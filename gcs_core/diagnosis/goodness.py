@@ -272,7 +272,7 @@ def _smoothed_frames(problem, result, select: Mapping[str, np.ndarray]):
     variance ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of static elements and knots."""
     from gcs_core.filtr import knots as kn
     from gcs_core.filtr.linearization import iter_blocks
-    from gcs_core.filtr.smoothing_batch import knot_variance
+    from gcs_core.filtr.smoothing_uses import knot_variance
 
     dyn = result.dynamics
     names = tuple(result.solve_for)

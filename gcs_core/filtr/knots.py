@@ -41,6 +41,7 @@ Rauch, Tung & Striebel, AIAA J. 3(8), 1965. Golub & Van Loan, *Matrix Computatio
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -50,6 +51,9 @@ from gcs_core.filtr.knot_kernels import (_accumulate, _accumulate_fused, _accumu
                                          correct_attitude)
 
 _jit = numba.njit(cache=True) if COMPILED else (lambda fn: fn)
+# the 6×6 knot products below run on strided slices by design; numba's advice to copy them
+# first is noise to a user reading the first (compiling) run's output
+warnings.filterwarnings("ignore", message="'@' is faster on contiguous arrays")
 
 #: intra-interval wander variance allowed against the attitude variance the data give
 #: over one knot interval (the knot-spacing rule of :func:`knot_spacing`)
