@@ -5,7 +5,7 @@ Data: D. Laidig, M. Caruso, A. Cereatti, T. Seel, "BROAD - A Benchmark for Robus
 Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC BY 4.0), three
 trials as published in ``../shared/real/broad`` (or the folder given as the first argument).
 Each trial (and each half, t < T/2 and t ≥ T/2) is converted with ``gcs convert broad`` into a
-temporary directory and fitted (``--method``, default batch) with the constant lab field,
+temporary directory and fitted (the second argument: the method, default whole_span) with the constant lab field,
 the magnetometer's bias and 3×3 matrix ((I + D) M), the gyro's bias and matrix, and the time
 offsets of the magnetometer and of the optical reference (against the gyro-carried attitude).
 Prints one table per comparison; |z| ≤ 3 is the acceptance. Run under ``nice``: each fit
@@ -46,7 +46,7 @@ SHOWN = tuple(f"MAG.bias_{a}" for a in "xyz") + tuple(f"MAG.scale_{a}" for a in 
     tuple(f"GYR.bias_{a}" for a in "xyz") + ("MAG.time_offset", "OPT.time_offset")
 
 
-def fit(source: Path, work: Path, label: str, span=None, method="batch"):
+def fit(source: Path, work: Path, label: str, span=None, method="whole_span"):
     out = work / label
     convert("broad", source, out, span=span)
     mission = load_mission(out)
@@ -79,7 +79,7 @@ def table(title: str, a: dict, b: dict) -> int:
 
 def main() -> int:
     root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "shared/real/broad"
-    method = sys.argv[2] if len(sys.argv) > 2 else "batch"
+    method = sys.argv[2] if len(sys.argv) > 2 else "whole_span"
     trials = sys.argv[3].split(",") if len(sys.argv) > 3 else TRIALS
     bad = 0
     with tempfile.TemporaryDirectory() as tmp:
