@@ -74,7 +74,7 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span"):
     vals = res.state.values()
     rms = {s: round(float(v), 3) for s, v in a.rms().items()} if hasattr(a, "rms") else {}
     k = {s: residual_inflation(res.residuals[s], TAU_STAR_S) for s in ("MAG", "OPT")}
-    print(f"  {label}: fitted in {time.perf_counter() - t0:.0f} s, normalized RMS {rms}, "
+    print(f"  {label}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}), normalized RMS {rms}, "
           f"σ inflation k({TAU_STAR_S:g} s) MAG {k['MAG']:.2f}, OPT {k['OPT']:.2f}", flush=True)
     return {n: (vals[n], res.sigma.get(n, np.nan), k.get(n.split(".")[0], 1.0))
             for n in SHOWN if n in vals}
