@@ -300,13 +300,13 @@ def remaining_summary(analysis) -> dict[str, dict[str, Any]]:
 
 def _noise_estimated(spec, name: str) -> bool:
     """True when mission.toml marks the sensor's noise as estimated from the data (the
-    converters write ``ESTIMATED from the data`` above the key)."""
+    converters' one marker, :func:`gcs_core.sidp.noise.noise_estimated`)."""
+    from gcs_core.sidp.noise import noise_estimated
     try:
         text = (spec.root / "mission.toml").read_text(encoding="utf-8")
     except OSError:
         return False
-    block = text.split(f'name = "{name}"', 1)
-    return len(block) == 2 and "ESTIMATED from the data" in block[1].split("[[sensor]]", 1)[0]
+    return noise_estimated(text, name)
 
 
 def remaining_lines(analysis) -> list[str]:

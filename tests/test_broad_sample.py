@@ -5,7 +5,9 @@ doi:10.3390/data6070072, CC BY 4.0): a small slice of ``benchmarks/broad_consist
 The 45 s are cut into halves at t = 52.5 s and each is fitted with the sample config's
 state plus the time offsets. What must hold on real data is what the benchmark found to
 hold: the magnetometer's time offset (against the gyro-carried attitude) agrees between
-the halves within 3σ and lies 3 to 5 samples early; the magnetometer then sits at its
+the halves within 3σ and lies 3 to 5 samples early (the config's method, ``whole_span``,
+carries the attitude with the gyro's own angle and rate random walks); the magnetometer
+then sits at its
 noise (normalized RMS near 0.6, the per-sample spread against the white-noise line of its
 correlated samples, README); the optical reference lags the gyro by 1 to 4 ms.
 """
@@ -71,3 +73,17 @@ def test_magnetometer_at_its_noise_and_reference_lag(halves):
     for a, res in halves:
         assert 0.5 < a.rms()["MAG"] < 0.7
         assert 1e-3 < res.state.values()["OPT.time_offset"] < 4e-3
+
+
+@pytest.mark.xfail(reason="the whole-span fit of the sample's second half (22.5 s) stops "
+                   "'diverged' (no step lowers its cost) at a gyro bias_x 18 σ from the first "
+                   "half's; the whole trial's halves agree (docs/benchmarks.md)", strict=False)
+def test_gyro_bias_agrees_between_halves(halves):
+    """With the gyro's noise as process noise the halves agree on its bias (the batch,
+    carrying the attitude as exact, put them tens of σ apart: docs/benchmarks.md)."""
+    (_, a), (_, b) = halves
+    for axis in "xyz":
+        name = f"GYR.bias_{axis}"
+        va, vb = a.state.values()[name], b.state.values()[name]
+        z = (va - vb) / np.hypot(a.sigma[name], b.sigma[name])
+        assert abs(z) < three_sigma, (name, va, vb, z)

@@ -17,7 +17,8 @@ import pytest
 
 from gcs_core.convert import CONVERTERS, convert, converter
 from gcs_core.convert.astropi import procrustes_mounting
-from gcs_core.convert.common import leading_transient, white_noise_from_differences
+from gcs_core.convert.common import leading_transient
+from gcs_core.sidp.noise import white_noise
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_to_dcm
 from gcs_core.sidp.importer import load_mission
@@ -152,7 +153,7 @@ def test_white_noise_and_transient_against_known_truth():
     t = np.arange(n) * 5.0
     signal = 30000.0 * np.column_stack([np.sin(2 * np.pi * t / 5560 + k) for k in range(3)])
     y = signal + rng.normal(0.0, sigma, (n, 3))
-    est = white_noise_from_differences(y)
+    est = white_noise(t, y)
     # σ of a std estimate from n second differences (correlated, lag ≤ 2): ≈ σ √(35/18 / n)
     tol = 4.0 * sigma * math.sqrt(35.0 / 18.0 / n)
     np.testing.assert_array_less(np.abs(est - sigma), tol)

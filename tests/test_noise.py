@@ -76,3 +76,28 @@ def test_quaternion_noise_in_radians():
 def test_too_few_samples_is_input_error():
     with pytest.raises(InputError):
         noise.allan_deviation(np.arange(5.0), np.zeros((5, 1)))
+
+
+def test_both_converters_mark_estimated_noise_one_way(tmp_path):
+    """One marker: the Astro Pi and BROAD converters' missions are both read as 'noise
+    estimated from the data' for every sensor whose noise they estimated; a data book
+    without the marker is not."""
+    from pathlib import Path
+
+    from gcs_core.convert import convert
+    from gcs_core.sidp.noise import ESTIMATED_MARK, noise_estimated
+    from tests.test_convert_broad import _trial
+
+    data = Path(__file__).parent / "data" / "astropi"
+    convert("astropi", data / "astropi_extract.csv", tmp_path / "a",
+            tle=data / "iss-2022-01-31.tle")
+    src = tmp_path / "trial.hdf5"
+    _trial(src)
+    convert("broad", src, tmp_path / "b")
+    astro = (tmp_path / "a" / "mission.toml").read_text(encoding="utf-8")
+    broad = (tmp_path / "b" / "mission.toml").read_text(encoding="utf-8")
+    assert noise_estimated(astro, "MAG")
+    assert all(noise_estimated(broad, s) for s in ("GYR", "MAG", "OPT"))
+    assert not noise_estimated(broad, "NOPE")
+    book = broad.replace(ESTIMATED_MARK, "from the data book")
+    assert not any(noise_estimated(book, s) for s in ("GYR", "MAG", "OPT"))

@@ -46,7 +46,7 @@ def test_report_says_what_remains_against_the_estimated_noise(discovered):
     rep = analysis_report(discovered, command="discover")
     rem = rep["remaining"]["MAG"]
     assert rem["noise_estimated"] and not rem["consistent_with_noise"]
-    # README: 1.185 µT per component left, 8.0 times the 148.5 nT the sensor shows
+    # README: 1.185 µT per component left, 8.0 times the 148.9 nT the sensor shows
     assert rem["rms"] == pytest.approx(1.185 * one_uT, rel=0.02)
     assert rem["rms_normalized"] == pytest.approx(7.98, abs=0.1)
 

@@ -17,8 +17,9 @@ Output (ICD §1, with the ``[orbit] tle`` extension of :mod:`gcs_core.ephem.tle`
 What the data book cannot know is estimated from the data and said so in mission.toml
 and PROVENANCE.md:
 
-- **noise**: white noise from second differences (:func:`~gcs_core.convert.common.
-  white_noise_from_differences`), the RMS over the three axes;
+- **noise**: white noise from second differences (:func:`gcs_core.sidp.noise.white_noise`,
+  which also removes the field's slope along the orbit, ≈ 0.1 µT per 5 s), the RMS over
+  the three axes, marked :data:`gcs_core.sidp.noise.ESTIMATED_MARK`;
 - **the start-up transient**: the leading samples before the second differences settle and
   while they lie more than 3σ from the steady field extrapolated back
   (:func:`~gcs_core.convert.common.leading_transient`), written with ``flag = 1``;
@@ -48,8 +49,9 @@ import numpy as np
 
 from gcs_core.convert import ConversionReport
 from gcs_core.convert.common import (leading_transient, read_named_csv, sha256,
-                                     staged_directory, white_noise_from_differences, write_csv)
+                                     staged_directory, write_csv)
 from gcs_core.errors import InputError
+from gcs_core.sidp.noise import ESTIMATED_MARK, white_noise
 
 __all__ = ["convert", "SENSOR", "procrustes_mounting"]
 
@@ -138,7 +140,7 @@ telemetry = "telemetry/{SENSOR}.csv"        # {n_transient} start-up samples fla
 # along the TLE orbit in LVLH (orthogonal Procrustes), leaving {rigid_rms_nT:.0f} nT RMS.
 alignment_deg = [{a}]
 bias = [{b}]                                # nT
-# ESTIMATED from the data (second differences; per axis [{s}] nT): the white noise it shows.
+# {ESTIMATED_MARK} (second differences; per axis [{s}] nT): the white noise it shows.
 noise = {noise_nT:.1f}                      # nT
 """
 
@@ -211,11 +213,11 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
             medians[c] = float(np.median(aux[AUX_COLUMNS[c]]))
             aux[AUX_COLUMNS[c]] = aux[AUX_COLUMNS[c]] - medians[c]
 
-    # white noise from the data; to be replaced by gcs_core.sidp.noise (Allan deviation at
-    # the shortest τ) when that module is present, keeping the "ESTIMATED" note it writes
-    sigma = white_noise_from_differences(B)
+    # white noise from the data (gcs_core.sidp.noise, the one estimator of both converters);
+    # measured again without the start-up transient it helped to find
+    sigma = white_noise(t, B)
     n_tr = leading_transient(B, sigma, t=t)
-    sigma = white_noise_from_differences(B[n_tr:])
+    sigma = white_noise(t[n_tr:], B[n_tr:])
     noise = float(np.sqrt(np.mean(sigma ** 2)))
     flag = np.zeros(t.size, dtype=int)
     flag[:n_tr] = 1

@@ -338,15 +338,15 @@ type = "gyro"
 telemetry = "telemetry/GYR.csv"
 alignment_deg = [0.0, 0.0, 0.0]
 bias = [{b}]   # rad/s, measured: mean over {int(n_rest)} samples at rest (the middle half of the longest rest)
-arw = {arw:.6g}   # rad/s^0.5, ESTIMATED from the telemetry: Allan deviation at rest, -1/2 line (per-sample spread {np.array2string(s_gyr, precision=4)} rad/s)
-rrw = {rrw:.6g}   # rad/s^1.5, ESTIMATED: Allan deviation at rest, +1/2 line (an upper bound where it never shows)
+arw = {arw:.6g}   # rad/s^0.5, {noise_mod.ESTIMATED_MARK}: Allan deviation at rest, -1/2 line (per-sample spread {np.array2string(s_gyr, precision=4)} rad/s)
+rrw = {rrw:.6g}   # rad/s^1.5, {noise_mod.ESTIMATED_MARK}: Allan deviation at rest, +1/2 line (an upper bound where it never shows)
 
 [[sensor]]
 name = "MAG"                      # myon aktos-t magnetometer (converted from µT)
 type = "magnetometer"
 telemetry = "telemetry/MAG.csv"
 alignment_deg = [0.0, 0.0, 0.0]
-noise = {_rms(m_line):.6g}   # nT, ESTIMATED from the telemetry: white-noise line of the Allan deviation at rest (per axis {np.array2string(m_line, precision=1)}; per-sample spread {np.array2string(s_mag, precision=1)})
+noise = {_rms(m_line):.6g}   # nT, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest (per axis {np.array2string(m_line, precision=1)}; per-sample spread {np.array2string(s_mag, precision=1)})
 bias = [0.0, 0.0, 0.0]
 
 [[sensor]]
@@ -354,7 +354,7 @@ name = "OPT"                      # OptiTrack motion capture, eight Flex13 camer
 type = "attitude_reference"
 telemetry = "telemetry/OPT.csv"
 alignment_deg = [0.0, 0.0, 0.0]   # aligned to the unit by the data's authors
-noise = {_rms(o_line):.6g}   # rad, ESTIMATED from the telemetry: white-noise line of the Allan deviation at rest (per axis {np.array2string(o_line, precision=7)}; per-sample spread {np.array2string(s_opt, precision=7)})
+noise = {_rms(o_line):.6g}   # rad, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest (per axis {np.array2string(o_line, precision=7)}; per-sample spread {np.array2string(s_opt, precision=7)})
 """
 
 

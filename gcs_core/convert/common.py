@@ -19,7 +19,7 @@ import numpy as np
 from gcs_core.errors import InputError
 
 __all__ = ["NamedCsv", "read_named_csv", "write_csv", "staged_directory", "sha256",
-           "white_noise_from_differences", "leading_transient"]
+           "leading_transient"]
 
 
 class NamedCsv:
@@ -161,35 +161,6 @@ def sha256(path: Path) -> str:
         for block in iter(lambda: fh.read(1 << 20), b""):
             h.update(block)
     return h.hexdigest()
-
-
-def _clipped_std(x: np.ndarray, k: float = 5.0) -> float:
-    """Standard deviation after iterated k-σ clipping (a few gross steps do not count)."""
-    keep = np.isfinite(x)
-    s = float(np.std(x[keep]))
-    for _ in range(20):
-        m = float(np.mean(x[keep]))
-        new = np.abs(x - m) <= k * s
-        s = float(np.std(x[new]))
-        if np.array_equal(new, keep):
-            break
-        keep = new
-    return s
-
-
-def white_noise_from_differences(y: np.ndarray) -> np.ndarray:
-    """White-noise σ per column of (N, m) samples from second differences.
-
-    ``d_i = y_{i+1} − 2 y_i + y_{i−1}`` has variance ``6 σ²`` for white noise and removes
-    a signal's slope (the field moving along the orbit, ≈ 0.1 µT per 5 s at the ISS, which
-    would inflate first differences); ``σ = std(d)/√6`` after 5σ clipping. Quantized data
-    (0.1 µT steps) makes a median-based spread unreliable, hence the clipped std.
-
-    This estimate is replaced by ``gcs_core.sidp.noise`` (Allan deviation) when present.
-    """
-    y = np.asarray(y, dtype=float)
-    d = y[2:] - 2.0 * y[1:-1] + y[:-2]
-    return np.array([_clipped_std(d[:, j]) for j in range(d.shape[1])]) / math.sqrt(6.0)
 
 
 def leading_transient(y: np.ndarray, sigma: np.ndarray, *, t: np.ndarray | None = None,

@@ -25,6 +25,10 @@ only as meaningful as the σ they are divided by. This module measures the noise
   line extended to 1 s); since ``σ²(τ) ≥ K² τ/3`` at every τ when the terms are
   independent, K is the lowest ``σ(τ) sqrt(3/τ)`` over the curve: the term itself
   where the +1/2 slope shows, an upper bound (flagged) where the curve never reaches it.
+* :func:`noise_estimated` — whether a mission.toml marks a sensor's noise figure as
+  estimated from its own telemetry: the converters write :data:`ESTIMATED_MARK` in the
+  comment of the key (``noise``, or a gyro's ``arw``/``rrw``) or in the comment lines
+  directly above it; reports then say "against the noise this sensor shows".
 * :func:`white_level` — any sensor's white-noise line as a per-sample σ (the σ of the
   white noise with the sensor's low-frequency density), for sensors whose consecutive
   samples are correlated.
@@ -70,6 +74,11 @@ ARW_TAU_S = 1.0
 RRW_TAU_S = 3.0
 #: a term counts as read on its slope when the local slope is within this of the ideal
 SLOPE_TOLERANCE = 0.15
+#: the one marker, in mission.toml, of a noise figure estimated from the data (written by
+#: every converter, read by :func:`noise_estimated`)
+ESTIMATED_MARK = "ESTIMATED from the data"
+#: the data-book keys that carry a sensor's noise
+NOISE_KEYS = ("noise", "arw", "rrw")
 
 
 @dataclass(frozen=True)
@@ -404,3 +413,30 @@ def noise_lines(results: list[SensorNoise]) -> list[str]:
                        + (", upper bound: no +1/2 slope" if g.rrw_bound else "") + ")"
                        + f"; bias instability B = {_fmt(g.bias_instability)} rad/s (min at {g.bias_tau:.3g} s)")
     return out
+
+
+def noise_estimated(toml_text: str, name: str) -> bool:
+    """True when the ``[[sensor]]`` block named ``name`` in the mission.toml text marks a
+    noise key (:data:`NOISE_KEYS`) with :data:`ESTIMATED_MARK`, in the key's own comment or
+    in the comment lines directly above it."""
+    import re
+
+    head = re.compile(r'^\s*name\s*=\s*"' + re.escape(name) + r'"')
+    key = re.compile(r"^\s*(" + "|".join(NOISE_KEYS) + r")\s*=")
+    lines = toml_text.splitlines()
+    start = next((i for i, ln in enumerate(lines) if head.match(ln)), None)
+    if start is None:
+        return False
+    for i in range(start + 1, len(lines)):
+        if lines[i].lstrip().startswith("["):
+            break
+        if not key.match(lines[i]):
+            continue
+        if ESTIMATED_MARK in lines[i]:
+            return True
+        j = i - 1
+        while j > start and lines[j].lstrip().startswith("#"):
+            if ESTIMATED_MARK in lines[j]:
+                return True
+            j -= 1
+    return False
