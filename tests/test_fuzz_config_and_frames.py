@@ -157,11 +157,19 @@ def test_config_loader_on_mutated_example(data):
         if action == "delete":
             del parent[where[-1]]
         elif action == "replace":
-            parent[where[-1]] = _without_none(data.draw(_VALUES))
-        elif isinstance(parent, dict):
-            parent[data.draw(st.text(min_size=1, max_size=8))] = _without_none(data.draw(_VALUES))
+            value = _without_none(data.draw(_VALUES))
+            if value is None:                     # TOML has no null: a key set to nothing is absent
+                del parent[where[-1]]
+            else:
+                parent[where[-1]] = value
         else:
-            parent.append(_without_none(data.draw(_VALUES)))
+            value = _without_none(data.draw(_VALUES))
+            if value is None:
+                continue
+            if isinstance(parent, dict):
+                parent[data.draw(st.text(min_size=1, max_size=8))] = value
+            else:
+                parent.append(value)
     cfg = _accepts_or_refuses(lambda: C.config_from_dict(doc, path=Path("/fuzz/a.toml")))
     if cfg is not None:
         _round_trips(cfg)
