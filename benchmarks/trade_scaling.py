@@ -12,6 +12,11 @@ gives two plain processes at that moment (a pure-Python loop, serially and on a 
 times the study on a LocalCluster whose workers have already imported GCS (one plan
 each); "cold" includes starting the cluster, the workers' imports, and stopping it.
 
+It also prints where the time goes: a plan's own time serially and on a worker (the
+same on idle cores; longer on a worker when the workers compete for cores with other
+jobs) and how busy the workers were (the rest is the engine's overhead and the wait for
+the last task). The last line holds the ratio.
+
 Usage: ``python benchmarks/trade_scaling.py [--workers 2] [--angles 12] [--starts 6]``
 """
 
@@ -104,6 +109,14 @@ def main() -> int:
     print(f"LocalCluster of {args.workers} workers: {t_dask:.1f} s on a running cluster "
           f"(started in {t_start:.1f} s); {t_cold:.1f} s with its start and stop")
     print(f"identical numbers serially and on the cluster: {'yes' if same else 'NO'}")
+    # where the time goes: a plan's own time (PlanRow.seconds, wall clock in its process)
+    # serially and on the workers, and how busy the workers were during the study
+    busy_serial = sum(r.seconds for r in serial)
+    busy_dask = sum(r.seconds for r in dask_rows)
+    print(f"a plan: {busy_serial / n * 1000:.0f} ms serially, {busy_dask / n * 1000:.0f} ms on a worker "
+          f"({busy_dask / busy_serial:.2f}×: the cores the workers share with everything else); workers busy "
+          f"{100 * busy_dask / (args.workers * t_dask):.0f} % of the running-cluster time (the engine's "
+          f"scheduling, transfer and the last task's wait are the rest)")
     ceiling = parallel_ceiling()
     print(f"load average after: {os.getloadavg()[0]:.2f} (cores: {os.cpu_count()}); two plain processes "
           f"{ceiling:.2f}× faster than one")
