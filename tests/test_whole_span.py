@@ -202,3 +202,16 @@ def test_truth_recovery_four_hours_flight_typical_iru(tmp_path):
     assert not outside, outside
     for name, r in res.residuals.items():
         assert r.rms_normalized < 1.05, (name, r.rms_normalized)
+
+
+def test_knot_grid_graded_near_the_static_attitude():
+    """The first interval (where the static attitude is) cut at Δ/8, Δ/4, Δ/2, the next two
+    halved, the rest equal; no interval shorter than the gyro's sample interval."""
+    grid = kn.make_grid(0.0, 100.0, 10.0, 1e-6, 1e-9)
+    steps = np.diff(grid.tau)
+    assert np.allclose(steps[:8], [1.25, 1.25, 2.5, 5.0, 5.0, 5.0, 5.0, 5.0], atol=ROUND_OFF)
+    assert np.allclose(steps[8:], 10.0, atol=1e-3)
+    assert grid.tau[0] == 0.0 and grid.tau[-1] > 100.0
+    coarse = kn.make_grid(0.0, 100.0, 10.0, 1e-6, 1e-9, min_step=3.0)
+    assert np.diff(coarse.tau).min() >= 3.0 - ROUND_OFF
+    assert coarse.K == grid.K - 2                  # the Δ/8 cuts dropped, the halvings kept
