@@ -4,7 +4,8 @@
    alignment below 0.01°, FHST1's misalignment about its boresight below 10″; budget
    10 min of slewing, 2 h of data) writes the chosen plan as a config;
 2. ``gcs montecarlo`` simulates that plan with the truth simulator ``--runs`` times (seeds
-   from one SeedSequence), fits each run with the configured method (Kalman) and prints
+   from one SeedSequence), fits each run with the configured method (the default
+   whole-span fit, as the predictor models it) and prints
    predicted σ against the scatter, the NEES and its band;
 3. this script then checks the targets against the *Monte-Carlo* σ (the scatter of the
    estimates about the truth), and the predicted σ of the target elements against it.

@@ -228,3 +228,14 @@ def test_gross_magnetometer_error_does_not_drag_the_attitude(tmp_path):
     assert not res.residuals["TAM1"].edited.any()
     top = a.rank()[0]
     assert top.id in ("TAM1.nonorthogonality", "TAM1.scale"), [c.id for c in a.candidates[:3]]
+def test_knot_grid_graded_near_the_static_attitude():
+    """The first interval (where the static attitude is) cut at Δ/8, Δ/4, Δ/2, the next two
+    halved, the rest equal; no interval shorter than the gyro's sample interval."""
+    grid = kn.make_grid(0.0, 100.0, 10.0, 1e-6, 1e-9)
+    steps = np.diff(grid.tau)
+    assert np.allclose(steps[:8], [1.25, 1.25, 2.5, 5.0, 5.0, 5.0, 5.0, 5.0], atol=ROUND_OFF)
+    assert np.allclose(steps[8:], 10.0, atol=1e-3)
+    assert grid.tau[0] == 0.0 and grid.tau[-1] > 100.0
+    coarse = kn.make_grid(0.0, 100.0, 10.0, 1e-6, 1e-9, min_step=3.0)
+    assert np.diff(coarse.tau).min() >= 3.0 - ROUND_OFF
+    assert coarse.K == grid.K - 2                  # the Δ/8 cuts dropped, the halvings kept

@@ -180,13 +180,13 @@ def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, name
     for sd in problem.sensors:
         if sd.n:
             t1 = max(t1, float(sd.t[-1]))
+    dt = float(np.median(att.dt)) if att.dt.size else 1.0
     if spacing is None:
         ix = [names.index(nm) for nm in RPY if nm in names]
         rate = float(np.linalg.eigvalsh(information[np.ix_(ix, ix)])[-1]) / max(t1 - t0, 1.0) if ix else 0.0
-        dt = float(np.median(att.dt)) if att.dt.size else 1.0
         spacing = kn.knot_spacing(noise.sigma_v if noise.sigma_v > 0 else noise.sigma_u * 1e3, rate,
                                   dt_min=max(dt, 1e-3))
-    return kn.make_grid(t0, t1, spacing, noise.sigma_v, noise.sigma_u)
+    return kn.make_grid(t0, t1, spacing, noise.sigma_v, noise.sigma_u, min_step=max(dt, 1e-3))
 
 
 class _Passes:

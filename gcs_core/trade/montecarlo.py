@@ -18,11 +18,19 @@ and the NEES ``Σ_runs eᵀ P⁻¹ e`` over the elements the plan determines, wi
 χ² band (Bar-Shalom, Li & Kirubarajan 2001, §5.4.2). With N runs the sample σ itself is
 uncertain by about ``1/sqrt(2(N−1))`` (7 % at 100 runs).
 
-Truth: every element the simulator holds at its data-book value has that value; the
-gyro bias is the least-squares line through the simulator's bias random walk over the
-fitted span (with the Kalman method, the walk at the reference time less that line's
-drift, as the smoother's bias element is defined); the attitude is the simulator's at the estimator's reference time,
-expressed in the estimator's reference frame.
+Truth: every element is compared with the simulator's value of the *same* quantity in
+the estimator's parameterization. Elements the simulator holds at their data-book value
+have that value. The attitude is the simulator's at the estimator's reference time
+``t_ref`` (the first gyro knot), expressed in the estimator's reference frame. The gyro
+bias depends on the method's model of it, ``b(t) = bias + bias_rate (t − t_mid)`` plus
+whatever the method lets wander:
+
+* ``whole_span`` (the default): the wander is the knots' random walk, zero at ``t_ref``
+  (:mod:`gcs_core.filtr.knots`), so ``bias_rate`` is the simulator's deterministic drift
+  (its data-book ``bias_rate``) and ``bias`` the simulator's bias at ``t_ref`` carried to
+  ``t_mid`` by that drift;
+* ``kalman``: the walk at ``t_ref`` less the drift of the least-squares line through it;
+* ``batch`` (no wander): the least-squares line through the walk over the fitted span.
 """
 
 from __future__ import annotations
@@ -151,7 +159,15 @@ def _truth(truth: dict, problem, values_book: dict, method: str = "batch") -> di
         A = np.column_stack([np.ones(int(sel.sum())), h[sel, 0] - 0.5 * (t0 + t1)])
         coef, *_ = np.linalg.lstsq(A, h[sel, 1:], rcond=None)
         b_mid, slope = coef[0], coef[1]
-        if method == "kalman":
+        if method == "whole_span":
+            # the whole-span fit's bias is b(t) = bias + bias_rate (t − t_mid) + β(t) with
+            # β(t_ref) = 0 (knots.py: z_0 = 0): its static bias is the walk at t_ref carried
+            # to t_mid by the deterministic drift (the data book's, the simulator's bias_rate),
+            # and bias_rate is that drift; the walk after t_ref is the knots' β
+            slope = np.array([float(values_book.get(f"{gyro}.bias_rate_{c}", 0.0)) for c in "xyz"])
+            b_ref = np.array([np.interp(att.t_ref, h[:, 0], h[:, 1 + i]) for i in range(3)])
+            b_mid = b_ref + slope * (0.5 * (t0 + t1) - att.t_ref)
+        elif method == "kalman":
             # the smoother's bias element is the random walk at t_ref, less the drift line
             b_ref = np.array([np.interp(att.t_ref, h[:, 0], h[:, 1 + i]) for i in range(3)])
             b_mid = b_ref - slope * (att.t_ref - 0.5 * (t0 + t1))

@@ -150,6 +150,7 @@ class PlanRow:
 
 # ---------------------------------------------------------------------------- per process
 _CONTEXT: dict[str, tuple] = {}
+_TARGETS: dict[tuple, tuple] = {}
 
 
 def _context(defn: StudyDefinition):
@@ -236,7 +237,11 @@ def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str
 
     cfg, spec, base, orbit = _context(defn)
     targets = defn.targets or (ATTITUDE,)          # without targets: the attitude
-    names, units = target_elements(targets, spec)
+    key = (targets, defn.config_path, id(spec))     # once per process, not once per batch
+    if key not in _TARGETS:
+        _TARGETS.clear()
+        _TARGETS[key] = target_elements(targets, spec)
+    names, units = _TARGETS[key]
     out = []
     for index, combo in items:
         t0 = time.perf_counter()
