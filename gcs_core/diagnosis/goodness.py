@@ -267,33 +267,11 @@ def sensor_leverage(problem, result) -> dict[str, float]:
 
 
 def _smoothed_frames(problem, result, select: Mapping[str, np.ndarray]):
-    """(sensor, residual (k, m), σ (m,), prediction variance (k, m)) of the ``select``-ed
-    valid frames of a fit with knot corrections (``result.dynamics``), chunk by chunk: the
-    variance ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of static elements and knots."""
-    from gcs_core.filtr import knots as kn
-    from gcs_core.filtr.linearization import iter_blocks
-    from gcs_core.filtr.smoothing_uses import knot_variance
+    """The ``select``-ed frames of a fit with knot corrections with their prediction
+    variance (:func:`gcs_core.filtr.smoothing_uses.smoothed_frames`)."""
+    from gcs_core.filtr.smoothing_uses import smoothed_frames
 
-    dyn = result.dynamics
-    names = tuple(result.solve_for)
-    for blk in iter_blocks(dyn.problem(problem), result.state.values(), names, weighted=False):
-        m = select.get(blk.name)
-        if m is None:
-            continue
-        sel = m[blk.lo:blk.hi] & blk.valid
-        if not np.any(sel):
-            continue
-        sd = blk.sensor
-        c = blk.cols
-        H = np.nan_to_num(blk.H[sel]) if blk.H is not None else np.zeros((int(sel.sum()), len(sd.sigma), 0))
-        var = np.einsum("nmk,kl,nml->nm", H, result.P[np.ix_(c, c)], H, optimize=True)
-        D = getattr(blk.pred, "d_att", None)
-        if D is not None and blk.geom.C_BI is not None:
-            t = sd.t[blk.lo:blk.hi][sel]
-            j = dyn.grid.index(t)
-            U = kn.knot_rows(np.nan_to_num(D[sel]), blk.geom.C_BI[sel], t, j, dyn.grid, dyn.R)
-            var = var + knot_variance(dyn, U, j, H, c)
-        yield blk.name, blk.r[sel], sd.sigma, np.clip(var, 0, None)
+    return smoothed_frames(problem, result, select)
 
 
 def smoothed_leverage(problem, result) -> dict[str, float] | None:

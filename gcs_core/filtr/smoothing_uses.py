@@ -38,21 +38,14 @@ def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | 
     return out
 
 
-def smoothed_holdout_rms(problem: Problem, res: SmoothedResult,
-                         masks: Mapping[str, np.ndarray]) -> dict[str, float]:
-    """Normalized RMS of the held-out frames of a whole-span fit trained without them.
-
-    Each residual (at the smoothed attitude, whose knots cross the held-out span on the
-    process prior alone) is standardized by its full prediction uncertainty
-    ``sqrt(σ² + h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ)``: noise, static elements and the
-    knot corrections, so 1.0 is the expected value for a right model.
-    """
+def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, np.ndarray]):
+    """(sensor, residual (k, m), σ (m,), prediction variance (k, m)) of the ``select``-ed
+    valid frames of a whole-span fit, chunk by chunk: the variance
+    ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of the static elements and the knots."""
     dyn = res.dynamics
     names = tuple(res.solve_for)
-    prob = dyn.problem(problem)
-    sums: dict[str, list] = {}
-    for blk in iter_blocks(prob, res.state.values(), names, weighted=False):
-        m = masks.get(blk.name)
+    for blk in iter_blocks(dyn.problem(problem), res.state.values(), names, weighted=False):
+        m = select.get(blk.name)
         if m is None:
             continue
         sel = m[blk.lo:blk.hi] & blk.valid
@@ -68,8 +61,22 @@ def smoothed_holdout_rms(problem: Problem, res: SmoothedResult,
             j = dyn.grid.index(t)
             U = kn.knot_rows(np.nan_to_num(D[sel]), blk.geom.C_BI[sel], t, j, dyn.grid, dyn.R)
             var = var + knot_variance(dyn, U, j, H, c)
-        zz = blk.r[sel] / np.sqrt(sd.sigma[None, :] ** 2 + np.clip(var, 0, None))
-        acc = sums.setdefault(blk.name, [0.0, 0])
+        yield blk.name, blk.r[sel], sd.sigma, np.clip(var, 0, None)
+
+
+def smoothed_holdout_rms(problem: Problem, res: SmoothedResult,
+                         masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """Normalized RMS of the held-out frames of a whole-span fit trained without them.
+
+    Each residual (at the smoothed attitude, whose knots cross the held-out span on the
+    process prior alone) is standardized by its full prediction uncertainty
+    ``sqrt(σ² + h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ)``: noise, static elements and the
+    knot corrections (:func:`smoothed_frames`), so 1.0 is the expected value for a right model.
+    """
+    sums: dict[str, list] = {}
+    for name, r, sigma, var in smoothed_frames(problem, res, masks):
+        zz = r / np.sqrt(sigma[None, :] ** 2 + var)
+        acc = sums.setdefault(name, [0.0, 0])
         acc[0] += float(np.sum(zz ** 2))
         acc[1] += zz.size
     return {k: float(np.sqrt(v[0] / v[1])) for k, v in sums.items() if v[1]}
