@@ -315,21 +315,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             break
         if not _stored_at(stored[0], x, edits):
             evaluate(x)
-        new_edits = {}
-        suspect: set[str] = set()
-        for sd in problem.sensors:
-            valid = buffers.valid[sd.name]
-            pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
-            k = opts.k_for(sd.name)
-            if k is None:
-                new_edits[sd.name] = pre
-                continue
-            out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, k)
-            n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
-            if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
-                suspect.add(sd.name)
-                out[:] = False
-            new_edits[sd.name] = pre | out
+        new_edits, suspect = edit_frames(problem, buffers, preflag, opts)
         suspect_all |= suspect
         changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
                       for k in new_edits)
@@ -368,6 +354,31 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     residuals = residuals_from(problem, buffers, edits)
     return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,
                        tuple(history), it_total, status, message, A, unobs, budget)
+
+
+def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], opts: BatchOptions):
+    """k-σ editing of every sensor's residuals by the robust rule (:func:`robust_outliers`),
+    on top of the frames flagged before the fit (``preflag``).
+
+    A sensor that would lose more than ``opts.max_edit_fraction`` of its frames is not
+    edited: that many outliers is a model error to report and rank, not outliers. Returns
+    (sensor -> edited mask, names of such sensors).
+    """
+    new_edits, suspect = {}, set()
+    for sd in problem.sensors:
+        valid = buffers.valid[sd.name]
+        pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
+        k = opts.k_for(sd.name)
+        if k is None:
+            new_edits[sd.name] = pre
+            continue
+        out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, k)
+        n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
+        if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
+            suspect.add(sd.name)
+            out[:] = False
+        new_edits[sd.name] = pre | out
+    return new_edits, suspect
 
 
 def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarray:

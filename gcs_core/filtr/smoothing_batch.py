@@ -46,7 +46,7 @@ from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitude
 from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
-                                  name_combinations, residuals_from, robust_outliers)
+                                  edit_frames, name_combinations, residuals_from)
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.mekf import GyroNoise, gyro_noise
 from gcs_core.filtr.problem import Problem
@@ -373,7 +373,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
             status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
         if not edits_on:
             break
-        new_edits, suspect = _edit(problem, passes.buffers, preflag, opts)
+        new_edits, suspect = edit_frames(problem, passes.buffers, preflag, opts)
         suspect_all |= suspect
         changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
                       for k in new_edits)
@@ -421,25 +421,6 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                           tuple(history), it_total + batch.iterations, status, message, info, unobs, budget,
                           dynamics=dyn, chi2_process=chi2_proc,
                           batch_delta_sigma=(np.asarray(batch.x) - x) / sig)
-
-
-def _edit(problem: Problem, buffers: Residuals, preflag, opts: BatchOptions):
-    """The batch's k-σ editing on the whole-span residuals (never a sensor wholesale)."""
-    new_edits, suspect = {}, set()
-    for sd in problem.sensors:
-        valid = buffers.valid[sd.name]
-        pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
-        k = opts.k_for(sd.name)
-        if k is None:
-            new_edits[sd.name] = pre
-            continue
-        out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, k)
-        n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
-        if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
-            suspect.add(sd.name)
-            out[:] = False
-        new_edits[sd.name] = pre | out
-    return new_edits, suspect
 
 
 def fit_problem(problem: Problem, method: str, options: BatchOptions | None = None, **kw) -> BatchResult:
