@@ -315,11 +315,8 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             break
         if not _stored_at(stored[0], x, edits):
             evaluate(x)
-        new_edits, suspect = edit_frames(problem, buffers, preflag, opts)
+        edits, suspect, changed = edit_frames(problem, buffers, preflag, opts, edits)
         suspect_all |= suspect
-        changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
-                      for k in new_edits)
-        edits = new_edits
         if not changed:
             break
         log.info("editing pass %d: %d frames flagged", edit_pass + 1,
@@ -356,13 +353,14 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                        tuple(history), it_total, status, message, A, unobs, budget)
 
 
-def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], opts: BatchOptions):
+def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], opts: BatchOptions,
+                previous: Mapping[str, np.ndarray]):
     """k-σ editing of every sensor's residuals by the robust rule (:func:`robust_outliers`),
     on top of the frames flagged before the fit (``preflag``).
 
     A sensor that would lose more than ``opts.max_edit_fraction`` of its frames is not
     edited: that many outliers is a model error to report and rank, not outliers. Returns
-    (sensor -> edited mask, names of such sensors).
+    (sensor -> edited mask, names of such sensors, whether the masks differ from ``previous``).
     """
     new_edits, suspect = {}, set()
     for sd in problem.sensors:
@@ -378,7 +376,8 @@ def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], op
             suspect.add(sd.name)
             out[:] = False
         new_edits[sd.name] = pre | out
-    return new_edits, suspect
+    changed = any(not np.array_equal(m, previous.get(k, np.zeros_like(m))) for k, m in new_edits.items())
+    return new_edits, suspect, changed
 
 
 def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarray:

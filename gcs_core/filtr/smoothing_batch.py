@@ -373,11 +373,8 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
             status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
         if not edits_on:
             break
-        new_edits, suspect = edit_frames(problem, passes.buffers, preflag, opts)
+        edits, suspect, changed = edit_frames(problem, passes.buffers, preflag, opts, edits)
         suspect_all |= suspect
-        changed = any(not np.array_equal(new_edits[k], edits.get(k, np.zeros_like(new_edits[k])))
-                      for k in new_edits)
-        edits = new_edits
         if not changed:
             break
         lin = None
