@@ -361,14 +361,20 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be ≥ 1, not {v}")
-    return v
+def whole_number(minimum: int):
+    """An argparse type: a whole number of at least ``minimum``, with a one-line refusal."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if v < minimum:
+            raise argparse.ArgumentTypeError(f"must be ≥ {minimum}, not {v}")
+        return v
+    return parse
+
+
+_positive_int = whole_number(1)
 
 
 def _alpha(text: str) -> float:

@@ -42,14 +42,8 @@ def _progress(task, what: str):
 
 
 def _count(text: str) -> int:
-    import argparse
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must be ≥ 0, not {v}")
-    return v
+    from gcs_tui.cli import whole_number
+    return whole_number(0)(text)
 
 
 def _scale_args(sp) -> None:
