@@ -16,22 +16,19 @@ import numpy as np
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.display import p_text
-from gcs_core.diagnosis import aliases, determination, goodness
+from gcs_core.diagnosis import aliases, determination, goodness, physics, policy
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit  # noqa: F401
 from gcs_core.filtr.smoothing_batch import fit_problem
-from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms
+from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
 from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.models.base import HELD, SOLVE_FOR
 from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
-
-#: BIC difference below which two aliased candidates count as equally supported
-BIC_TIE = 2.0
 
 
 @dataclass(frozen=True)
@@ -192,7 +189,7 @@ class Analysis:
             res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
             self.holdout_rms = (smoothed_holdout_rms(self.problem, res_train, masks)
                                 if getattr(res_train, "dynamics", None) is not None
-                                else _holdout_rms(self.problem, res_train, masks))
+                                else static_holdout_rms(self.problem, res_train, masks))
             self.holdout_chi2 = goodness.holdout_tests(self.problem, res_train, masks)
         else:
             self.holdout_chi2 = {}
@@ -251,43 +248,16 @@ class Analysis:
         return self.candidates
 
     def physics_needed(self) -> list[dict]:
-        """For each always-on physics option in the model, what switching it off would cost.
-
-        The option's signature ``d = h_off − h_on`` is scored at the current solution like
-        a candidate (:func:`rank_candidates`): with ``c`` the fraction of ``d`` added,
-        ``χ²(c) ≈ χ²₀ − 2cg + c²S`` (``g`` the conditional score, ``S`` its information),
-        so switching off (``c = 1``) adds ``Δχ² = S − 2g = (1 − 2ĉ)/σ_c²``, ``ĉ = g/S``.
-        The option is *needed* when that increase is significant at the session's
-        family-wise level on one degree of freedom. No refit is made.
-        """
-        from scipy import stats
-
+        """For each always-on physics option in the model, what switching it off would cost
+        (:func:`gcs_core.diagnosis.physics.physics_needed`), once per fit."""
         if self.result is None:
             self.fit()
         if self._physics_needed is not None and self._physics_needed[0] is self.result:
             return self._physics_needed[1]
         on_ids = set(self.effects_in_state())
         phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
-        if not phys:
-            return []
-        crit = float(stats.chi2.isf(self.config.significance, 1))
-        out = []
-        for c in rank_candidates(self.problem, self.result, phys, alpha=self.config.significance,
-                                 smoothed=self.config.method == "kalman"):
-            sig = c.sigma.get(c.id, float("inf"))
-            c_hat = c.estimate.get(c.id, 0.0)
-            cost = (1.0 - 2.0 * c_hat) / sig ** 2 if np.isfinite(sig) and sig > 0 else 0.0
-            seen = ", ".join(f"{k} ({100 * v:.0f}%)" for k, v in
-                             sorted(c.sensors.items(), key=lambda kv: -kv[1]) if v >= 0.05)
-            needed = cost > crit
-            why = (f"switching it off would add Δχ² = {cost:.4g} on 1 dof"
-                   + (f", seen in {seen}" if seen else "")
-                   + ("; the data need it." if needed else
-                      f"; below the {crit:.1f} that α = {self.config.significance:g} needs: "
-                      "these data cannot show it, but it is real physics."))
-            out.append({"id": c.id, "delta_chi2_if_removed": round(float(cost), 3),
-                        "needed": bool(needed), "why": why, "physics": c.effect.explanation})
-        out.sort(key=lambda d: -d["delta_chi2_if_removed"])
+        out = physics.physics_needed(self.problem, self.result, phys, alpha=self.config.significance,
+                                     smoothed=self.config.method == "kalman") if phys else []
         self._physics_needed = (self.result, out)         # one score pass per fit
         return out
 
@@ -384,30 +354,8 @@ class Analysis:
         return self.steps
 
     def _parsimonious(self, top: Candidate, cands: list[Candidate]) -> Candidate:
-        """Among candidates the data cannot tell from ``top`` (canonical correlation above
-        the alias threshold), prefer the one with the best Bayesian information criterion
-        ``Δχ² − dof·ln(n)``: equal fits, fewer parameters (e.g. a Sun-sensor bias against a
-        sensor rotation, which differ only at second order). Within ``BIC_TIE`` of the
-        best, where the data give no real preference (Kass & Raftery 1995: a difference
-        under 2 is "not worth more than a bare mention"), the seed's own calibration
-        parameter wins over an extended effect (an Earth-radius bias Δρ over a horizon
-        height on a circular orbit), then an always-on physics option over a free parameter
-        with the same signature (the WGS-84 flattening over a fitted κ); the report names
-        the aliases either way."""
-        n = max(2, sum(r.n * len(r.components) for r in self.result.residuals.values()))
-        group = [top] + [c for c in cands if c.id in {a for a, _ in top.aliases_candidates}
-                         and c.p_adjusted < self.config.significance and c.dof > 0]
-        bic = {c.id: c.delta_chi2 - c.dof * math.log(n) for c in group}
-        best = max(bic.values())
-        close = [c for c in group if bic[c.id] >= best - BIC_TIE]
-        state = self.problem.state
-
-        def seed_effect(c: Candidate) -> bool:
-            return bool(c.effect.elements) and all(state[nm].seed for nm in c.effect.elements
-                                                   if nm in state)
-
-        # then known physics (no new parameter) over a free one: WGS-84 over a fitted κ
-        return max(close, key=lambda c: (seed_effect(c), c.effect.physics, bic[c.id]))
+        """The candidate to add among ``top`` and its aliases (:func:`policy.parsimonious`)."""
+        return policy.parsimonious(top, cands, self.result, self.problem.state, self.config.significance)
 
     # ------------------------------------------------------------------ honesty
     def goodness(self) -> goodness.GoodnessOfFit | None:
@@ -527,29 +475,6 @@ class Analysis:
             "stop_reason": getattr(self, "stop_reason", ""),
             "config_digest": self.config.digest(),
         }
-
-
-def _holdout_rms(problem: Problem, res: BatchResult, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
-    """Normalized RMS of the held-out frames, each residual standardized by its full
-    prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
-    training fit carried to that frame), so 1.0 is the expected value for a right model."""
-    from gcs_core.filtr.linearization import linearize
-
-    lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
-    out = {}
-    for name, r in res.residuals.items():
-        m = masks.get(name)
-        lin = lins.get(name)
-        if m is None or lin is None:
-            continue
-        sel = m & r.valid
-        if not np.any(sel):
-            continue
-        H = lin.H[sel]
-        var_pred = np.einsum("kmn,np,kmp->km", H, res.P, H, optimize=True)
-        z = r.residual[sel] / np.sqrt(lin.sigma[None, :] ** 2 + var_pred)
-        out[name] = float(np.sqrt(np.mean(z ** 2)))
-    return out
 
 
 def batch_result_from_filter(fr) -> BatchResult:

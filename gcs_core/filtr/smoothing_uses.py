@@ -38,6 +38,29 @@ def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | 
     return out
 
 
+def static_holdout_rms(problem: Problem, res, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+    """Normalized RMS of the held-out frames of a fit without process noise, each residual standardized by its full
+    prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
+    training fit carried to that frame), so 1.0 is the expected value for a right model."""
+    from gcs_core.filtr.linearization import linearize
+
+    lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
+    out = {}
+    for name, r in res.residuals.items():
+        m = masks.get(name)
+        lin = lins.get(name)
+        if m is None or lin is None:
+            continue
+        sel = m & r.valid
+        if not np.any(sel):
+            continue
+        H = lin.H[sel]
+        var_pred = np.einsum("kmn,np,kmp->km", H, res.P, H, optimize=True)
+        z = r.residual[sel] / np.sqrt(lin.sigma[None, :] ** 2 + var_pred)
+        out[name] = float(np.sqrt(np.mean(z ** 2)))
+    return out
+
+
 def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, np.ndarray]):
     """(sensor, residual (k, m), σ (m,), prediction variance (k, m)) of the ``select``-ed
     valid frames of a whole-span fit, chunk by chunk: the variance
