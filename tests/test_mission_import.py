@@ -13,7 +13,8 @@ import pytest
 
 from gcs_core.errors import InputError
 from gcs_core.sidp.importer import load_mission
-from gcs_core.sidp.mission import parse_utc, read_mission_spec
+from gcs_core.ephem.timescale import parse_utc
+from gcs_core.sidp.mission import read_mission_spec
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 if not EXAMPLE.is_dir():  # a checkout elsewhere: the example lives beside the repository
@@ -330,10 +331,12 @@ def _template(node) -> str | None:
 
 
 def _code_templates() -> tuple[set[str], set[str]]:
-    """(messages raised by the sidp readers, every string template in their sources)."""
+    """(messages raised by the sidp readers, every string template in their sources and in
+    the epoch parser they call, :func:`gcs_core.ephem.timescale.parse_utc`)."""
     import ast
     raised, everything = set(), set()
-    for source in sorted((REPO / "gcs_core" / "sidp").glob("*.py")):
+    sources = sorted((REPO / "gcs_core" / "sidp").glob("*.py"))
+    for source in sources + [REPO / "gcs_core" / "ephem" / "timescale.py"]:
         for node in ast.walk(ast.parse(source.read_text())):
             t = _template(node)
             if t:
@@ -342,7 +345,7 @@ def _code_templates() -> tuple[set[str], set[str]]:
                 func = node.func
                 name = func.id if isinstance(func, ast.Name) else getattr(func, "attr", None)
                 k = _MESSAGE_ARG.get(name)
-                if k is not None and len(node.args) > k:
+                if k is not None and len(node.args) > k and source in sources:
                     t = _template(node.args[k])
                     if t and t.strip("… "):
                         raised.add(t)

@@ -35,7 +35,7 @@ import numpy as np
 from gcs_core.errors import InputError
 
 __all__ = [
-    "J2000", "JD_J2000", "parse_epoch", "seconds_since_j2000", "days_since_j2000",
+    "J2000", "JD_J2000", "parse_epoch", "parse_utc", "seconds_since_j2000", "days_since_j2000",
     "julian_date", "julian_date_parts", "julian_centuries", "gmst_rad", "decimal_year",
 ]
 
@@ -46,9 +46,43 @@ JD_J2000 = 2451545.0
 _DAYS_PER_CENTURY = 36525.0
 _SECONDS_PER_DAY = 86400.0
 
-_ISO = re.compile(
-    r"^\s*(\d{4})-(\d{2})-(\d{2})(?:[T ](\d{2}):(\d{2})(?::(\d{2})(?:\.(\d+))?)?)?"
-    r"\s*(Z|z|[+-]\d{2}:?\d{2}|UTC)?\s*$")
+_ISO_UTC = re.compile(
+    r"(\d{4})-(\d{2})-(\d{2})"
+    r"(?:[Tt ](\d{2}):(\d{2})(?::(\d{2})(?:\.(\d{1,12}))?)?)?"
+    r"\s*(Z|z|UTC|[+-]\d{2}:?\d{2})?")
+
+
+def parse_utc(text: str) -> datetime:
+    """ISO-8601 date-time -> timezone-aware UTC datetime.
+
+    Accepts ``YYYY-MM-DD[THH:MM[:SS[.fff]]][Z|UTC|+HH:MM]``; no zone means UTC
+    (ICD §3), an offset is converted to UTC. Fractions beyond a microsecond are
+    rounded. Raises ``ValueError`` with a plain message when the text is not one.
+    """
+    m = _ISO_UTC.fullmatch(text.strip())
+    if not m:
+        raise ValueError(f"not an ISO-8601 UTC time: {text!r} (e.g. \"2024-03-20T06:00:00Z\")")
+    y, mo, d, hh, mm, ss, frac, zone = m.groups()
+    if ss == "60":
+        raise ValueError(f"leap second in {text!r}: choose an epoch off the leap second")
+    try:
+        dt = datetime(int(y), int(mo), int(d), int(hh or 0), int(mm or 0), int(ss or 0),
+                      tzinfo=timezone.utc)
+    except ValueError as err:
+        raise ValueError(f"not a valid date-time: {text!r} ({err})") from None
+    try:
+        if frac:
+            dt += timedelta(microseconds=round(float("0." + frac) * 1e6))
+        if zone and zone not in ("Z", "z", "UTC"):
+            sign = 1 if zone[0] == "+" else -1
+            digits = zone[1:].replace(":", "")
+            hours, minutes = int(digits[:2]), int(digits[2:])
+            if hours > 23 or minutes > 59:
+                raise ValueError(f"bad UTC offset in {text!r}")
+            dt -= sign * timedelta(hours=hours, minutes=minutes)
+    except OverflowError:
+        raise ValueError(f"date-time out of range: {text!r}") from None
+    return dt
 
 
 def parse_epoch(text, *, key: str | None = None) -> datetime:
@@ -78,29 +112,13 @@ def parse_epoch(text, *, key: str | None = None) -> datetime:
         if not isinstance(text, str):
             raise InputError(f"epoch must be an ISO-8601 UTC text like "
                              f"'2024-03-20T06:00:00Z', got {text!r}", key=key)
-        m = _ISO.match(text)
-        if m is None:
-            raise InputError(f"'{text}' is not an ISO-8601 UTC instant "
-                             f"(expected e.g. '2024-03-20T06:00:00Z')", key=key)
-        year, month, day, hh, mm, ss, frac, zone = m.groups()
-        micro = 0
-        if frac:
-            micro = int(round(float("0." + frac) * 1e6))
         try:
-            dt = datetime(int(year), int(month), int(day), int(hh or 0), int(mm or 0),
-                          int(ss or 0), tzinfo=timezone.utc)
+            return parse_utc(text)
         except ValueError as exc:
-            raise InputError(f"'{text}' is not a valid date/time ({exc})", key=key) from None
-        dt = dt + timedelta(microseconds=micro)
-        if zone and zone not in ("Z", "z", "UTC"):
-            sign = 1 if zone[0] == "+" else -1
-            digits = zone[1:].replace(":", "")
-            offset = timedelta(hours=int(digits[:2]), minutes=int(digits[2:]))
-            dt = dt - sign * offset
+            raise InputError(str(exc), key=key) from None
     if dt.tzinfo is None:
         dt = dt.replace(tzinfo=timezone.utc)
     return dt.astimezone(timezone.utc)
-
 
 def _epoch_seconds_since_j2000(epoch: datetime) -> float:
     """Exact seconds from J2000.0 to ``epoch`` (integer arithmetic, then one float)."""

@@ -21,10 +21,11 @@ import os
 import re
 import tomllib
 from dataclasses import dataclass
-from datetime import datetime, timedelta, timezone
+from datetime import datetime, timezone
 from pathlib import Path
 from typing import Any, Callable
 
+from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
 from gcs_core.sidp.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
 
@@ -147,47 +148,6 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
-
-# --- epoch --------------------------------------------------------------------------
-
-_EPOCH = re.compile(
-    r"(\d{4})-(\d{2})-(\d{2})"
-    r"(?:[Tt ](\d{2}):(\d{2})(?::(\d{2})(?:\.(\d{1,12}))?)?)?"
-    r"\s*(Z|z|UTC|[+-]\d{2}:?\d{2})?")
-
-
-def parse_utc(text: str) -> datetime:
-    """ISO-8601 date-time -> timezone-aware UTC datetime.
-
-    Accepts ``YYYY-MM-DD[THH:MM[:SS[.fff]]][Z|UTC|+HH:MM]``; no zone means UTC
-    (ICD §3), an offset is converted to UTC. Fractions beyond a microsecond are
-    rounded. Raises ``ValueError`` with a plain message when the text is not one.
-    """
-    m = _EPOCH.fullmatch(text.strip())
-    if not m:
-        raise ValueError(f"not an ISO-8601 UTC time: {text!r} (e.g. \"2024-03-20T06:00:00Z\")")
-    y, mo, d, hh, mm, ss, frac, zone = m.groups()
-    if ss == "60":
-        raise ValueError(f"leap second in {text!r}: choose an epoch off the leap second")
-    try:
-        dt = datetime(int(y), int(mo), int(d), int(hh or 0), int(mm or 0), int(ss or 0),
-                      tzinfo=timezone.utc)
-    except ValueError as err:
-        raise ValueError(f"not a valid date-time: {text!r} ({err})") from None
-    try:
-        if frac:
-            dt += timedelta(microseconds=round(float("0." + frac) * 1e6))
-        if zone and zone not in ("Z", "z", "UTC"):
-            sign = 1 if zone[0] == "+" else -1
-            digits = zone[1:].replace(":", "")
-            hours, minutes = int(digits[:2]), int(digits[2:])
-            if hours > 23 or minutes > 59:
-                raise ValueError(f"bad UTC offset in {text!r}")
-            dt -= sign * timedelta(hours=hours, minutes=minutes)
-    except OverflowError:
-        raise ValueError(f"date-time out of range: {text!r}") from None
-    return dt
-
 
 # --- locating keys in the text --------------------------------------------------------
 
@@ -508,7 +468,8 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     ground = None
     orbit: dict = {}
     if isinstance(e, dict) and "ground_position_km" in e and "file" not in e:
-        ground = _ground(ctx, e, mode, unknown)
+        from gcs_core.sidp.orbit_spec import ground_position
+        ground = ground_position(ctx, e, mode, unknown)
         ephemeris = None
     else:
         from gcs_core.sidp.orbit_spec import ephemeris_or_orbit
@@ -546,22 +507,3 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
                        ephemeris_file=ephemeris, sensors=tuple(sensors),
                        spin_axis_guess_deg=spin_guess, aux_file=aux, onboard_file=onboard,
                        unknown_keys=tuple(unknown), ground_position_km=ground, **orbit)
-
-
-def _ground(ctx: _Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[float, float, float]:
-    """``[ephemeris] ground_position_km = [x, y, z]``: a laboratory on the ground
-    (docs/ground.md). The reference frame is the laboratory's own (it stands where GCI
-    stands in flight), so the mission must be ``inertial``."""
-    pos = _numbers(ctx, e["ground_position_km"], 3, "ephemeris.ground_position_km",
-                   "ephemeris", 1, "ground_position_km")
-    norm = math.sqrt(sum(v * v for v in pos))
-    if not 6300.0 <= norm <= 6400.0:
-        raise ctx.error(f"|position| = {norm:.6g} km is not on the Earth's surface "
-                        "(6300 to 6400 km; position in km?)", "ephemeris.ground_position_km",
-                        "ephemeris", 1, "ground_position_km")
-    if mode != "inertial":
-        raise ctx.error(f"a ground mission (ground_position_km) needs attitude_mode = "
-                        f"\"inertial\" (the laboratory frame), not {mode!r}",
-                        "mission.attitude_mode", "mission", 1, "attitude_mode")
-    unknown += [f"ephemeris.{k}" for k in e if k != "ground_position_km"]
-    return pos

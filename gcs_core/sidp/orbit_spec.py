@@ -7,10 +7,11 @@ mission.toml check does (:mod:`gcs_core.sidp.mission`).
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any
 
-from gcs_core.sidp.mission import _Ctx, _existing_file, _number, _optional_file, _string
+from gcs_core.sidp.mission import _Ctx, _existing_file, _number, _numbers, _optional_file, _string
 
 __all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "ephemeris_or_orbit", "read_orbit_table"]
 
@@ -60,3 +61,22 @@ def ephemeris_or_orbit(ctx: _Ctx, root: Path, doc: dict, unknown: list[str]
                         "[orbit] table with 'tle', or 'ground_position_km' for a ground mission",
                         "ephemeris.file", "ephemeris")
     return _optional_file(ctx, root, doc, "ephemeris", unknown), {}
+
+
+def ground_position(ctx: _Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[float, float, float]:
+    """``[ephemeris] ground_position_km = [x, y, z]``: a laboratory on the ground
+    (docs/ground.md). The reference frame is the laboratory's own (it stands where GCI
+    stands in flight), so the mission must be ``inertial``."""
+    pos = _numbers(ctx, e["ground_position_km"], 3, "ephemeris.ground_position_km",
+                   "ephemeris", 1, "ground_position_km")
+    norm = math.sqrt(sum(v * v for v in pos))
+    if not 6300.0 <= norm <= 6400.0:
+        raise ctx.error(f"|position| = {norm:.6g} km is not on the Earth's surface "
+                        "(6300 to 6400 km; position in km?)", "ephemeris.ground_position_km",
+                        "ephemeris", 1, "ground_position_km")
+    if mode != "inertial":
+        raise ctx.error(f"a ground mission (ground_position_km) needs attitude_mode = "
+                        f"\"inertial\" (the laboratory frame), not {mode!r}",
+                        "mission.attitude_mode", "mission", 1, "attitude_mode")
+    unknown += [f"ephemeris.{k}" for k in e if k != "ground_position_km"]
+    return pos

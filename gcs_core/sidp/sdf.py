@@ -41,7 +41,7 @@ import numpy as np
 from gcs_core.errors import DataFileError
 from gcs_core.sidp import h5store
 from gcs_core.sidp.importer import COLUMN_UNITS, ImportedMission
-from gcs_core.sidp.mission import parse_utc
+from gcs_core.ephem.timescale import parse_utc
 
 FORMAT = "SDF"
 VERSION = 1
