@@ -39,7 +39,7 @@ from gcs_core.ephem.geomag import GeomagField  # noqa: E402
 from gcs_core.filtr.batch import batch_fit  # noqa: E402
 from gcs_core.frames.reference import reference_dcm  # noqa: E402
 from gcs_core.session import Analysis  # noqa: E402
-from gcs_core.sidp.importer import load_mission  # noqa: E402
+from gcs_core.io.importer import load_mission  # noqa: E402
 
 UT = 1000.0   # nT per µT
 

@@ -37,8 +37,8 @@ from gcs_core.config import default_config
 from gcs_core.convert import convert
 from gcs_core.config import ElementConfig
 from gcs_core.session import Analysis
-from gcs_core.sidp import noise
-from gcs_core.sidp.importer import load_mission
+from gcs_core.filtr import noise
+from gcs_core.io.importer import load_mission
 
 TRIALS = ("02_undisturbed_slow_rotation_B", "09_undisturbed_fast_rotation_with_breaks_B",
           "36_disturbed_attached_magnet_5cm")

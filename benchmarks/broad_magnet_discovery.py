@@ -23,7 +23,7 @@ from pathlib import Path
 from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
 from gcs_core.session import Analysis
-from gcs_core.sidp.importer import load_mission
+from gcs_core.io.importer import load_mission
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from broad_consistency import MEMS_PRIORS  # noqa: E402

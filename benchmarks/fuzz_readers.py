@@ -24,9 +24,9 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from gcs_core.errors import InputError  # noqa: E402
-from gcs_core.sidp.csvio import read_table  # noqa: E402
-from gcs_core.sidp.importer import load_mission  # noqa: E402
-from gcs_core.sidp.mission import read_mission_spec  # noqa: E402
+from gcs_core.io.csvio import read_table  # noqa: E402
+from gcs_core.io.importer import load_mission  # noqa: E402
+from gcs_core.io.mission import read_mission_spec  # noqa: E402
 
 EXAMPLE = REPO.parent / "shared" / "examples" / "sunpoint-nominal"
 

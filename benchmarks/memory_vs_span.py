@@ -59,10 +59,10 @@ def child(mission_dir: str) -> None:
     from gcs_core.diagnosis.ranking import rank_candidates
     from gcs_core.filtr.batch import BatchOptions
     from gcs_core.filtr.smoothing_batch import whole_span_fit
-    from gcs_core.filtr.problem import build_problem
-    from gcs_core.models.base import HELD
-    from gcs_core.sidp.importer import load_mission
-    from gcs_core.sidp.prepare import PHYSICS_EFFECTS
+    from gcs_core.problem.build import build_problem
+    from gcs_core.problem.state import HELD
+    from gcs_core.io.importer import load_mission
+    from gcs_core.problem.prepare import PHYSICS_EFFECTS
 
     def peak_mb() -> float:
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -34,7 +34,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from gcs_core.config import load_config, save_config  # noqa: E402
-from gcs_core.sidp.mission import read_mission_spec  # noqa: E402
+from gcs_core.io.mission import read_mission_spec  # noqa: E402
 from gcs_core.trade.montecarlo import MATCH_FRACTION, MonteCarlo, run_montecarlo, summary_lines  # noqa: E402
 from gcs_core.trade.optimize import Budget, optimize, parse_target  # noqa: E402
 from gcs_core.trade.study import sensor_axes_covariance  # noqa: E402

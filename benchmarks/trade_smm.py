@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from gcs_core.config import load_config  # noqa: E402
-from gcs_core.sidp.mission import read_mission_spec  # noqa: E402
+from gcs_core.io.mission import read_mission_spec  # noqa: E402
 from gcs_core.trade import definition_from_config  # noqa: E402
 from gcs_core.trade.geometry import field_turn_deg  # noqa: E402
 from gcs_core.trade.run import run_study  # noqa: E402

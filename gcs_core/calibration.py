@@ -4,7 +4,7 @@ The seed's DRIVER "can update two disc data files as a result of the attitude an
 determination: the Sensor Calibration Data Set which stores the updated sensor
 calibration parameter, and the Attitude Status File which stores the attitude
 determination results" (§3.2.2). Both are append-only HDF5 histories; every write goes
-through :mod:`gcs_core.sidp.scds` and :mod:`gcs_core.sidp.asf`, which lock the file and
+through :mod:`gcs_core.io.scds` and :mod:`gcs_core.io.asf`, which lock the file and
 replace it atomically.
 
 A calibration version holds every element that is not held (solve-for: the estimate and
@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core.errors import EstimationError, InputError
-from gcs_core.models.base import HELD, SOLVE_FOR
-from gcs_core.sidp import asf, scds
+from gcs_core.problem.state import HELD, SOLVE_FOR
+from gcs_core.io import asf, scds
 from gcs_core.verif.ground import covered, ground_attitude
 
 __all__ = ["save_calibration", "save_ground_attitude", "calibration_provenance"]

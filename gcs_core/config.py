@@ -101,8 +101,8 @@ from gcs_core.config_checks import (_choice, _fail, _list, _number, _pair, _quot
                                    _table, _unknown)
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import make_usual
-from gcs_core.models.base import ROLES
-from gcs_core.sidp.types import SENSOR_TYPES
+from gcs_core.problem.state import ROLES
+from gcs_core.io.types import SENSOR_TYPES
 
 METHODS = ("whole_span", "batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole", "constant")
@@ -163,7 +163,7 @@ class AnalysisConfig:
         as process noise on the attitude and drift bias, :mod:`gcs_core.filtr.smoothing_batch`),
         ``batch`` (static states, gyro-propagated attitude with Q = 0) or ``kalman``
         (one-pass filter and smoother with gyro process noise, the FILTR stepping engine).
-    physics : always-on physics switches (see :mod:`gcs_core.sidp.prepare`).
+    physics : always-on physics switches (see :mod:`gcs_core.problem.prepare`).
     models : sensor -> its type, or ``"off"`` to leave the sensor out.
     effects, exclude : catalogue effect ids added to / removed from the solve-for set.
     elements : element name -> :class:`ElementConfig`.
@@ -392,7 +392,7 @@ def check_against_mission(cfg: AnalysisConfig, spec) -> None:
     """The checks that need the mission: ``[models]`` names its sensors with their types,
     and effect ids and element names start with one of its sensors (``att.``/``model.`` too).
 
-    ``spec`` is the mission's :class:`~gcs_core.sidp.types.MissionSpec`.
+    ``spec`` is the mission's :class:`~gcs_core.io.types.MissionSpec`.
     """
     f = cfg.path
     types = {s.name: s.type for s in spec.sensors}

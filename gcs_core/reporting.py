@@ -185,7 +185,7 @@ def steps_table(steps: Iterable, *, min_change: float = 0.005) -> list[str]:
 
 def import_table(mission) -> list[str]:
     """What an import read: rows kept and dropped per file, unknown keys and repairs
-    (an :class:`~gcs_core.sidp.importer.ImportedMission`)."""
+    (an :class:`~gcs_core.io.importer.ImportedMission`)."""
     spec, rep = mission.spec, mission.report
     root = Path(getattr(spec, "root", "."))
     lines = [f"mission {spec.name}: {len(spec.sensors)} sensors "
@@ -300,8 +300,8 @@ def remaining_summary(analysis) -> dict[str, dict[str, Any]]:
 
 def _noise_estimated(spec, name: str) -> bool:
     """True when mission.toml marks the sensor's noise as estimated from the data (the
-    converters' one marker, :func:`gcs_core.sidp.noise.noise_estimated`)."""
-    from gcs_core.sidp.noise import noise_estimated
+    converters' one marker, :func:`gcs_core.filtr.noise.noise_estimated`)."""
+    from gcs_core.filtr.noise import noise_estimated
     try:
         text = (spec.root / "mission.toml").read_text(encoding="utf-8")
     except OSError:

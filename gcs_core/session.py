@@ -23,9 +23,9 @@ from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit  # noqa: F401
 from gcs_core.filtr.smoothing_batch import fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
-from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
-from gcs_core.models.base import HELD, SOLVE_FOR
-from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
+from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
+from gcs_core.problem.state import HELD, SOLVE_FOR
+from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
@@ -79,7 +79,7 @@ class Analysis:
     """
 
     def __init__(self, config: AnalysisConfig, *, mission=None):
-        from gcs_core.sidp.importer import load_mission
+        from gcs_core.io.importer import load_mission
 
         self.config = config
         self.mission = mission if mission is not None else load_mission(config.mission)

@@ -271,7 +271,7 @@ class GcsApp(App):
         if not self.workbench.ready:
             self.notify("open a mission first (o)", severity="warning")
             return
-        from gcs_core.sidp.noise import mission_noise
+        from gcs_core.filtr.noise import mission_noise
         from gcs_tui.screens.allan import AllanScreen
 
         try:

@@ -89,7 +89,7 @@ def _load(args):
 def _setup(args, prog: Progress):
     """(config, imported mission), the config checked against the mission."""
     from gcs_core.config import check_against_mission
-    from gcs_core.sidp.importer import load_mission
+    from gcs_core.io.importer import load_mission
 
     cfg = _load(args)
     with prog.task(f"reading mission {cfg.mission}"):
@@ -204,13 +204,13 @@ def cmd_tui(args, prog: Progress) -> int:
 
 def cmd_import(args, prog: Progress) -> int:
     from gcs_core.reporting import import_table
-    from gcs_core.sidp.importer import load_mission
+    from gcs_core.io.importer import load_mission
 
     with prog.task(f"reading mission {args.mission}"):
         m = load_mission(args.mission)
     _lines(import_table(m))
     if args.sdf:
-        from gcs_core.sidp.sdf import write_sdf
+        from gcs_core.io.sdf import write_sdf
         with prog.task(f"writing the SDF {args.sdf}"):
             path = write_sdf(_output(args.sdf), m)
         _out(f"SDF written to {path}")
@@ -230,8 +230,8 @@ def cmd_convert(args, prog: Progress) -> int:
 
 
 def cmd_noise(args, prog: Progress) -> int:
-    from gcs_core.sidp.importer import load_mission
-    from gcs_core.sidp.noise import mission_noise, noise_lines
+    from gcs_core.io.importer import load_mission
+    from gcs_core.filtr.noise import mission_noise, noise_lines
 
     with prog.task(f"reading mission {args.mission}"):
         m = load_mission(args.mission)

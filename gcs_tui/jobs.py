@@ -94,12 +94,12 @@ def scds_versions(path: Path):
     """Version summaries of an SCDS file (empty when the file does not exist)."""
     if path is None or not Path(path).exists():
         return []
-    return engine("gcs_core.sidp.scds", "list_versions")(path)
+    return engine("gcs_core.io.scds", "list_versions")(path)
 
 
 def scds_diff(path: Path, a: int, b: int):
-    return engine("gcs_core.sidp.scds", "diff_versions")(path, a, b)
+    return engine("gcs_core.io.scds", "diff_versions")(path, a, b)
 
 
 def scds_version(path: Path, n: int | None = None):
-    return engine("gcs_core.sidp.scds", "read_version")(path, n)
+    return engine("gcs_core.io.scds", "read_version")(path, n)

@@ -25,9 +25,9 @@ from typing import Callable
 from gcs_core.config import (METHODS, AnalysisConfig, ElementConfig, Maneuver, default_config,
                              load_config, save_config)
 from gcs_core.errors import ConfigError
-from gcs_core.models.base import ROLES
+from gcs_core.problem.state import ROLES
 from gcs_core.session import Analysis
-from gcs_core.sidp.prepare import PHYSICS_EFFECTS
+from gcs_core.problem.prepare import PHYSICS_EFFECTS
 from gcs_tui.derive import segments
 
 log = logging.getLogger(__name__)

@@ -18,7 +18,7 @@ from gcs_core.frames.rotations import T1, T3, quat_to_dcm, rotvec_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry
 from gcs_core.models.common import alignment_matrix
-from gcs_core.sidp.types import SensorSpec
+from gcs_core.io.types import SensorSpec
 
 N_FRAMES = 8
 

@@ -19,8 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.filtr.linearization import linearize
-from gcs_core.models.base import HELD
+from gcs_core.problem.linearization import linearize
+from gcs_core.problem.state import HELD
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import spinner_two_scanners, with_effect
 from test_truth_recovery import normalized_errors, simulate, truth_values

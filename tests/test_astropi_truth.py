@@ -19,7 +19,7 @@ import pytest
 from gcs_core.config import load_config
 from gcs_core.convert import convert
 from gcs_core.session import Analysis
-from gcs_core.sidp.importer import load_mission
+from gcs_core.io.importer import load_mission
 from gcs_core.sim._rot import rpy_to_dcm
 from gcs_core.sim.field import igrf_gci
 

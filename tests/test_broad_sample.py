@@ -23,7 +23,7 @@ import pytest
 
 from gcs_core.config import load_config
 from gcs_core.session import Analysis
-from gcs_core.sidp.importer import load_mission
+from gcs_core.io.importer import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "sample_data" / "configs" / "real-broad-02-slow-rotation.toml"

@@ -17,7 +17,7 @@ from gcs_core.calibration import save_calibration, save_ground_attitude
 from gcs_core.config import AnalysisConfig
 from gcs_core.errors import EstimationError
 from gcs_core.session import Analysis
-from gcs_core.sidp import asf, scds
+from gcs_core.io import asf, scds
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 

@@ -14,7 +14,7 @@ import pytest
 
 from gcs_core import config as C
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.sidp.importer import load_mission
+from gcs_core.io.importer import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = ROOT / "sample_data" / "missions"

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from gcs_core.errors import InputError
-from gcs_core.sidp.csvio import read_table, write_table
+from gcs_core.io.csvio import read_table, write_table
 
 MAG = ("t", "bx", "by", "bz")
 

@@ -12,7 +12,7 @@ from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.orbit import KeplerOrbit, TleOrbit, build_ephemeris, solve_kepler
 from gcs_core.ephem.sun import sun_position_km
 from gcs_core.errors import InputError
-from gcs_core.sidp.types import Table
+from gcs_core.io.types import Table
 
 one_meter = 1e-3                 # km
 one_mm_per_s = 1e-6              # km/s

@@ -26,12 +26,12 @@ import pytest
 from scipy import stats
 
 from gcs_core import units
-from gcs_core.filtr.problem import StateOptions, build_problem
+from gcs_core.problem.build import StateOptions, build_problem
 from gcs_core.filtr.stepping import Filtr, FilterOptions
 from gcs_core.frames.rotations import T1, T2, T3, dcm_to_rotvec, euler123_to_dcm, rotvec_to_dcm
-from gcs_core.sidp.importer import ImportedMission
-from gcs_core.sidp.prepare import PhysicsOptions
-from gcs_core.sidp.types import MissionSpec, SensorSpec, Table
+from gcs_core.io.importer import ImportedMission
+from gcs_core.problem.prepare import PhysicsOptions
+from gcs_core.io.types import MissionSpec, SensorSpec, Table
 
 EPOCH = datetime(2024, 3, 20, 6, 0, 0, tzinfo=timezone.utc)
 #: physics the simulator does not model (so the filter must not either)

@@ -12,9 +12,9 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gcs_core.errors import InputError
-from gcs_core.sidp.csvio import read_table
-from gcs_core.sidp.mission import read_mission_spec
-from gcs_core.sidp.types import MissionSpec, Table
+from gcs_core.io.csvio import read_table
+from gcs_core.io.mission import read_mission_spec
+from gcs_core.io.types import MissionSpec, Table
 
 FUZZ = settings(max_examples=300, derandomize=True, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from gcs_core.errors import DataFileError
-from gcs_core.sidp import asf, h5store, scds
-from gcs_core.sidp.importer import load_mission
-from gcs_core.sidp.sdf import iter_blocks, read_sdf, write_sdf
+from gcs_core.io import asf, h5store, scds
+from gcs_core.io.importer import load_mission
+from gcs_core.io.sdf import iter_blocks, read_sdf, write_sdf
 
 REPO = Path(__file__).resolve().parents[1]
 EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
@@ -233,7 +233,7 @@ def test_lock_held_by_another_process(tmp_path, monkeypatch):
     append(path)
     holder = textwrap.dedent(f"""
         import sys, time
-        from gcs_core.sidp import h5store
+        from gcs_core.io import h5store
         with h5store.locked({str(path)!r}, exclusive=True):
             print("locked", flush=True)
             time.sleep(60)

@@ -17,7 +17,7 @@ import time
 import numpy as np
 import pytest
 
-from gcs_core.sidp import h5store, scds
+from gcs_core.io import h5store, scds
 
 N_PARAMS = 40
 

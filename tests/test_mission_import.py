@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 
 from gcs_core.errors import InputError
-from gcs_core.sidp.importer import load_mission
+from gcs_core.io.importer import load_mission
 from gcs_core.ephem.timescale import parse_utc
-from gcs_core.sidp.mission import read_mission_spec
+from gcs_core.io.mission import read_mission_spec
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"
 if not EXAMPLE.is_dir():  # a checkout elsewhere: the example lives beside the repository
@@ -331,11 +331,11 @@ def _template(node) -> str | None:
 
 
 def _code_templates() -> tuple[set[str], set[str]]:
-    """(messages raised by the sidp readers, every string template in their sources and in
+    """(messages raised by the io readers, every string template in their sources and in
     the epoch parser they call, :func:`gcs_core.ephem.timescale.parse_utc`)."""
     import ast
     raised, everything = set(), set()
-    sources = sorted((REPO / "gcs_core" / "sidp").glob("*.py"))
+    sources = sorted((REPO / "gcs_core" / "io").glob("*.py"))
     for source in sources + [REPO / "gcs_core" / "ephem" / "timescale.py"]:
         for node in ast.walk(ast.parse(source.read_text())):
             t = _template(node)

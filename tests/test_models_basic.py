@@ -21,7 +21,7 @@ from gcs_core.models.common import alignment_matrix
 from gcs_core.models.fine_sun import eight_coefficients, tan_from_counts
 from gcs_core.models.gyro import corrected_rate, propagate_quaternion, rate_from_quaternions
 from gcs_core.models.horizon import TWO_PI
-from gcs_core.sidp.types import SENSOR_TYPES, Table
+from gcs_core.io.types import SENSOR_TYPES, Table
 from model_fixtures import CircularOrbit, random_dcm, random_unit, sensor, unit_from_angles
 
 one_arcsecond = units.ARCSEC

@@ -1,4 +1,4 @@
-"""Noise from the data (gcs_core.sidp.noise) against simulated noise of known strength.
+"""Noise from the data (gcs_core.filtr.noise) against simulated noise of known strength.
 
 The reference relations are IEEE Std 952-1997, Annex C: for a rate carrying white noise
 of density N (angle random walk) and a random walk of strength K (rate random walk),
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from gcs_core.errors import InputError
-from gcs_core.sidp import noise
+from gcs_core.filtr import noise
 
 DT = 0.01                      # s
 N_ARW = 1e-3                   # rad/s^0.5
@@ -85,7 +85,7 @@ def test_both_converters_mark_estimated_noise_one_way(tmp_path):
     from pathlib import Path
 
     from gcs_core.convert import convert
-    from gcs_core.sidp.noise import ESTIMATED_MARK, noise_estimated
+    from gcs_core.filtr.noise import ESTIMATED_MARK, noise_estimated
     from tests.test_convert_broad import _trial
 
     data = Path(__file__).parent / "data" / "astropi"

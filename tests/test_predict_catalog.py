@@ -29,8 +29,8 @@ from gcs_core.errors import InputError
 from gcs_core.predictor import DataPlan, predict
 from gcs_core.predictor.stars import STAR_CATALOG_FILE, Catalog, read_catalog, telemetry_catalog
 from gcs_core.session import Analysis
-from gcs_core.sidp.importer import load_mission
-from gcs_core.sidp.types import Table
+from gcs_core.io.importer import load_mission
+from gcs_core.io.types import Table
 from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import Slew, ThreeAxisProfile
 from gcs_core.sim.stars import StarCatalog

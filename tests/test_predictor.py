@@ -20,7 +20,7 @@ from gcs_core.config import AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.ephem.orbit import KeplerOrbit
 from gcs_core.predictor import DataPlan, predict
 from gcs_core.session import Analysis
-from gcs_core.sidp.importer import load_mission
+from gcs_core.io.importer import load_mission
 from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import Slew, ThreeAxisProfile
 from gcs_core.units import DEG
@@ -165,7 +165,7 @@ def test_prelaunch_spinner_from_the_data_book_alone(tmp_path):
     rate from ``spin_rate_rpm``, no frames in shadow (the horizon timing needs the Sun)."""
     from datetime import datetime, timezone
 
-    from gcs_core.sidp.types import MissionSpec, SensorSpec
+    from gcs_core.io.types import MissionSpec, SensorSpec
 
     pss = SensorSpec("PSS1", "plane_field_sun", tmp_path / "none.csv", noise=np.radians(0.05),
                      book={"tilt_deg": 0.0, "bias": 0.0, "spin_rate_rpm": 10.0})

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 
 from gcs_core.config import load_config
-from gcs_core.filtr.attitude import ReferenceAttitude
+from gcs_core.problem.attitude import ReferenceAttitude
 from gcs_core.frames.rotations import dcm_to_rotvec
 from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
-from gcs_core.sidp.importer import load_mission
+from gcs_core.io.importer import load_mission
 
 ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "sample_data" / "configs" / "real-astropi-iss.toml"

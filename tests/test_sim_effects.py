@@ -17,7 +17,7 @@ from gcs_core.errors import InputError
 from gcs_core.frames import rotations as R
 from gcs_core.sim import list_effects, nominal_threeaxis, spinner_nominal, with_effect, write_mission
 from gcs_core.sim.aux import AuxSchedule
-from gcs_core.sim.sensors import make_sensor_sim
+from gcs_core.sim.writer import make_sensor_sim
 from gcs_core.sim.stars import StarCatalog
 from gcs_core.sim.truth import World
 from gcs_core.sim.writer import _rng

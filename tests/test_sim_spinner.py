@@ -15,7 +15,7 @@ import pytest
 
 from gcs_core import units
 from gcs_core.sim import spinner_nominal, with_effect, write_mission
-from gcs_core.sim.sensors import make_sensor_sim
+from gcs_core.sim.writer import make_sensor_sim
 from gcs_core.sim.spinner import SunSightings
 from gcs_core.sim.truth import World
 

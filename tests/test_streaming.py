@@ -16,9 +16,9 @@ import pytest
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.ranking import rank_candidates
 from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
-from gcs_core.filtr.problem import chunk_windows, iter_blocks, linearize
+from gcs_core.problem.linearization import chunk_windows, iter_blocks, linearize
 from gcs_core.session import Analysis
-from gcs_core.sidp.prepare import HeldChannels, hold_channels
+from gcs_core.problem.prepare import HeldChannels, hold_channels
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
 
@@ -118,7 +118,7 @@ def test_summed_rows_equal_the_stored_rows(fits, label, monkeypatch):
     """The normal equations from rows summed a tile at a time (``chain_gram``, BLAS dsyrk)
     equal those from the stored rows (``chain_rows`` and ``Hrᵀ Hr``), and the blocks that
     were summed are most of them."""
-    from gcs_core.filtr import batch_kernels
+    from gcs_core.problem import kernels as batch_kernels
 
     a, r = fits[label]
     names = list(r.solve_for)

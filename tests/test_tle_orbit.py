@@ -28,10 +28,11 @@ from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.orbit import TleOrbit
 from gcs_core.ephem.sun import sun_position_km
 from gcs_core.ephem.timescale import julian_date
-from gcs_core.ephem.tle import read_tle, tle_ephemeris_table, tle_states
+from gcs_core.ephem.tle import read_tle, tle_states
+from gcs_core.io.tle_table import tle_ephemeris_table
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import T1, T2, T3
-from gcs_core.sidp.mission import read_mission_spec
+from gcs_core.io.mission import read_mission_spec
 from gcs_core.units import ARCSEC
 
 TLE = Path(__file__).parent / "data" / "astropi" / "iss-2022-01-31.tle"

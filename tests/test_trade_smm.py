@@ -32,7 +32,7 @@ import pytest
 from scipy import stats
 
 from gcs_core.config import load_config
-from gcs_core.sidp.mission import read_mission_spec
+from gcs_core.io.mission import read_mission_spec
 from gcs_core.trade import definition_from_config
 from gcs_core.trade.geometry import field_turn_deg
 from gcs_core.trade.run import run_study

@@ -9,7 +9,7 @@ import pytest
 from gcs_core.config import load_config
 from gcs_core.errors import InputError
 from gcs_core.predictor.plan import DataPlan
-from gcs_core.sidp.mission import read_mission_spec
+from gcs_core.io.mission import read_mission_spec
 from gcs_core.trade import space
 from gcs_core.trade.study import sensor_axes_covariance
 

@@ -101,7 +101,7 @@ def _bias_line(truth: Mapping, gyro: str, t0: float, t1: float):
 def truth_values(truth: Mapping, problem, method: str = "batch") -> dict[str, float]:
     """Element name -> true value, from an answer file (module docstring).
 
-    ``problem`` is the fitted :class:`~gcs_core.filtr.problem.Problem` (for ``t_ref``, the
+    ``problem`` is the fitted :class:`~gcs_core.problem.build.Problem` (for ``t_ref``, the
     gyro span and the estimator's reference frame); ``method`` selects the gyro-bias
     parametrization (``"batch"``, or ``"kalman"`` and ``"whole_span"``, whose bias is the
     value at ``t_ref`` carried by the process noise).

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from textual.app import App
 
-from gcs_core.sidp.noise import sensor_noise
+from gcs_core.filtr.noise import sensor_noise
 from gcs_tui.screens.allan import AllanScreen, summary
 from gcs_tui.theme import VARIABLES
 

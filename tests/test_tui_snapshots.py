@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import pytest
 
-from gcs_core.sidp import h5store
+from gcs_core.io import h5store
 from gcs_tui import filtr_run, jobs
 from gcs_tui.app import GcsApp
 from gcs_tui.keys import VIEWS

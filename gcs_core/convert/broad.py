@@ -26,7 +26,7 @@ sensor: BROAD's ``(w, x, y, z)`` rotates unit-frame vectors into ENU, which is G
 ``C_BI`` of the scalar-last quaternion ``(x, y, z, w)`` (Eq 4-8) unchanged.
 
 Noise figures are not published with the data; each sensor's is estimated from its own
-telemetry (:mod:`gcs_core.sidp.noise`) and written with a comment saying so. The gyro's
+telemetry (:mod:`gcs_core.filtr.noise`) and written with a comment saying so. The gyro's
 data-book bias is its mean at rest (the middle half of the longest run outside the motion
 phase; written likewise).
 Every sample is kept: untracked optical samples are written as ``nan`` (the import
@@ -48,7 +48,7 @@ import numpy as np
 
 from gcs_core.convert import ConversionReport
 from gcs_core.errors import InputError
-from gcs_core.sidp import noise as noise_mod
+from gcs_core.filtr import noise as noise_mod
 
 #: the datasets a BROAD trial must hold: name -> (columns, unit)
 DATASETS = {"imu_gyr": (3, "rad/s"), "imu_acc": (3, "m/s²"), "imu_mag": (3, "µT"),
@@ -70,7 +70,7 @@ SENSORS = {"gyro": "GYR", "magnetometer": "MAG", "attitude_reference": "OPT"}
 
 
 def _read(source: Path) -> tuple[dict[str, np.ndarray], float, str]:
-    import h5py   # foreign HDF5 (GCS's own files go through gcs_core.sidp.h5store)
+    import h5py   # foreign HDF5 (GCS's own files go through gcs_core.io.h5store)
 
     try:
         f = h5py.File(source, "r")
@@ -233,7 +233,7 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
         warnings.append(f"optical reference: {untracked} untracked samples written as nan "
                         "(the import drops and counts them)")
 
-    # noise from the data (gcs_core.sidp.noise)
+    # noise from the data (gcs_core.filtr.noise)
     dt = 1.0 / rate
     s_gyr = noise_mod.white_noise(t, gyr)
     s_mag = noise_mod.white_noise(t, mag_nT)

@@ -6,7 +6,7 @@ An effect is a group of model parameters that enter and leave the state together
 already declares with analytic partials (:class:`~gcs_core.models.base.ParamSpec`,
 ``effect`` field), so adding an entry to the catalogue is adding a parameter to one
 model module plus, if wanted, an explanation below. Physics effects flip an option of
-:class:`~gcs_core.sidp.prepare.PhysicsOptions`; their signature is the difference of
+:class:`~gcs_core.problem.prepare.PhysicsOptions`; their signature is the difference of
 the predictions with and without the option.
 """
 
@@ -120,7 +120,7 @@ def generic_catalogue() -> list[tuple[str, str, str]]:
 
 def mission_catalogue(problem, physics) -> list[Effect]:
     """Every effect of this mission's models and physics, in the state or not."""
-    from gcs_core.sidp.prepare import PHYSICS_EFFECTS
+    from gcs_core.problem.prepare import PHYSICS_EFFECTS
 
     seen: dict[str, Effect] = {}
     for e in problem.state:

@@ -243,10 +243,10 @@ def sensor_leverage(problem, result) -> dict[str, float]:
     """Sensor -> ``tr(P A_s)``, its share of the fit's effective parameters.
 
     ``A_s = Σ Hᵀ R⁻¹ H`` over the sensor's used frames at the fitted state, one
-    streaming pass (:func:`~gcs_core.filtr.linearization.iter_blocks`); ``P`` the fit's
+    streaming pass (:func:`~gcs_core.problem.linearization.iter_blocks`); ``P`` the fit's
     noise-only covariance over ``result.solve_for``.
     """
-    from gcs_core.filtr.linearization import iter_blocks
+    from gcs_core.problem.linearization import iter_blocks
 
     names = tuple(result.solve_for)
     n = len(names)
@@ -320,7 +320,7 @@ def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, 
     ``masks``: sensor -> (N,) True where the frame was held out of ``train``. Every valid
     held-out frame is tested (none was edited: the training fit never saw them).
     """
-    from gcs_core.filtr.linearization import iter_blocks
+    from gcs_core.problem.linearization import iter_blocks
 
     names = tuple(train.solve_for)
     n = len(names)

@@ -48,8 +48,8 @@ from scipy import stats
 from gcs_core.diagnosis.catalogue import Effect
 from gcs_core.filtr.batch import BatchResult
 from gcs_core.filtr.knots import KnotSystem
-from gcs_core.filtr.linearization import iter_blocks, window_geometry
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.linearization import iter_blocks, window_geometry
+from gcs_core.problem.build import Problem
 
 #: canonical correlation above which two candidates are called indistinguishable
 ALIAS_TOL = 0.98
@@ -121,7 +121,7 @@ def _variants(problem: Problem, sd) -> dict:
     the state, and the field-model variant costs a full IGRF evaluation). They hold only
     the reference vectors that change (O(N) per variant, for the sensors a physics
     candidate concerns)."""
-    from gcs_core.sidp.prepare import geometry_variants
+    from gcs_core.problem.prepare import geometry_variants
 
     cache = problem.__dict__.setdefault("_variant_cache", {})
     if sd.name not in cache:

@@ -33,7 +33,7 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.build import Problem
 from gcs_core.models import common as model_common
 
 

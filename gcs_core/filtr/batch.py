@@ -12,7 +12,7 @@ except the final covariance, which is formed from the Cholesky factor.
 
 Steps. A step that raises the cost is re-solved with Levenberg–Marquardt damping. Near
 the noise floor the step adds the Newton terms of the models' parameter pairs
-(:mod:`~gcs_core.filtr.curvature`) and, after a step that lands there and moves a
+(:mod:`~gcs_core.problem.curvature`) and, after a step that lands there and moves a
 sensor's own non-linear parameters (the FSS transfer function), minimizes over those
 with everything else held before the next linearization
 (:mod:`~gcs_core.filtr.local_refine`). Both only shorten the path: the fixed point is
@@ -55,11 +55,12 @@ from scipy import linalg
 
 from gcs_core.diagnosis.aliases import _sparse_basis
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr import curvature, local_refine
+from gcs_core.filtr import local_refine
+from gcs_core.problem import curvature
 from gcs_core.filtr.batch_results import (BatchResult, Residuals, SensorResiduals, accumulate,  # noqa: F401
                                          make_residuals, residuals_from, weighted_masks)
-from gcs_core.filtr.linearization import iter_blocks
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.linearization import iter_blocks
+from gcs_core.problem.build import Problem
 
 log = logging.getLogger(__name__)
 
@@ -109,7 +110,7 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     (O(N·m), the post-fit residuals). Memory otherwise: one chunk (``work``, a dict the
     caller keeps across passes, holds the chunk buffers so that they are reused).
     ``second_order`` (n, n), if given, receives the Newton terms of the models' parameter
-    pairs (:mod:`gcs_core.filtr.curvature`).
+    pairs (:mod:`gcs_core.problem.curvature`).
     """
     n = len(columns) if jacobian else 0
     A = np.zeros((n, n))

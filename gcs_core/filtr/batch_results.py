@@ -10,10 +10,10 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.filtr.linearization import Linearization
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.linearization import Linearization
+from gcs_core.problem.build import Problem
 from gcs_core.models.base import ObservationModel
-from gcs_core.sodl.state import StateVector
+from gcs_core.problem.state import StateVector
 
 __all__ = ["SensorResiduals", "BatchResult", "Residuals", "accumulate", "weighted_masks",
            "residuals_from", "make_residuals"]

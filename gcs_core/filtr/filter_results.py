@@ -15,7 +15,7 @@ import numpy as np
 
 from gcs_core.filtr.batch import SensorResiduals
 from gcs_core.filtr.smoother import SmoothedTrajectory
-from gcs_core.sodl.state import StateVector
+from gcs_core.problem.state import StateVector
 
 
 @dataclass(frozen=True)

@@ -6,7 +6,7 @@ walk (σ_v) and rate random walk (σ_u) make the true attitude wander away from 
 trajectory. Here the wander is a correction to the gyro-carried attitude, held at knots
 ``τ_0 < τ_1 < … < τ_{K−1}`` along the span: per knot ``z_j = (α_j, β_j)``, ``α`` a
 small GCI-frame rotation (the body-frame error is ``δθ = C α``, the convention of
-:mod:`gcs_core.filtr.attitude` where ``Cᵀ δθ`` is the cumulative sum) and ``β`` a
+:mod:`gcs_core.problem.attitude` where ``Cᵀ δθ`` is the cumulative sum) and ``β`` a
 body-axis drift-bias correction. Between knots the correction is carried by the bias::
 
     α(t) = α_j + Γ_j(t) β_j,   Γ_j(t) = −(t − τ_j) R_j,   R_j = C(τ_j + Δ_j/2)ᵀ

@@ -10,7 +10,7 @@ sensor at each step to move a few parameters of one.
 
 So, after each full step that lands near the noise floor, :func:`refine_local` first
 minimizes the cost over those parameters ``z`` with everything else held at the new point
-(Newton steps with the second-order terms of :mod:`gcs_core.filtr.curvature`, a
+(Newton steps with the second-order terms of :mod:`gcs_core.problem.curvature`, a
 Levenberg–Marquardt safeguard, the a priori). The attitude is evaluated once, without
 partials, and the sensor's model then evaluates only what depends on ``z`` at the frames
 in use (``ObservationModel.held``: the transfer function at the held ``tan α``). The next
@@ -32,9 +32,9 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.filtr import curvature
-from gcs_core.filtr.linearization import iter_blocks
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem import curvature
+from gcs_core.problem.linearization import iter_blocks
+from gcs_core.problem.build import Problem
 from gcs_core.models import common
 from gcs_core.models.base import ObservationModel
 

@@ -11,13 +11,13 @@ Two kinds of problem, one block format (:class:`~gcs_core.filtr.kalman.LinearBlo
   scale/misalignment, biases when ``rrw = 0``, sensor parameters). Each block propagates
   a nominal attitude with the gyro-corrected rates (Eq 4-32 inverted, Eq 4-38) from the
   block-start attitude (:class:`GyroSegment`), with the error transition of
-  :mod:`gcs_core.filtr.attitude`::
+  :mod:`gcs_core.problem.attitude`::
 
       Φ_θθ = C_k C_{k−1}ᵀ,   Φ_θp = C_k (E_k − E_{k−1}) = W_k Δ_k,   Φ_bb = I      (Eq 4-38)
 
   and Farrenkopf's process noise (:func:`farrenkopf_q`). Every sensor's predictions and
   partials are evaluated *vectorized* over the block at that nominal (through
-  :func:`~gcs_core.filtr.problem.linearize`, the nominal being its attitude provider);
+  :func:`~gcs_core.problem.build.linearize`, the nominal being its attitude provider);
   the core then makes exact frame-by-frame linear updates with the accumulated error
   state (rows ``A = H Ψ(t)``), and the next block re-linearizes at the updated estimate
   (the reset).
@@ -42,14 +42,14 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.filtr.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval
+from gcs_core.problem.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval
 from gcs_core.filtr.kalman import LinearBlock
-from gcs_core.filtr.linearization import linearize
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.linearization import linearize
+from gcs_core.problem.build import Problem
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
-from gcs_core.sidp.prepare import SensorData
+from gcs_core.problem.prepare import SensorData
 
 #: filter columns of the attitude error δθ (body axes, rad).
 DTH = ("kf.dtheta_x", "kf.dtheta_y", "kf.dtheta_z")
@@ -274,7 +274,7 @@ def gyro_rates(att, values: Mapping[str, float], k0: int, k1: int):
     ``ω = Mᵀ (G⁻¹ y − b − ḃ τ)`` (τ: time from the middle of the span; ḃ the optional bias
     rate); returns ω (K, 3), ``∂ω/∂p`` (K, 3, P) over ``att.param_names``, ``W_y = Mᵀ G⁻¹``
     and ``W_b = −Mᵀ``. These are the expressions of
-    :class:`~gcs_core.filtr.attitude.GyroAttitude` restricted to a window of rows; if the
+    :class:`~gcs_core.problem.attitude.GyroAttitude` restricted to a window of rows; if the
     provider has parameters this function does not know, its own (whole-span) rates are
     sliced instead.
     """
@@ -305,7 +305,7 @@ def gyro_rates(att, values: Mapping[str, float], k0: int, k1: int):
     return omega, W[:, :, :len(names)], MtGinv, -M.T
 
 
-class NominalAttitude:
+class SegmentAttitude:
     """Attitude provider for :func:`linearize` on a block: the gyro-propagated nominal.
 
     Its only "elements" are the error angles ``kf.dtheta_*`` with ``∂δθ/∂δθ = I``.
@@ -374,7 +374,7 @@ def assemble(problem: Problem, layout: Layout, values: Mapping[str, float], seg:
     nominal and stack them as rows of a :class:`LinearBlock` in block-start coordinates."""
     epochs, windows = block_epochs(problem, t_a, t_b, first)
     sub = [sensor_window(sd, lo, hi) for sd, (lo, hi) in zip(problem.sensors, windows)]
-    att = NominalAttitude(seg) if seg is not None else problem.attitude
+    att = SegmentAttitude(seg) if seg is not None else problem.attitude
     prob = replace(problem, sensors=sub, attitude=att)
     lins = linearize(prob, values, layout.columns)
     if seg is not None:

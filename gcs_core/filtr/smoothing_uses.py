@@ -16,8 +16,8 @@ import numpy as np
 
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.batch import BatchResult, _solve_normal
-from gcs_core.filtr.linearization import iter_blocks
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.linearization import iter_blocks
+from gcs_core.problem.build import Problem
 from gcs_core.filtr.smoothing_batch import Dynamics, SmoothedResult, _Passes, make_knots, process_noise
 
 
@@ -42,7 +42,7 @@ def static_holdout_rms(problem: Problem, res, masks: Mapping[str, np.ndarray]) -
     """Normalized RMS of the held-out frames of a fit without process noise, each residual standardized by its full
     prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
     training fit carried to that frame), so 1.0 is the expected value for a right model."""
-    from gcs_core.filtr.linearization import linearize
+    from gcs_core.problem.linearization import linearize
 
     lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
     out = {}

@@ -31,14 +31,14 @@ import numpy as np
 from scipy import special
 
 from gcs_core.errors import EstimationError
-from gcs_core.filtr.attitude import RPY, rpy_error_jacobian
+from gcs_core.problem.attitude import RPY, rpy_error_jacobian
 from gcs_core.filtr.batch import make_residuals
 from gcs_core.filtr.filter_results import (BlockReport, FilterOptions, FilterResult,  # noqa: F401
                                            FrameDiagnostics, InnovationStats)
 from gcs_core.filtr.kalman import solve_block
 from gcs_core.filtr.mekf import GyroSegment, assemble, block_epochs, gyro_noise, gyro_rates, make_layout
-from gcs_core.filtr.linearization import linearize
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.linearization import linearize
+from gcs_core.problem.build import Problem
 from gcs_core.filtr.smoother import EpochStore, block_records, gyro_residuals, rts_smooth, trajectory
 from gcs_core.frames.rotations import (dcm_to_rotvec, euler123_to_dcm, quat_from_dcm,
                                        rotvec_to_dcm)
@@ -51,7 +51,7 @@ class Filtr:
 
     Parameters
     ----------
-    problem : the calibration problem (:func:`~gcs_core.filtr.problem.build_problem`).
+    problem : the calibration problem (:func:`~gcs_core.problem.build.build_problem`).
     options : :class:`FilterOptions`.
     block_seconds : length of a block [s]; each block is re-linearized at its start.
     """

@@ -32,7 +32,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.fileperm import make_usual
-from gcs_core.sidp.types import Table
+from gcs_core.io.types import Table
 
 log = logging.getLogger(__name__)
 

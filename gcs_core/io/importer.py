@@ -1,7 +1,7 @@
 """Importing a whole mission directory, checked (ICD §1-§6; the seed's SIDP input side).
 
-:func:`load_mission` reads ``mission.toml`` (:mod:`~gcs_core.sidp.mission`), then every
-CSV file it names (:mod:`~gcs_core.sidp.csvio`) and checks, beyond the CSV rules:
+:func:`load_mission` reads ``mission.toml`` (:mod:`~gcs_core.io.mission`), then every
+CSV file it names (:mod:`~gcs_core.io.csvio`) and checks, beyond the CSV rules:
 
 * the telemetry columns of each sensor type (ICD §5) and the ephemeris, onboard
   attitude columns (ICD §4, §6);
@@ -34,9 +34,9 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.sidp.csvio import read_table
-from gcs_core.sidp.mission import read_mission_spec
-from gcs_core.sidp.types import MissionSpec, Table
+from gcs_core.io.csvio import read_table
+from gcs_core.io.mission import read_mission_spec
+from gcs_core.io.types import MissionSpec, Table
 
 log = logging.getLogger(__name__)
 
@@ -385,7 +385,7 @@ def _drop_flagged(table: Table) -> tuple[Table, int]:
 
 def _tle_ephemeris(spec: MissionSpec, tables) -> Table:
     """The ephemeris propagated from ``[orbit] tle`` over every table's span (ephem/tle.py)."""
-    from gcs_core.ephem.tle import tle_ephemeris_table
+    from gcs_core.io.tle_table import tle_ephemeris_table
 
     spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
     if not spans:

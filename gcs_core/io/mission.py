@@ -1,7 +1,7 @@
 """mission.toml: the sensor inventory and data-book values (ICD §3, §5).
 
 :func:`read_mission_spec` reads and checks the file and returns a
-:class:`~gcs_core.sidp.types.MissionSpec`. Every refusal is an
+:class:`~gcs_core.io.types.MissionSpec`. Every refusal is an
 :class:`~gcs_core.errors.InputError` naming ``mission.toml``, the line (found by a
 light scan of the text, since ``tomllib`` keeps no positions) and the dotted key, e.g.
 ``sensor[2].noise`` (sensors counted from 1 in file order).
@@ -27,7 +27,7 @@ from typing import Any, Callable
 
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
-from gcs_core.sidp.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
+from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
 
 log = logging.getLogger(__name__)
 
@@ -468,11 +468,11 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     ground = None
     orbit: dict = {}
     if isinstance(e, dict) and "ground_position_km" in e and "file" not in e:
-        from gcs_core.sidp.orbit_spec import ground_position
+        from gcs_core.io.orbit_spec import ground_position
         ground = ground_position(ctx, e, mode, unknown)
         ephemeris = None
     else:
-        from gcs_core.sidp.orbit_spec import ephemeris_or_orbit
+        from gcs_core.io.orbit_spec import ephemeris_or_orbit
         ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
     aux = _optional_file(ctx, root, doc, "aux", unknown)
     onboard = _optional_file(ctx, root, doc, "onboard_attitude", unknown)

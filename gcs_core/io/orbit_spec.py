@@ -2,7 +2,7 @@
 
 An extension of ICD §3 (``docs/icd_extensions.md``); the orbit itself is built by
 :mod:`gcs_core.ephem.tle`. Errors name mission.toml, the line and the key, as every
-mission.toml check does (:mod:`gcs_core.sidp.mission`).
+mission.toml check does (:mod:`gcs_core.io.mission`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from gcs_core.sidp.mission import _Ctx, _existing_file, _number, _numbers, _optional_file, _string
+from gcs_core.io.mission import _Ctx, _existing_file, _number, _numbers, _optional_file, _string
 
 __all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "ephemeris_or_orbit", "read_orbit_table"]
 

@@ -18,7 +18,7 @@ HDF5 layout (see docs/formats.md)::
     /versions/NNNNN/covariance    (n, n)  [absent when none was given]
 
 Appending copies the verified file and adds one group, then replaces the file
-atomically (:func:`gcs_core.sidp.h5store.append_group`): a kill at any moment leaves
+atomically (:func:`gcs_core.io.h5store.append_group`): a kill at any moment leaves
 the previous file intact, and a file that fails its checksums is never written to.
 """
 
@@ -35,7 +35,7 @@ import h5py
 import numpy as np
 
 from gcs_core.errors import DataFileError
-from gcs_core.sidp import h5store
+from gcs_core.io import h5store
 
 FORMAT = "SCDS"
 VERSION = 1

@@ -39,8 +39,8 @@ import h5py
 import numpy as np
 
 from gcs_core.errors import DataFileError
-from gcs_core.sidp import h5store
-from gcs_core.sidp.importer import COLUMN_UNITS, ImportedMission
+from gcs_core.io import h5store
+from gcs_core.io.importer import COLUMN_UNITS, ImportedMission
 from gcs_core.ephem.timescale import parse_utc
 
 FORMAT = "SDF"
@@ -191,7 +191,7 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
     Parameters
     ----------
     path : destination ``.h5`` file (replaced atomically if it exists).
-    imported_mission : from :func:`~gcs_core.sidp.importer.load_mission` (or any object
+    imported_mission : from :func:`~gcs_core.io.importer.load_mission` (or any object
         with the same ``spec``, ``telemetry``, ``ephemeris_table``, ``aux``, ``onboard``).
     block_seconds : width of the block windows [s], > 0.
     headers_only : write file type 2 (times and counts only) for the predictor.

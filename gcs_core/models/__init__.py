@@ -17,7 +17,7 @@ from gcs_core.models.horizon import HorizonModel
 from gcs_core.models.magnetometer import MagnetometerModel
 from gcs_core.models.plane_field_sun import PlaneFieldSunModel
 from gcs_core.models.star_tracker import StarTrackerModel
-from gcs_core.sidp.types import SensorSpec
+from gcs_core.io.types import SensorSpec
 
 __all__ = ["MODEL_TYPES", "make_model", "ObservationModel", "MagnetometerModel", "GyroModel",
            "StarTrackerModel", "FineSunModel", "CoarseSunModel", "PlaneFieldSunModel", "HorizonModel",

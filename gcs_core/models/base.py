@@ -4,7 +4,7 @@ A sensor model is one module holding one :class:`ObservationModel` subclass. It
 
 * names its parameters (:class:`ParamSpec`: name, unit, data-book value, role hint),
   which SODL turns into state elements ``<SENSOR>.<name>``;
-* turns a telemetry :class:`~gcs_core.sidp.types.Table` into measurement vectors;
+* turns a telemetry :class:`~gcs_core.io.types.Table` into measurement vectors;
 * predicts the measurement **and its analytic partials together** in one call,
   vectorized over N frames: :meth:`ObservationModel.predict` returns a
   :class:`Prediction`.
@@ -30,12 +30,7 @@ from typing import Any, Callable, ClassVar, Mapping
 
 import numpy as np
 
-from gcs_core.sidp.types import SensorSpec, Table
-
-SOLVE_FOR = "solve-for"
-CONSIDER = "consider"
-HELD = "held"
-ROLES = (SOLVE_FOR, CONSIDER, HELD)
+from gcs_core.io.types import SensorSpec, Table
 
 
 @dataclass(frozen=True)
@@ -132,7 +127,7 @@ class Prediction:
         each in the one component it enters, as an (N,) array, a scalar or a function of
         no arguments giving one (formed when read); undefined at invalid frames. Optional;
         each unordered pair appears once. The batch uses them for Newton steps near the
-        solution (:mod:`gcs_core.filtr.curvature`).
+        solution (:mod:`gcs_core.problem.curvature`).
     """
 
     y: np.ndarray

@@ -55,7 +55,7 @@ from gcs_core import units
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_partials, euler123_to_dcm, rotvec_to_dcm
 from gcs_core.models.base import Geometry, ParamSpec, Prediction
-from gcs_core.sidp.types import SensorSpec
+from gcs_core.io.types import SensorSpec
 
 #: Fraction of the half field of view added as a margin before a frame is rejected, so
 #: that alignment errors being calibrated do not throw away genuine data near the edge.

@@ -66,7 +66,7 @@ from gcs_core import units
 from gcs_core.errors import InputError
 from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
-from gcs_core.sidp.types import SensorSpec, Table
+from gcs_core.io.types import SensorSpec, Table
 
 TWO_PI = 2.0 * np.pi
 FLATTENING = 1.0 / 298.257223563          # WGS-84 (NIMA TR8350.2, 3rd ed., 2000, Table 3.1)

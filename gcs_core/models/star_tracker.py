@@ -29,7 +29,7 @@ import numpy as np
 
 from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
-from gcs_core.sidp.types import Table
+from gcs_core.io.types import Table
 
 
 class StarTrackerModel(ObservationModel):

@@ -9,7 +9,7 @@ only the covariance matrix needs to be updated and propagated" (seed §3.2.2)::
 
 The filter state is the body-frame attitude error ``δθ`` at the current time followed
 by every other solve-for element (gyro and sensor parameters, constant). Between two
-event times the gyro carries the error (first order, :mod:`gcs_core.filtr.attitude`)::
+event times the gyro carries the error (first order, :mod:`gcs_core.problem.attitude`)::
 
     δθ_b = C_b C_aᵀ δθ_a + C_b (E_b − E_a) δp,      E(t) = C(t)ᵀ ∂δθ(t)/∂p
 
@@ -44,13 +44,13 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.filtr.attitude import RPY
-from gcs_core.filtr.linearization import linearize
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.attitude import RPY
+from gcs_core.problem.linearization import linearize
+from gcs_core.problem.build import Problem
 from gcs_core.frames.rotations import dcm_to_euler123
 from gcs_core.models import common
 from gcs_core.predictor.information import weighted_rows
-from gcs_core.predictor.nominal import ERR, BodyErrorAttitude, rpy_error_jacobians
+from gcs_core.problem.attitude import ERR, BodyErrorAttitude, rpy_error_jacobians
 
 #: a-priori σ used in place of an infinite one (the covariance form needs a finite P)
 BIG_SIGMA = 1e6
@@ -64,7 +64,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
 
     Parameters
     ----------
-    problem : a Problem whose attitude is a :class:`~gcs_core.filtr.attitude.GyroAttitude`.
+    problem : a Problem whose attitude is a :class:`~gcs_core.problem.attitude.GyroAttitude`.
     values : nominal element values.
     names : solve-for elements (``att.roll/pitch/yaw`` first); consider : consider elements.
     sigma0 : (n,) a-priori σ of ``names``; sigma_c : (c,) of ``consider``.

@@ -10,14 +10,8 @@ with ``Δ(t)`` the maneuver offsets of :meth:`DataPlan.maneuver_offsets`. The no
 body rate over a gyro interval is taken from two attitudes by Eq 4-33
 (:func:`gcs_core.models.gyro.rate_from_quaternions`), which is what a gyro would read.
 
-Two attitude providers complete :mod:`gcs_core.filtr.attitude` for the predictor:
-
-* :class:`ManeuverAttitude` — gyro-free three-axis attitude whose roll/pitch/yaw follow
-  a *known* maneuver profile: ``(φ, θ, ψ)(t) = x + Δ(t)``, elements ``x`` = the
-  ``att.*`` values at ``start``; ``∂δθ/∂x`` is Eq 4-22 at the angles of each time.
-* :class:`BodyErrorAttitude` — a fixed nominal attitude whose elements are the body
-  error angles themselves (``∂δθ/∂x = I``); the covariance recursion of Eq 3-4 uses it
-  to obtain the observation partials with respect to the current attitude error.
+The predictor's attitude providers (:class:`~gcs_core.problem.attitude.ManeuverAttitude`,
+:class:`~gcs_core.problem.attitude.BodyErrorAttitude`) live with the others.
 
 Sensor availability (seed §4.3, "the times at which the data is available"):
 
@@ -38,18 +32,15 @@ Which star a tracker frame identifies (the star models) is :mod:`gcs_core.predic
 
 from __future__ import annotations
 
-from typing import Mapping
-
 import numpy as np
 
 from gcs_core.ephem.sun import earth_occults, sunlit_fraction
-from gcs_core.filtr.attitude import RPY, AttitudeEval, ReferenceAttitude
+from gcs_core.problem.attitude import ReferenceAttitude
 from gcs_core.frames.reference import spin_axis
-from gcs_core.frames.rotations import (dcm_to_euler123, euler123_partials, euler123_to_dcm,
-                                       quat_from_dcm)
+from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm
 from gcs_core.models import common
 from gcs_core.models.gyro import rate_from_quaternions
-from gcs_core.sidp.types import SensorSpec
+from gcs_core.io.types import SensorSpec
 from gcs_core.units import DEG
 
 #: default exclusion angles of a star tracker [deg] (typical FHST values)
@@ -57,28 +48,9 @@ EARTH_EXCLUSION_DEG = 10.0
 SUN_EXCLUSION_DEG = 30.0
 #: visible fraction of the solar disk that counts as full sunlight (round-off margin)
 FULL_SUN = 1.0 - 1e-9
-#: body error angle element names of :class:`BodyErrorAttitude`
-ERR = ("err.x", "err.y", "err.z")
 
 
-def _vee(S):
-    """Vector of skew matrices ``[a×]`` (..., 3, 3) -> (..., 3)."""
-    return np.stack([S[..., 2, 1], S[..., 0, 2], S[..., 1, 0]], -1)
-
-
-def rpy_error_jacobians(rpy: np.ndarray) -> np.ndarray:
-    """(N, 3, 3) ``∂δθ/∂(φ, θ, ψ)`` at N angle triples (Eq 4-22, vectorized).
-
-    ``[δθ×] = −Σ_i (∂B/∂x_i) Bᵀ δx_i`` for ``C = B(φ, θ, ψ) A``.
-    """
-    rpy = np.atleast_2d(np.asarray(rpy, dtype=float))
-    B = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2])
-    dB = euler123_partials(rpy[:, 0], rpy[:, 1], rpy[:, 2])            # (N, 3, 3, 3)
-    BT = np.swapaxes(B, -1, -2)
-    return np.stack([_vee(-(dB[:, i] @ BT)) for i in range(3)], -1)
-
-
-class NominalAttitude:
+class PlanAttitude:
     """Reference attitude + maneuvers (three-axis) or a fixed spin axis (spinning).
 
     Parameters
@@ -119,51 +91,6 @@ class NominalAttitude:
         return rate_from_quaternions(q[:-1], q[1:], np.diff(knots))
 
 
-class ManeuverAttitude:
-    """Gyro-free three-axis attitude following a known maneuver profile (module docstring)."""
-
-    kind = "three_axis"
-    names = RPY
-
-    def __init__(self, reference: ReferenceAttitude, offsets):
-        self.reference_attitude = reference
-        self.mode = reference.mode
-        self.offsets = offsets
-
-    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
-        t = np.atleast_1d(np.asarray(t, dtype=float))
-        rpy = np.array([values[n] for n in RPY])[None, :] + self.offsets(t)
-        C = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2]) @ self.reference_attitude.reference(t)
-        return AttitudeEval(C, None, RPY, rpy_error_jacobians(rpy))
-
-    def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
-        A = self.reference_attitude.reference(np.atleast_1d(t))[0]
-        rpy = np.array(dcm_to_euler123(C @ A.T)) - self.offsets(np.atleast_1d(t))[0]
-        return tuple(float(a) for a in rpy)
-
-
-class BodyErrorAttitude:
-    """A fixed attitude history whose elements are the body error angles (``J = I``).
-
-    Parameters
-    ----------
-    base : an attitude provider; ``base_values`` its element values.
-    """
-
-    kind = "three_axis"
-    names = ERR
-
-    def __init__(self, base, base_values: Mapping[str, float]):
-        self.base = base
-        self.base_values = dict(base_values)
-
-    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
-        att = self.base.evaluate(self.base_values, t)
-        n = att.C_BI.shape[0]
-        return AttitudeEval(att.C_BI, None, ERR, np.broadcast_to(np.eye(3), (n, 3, 3)),
-                            omega_B=att.omega_B)
-
-
 # ----------------------------------------------------------------------------------------
 def _alignment(sensor: SensorSpec) -> np.ndarray:
     a = np.zeros(3) if sensor.alignment_deg is None else np.asarray(sensor.alignment_deg) * DEG
@@ -175,7 +102,7 @@ def _book_deg(sensor: SensorSpec, key: str, default: float) -> float:
     return float(value) * DEG
 
 
-def available(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np.ndarray:
+def available(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude) -> np.ndarray:
     """(N,) True where ``sensor`` can deliver a frame at ``t`` (module docstring)."""
     t = np.asarray(t, dtype=float)
     if t.size == 0 or sensor.type in ("magnetometer", "gyro"):

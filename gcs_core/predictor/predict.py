@@ -25,17 +25,18 @@ import numpy as np
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.errors import InputError
-from gcs_core.filtr.attitude import RPY, GyroAttitude
+from gcs_core.problem.attitude import RPY
+from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.filtr.batch import name_combinations
-from gcs_core.filtr.linearization import linearize
-from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions
+from gcs_core.problem.linearization import linearize
+from gcs_core.problem.build import ElementOverride, Problem, StateOptions
 from gcs_core.models import common
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
-from gcs_core.sidp.prepare import PhysicsOptions
-from gcs_core.sidp.types import MissionSpec
+from gcs_core.problem.prepare import PhysicsOptions
+from gcs_core.io.types import MissionSpec
 from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
@@ -167,7 +168,7 @@ def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
 
 def _mission_parts(source, mission, cfg):
     """(spec, telemetry, ephemeris table, aux, onboard) of whatever was given."""
-    from gcs_core.sidp.importer import ImportedMission, load_mission
+    from gcs_core.io.importer import ImportedMission, load_mission
 
     m = mission
     if m is None and cfg is not None:
@@ -179,8 +180,8 @@ def _mission_parts(source, mission, cfg):
     if isinstance(m, MissionSpec):
         eph_table = None
         if m.ephemeris_file is not None and m.ephemeris_file.is_file():
-            from gcs_core.sidp.csvio import read_table
-            from gcs_core.sidp.importer import EPHEMERIS_COLUMNS
+            from gcs_core.io.csvio import read_table
+            from gcs_core.io.importer import EPHEMERIS_COLUMNS
             eph_table = read_table(m.ephemeris_file, required=EPHEMERIS_COLUMNS, what="ephemeris")
         return m, {}, eph_table, None, None
     raise InputError(f"cannot predict from a {type(m).__name__}: give an AnalysisConfig, an Analysis, "
@@ -199,7 +200,7 @@ def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float)
             eph.check_covers(np.array([plan.start, plan.end]), what="the prediction plan")
     if orbit is None and getattr(spec, "orbit_tle", None) is not None:
         # the mission's [orbit] tle propagated over the plan (gcs_core.ephem.tle)
-        from gcs_core.ephem.tle import tle_ephemeris_table
+        from gcs_core.io.tle_table import tle_ephemeris_table
         return Ephemeris.from_table(tle_ephemeris_table(
             spec.orbit_tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
             step_s=spec.orbit_step_s, margin_s=EPHEMERIS_MARGIN_S))
@@ -225,9 +226,9 @@ def predict(source, *, plan: DataPlan | None = None, mission=None, orbit=None,
     ----------
     source : an :class:`~gcs_core.config.AnalysisConfig` (mission, physics, state roles,
         ``[prediction]`` plan and method), a :class:`~gcs_core.session.Analysis`, an
-        :class:`~gcs_core.sidp.importer.ImportedMission`, a
-        :class:`~gcs_core.sidp.types.MissionSpec` (pre-launch: no telemetry), or a
-        :class:`~gcs_core.filtr.problem.Problem` (its own frames are the plan's frames;
+        :class:`~gcs_core.io.importer.ImportedMission`, a
+        :class:`~gcs_core.io.types.MissionSpec` (pre-launch: no telemetry), or a
+        :class:`~gcs_core.problem.build.Problem` (its own frames are the plan's frames;
         its measured values are ignored).
     plan : the data plan; default from the config's ``[prediction]`` table, the
         telemetry span, or the Problem's frames.

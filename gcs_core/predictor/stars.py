@@ -30,7 +30,7 @@ pointing keeps seeing the same few stars, so the scale-factor σ depends on exac
 which stars those are — which only a real catalog gets right.
 
 Catalog file (CSV after ICD §1, read with the project's reader
-:mod:`gcs_core.sidp.csvio`): ``#`` comments and blank lines allowed, one header line
+:mod:`gcs_core.io.csvio`): ``#`` comments and blank lines allowed, one header line
 naming at least ``ra, dec, mag`` (extra numeric columns ignored), ``ra`` in [0, 360] deg
 and ``dec`` in [−90, 90] deg (J2000), ``mag`` the visual magnitude. Any bad field is an
 :class:`~gcs_core.errors.InputError` naming the file, line and column.
@@ -48,9 +48,9 @@ from scipy.spatial import cKDTree
 
 from gcs_core.errors import InputError
 from gcs_core.models import common
-from gcs_core.predictor.nominal import NominalAttitude, _alignment
-from gcs_core.sidp import csvio
-from gcs_core.sidp.types import SensorSpec, Table
+from gcs_core.predictor.nominal import PlanAttitude, _alignment
+from gcs_core.io import csvio
+from gcs_core.io.types import SensorSpec, Table
 from gcs_core.units import DEG
 
 #: the catalog a mission directory may carry (written by :func:`gcs_core.sim.write_mission`)
@@ -187,7 +187,7 @@ def default_sky() -> SyntheticSky:
     return SyntheticSky()
 
 
-def catalog_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude,
+def catalog_stars(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude,
                   catalog) -> tuple[np.ndarray, np.ndarray]:
     """Stars of a catalog seen by a tracker along the nominal attitude: ``(ok, F_I)``.
 
@@ -228,7 +228,7 @@ def catalog_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude,
     return ok, F
 
 
-def synthetic_stars(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude) -> np.ndarray:
+def synthetic_stars(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude) -> np.ndarray:
     """(N, 3) GCI unit vectors of one star per frame, spread evenly over the field of view.
 
     "Headers only" (seed §3.2.2): no catalog. The k-th frame's star sits at

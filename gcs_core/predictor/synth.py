@@ -3,7 +3,7 @@
 "In the case of a predictor ... only the header information of SDF, which gives the
 time and the amount of data, needs to be generated. There is no need of simulating the
 actual data content." :func:`plan_problem` builds, for a :class:`DataPlan`, the same
-:class:`~gcs_core.filtr.problem.Problem` the calibration would build from telemetry —
+:class:`~gcs_core.problem.build.Problem` the calibration would build from telemetry —
 same SODL state, same models, same reference vectors — from frame *times* only:
 
 1. frame times per sensor: the cadence slots of the span, minus the gaps, minus the
@@ -18,7 +18,7 @@ same SODL state, same models, same reference vectors — from frame *times* only
    one spread evenly over the field, :func:`~gcs_core.predictor.stars.synthetic_stars`),
    a spinner's spin rate, and the gyro rates that carry the nominal attitude (Eq 4-32
    with Eq 4-33 rates);
-3. :func:`~gcs_core.filtr.problem.build_problem` on those tables, the attitude
+3. :func:`~gcs_core.problem.build.build_problem` on those tables, the attitude
    elements set to the nominal attitude at ``start``, and each sensor's ``y`` replaced
    by its prediction at the nominal state, so every residual is zero and only the
    partials ``H`` carry information.
@@ -34,20 +34,22 @@ import numpy as np
 
 from gcs_core.ephem.ephemeris import EPHEMERIS_COLUMNS, Ephemeris
 from gcs_core.errors import InputError
-from gcs_core.filtr.attitude import RPY, GyroAttitude, ReferenceAttitude
-from gcs_core.filtr.linearization import linearize
-from gcs_core.filtr.problem import Problem, StateOptions, build_problem
+from gcs_core.problem.attitude import RPY, ReferenceAttitude
+from gcs_core.problem.gyro_attitude import GyroAttitude
+from gcs_core.problem.linearization import linearize
+from gcs_core.problem.build import Problem, StateOptions, build_problem
 from gcs_core.frames.reference import ra_dec_from_vector
 from gcs_core.frames.rotations import dcm_to_euler123, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry
-from gcs_core.predictor.nominal import ManeuverAttitude, NominalAttitude, available, nominal_spin_axis
+from gcs_core.problem.attitude import ManeuverAttitude
+from gcs_core.predictor.nominal import PlanAttitude, available, nominal_spin_axis
 from gcs_core.predictor.stars import (STAR_CATALOG_FILE, catalog_stars, default_sky, read_catalog,
                                       synthetic_stars, telemetry_catalog)
 from gcs_core.predictor.plan import DEFAULT_CADENCE_S, DEFAULT_TRACKER_CADENCE_S, DataPlan
-from gcs_core.sidp.importer import TELEMETRY_COLUMNS, ImportedMission
-from gcs_core.sidp.prepare import PhysicsOptions
-from gcs_core.sidp.types import MissionSpec, SensorSpec, Table
+from gcs_core.io.importer import TELEMETRY_COLUMNS, ImportedMission
+from gcs_core.problem.prepare import PhysicsOptions
+from gcs_core.io.types import MissionSpec, SensorSpec, Table
 from gcs_core.units import DEG
 
 
@@ -71,7 +73,7 @@ class PlannedProblem:
 
     problem: Problem
     values: dict
-    nominal: NominalAttitude | None
+    nominal: PlanAttitude | None
     cadence: dict
     slots: dict
 
@@ -138,7 +140,7 @@ def _subset(table: Table, mask: np.ndarray) -> Table:
                    lines=np.asarray(table.lines)[mask])
 
 
-def _synthetic_table(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude,
+def _synthetic_table(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude,
                      spin_rate: float | None, stars_I: np.ndarray | None = None) -> Table:
     """Placeholder telemetry at ``t`` (module docstring, step 2); ``stars_I`` (N, 3) the
     identified stars of a tracker (default: spread evenly over its field)."""
@@ -155,7 +157,7 @@ def _synthetic_table(sensor: SensorSpec, t: np.ndarray, nominal: NominalAttitude
     return _table(sensor.name, t, {c: zero for c in TELEMETRY_COLUMNS[sensor.type][1:]})
 
 
-def _gyro_table(sensor: SensorSpec, plan: DataPlan, cadence: float, nominal: NominalAttitude) -> Table:
+def _gyro_table(sensor: SensorSpec, plan: DataPlan, cadence: float, nominal: PlanAttitude) -> Table:
     """Gyro rows at ``start + k·cadence`` (k ≥ 1) reading the nominal rates (Eq 4-32, 4-33)."""
     rows = plan.grid(cadence, first=plan.start + cadence)
     if rows.size == 0:
@@ -227,7 +229,7 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
         themselves with ``plan.frames = "telemetry"``).
     aux, onboard : auxiliary channels (magnetometer contamination) and onboard attitude
         (nominal attitude at ``start``), optional.
-    physics, options : as for :func:`~gcs_core.filtr.problem.build_problem`.
+    physics, options : as for :func:`~gcs_core.problem.build.build_problem`.
     use_gyro : carry the attitude by the gyro if the mission has one.
     """
     telemetry = dict(telemetry or {})
@@ -239,10 +241,10 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
         if spec.spin_axis_guess_deg is None:
             raise InputError("a spinning mission needs spin_axis_guess_deg = [RA, Dec] (the nominal axis)",
                              file=spec.root / "mission.toml", key="mission.spin_axis_guess_deg")
-        nominal = NominalAttitude("spinning", eph, plan,
+        nominal = PlanAttitude("spinning", eph, plan,
                                   spin_axis_I=nominal_spin_axis(*spec.spin_axis_guess_deg))
     else:
-        nominal = NominalAttitude(spec.attitude_mode, eph, plan, _rpy0(spec, plan, eph, onboard))
+        nominal = PlanAttitude(spec.attitude_mode, eph, plan, _rpy0(spec, plan, eph, onboard))
     gyros = [s for s in spec.sensors if s.type == "gyro"]
     gyro = gyros[0] if (gyros and use_gyro and not spinning) else None
     trackers = any(s.type == "star_tracker" for s in spec.sensors)

@@ -8,9 +8,18 @@ Three providers, one per kind of mission:
 * :class:`GyroAttitude` — three-axis, attitude carried by the gyros from the
   roll/pitch/yaw at the reference time ``t_ref`` (Eq 4-32, 4-33, 4-38). Elements
   ``att.roll/pitch/yaw`` at ``t_ref`` plus the gyro's own parameters (Eq 4-37).
-  It lives in :mod:`gcs_core.filtr.gyro_attitude` and is re-exported here.
+  It lives in :mod:`gcs_core.problem.gyro_attitude`.
 * :class:`SpinAttitude` — spin-axis right ascension and declination (Eq 4-2).
   Elements ``att.ra``, ``att.dec``.
+
+Two more providers serve the predictor (:mod:`gcs_core.predictor`):
+
+* :class:`ManeuverAttitude` — gyro-free three-axis attitude whose roll/pitch/yaw follow
+  a *known* maneuver profile: ``(φ, θ, ψ)(t) = x + Δ(t)``, elements ``x`` = the
+  ``att.*`` values at ``start``; ``∂δθ/∂x`` is Eq 4-22 at the angles of each time.
+* :class:`BodyErrorAttitude` — a fixed nominal attitude whose elements are the body
+  error angles themselves (``∂δθ/∂x = I``); the covariance recursion of Eq 3-4 uses it
+  to obtain the observation partials with respect to the current attitude error.
 
 Every provider answers :meth:`evaluate` with the attitude at the requested times and
 the partials of the body-frame attitude error ``δθ`` (three-axis, the convention of
@@ -37,7 +46,7 @@ from typing import Mapping
 
 import numpy as np
 
-from gcs_core.filtr import batch_kernels as kernels
+from gcs_core.problem import kernels
 from gcs_core.frames.reference import (earth_pointing_rate, reference_dcm, spin_axis,
                                        spin_axis_partials)
 from gcs_core.frames.rotations import dcm_to_euler123, euler123_partials, euler123_to_dcm
@@ -48,6 +57,8 @@ RPY = ("att.roll", "att.pitch", "att.yaw")
 #: gyro bias instability, modelled as a bias changing linearly over the span (rad/s²)
 BIAS_RATE_NAMES = ("bias_rate_x", "bias_rate_y", "bias_rate_z")
 RADEC = ("att.ra", "att.dec")
+#: body error angle element names of :class:`BodyErrorAttitude`
+ERR = ("err.x", "err.y", "err.z")
 #: gyro rows per block of the propagation (bounded memory, see GyroAttitude)
 BLOCK_KNOTS = 16_384
 
@@ -154,7 +165,7 @@ class FrameAttitude:
         """Whole rows in one compiled pass, when this attitude can (gyro-carried, numba):
         ``(w D) J[:, :, sel]`` into ``out[..., :len(sel)]`` and the prepared columns
         ``P`` (q, N, m) into ``out[..., pcol]`` (added where ``pcol`` < len(sel)); a row of
-        weight zero comes out as zeros (:func:`~gcs_core.filtr.batch_kernels.chain_rows`),
+        weight zero comes out as zeros (:func:`~gcs_core.problem.kernels.chain_rows`),
         except that the ``D W s`` term of frames between knots is added after it.
         Returns False (and writes nothing) when it cannot.
         """
@@ -178,7 +189,7 @@ class FrameAttitude:
     def fill_gram(self, D: np.ndarray, sel, G: np.ndarray, buf: np.ndarray, *, w: np.ndarray,
                   P: np.ndarray, pcol) -> bool:
         """``G += Σ rowᵀ row`` over the rows :meth:`fill_rows` would write, without writing
-        them (:func:`~gcs_core.filtr.batch_kernels.chain_gram`; ``G`` (K, K) gets its lower
+        them (:func:`~gcs_core.problem.kernels.chain_gram`; ``G`` (K, K) gets its lower
         triangle, ``buf`` (T, K) is the tile; the ``D W s`` term of frames between knots is
         included). Returns False (and adds nothing) when it cannot: no compiled kernel or
         BLAS pointer.
@@ -321,10 +332,58 @@ class SpinAttitude:
         return FrameAttitude.of(self.evaluate(values, t))
 
 
-def __getattr__(name: str):
-    """``GyroAttitude`` lives in :mod:`gcs_core.filtr.gyro_attitude` (it builds on this
-    module); it is re-exported here on first use (PEP 562), which avoids a circular import."""
-    if name == "GyroAttitude":
-        from gcs_core.filtr.gyro_attitude import GyroAttitude
-        return GyroAttitude
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+def rpy_error_jacobians(rpy: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) ``∂δθ/∂(φ, θ, ψ)`` at N angle triples (Eq 4-22, vectorized).
+
+    ``[δθ×] = −Σ_i (∂B/∂x_i) Bᵀ δx_i`` for ``C = B(φ, θ, ψ) A``.
+    """
+    rpy = np.atleast_2d(np.asarray(rpy, dtype=float))
+    B = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2])
+    dB = euler123_partials(rpy[:, 0], rpy[:, 1], rpy[:, 2])            # (N, 3, 3, 3)
+    BT = np.swapaxes(B, -1, -2)
+    return np.stack([_vee(-(dB[:, i] @ BT)) for i in range(3)], -1)
+
+
+class ManeuverAttitude:
+    """Gyro-free three-axis attitude following a known maneuver profile (module docstring)."""
+
+    kind = "three_axis"
+    names = RPY
+
+    def __init__(self, reference: ReferenceAttitude, offsets):
+        self.reference_attitude = reference
+        self.mode = reference.mode
+        self.offsets = offsets
+
+    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        rpy = np.array([values[n] for n in RPY])[None, :] + self.offsets(t)
+        C = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2]) @ self.reference_attitude.reference(t)
+        return AttitudeEval(C, None, RPY, rpy_error_jacobians(rpy))
+
+    def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
+        A = self.reference_attitude.reference(np.atleast_1d(t))[0]
+        rpy = np.array(dcm_to_euler123(C @ A.T)) - self.offsets(np.atleast_1d(t))[0]
+        return tuple(float(a) for a in rpy)
+
+
+class BodyErrorAttitude:
+    """A fixed attitude history whose elements are the body error angles (``J = I``).
+
+    Parameters
+    ----------
+    base : an attitude provider; ``base_values`` its element values.
+    """
+
+    kind = "three_axis"
+    names = ERR
+
+    def __init__(self, base, base_values: Mapping[str, float]):
+        self.base = base
+        self.base_values = dict(base_values)
+
+    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
+        att = self.base.evaluate(self.base_values, t)
+        n = att.C_BI.shape[0]
+        return AttitudeEval(att.C_BI, None, ERR, np.broadcast_to(np.eye(3), (n, 3, 3)),
+                            omega_B=att.omega_B)

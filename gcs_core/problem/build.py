@@ -5,8 +5,8 @@ the state vector automatically (seed §3.2.2, Table 3-1): every parameter of eve
 chosen model becomes a named element, the attitude provider adds its own, and roles
 and a-priori values come from the analysis configuration.
 
-:mod:`gcs_core.filtr.linearization` (:func:`~gcs_core.filtr.linearization.iter_blocks`,
-:func:`~gcs_core.filtr.linearization.linearize`) is the single place where predictions
+:mod:`gcs_core.problem.linearization` (:func:`~gcs_core.problem.linearization.iter_blocks`,
+:func:`~gcs_core.problem.linearization.linearize`) is the single place where predictions
 and partials of all sensors are assembled into residuals ``r = y − h(x)`` and Jacobian
 columns ``H = ∂h/∂x``; its names are re-exported here.
 """
@@ -19,14 +19,15 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.filtr.attitude import (RADEC, RPY, GyroAttitude, ReferenceAttitude,
-                                     SpinAttitude, rpy_specs)
+from gcs_core.problem.attitude import RADEC, RPY, ReferenceAttitude, SpinAttitude, rpy_specs
+from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
-from gcs_core.models.base import HELD, SOLVE_FOR, ParamSpec
-from gcs_core.sidp.prepare import (GeometryBuilder, HeldChannels, PhysicsOptions, SensorData,
+from gcs_core.problem.state import HELD, SOLVE_FOR
+from gcs_core.models.base import ParamSpec
+from gcs_core.problem.prepare import (GeometryBuilder, HeldChannels, PhysicsOptions, SensorData,
                                    prepare_sensors)
-from gcs_core.sodl.state import Element, StateVector
+from gcs_core.problem.state import Element, StateVector
 from gcs_core.units import DEG
 
 
@@ -344,16 +345,3 @@ def _slim_table(tab, sd: SensorData, sensor_type: str):
     keep = {"star_tracker": ("ra", "dec"), "horizon": ("spin_rate",)}.get(sensor_type, ())
     return replace(tab, t=sd.t, lines=sd.lines,
                    columns={k: (sd.t if k == "t" else v) for k, v in tab.columns.items() if k in keep or k == "t"})
-
-
-#: names that live in :mod:`gcs_core.filtr.linearization` (which builds on this module),
-#: re-exported on first use (PEP 562): no circular import
-_LINEARIZATION = ("Linearization", "Block", "sensor_geometry", "window_geometry", "chunk_windows",
-                  "iter_blocks", "linearize")
-
-
-def __getattr__(name: str):
-    if name in _LINEARIZATION:
-        from gcs_core.filtr import linearization
-        return getattr(linearization, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

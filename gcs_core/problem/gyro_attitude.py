@@ -3,7 +3,7 @@
 :class:`GyroAttitude` propagates the roll/pitch/yaw at ``t_ref`` with the gyro rates,
 block by block with a carry, and forms the partials of the body attitude error with
 respect to the attitude, the gyro's ``G`` (Eq 4-37), bias and bias rate as cumulative
-sums; the derivation is in the docstring of :mod:`gcs_core.filtr.attitude`, which
+sums; the derivation is in the docstring of :mod:`gcs_core.problem.attitude`, which
 re-exports the class (the other attitude providers live there).
 """
 
@@ -16,8 +16,8 @@ from typing import Mapping
 
 import numpy as np
 
-from gcs_core.filtr import batch_kernels as kernels
-from gcs_core.filtr.attitude import (BIAS_RATE_NAMES, BLOCK_KNOTS, RPY, AttitudeEval, FrameAttitude,
+from gcs_core.problem import kernels
+from gcs_core.problem.attitude import (BIAS_RATE_NAMES, BLOCK_KNOTS, RPY, AttitudeEval, FrameAttitude,
                                      ReferenceAttitude, rpy_error_jacobian)
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize
 from gcs_core.models import common as model_common
@@ -324,7 +324,7 @@ class GyroAttitude:
             C_jᵀ ∂ω/∂a_k = C_jᵀ (∂M/∂a_k)ᵀ u,               C_jᵀ ∂ω/∂ḃ = −C_jᵀ Mᵀ τ_j
 
         Without ``with_E`` (predictions only) the sums are skipped. With numba
-        (:mod:`gcs_core.filtr.batch_kernels`) the knots and the sums are one compiled pass
+        (:mod:`gcs_core.problem.kernels`) the knots and the sums are one compiled pass
         each; the numpy form below composes the steps by a blocked scan.
         """
         c = self._consts

@@ -13,7 +13,7 @@ temporaries; compiled, each is one pass over its data.
   sequentially, each product renormalized (the numpy path composes the same steps by a
   blocked scan; composition is associative, so only the round-off differs).
 * :func:`gyro_sums` — the cumulative sums ``E_k = E_{k0} + Σ_{j≤k} C_jᵀ ∂ω_j/∂p Δ_j``
-  of the gyro-carried attitude (module docstring of :mod:`gcs_core.filtr.attitude`),
+  of the gyro-carried attitude (module docstring of :mod:`gcs_core.problem.attitude`),
   the increments formed from the structure of ``∂ω/∂p`` (Eq 4-32 inverted)::
 
       C_jᵀ ∂ω/∂G_ac = −(C_jᵀ Mᵀ G⁻¹)_{:,a} (G⁻¹ y)_c,   C_jᵀ ∂ω/∂b = −C_jᵀ Mᵀ,
@@ -30,7 +30,7 @@ temporaries; compiled, each is one pass over its data.
   compiled code can be cached). The normal equations need only that sum; writing and
   re-reading the whole (N·m, k) H was a third of a linearization.
 
-Engine selection is :data:`gcs_core.filtr.kalman_kernels.COMPILED` (numba importable and
+Engine selection is :data:`gcs_core.models.common.COMPILED` (numba importable and
 ``GCS_NO_NUMBA`` unset); without it the callers use their numpy forms (the same numbers
 to round-off) and these functions stay plain Python, unused. The kernels are compiled on
 first use and cached on disk (``__pycache__``), like the Kalman kernel.
@@ -43,7 +43,7 @@ import math
 
 import numpy as np
 
-from gcs_core.filtr.kalman_kernels import COMPILED, numba
+from gcs_core.models.common import COMPILED, numba
 
 __all__ = ["COMPILED", "DSYRK", "rates", "propagate", "gyro_sums", "chain_rows", "chain_gram"]
 
@@ -213,7 +213,7 @@ def chain_gram(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, gidx, Wg, sg, G, buf, 
     """``G += Σ rowᵀ row`` over the rows :func:`chain_rows` would write (same arguments
     but ``out``), with the term of frames between gyro knots included: frame i with
     ``gidx[i] = g ≥ 0`` adds ``sg[g] (w D)_i Wg[g]`` in the gyro columns (what
-    :meth:`~gcs_core.filtr.attitude.FrameAttitude.fill_rows` adds after :func:`chain_rows`).
+    :meth:`~gcs_core.problem.attitude.FrameAttitude.fill_rows` adds after :func:`chain_rows`).
     Each row is formed in the tile ``buf`` (T, K) and every T rows (or fewer at the end)
     the tile is folded in by ``syrk`` (BLAS dsyrk, uplo "U", trans "N" on the Fortran view
     ``bufᵀ``). ``G`` (K, K) C-ordered receives the Fortran upper triangle, i.e. its own

@@ -1,12 +1,12 @@
 """Streaming linearization of a calibration problem (seed Eq 3-1, 3-2: the ``H`` and ``r``).
 
-:func:`iter_blocks` walks the data chunk by chunk (:data:`~gcs_core.filtr.problem.CHUNK_FRAMES`
+:func:`iter_blocks` walks the data chunk by chunk (:data:`~gcs_core.problem.build.CHUNK_FRAMES`
 frames) and yields, per sensor chunk, residuals ``r = y − h(x)`` and Jacobian columns
 ``H = ∂h/∂x`` for any list of elements, the attitude partials chained through the
 attitude provider; :func:`linearize` gathers whole-span :class:`Linearization` objects.
 The batch estimator, the Kalman filter, the predictor and the diagnosis all read the data
 through here, so memory is bounded by the chunk, not the span. Split from
-:mod:`gcs_core.filtr.problem` (the state definition), which re-exports these names.
+:mod:`gcs_core.problem.build` (the state definition), which re-exports these names.
 """
 
 
@@ -15,11 +15,11 @@ from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.filtr.attitude import (FrameAttitude)
-from gcs_core.filtr.batch_kernels import GRAM_TILE_ROWS
-from gcs_core.filtr.curvature import block_curvature
-from gcs_core.sidp.prepare import (HeldChannels, SensorData)
-from gcs_core.filtr.problem import Problem
+from gcs_core.problem.attitude import (FrameAttitude)
+from gcs_core.problem.kernels import GRAM_TILE_ROWS
+from gcs_core.problem.curvature import block_curvature
+from gcs_core.problem.prepare import (HeldChannels, SensorData)
+from gcs_core.problem.build import Problem
 
 
 @dataclass(frozen=True)
@@ -63,7 +63,7 @@ class Block:
         asked ``augmented`` (``H`` is then a view of its first k_s columns), else None.
     curv : ``((i, j, K_ij), ...)`` over block columns, the Newton terms of the model's
         parameter pairs when asked ``second_order``
-        (:func:`~gcs_core.filtr.curvature.block_curvature`).
+        (:func:`~gcs_core.problem.curvature.block_curvature`).
     pred : the model's :class:`~gcs_core.models.base.Prediction` of the chunk.
     G : (k_s + 1, k_s + 1) ``Hrᵀ Hr`` when the blocks were asked ``gram`` and it was formed
         without storing the rows (then ``H`` and ``Hr`` are None).
@@ -188,7 +188,7 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
     gives ``Hᵀ R⁻¹ H``, ``Hᵀ R⁻¹ r`` and ``rᵀ R⁻¹ r`` in a single pass over the block.
 
     ``second_order`` (with the Jacobian) also contracts the model's second partials with
-    the weighted residuals (``Block.curv``, :mod:`gcs_core.filtr.curvature`).
+    the weighted residuals (``Block.curv``, :mod:`gcs_core.problem.curvature`).
 
     ``gram`` (with ``augmented``) asks for ``Hrᵀ Hr`` only: where the attitude can form
     it without storing the rows (:meth:`FrameAttitude.fill_gram`) the block carries

@@ -42,7 +42,7 @@ from gcs_core.ephem.geomag import GeomagField
 from gcs_core.frames.reference import spin_axis
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry, ObservationModel
-from gcs_core.sidp.types import MissionSpec, Table
+from gcs_core.io.types import MissionSpec, Table
 from gcs_core.models.horizon import FLATTENING as WGS84_FLATTENING
 from gcs_core.units import DEG
 

@@ -21,7 +21,12 @@ from typing import Iterable, Mapping, Sequence
 import numpy as np
 
 from gcs_core.errors import ConfigError
-from gcs_core.models.base import CONSIDER, ROLES, SOLVE_FOR
+
+#: element roles (Table 3-1): estimated, carried as a consider covariance, fixed
+SOLVE_FOR = "solve-for"
+CONSIDER = "consider"
+HELD = "held"
+ROLES = (SOLVE_FOR, CONSIDER, HELD)
 
 
 @dataclass(frozen=True)

@@ -1,7 +1,7 @@
 """Independent forward models of the seven ICD §5 sensor types, with TRUE parameters.
 
-This module holds the magnetometer and the two digital Sun sensors and the factory
-:func:`make_sensor_sim` for all seven; the star tracker lives in :mod:`.stars`, the gyro
+This module holds the magnetometer and the two digital Sun sensors (the factory for all
+seven is :func:`gcs_core.sim.writer.make_sensor_sim`); the star tracker lives in :mod:`.stars`, the gyro
 in :mod:`.truth`, the plane-field Sun sensor and horizon scanner in :mod:`.spinner`.
 Every simulator has ``columns``, ``formats`` (printf formats of the CSV columns) and
 ``run(t_rows) -> {column: (N,) array}``; rows the sensor cannot produce (eclipse, Sun
@@ -47,7 +47,7 @@ from gcs_core.sim._rot import rpy_to_dcm, unit
 from gcs_core.sim.config import SensorConfig
 from gcs_core.sim.field import igrf_gci
 
-__all__ = ["MagnetometerSim", "FineSunSim", "CoarseSunSim", "make_sensor_sim", "sun_unit_from_sc"]
+__all__ = ["MagnetometerSim", "FineSunSim", "CoarseSunSim", "sun_unit_from_sc"]
 
 
 def _alignment(sensor: SensorConfig) -> np.ndarray:
@@ -161,33 +161,3 @@ class CoarseSunSim(_SunSim):
         K = np.asarray(self.s.value("scale"), dtype=float)
         bias = np.asarray(self.s.value("bias", (0.0, 0.0)), dtype=float)
         return self._finish(t_rows, keep, (a + bias[0]) / K[0], (b + bias[1]) / K[1])
-
-
-def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, catalog=None, aux=None,
-                    sightings=None):
-    """The simulator object of one sensor (any of the seven ICD §5 types).
-
-    ``catalog`` (star trackers), ``aux`` (magnetometer contamination) and ``sightings``
-    (:class:`~gcs_core.sim.spinner.SunSightings`, spinner sensors) are shared objects.
-    """
-    from gcs_core.sim.spinner import HorizonSim, PlaneFieldSim
-    from gcs_core.sim.stars import StarTrackerSim
-    from gcs_core.sim.truth import GyroSim
-
-    kind = sensor.type
-    if kind == "magnetometer":
-        return MagnetometerSim(sensor, world, rng, aux)
-    if kind == "gyro":
-        return GyroSim(sensor, world, rng)
-    if kind == "star_tracker":
-        return StarTrackerSim(sensor, world, catalog, rng,
-                              stellar_aberration=bool(world.cfg.physics.get("stellar_aberration", True)))
-    if kind == "fine_sun":
-        return FineSunSim(sensor, world, rng)
-    if kind == "coarse_sun":
-        return CoarseSunSim(sensor, world, rng)
-    if kind == "plane_field_sun":
-        return PlaneFieldSim(sensor, world, rng, sightings)
-    if kind == "horizon":
-        return HorizonSim(sensor, world, rng, sightings)
-    raise ValueError(f"unknown sensor type '{kind}' for {sensor.name}")

@@ -42,10 +42,10 @@ import numpy as np
 from gcs_core.errors import InputError
 from gcs_core.sim.aux import AuxSchedule
 from gcs_core.sim.config import (ATTITUDE_MODES, SENSOR_TYPES, MissionConfig, as_plain)
-from gcs_core.sim.sensors import make_sensor_sim
-from gcs_core.sim.spinner import SunSightings
-from gcs_core.sim.stars import StarCatalog
-from gcs_core.sim.truth import World, onboard_quaternions
+from gcs_core.sim.sensors import CoarseSunSim, FineSunSim, MagnetometerSim
+from gcs_core.sim.spinner import HorizonSim, PlaneFieldSim, SunSightings
+from gcs_core.sim.stars import StarCatalog, StarTrackerSim
+from gcs_core.sim.truth import GyroSim, World, onboard_quaternions
 
 log = logging.getLogger(__name__)
 
@@ -306,3 +306,29 @@ def write_mission(cfg: MissionConfig, out_dir, *, truth_path=None) -> Path:
         _write_text_atomic(Path(truth_path), json.dumps(_truth(cfg, record), indent=1) + "\n")
     log.debug("mission %s written to %s", cfg.name, out_dir)
     return out_dir
+
+
+def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, catalog=None, aux=None,
+                    sightings=None):
+    """The simulator object of one sensor (any of the seven ICD §5 types).
+
+    ``catalog`` (star trackers), ``aux`` (magnetometer contamination) and ``sightings``
+    (:class:`~gcs_core.sim.spinner.SunSightings`, spinner sensors) are shared objects.
+    """
+    kind = sensor.type
+    if kind == "magnetometer":
+        return MagnetometerSim(sensor, world, rng, aux)
+    if kind == "gyro":
+        return GyroSim(sensor, world, rng)
+    if kind == "star_tracker":
+        return StarTrackerSim(sensor, world, catalog, rng,
+                              stellar_aberration=bool(world.cfg.physics.get("stellar_aberration", True)))
+    if kind == "fine_sun":
+        return FineSunSim(sensor, world, rng)
+    if kind == "coarse_sun":
+        return CoarseSunSim(sensor, world, rng)
+    if kind == "plane_field_sun":
+        return PlaneFieldSim(sensor, world, rng, sightings)
+    if kind == "horizon":
+        return HorizonSim(sensor, world, rng, sightings)
+    raise ValueError(f"unknown sensor type '{kind}' for {sensor.name}")

@@ -89,7 +89,7 @@ def _context(mc: MonteCarlo):
     if key not in _CTX:
         from gcs_core.config import load_config
         from gcs_core.predictor.plan import DataPlan
-        from gcs_core.sidp.mission import read_mission_spec
+        from gcs_core.io.mission import read_mission_spec
 
         cfg = load_config(mc.config_path)
         spec = read_mission_spec(cfg.mission)
@@ -192,7 +192,7 @@ def _truth(truth: dict, problem, values_book: dict, method: str = "batch") -> di
 def one_run(mc: MonteCarlo, i: int) -> dict:
     """Simulate and fit run ``i``: a JSON-ready record (seed, names, x̂, truth, P, status)."""
     from gcs_core.session import Analysis
-    from gcs_core.sidp.importer import load_mission
+    from gcs_core.io.importer import load_mission
     from gcs_core.sim.writer import write_mission
 
     cfg, spec, plan = _context(mc)
@@ -229,7 +229,7 @@ def _runs(mc: MonteCarlo, batch: list) -> list[dict]:
 def predicted(mc: MonteCarlo):
     """The predictor's result for the plan, the trackers' stars from the simulator's catalog."""
     from gcs_core.predictor import predict
-    from gcs_core.sidp.mission import read_mission_spec
+    from gcs_core.io.mission import read_mission_spec
     from gcs_core.sim.writer import write_mission
 
     cfg, spec, plan = _context(mc)

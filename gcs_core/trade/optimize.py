@@ -197,7 +197,7 @@ def optimize(cfg: AnalysisConfig, targets: Sequence[Target], budget: Budget, *, 
              margin: float = MARGIN, workers: int | None = None, scheduler: str | None = None,
              progress: Callable[[int, int], None] | None = None) -> OptimizeResult:
     """Search the plan space (module docstring)."""
-    from gcs_core.sidp.mission import read_mission_spec
+    from gcs_core.io.mission import read_mission_spec
 
     if cfg.path is None:
         raise InputError("the optimizer needs its analysis config on disk", key="trade")

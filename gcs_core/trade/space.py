@@ -50,7 +50,7 @@ from typing import Any, Mapping, Sequence
 from gcs_core.config import AXES, AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.predictor.plan import DataPlan
-from gcs_core.sidp.types import MissionSpec
+from gcs_core.io.types import MissionSpec
 
 PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min",
              "gap_min", "maneuver.axis", "maneuver.rate_deg_s", "maneuver.start_min",

@@ -1,4 +1,4 @@
-"""Results files of trade studies and Monte Carlo (HDF5 through :mod:`gcs_core.sidp.h5store`).
+"""Results files of trade studies and Monte Carlo (HDF5 through :mod:`gcs_core.io.h5store`).
 
 Layout (format ``TRADE`` or ``MONTECARLO``, version 1)::
 
@@ -12,7 +12,7 @@ Layout (format ``TRADE`` or ``MONTECARLO``, version 1)::
         <name>             (k, ...) float64 arrays named by the caller (``sigma``,
                            ``x_hat``, ...), for readers that want plain HDF5
 
-Every batch is appended with :func:`~gcs_core.sidp.h5store.append_group`: a new file
+Every batch is appended with :func:`~gcs_core.io.h5store.append_group`: a new file
 written beside the old one, checksummed, fsync-ed and renamed over it. A study killed
 at any moment leaves the file as it was after the last finished batch, every row
 readable; :func:`done_indices` tells a resumed study what is already there.
@@ -27,7 +27,7 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.sidp import h5store
+from gcs_core.io import h5store
 
 TRADE, MONTECARLO = "TRADE", "MONTECARLO"
 VERSION = 1

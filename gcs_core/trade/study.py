@@ -160,7 +160,7 @@ def _context(defn: StudyDefinition):
     if ctx is None:
         from gcs_core.config import check_against_mission
         from gcs_core.predictor.plan import DataPlan
-        from gcs_core.sidp.mission import read_mission_spec
+        from gcs_core.io.mission import read_mission_spec
 
         cfg = load_config(defn.config_path)
         if defn.method is not None:

@@ -158,7 +158,7 @@ def _reference_matrices(reference, mode: str, t: np.ndarray) -> np.ndarray:
     if hasattr(reference, "reference"):                       # an attitude provider
         return np.asarray(reference.reference(t))
     if hasattr(reference, "state") and hasattr(reference, "sun_geocentric"):   # an Ephemeris
-        from gcs_core.filtr.attitude import ReferenceAttitude
+        from gcs_core.problem.attitude import ReferenceAttitude
         return ReferenceAttitude(mode, reference).reference(t)
     if callable(reference):
         return np.asarray(reference(t))

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import EstimationError, InputError
-from gcs_core.filtr.attitude import GyroAttitude
+from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.frames.rotations import dcm_to_euler123, quat_from_dcm, quat_normalize
-from gcs_core.predictor.nominal import rpy_error_jacobians
+from gcs_core.problem.attitude import rpy_error_jacobians
 
 
 @dataclass(frozen=True)

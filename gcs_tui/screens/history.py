@@ -2,7 +2,7 @@
 what changed between two of them (Δ and Δ in units of the combined σ).
 
 ``a``/``b`` mark the selected version as A or B; ``k`` appends the current fit as a
-new version. The SCDS is read through :mod:`gcs_core.sidp.scds`.
+new version. The SCDS is read through :mod:`gcs_core.io.scds`.
 """
 
 from __future__ import annotations
