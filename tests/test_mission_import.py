@@ -331,11 +331,12 @@ def _template(node) -> str | None:
 
 
 def _code_templates() -> tuple[set[str], set[str]]:
-    """(messages raised by the io readers, every string template in their sources and in
-    the epoch parser they call, :func:`gcs_core.ephem.timescale.parse_utc`)."""
+    """(messages raised by the io readers and the noise estimate from data, every string
+    template in their sources and in the epoch parser they call,
+    :func:`gcs_core.ephem.timescale.parse_utc`)."""
     import ast
     raised, everything = set(), set()
-    sources = sorted((REPO / "gcs_core" / "io").glob("*.py"))
+    sources = sorted((REPO / "gcs_core" / "io").glob("*.py")) + [REPO / "gcs_core" / "filtr" / "noise.py"]
     for source in sources + [REPO / "gcs_core" / "ephem" / "timescale.py"]:
         for node in ast.walk(ast.parse(source.read_text())):
             t = _template(node)
