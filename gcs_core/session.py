@@ -20,7 +20,8 @@ from gcs_core.diagnosis import aliases, determination, goodness, physics, policy
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
-from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit  # noqa: F401
+from gcs_core.filtr.batch import BatchOptions, batch_fit
+from gcs_core.filtr.batch_results import BatchResult  # noqa: F401
 from gcs_core.filtr.smoothing_batch import fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem

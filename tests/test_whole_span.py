@@ -47,7 +47,7 @@ def _small(seed=3, duration_s=300.0, spacing=20.0):
     prior = 1.0 / s0 ** 2
     noise = gyro_noise(problem)
     grid = sb.make_knots(problem, noise, batch.information, names, spacing=spacing)
-    passes = sb._Passes(problem, names, grid, x_bar, prior)
+    passes = sb.Passes(problem, names, grid, x_bar, prior)
     passes.stream = False                  # every knot's blocks kept (Dk, Bk) for inspection
     return problem, batch, grid, passes, x_bar, prior
 

@@ -35,6 +35,8 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
+from gcs_core.linalg import sparse_basis
+
 #: data information below this share of the a priori's along a direction: set by the a priori
 WEAK_INFORMATION = 0.25
 #: ... below this: exact (a millionth of the a priori's information is round-off, not data)
@@ -80,27 +82,6 @@ class Alias:
                 "text": self.describe()}
 
 
-def _sparse_basis(V: np.ndarray) -> np.ndarray:
-    """Columns spanning the same subspace as ``V`` (n, k), in reduced row echelon form of
-    ``Vᵀ`` with pivots on the largest remaining weights, each normalized to unit length."""
-    B = V.T.copy()
-    k = B.shape[0]
-    used: list[int] = []
-    for i in range(k):
-        rest = np.abs(B[i:, :]).copy()
-        rest[:, used] = 0.0
-        r, c = np.unravel_index(int(np.argmax(rest)), rest.shape)
-        r += i
-        B[[i, r]] = B[[r, i]]
-        B[i] /= B[i, c]
-        for j in range(k):
-            if j != i:
-                B[j] -= B[j, c] * B[i]
-        used.append(c)
-    B /= np.linalg.norm(B, axis=1, keepdims=True)
-    return B.T
-
-
 def weak_directions(information: np.ndarray, sigma0: Sequence[float], names: Sequence[str],
                     reasons: Mapping[frozenset, str] | None = None) -> list[Alias]:
     """The directions the data leave to the a priori (module docstring), weakest first.
@@ -138,7 +119,7 @@ def weak_directions(information: np.ndarray, sigma0: Sequence[float], names: Seq
         return Alias(els, tuple(float(v[j]) for j in order), max(0.0, float(info)), is_exact, reason)
 
     if np.any(exact):
-        B = _sparse_basis(V[:, exact])
+        B = sparse_basis(V[:, exact])
         out += [alias(B[:, c], 0.0, True) for c in range(B.shape[1])]
     out += [alias(V[:, c], lam[c], False) for c in np.flatnonzero(weak)]
     # a combination names two elements or more; one element the data leave to its a priori

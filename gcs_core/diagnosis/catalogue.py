@@ -13,6 +13,7 @@ the predictions with and without the option.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from gcs_core.problem.prepare import PHYSICS_EFFECTS
 
 #: effect name -> (family, physical explanation). The explanation says what the
 #: signature looks like and what physical cause it points to.
@@ -120,8 +121,6 @@ def generic_catalogue() -> list[tuple[str, str, str]]:
 
 def mission_catalogue(problem, physics) -> list[Effect]:
     """Every effect of this mission's models and physics, in the state or not."""
-    from gcs_core.problem.prepare import PHYSICS_EFFECTS
-
     seen: dict[str, Effect] = {}
     for e in problem.state:
         if e.kind != "sensor" or not e.effect:

@@ -19,6 +19,7 @@ import math
 from typing import Mapping
 
 import numpy as np
+from gcs_core.filtr.batch import name_combinations, normal_equations
 
 #: an amplitude within this many σ of zero is "consistent with zero" (two-sided 95 %)
 AMPLITUDE_Z = 1.96
@@ -115,8 +116,6 @@ def null_at_prior(problem, names, rank_tol: float = 1e-7) -> list[str]:
     (:func:`~gcs_core.filtr.batch.name_combinations`). A parameter that reaches the data
     only through an amplitude whose a priori is 0 (the FSS frequency ``k`` of Eq 4-23)
     is null here though a fitted amplitude's noise gives it curvature at the solution."""
-    from gcs_core.filtr.batch import name_combinations, normal_equations
-
     names = tuple(names)
     if not names:
         return []

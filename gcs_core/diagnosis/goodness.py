@@ -67,6 +67,9 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy import linalg, stats
 
+from gcs_core.filtr.smoothing_uses import smoothed_frames
+from gcs_core.problem.linearization import iter_blocks
+
 __all__ = ["ChiSquare", "GoodnessOfFit", "goodness_of_fit", "sensor_leverage", "holdout_tests",
            "effective_parameters", "FAMILY_ALPHA"]
 
@@ -246,8 +249,6 @@ def sensor_leverage(problem, result) -> dict[str, float]:
     streaming pass (:func:`~gcs_core.problem.linearization.iter_blocks`); ``P`` the fit's
     noise-only covariance over ``result.solve_for``.
     """
-    from gcs_core.problem.linearization import iter_blocks
-
     names = tuple(result.solve_for)
     n = len(names)
     if not n:
@@ -269,8 +270,6 @@ def sensor_leverage(problem, result) -> dict[str, float]:
 def _smoothed_frames(problem, result, select: Mapping[str, np.ndarray]):
     """The ``select``-ed frames of a fit with knot corrections with their prediction
     variance (:func:`gcs_core.filtr.smoothing_uses.smoothed_frames`)."""
-    from gcs_core.filtr.smoothing_uses import smoothed_frames
-
     return smoothed_frames(problem, result, select)
 
 
@@ -320,8 +319,6 @@ def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, 
     ``masks``: sensor -> (N,) True where the frame was held out of ``train``. Every valid
     held-out frame is tested (none was edited: the training fit never saw them).
     """
-    from gcs_core.problem.linearization import iter_blocks
-
     names = tuple(train.solve_for)
     n = len(names)
     sel = {k: np.asarray(v, bool) for k, v in masks.items() if np.any(v)}

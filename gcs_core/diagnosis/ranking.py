@@ -46,10 +46,11 @@ import numpy as np
 from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
-from gcs_core.filtr.batch import BatchResult
+from gcs_core.filtr.batch_results import BatchResult
 from gcs_core.filtr.knots import KnotSystem
 from gcs_core.problem.linearization import iter_blocks, window_geometry
 from gcs_core.problem.build import Problem
+from gcs_core.problem.prepare import geometry_variants
 
 #: canonical correlation above which two candidates are called indistinguishable
 ALIAS_TOL = 0.98
@@ -121,8 +122,6 @@ def _variants(problem: Problem, sd) -> dict:
     the state, and the field-model variant costs a full IGRF evaluation). They hold only
     the reference vectors that change (O(N) per variant, for the sensors a physics
     candidate concerns)."""
-    from gcs_core.problem.prepare import geometry_variants
-
     cache = problem.__dict__.setdefault("_variant_cache", {})
     if sd.name not in cache:
         cache[sd.name] = geometry_variants(sd, problem.builder, problem.tables[sd.name])

@@ -41,7 +41,6 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core.ephem import teme, timescale
-from gcs_core.ephem.ephemeris import EPHEMERIS_COLUMNS
 from gcs_core.ephem.orbit import TleOrbit
 from gcs_core.ephem.sun import sun_position_km
 from gcs_core.errors import InputError

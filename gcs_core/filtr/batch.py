@@ -53,12 +53,11 @@ from typing import Mapping, Sequence
 import numpy as np
 from scipy import linalg
 
-from gcs_core.diagnosis.aliases import _sparse_basis
 from gcs_core.errors import EstimationError, UnobservableError
+from gcs_core.linalg import sparse_basis
 from gcs_core.filtr import local_refine
 from gcs_core.problem import curvature
-from gcs_core.filtr.batch_results import (BatchResult, Residuals, SensorResiduals, accumulate,  # noqa: F401
-                                         make_residuals, residuals_from, weighted_masks)
+from gcs_core.filtr.batch_results import BatchResult, Residuals, residuals_from
 from gcs_core.problem.linearization import iter_blocks
 from gcs_core.problem.build import Problem
 
@@ -160,7 +159,7 @@ def name_combinations(A: np.ndarray, names: Sequence[str], rank_tol: float) -> l
     out = []
     null = np.nonzero(w <= rank_tol * top)[0]
     # the sparsest basis of the null space: one sensor's aliases apart from another's
-    basis = _sparse_basis(V[:, null]) if null.size else V[:, null]
+    basis = sparse_basis(V[:, null]) if null.size else V[:, null]
     for i in range(basis.shape[1]):
         v = basis[:, i]
         v = -v if v[np.argmax(np.abs(v))] < 0 else v

@@ -13,7 +13,7 @@ from typing import Mapping
 
 import numpy as np
 
-from gcs_core.filtr.batch import SensorResiduals
+from gcs_core.filtr.batch_results import SensorResiduals
 from gcs_core.filtr.smoother import SmoothedTrajectory
 from gcs_core.problem.state import StateVector
 

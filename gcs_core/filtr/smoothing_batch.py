@@ -44,10 +44,11 @@ import numpy as np
 
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
+from gcs_core.filtr.knot_kernels import correct_attitude
 from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
 from gcs_core.problem.gyro_attitude import GyroAttitude
-from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
-                                  edit_frames, name_combinations, residuals_from)
+from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations
+from gcs_core.filtr.batch_results import BatchResult, Residuals, residuals_from
 from gcs_core.problem.linearization import iter_blocks
 from gcs_core.filtr.mekf import GyroNoise, gyro_noise
 from gcs_core.problem.build import Problem
@@ -121,7 +122,7 @@ class CorrectedAttitude:
             return C
         if kn.COMPILED:
             out = np.empty_like(C)
-            kn.correct_attitude(np.ascontiguousarray(C), t, self.grid.index(t).astype(np.int64), self.grid.tau,
+            correct_attitude(np.ascontiguousarray(C), t, self.grid.index(t).astype(np.int64), self.grid.tau,
                                 self.z, self.R if self.R.shape[0] else np.eye(3)[None], out)
             return out
         a = kn.alpha_at(self.grid, self.z, self.R, t)
@@ -190,7 +191,7 @@ def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, name
     return kn.make_grid(t0, t1, spacing, noise.sigma_v, noise.sigma_u, min_step=max(dt, 1e-3))
 
 
-class _Passes:
+class Passes:
     """Linearization passes of the whole-span problem at (x, z)."""
 
     def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info):
@@ -299,7 +300,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     else:
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
-    passes = _Passes(problem, names, grid, x_bar, prior_info)
+    passes = Passes(problem, names, grid, x_bar, prior_info)
     x = np.array(batch.x, float)
     preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
     edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool))

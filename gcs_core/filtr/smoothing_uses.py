@@ -15,10 +15,11 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.filtr import knots as kn
-from gcs_core.filtr.batch import BatchResult, _solve_normal
-from gcs_core.problem.linearization import iter_blocks
+from gcs_core.filtr.batch_results import BatchResult
+from gcs_core.filtr.batch import _solve_normal
+from gcs_core.problem.linearization import iter_blocks, linearize
 from gcs_core.problem.build import Problem
-from gcs_core.filtr.smoothing_batch import Dynamics, SmoothedResult, _Passes, make_knots, process_noise
+from gcs_core.filtr.smoothing_batch import Dynamics, SmoothedResult, Passes, make_knots, process_noise
 
 
 def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | None = None,
@@ -42,8 +43,6 @@ def static_holdout_rms(problem: Problem, res, masks: Mapping[str, np.ndarray]) -
     """Normalized RMS of the held-out frames of a fit without process noise, each residual standardized by its full
     prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
     training fit carried to that frame), so 1.0 is the expected value for a right model."""
-    from gcs_core.problem.linearization import linearize
-
     lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
     out = {}
     for name, r in res.residuals.items():
@@ -125,7 +124,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     s0 = np.array([state[nm].sigma0 for nm in names])
     prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     grid = make_knots(problem, noise, res.information, names)
-    passes = _Passes(problem, names, grid, x_bar, prior_info)
+    passes = Passes(problem, names, grid, x_bar, prior_info)
     passes.keep = False
     edits = {nm: r.edited for nm, r in res.residuals.items()}
     x = np.asarray(res.x, float)
@@ -171,7 +170,7 @@ def predicted_covariance(problem: Problem, values: Mapping[str, float], names, c
     n = len(names)
     prior = np.where(np.isfinite(sigma0) & (sigma0 > 0), 1.0 / np.where(sigma0 > 0, sigma0, 1.0) ** 2, 0.0)
     grid = make_knots(problem, noise, information, names)
-    passes = _Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior)
+    passes = Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior)
     passes.values = dict(values)
     passes.keep = False
     x = np.array([values[nm] for nm in names])

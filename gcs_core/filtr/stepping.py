@@ -32,7 +32,7 @@ from scipy import special
 
 from gcs_core.errors import EstimationError
 from gcs_core.problem.attitude import RPY, rpy_error_jacobian
-from gcs_core.filtr.batch import make_residuals
+from gcs_core.filtr.batch_results import make_residuals
 from gcs_core.filtr.filter_results import (BlockReport, FilterOptions, FilterResult,  # noqa: F401
                                            FrameDiagnostics, InnovationStats)
 from gcs_core.filtr.kalman import solve_block

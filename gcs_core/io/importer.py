@@ -37,6 +37,7 @@ from gcs_core.errors import InputError
 from gcs_core.io.csvio import read_table
 from gcs_core.io.mission import read_mission_spec
 from gcs_core.io.types import MissionSpec, Table
+from gcs_core.io.tle_table import tle_ephemeris_table
 
 log = logging.getLogger(__name__)
 
@@ -385,8 +386,6 @@ def _drop_flagged(table: Table) -> tuple[Table, int]:
 
 def _tle_ephemeris(spec: MissionSpec, tables) -> Table:
     """The ephemeris propagated from ``[orbit] tle`` over every table's span (ephem/tle.py)."""
-    from gcs_core.io.tle_table import tle_ephemeris_table
-
     spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
     if not spans:
         raise InputError("no telemetry rows to propagate the orbit over", file=spec.orbit_tle)

@@ -27,6 +27,8 @@ from typing import Any, Callable
 
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
+from gcs_core.io.orbit_spec import ephemeris_or_orbit, ground_position
+from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
 
 log = logging.getLogger(__name__)
@@ -149,111 +151,17 @@ COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
 
-# --- locating keys in the text --------------------------------------------------------
-
-_HEADER = re.compile(r"\s*(\[\[|\[)\s*([A-Za-z0-9_\-\.\"' ]+?)\s*\]\]?\s*(?:#.*)?$")
-_KEYLINE = re.compile(r"\s*([A-Za-z0-9_\-]+|\"[^\"]*\"|'[^']*')\s*=")
-
-
-class _Locator:
-    """Best-effort line numbers of tables and keys (tomllib keeps none)."""
-
-    def __init__(self, text: str):
-        self.tables: dict[tuple[str, int], int] = {}
-        self.keys: dict[tuple[str, int, str], int] = {}
-        current, index, counts = "", 0, {}
-        for lineno, line in enumerate(text.splitlines(), start=1):
-            h = _HEADER.match(line)
-            if h:
-                current = h.group(2).replace(" ", "").replace('"', "").replace("'", "")
-                index = counts.get(current, 0) + 1 if h.group(1) == "[[" else 1
-                counts[current] = index
-                self.tables.setdefault((current, index), lineno)
-                continue
-            k = _KEYLINE.match(line)
-            if k:
-                self.keys.setdefault((current, index, k.group(1).strip("\"'")), lineno)
-
-    def line(self, table: str, key: str | None = None, index: int = 1) -> int | None:
-        if key is not None and (table, index, key) in self.keys:
-            return self.keys[(table, index, key)]
-        return self.tables.get((table, index))
-
-
-@dataclass
-class _Ctx:
-    file: Path
-    where: _Locator
-
-    def error(self, message: str, key: str, table: str = "", index: int = 1,
-              tkey: str | None = None) -> InputError:
-        return InputError(message, file=self.file, line=self.where.line(table, tkey, index),
-                          key=key)
-
-
-# --- values ---------------------------------------------------------------------------
-
-def _number(ctx: _Ctx, value: Any, key: str, table: str, index: int, tkey: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ctx.error(f"must be a number, not {_show(value)}", key, table, index, tkey)
-    v = float(value)
-    if not math.isfinite(v):
-        raise ctx.error(f"must be finite, not {v}", key, table, index, tkey)
-    return v
-
-
-def _show(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:40] + "..."
-
-
-def _numbers(ctx: _Ctx, value: Any, size: int, key: str, table: str, index: int,
-             tkey: str) -> tuple[float, ...]:
-    if not isinstance(value, list) or len(value) != size:
-        raise ctx.error(f"must be a list of {size} numbers, not {_show(value)}", key, table,
-                        index, tkey)
-    return tuple(_number(ctx, v, f"{key}[{i}]", table, index, tkey) for i, v in enumerate(value))
-
-
-def _string(ctx: _Ctx, value: Any, key: str, table: str, index: int = 1,
-            tkey: str | None = None) -> str:
-    if not isinstance(value, str) or not value.strip():
-        raise ctx.error(f"must be a non-empty string, not {_show(value)}", key, table, index,
-                        tkey)
-    return value.strip()
-
-
-def _existing_file(ctx: _Ctx, root: Path, value: Any, key: str, table: str, what: str,
-                   index: int = 1, tkey: str = "file") -> Path:
-    rel = _string(ctx, value, key, table, index, tkey)
-    if "\x00" in rel:
-        raise ctx.error("file name holds a NUL character", key, table, index, tkey)
-    path = Path(rel) if os.path.isabs(rel) else root / rel
-    try:
-        is_file, is_dir = path.is_file(), path.is_dir()
-    except (OSError, ValueError) as err:
-        raise ctx.error(f"{what} file {rel!r} cannot be looked up ({err})", key, table, index,
-                        tkey) from None
-    if is_dir:
-        raise ctx.error(f"{what} file {rel!r} is a directory, not a file", key, table, index,
-                        tkey)
-    if not is_file:
-        raise ctx.error(f"{what} file {rel!r} not found (looked for {path})", key, table, index,
-                        tkey)
-    return path
-
-
-def _book_value(ctx: _Ctx, spec: BookKey, value: Any, key: str, index: int, tkey: str) -> Any:
+def _book_value(ctx: Ctx, spec: BookKey, value: Any, key: str, index: int, tkey: str) -> Any:
     if spec.size == -1:
-        text = _string(ctx, value, key, "sensor", index, tkey)
+        text = string(ctx, value, key, "sensor", index, tkey)
         if spec.choices and text not in spec.choices:
             raise ctx.error(f"must be one of {', '.join(spec.choices)}, not {text!r}", key,
                             "sensor", index, tkey)
         return text
     if spec.size == 0:
-        vals = (_number(ctx, value, key, "sensor", index, tkey),)
+        vals = (number(ctx, value, key, "sensor", index, tkey),)
     else:
-        vals = _numbers(ctx, value, spec.size, key, "sensor", index, tkey)
+        vals = numbers(ctx, value, spec.size, key, "sensor", index, tkey)
     for i, v in enumerate(vals):
         complaints = [spec.check(v)] if spec.check else []
         complaints += [c(v) for j, c in spec.index_checks if j == i]
@@ -275,7 +183,7 @@ def _plain(value: Any) -> Any:
 
 # --- tables ---------------------------------------------------------------------------
 
-def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> SensorSpec:
+def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> SensorSpec:
     base = f"sensor[{index}]"
     if not isinstance(raw, dict):
         raise ctx.error("must be a table ([[sensor]])", base, "sensor", index)
@@ -284,7 +192,7 @@ def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> Sens
             who = repr(raw["name"]) if isinstance(raw.get("name"), str) else "without a name"
             raise ctx.error(f"missing key '{key}' in [[sensor]] number {index} (sensor {who})",
                             f"{base}.{key}", "sensor", index)
-    name = _string(ctx, raw.get("name"), f"{base}.name", "sensor", index, "name")
+    name = string(ctx, raw.get("name"), f"{base}.name", "sensor", index, "name")
     if not _NAME.fullmatch(name):
         raise ctx.error(f"sensor name {name!r} must start with a letter and hold only "
                         "letters, digits, '_' and '-' (at most 64)", f"{base}.name", "sensor",
@@ -293,14 +201,14 @@ def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> Sens
         raise ctx.error(f"sensor name {name!r} is reserved (state elements "
                         f"{', '.join(n + '.*' for n in RESERVED_NAMES)})", f"{base}.name",
                         "sensor", index, "name")
-    stype = _string(ctx, raw.get("type"), f"{base}.type", "sensor", index, "type")
+    stype = string(ctx, raw.get("type"), f"{base}.type", "sensor", index, "type")
     if stype not in SENSOR_TYPES:
         raise ctx.error(f"unknown sensor type {stype!r} for sensor {name!r}; known types: "
                         f"{', '.join(SENSOR_TYPES)}", f"{base}.type", "sensor", index, "type")
     if stype in SPINNER_TYPES and mode != "spinning":
         raise ctx.error(f"sensor type {stype!r} needs attitude_mode = \"spinning\", not "
                         f"{mode!r}", f"{base}.type", "sensor", index, "type")
-    telemetry = _existing_file(ctx, root, raw.get("telemetry"), f"{base}.telemetry", "sensor",
+    telemetry = existing_file(ctx, root, raw.get("telemetry"), f"{base}.telemetry", "sensor",
                                f"telemetry (sensor {name!r})", index, "telemetry")
     alignment = None
     if "alignment_deg" in raw:
@@ -308,7 +216,7 @@ def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> Sens
             raise ctx.error(f"a {stype} sensor of a spinning mission is placed by its own keys, "
                             "not by alignment_deg (ICD §2)", f"{base}.alignment_deg", "sensor",
                             index, "alignment_deg")
-        alignment = _numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
+        alignment = numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
                              index, "alignment_deg")
         for i, a in enumerate(alignment):
             if abs(a) > 360.0:
@@ -338,7 +246,7 @@ def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> Sens
                       noise=noise, book=book, unknown_keys=unknown)
 
 
-def _check_links(ctx: _Ctx, sensors: list[SensorSpec]) -> None:
+def _check_links(ctx: Ctx, sensors: list[SensorSpec]) -> None:
     by_name = {s.name: s for s in sensors}
     for index, s in enumerate(sensors, start=1):
         ref = s.book.get("sun_sensor") if s.type == "horizon" else None
@@ -381,18 +289,6 @@ def _load_toml(path: Path) -> tuple[dict, str]:
         raise InputError("TOML nesting too deep", file=path) from None
 
 
-def _optional_file(ctx: _Ctx, root: Path, doc: dict, table: str, unknown: list[str]) -> Path | None:
-    if table not in doc:
-        return None
-    t = doc[table]
-    if not isinstance(t, dict):
-        raise ctx.error(f"[{table}] must be a table with a 'file' key", table, table)
-    if "file" not in t:
-        raise ctx.error(f"missing key 'file' in [{table}]", f"{table}.file", table)
-    unknown += [f"{table}.{k}" for k in t if k != "file"]
-    return _existing_file(ctx, root, t["file"], f"{table}.file", table, table.replace("_", " "))
-
-
 def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     """Read and check ``mission.toml`` (ICD §3, §5).
 
@@ -421,7 +317,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         raise InputError(f"{MISSION_FILE} not found: a mission directory holds "
                          f"{MISSION_FILE}, ephemeris.csv and telemetry/ (ICD §1)", file=path)
     doc, text = _load_toml(path)
-    ctx = _Ctx(path, _Locator(text))
+    ctx = Ctx(path, Locator(text))
     unknown: list[str] = [k for k in doc if k not in _TOP_TABLES]
 
     m = doc.get("mission")
@@ -431,7 +327,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     for key in ("name", "epoch", "attitude_mode"):
         if key not in m:
             raise ctx.error(f"missing key '{key}' in [mission]", f"mission.{key}", "mission")
-    name = _string(ctx, m["name"], "mission.name", "mission", 1, "name")
+    name = string(ctx, m["name"], "mission.name", "mission", 1, "name")
     epoch_raw = m["epoch"]
     if isinstance(epoch_raw, datetime):
         try:
@@ -446,16 +342,16 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         except ValueError as err:
             raise ctx.error(str(err), "mission.epoch", "mission", 1, "epoch") from None
     else:
-        raise ctx.error(f"must be an ISO-8601 UTC string, not {_show(epoch_raw)}",
+        raise ctx.error(f"must be an ISO-8601 UTC string, not {show(epoch_raw)}",
                         "mission.epoch", "mission", 1, "epoch")
-    mode = _string(ctx, m["attitude_mode"], "mission.attitude_mode", "mission", 1,
+    mode = string(ctx, m["attitude_mode"], "mission.attitude_mode", "mission", 1,
                    "attitude_mode")
     if mode not in ATTITUDE_MODES:
         raise ctx.error(f"attitude_mode must be one of {', '.join(ATTITUDE_MODES)}, not "
                         f"{mode!r}", "mission.attitude_mode", "mission", 1, "attitude_mode")
     spin_guess = None
     if "spin_axis_guess_deg" in m:
-        ra, dec = _numbers(ctx, m["spin_axis_guess_deg"], 2, "mission.spin_axis_guess_deg",
+        ra, dec = numbers(ctx, m["spin_axis_guess_deg"], 2, "mission.spin_axis_guess_deg",
                            "mission", 1, "spin_axis_guess_deg")
         if not (0.0 <= ra <= 360.0 and -90.0 <= dec <= 90.0):
             raise ctx.error(f"[RA, Dec] must have RA in [0, 360] and Dec in [-90, 90], not "
@@ -468,14 +364,12 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     ground = None
     orbit: dict = {}
     if isinstance(e, dict) and "ground_position_km" in e and "file" not in e:
-        from gcs_core.io.orbit_spec import ground_position
         ground = ground_position(ctx, e, mode, unknown)
         ephemeris = None
     else:
-        from gcs_core.io.orbit_spec import ephemeris_or_orbit
         ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
-    aux = _optional_file(ctx, root, doc, "aux", unknown)
-    onboard = _optional_file(ctx, root, doc, "onboard_attitude", unknown)
+    aux = optional_file(ctx, root, doc, "aux", unknown)
+    onboard = optional_file(ctx, root, doc, "onboard_attitude", unknown)
 
     raw_sensors = doc.get("sensor")
     if raw_sensors is None:

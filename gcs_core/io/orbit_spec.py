@@ -11,7 +11,7 @@ import math
 from pathlib import Path
 from typing import Any
 
-from gcs_core.io.mission import _Ctx, _existing_file, _number, _numbers, _optional_file, _string
+from gcs_core.io.toml_fields import Ctx, existing_file, number, numbers, optional_file, string
 
 __all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "ephemeris_or_orbit", "read_orbit_table"]
 
@@ -21,7 +21,7 @@ ORBIT_KEYS = ("tle", "frame", "step_s")
 ORBIT_FRAMES = ("teme", "j2000")
 
 
-def read_orbit_table(ctx: _Ctx, root: Path, t: Any, unknown: list[str]
+def read_orbit_table(ctx: Ctx, root: Path, t: Any, unknown: list[str]
                      ) -> tuple[Path, str, float]:
     """``[orbit]``: ``tle`` (file), optional ``frame`` and ``step_s`` (gcs_core.ephem.tle)."""
     if not isinstance(t, dict):
@@ -29,15 +29,15 @@ def read_orbit_table(ctx: _Ctx, root: Path, t: Any, unknown: list[str]
     if "tle" not in t:
         raise ctx.error("missing key 'tle' in [orbit] (the two-line element file)",
                         "orbit.tle", "orbit")
-    tle = _existing_file(ctx, root, t["tle"], "orbit.tle", "orbit", "two-line element",
+    tle = existing_file(ctx, root, t["tle"], "orbit.tle", "orbit", "two-line element",
                          tkey="tle")
-    frame = _string(ctx, t.get("frame", "teme"), "orbit.frame", "orbit", 1, "frame")
+    frame = string(ctx, t.get("frame", "teme"), "orbit.frame", "orbit", 1, "frame")
     if frame not in ORBIT_FRAMES:
         raise ctx.error(f"must be one of {', '.join(ORBIT_FRAMES)}, not {frame!r}",
                         "orbit.frame", "orbit", 1, "frame")
     step = 10.0
     if "step_s" in t:
-        step = _number(ctx, t["step_s"], "orbit.step_s", "orbit", 1, "step_s")
+        step = number(ctx, t["step_s"], "orbit.step_s", "orbit", 1, "step_s")
         if not 0.0 < step <= 60.0:
             raise ctx.error(f"must be in (0, 60] s (ICD §4), not {step:g}", "orbit.step_s",
                             "orbit", 1, "step_s")
@@ -45,7 +45,7 @@ def read_orbit_table(ctx: _Ctx, root: Path, t: Any, unknown: list[str]
     return tle, frame, step
 
 
-def ephemeris_or_orbit(ctx: _Ctx, root: Path, doc: dict, unknown: list[str]
+def ephemeris_or_orbit(ctx: Ctx, root: Path, doc: dict, unknown: list[str]
                        ) -> tuple[Path | None, dict[str, Any]]:
     """``[ephemeris] file`` or ``[orbit]`` (one of them): the ephemeris path (None for an
     orbit) and the MissionSpec fields of the orbit (empty for an ephemeris file)."""
@@ -60,14 +60,14 @@ def ephemeris_or_orbit(ctx: _Ctx, root: Path, doc: dict, unknown: list[str]
         raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3), or an "
                         "[orbit] table with 'tle', or 'ground_position_km' for a ground mission",
                         "ephemeris.file", "ephemeris")
-    return _optional_file(ctx, root, doc, "ephemeris", unknown), {}
+    return optional_file(ctx, root, doc, "ephemeris", unknown), {}
 
 
-def ground_position(ctx: _Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[float, float, float]:
+def ground_position(ctx: Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[float, float, float]:
     """``[ephemeris] ground_position_km = [x, y, z]``: a laboratory on the ground
     (docs/ground.md). The reference frame is the laboratory's own (it stands where GCI
     stands in flight), so the mission must be ``inertial``."""
-    pos = _numbers(ctx, e["ground_position_km"], 3, "ephemeris.ground_position_km",
+    pos = numbers(ctx, e["ground_position_km"], 3, "ephemeris.ground_position_km",
                    "ephemeris", 1, "ground_position_km")
     norm = math.sqrt(sum(v * v for v in pos))
     if not 6300.0 <= norm <= 6400.0:

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any, Mapping, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -36,6 +36,8 @@ from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
 from gcs_core.problem.prepare import PhysicsOptions
+from gcs_core.io.csvio import read_table
+from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
 from gcs_core.io.types import MissionSpec
 from gcs_core.units import DEG
 
@@ -46,6 +48,15 @@ METHODS = ("information", "kalman", "whole_span")
 EPHEMERIS_MARGIN_S = 120.0
 #: an element whose predicted σ is within this fraction of its a priori is "undetermined"
 UNDETERMINED_FRACTION = 0.01
+
+
+@runtime_checkable
+class ConfiguredAnalysis(Protocol):
+    """What :func:`predict` reads of an analysis (:class:`gcs_core.session.Analysis`): its
+    config and its loaded mission."""
+
+    config: AnalysisConfig
+    mission: Any
 
 
 @dataclass(frozen=True)
@@ -168,8 +179,6 @@ def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
 
 def _mission_parts(source, mission, cfg):
     """(spec, telemetry, ephemeris table, aux, onboard) of whatever was given."""
-    from gcs_core.io.importer import ImportedMission, load_mission
-
     m = mission
     if m is None and cfg is not None:
         m = load_mission(cfg.mission)
@@ -180,8 +189,6 @@ def _mission_parts(source, mission, cfg):
     if isinstance(m, MissionSpec):
         eph_table = None
         if m.ephemeris_file is not None and m.ephemeris_file.is_file():
-            from gcs_core.io.csvio import read_table
-            from gcs_core.io.importer import EPHEMERIS_COLUMNS
             eph_table = read_table(m.ephemeris_file, required=EPHEMERIS_COLUMNS, what="ephemeris")
         return m, {}, eph_table, None, None
     raise InputError(f"cannot predict from a {type(m).__name__}: give an AnalysisConfig, an Analysis, "
@@ -247,12 +254,10 @@ def predict(source, *, plan: DataPlan | None = None, mission=None, orbit=None,
     -------
     :class:`PredictionResult`.
     """
-    from gcs_core.session import Analysis
-
     if isinstance(source, Problem):
         return _predict_problem(source, plan, _method(method, None))
     cfg = None
-    if isinstance(source, Analysis):
+    if isinstance(source, ConfiguredAnalysis):
         cfg, mission = source.config, mission if mission is not None else source.mission
     elif isinstance(source, AnalysisConfig):
         cfg = source

@@ -21,7 +21,7 @@ import numpy as np
 from gcs_core.errors import ConfigError, InputError
 from gcs_core.problem.attitude import RADEC, RPY, ReferenceAttitude, SpinAttitude, rpy_specs
 from gcs_core.problem.gyro_attitude import GyroAttitude
-from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
+from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.models.base import ParamSpec
@@ -29,6 +29,7 @@ from gcs_core.problem.prepare import (GeometryBuilder, HeldChannels, PhysicsOpti
                                    prepare_sensors)
 from gcs_core.problem.state import Element, StateVector
 from gcs_core.units import DEG
+from gcs_core.ephem.ephemeris import Ephemeris
 
 
 #: frames per chunk of the streaming linearization: memory is bounded by the chunk, not
@@ -163,7 +164,6 @@ def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
         if refs:
             ob = mission.telemetry[refs[0].name]
             a = [v * DEG for v in (refs[0].alignment_deg or (0.0, 0.0, 0.0))]
-            from gcs_core.frames.rotations import euler123_to_dcm
             alignment = euler123_to_dcm(*a)
     if ob is not None and len(ob):
         t_ref = getattr(attitude, "t_ref", float(ob.t[0]))
@@ -184,8 +184,6 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     telemetry columns geometry variants read again), not the mission: a caller that
     has no further use for the mission may drop it.
     """
-    from gcs_core.ephem.ephemeris import Ephemeris
-
     spec = mission.spec
     physics = physics or PhysicsOptions()
     options = options or StateOptions()

@@ -41,7 +41,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.sim.aux import AuxSchedule
-from gcs_core.sim.config import (ATTITUDE_MODES, SENSOR_TYPES, MissionConfig, as_plain)
+from gcs_core.sim.config import ATTITUDE_MODES, SENSOR_TYPES, MissionConfig, SensorConfig, as_plain
 from gcs_core.sim.sensors import CoarseSunSim, FineSunSim, MagnetometerSim
 from gcs_core.sim.spinner import HorizonSim, PlaneFieldSim, SunSightings
 from gcs_core.sim.stars import StarCatalog, StarTrackerSim

@@ -49,6 +49,7 @@ from gcs_core.errors import InputError
 from gcs_core.frames.rotations import (dcm_to_euler123, dcm_to_rotvec, quat_normalize,
                                        quat_to_dcm)
 from gcs_core.units import DEG
+from gcs_core.problem.attitude import ReferenceAttitude
 
 AXES = ("roll", "pitch", "yaw")
 ANGLES = ("euler", "body")
@@ -158,7 +159,6 @@ def _reference_matrices(reference, mode: str, t: np.ndarray) -> np.ndarray:
     if hasattr(reference, "reference"):                       # an attitude provider
         return np.asarray(reference.reference(t))
     if hasattr(reference, "state") and hasattr(reference, "sun_geocentric"):   # an Ephemeris
-        from gcs_core.problem.attitude import ReferenceAttitude
         return ReferenceAttitude(mode, reference).reference(t)
     if callable(reference):
         return np.asarray(reference(t))

@@ -22,6 +22,7 @@ from gcs_core.errors import EstimationError, InputError
 from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.frames.rotations import dcm_to_euler123, quat_from_dcm, quat_normalize
 from gcs_core.problem.attitude import rpy_error_jacobians
+from gcs_core.filtr.smoothing_uses import attitude_covariance
 
 
 @dataclass(frozen=True)
@@ -78,7 +79,6 @@ def ground_attitude(analysis, t) -> GroundAttitude:
             J[:, :, col[nm]] = att.J[:, :, a]
     S_body = np.einsum("nia,ab,njb->nij", J, res.P_consider, J)
     if dyn is not None:                                # the gyro wander the knots carry
-        from gcs_core.filtr.smoothing_uses import attitude_covariance
 
         S_body = S_body + attitude_covariance(dyn, att.C_BI, t, J)
     A = np.asarray(ref.reference(t))
