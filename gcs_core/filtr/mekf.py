@@ -42,7 +42,7 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.problem.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval
+from gcs_core.problem.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval, ProviderDefaults
 from gcs_core.filtr.kalman import LinearBlock
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.build import Problem
@@ -274,7 +274,7 @@ def gyro_rates(att, values: Mapping[str, float], k0: int, k1: int):
     ``ω = Mᵀ (G⁻¹ y − b − ḃ τ)`` (τ: time from the middle of the span; ḃ the optional bias
     rate); returns ω (K, 3), ``∂ω/∂p`` (K, 3, P) over ``att.param_names``, ``W_y = Mᵀ G⁻¹``
     and ``W_b = −Mᵀ``. These are the expressions of
-    :class:`~gcs_core.problem.attitude.GyroAttitude` restricted to a window of rows; if the
+    :class:`~gcs_core.problem.gyro_attitude.GyroAttitude` restricted to a window of rows; if the
     provider has parameters this function does not know, its own (whole-span) rates are
     sliced instead.
     """
@@ -305,7 +305,7 @@ def gyro_rates(att, values: Mapping[str, float], k0: int, k1: int):
     return omega, W[:, :, :len(names)], MtGinv, -M.T
 
 
-class SegmentAttitude:
+class SegmentAttitude(ProviderDefaults):
     """Attitude provider for :func:`linearize` on a block: the gyro-propagated nominal.
 
     Its only "elements" are the error angles ``kf.dtheta_*`` with ``∂δθ/∂δθ = I``.

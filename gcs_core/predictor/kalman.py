@@ -64,7 +64,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
 
     Parameters
     ----------
-    problem : a Problem whose attitude is a :class:`~gcs_core.problem.attitude.GyroAttitude`.
+    problem : a Problem whose attitude is a :class:`~gcs_core.problem.gyro_attitude.GyroAttitude`.
     values : nominal element values.
     names : solve-for elements (``att.roll/pitch/yaw`` first); consider : consider elements.
     sigma0 : (n,) a-priori σ of ``names``; sigma_c : (c,) of ``consider``.
@@ -108,7 +108,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     F = np.einsum("eji,ejp->eip", C, ae.J[:, :, 3:])              # E(t) = Cᵀ ∂δθ/∂p
     sf = [(j, 3 + others.index(p)) for j, p in enumerate(pnames) if p in others]
     cf = [(j, list(consider).index(p)) for j, p in enumerate(pnames) if p in consider]
-    gyro = getattr(att, "gyro", None)
+    gyro = att.gyro
     bias_names = [f"{gyro}.bias_{a}" for a in "xyz"]
     bias_idx = [3 + others.index(b) for b in bias_names] if all(b in others for b in bias_names) else None
     M, _ = common.alignment_matrix({f"align_{k}": values.get(f"{gyro}.align_{k}", 0.0) for k in (1, 2, 3)})

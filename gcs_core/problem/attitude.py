@@ -42,7 +42,7 @@ memory does not grow with the span.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Mapping
+from typing import Mapping, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -266,7 +266,68 @@ def rpy_specs(roll=0.0, pitch=0.0, yaw=0.0, sigma=1.0 * DEG) -> tuple[ParamSpec,
                  for n, v in zip(RPY, (roll, pitch, yaw)))
 
 
-class ReferenceAttitude:
+@runtime_checkable
+class AttitudeProvider(Protocol):
+    """What the estimators, the predictor and the diagnosis ask of ``Problem.attitude``.
+
+    Every provider in this package (and the estimators' own: the Kalman filter's
+    segment attitude, the whole-span corrected attitude) answers all of it; most take
+    the defaults of :class:`ProviderDefaults`.
+
+    Attributes
+    ----------
+    kind : ``"three_axis"`` (partials with respect to the body error ``δθ``) or
+        ``"spinning"`` (with respect to the spin axis ``Â``).
+    names : element names of the provider's partials (``AttitudeEval.names``).
+    gyro : the name of the gyro carrying the attitude (Eq 4-32, 4-33), None when none does.
+    t_ref : epoch of the attitude elements [s], None when they hold at every time.
+    ref : the provider whose roll/pitch/yaw the elements are (Eq 4-6): ``reference(t)``
+        gives the reference frame ``A(t)``, ``rpy_from_dcm(C, t)`` the elements of an
+        attitude ``C``; None when the elements are no roll/pitch/yaw (spinning, error angles).
+    """
+
+    kind: str
+    gyro: str | None
+    t_ref: float | None
+
+    @property
+    def names(self) -> tuple[str, ...]: ...
+
+    @property
+    def ref(self) -> "ReferenceAttitude | ManeuverAttitude | None": ...
+
+    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
+        """Attitude and partials at the times ``t`` (N,)."""
+
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
+        """The same at the frames of one chunk, partials kept factored (:class:`FrameAttitude`)."""
+
+    def covers(self, t) -> np.ndarray:
+        """(N,) True where the provider reaches ``t`` (a gyro-carried one: inside the gyro's span)."""
+
+    def block_edges(self) -> np.ndarray:
+        """Times where a propagation block ends (a chunk of frames never straddles one); empty
+        when the provider has no blocks."""
+
+
+class ProviderDefaults:
+    """The :class:`AttitudeProvider` members of a provider without gyro, blocks or span limits."""
+
+    gyro: str | None = None
+    t_ref: float | None = None
+    ref: "ReferenceAttitude | ManeuverAttitude | None" = None
+
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
+        return FrameAttitude.of(self.evaluate(values, t))
+
+    def covers(self, t) -> np.ndarray:
+        return np.ones(np.shape(np.asarray(t, dtype=float)), dtype=bool)
+
+    def block_edges(self) -> np.ndarray:
+        return np.zeros(0)
+
+
+class ReferenceAttitude(ProviderDefaults):
     """Constant roll/pitch/yaw relative to the reference frame (Eq 4-6)."""
 
     kind = "three_axis"
@@ -275,6 +336,11 @@ class ReferenceAttitude:
         self.mode = mode
         self.ephemeris = ephemeris
         self.builder = builder
+
+    @property
+    def ref(self) -> "ReferenceAttitude":
+        """Itself: the elements are roll/pitch/yaw about its reference frame."""
+        return self
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -307,15 +373,12 @@ class ReferenceAttitude:
         J = np.broadcast_to(rpy_error_jacobian(*rpy), (C.shape[0], 3, 3))
         return AttitudeEval(C, None, RPY, J, omega_B=omega)
 
-    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
-        return FrameAttitude.of(self.evaluate(values, t))
-
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
         A = self.reference(np.atleast_1d(t))[0]
         return tuple(float(a) for a in dcm_to_euler123(C @ A.T))
 
 
-class SpinAttitude:
+class SpinAttitude(ProviderDefaults):
     """Spin axis by right ascension and declination (Eq 4-2)."""
 
     kind = "spinning"
@@ -327,9 +390,6 @@ class SpinAttitude:
         n = np.atleast_1d(np.asarray(t)).size
         J = np.broadcast_to(np.stack([d_ra, d_dec], -1), (n, 3, 2))
         return AttitudeEval(None, spin_axis(ra, dec), RADEC, J)
-
-    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
-        return FrameAttitude.of(self.evaluate(values, t))
 
 
 def rpy_error_jacobians(rpy: np.ndarray) -> np.ndarray:
@@ -344,7 +404,7 @@ def rpy_error_jacobians(rpy: np.ndarray) -> np.ndarray:
     return np.stack([_vee(-(dB[:, i] @ BT)) for i in range(3)], -1)
 
 
-class ManeuverAttitude:
+class ManeuverAttitude(ProviderDefaults):
     """Gyro-free three-axis attitude following a known maneuver profile (module docstring)."""
 
     kind = "three_axis"
@@ -361,13 +421,22 @@ class ManeuverAttitude:
         C = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2]) @ self.reference_attitude.reference(t)
         return AttitudeEval(C, None, RPY, rpy_error_jacobians(rpy))
 
+    @property
+    def ref(self) -> "ManeuverAttitude":
+        """Itself: the elements are the roll/pitch/yaw at ``start``, before the maneuvers."""
+        return self
+
+    def reference(self, t) -> np.ndarray:
+        """(N, 3, 3) the reference frame ``A(t)`` (Eq 4-6)."""
+        return self.reference_attitude.reference(t)
+
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
         A = self.reference_attitude.reference(np.atleast_1d(t))[0]
         rpy = np.array(dcm_to_euler123(C @ A.T)) - self.offsets(np.atleast_1d(t))[0]
         return tuple(float(a) for a in rpy)
 
 
-class BodyErrorAttitude:
+class BodyErrorAttitude(ProviderDefaults):
     """A fixed attitude history whose elements are the body error angles (``J = I``).
 
     Parameters

@@ -19,7 +19,8 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.problem.attitude import RADEC, RPY, ReferenceAttitude, SpinAttitude, rpy_specs
+from gcs_core.problem.attitude import (RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude,
+                                       rpy_specs)
 from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
@@ -73,7 +74,7 @@ class Problem:
     Attributes
     ----------
     state : every element (all roles).
-    attitude : the attitude provider (Reference/Gyro/Spin).
+    attitude : the attitude provider (Reference/Gyro/Spin, :class:`AttitudeProvider`).
     sensors : observation sensors (gyros excluded; they drive the attitude).
     param_map : sensor -> {local param name -> element name}.
     builder : reference-vector builder (for variants and new times).
@@ -83,7 +84,7 @@ class Problem:
     """
 
     state: StateVector
-    attitude: object
+    attitude: AttitudeProvider
     sensors: list[SensorData]
     param_map: dict[str, dict[str, str]]
     builder: GeometryBuilder
@@ -166,11 +167,10 @@ def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
             a = [v * DEG for v in (refs[0].alignment_deg or (0.0, 0.0, 0.0))]
             alignment = euler123_to_dcm(*a)
     if ob is not None and len(ob):
-        t_ref = getattr(attitude, "t_ref", float(ob.t[0]))
+        t_ref = attitude.t_ref if attitude.t_ref is not None else float(ob.t[0])
         k = int(np.argmin(np.abs(ob.t - t_ref)))
         q = quat_normalize(np.array([ob.columns[c][k] for c in ("q1", "q2", "q3", "q4")]))
-        ref = attitude.ref if isinstance(attitude, GyroAttitude) else attitude
-        roll, pitch, yaw = ref.rpy_from_dcm(alignment.T @ quat_to_dcm(q), t_ref)
+        roll, pitch, yaw = attitude.ref.rpy_from_dcm(alignment.T @ quat_to_dcm(q), t_ref)
         return {"att.roll": roll, "att.pitch": pitch, "att.yaw": yaw}
     return {n: 0.0 for n in RPY}
 
@@ -207,7 +207,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     # drop frames the attitude provider cannot reach (before the first gyro interval)
     types = {s.name: s.type for s in spec.sensors}
     tables = {sd.name: _slim_table(mission.telemetry[sd.name], sd, types[sd.name]) for sd in sensors}
-    if isinstance(attitude, GyroAttitude):
+    if attitude.gyro is not None:
         kept = []
         for sd in sensors:
             m = attitude.covers(sd.t)

@@ -15,7 +15,6 @@ from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.problem.attitude import (FrameAttitude)
 from gcs_core.problem.kernels import GRAM_TILE_ROWS
 from gcs_core.problem.curvature import block_curvature
 from gcs_core.problem.prepare import (HeldChannels, SensorData)
@@ -120,7 +119,7 @@ def chunk_windows(problem: Problem, sensors: Sequence[SensorData], chunk: int | 
     frame range ``(lo, hi)``. Windows end on the gyro-carried attitude's block edges, so
     that a window needs one block of its propagation."""
     chunk = max(1, int(chunk or problem.chunk_frames))
-    edges = problem.attitude.block_edges() if hasattr(problem.attitude, "block_edges") else np.zeros(0)
+    edges = problem.attitude.block_edges()
     pos = [0] * len(sensors)
     cur, e = -np.inf, 0
     out = []
@@ -137,12 +136,6 @@ def chunk_windows(problem: Problem, sensors: Sequence[SensorData], chunk: int | 
             out.append(list(zip(pos, hi)))
         pos, cur = hi, edge
     return out
-
-
-def _frames(att, values, t, partials: bool):
-    if hasattr(att, "frames"):
-        return att.frames(values, t, partials=partials)
-    return FrameAttitude.of(att.evaluate(values, t))
 
 
 def _sensor_columns(problem: Problem, sd: SensorData, att_names, col_index):
@@ -205,7 +198,7 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
             base = geoms.get(sd.name) if geoms is not None and sd.name in geoms else sd.geom
             geom = window_geometry(base, lo, hi, sd.n)
             att_sel, par, cols = layout[sd.name]
-            fr = _frames(problem.attitude, values, sd.t[lo:hi], jacobian and att_sel.size > 0)
+            fr = problem.attitude.frames(values, sd.t[lo:hi], partials=jacobian and att_sel.size > 0)
             if fr.C_BI is not None:
                 geom = replace(geom, C_BI=fr.C_BI, omega_B=fr.omega_B)
             else:

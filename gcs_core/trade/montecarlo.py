@@ -151,7 +151,7 @@ def _truth(truth: dict, problem, values_book: dict, method: str = "batch") -> di
 
     out = dict(values_book)
     att = problem.attitude
-    gyro = getattr(att, "gyro", None)
+    gyro = att.gyro
     if gyro and "gyro_bias_history" in truth and gyro in truth["gyro_bias_history"]:
         h = np.asarray(truth["gyro_bias_history"][gyro], float)
         t0, t1 = float(att.knots[0]), float(att.knots[-1])
@@ -180,10 +180,10 @@ def _truth(truth: dict, problem, values_book: dict, method: str = "batch") -> di
     world = World(MissionConfig(name=truth["mission"], epoch=truth["epoch"], attitude_mode=truth["attitude_mode"],
                                 duration_s=float(truth["duration_s"]), orbit=OrbitElements(**truth["orbit"]),
                                 attitude=prof))
-    t_ref = getattr(att, "t_ref", None)
+    t_ref = att.t_ref
     if t_ref is None:
         t_ref = float(min(sd.t[0] for sd in problem.sensors if sd.n))
-    ref = getattr(att, "ref", att)
+    ref = att.ref
     C = world.attitude(np.array([t_ref]))[0]
     out["att.roll"], out["att.pitch"], out["att.yaw"] = ref.rpy_from_dcm(C, t_ref)
     return out

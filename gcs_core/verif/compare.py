@@ -49,7 +49,7 @@ from gcs_core.errors import InputError
 from gcs_core.frames.rotations import (dcm_to_euler123, dcm_to_rotvec, quat_normalize,
                                        quat_to_dcm)
 from gcs_core.units import DEG
-from gcs_core.problem.attitude import ReferenceAttitude
+from gcs_core.problem.attitude import AttitudeProvider, ReferenceAttitude
 
 AXES = ("roll", "pitch", "yaw")
 ANGLES = ("euler", "body")
@@ -156,8 +156,11 @@ def _reference_matrices(reference, mode: str, t: np.ndarray) -> np.ndarray:
             raise InputError(f"a '{mode}' mission needs its reference frame (an ephemeris)",
                              key="verification.reference")
         return np.broadcast_to(np.eye(3), (t.size, 3, 3))
-    if hasattr(reference, "reference"):                       # an attitude provider
-        return np.asarray(reference.reference(t))
+    if isinstance(reference, AttitudeProvider):
+        if reference.ref is None:
+            raise InputError("attitude verification needs a three-axis reference (roll/pitch/yaw)",
+                             key="verification.reference")
+        return np.asarray(reference.ref.reference(t))
     if hasattr(reference, "state") and hasattr(reference, "sun_geocentric"):   # an Ephemeris
         return ReferenceAttitude(mode, reference).reference(t)
     if callable(reference):

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import EstimationError, InputError
-from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.frames.rotations import dcm_to_euler123, quat_from_dcm, quat_normalize
 from gcs_core.problem.attitude import rpy_error_jacobians
 from gcs_core.filtr.smoothing_uses import attitude_covariance
@@ -45,8 +44,8 @@ class GroundAttitude:
 
 
 def _reference(attitude):
-    ref = attitude.ref if isinstance(attitude, GyroAttitude) else attitude
-    if not hasattr(ref, "reference"):
+    ref = attitude.ref
+    if ref is None:
         raise InputError("attitude verification needs a three-axis mission (a spinning mission has "
                          "no roll/pitch/yaw)", key="mission.attitude_mode")
     return ref
@@ -56,7 +55,7 @@ def covered(analysis, t) -> np.ndarray:
     """(N,) True where the fitted attitude provider reaches ``t``."""
     att = analysis.problem.attitude
     t = np.asarray(t, dtype=float)
-    return att.covers(t) if hasattr(att, "covers") else np.ones(t.shape, dtype=bool)
+    return att.covers(t)
 
 
 def ground_attitude(analysis, t) -> GroundAttitude:
