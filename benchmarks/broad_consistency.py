@@ -48,7 +48,7 @@ EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offse
 BIAS_DRIFT = {f"GYR.bias_rate_{a}": ElementConfig(role="solve-for", sigma=1e-5) for a in "xyz"}
 #: a-priori σ of a MEMS unit (the flight defaults, 1e-5 rad/s of gyro bias and 1e-3 of its
 #: matrix, are a navigation-grade IRU's): the gyro bias and matrix free, the magnetometer's
-#: non-orthogonality a few percent (as in tests/test_ground_mission.py)
+#: non-orthogonality a few percent (as in tests/statistical/test_ground_mission.py)
 MEMS_PRIORS = {**{f"GYR.bias_{a}": ElementConfig(sigma=1e-1) for a in "xyz"},
                **{f"GYR.G_{i}{j}": ElementConfig(sigma=0.05) for i in (1, 2, 3) for j in (1, 2, 3)},
                **{f"MAG.nonorth_{p}": ElementConfig(sigma=0.1) for p in ("xy", "xz", "yz")},

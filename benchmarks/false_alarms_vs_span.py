@@ -17,7 +17,7 @@ the bound on the failure rate is below 5 %: 0 failures in ≥ 59 seeds, 1 in ≥
 
 One run = one simulated mission (:mod:`gcs_core.sim`, Sun-pointing, inertial or
 Earth-pointing; :func:`honesty_cases.nominal`) through :meth:`Analysis.discover`
-(``tests/honesty_cases.py``, :func:`run_discovery`). The missions' seeds come from one
+(``tests/helpers/honesty_cases.py``, :func:`run_discovery`). The missions' seeds come from one
 ``SeedSequence(--entropy)``: one child per (mode, span, run), so a run's mission does not
 depend on which other runs are asked for.
 
@@ -55,7 +55,7 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers")]
 
 import honesty_cases as hc  # noqa: E402
 

@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 from scipy import stats  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers")]
 
 import honesty_cases as hc  # noqa: E402
 from gcs_core.config import AnalysisConfig  # noqa: E402

@@ -1,6 +1,6 @@
 """Hidden effects at 4 h and 8 h: does discovery add exactly the effect, without diverging?
 
-Issue 10's acceptance under gross and subtle model errors (``tests/honesty_cases.py``,
+Issue 10's acceptance under gross and subtle model errors (``tests/helpers/honesty_cases.py``,
 :data:`HIDDEN`): a 1 % symmetric TAM matrix error, TAM torquer coupling, a 1 s TAM
 time-tag offset, a 0.1° FHST1 roll about its boresight, a 1000 ppm gyro scale error, an
 FSS transfer-function harmonic of 6e-4 (and the Eq 4-23 sine amplitude ``A3 = 6e-4``,
@@ -41,7 +41,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests"), str(ROOT / "benchmarks")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers"), str(ROOT / "benchmarks")]
 
 import honesty_cases as hc  # noqa: E402
 from false_alarms_vs_span import _load  # noqa: E402

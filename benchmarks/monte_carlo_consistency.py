@@ -14,8 +14,8 @@ gyro bias, star-tracker scales) the table compares
 
 With N = 200 runs the sample σ itself is uncertain by ``1/sqrt(2(N−1)) ≈ 5 %``, so the 15 %
 criterion is a 3-sigma statement. The headline NEES (13 elements) is also printed against
-its 95 % χ² band. Truth and headline definitions: ``tests/test_consistency_batch.py``
-(:func:`headline`) and ``tests/test_truth_recovery.py`` (:func:`truth_values`).
+its 95 % χ² band. Truth and headline definitions: ``tests/statistical/test_consistency_batch.py``
+(:func:`headline`) and ``tests/statistical/test_truth_recovery.py`` (:func:`truth_values`).
 
 Usage::
 

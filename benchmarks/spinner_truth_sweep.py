@@ -3,7 +3,7 @@
 The full sweep of issue 11: a 10 rpm spinner with two horizon scanners (cones 60° and 110°)
 and a plane-field Sun sensor, 3 h, at 28.5°, 51.6°, 90° and Sun-synchronous inclinations,
 three seeds each, with a 0.6° cone-angle error Δγ, a 0.6° slit tilt, an 18 km horizon-height
-change or nothing hidden (``tests/spinner_cases.py``). The simulator crosses the WGS-84
+change or nothing hidden (``tests/helpers/spinner_cases.py``). The simulator crosses the WGS-84
 ellipsoid exactly (a closed-form tangent in each beam's vertical plane, roots in time); the
 model takes the oblate radius at each crossing's tangent point.
 
@@ -29,7 +29,7 @@ from pathlib import Path
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers")]
 
 from spinner_cases import HIDDEN, INCLINATIONS, run_case  # noqa: E402
 

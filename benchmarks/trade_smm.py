@@ -1,7 +1,7 @@
 """The seed's SMM conclusions (§2.1–§2.3) from the trade study: the README table.
 
 Runs the studies of ``sample_data/trade/smm-*.toml`` (the tests in
-``tests/test_trade_smm.py`` assert the same statements on the same studies) and prints
+``tests/reference/test_trade_smm.py`` assert the same statements on the same studies) and prints
 one markdown row per conclusion with the predicted σ that shows it.
 
 Usage: ``python benchmarks/trade_smm.py``

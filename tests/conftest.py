@@ -1,24 +1,39 @@
-"""Shared fixtures: the conformance mission and named tolerances."""
+"""Shared fixtures: the independent example missions and the helpers' import path.
+
+The tests live in folders by kind (``unit``, ``reference``, ``statistical``, ``tui``,
+``conformance``); the modules they share (``honesty_cases``, ``model_fixtures``, ...,
+``repo_paths``) live in ``tests/helpers``, put on the import path here.
+"""
 
 from __future__ import annotations
 
 import os
+import sys
+from pathlib import Path
 
 # Small matrices dominate GCS; OpenBLAS threads only contend on a 2-core machine.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+sys.path.insert(0, str(Path(__file__).resolve().parent / "helpers"))
 
-from pathlib import Path  # noqa: E402
+import pytest  # noqa: E402
 
-import pytest
-
-ROOT = Path(__file__).resolve().parents[1]
-SHARED_EXAMPLE = ROOT.parent / "shared" / "examples" / "sunpoint-nominal"
-SAMPLE_MISSIONS = ROOT / "sample_data" / "missions"
-SAMPLE_ANSWERS = ROOT / "sample_data" / "answers"
+from repo_paths import SHARED_EXAMPLES  # noqa: E402
 
 
 @pytest.fixture(scope="session")
-def example_dir() -> Path:
-    if not SHARED_EXAMPLE.is_dir():
-        pytest.skip("the shared conformance mission is not beside this checkout")
-    return SHARED_EXAMPLE
+def shared_example():
+    """``shared_example(name)``: the path of the independent simulator's mission ``name``
+    (``sunpoint-nominal``, ``spinner-nominal``, ...); the test is skipped when the shared
+    missions are not beside this checkout."""
+    def find(name: str = "sunpoint-nominal") -> Path:
+        path = SHARED_EXAMPLES / name
+        if not path.is_dir():
+            pytest.skip(f"the shared example mission {name!r} is not beside this checkout")
+        return path
+    return find
+
+
+@pytest.fixture(scope="session")
+def example_dir(shared_example) -> Path:
+    """The conformance mission ``sunpoint-nominal``."""
+    return shared_example("sunpoint-nominal")

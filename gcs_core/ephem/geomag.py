@@ -27,7 +27,7 @@ piecewise-linear model.
 The coefficient tables are the IGRF-13 and IGRF-14 ``.shc`` files that the ``ppigrf``
 package ships; they are read once per process. The spherical-harmonic sum is evaluated
 here, vectorized over points and processed in chunks so that memory stays bounded for
-hundreds of thousands of samples. ``tests/test_ref_igrf.py`` checks it against
+hundreds of thousands of samples. ``tests/reference/test_ref_igrf.py`` checks it against
 ``ppigrf.igrf_gc`` and published values.
 
 References

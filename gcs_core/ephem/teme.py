@@ -7,7 +7,7 @@ GCS's GCI the same way: Earth-fixed coordinates are ``R3(GMST) r_GCI`` (IAU 1982
 no precession or nutation). The two definitions coincide, so **a TEME state is a GCI state
 without any rotation**; the only approximations are the ICD's own (UT1 = UTC, |ΔUT1| < 0.9 s,
 ≤ 14 arcsec of Earth rotation, and no polar motion, ≤ 0.5 arcsec, 15 m at the surface).
-:func:`teme_to_pef` applies that Earth rotation; ``tests/test_tle_orbit.py`` checks it
+:func:`teme_to_pef` applies that Earth rotation; ``tests/reference/test_tle_orbit.py`` checks it
 against the PEF vector Vallado et al. publish.
 
 A mission whose GCI must be the frame of a J2000 star catalog can ask for J2000 instead

@@ -13,7 +13,7 @@ and onboard-attitude file of the mission plus :data:`MARGIN_S` on each side:
 1. **Orbit.** SGP4 (the ``sgp4`` package, WGS-72 constants as the TLE theory requires)
    at every ``step_s`` seconds. Between rows the ephemeris is Hermite-interpolated as any
    ephemeris.csv is (:mod:`gcs_core.ephem.ephemeris`). At 10 s it stays within 2 cm and
-   3 cm/s of SGP4 itself (``tests/test_tle_orbit.py``): the curvature term
+   3 cm/s of SGP4 itself (``tests/reference/test_tle_orbit.py``): the curvature term
    ``h⁴ n⁴ |r| / 384`` is only 0.3 mm, but SGP4's velocity differs from the derivative of
    its position by a few cm/s, and the interpolation uses both. Either is far below SGP4's
    own error (≈ 1 km at the TLE epoch, growing by 1–3 km a day for a low orbit; Vallado

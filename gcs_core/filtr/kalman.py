@@ -33,7 +33,7 @@ earlier row), ``NIS_f = |e_f|²``, and ``W = B L⁻ᵀ`` gives the gain ``K_f = 
 The state after the group is ``y_0 + W e``; its covariance is taken in Joseph form for
 the group gain ``K = W L⁻¹`` (a sum of positive semi-definite terms, see
 :func:`_group_end_covariance`). Results equal the textbook frame-by-frame filter to
-round-off (``tests/test_kalman.py``).
+round-off (``tests/unit/test_kalman.py``).
 
 Two engines, one answer
 -----------------------
@@ -42,7 +42,7 @@ Two engines, one answer
 frame at a time, O(n² m) per frame) when numba imports, and the lifted-group numpy core
 above otherwise (:data:`ENGINE`, chosen once from ``kalman_kernels.COMPILED``). Both give
 the same state, covariance, per-frame diagnostics and gate decisions to round-off
-(``tests/test_kalman.py``); the kernel is the faster (``benchmarks/kalman_vs_filterpy.py``).
+(``tests/unit/test_kalman.py``); the kernel is the faster (``benchmarks/kalman_vs_filterpy.py``).
 
 References
 ----------

@@ -17,7 +17,7 @@ Passes. The first pass is an EKF (re-linearized at each block start). Further pa
 smoothed trajectory, starting again from the a priori: the iterated Kalman smoother,
 a Gauss–Newton method on the whole span (Bell 1994). With Q = 0 it converges to the
 batch least-squares solution of :func:`~gcs_core.filtr.batch.batch_fit` (same a priori);
-``tests/test_kalman.py`` checks it.
+``tests/unit/test_kalman.py`` checks it.
 
 Consider elements are not carried by the filter (they stay at their values, as held).
 """

@@ -41,7 +41,7 @@ ellipsoid when ``|r| sin ρ = R(φ_T)``, ``R(φ) = a (1 + e sin²φ)^(−1/2)``,
 So Eq 4-12c takes ``ρ = asin(R(φ_T)/|r|)``, each crossing at its own tangent point, found
 in :data:`TANGENT_PASSES` passes from the sphere of radius ``a`` (``ρ₀ → ŵ₀ → φ_T → ρ₁ →
 ŵ₁ → φ_T → ρ₂``): within 0.15 σ of an exact ray–ellipsoid crossing at every orbit for the
-1.5 ms scanners (``tests/test_horizon_oblate.py``), where one pass leaves up to 1 σ, the
+1.5 ms scanners (``tests/unit/test_horizon_oblate.py``), where one pass leaves up to 1 σ, the
 radius at the sub-satellite latitude up to 100 σ (RMS 1–7 σ) and the sphere up to 36 σ.
 Tangents over ``(Â, r, Ŝ, γ', Δρ, Δh_H, κ)`` are carried through every pass.
 

@@ -1,0 +1,103 @@
+"""Noise from the data (gcs_core.filtr.noise) against simulated noise of known strength.
+
+The reference relations are IEEE Std 952-1997, Annex C: for a rate carrying white noise
+of density N (angle random walk) and a random walk of strength K (rate random walk),
+``σ²(τ) = N²/τ + K² τ/3``; N is read on the −1/2 line at τ = 1 s and K on the +1/2 line
+at τ = 3 s. The tolerances are the estimators' own scatter at these spans (stated below).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from gcs_core.errors import InputError
+from gcs_core.filtr import noise
+from repo_paths import TEST_DATA
+
+DT = 0.01                      # s
+N_ARW = 1e-3                   # rad/s^0.5
+K_RRW = 1e-4                   # rad/s^1.5
+#: overlapping ADEV at τ0 from 4e5 samples scatters by ~0.2 %; N by ~1 % on its line
+arw_tolerance = 0.03
+#: K is read where few clusters remain (τ ~ 100-1000 s of a 4000 s span): ~15 % scatter
+rrw_tolerance = 0.35
+white_tolerance = 0.03
+
+
+def _gyro(seed, n=400_000):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) * DT
+    white = rng.normal(scale=N_ARW / np.sqrt(DT), size=(n, 1))
+    walk = np.cumsum(rng.normal(scale=K_RRW * np.sqrt(DT), size=(n, 1)), axis=0)
+    return t, white + walk
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_white_plus_random_walk_known_strength(seed):
+    t, y = _gyro(seed)
+    curve = noise.allan_deviation(t, y)[0]
+    assert np.allclose(np.diff(np.log2(curve.tau)), 1.0)             # octaves
+    g = noise.gyro_terms(curve)
+    assert abs(g.arw / N_ARW - 1) < arw_tolerance and not g.arw_bound
+    assert abs(g.rrw / K_RRW - 1) < rrw_tolerance and not g.rrw_bound
+    # the model curve sqrt(N²/τ + K²τ/3) where both terms are well measured
+    model = np.sqrt(N_ARW ** 2 / curve.tau + K_RRW ** 2 * curve.tau / 3)
+    short = curve.tau < 10.0
+    assert np.max(np.abs(curve.adev[short] / model[short] - 1)) < arw_tolerance
+    # the white-noise line as a per-sample σ
+    sigma, _, bound = noise.white_level(curve, DT)
+    assert abs(sigma / (N_ARW / np.sqrt(DT)) - 1) < arw_tolerance and not bound
+
+
+def test_white_noise_on_a_moving_signal_with_hits_and_held_samples():
+    rng = np.random.default_rng(3)
+    t = np.arange(50_000) * DT
+    sigma = np.array([300.0, 50.0, 2.0])
+    signal = 4e4 * np.column_stack([np.sin(0.5 * t), np.cos(0.3 * t), np.sin(0.2 * t + 1)])
+    y = signal + rng.normal(size=(t.size, 3)) * sigma
+    y[rng.choice(t.size, 20, replace=False)] += 1e5                      # telemetry hits
+    held = np.repeat(np.arange(t.size)[::2], 2)[: t.size]               # every value read twice
+    est = noise.white_noise(t, y[held])
+    assert np.max(np.abs(est / sigma - 1)) < white_tolerance
+
+
+def test_quaternion_noise_in_radians():
+    from gcs_core.frames.rotations import quat_from_dcm, rotvec_to_dcm
+    rng = np.random.default_rng(4)
+    n = 20_000
+    t = np.arange(n) * DT
+    truth = rotvec_to_dcm(np.column_stack([0.3 * t, 0.1 * t, 0 * t]))
+    sigma = 1e-4
+    q = quat_from_dcm(rotvec_to_dcm(rng.normal(scale=sigma, size=(n, 3))) @ truth)
+    est = noise.white_noise(t, q, quaternion=True)
+    assert np.max(np.abs(est / sigma - 1)) < white_tolerance
+
+
+def test_too_few_samples_is_input_error():
+    with pytest.raises(InputError):
+        noise.allan_deviation(np.arange(5.0), np.zeros((5, 1)))
+
+
+def test_both_converters_mark_estimated_noise_one_way(tmp_path):
+    """One marker: the Astro Pi and BROAD converters' missions are both read as 'noise
+    estimated from the data' for every sensor whose noise they estimated; a data book
+    without the marker is not."""
+
+    from gcs_core.convert import convert
+    from gcs_core.filtr.noise import ESTIMATED_MARK, noise_estimated
+    from tests.test_convert_broad import _trial
+
+    data = TEST_DATA / "astropi"
+    convert("astropi", data / "astropi_extract.csv", tmp_path / "a",
+            tle=data / "iss-2022-01-31.tle")
+    src = tmp_path / "trial.hdf5"
+    _trial(src)
+    convert("broad", src, tmp_path / "b")
+    astro = (tmp_path / "a" / "mission.toml").read_text(encoding="utf-8")
+    broad = (tmp_path / "b" / "mission.toml").read_text(encoding="utf-8")
+    assert noise_estimated(astro, "MAG")
+    assert all(noise_estimated(broad, s) for s in ("GYR", "MAG", "OPT"))
+    assert not noise_estimated(broad, "NOPE")
+    book = broad.replace(ESTIMATED_MARK, "from the data book")
+    assert not any(noise_estimated(book, s) for s in ("GYR", "MAG", "OPT"))
