@@ -54,7 +54,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "statistical"), str(ROOT / "tests" / "helpers")]
 
 from test_consistency_batch import HEADLINE, headline, nees_band  # noqa: E402
 from test_truth_recovery import simulate, threeaxis, truth_values  # noqa: E402
