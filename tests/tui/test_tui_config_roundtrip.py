@@ -22,8 +22,8 @@ NEW_SIGMA_NT = 150.0
 EDITED = "TAM1.bias_x"
 
 
-async def test_saved_config_runs_headless_to_the_same_estimates(tmp_path):
-    config, hidden, _ = hidden_effect_case(tmp_path)
+async def test_saved_config_runs_headless_to_the_same_estimates(shared_example, tmp_path):
+    config, hidden, _ = hidden_effect_case(shared_example, tmp_path)
     saved = tmp_path / "saved" / "from-tui.toml"
     app = GcsApp()
     async with app.run_test(size=(120, 36)) as pilot:
