@@ -1,6 +1,6 @@
 """Results of the batch estimator (seed Eq 3-1, 3-2): per-sensor post-fit residuals, the
-fit's outcome, the residual buffers of a streaming pass. Split from
-:mod:`gcs_core.filtr.batch`, which re-exports these names.
+fit's outcome, the residual buffers of a streaming pass, for
+:mod:`gcs_core.filtr.batch` and every reader of its results.
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ and a-priori values come from the analysis configuration.
 :mod:`gcs_core.problem.linearization` (:func:`~gcs_core.problem.linearization.iter_blocks`,
 :func:`~gcs_core.problem.linearization.linearize`) is the single place where predictions
 and partials of all sensors are assembled into residuals ``r = y − h(x)`` and Jacobian
-columns ``H = ∂h/∂x``; its names are re-exported here.
+columns ``H = ∂h/∂x``.
 """
 
 from __future__ import annotations

@@ -3,8 +3,9 @@
 :class:`GyroAttitude` propagates the roll/pitch/yaw at ``t_ref`` with the gyro rates,
 block by block with a carry, and forms the partials of the body attitude error with
 respect to the attitude, the gyro's ``G`` (Eq 4-37), bias and bias rate as cumulative
-sums; the derivation is in the docstring of :mod:`gcs_core.problem.attitude`, which
-re-exports the class (the other attitude providers live there).
+sums; the derivation is in the docstring of :mod:`gcs_core.problem.attitude`, where the
+other attitude providers and their :class:`~gcs_core.problem.attitude.AttitudeProvider`
+protocol live.
 """
 
 from __future__ import annotations

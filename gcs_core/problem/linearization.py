@@ -5,8 +5,8 @@ frames) and yields, per sensor chunk, residuals ``r = y − h(x)`` and Jacobian 
 ``H = ∂h/∂x`` for any list of elements, the attitude partials chained through the
 attitude provider; :func:`linearize` gathers whole-span :class:`Linearization` objects.
 The batch estimator, the Kalman filter, the predictor and the diagnosis all read the data
-through here, so memory is bounded by the chunk, not the span. Split from
-:mod:`gcs_core.problem.build` (the state definition), which re-exports these names.
+through here, so memory is bounded by the chunk, not the span. It builds on
+:mod:`gcs_core.problem.build` (the state definition).
 """
 
 
