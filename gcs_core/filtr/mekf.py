@@ -17,7 +17,7 @@ Two kinds of problem, one block format (:class:`~gcs_core.filtr.kalman.LinearBlo
 
   and Farrenkopf's process noise (:func:`farrenkopf_q`). Every sensor's predictions and
   partials are evaluated *vectorized* over the block at that nominal (through
-  :func:`~gcs_core.problem.build.linearize`, the nominal being its attitude provider);
+  :func:`~gcs_core.problem.linearization.linearize`, the nominal being its attitude provider);
   the core then makes exact frame-by-frame linear updates with the accumulated error
   state (rows ``A = H Ψ(t)``), and the next block re-linearizes at the updated estimate
   (the reset).

@@ -45,7 +45,7 @@ def weighted_rows(lin, t: np.ndarray, use: np.ndarray | None = None) -> tuple[np
 
     Parameters
     ----------
-    lin : a :class:`~gcs_core.problem.build.Linearization`; t : (N,) its frame times;
+    lin : a :class:`~gcs_core.problem.linearization.Linearization`; t : (N,) its frame times;
     use : (N,) frames to use besides the model's ``valid`` flag.
 
     Returns
