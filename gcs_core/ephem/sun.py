@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_core import units
+from gcs_core.ephem.timescale import julian_date
 
 __all__ = ["SUN_RADIUS_KM", "sun_position_km", "sun_position_at", "in_shadow",
            "sunlit_fraction", "earth_occults", "earth_angular_radius"]
@@ -70,7 +71,6 @@ def sun_position_km(jd) -> np.ndarray:
 
 def sun_position_at(epoch, t) -> np.ndarray:
     """:func:`sun_position_km` at mission times ``t`` [s] since ``epoch``. (N, 3) km."""
-    from gcs_core.ephem.timescale import julian_date
     return sun_position_km(julian_date(epoch, t))
 
 

@@ -57,7 +57,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.frames.rotations import dcm_to_rotvec, quat_normalize, quat_to_dcm
+from gcs_core.frames.rotations import dcm_to_rotvec, quat_normalize, quat_to_dcm, rotvec_to_dcm
 
 #: consistency constant of the median absolute deviation for a normal distribution
 MAD_TO_SIGMA = 1.4826
@@ -220,7 +220,6 @@ def small_angles(q: np.ndarray) -> np.ndarray:
     mean of the angles from it. Small, and meaningful, over a still span only."""
     C = quat_to_dcm(quat_normalize(np.asarray(q, dtype=float)))
     e0 = dcm_to_rotvec(C @ C[0].T)
-    from gcs_core.frames.rotations import rotvec_to_dcm
     Cbar = rotvec_to_dcm(e0.mean(axis=0)) @ C[0]
     return dcm_to_rotvec(C @ Cbar.T)
 

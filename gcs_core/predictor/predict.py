@@ -40,6 +40,10 @@ from gcs_core.io.csvio import read_table
 from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
 from gcs_core.io.types import MissionSpec
 from gcs_core.units import DEG
+from gcs_core.filtr.smoothing_uses import predicted_covariance
+from gcs_core.io.tle_table import tle_ephemeris_table
+from gcs_core.ephem.orbit import build_ephemeris
+from gcs_core.ephem.ephemeris import Ephemeris
 
 log = logging.getLogger(__name__)
 
@@ -196,9 +200,6 @@ def _mission_parts(source, mission, cfg):
 
 
 def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float):
-    from gcs_core.ephem.ephemeris import Ephemeris
-    from gcs_core.ephem.orbit import build_ephemeris
-
     if eph_table is not None:
         eph = Ephemeris.from_table(eph_table)
         if eph.t_start <= plan.start and eph.t_end >= plan.end:
@@ -207,7 +208,6 @@ def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float)
             eph.check_covers(np.array([plan.start, plan.end]), what="the prediction plan")
     if orbit is None and getattr(spec, "orbit_tle", None) is not None:
         # the mission's [orbit] tle propagated over the plan (gcs_core.ephem.tle)
-        from gcs_core.io.tle_table import tle_ephemeris_table
         return Ephemeris.from_table(tle_ephemeris_table(
             spec.orbit_tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
             step_s=spec.orbit_step_s, margin_s=EPHEMERIS_MARGIN_S))
@@ -339,8 +339,6 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
         hist = info.static_history(A_cum, n, info.prior_information(sigma0), sigma_c,
                                    _attitude_partials(problem, values, names, times))
     if method == "whole_span" and not use_kalman:
-        from gcs_core.filtr.smoothing_uses import predicted_covariance
-
         final = predicted_covariance(problem, values, names, cons,
                                      {k: ~np.asarray(v, bool) for k, v in masks.items()},
                                      A_final, sigma0, sigma_c)

@@ -29,6 +29,7 @@ from gcs_core.sim.astro import R_EARTH_KM
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
                                  SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
+from gcs_core.sim.truth import World
 
 __all__ = ["nominal_threeaxis", "spinner_nominal", "spinner_two_scanners", "sun_synchronous_inclination_deg",
            "with_effect", "EFFECTS", "list_effects"]
@@ -97,7 +98,6 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
     sun_align, fhst1 = (0.0, 0.0, 0.0), (0.0, 0.0, 90.0)
     if mode == "inertial":
         # Point body x at the Sun at the epoch (the Sun-pointing frame frozen at t = 0).
-        from gcs_core.sim.truth import World
         probe = MissionConfig(name="probe", epoch=epoch, attitude_mode="sun_pointing", duration_s=1.0,
                               orbit=cfg.orbit)
         A0 = World(probe).reference(np.array([0.0]))[0]
@@ -105,7 +105,6 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
     elif mode == "earth_pointing":
         # Sun sensors look at the zenith, tilted toward the Sun's side of the orbit plane by the
         # beta angle; FHST1 looks along ±y away from the Sun, raised 30° toward the zenith.
-        from gcs_core.sim.truth import World
         w = World(cfg)
         r, v = w.orbit(np.array([0.0]))
         s = unit(w.sun(np.array([0.0])))
