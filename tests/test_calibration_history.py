@@ -25,7 +25,7 @@ EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoin
 @pytest.fixture(scope="module")
 def fitted():
     """sunpoint-nominal fitted with the seed state, and again with TAM1.alignment added."""
-    first = Analysis(AnalysisConfig(mission=EXAMPLE, holdout_fraction=0.0))
+    first = Analysis(AnalysisConfig(mission=EXAMPLE).with_changes(diagnosis={"holdout_fraction": 0.0}))
     first.fit(holdout=False)
     second = copy.copy(first)
     second.steps = list(first.steps)
@@ -85,7 +85,7 @@ def test_version_holds_values_sigmas_covariance_and_provenance(fitted, tmp_path)
 
 
 def test_saving_before_a_fit_is_refused(tmp_path):
-    unfitted = Analysis(AnalysisConfig(mission=EXAMPLE, holdout_fraction=0.0))
+    unfitted = Analysis(AnalysisConfig(mission=EXAMPLE).with_changes(diagnosis={"holdout_fraction": 0.0}))
     with pytest.raises(EstimationError, match="fit"):
         save_calibration(unfitted, tmp_path / "scds.h5")
     assert not (tmp_path / "scds.h5").exists()

@@ -1,7 +1,7 @@
 """The ``gcs`` command (gcs_tui/cli.py): every command on the bundled sample missions, the
 ICD §7 JSON report, exit codes, one-line errors without tracebacks, and the progress display.
 
-Commands run in-process through ``gcs_tui.cli.main([...])``; two runs go through a real
+Commands run in-process through ``gcs_tui.cli.commands.main([...])``; two runs go through a real
 interpreter (``python -m gcs_tui.cli``) to check the process exit code and that stderr
 holds no traceback.
 """
@@ -22,8 +22,8 @@ from pathlib import Path
 import pytest
 
 from gcs_core.reporting import icd_report_problems
-from gcs_tui import cli
-from gcs_tui.cli import main
+from gcs_tui.cli import commands as cli
+from gcs_tui.cli.commands import main
 
 ROOT = Path(__file__).resolve().parents[1]
 MISSIONS = ROOT / "sample_data" / "missions"
@@ -289,7 +289,7 @@ def test_internal_error_traceback_only_with_verbose(monkeypatch, capsys):
 def test_progress_bar_on_a_terminal_and_log_lines_elsewhere():
     from rich.console import Console
 
-    from gcs_tui.progress import Progress
+    from gcs_tui.cli.progress import Progress
 
     screen = io.StringIO()
     bar = Progress(mode="auto", console=Console(file=screen, force_terminal=True, width=100))
@@ -322,7 +322,7 @@ def test_quiet_run_prints_results_only(capsys):
 def test_logging_handlers_are_removed_after_a_run():
     import logging
 
-    from gcs_tui.progress import LogHandler
+    from gcs_tui.cli.progress import LogHandler
 
     run("effects")
     for name in cli.LOGGERS:

@@ -22,7 +22,7 @@ from gcs_core.sidp.noise import white_noise
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_to_dcm
 from gcs_core.sidp.importer import load_mission
-from gcs_tui import cli
+from gcs_tui.cli import commands as cli
 
 DATA = Path(__file__).parent / "data" / "astropi"
 CSV = DATA / "astropi_extract.csv"

@@ -8,8 +8,8 @@ import pytest
 from textual.app import App
 
 from gcs_core.sidp.noise import sensor_noise
-from gcs_tui.screens.allan import AllanScreen, summary
-from gcs_tui.theme import VARIABLES
+from gcs_tui.tui.screens.allan import AllanScreen, summary
+from gcs_tui.tui.theme import VARIABLES
 
 
 def _results():
@@ -54,9 +54,9 @@ async def test_palette_command_on_the_broad_sample(tmp_path):
     sensor; escape closes it."""
     from pathlib import Path
 
-    from gcs_tui.app import GcsApp
-    from gcs_tui.testing import settle
-    from gcs_tui.workbench import Workbench
+    from gcs_tui.tui.app import GcsApp
+    from tui_testing import settle
+    from gcs_tui.tui.workbench import Workbench
 
     config = Path(__file__).resolve().parents[1] / "sample_data/configs/real-broad-02-slow-rotation.toml"
     if not config.is_file():

@@ -56,8 +56,8 @@ from scipy import linalg
 from gcs_core.diagnosis.aliases import _sparse_basis
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import curvature, local_refine
-from gcs_core.filtr.batch_results import (BatchResult, Residuals, SensorResiduals, accumulate,  # noqa: F401
-                                         make_residuals, residuals_from, weighted_masks)
+from gcs_core.filtr.residuals import Residuals, residuals_from
+from gcs_core.filtr.results import BatchResult
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.problem import Problem
 

@@ -45,11 +45,12 @@ import numpy as np
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitude
-from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
-                                  edit_frames, name_combinations, residuals_from)
+from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.mekf import GyroNoise, gyro_noise
 from gcs_core.filtr.problem import Problem
+from gcs_core.filtr.residuals import Residuals, residuals_from
+from gcs_core.filtr.results import BatchResult
 from gcs_core.frames.rotations import rotvec_to_dcm
 
 log = logging.getLogger(__name__)

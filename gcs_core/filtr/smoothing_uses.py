@@ -15,7 +15,8 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.filtr import knots as kn
-from gcs_core.filtr.batch import BatchResult, _solve_normal
+from gcs_core.filtr.batch import _solve_normal
+from gcs_core.filtr.results import BatchResult
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.problem import Problem
 from gcs_core.filtr.smoothing_batch import Dynamics, SmoothedResult, _Passes, make_knots, process_noise
