@@ -80,7 +80,7 @@ def test_version_holds_values_sigmas_covariance_and_provenance(fitted, tmp_path)
     assert (p["data_t0"], p["data_t1"]) == (0.0, 7200.0)
     assert p["models"] == {"TAM1": "magnetometer", "IRU": "gyro", "FHST1": "star_tracker",
                            "FHST2": "star_tracker", "FSS1": "fine_sun", "CSS1": "coarse_sun"}
-    assert p["physics"] == first.config.physics
+    assert p["physics"] == first.config.physics.as_dict()
     assert p["created_utc"].endswith("Z") and p["gcs_version"]
 
 

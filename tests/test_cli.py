@@ -99,6 +99,10 @@ def test_discover_report_has_the_icd_fields(discovered):
     cand = rep["candidates"][0]
     assert {"id", "sensor", "effect", "delta_chi2", "dof", "p_value", "identifiable"} <= set(cand)
     assert cand["id"] == f"{cand['sensor']}.{cand['effect']}"
+    assert rep["physics_needed"], "the always-on physics in the model, each with its cost"
+    for row in rep["physics_needed"]:           # statistics from the engine, the sentence made here
+        assert set(row) == {"id", "delta_chi2_if_removed", "needed", "why", "physics"}
+        assert row["why"].startswith("switching it off would add Δχ²") and isinstance(row["needed"], bool)
     assert (out / "plots" / "residuals.html").read_text().startswith("<!doctype html>")
 
 

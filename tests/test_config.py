@@ -288,3 +288,14 @@ def test_tables_and_the_fit_key_come_from_the_dataclasses():
                     base.with_changes(physics={"sun_parallax": False}), base.with_changes(method="batch"),
                     base.with_changes(state={"effects": ("TAM1.alignment",)})):
         assert C.fit_key(changed) != C.fit_key(base)
+
+
+def test_config_for_opens_what_either_face_is_given(tmp_path):
+    """One rule for ``gcs <command> TARGET`` and the TUI's open: a mission directory or its
+    mission.toml gives the default config, a .toml file is read, anything else is refused."""
+    assert C.config_for(MISSION) == C.default_config(MISSION)
+    assert C.config_for(MISSION / "mission.toml") == C.default_config(MISSION)
+    path = write(tmp_path, BASE + '[diagnosis]\nsignificance = 0.01\n')
+    assert C.config_for(path).diagnosis.significance == 0.01
+    with pytest.raises(ConfigError, match="no such mission directory or config file"):
+        C.config_for(tmp_path / "nothing-here")

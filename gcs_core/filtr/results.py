@@ -7,6 +7,7 @@ the screens read any of them; plus the stepping filter's per-block and per-frame
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import TYPE_CHECKING, Mapping, Protocol
 
 import numpy as np
@@ -310,12 +311,12 @@ class FilterResult:
     def values(self) -> dict[str, float]:
         return self.state.values()
 
-    @property
+    @cached_property
     def chi2(self) -> float:
         """Post-fit χ² of the smoothed residuals over used frames."""
         return float(sum(r.chi2 for r in self.residuals.values()))
 
-    @property
+    @cached_property
     def dof(self) -> int:
         """Used measurement components − solve-for elements."""
         return int(sum(r.n * len(r.components) for r in self.residuals.values())) - len(self.solve_for)
