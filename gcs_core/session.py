@@ -8,6 +8,7 @@ here knows about screens or terminals.
 from __future__ import annotations
 
 import logging
+from dataclasses import replace
 from typing import Callable, Mapping
 
 import numpy as np
@@ -208,7 +209,8 @@ class Analysis:
         """Kalman filter + smoother (Eq 3-3, 3-4); its result is a :class:`FitResult` like the
         batch's, so the diagnosis and reports read either. The ranking then linearizes
         about the smoothed solution."""
-        return self.make_filter().run(progress=progress, cancel=cancel)
+        fr = self.make_filter().run(progress=progress, cancel=cancel)
+        return replace(fr, message=f"Kalman filter + smoother: {fr.message}")
 
     def rank(self) -> list[Candidate]:
         if self.result is None:
