@@ -2,7 +2,7 @@
 
 :class:`FiltrRun` wraps :class:`gcs_core.filtr.stepping.Filtr` (one block per
 :meth:`~FiltrRun.step`, several passes when the iterated smoother is on) and keeps
-every :class:`~gcs_core.filtr.stepping.BlockReport`; :meth:`FiltrRun.view` turns them
+every :class:`~gcs_core.filtr.results.BlockReport`; :meth:`FiltrRun.view` turns them
 into the plain numbers the FILTR screen draws. No Textual here.
 """
 
@@ -57,12 +57,10 @@ class FiltrRun:
     """A FILTR run on the workbench's current problem, every block report kept."""
 
     def __init__(self, wb) -> None:
-        Filtr = engine("gcs_core.filtr.stepping", "Filtr")
-        FilterOptions = engine("gcs_core.filtr.filter_options", "FilterOptions")
-        cfg = wb.config
+        engine("gcs_core.filtr.stepping", "Filtr")        # Unavailable, naming what is missing
         self.units = {e.name: e.unit for e in wb.analysis.problem.state}
-        self.filtr = Filtr(wb.analysis.problem, options=FilterOptions(edit_k=cfg.filter.edit_k or None),
-                           block_seconds=cfg.filter.block_seconds)
+        # the session's filter: [filter] block, k and per-sensor k as `gcs batch --method kalman`
+        self.filtr = wb.analysis.make_filter()
         self.reports: list = []
         self.result = None
 
