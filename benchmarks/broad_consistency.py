@@ -28,7 +28,6 @@ from __future__ import annotations
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -66,8 +65,8 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span"):
     convert("broad", source, out, span=span)
     mission = load_mission(out)
     cfg = default_config(out)
-    cfg = replace(cfg, method=method, physics={**cfg.physics, "field_model": "constant"},
-                  effects=tuple(EFFECTS), elements={**cfg.elements, **MEMS_PRIORS})
+    cfg = cfg.with_changes(method=method, physics={"field_model": "constant"}, state={
+        "effects": tuple(EFFECTS), "elements": {**cfg.state.elements, **MEMS_PRIORS}})
     a = Analysis(cfg, mission=mission)
     t0 = time.perf_counter()
     res = a.fit(holdout=False)

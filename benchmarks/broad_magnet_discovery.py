@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import sys
 import tempfile
-from dataclasses import replace
 from pathlib import Path
 
 from gcs_core.config import ElementConfig, default_config
@@ -37,8 +36,8 @@ MAG_ELEMENTS = tuple(f"MAG.{p}" for p in ("bias_x", "bias_y", "bias_z", "scale_x
 def analysis(src: Path, out: Path, *, effects=(), exclude=(), elements=None) -> Analysis:
     convert("broad", src, out)
     cfg = default_config(out)
-    cfg = replace(cfg, physics={**cfg.physics, "field_model": "constant"}, effects=tuple(effects),
-                  exclude=tuple(exclude), elements={**MEMS_PRIORS, **(elements or {})})
+    cfg = cfg.with_changes(physics={"field_model": "constant"}, state={
+        "effects": tuple(effects), "exclude": tuple(exclude), "elements": {**MEMS_PRIORS, **(elements or {})}})
     return Analysis(cfg, mission=load_mission(out))
 
 

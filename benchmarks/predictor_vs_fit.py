@@ -62,7 +62,7 @@ def case(mode: str, seed: int, span: float, folder: Path, stars=STAR_MODELS):
     cfg.attitude = ThreeAxisProfile(rpy0_deg=rpy0, wobble_amp_deg=(0.0, 0.0, 0.0), slews=slews)
     mdir = write_mission(cfg, folder / f"{mode}-{seed}")
     t0 = time.perf_counter()
-    analysis = Analysis(AnalysisConfig(mission=mdir, holdout_fraction=0.0))
+    analysis = Analysis(AnalysisConfig(mission=mdir).with_changes(diagnosis={"holdout_fraction": 0.0}))
     fit = analysis.fit(holdout=False)
     t_fit = time.perf_counter() - t0
     maneuvers = tuple(Maneuver(s.t_start, s.duration_s, s.axis, s.rate_deg_s) for s in slews)

@@ -185,7 +185,7 @@ def run(hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: i
 
     # score Δχ² (no refit) against the refit's likelihood-ratio Δχ²
     rows = ranked if top <= 0 else ranked[:top]
-    alpha = a.config.significance
+    alpha = a.config.diagnosis.significance
     # "edits": frames the refit's editing adds (+) or takes back (−); "step σ": how far the
     # refit lands from the ranking's one-step prediction of the candidate (the score test is
     # local: it reads the χ² surface at the solution)

@@ -58,7 +58,7 @@ def calibration_provenance(analysis, *, note: str = "") -> dict:
         "data_t0": t0,
         "data_t1": t1,
         "models": models,
-        "physics": dict(cfg.physics),
+        "physics": cfg.physics.as_dict(),
         "config_hash": cfg.digest(),
         "mission": analysis.mission.spec.name,
         "mission_dir": str(analysis.mission.spec.root),

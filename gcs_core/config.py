@@ -93,7 +93,7 @@ import os
 import re
 import tempfile
 import tomllib
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
@@ -103,6 +103,7 @@ from gcs_core.errors import ConfigError
 from gcs_core.fileperm import make_usual
 from gcs_core.problem.state import ROLES
 from gcs_core.io.types import SENSOR_TYPES
+from gcs_core.problem.prepare import PhysicsOptions
 
 METHODS = ("whole_span", "batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole", "constant")
@@ -111,25 +112,18 @@ AXES = ("roll", "pitch", "yaw")
 STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")
 #: value of ``[models]`` that drops a sensor from the analysis
 MODEL_OFF = "off"
-#: the tables of a config and the keys each holds
-TABLES: dict[str, tuple[str, ...]] = {
-    "analysis": ("mission", "name", "method"),
-    "physics": ("stellar_aberration", "solar_aberration", "sun_parallax", "earth_oblateness", "field_model"),
-    "models": (),
-    "state": ("effects", "exclude", "attitude_sigma_deg", "elements"),
-    "filter": ("block_seconds", "edit_k", "max_iterations", "edit_k_sensor"),
-    "diagnosis": ("significance", "holdout_fraction"),
-    "prediction": ("start", "end", "step", "gaps", "maneuvers", "stars", "catalog"),
-    "verification": ("requirement_deg",),
-}
-#: the planning tables (gcs trade / optimize / montecarlo), checked in detail by gcs_core.trade
-PLANNING_TABLES: dict[str, tuple[str, ...]] = {
-    "trade": ("vary", "targets", "orbit", "top", "output", "optimize"),
-    "montecarlo": ("runs", "seed", "output"),
-}
 ELEMENT_KEYS = ("role", "value", "sigma")
 MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
 _ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
+
+#: field metadata: written to TOML only when it holds something (an empty table is left out)
+_OMIT_EMPTY = {"omit_empty": True}
+
+
+def _key(label: str, **checks) -> dict:
+    """Field metadata of a key a form edits: its label with the unit, and the form's checks
+    (``positive``, ``choices``)."""
+    return {"label": label, **checks}
 
 
 @dataclass(frozen=True)
@@ -145,76 +139,134 @@ class ElementConfig:
 class Maneuver:
     """A constant-rate maneuver about one reference axis (Eq 4-35, 4-36)."""
 
-    start: float
-    duration: float
-    axis: str
-    rate_deg_s: float
+    start: float = field(metadata=_key("start [s]"))
+    duration: float = field(metadata=_key("duration [s]", positive=True))
+    axis: str = field(metadata=_key("axis", choices=AXES))
+    rate_deg_s: float = field(metadata=_key("rate [deg/s]"))
+
+
+@dataclass(frozen=True)
+class StateConfig:
+    """``[state]``: the solve-for set (SODL).
+
+    Attributes
+    ----------
+    effects, exclude : catalogue effect ids added to / removed from the solve-for set.
+    attitude_sigma_deg : a-priori sigma of the attitude elements [deg].
+    elements : element name -> :class:`ElementConfig`.
+    """
+
+    effects: tuple[str, ...] = ()
+    exclude: tuple[str, ...] = ()
+    attitude_sigma_deg: float = 1.0
+    elements: dict[str, ElementConfig] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class FilterConfig:
+    """``[filter]``: estimator options.
+
+    Attributes
+    ----------
+    block_seconds : the FILTR stepping block [s].
+    edit_k : k of the k-σ editing (batch) and innovation gate (Kalman); 0 for none.
+    max_iterations : iteration limit of the batch and whole-span fits.
+    edit_k_sensor : sensor -> its own k, 0 for none, overriding ``edit_k``.
+    """
+
+    block_seconds: float = 600.0
+    edit_k: float = 5.0
+    max_iterations: int = 20
+    edit_k_sensor: dict[str, float] = field(default_factory=dict, metadata=_OMIT_EMPTY)
+
+
+@dataclass(frozen=True)
+class DiagnosisConfig:
+    """``[diagnosis]``: family-wise significance (Bonferroni over the candidates) and the
+    fraction of the span held out for validation."""
+
+    significance: float = 0.001
+    holdout_fraction: float = 0.25
+
+
+@dataclass(frozen=True)
+class PredictionConfig:
+    """``[prediction]``: the predictor's data plan.
+
+    Attributes
+    ----------
+    step : frame step [s]; gaps : (start, end) pairs [s]; maneuvers : :class:`Maneuver` s.
+    start, end : the plan's span [s], None for the telemetry span.
+    stars : the star model (:data:`STAR_MODELS`); None: the plan's default (``"catalog"``
+        when a catalog is given, else ``"sky"``).
+    catalog : star catalog file (resolved against the mission directory), or None
+        (``star_catalog.csv`` of the mission, if any).
+    """
+
+    step: float = field(default=10.0, metadata=_key("step [s]", positive=True))
+    gaps: tuple[tuple[float, float], ...] = ()
+    maneuvers: tuple[Maneuver, ...] = ()
+    start: float | None = field(default=None, metadata=_key("start [s]"))
+    end: float | None = field(default=None, metadata=_key("end [s]"))
+    stars: str | None = None
+    catalog: Path | None = None
+
+
+@dataclass(frozen=True)
+class VerificationConfig:
+    """``[verification]``: the VERIF attitude accuracy requirement [deg]."""
+
+    requirement_deg: float = 0.01
+
+
+#: field metadata of the tables that do not change a fit (left out of :func:`fit_key`)
+_NOT_FIT = {"fit": False}
 
 
 @dataclass(frozen=True)
 class AnalysisConfig:
-    """Everything an analysis run needs besides the mission data.
+    """Everything an analysis run needs besides the mission data, one attribute per
+    TOML table (the ``[analysis]`` keys are the top-level attributes).
 
     Attributes
     ----------
     path : where the config was read from (relative paths resolve against its folder).
     mission : mission directory.
+    name : an optional label (not part of :meth:`digest`).
     method : ``whole_span`` (the default: whole-span least squares with the gyro noise
         as process noise on the attitude and drift bias, :mod:`gcs_core.filtr.smoothing_batch`),
         ``batch`` (static states, gyro-propagated attitude with Q = 0) or ``kalman``
         (one-pass filter and smoother with gyro process noise, the FILTR stepping engine).
-    physics : always-on physics switches (see :mod:`gcs_core.problem.prepare`).
+    physics : always-on physics switches (:class:`~gcs_core.problem.prepare.PhysicsOptions`).
     models : sensor -> its type, or ``"off"`` to leave the sensor out.
-    effects, exclude : catalogue effect ids added to / removed from the solve-for set.
-    elements : element name -> :class:`ElementConfig`.
-    attitude_sigma_deg : a-priori sigma of the attitude elements.
-    block_seconds, edit_k, max_iterations : FILTR options.
-    edit_k_sensor : sensor -> its own k of the k-σ editing (batch) and innovation gate
-        (Kalman), 0 for none, overriding ``edit_k``.
-    significance, holdout_fraction : diagnosis options.
-    pred_start, pred_end, pred_step, gaps, maneuvers : predictor data plan.
-    pred_stars : the predictor's star model (:data:`STAR_MODELS`); None: the plan's default
-        (``"catalog"`` when a catalog is given, else ``"sky"``).
-    pred_catalog : star catalog file (``prediction.catalog``, resolved against the
-        mission directory), or None (``star_catalog.csv`` of the mission, if any).
-    requirement_deg : VERIF attitude accuracy requirement.
+    state, filter, diagnosis, prediction, verification : the tables of the same name.
     trade, montecarlo : the ``[trade]`` and ``[montecarlo]`` tables as read (checked in
         detail by :mod:`gcs_core.trade`).
-    name : an optional label (not part of :meth:`digest`).
     """
 
-    path: Path | None = None
+    path: Path | None = field(default=None, metadata=_NOT_FIT)
     mission: Path = Path(".")
-    method: str = "whole_span"
-    physics: dict = field(default_factory=lambda: {"stellar_aberration": True, "solar_aberration": True,
-                                                   "sun_parallax": True, "earth_oblateness": True,
-                                                   "field_model": "igrf"})
-    models: dict = field(default_factory=dict)
-    effects: tuple[str, ...] = ()
-    exclude: tuple[str, ...] = ()
-    elements: dict = field(default_factory=dict)
-    attitude_sigma_deg: float = 1.0
-    block_seconds: float = 600.0
-    edit_k: float = 5.0
-    max_iterations: int = 20
-    edit_k_sensor: dict = field(default_factory=dict)
-    significance: float = 0.001
-    holdout_fraction: float = 0.25
-    pred_start: float | None = None
-    pred_end: float | None = None
-    pred_step: float = 10.0
-    gaps: tuple[tuple[float, float], ...] = ()
-    maneuvers: tuple[Maneuver, ...] = ()
-    pred_stars: str | None = None
-    pred_catalog: Path | None = None
-    requirement_deg: float = 0.01
     name: str | None = None
-    trade: dict = field(default_factory=dict)
-    montecarlo: dict = field(default_factory=dict)
+    method: str = "whole_span"
+    physics: PhysicsOptions = field(default_factory=PhysicsOptions)
+    models: dict[str, str] = field(default_factory=dict)
+    state: StateConfig = field(default_factory=StateConfig)
+    filter: FilterConfig = field(default_factory=FilterConfig)
+    diagnosis: DiagnosisConfig = field(default_factory=DiagnosisConfig)
+    prediction: PredictionConfig = field(default_factory=PredictionConfig, metadata=_NOT_FIT)
+    verification: VerificationConfig = field(default_factory=VerificationConfig, metadata=_NOT_FIT)
+    trade: dict = field(default_factory=dict, metadata={**_NOT_FIT, **_OMIT_EMPTY})
+    montecarlo: dict = field(default_factory=dict, metadata={**_NOT_FIT, **_OMIT_EMPTY})
 
     # ------------------------------------------------------------------ derived
     def with_changes(self, **kw) -> "AnalysisConfig":
-        return replace(self, **kw)
+        """A copy with attributes changed; a table's keys are given as ``table={key: value}``
+        (``cfg.with_changes(diagnosis={"holdout_fraction": 0.0})``)."""
+        out = {}
+        for k, v in kw.items():
+            old = getattr(self, k)
+            out[k] = replace(old, **v) if isinstance(v, dict) and _is_table(old) else v
+        return replace(self, **out)
 
     def digest(self) -> str:
         """A short hash of the settings (provenance of calibrations); the label and the
@@ -224,6 +276,32 @@ class AnalysisConfig:
         for extra in PLANNING_TABLES:         # planning settings do not change a calibration
             d.pop(extra, None)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def _is_table(v) -> bool:
+    return hasattr(v, "__dataclass_fields__")
+
+
+#: the attributes of :class:`AnalysisConfig` read from ``[analysis]``
+ANALYSIS_KEYS = ("mission", "name", "method")
+#: the planning tables (gcs trade / optimize / montecarlo), checked in detail by gcs_core.trade
+PLANNING_TABLES: dict[str, tuple[str, ...]] = {
+    "trade": ("vary", "targets", "orbit", "top", "output", "optimize"),
+    "montecarlo": ("runs", "seed", "output"),
+}
+#: the tables of a config and the keys each holds (from the dataclasses' fields)
+TABLES: dict[str, tuple[str, ...]] = {"analysis": ANALYSIS_KEYS, **{
+    f.name: (tuple(g.name for g in fields(f.default_factory)) if _is_table(f.default_factory) else ())
+    for f in fields(AnalysisConfig) if f.name not in ("path", *ANALYSIS_KEYS, *PLANNING_TABLES)}}
+
+
+def fit_key(cfg: AnalysisConfig) -> str:
+    """Digest of the settings that change a fit: every attribute but those marked as not
+    (the path, the data plan, the requirement, the planning tables), which take their
+    defaults."""
+    default = AnalysisConfig()
+    return replace(cfg, **{f.name: getattr(default, f.name) for f in fields(AnalysisConfig)
+                           if not f.metadata.get("fit", True)}).digest()
 
 
 # ---------------------------------------------------------------------------- reading
@@ -287,7 +365,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _require(name is None or isinstance(name, str), "analysis.name", f"must be a string, not {_show(name)}", f)
     method = _choice(an, "method", METHODS, "whole_span", "analysis.method", f)
 
-    ph = dict(AnalysisConfig().physics)
+    ph = {}
     phys = tables["physics"]
     _unknown(phys, TABLES["physics"], "physics.", f)
     for k, v in phys.items():
@@ -363,21 +441,26 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     for extra, keys in PLANNING_TABLES.items():
         _unknown(tables[extra], keys, f"{extra}.", f)
     return AnalysisConfig(
-        path=path, mission=mission, method=method, physics=ph, models=dict(models),
-        effects=lists["effects"], exclude=lists["exclude"], elements=elements, attitude_sigma_deg=att_sig,
-        block_seconds=_number(fl, "block_seconds", 600.0, f, positive=True, prefix="filter."),
-        edit_k=_number(fl, "edit_k", 5.0, f, lo=0.0, prefix="filter."),
-        max_iterations=_number(fl, "max_iterations", 20, f, lo=1, hi=1000, integer=True, prefix="filter."),
-        edit_k_sensor=_edit_k_sensor(fl, f),
-        significance=_number(dg, "significance", 0.001, f, lo=1e-12, hi=0.5, prefix="diagnosis."),
-        holdout_fraction=_number(dg, "holdout_fraction", 0.25, f, lo=0.0, hi=0.9, prefix="diagnosis."),
-        pred_start=pred_start, pred_end=pred_end,
-        pred_step=_number(pr, "step", 10.0, f, positive=True, prefix="prediction."),
-        gaps=tuple((float(a), float(b)) for a, b in gaps), maneuvers=tuple(mans),
-        pred_stars=pred_stars, pred_catalog=pred_catalog,
-        requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
-                                prefix="verification."),
-        name=name, trade=dict(tables["trade"]), montecarlo=dict(tables["montecarlo"]))
+        path=path, mission=mission, name=name, method=method, physics=PhysicsOptions(**ph),
+        models=dict(models),
+        state=StateConfig(effects=lists["effects"], exclude=lists["exclude"], attitude_sigma_deg=att_sig,
+                          elements=elements),
+        filter=FilterConfig(
+            block_seconds=_number(fl, "block_seconds", 600.0, f, positive=True, prefix="filter."),
+            edit_k=_number(fl, "edit_k", 5.0, f, lo=0.0, prefix="filter."),
+            max_iterations=_number(fl, "max_iterations", 20, f, lo=1, hi=1000, integer=True, prefix="filter."),
+            edit_k_sensor=_edit_k_sensor(fl, f)),
+        diagnosis=DiagnosisConfig(
+            significance=_number(dg, "significance", 0.001, f, lo=1e-12, hi=0.5, prefix="diagnosis."),
+            holdout_fraction=_number(dg, "holdout_fraction", 0.25, f, lo=0.0, hi=0.9, prefix="diagnosis.")),
+        prediction=PredictionConfig(
+            step=_number(pr, "step", 10.0, f, positive=True, prefix="prediction."),
+            gaps=tuple((float(a), float(b)) for a, b in gaps), maneuvers=tuple(mans),
+            start=pred_start, end=pred_end, stars=pred_stars, catalog=pred_catalog),
+        verification=VerificationConfig(
+            requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
+                                    prefix="verification.")),
+        trade=dict(tables["trade"]), montecarlo=dict(tables["montecarlo"]))
 
 
 def _edit_k_sensor(fl: dict, f) -> dict[str, float]:
@@ -397,20 +480,21 @@ def check_against_mission(cfg: AnalysisConfig, spec) -> None:
     f = cfg.path
     types = {s.name: s.type for s in spec.sensors}
     listed = ", ".join(types) or "none"
+    st = cfg.state
     for name, model in cfg.models.items():
         key = f"models.{_quote(name)}"
         _require(name in types, key, f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
         _require(model in (types[name], MODEL_OFF), key,
                  f"sensor {name} is a {types[name]}: use \"{types[name]}\" or \"off\", not {_show(model)}", f)
-    for key, ids in (("state.effects", cfg.effects), ("state.exclude", cfg.exclude)):
+    for key, ids in (("state.effects", st.effects), ("state.exclude", st.exclude)):
         for i, e in enumerate(ids, start=1):
             owner = e.split(".")[0]
             _require(owner in types or owner == "model", f"{key}[{i}]",
                      f"effect {e}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})", f)
-    for name in cfg.edit_k_sensor:
+    for name in cfg.filter.edit_k_sensor:
         _require(name in types, f"filter.edit_k_sensor.{_quote(name)}",
                  f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
-    for name in cfg.elements:
+    for name in st.elements:
         owner = name.split(".")[0]
         _require(owner in types or owner == "att", f"state.elements.{_quote(name)}",
                  f"element {name}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})", f)
@@ -418,7 +502,9 @@ def check_against_mission(cfg: AnalysisConfig, spec) -> None:
 
 # ---------------------------------------------------------------------------- writing
 def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str, Any]:
-    """The TOML-ready dictionary of a config (paths relative to ``relative_to``)."""
+    """The TOML-ready dictionary of a config (paths relative to ``relative_to``): one TOML
+    table per table attribute, its keys in field order; None and empty optional tables
+    are left out."""
     mission = cfg.mission
     if relative_to is not None:
         try:
@@ -428,38 +514,42 @@ def to_dict(cfg: AnalysisConfig, *, relative_to: Path | None = None) -> dict[str
     analysis: dict[str, Any] = {"mission": mission.as_posix(), "method": cfg.method}
     if cfg.name is not None:
         analysis["name"] = cfg.name
-    out: dict[str, Any] = {
-        "analysis": analysis,
-        "physics": dict(cfg.physics),
-        "models": dict(cfg.models),
-        "state": {"effects": list(cfg.effects), "exclude": list(cfg.exclude),
-                  "attitude_sigma_deg": cfg.attitude_sigma_deg,
-                  "elements": {k: {kk: vv for kk, vv in asdict(v).items() if vv is not None}
-                               for k, v in cfg.elements.items()}},
-        "filter": {"block_seconds": cfg.block_seconds, "edit_k": cfg.edit_k,
-                   "max_iterations": cfg.max_iterations},
-        "diagnosis": {"significance": cfg.significance, "holdout_fraction": cfg.holdout_fraction},
-        "prediction": {"step": cfg.pred_step, "gaps": [list(g) for g in cfg.gaps],
-                       "maneuvers": [asdict(m) for m in cfg.maneuvers]},
-        "verification": {"requirement_deg": cfg.requirement_deg},
-    }
-    if cfg.edit_k_sensor:
-        out["filter"]["edit_k_sensor"] = dict(cfg.edit_k_sensor)
-    for extra in ("trade", "montecarlo"):
-        if getattr(cfg, extra):
-            out[extra] = dict(getattr(cfg, extra))
-    if cfg.pred_start is not None:
-        out["prediction"]["start"] = cfg.pred_start
-    if cfg.pred_end is not None:
-        out["prediction"]["end"] = cfg.pred_end
-    if cfg.pred_stars is not None:
-        out["prediction"]["stars"] = cfg.pred_stars
-    if cfg.pred_catalog is not None:             # relative to the mission, as it is read
-        try:
-            out["prediction"]["catalog"] = Path(_relpath(cfg.pred_catalog, cfg.mission)).as_posix()
-        except ValueError:
-            out["prediction"]["catalog"] = Path(cfg.pred_catalog).as_posix()
+    out: dict[str, Any] = {"analysis": analysis}
+    for f in fields(AnalysisConfig):
+        if f.name in ("path", *ANALYSIS_KEYS):
+            continue
+        value = getattr(cfg, f.name)
+        if f.metadata.get("omit_empty") and not value:
+            continue
+        out[f.name] = _table_dict(value, cfg) if _is_table(value) else dict(value)
     return out
+
+
+def _table_dict(table, cfg: AnalysisConfig) -> dict[str, Any]:
+    """One table's TOML keys: tuples as lists, dataclasses as tables, None left out, the
+    star catalog relative to the mission (as it is read)."""
+    out: dict[str, Any] = {}
+    for f in fields(table):
+        v = getattr(table, f.name)
+        if v is None or (f.metadata.get("omit_empty") and not v):
+            continue
+        if isinstance(v, Path):                  # prediction.catalog
+            try:
+                v = Path(_relpath(v, cfg.mission)).as_posix()
+            except ValueError:
+                v = Path(v).as_posix()
+        out[f.name] = _toml_value(v)
+    return out
+
+
+def _toml_value(v):
+    if _is_table(v):
+        return {f.name: _toml_value(getattr(v, f.name)) for f in fields(v) if getattr(v, f.name) is not None}
+    if isinstance(v, (tuple, list)):
+        return [_toml_value(x) for x in v]
+    if isinstance(v, dict):
+        return {k: _toml_value(x) for k, x in v.items()}
+    return v
 
 
 def _relpath(p: Path, base: Path) -> str:
@@ -489,4 +579,19 @@ def save_config(cfg: AnalysisConfig, path: str | Path) -> Path:
 
 
 def default_config(mission_dir: str | Path) -> AnalysisConfig:
+    """The config of a mission directory with every key at its default."""
     return AnalysisConfig(mission=Path(mission_dir))
+
+
+def config_for(target: str | Path) -> AnalysisConfig:
+    """The analysis config a face opens for ``target``: a config file, or a mission
+    directory (or its ``mission.toml``) with every key at its default. The TUI and the
+    headless commands both open what they are given through here."""
+    p = Path(target).expanduser()
+    if p.is_dir():
+        return default_config(p)
+    if p.name == "mission.toml" and p.is_file():      # the mission's own file: its directory
+        return default_config(p.parent)
+    if p.suffix == ".toml" or p.is_file():
+        return load_config(p)
+    raise ConfigError("no such mission directory or config file", file=p)

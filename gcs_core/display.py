@@ -19,7 +19,7 @@ the numbers stay below 10⁷; otherwise value and σ share a power of ten
 **p-values** keep two significant digits; below 1e-16 (the resolution of 1 − P in double
 precision) they read ``< 1e-16``, never ``0``.
 
-Nothing here imports a UI library; :mod:`gcs_tui.format` re-exports this module.
+Nothing here imports a UI library; the ``gcs`` tables and the TUI both import this module.
 """
 
 from __future__ import annotations

@@ -8,20 +8,20 @@ here knows about screens or terminals.
 from __future__ import annotations
 
 import logging
-import math
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 from typing import Callable, Mapping
 
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.display import p_text
-from gcs_core.diagnosis import aliases, determination, goodness, physics, policy
+from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
+from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
-from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.batch_results import BatchResult  # noqa: F401
+from gcs_core.filtr.batch import BatchOptions
+from gcs_core.filtr.filter_options import FilterOptions
+from gcs_core.filtr.results import FitResult
 from gcs_core.filtr.smoothing_batch import fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
@@ -30,40 +30,6 @@ from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class Step:
-    """One entry of the add/refit history.
-
-    Attributes
-    ----------
-    action : "fit", "add" or "remove"; effect : the effect id (None for the first fit).
-    rms_before, rms_after : sensor -> normalized RMS on the fitted span.
-    holdout_after : sensor -> normalized RMS on the held-out span (empty if none).
-    delta_chi2 : χ² removed by the change (fit χ² before − after).
-    estimates : element -> value after the step, for the elements of ``effect``.
-    """
-
-    action: str
-    effect: str | None
-    rms_before: Mapping[str, float]
-    rms_after: Mapping[str, float]
-    holdout_after: Mapping[str, float]
-    delta_chi2: float
-    chi2_after: float
-    estimates: Mapping[str, float] = field(default_factory=dict)
-
-    def as_report(self) -> dict:
-        return {"action": self.action, "added" if self.action != "remove" else "removed": self.effect,
-                "rms_normalized_before": _round(self.rms_before),
-                "rms_normalized_after": _round(self.rms_after),
-                "holdout_rms_normalized_after": _round(self.holdout_after),
-                "delta_chi2": round(self.delta_chi2, 3), "estimates": dict(self.estimates)}
-
-
-def _round(d: Mapping[str, float]) -> dict:
-    return {k: (round(v, 4) if math.isfinite(v) else None) for k, v in d.items()}
 
 
 class Analysis:
@@ -77,6 +43,9 @@ class Analysis:
     result : the latest fit (None before the first).
     candidates : the latest ranking.
     steps : the add/refit history.
+    holdout_rms, holdout_chi2 : sensor -> normalized RMS and χ² test on the held-out span.
+    warnings : the latest fit's honesty warnings about the method.
+    stop_reason : why the latest discovery stopped ("" before one).
     """
 
     def __init__(self, config: AnalysisConfig, *, mission=None):
@@ -84,27 +53,31 @@ class Analysis:
 
         self.config = config
         self.mission = mission if mission is not None else load_mission(config.mission)
-        self.result: BatchResult | None = None
+        self.result: FitResult | None = None
         self.candidates: list[Candidate] = []
         self.steps: list[Step] = []
         self.holdout_rms: dict[str, float] = {}
         self.holdout_chi2: dict[str, goodness.ChiSquare] = {}   # sensor (and "all sensors") -> test
+        self.warnings: list[str] = []
+        self.stop_reason = ""
+        self.problem: Problem = self._build()
         self._goodness: tuple | None = None             # (result it was formed for, GoodnessOfFit)
         self._null_at_prior: tuple | None = None        # (problem, combinations)
         self._physics_needed: tuple | None = None      # (result it was scored on, rows)
-        self._rebuild()
+        self._aliases: tuple | None = None              # (result it was formed for, aliases)
 
     # ------------------------------------------------------------------ set-up
     @property
     def physics(self) -> PhysicsOptions:
-        return PhysicsOptions(**self.config.physics)
+        return self.config.physics
 
     def _state_options(self) -> StateOptions:
-        ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in self.config.elements.items()}
-        return StateOptions(effects=self.config.effects, exclude=self.config.exclude, overrides=ov,
-                            attitude_sigma=self.config.attitude_sigma_deg * DEG)
+        ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in self.config.state.elements.items()}
+        return StateOptions(effects=self.config.state.effects, exclude=self.config.state.exclude, overrides=ov,
+                            attitude_sigma=self.config.state.attitude_sigma_deg * DEG)
 
-    def _rebuild(self) -> None:
+    def _build(self) -> Problem:
+        """The state definition and prepared sensors of the current config."""
         spec = self.mission.spec
         off = {name for name, m in self.config.models.items() if m == "off"}
         for name in self.config.models:
@@ -114,8 +87,8 @@ class Analysis:
         if off:
             mission = _without_sensors(mission, off)
         gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
-        self.problem: Problem = build_problem(mission, physics=self.physics, options=self._state_options(),
-                                              use_gyro=not gyro_off)
+        return build_problem(mission, physics=self.physics, options=self._state_options(),
+                             use_gyro=not gyro_off)
 
     def catalogue(self) -> list[Effect]:
         return mission_catalogue(self.problem, self.physics)
@@ -145,9 +118,9 @@ class Analysis:
 
     # ------------------------------------------------------------------ fitting
     def batch_options(self) -> BatchOptions:
-        return BatchOptions(max_iterations=self.config.max_iterations,
-                            edit_k=self.config.edit_k or None,
-                            edit_k_sensor={k: (v or None) for k, v in self.config.edit_k_sensor.items()})
+        return BatchOptions(max_iterations=self.config.filter.max_iterations,
+                            edit_k=self.config.filter.edit_k or None,
+                            edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()})
 
     def holdout_masks(self) -> dict[str, np.ndarray]:
         """Held-out frames per sensor (True = held out).
@@ -157,7 +130,7 @@ class Analysis:
         part of the span (slews, eclipses) while the fit interpolates into them rather than
         extrapolating past the end of its data.
         """
-        f = self.config.holdout_fraction
+        f = self.config.diagnosis.holdout_fraction
         if f <= 0:
             return {}
         t_all = np.concatenate([sd.t for sd in self.problem.sensors])
@@ -171,7 +144,7 @@ class Analysis:
             out[sd.name] = ((block % every) == every // 2) & (block < n_blocks - 1)
         return out
 
-    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> BatchResult:
+    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> FitResult:
         """Fit the current state; with ``holdout`` also score the held-out span.
 
         ``initial`` warm-starts the iterations (e.g. from the previous step's solution);
@@ -223,32 +196,31 @@ class Analysis:
                 f"wander leaves Δχ² = {cost['delta_chi2']:.1f} in the residuals. Use method = "
                 "\"whole_span\" (the default) for honest σ and p-values."]
 
-    def filter_options(self):
-        from gcs_core.filtr.stepping import FilterOptions
-        return FilterOptions(edit_k=self.config.edit_k or None,
-                             edit_k_sensor={k: (v or None) for k, v in self.config.edit_k_sensor.items()})
+    def filter_options(self) -> FilterOptions:
+        return FilterOptions(edit_k=self.config.filter.edit_k or None,
+                             edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()})
 
     def make_filter(self):
         """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""
         from gcs_core.filtr.stepping import Filtr
-        return Filtr(self.problem, options=self.filter_options(), block_seconds=self.config.block_seconds)
+        return Filtr(self.problem, options=self.filter_options(), block_seconds=self.config.filter.block_seconds)
 
-    def _kalman_fit(self, progress=None, cancel=None) -> BatchResult:
-        """Kalman filter + smoother (Eq 3-3, 3-4), reported in the batch result's shape so that
-        the diagnosis and reports read either. The ranking then linearizes about the
-        smoothed solution."""
+    def _kalman_fit(self, progress=None, cancel=None) -> FitResult:
+        """Kalman filter + smoother (Eq 3-3, 3-4); its result is a :class:`FitResult` like the
+        batch's, so the diagnosis and reports read either. The ranking then linearizes
+        about the smoothed solution."""
         fr = self.make_filter().run(progress=progress, cancel=cancel)
-        return batch_result_from_filter(fr)
+        return replace(fr, message=f"Kalman filter + smoother: {fr.message}")
 
     def rank(self) -> list[Candidate]:
         if self.result is None:
             self.fit()
         self.candidates = rank_candidates(self.problem, self.result, self.candidate_effects(),
-                                          alpha=self.config.significance,
+                                          alpha=self.config.diagnosis.significance,
                                           smoothed=self.config.method == "kalman")
         return self.candidates
 
-    def physics_needed(self) -> list[dict]:
+    def physics_needed(self) -> list[physics.PhysicsNeed]:
         """For each always-on physics option in the model, what switching it off would cost
         (:func:`gcs_core.diagnosis.physics.physics_needed`), once per fit."""
         if self.result is None:
@@ -257,7 +229,7 @@ class Analysis:
             return self._physics_needed[1]
         on_ids = set(self.effects_in_state())
         phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
-        out = physics.physics_needed(self.problem, self.result, phys, alpha=self.config.significance,
+        out = physics.physics_needed(self.problem, self.result, phys, alpha=self.config.diagnosis.significance,
                                      smoothed=self.config.method == "kalman") if phys else []
         self._physics_needed = (self.result, out)         # one score pass per fit
         return out
@@ -276,18 +248,16 @@ class Analysis:
         e = cat[effect_id]
         if e.physics:
             on_val, off_val = PHYSICS_EFFECTS[e.effect]
-            phys = dict(self.config.physics)
-            phys[e.effect] = on_val if on else off_val
-            self.config = replace(self.config, physics=phys)
+            self.config = self.config.with_changes(physics={e.effect: on_val if on else off_val})
         else:
-            effects = [x for x in self.config.effects if x != effect_id]
-            exclude = [x for x in self.config.exclude if x != effect_id]
+            effects = [x for x in self.config.state.effects if x != effect_id]
+            exclude = [x for x in self.config.state.exclude if x != effect_id]
             if on:
                 effects.append(effect_id)
             else:
                 exclude.append(effect_id)
-            self.config = replace(self.config, effects=tuple(effects), exclude=tuple(exclude))
-        self._rebuild()
+            self.config = self.config.with_changes(state={"effects": tuple(effects), "exclude": tuple(exclude)})
+        self.problem = self._build()
 
     def _apply(self, action: str, effect_id: str, on: bool) -> Step:
         if self.result is None:
@@ -322,41 +292,11 @@ class Analysis:
 
     # ------------------------------------------------------------------ discovery
     def discover(self, *, max_steps: int = 10, progress: Callable[[str], None] | None = None) -> list[Step]:
-        """Stepwise: add the most significant identifiable candidate while one passes the
-        Bonferroni-corrected level; stop and say why."""
-        say = progress or (lambda msg: log.info(msg))
-        if self.result is None:
-            self.fit()
-        if not self.steps:
-            self.first_step()
-        self.stop_reason = ""
-        for _ in range(max_steps):
-            cands = self.rank()
-            ok = [c for c in cands if c.identifiable and c.p_adjusted < self.config.significance]
-            if not ok:
-                best = cands[0] if cands else None
-                self.stop_reason = ("no candidate is significant at family-wise α = "
-                                    f"{self.config.significance:g}" +
-                                    (f" (best: {best.id}, {p_text(best.p_adjusted, 'p adj')}"
-                                     + ("" if best.identifiable else ", not identifiable") + ")" if best else ""))
-                break
-            top = self._parsimonious(ok[0], cands)
-            say(f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
-                f"{p_text(top.p_adjusted, 'p adj')})")
-            self.add_effect(top.id)
-        else:
-            self.stop_reason = f"stopped after {max_steps} steps"
-        self.rank()
-        g = self.goodness()
-        if g is not None:
-            # a converged fit of an inadequate model must not read as success
-            self.stop_reason += "; what remains: " + g.verdict
-        say(self.stop_reason)
+        """Stepwise discovery (:func:`gcs_core.diagnosis.discovery.discover`): add the most
+        significant identifiable candidate while one passes the Bonferroni-corrected level;
+        ``stop_reason`` says why it stopped."""
+        self.stop_reason = discovery.discover(self, max_steps=max_steps, progress=progress)
         return self.steps
-
-    def _parsimonious(self, top: Candidate, cands: list[Candidate]) -> Candidate:
-        """The candidate to add among ``top`` and its aliases (:func:`policy.parsimonious`)."""
-        return policy.parsimonious(top, cands, self.result, self.problem.state, self.config.significance)
 
     # ------------------------------------------------------------------ honesty
     def goodness(self) -> goodness.GoodnessOfFit | None:
@@ -369,7 +309,7 @@ class Analysis:
             return None
         if self._goodness is None or self._goodness[0] is not res:
             g = goodness.goodness_of_fit(self.problem, res, holdout=self.holdout_chi2,
-                                         alpha=self.config.significance)
+                                         alpha=self.config.diagnosis.significance)
             self._goodness = (res, g)
         return self._goodness[1]
 
@@ -395,7 +335,7 @@ class Analysis:
             self._null_at_prior = (self.problem, combos)
         return self._null_at_prior[1]
 
-    # ------------------------------------------------------------------ report (ICD §7)
+    # ------------------------------------------------------------------ what the fit left open
     def not_determined(self) -> dict[str, str]:
         """Solve-for elements the latest fit did not determine, with the reason
         (:func:`gcs_core.diagnosis.determination.not_determined`); {} before a fit."""
@@ -414,79 +354,9 @@ class Analysis:
         res = self.result
         if res is None:
             return []
-        cache = getattr(self, "_aliases", None)
-        if cache is None or cache[0] is not res:
-            cache = (res, aliases.problem_aliases(self.problem, res))
-            self._aliases = cache
-        return cache[1]
-
-    def report(self) -> dict:
-        res = self.result
-        spec = self.mission.spec
-        sensors = {}
-        gof = self.goodness()
-        if res is not None:
-            for name, r in res.residuals.items():
-                rms = r.rms
-                sensors[name] = {"n": r.n, "rms": [float(v) for v in rms] if rms.size > 1 else float(rms[0]),
-                                 "rms_normalized": round(r.rms_normalized, 4),
-                                 "edited": int(np.count_nonzero(r.edited)),
-                                 "holdout_rms_normalized": _round({name: self.holdout_rms.get(name, float("nan"))})[name],
-                                 "unit": r.unit, "components": list(r.components)}
-                sensors[name].update(gof.sensor_report(name) if gof is not None else {})
-        state = []
-        if res is not None:
-            sig = res.sigma
-            loose = self.not_determined()
-            by_prior = self.set_by_prior()
-            shares = determination.prior_shares(res.solve_for, res.P,
-                                                [res.state[n].sigma0 for n in res.solve_for])
-            for e in res.state:
-                if e.role == HELD:
-                    continue
-                row = {"name": e.name, "estimate": e.value, "sigma": sig.get(e.name, e.sigma0),
-                       "unit": e.unit, "role": e.role}
-                if e.role == SOLVE_FOR:
-                    row["determined"] = e.name not in loose
-                    if e.name in loose:
-                        row["note"] = loose[e.name]
-                    row["set_by_prior"] = e.name in by_prior
-                    if e.name in shares:
-                        row["prior_share"] = round(shares[e.name], 4)
-                    if e.name in by_prior and e.name not in loose:
-                        row["note"] = by_prior[e.name]
-                state.append(row)
-        return {
-            "mission": spec.name,
-            "method": self.config.method,
-            "status": res.status if res else "not run",
-            "sensors": sensors,
-            "state": state,
-            "candidates": [c.as_report() for c in self.candidates],
-            "steps": [s.as_report() for s in self.steps if s.action != "fit"],
-            "effects_in_state": self.effects_in_state(),
-            "physics": dict(self.config.physics),
-            "physics_needed": self.physics_needed() if res is not None else [],
-            "unobservable": list(res.unobservable) if res else [],
-            "aliases": [al.as_report() for al in self.aliases()],
-            "unobservable_at_prior": self.null_at_prior() if res else [],
-            "goodness_of_fit": gof.as_report() if gof is not None else None,
-            "verdict": gof.verdict if gof is not None else "not run",
-            "warnings": list(getattr(self, "warnings", [])),
-            "stop_reason": getattr(self, "stop_reason", ""),
-            "config_digest": self.config.digest(),
-        }
-
-
-def batch_result_from_filter(fr) -> BatchResult:
-    """A :class:`BatchResult` view of a filter/smoother result (no consider elements)."""
-    chi2 = float(sum(r.chi2 for r in fr.residuals.values()))
-    m = int(sum(r.n * len(r.components) for r in fr.residuals.values()))
-    n = len(fr.solve_for)
-    return BatchResult(fr.state, tuple(fr.solve_for), (), np.asarray(fr.x), np.asarray(fr.P),
-                       np.asarray(fr.P), fr.residuals, chi2, m - n, (), fr.passes,
-                       "converged" if fr.status in ("converged", "single_pass") else fr.status,
-                       f"Kalman filter + smoother: {fr.message}", np.zeros((n, n)), ())
+        if self._aliases is None or self._aliases[0] is not res:
+            self._aliases = (res, aliases.problem_aliases(self.problem, res))
+        return self._aliases[1]
 
 
 def _without_sensors(mission, names: set):

@@ -381,12 +381,11 @@ def goodness_of_fit(problem, result, *, holdout: Mapping[str, ChiSquare] | None 
                     sensors: Sequence[str] | None = None) -> GoodnessOfFit:
     """The χ² tests of a fit and their verdict (module docstring).
 
-    ``result`` is a :class:`~gcs_core.filtr.batch.BatchResult` (or any result with
-    ``residuals``, ``solve_for``, ``P`` and ``state``). The effective parameters come, in
-    this order, from the arguments, from the result's own ``effective_parameters`` and
-    ``leverage`` attributes (an estimator with process noise declares them), else from
-    ``tr(P A_s)`` per sensor (:func:`sensor_leverage`). Given only a total, it is shared
-    among the sensors in proportion to ``tr(P A_s)``. ``holdout`` is
+    ``result`` is any estimator's :class:`~gcs_core.filtr.results.FitResult`. The effective
+    parameters come, in this order, from the arguments, from the result's own
+    ``effective_parameters`` and ``leverage`` attributes (an estimator with process noise
+    declares them), else from ``tr(P A_s)`` per sensor (:func:`sensor_leverage`). Given only
+    a total, it is shared among the sensors in proportion to ``tr(P A_s)``. ``holdout`` is
     :func:`holdout_tests` of the training fit.
     """
     p_eff = effective_parameters if effective_parameters is not None else getattr(result, "effective_parameters", None)

@@ -46,7 +46,7 @@ import numpy as np
 from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
-from gcs_core.filtr.batch_results import BatchResult
+from gcs_core.filtr.results import FitResult
 from gcs_core.filtr.knots import KnotSystem
 from gcs_core.problem.linearization import iter_blocks, window_geometry
 from gcs_core.problem.build import Problem
@@ -146,7 +146,7 @@ def _physics_block(problem: Problem, blk, values, phys_ids: Sequence[str]) -> li
     return out
 
 
-def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Effect], *,
+def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effect], *,
                     alpha: float = 0.001, edited: Mapping[str, np.ndarray] | None = None,
                     exclude_frames: Mapping[str, np.ndarray] | None = None,
                     chunk: int | None = None, smoothed: bool = False) -> list[Candidate]:
@@ -307,7 +307,7 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
     return [replace(c, explanation=explain(c, alpha)) for c in out]
 
 
-def est_items(e: Effect, est: np.ndarray, result: BatchResult):
+def est_items(e: Effect, est: np.ndarray, result: FitResult):
     names = list(e.elements) if e.elements else [e.id]
     for i, nm in enumerate(names):
         base = result.state[nm].value if nm in result.state else 0.0

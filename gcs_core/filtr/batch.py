@@ -57,7 +57,8 @@ from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.linalg import sparse_basis
 from gcs_core.filtr import local_refine
 from gcs_core.problem import curvature
-from gcs_core.filtr.batch_results import BatchResult, Residuals, residuals_from
+from gcs_core.filtr.results import BatchResult
+from gcs_core.filtr.residuals import Residuals, residuals_from
 from gcs_core.problem.linearization import iter_blocks
 from gcs_core.problem.build import Problem
 
@@ -322,15 +323,35 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         log.info("editing pass %d: %d frames flagged", edit_pass + 1,
                  sum(int(v.sum()) for v in edits.values()))
 
-    # final normal equations at the solution, with consider columns (the last pass of the
-    # iterations serves when it was at this point, with these edits and no consider element)
     for j, nm in enumerate(names):
         values[nm] = x[j]
-    if cons or not _stored_at(stored[0], x, edits):
+    if suspect_all:
+        message += ("; not edited (more than "
+                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
+                    "is suspect): " + ", ".join(sorted(suspect_all)))
+    final = stored[0] if not cons and _stored_at(stored[0], x, edits) else None
+    return _solution(problem, opts, values, x, prior_info, edits, buffers, work, final,
+                     tuple(history), it_total, status, message)
+
+
+def _solution(problem: Problem, opts: BatchOptions, values: dict, x: np.ndarray, prior_info: np.ndarray,
+              edits: Mapping[str, np.ndarray], buffers: Residuals, work: dict, final, history: tuple,
+              iterations: int, status: str, message: str) -> BatchResult:
+    """The :class:`BatchResult` at the converged ``x`` (Eq 3-2): the normal equations there
+    with the consider columns, the noise-only covariance ``P = (A + P₀⁻¹)⁻¹``, each consider
+    element's contribution ``S σ_c² Sᵀ`` with ``S = −P A_sc``, the combinations the data
+    leave undetermined, and the residuals the buffers hold. ``final`` is ``(x, edits, A,
+    χ², m)`` of the last pass when it was at this point with these edits and no consider
+    element (then no pass is repeated), else None."""
+    state = problem.state
+    names = tuple(state.solve_for)
+    cons = tuple(state.consider)
+    n = len(names)
+    if final is None:
         A_all, _, chi2, m_used = normal_equations(problem, values, names + cons, edits, store=buffers,
                                                   work=work)
     else:
-        A_all, chi2, m_used = stored[0][2:]
+        A_all, chi2, m_used = final[2:]
     A = A_all[:n, :n]
     Nmat = A + np.diag(prior_info)
     _, P = _solve_normal(Nmat, np.zeros(n))
@@ -343,14 +364,10 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             budget[c] = np.sqrt(np.diag(contrib))
             P_cons += contrib
     unobs = tuple(name_combinations(A, names, opts.rank_tol * 1e3))
-    if suspect_all:
-        message += ("; not edited (more than "
-                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
-                    "is suspect): " + ", ".join(sorted(suspect_all)))
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, buffers, edits)
     return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,
-                       tuple(history), it_total, status, message, A, unobs, budget)
+                       history, iterations, status, message, A, unobs, budget)
 
 
 def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], opts: BatchOptions,

@@ -38,7 +38,7 @@ from typing import Mapping
 
 import numpy as np
 
-from gcs_core.filtr.batch_results import SensorResiduals
+from gcs_core.filtr.results import SensorResiduals
 from gcs_core.filtr.mekf import gyro_rates, sensor_window, step_quaternions
 from gcs_core.frames.rotations import (dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize,
                                        quat_to_dcm)

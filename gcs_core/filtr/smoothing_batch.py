@@ -48,7 +48,8 @@ from gcs_core.filtr.knot_kernels import correct_attitude
 from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
 from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations
-from gcs_core.filtr.batch_results import BatchResult, Residuals, residuals_from
+from gcs_core.filtr.results import BatchResult
+from gcs_core.filtr.residuals import Residuals, residuals_from
 from gcs_core.problem.linearization import iter_blocks
 from gcs_core.filtr.mekf import GyroNoise, gyro_noise
 from gcs_core.problem.build import Problem

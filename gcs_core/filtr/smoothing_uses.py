@@ -15,7 +15,7 @@ from typing import Mapping
 import numpy as np
 
 from gcs_core.filtr import knots as kn
-from gcs_core.filtr.batch_results import BatchResult
+from gcs_core.filtr.results import BatchResult
 from gcs_core.filtr.batch import _solve_normal
 from gcs_core.problem.linearization import iter_blocks, linearize
 from gcs_core.problem.build import Problem

@@ -32,9 +32,9 @@ from scipy import special
 
 from gcs_core.errors import EstimationError
 from gcs_core.problem.attitude import RPY, rpy_error_jacobian
-from gcs_core.filtr.batch_results import make_residuals
-from gcs_core.filtr.filter_results import (BlockReport, FilterOptions, FilterResult,  # noqa: F401
-                                           FrameDiagnostics, InnovationStats)
+from gcs_core.filtr.residuals import make_residuals
+from gcs_core.filtr.results import BlockReport, FilterResult, FrameDiagnostics, InnovationStats
+from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.kalman import solve_block
 from gcs_core.filtr.mekf import GyroSegment, assemble, block_epochs, gyro_noise, gyro_rates, make_layout
 from gcs_core.problem.linearization import linearize

@@ -124,18 +124,18 @@ class DataPlan:
         telemetry span); keyword ``overrides`` replace any field. A config that names a
         catalog but no star model means ``stars = "catalog"``.
         """
-        start, end = cfg.pred_start, cfg.pred_end
+        start, end = cfg.prediction.start, cfg.prediction.end
         if (start is None or end is None) and span is None:
             raise InputError("the plan needs prediction.start and prediction.end (no telemetry "
                              "span to default to)", file=cfg.path, key="prediction.start")
         kw = dict(start=float(span[0] if start is None else start),
                   end=float(span[1] if end is None else end),
-                  step=cfg.pred_step, gaps=tuple(cfg.gaps), maneuvers=tuple(cfg.maneuvers))
-        stars = cfg.pred_stars or ("catalog" if cfg.pred_catalog is not None else None)
+                  step=cfg.prediction.step, gaps=tuple(cfg.prediction.gaps), maneuvers=tuple(cfg.prediction.maneuvers))
+        stars = cfg.prediction.stars or ("catalog" if cfg.prediction.catalog is not None else None)
         if stars is not None:
             kw["stars"] = stars
-        if cfg.pred_catalog is not None:
-            kw["catalog"] = Path(cfg.pred_catalog)
+        if cfg.prediction.catalog is not None:
+            kw["catalog"] = Path(cfg.prediction.catalog)
         kw.update(overrides)
         if kw.get("stars", "sky") != "catalog" and "catalog" not in overrides and "stars" in overrides:
             kw.pop("catalog", None)         # an override to another star model drops the file

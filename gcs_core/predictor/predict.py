@@ -166,9 +166,9 @@ def state_options(cfg: AnalysisConfig | None) -> StateOptions:
     """SODL options of an analysis config (as :class:`gcs_core.session.Analysis` builds them)."""
     if cfg is None:
         return StateOptions()
-    ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in cfg.elements.items()}
-    return StateOptions(effects=cfg.effects, exclude=cfg.exclude, overrides=ov,
-                        attitude_sigma=cfg.attitude_sigma_deg * DEG)
+    ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in cfg.state.elements.items()}
+    return StateOptions(effects=cfg.state.effects, exclude=cfg.state.exclude, overrides=ov,
+                        attitude_sigma=cfg.state.attitude_sigma_deg * DEG)
 
 
 def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
@@ -280,7 +280,7 @@ def predict(source, *, plan: DataPlan | None = None, mission=None, orbit=None,
         spec = replace(spec, sensors=tuple(s for s in spec.sensors if s.name not in off))
         telemetry = {k: v for k, v in telemetry.items() if k not in off}
     eph = _ephemeris(spec, eph_table, plan, orbit, ephemeris_step)
-    physics = PhysicsOptions(**cfg.physics) if cfg is not None else PhysicsOptions()
+    physics = cfg.physics if cfg is not None else PhysicsOptions()
     planned = plan_problem(spec, eph, plan, telemetry=telemetry, aux=aux, onboard=onboard,
                            physics=physics, options=state_options(cfg), use_gyro=not gyro_off)
     return _run(planned, plan, _method(method, cfg))

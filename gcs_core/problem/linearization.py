@@ -169,24 +169,34 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
     the columns its sensor depends on (``Block.cols``), so memory is O(chunk · k_s) and
     the work is that of the non-zero part of H.
 
-    ``exclude`` flags frames (True = not used); ``weighted`` returns ``R^-1/2 H`` with the
-    unused frames' rows zero, ready for ``Hᵀ H``; ``jacobian=False`` skips H.
+    ``exclude`` flags frames (True = not used). ``work`` (a dict kept by the caller across
+    calls) lends chunk-sized buffers for H: fresh pages cost more than the arithmetic on
+    them; a block's H is then valid until the next block of the same sensor is produced.
 
-    ``work`` (a dict kept by the caller across calls) lends chunk-sized buffers for H:
-    fresh pages cost more than the arithmetic on them. A block's H is then valid until
-    the next block of the same sensor is produced.
+    What a block carries is set by the flags, one form each (a flag the form cannot use
+    is refused, :func:`_check_form`):
 
-    ``augmented`` (with ``weighted``) writes the weighted residual as one more column of
-    the same buffer, ``Block.Hr = [R^-1/2 H | R^-1/2 r]``: one product ``Hrᵀ Hr`` then
-    gives ``Hᵀ R⁻¹ H``, ``Hᵀ R⁻¹ r`` and ``rᵀ R⁻¹ r`` in a single pass over the block.
-
-    ``second_order`` (with the Jacobian) also contracts the model's second partials with
-    the weighted residuals (``Block.curv``, :mod:`gcs_core.problem.curvature`).
-
-    ``gram`` (with ``augmented``) asks for ``Hrᵀ Hr`` only: where the attitude can form
-    it without storing the rows (:meth:`FrameAttitude.fill_gram`) the block carries
-    ``Block.G`` and no H; elsewhere it carries ``Hr`` as above.
+    ======================================  ==========================================
+    asked                                   the block carries
+    ======================================  ==========================================
+    ``jacobian=False``                      ``r``, ``y_pred``, masks; no H (the other
+                                            flags then do nothing)
+    (default)                               ``H`` raw, NaN where invalid
+    ``weighted``                            ``H = R^-1/2 H``, unused rows zero
+    ``weighted, augmented``                 ``Hr = [R^-1/2 H | R^-1/2 r]`` (n·m, k_s+1),
+                                            ``H`` a view of its first k_s columns: one
+                                            ``Hrᵀ Hr`` gives ``Hᵀ R⁻¹ H``, ``Hᵀ R⁻¹ r``
+                                            and ``rᵀ R⁻¹ r``
+    ``weighted, augmented, gram``           ``G = Hrᵀ Hr`` and no H where the attitude
+                                            forms it without storing the rows
+                                            (:meth:`FrameAttitude.fill_gram`); ``Hr``
+                                            as above elsewhere
+    ``second_order`` (with the Jacobian)    also ``curv``, the model's second partials
+                                            contracted with the weighted residuals
+                                            (:mod:`gcs_core.problem.curvature`)
+    ======================================  ==========================================
     """
+    _check_form(weighted=weighted, augmented=augmented, gram=gram)
     col_index = {c: j for j, c in enumerate(columns)}
     sds = [sd for sd in problem.sensors if sensors is None or sd.name in sensors]
     att_names = tuple(problem.attitude.names)
@@ -210,30 +220,40 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
                 valid &= np.isfinite(r[:, c])
             used = valid if exclude is None or sd.name not in exclude else \
                 valid & ~np.asarray(exclude[sd.name][lo:hi], bool)
-            H = Hr = None
             curv = block_curvature(pred.d2_par, par, r, used, sd.sigma) if second_order and jacobian else ()
+            H = Hr = G = None
             if jacobian and cols.size:
-                w = (used[:, None] * (1.0 / sd.sigma)[None, :]) if weighted else None    # R^-1/2
-                aug = int(augmented and weighted)
-                m = len(sd.sigma)
-                buf = _buffer(work, sd.name, (hi - lo, m, cols.size + aug))
-                P = _buffer(work, (sd.name, "P"), (len(par) + aug, hi - lo, m)) \
-                    if getattr(fr, "can_fill_rows", False) else None
-                G = np.zeros((cols.size + 1, cols.size + 1)) if gram and aug and P is not None else None
-                tile = _buffer(work, (sd.name, "tile"), (max(GRAM_TILE_ROWS, m), cols.size + 1)) \
-                    if G is not None else None
-                if _block_jacobian(pred, fr, att_sel, par, cols.size, w, buf, r if aug else None, P,
-                                   gram=None if G is None else (G, tile)) is None:
-                    del fr
-                    G = np.tril(G) + np.tril(G, -1).T      # chain_gram fills the lower triangle
-                    yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, None, None, curv, pred, G)
-                    continue
-                if weighted and not np.all(used):
-                    buf[~used] = 0.0              # NaN partials/residuals of unused frames
-                H = buf[:, :, :cols.size] if aug else buf
-                Hr = buf.reshape(-1, cols.size + 1) if aug else None
+                H, Hr, G = _block_partials(sd, pred, fr, r, used, att_sel, par, cols.size, work,
+                                           weighted=weighted, augmented=augmented, gram=gram)
             del fr                        # the attitude's block buffers may be reused
-            yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H, Hr, curv, pred)
+            yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H, Hr, curv, pred, G)
+
+
+def _check_form(*, weighted: bool, augmented: bool, gram: bool) -> None:
+    """Refuse flags of :func:`iter_blocks` that its form cannot use."""
+    if augmented and not weighted:
+        raise ValueError("iter_blocks: augmented rows [R^-1/2 H | R^-1/2 r] need weighted=True")
+    if gram and not augmented:
+        raise ValueError("iter_blocks: gram (Hrᵀ Hr) needs augmented=True")
+
+
+def _block_partials(sd, pred, fr, r, used, att_sel, par, k: int, work, *, weighted: bool, augmented: bool,
+                    gram: bool) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+    """(H, Hr, G) of one block in the form :func:`iter_blocks` was asked for (its table)."""
+    w = (used[:, None] * (1.0 / sd.sigma)[None, :]) if weighted else None    # R^-1/2
+    aug = int(augmented)
+    m = len(sd.sigma)
+    n = len(used)
+    buf = _buffer(work, sd.name, (n, m, k + aug))
+    P = _buffer(work, (sd.name, "P"), (len(par) + aug, n, m)) if getattr(fr, "can_fill_rows", False) else None
+    G = np.zeros((k + 1, k + 1)) if gram and P is not None else None
+    tile = _buffer(work, (sd.name, "tile"), (max(GRAM_TILE_ROWS, m), k + 1)) if G is not None else None
+    if _block_jacobian(pred, fr, att_sel, par, k, w, buf, r if aug else None, P,
+                       gram=None if G is None else (G, tile)) is None:
+        return None, None, np.tril(G) + np.tril(G, -1).T      # chain_gram fills the lower triangle
+    if weighted and not np.all(used):
+        buf[~used] = 0.0              # NaN partials/residuals of unused frames
+    return (buf[:, :, :k] if aug else buf), (buf.reshape(-1, k + 1) if aug else None), None
 
 
 def _buffer(work: dict | None, key, shape) -> np.ndarray:

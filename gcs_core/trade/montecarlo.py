@@ -93,7 +93,7 @@ def _context(mc: MonteCarlo):
 
         cfg = load_config(mc.config_path)
         spec = read_mission_spec(cfg.mission)
-        start = 0.0 if cfg.pred_start is None else cfg.pred_start
+        start = 0.0 if cfg.prediction.start is None else cfg.prediction.start
         plan = DataPlan.from_config(cfg, span=(start, start + 1800.0))
         _CTX.clear()
         _CTX[key] = (cfg, spec, plan)
@@ -204,7 +204,7 @@ def one_run(mc: MonteCarlo, i: int) -> dict:
             folder = Path(d)
             path = write_mission(simulation(cfg, spec, plan, seed), folder / "m", truth_path=folder / "truth.json")
             mission = _restricted(load_mission(path), plan)
-            a = Analysis(replace(cfg, mission=path, holdout_fraction=0.0), mission=mission)
+            a = Analysis(cfg.with_changes(mission=path, diagnosis={"holdout_fraction": 0.0}), mission=mission)
             book = {e.name: e.value for e in a.problem.state}
             res = a.fit(holdout=False)
             truth = _truth(json.loads((folder / "truth.json").read_text()), a.problem, book, cfg.method)

@@ -28,7 +28,7 @@ import itertools
 import math
 import re
 from pathlib import Path
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 from gcs_core.config import AXES, AnalysisConfig, Maneuver
@@ -237,8 +237,9 @@ def plan_config(cfg: AnalysisConfig, row: PlanRow) -> AnalysisConfig:
     """The analysis config flying ``row``'s plan (``[prediction]`` span and maneuvers)."""
     d = row.description
     mans = tuple(Maneuver(m["start"], m["duration"], m["axis"], m["rate_deg_s"]) for m in d.get("maneuvers", ()))
-    return replace(cfg, pred_start=d["start"], pred_end=d["end"], gaps=tuple(tuple(g) for g in d.get("gaps", ())),
-                   maneuvers=mans, name=f"optimized plan: {row.plan_id}")
+    return cfg.with_changes(prediction={"start": d["start"], "end": d["end"],
+                                        "gaps": tuple(tuple(g) for g in d.get("gaps", ())), "maneuvers": mans},
+                            name=f"optimized plan: {row.plan_id}")
 
 
 def why_lines(defn: StudyDefinition, row: PlanRow, spec) -> list[str]:

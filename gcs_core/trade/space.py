@@ -163,7 +163,7 @@ class PlanSetup:
                                      "noise": s.noise,
                                      **{k: v for k, v in s.book.items() if isinstance(v, (int, float))}}
                             for s in self.spec.sensors},
-                "effects": list(self.config.effects), "method": self.config.method}
+                "effects": list(self.config.state.effects), "method": self.config.method}
 
 
 def _num(combo, key, default=None):
@@ -231,14 +231,15 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
             models[s.name] = "off" if not _flag(combo[key], key) else (
                 cfg.models.get(s.name) if cfg.models.get(s.name) not in (None, "off") else s.type)
     off = {k for k, v in models.items() if v == "off"}
-    elements = {k: v for k, v in cfg.elements.items() if k.split(".")[0] not in off}
-    effects = tuple(e for e in cfg.effects if e.split(".")[0] not in off)
+    elements = {k: v for k, v in cfg.state.elements.items() if k.split(".")[0] not in off}
+    effects = tuple(e for e in cfg.state.effects if e.split(".")[0] not in off)
     if "effects" in combo:
         text = str(combo["effects"]).strip()
         extra = () if text.lower() in ("none", "") else tuple(t.strip() for t in text.split("+"))
         effects = tuple(dict.fromkeys(effects + tuple(e for e in extra if e.split(".")[0] not in off)))
-    new_cfg = replace(cfg, models=models, elements=elements, effects=effects,
-                      exclude=tuple(e for e in cfg.exclude if e.split(".")[0] not in off))
+    new_cfg = cfg.with_changes(models=models, state={
+        "elements": elements, "effects": effects,
+        "exclude": tuple(e for e in cfg.state.exclude if e.split(".")[0] not in off)})
     new_spec = _spec(spec, combo)
     if "attitude_mode" in combo:
         mode = combo["attitude_mode"]
@@ -350,5 +351,5 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
 
 def element_override(cfg: AnalysisConfig, name: str, **kw) -> AnalysisConfig:
     """``cfg`` with one state element's role/value/σ overridden."""
-    old = cfg.elements.get(name, ElementConfig())
-    return replace(cfg, elements={**cfg.elements, name: replace(old, **kw)})
+    old = cfg.state.elements.get(name, ElementConfig())
+    return cfg.with_changes(state={"elements": {**cfg.state.elements, name: replace(old, **kw)}})

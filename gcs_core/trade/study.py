@@ -169,8 +169,8 @@ def _context(defn: StudyDefinition):
         check_against_mission(cfg, spec)
         for k in defn.vary:
             space.check_key(k, spec)
-        start = 0.0 if cfg.pred_start is None else cfg.pred_start
-        end = start + 3600.0 if cfg.pred_end is None else cfg.pred_end
+        start = 0.0 if cfg.prediction.start is None else cfg.prediction.start
+        end = start + 3600.0 if cfg.prediction.end is None else cfg.prediction.end
         base = DataPlan.from_config(cfg, span=(start, end))
         ctx = (cfg, spec, base, make_orbit(defn.orbit, spec.epoch))
         _CONTEXT.clear()                      # one study at a time per process

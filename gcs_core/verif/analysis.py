@@ -40,7 +40,7 @@ def verify_analysis(analysis, *, angles: str = "euler", window_s: float = TREND_
         raise InputError("no onboard attitude falls inside the fitted span", key="onboard_attitude.file")
     g = ground_attitude(analysis, t_ob[keep])
     sigma = g.sigma_rpy if angles == "euler" else g.sigma_body
-    req = analysis.config.requirement_deg * DEG if requirement_rad is None else requirement_rad
+    req = analysis.config.verification.requirement_deg * DEG if requirement_rad is None else requirement_rad
     A_of = dict(zip(g.t.tolist(), g.A))
     return verify(t_ob[keep], q_ob[keep], g.t, g.q, sigma, requirement_rad=req,
                   mode=analysis.mission.spec.attitude_mode,

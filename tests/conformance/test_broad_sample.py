@@ -15,7 +15,6 @@ correlated samples, README); the optical reference lags the gyro by 1 to 4 ms.
 from __future__ import annotations
 
 import shutil
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -51,8 +50,8 @@ def halves(tmp_path_factory):
     out = []
     for first in (True, False):
         cfg = load_config(CONFIG)
-        cfg = replace(cfg, mission=_half(tmp, first),
-                      effects=("MAG.time_offset", "OPT.time_offset", "MAG.nonorthogonality"))
+        cfg = cfg.with_changes(mission=_half(tmp, first),
+                               state={"effects": ("MAG.time_offset", "OPT.time_offset", "MAG.nonorthogonality")})
         a = Analysis(cfg, mission=load_mission(cfg.mission))
         res = a.fit(holdout=False)
         out.append((a, res))

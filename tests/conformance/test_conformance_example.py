@@ -10,6 +10,7 @@ from __future__ import annotations
 import pytest
 
 from gcs_core.config import AnalysisConfig
+from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
 
 noise_floor_bound = 1.05   # normalized RMS: 1.0 is the noise floor
@@ -37,7 +38,7 @@ def test_heldout_span_is_also_at_the_noise_floor(fitted):
 
 def test_discover_adds_nothing_and_reports(fitted):
     fitted.discover()
-    rep = fitted.report()
+    rep = analysis_report(fitted, command="discover")      # what `gcs discover --report` writes
     assert [s for s in rep["steps"]] == []
     assert rep["mission"] == "sunpoint-nominal"
     for name, s in rep["sensors"].items():
@@ -52,8 +53,7 @@ def test_discover_adds_nothing_and_reports(fitted):
 
 def test_missing_stellar_aberration_is_discovered(example_dir):
     """Without stellar aberration the star trackers fail; discovery adds exactly it."""
-    phys = dict(AnalysisConfig().physics, stellar_aberration=False)
-    a = Analysis(AnalysisConfig(mission=example_dir, physics=phys))
+    a = Analysis(AnalysisConfig(mission=example_dir).with_changes(physics={"stellar_aberration": False}))
     a.fit()
     assert max(a.result.residuals[n].rms_normalized for n in ("FHST1", "FHST2")) > 1.05
     a.discover()
@@ -70,7 +70,7 @@ def test_report_says_which_physics_the_data_need_and_why(fitted):
     off any of them is significant. The Δχ² of stellar aberration agrees with the one
     discovery measures when it is missing (test above: ≈ 270).
     """
-    needed = {d["id"]: d for d in fitted.report()["physics_needed"]}
+    needed = {d["id"]: d for d in analysis_report(fitted)["physics_needed"]}
     assert set(needed) == {"model.stellar_aberration", "model.solar_aberration",
                            "model.sun_parallax", "model.field_model"}
     assert all(d["needed"] for d in needed.values())

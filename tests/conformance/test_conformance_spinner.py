@@ -56,6 +56,6 @@ def test_determined_biases_and_spin_axis_against_the_truth(shared_example, disco
 
 
 def test_the_oblate_horizon_is_reported_as_needed_physics(discovered):
-    needed = {d["id"]: d for d in discovered.physics_needed()}
+    needed = {d.id: d for d in discovered.physics_needed()}
     ob = needed["model.earth_oblateness"]
-    assert ob["needed"] and ob["delta_chi2_if_removed"] > 1000.0
+    assert ob.needed and ob.delta_chi2_if_removed > 1000.0

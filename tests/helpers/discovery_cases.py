@@ -98,8 +98,8 @@ def simulate(case: Case, seed: int, folder: Path, duration_s: float | None = Non
 
 
 def analyse(case: Case, mission: Path) -> Analysis:
-    physics = dict(AnalysisConfig().physics)
+    physics = {}
     if case.physics_off:
         physics[case.physics_off] = PHYSICS_EFFECTS[case.physics_off][1]     # the "off" value
-    return Analysis(AnalysisConfig(mission=mission, exclude=case.exclude, physics=physics,
-                                   method=case.options.get("method", "batch")))
+    return Analysis(AnalysisConfig(mission=mission, method=case.options.get("method", "batch")).with_changes(
+        state={"exclude": case.exclude}, physics=physics))

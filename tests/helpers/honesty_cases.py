@@ -158,7 +158,7 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
     mission = write_mission(cfg, folder / "mission", truth_path=folder / "truth.json")
     truth = json.loads((folder / "truth.json").read_text())
     t1 = time.perf_counter()
-    a = Analysis(AnalysisConfig(mission=mission, method=method, exclude=tuple(exclude)))
+    a = Analysis(AnalysisConfig(mission=mission, method=method).with_changes(state={"exclude": tuple(exclude)}))
     status = "ok"
     try:
         a.fit()

@@ -21,6 +21,7 @@ import numpy as np
 from gcs_core.config import AnalysisConfig
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.state import HELD
+from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import spinner_two_scanners, with_effect
 from test_truth_recovery import normalized_errors, simulate, truth_values
@@ -107,7 +108,7 @@ def run_case(inclination, hidden: str, seed: int, folder: Path, duration_s: floa
     if effect is not None:
         cfg = with_effect(cfg, effect, magnitude)
     mission, truth = simulate(cfg, folder)
-    a = Analysis(AnalysisConfig(mission=mission, exclude=exclude))
+    a = Analysis(AnalysisConfig(mission=mission).with_changes(state={"exclude": exclude}))
     a.fit()
     a.discover()
     res = a.result
@@ -116,7 +117,7 @@ def run_case(inclination, hidden: str, seed: int, folder: Path, duration_s: floa
     z = {k: v for k, v in normalized_errors(res, tv).items() if k not in loose}
     z_exp = {k: v for k, v in normalized_errors(res, {**tv, **expected_estimates(a, tv)}).items()
              if k not in loose}
-    rep = a.report()
+    rep = analysis_report(a)
     cand = next((c for c in a.candidates if c.id == effect), None)
     hidden_aliases = tuple(cand.aliases_state) + tuple(x for x, _ in cand.aliases_candidates) if cand else ()
     return Outcome(inclination, hidden, seed, [s.effect for s in a.steps if s.action == "add"], a.rms(),

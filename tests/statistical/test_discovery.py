@@ -10,6 +10,7 @@ from __future__ import annotations
 import pytest
 
 from discovery_cases import CASES, analyse, simulate
+from gcs_core.reporting import analysis_report
 
 noise_floor_bound = 1.05      # normalized RMS: 1.0 is the noise floor (issue 3), fitted and
                               # held-out spans alike (the held-out quarter of an hour at 1 Hz
@@ -29,6 +30,6 @@ def test_discovery_adds_exactly_the_hidden_effect(case, seed, tmp_path):
         assert v <= noise_floor_bound, f"{name} normalized RMS {v:.3f}"
     for name, v in a.holdout_rms.items():
         assert v <= noise_floor_bound, f"{name} held-out normalized RMS {v:.3f}"
-    rep = a.report()
+    rep = analysis_report(a, command="discover")
     assert rep["steps"][0]["added"] == case.effect
     assert rep["candidates"] is not None

@@ -27,7 +27,8 @@ from scipy import stats
 
 from gcs_core import units
 from gcs_core.problem.build import StateOptions, build_problem
-from gcs_core.filtr.stepping import Filtr, FilterOptions
+from gcs_core.filtr.stepping import Filtr
+from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.frames.rotations import T1, T2, T3, dcm_to_rotvec, euler123_to_dcm, rotvec_to_dcm
 from gcs_core.io.importer import ImportedMission
 from gcs_core.problem.prepare import PhysicsOptions
@@ -188,7 +189,7 @@ def test_nees_and_nis_monte_carlo():
         e = smoothed_error(res, truth)
         nees_s += float(e @ np.linalg.solve(res.P, e))
         n_s += e.size
-        nis, dof = nis + res.nis, dof + res.dof
+        nis, dof = nis + res.nis, dof + res.nis_dof
     lo, hi = chi2_band(n_f)
     assert lo < nees_f < hi, f"filtered NEES {nees_f:.1f} outside [{lo:.1f}, {hi:.1f}] ({n_f} dof)"
     lo, hi = chi2_band(n_s)
@@ -206,4 +207,4 @@ def test_residuals_at_noise_floor(electronic):
     res = Filtr(sim_problem(mission), options=FilterOptions(max_passes=2)).run()
     for name in ("ST1", "ST2"):
         assert abs(res.residuals[name].rms_normalized - 1.0) < 0.03, name
-    assert abs(res.nis / res.dof - 1.0) < 4 * np.sqrt(2.0 / res.dof)
+    assert abs(res.nis / res.nis_dof - 1.0) < 4 * np.sqrt(2.0 / res.nis_dof)

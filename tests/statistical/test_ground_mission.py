@@ -127,10 +127,9 @@ def fitted(tmp_path_factory):
     _write(root, *_simulate(np.random.default_rng(2021)))
     mission = load_mission(root)
     cfg = default_config(root)
-    from dataclasses import replace
-    cfg = replace(cfg, physics={**cfg.physics, "field_model": "constant"}, attitude_sigma_deg=10.0,
-                  effects=("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset",
-                           "OPT.time_offset"), elements=MEMS_PRIORS)
+    cfg = cfg.with_changes(physics={"field_model": "constant"}, state={
+        "attitude_sigma_deg": 10.0, "elements": MEMS_PRIORS,
+        "effects": ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset")})
     a = Analysis(cfg, mission=mission)
     res = a.fit(holdout=False)
     return a, res

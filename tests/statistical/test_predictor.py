@@ -54,7 +54,7 @@ def the_plan(**kw) -> DataPlan:
 
 
 def test_plan_prediction_matches_simulated_calibration_within_15_percent(sim_dir):
-    analysis = Analysis(AnalysisConfig(mission=sim_dir, holdout_fraction=0.0))
+    analysis = Analysis(AnalysisConfig(mission=sim_dir).with_changes(diagnosis={"holdout_fraction": 0.0}))
     fit = analysis.fit(holdout=False)
     assert fit.status == "converged"
     pred = predict(analysis, plan=the_plan())
@@ -71,14 +71,16 @@ def test_plan_prediction_matches_simulated_calibration_within_15_percent(sim_dir
 def test_problem_frames_reproduce_batch_covariance_and_ignore_values(example_dir):
     """Seed Eq 3-2 at the solution is the batch covariance: predicting the example
     mission's own frames (values ignored) gives the fit's P."""
-    analysis = Analysis(AnalysisConfig(mission=example_dir, holdout_fraction=0.0, edit_k=0.0, method="batch"))
+    analysis = Analysis(AnalysisConfig(mission=example_dir, method="batch").with_changes(
+        diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0}))
     fit = analysis.fit(holdout=False)
     problem = analysis.problem.with_state(fit.state)
     pred = predict(problem)
     np.testing.assert_allclose(pred.P, fit.P, rtol=1e-6, atol=0.0)
     # the default whole-span fit: its covariance (knots eliminated) is predicted the same way
     # (the prediction linearizes with the knot corrections at zero: agreement to 1 %)
-    a_ws = Analysis(AnalysisConfig(mission=example_dir, holdout_fraction=0.0, edit_k=0.0))
+    a_ws = Analysis(AnalysisConfig(mission=example_dir).with_changes(
+        diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0}))
     ws = a_ws.fit(holdout=False)
     pred_ws = predict(a_ws.problem.with_state(ws.state), method="whole_span")
     np.testing.assert_allclose(np.sqrt(np.diag(pred_ws.P)), np.sqrt(np.diag(ws.P)), rtol=1e-2)
@@ -90,8 +92,9 @@ def test_problem_frames_reproduce_batch_covariance_and_ignore_values(example_dir
 
 
 def test_consider_budget_matches_batch_and_adds_up(sim_dir):
-    cfg = AnalysisConfig(mission=sim_dir, holdout_fraction=0.0, edit_k=0.0, method="batch",
-                         elements={f"TAM1.bias_{a}": ElementConfig(role="consider") for a in "xyz"})
+    cfg = AnalysisConfig(mission=sim_dir, method="batch").with_changes(
+        diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0},
+        state={"elements": {f"TAM1.bias_{a}": ElementConfig(role="consider") for a in "xyz"}})
     analysis = Analysis(cfg)
     fit = analysis.fit(holdout=False)
     pred = predict(analysis.problem.with_state(fit.state))
@@ -119,7 +122,8 @@ def test_gaps_make_sigma_larger(sim_mission):
 
 def test_roll_maneuver_makes_gyro_alignment_observable(sim_dir):
     """Gyro misalignment about y and z shows only while the body turns about x."""
-    cfg = AnalysisConfig(mission=sim_dir, effects=("IRU.alignment",), exclude=("IRU.scale_misalignment",))
+    cfg = AnalysisConfig(mission=sim_dir).with_changes(
+        state={"effects": ("IRU.alignment",), "exclude": ("IRU.scale_misalignment",)})
     still = predict(cfg, plan=the_plan(end=1500.0, maneuvers=()))
     rolled = predict(cfg, plan=the_plan(end=1500.0, maneuvers=(Maneuver(600.0, 600.0, "roll", 0.04),)))
     prior = 1e-3                                   # the gyro alignment's a-priori σ [rad]
@@ -186,7 +190,8 @@ def test_prelaunch_spinner_from_the_data_book_alone(tmp_path):
 
 
 def test_an_element_without_prior_is_infinite_until_data_arrive(sim_dir):
-    cfg = AnalysisConfig(mission=sim_dir, elements={"TAM1.bias_x": ElementConfig(sigma=float("inf"))})
+    cfg = AnalysisConfig(mission=sim_dir).with_changes(
+        state={"elements": {"TAM1.bias_x": ElementConfig(sigma=float("inf"))}})
     pred = predict(cfg, plan=the_plan(end=600.0, gaps=((0.0, 300.0),)))
     s = pred.sigma_of("TAM1.bias_x")
     before, after = pred.times < 300.0, pred.times >= 300.0

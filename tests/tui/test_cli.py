@@ -1,7 +1,7 @@
 """The ``gcs`` command (gcs_tui/cli.py): every command on the bundled sample missions, the
 ICD §7 JSON report, exit codes, one-line errors without tracebacks, and the progress display.
 
-Commands run in-process through ``gcs_tui.cli.main([...])``; two runs go through a real
+Commands run in-process through ``gcs_tui.cli.commands.main([...])``; two runs go through a real
 interpreter (``python -m gcs_tui.cli``) to check the process exit code and that stderr
 holds no traceback.
 """
@@ -22,9 +22,9 @@ from pathlib import Path
 import pytest
 
 from gcs_core.reporting import icd_report_problems
-from gcs_tui import cli
-from gcs_tui.cli import main
 from repo_paths import ROOT
+from gcs_tui.cli import commands as cli
+from gcs_tui.cli.commands import main
 
 MISSIONS = ROOT / "sample_data" / "missions"
 CONFIGS = ROOT / "sample_data" / "configs"
@@ -99,6 +99,10 @@ def test_discover_report_has_the_icd_fields(discovered):
     cand = rep["candidates"][0]
     assert {"id", "sensor", "effect", "delta_chi2", "dof", "p_value", "identifiable"} <= set(cand)
     assert cand["id"] == f"{cand['sensor']}.{cand['effect']}"
+    assert rep["physics_needed"], "the always-on physics in the model, each with its cost"
+    for row in rep["physics_needed"]:           # statistics from the engine, the sentence made here
+        assert set(row) == {"id", "delta_chi2_if_removed", "needed", "why", "physics"}
+        assert row["why"].startswith("switching it off would add Δχ²") and isinstance(row["needed"], bool)
     assert (out / "plots" / "residuals.html").read_text().startswith("<!doctype html>")
 
 
@@ -289,7 +293,7 @@ def test_internal_error_traceback_only_with_verbose(monkeypatch, capsys):
 def test_progress_bar_on_a_terminal_and_log_lines_elsewhere():
     from rich.console import Console
 
-    from gcs_tui.progress import Progress
+    from gcs_tui.cli.progress import Progress
 
     screen = io.StringIO()
     bar = Progress(mode="auto", console=Console(file=screen, force_terminal=True, width=100))
@@ -322,7 +326,7 @@ def test_quiet_run_prints_results_only(capsys):
 def test_logging_handlers_are_removed_after_a_run():
     import logging
 
-    from gcs_tui.progress import LogHandler
+    from gcs_tui.cli.progress import LogHandler
 
     run("effects")
     for name in cli.LOGGERS:

@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 
 from gcs_core.units import ARCSEC
-from gcs_tui.export import export_residual_plots
+from gcs_tui.cli.export import export_residual_plots
 
 one_arcsecond = ARCSEC
 #: the band's fill (#f5d5a0 at 60 % over white) as the browser composes it, per channel ±

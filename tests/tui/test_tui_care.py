@@ -23,12 +23,13 @@ import pytest
 from textual.widgets import DataTable, Label, Static
 
 from gcs_core import reporting
+from gcs_tui.cli import tables
 from gcs_core.units import ARCSEC, DEG
-from gcs_tui import format as fmt
-from gcs_tui.app import LOGGERS, GcsApp, detached_terminal_logging, poor_choice
-from gcs_tui.progress import LogHandler, Progress
-from gcs_tui.screens.dialogs import ConfirmScreen, Field, FormScreen
-from gcs_tui.testing import ROOT, sample_mission, settle
+from gcs_core import display as fmt
+from gcs_tui.tui.app import LOGGERS, GcsApp, detached_terminal_logging, poor_choice
+from gcs_tui.cli.progress import LogHandler, Progress
+from gcs_tui.tui.screens.dialogs import ConfirmScreen, Field, FormScreen
+from tui_testing import ROOT, sample_mission, settle
 
 MISSION = "hidden-tam-contamination"
 one_arcsecond = ARCSEC
@@ -113,7 +114,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
                 assert box.max_scroll_y > 0                          # longer than its pane: it scrolls
 
                 cands = app.workbench.analysis.candidates
-                alpha = app.workbench.config.significance
+                alpha = app.workbench.config.diagnosis.significance
                 k = next(i for i, c in enumerate(cands) if poor_choice(c, alpha))
                 table.focus()
                 await pilot.press(*["down"] * k, "a")
@@ -173,9 +174,15 @@ async def test_dialog_labels_keep_their_units():
     ("1", 0.99996, 4.3e-5),
 ])
 def test_cli_and_tui_choose_the_same_unit_and_digits(unit, value, sigma):
-    _, _, cli_unit = reporting.display_unit(unit, value, sigma)
-    assert cli_unit == fmt.unit_label(fmt.shown_unit(unit, value, sigma))
-    assert reporting.format_estimate(value, sigma, unit) == fmt.estimate(value, sigma, unit)
+    """The ``gcs`` state table and the TUI show one element's estimate alike: the same
+    unit chosen from its σ and the same digits."""
+    el = SimpleNamespace(name="X.p", role="solve-for", value=value, sigma0=sigma, unit=unit)
+    res = SimpleNamespace(state=[el], sigma={"X.p": sigma}, solve_for=("X.p",), P=np.array([[sigma ** 2]]))
+    row = tables.state_table(SimpleNamespace(result=res))[1]
+    tui = fmt.estimate(value, sigma, unit)
+    assert row.split(None, 2)[2] == tui
+    label = fmt.unit_label(fmt.shown_unit(unit, value, sigma))
+    assert tui.endswith(label) if label else True
 
 
 def test_rows_with_similar_sigma_share_a_unit():
@@ -189,7 +196,7 @@ def test_rows_with_similar_sigma_share_a_unit():
 def test_no_p_of_zero_in_the_cli_table():
     cand = SimpleNamespace(id="TAM1.scale", delta_chi2=5000.0, dof=3, p_value=0.0, p_adjusted=0.0,
                            identifiable=True)
-    lines = reporting.candidate_table([cand], alpha=0.001)
+    lines = tables.candidate_table([cand], alpha=0.001)
     assert "< 1e-16" in lines[1] and " 0 " not in lines[1]
     assert any("ranked by p" in ln for ln in lines)
 
@@ -208,7 +215,7 @@ def test_round_ticks():
 
 # ---------------------------------------------------------------------------- config hints
 def _cli(args, capsys):
-    from gcs_tui.cli import main
+    from gcs_tui.cli.commands import main
     code = main(["-q", *args])
     return code, capsys.readouterr().err
 
@@ -232,7 +239,7 @@ def test_missing_mission_names_the_key(tmp_path, capsys):
 
 
 def test_plain_progress_prints_each_discovery_step_once():
-    from gcs_tui.cli import step_messages
+    from gcs_tui.cli.commands import step_messages
 
     out = io.StringIO()
     prog = Progress(out, mode="plain")
@@ -246,7 +253,7 @@ def test_verification_speaks_one_unit_in_both_faces():
     σ or threshold: a 100″ offset against a 36″ requirement reads in arcsec everywhere."""
     from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm
     from gcs_core.verif import verify
-    from gcs_tui.screens.verification import shown_unit
+    from gcs_tui.tui.screens.verification import shown_unit
 
     t = np.arange(0.0, 600.0, 10.0)
     q_g = np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1))
@@ -268,8 +275,8 @@ def test_kalman_passes_and_unobservable_are_said_in_words():
     assert "pass(es)" not in _passes_text(1, "single_pass")
     res = SimpleNamespace(residuals={}, message="converged", chi2=10.0, dof=10,
                           unobservable=["TAM1.align_1 + att.roll"])
-    lines = reporting.fit_table(SimpleNamespace(result=res, holdout_rms={}))
-    assert lines[-1] == reporting.UNOBSERVABLE_NOTE and "a priori" in lines[-1]
+    lines = tables.fit_table(SimpleNamespace(result=res, holdout_rms={}))
+    assert lines[-1] == tables.UNOBSERVABLE_NOTE and "a priori" in lines[-1]
 
 
 def test_reports_and_configs_get_the_usual_permissions(tmp_path):

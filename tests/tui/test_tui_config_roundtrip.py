@@ -12,8 +12,8 @@ from textual.widgets import DataTable
 
 from gcs_core.config import load_config
 from gcs_core.session import Analysis
-from gcs_tui.app import GcsApp
-from gcs_tui.testing import settle, type_text
+from gcs_tui.tui.app import GcsApp
+from tui_testing import settle, type_text
 
 from test_tui_pilot import hidden_effect_case, open_by_keys
 
@@ -54,7 +54,7 @@ async def test_saved_config_runs_headless_to_the_same_estimates(shared_example, 
         await pilot.press("q")
 
     cfg = load_config(saved)
-    assert cfg.elements[EDITED].sigma == NEW_SIGMA_NT
+    assert cfg.state.elements[EDITED].sigma == NEW_SIGMA_NT
     headless = Analysis(cfg)
     assert added == [hidden] and hidden in headless.effects_in_state()
     res = headless.fit()

@@ -1,4 +1,4 @@
-"""Honest precision and units at the edge (gcs_tui.format).
+"""Honest precision and units at the edge (gcs_core.display, as the TUI shows numbers).
 
 Rule: σ keeps two significant digits and the value is rounded to σ's last digit;
 angles are shown in arcsec while σ is below one degree and in degrees above, rates in deg/h. The
@@ -12,7 +12,7 @@ import math
 import pytest
 
 from gcs_core.units import ARCSEC, DEG
-from gcs_tui import format as fmt
+from gcs_core import display as fmt
 
 
 @pytest.mark.parametrize("value, sigma, unit, expected", [

@@ -14,16 +14,15 @@ the hidden effect.
 from __future__ import annotations
 
 import shutil
-from dataclasses import replace
 from pathlib import Path
 
 from textual.widgets import DataTable
 
 from gcs_core.config import AnalysisConfig, save_config
-from gcs_tui.app import GcsApp
-from gcs_tui.screens.diagnosis import DiagnosisScreen
-from gcs_tui.screens.residuals import ResidualsScreen
-from gcs_tui.testing import sample_answer, sample_mission, settle, type_text
+from gcs_tui.tui.app import GcsApp
+from gcs_tui.tui.screens.diagnosis import DiagnosisScreen
+from gcs_tui.tui.screens.residuals import ResidualsScreen
+from tui_testing import sample_answer, sample_mission, settle, type_text
 
 #: normalized RMS above this fails: 5 % above the noise floor
 RMS_LIMIT = 1.05
@@ -37,14 +36,13 @@ def hidden_effect_case(shared_example, tmp_path: Path) -> tuple[Path, str, list[
     if mission is not None:
         answer = sample_answer(name)
         hidden = answer["hidden_effects"][0]
-        physics = {**cfg.physics, **answer.get("physics", {})}
-        cfg = replace(cfg, mission=mission, physics=physics)
+        cfg = cfg.with_changes(mission=mission, physics=answer.get("physics", {}))
         sensors = [hidden["sensor"]]
         effect = hidden["id"]
     else:
         copy = tmp_path / "sunpoint-nominal"
         shutil.copytree(shared_example("sunpoint-nominal"), copy)
-        cfg = replace(cfg, mission=copy, physics={**cfg.physics, "stellar_aberration": False})
+        cfg = cfg.with_changes(mission=copy, physics={"stellar_aberration": False})
         sensors = ["FHST1", "FHST2"]
         effect = "model.stellar_aberration"
     path = save_config(cfg, tmp_path / "analysis.toml")
@@ -119,20 +117,20 @@ async def test_editing_screens_by_keys(shared_example, tmp_path):
         table = app.screen.query_one("#elements", DataTable)
         await pilot.press(*["down"] * table.get_row_index("TAM1.align_1"), "s")
         await settle(pilot)
-        assert wb.config.elements["TAM1.align_1"].role == "solve-for"
+        assert wb.config.state.elements["TAM1.align_1"].role == "solve-for"
         assert wb.analysis.problem.state["TAM1.align_1"].role == "solve-for"
 
         await pilot.press("4", "g", "enter", "m", "enter")   # a default gap and maneuver
         await settle(pilot)
-        assert len(wb.config.gaps) == 1 and len(wb.config.maneuvers) == 1
+        assert len(wb.config.prediction.gaps) == 1 and len(wb.config.prediction.maneuvers) == 1
         await pilot.press("e", "tab", "tab", "ctrl+u")
         await type_text(pilot, "30")
         await pilot.press("enter")
         await settle(pilot)
-        assert wb.config.pred_step == 30.0
+        assert wb.config.prediction.step == 30.0
         app.screen.query_one("#gaps", DataTable).focus()
         await pilot.press("d")
-        assert wb.config.gaps == ()
+        assert wb.config.prediction.gaps == ()
 
         await pilot.press("ctrl+p")                  # command palette
         await type_text(pilot, "view: residuals")

@@ -13,11 +13,11 @@ from __future__ import annotations
 import pytest
 
 from gcs_core.io import h5store
-from gcs_tui import filtr_run, jobs
-from gcs_tui.app import GcsApp
-from gcs_tui.keys import VIEWS
-from gcs_tui.testing import sample_mission, settle
-from gcs_tui.workbench import Workbench
+from gcs_tui.tui import filtr_run, jobs
+from gcs_tui.tui.app import GcsApp
+from gcs_tui.tui.keys import VIEWS
+from tui_testing import sample_mission, settle
+from gcs_tui.tui.workbench import Workbench
 
 MISSION = "hidden-tam-contamination"
 SIZES = {"80x24": (80, 24), "160x48": (160, 48)}

@@ -9,11 +9,11 @@ import pytest
 from gcs_core.config import load_config
 from gcs_core.trade import definition_from_config
 from gcs_core.trade.run import run_study
-from gcs_tui.app import GcsApp
-from gcs_tui.screens.trade import TradeScreen
-from gcs_tui.testing import sample_mission, settle
-from gcs_tui.workbench import Workbench
+from gcs_tui.tui.app import GcsApp
+from gcs_tui.tui.screens.trade import TradeScreen
 from repo_paths import ROOT
+from tui_testing import sample_mission, settle
+from gcs_tui.tui.workbench import Workbench
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-tam-bias.toml"
 
@@ -59,5 +59,5 @@ async def test_open_plan_in_data_plan_screen(study, workbench):
         await pilot.pause()
         assert app.current_mode == "plan"
         cfg = app.workbench.config
-        assert (cfg.pred_start, cfg.pred_end) == (best.description["start"], best.description["end"])
-        assert [list(g) for g in cfg.gaps] == best.description["gaps"]
+        assert (cfg.prediction.start, cfg.prediction.end) == (best.description["start"], best.description["end"])
+        assert [list(g) for g in cfg.prediction.gaps] == best.description["gaps"]

@@ -15,7 +15,7 @@ from gcs_core.session import Analysis
 
 def _tam_only(example_dir, **kw):
     models = {"IRU": "off", "FHST1": "off", "FHST2": "off", "FSS1": "off", "CSS1": "off"}
-    return AnalysisConfig(mission=example_dir, models=models, **kw)
+    return AnalysisConfig(mission=example_dir, models=models).with_changes(state=kw)
 
 
 def test_tam_misalignment_against_attitude_is_named(example_dir):

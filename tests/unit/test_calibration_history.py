@@ -23,7 +23,7 @@ from gcs_core.io import asf, scds
 @pytest.fixture(scope="module")
 def fitted(example_dir):
     """sunpoint-nominal fitted with the seed state, and again with TAM1.alignment added."""
-    first = Analysis(AnalysisConfig(mission=example_dir, holdout_fraction=0.0))
+    first = Analysis(AnalysisConfig(mission=example_dir).with_changes(diagnosis={"holdout_fraction": 0.0}))
     first.fit(holdout=False)
     second = copy.copy(first)
     second.steps = list(first.steps)
@@ -78,12 +78,12 @@ def test_version_holds_values_sigmas_covariance_and_provenance(fitted, tmp_path)
     assert (p["data_t0"], p["data_t1"]) == (0.0, 7200.0)
     assert p["models"] == {"TAM1": "magnetometer", "IRU": "gyro", "FHST1": "star_tracker",
                            "FHST2": "star_tracker", "FSS1": "fine_sun", "CSS1": "coarse_sun"}
-    assert p["physics"] == first.config.physics
+    assert p["physics"] == first.config.physics.as_dict()
     assert p["created_utc"].endswith("Z") and p["gcs_version"]
 
 
 def test_saving_before_a_fit_is_refused(example_dir, tmp_path):
-    unfitted = Analysis(AnalysisConfig(mission=example_dir, holdout_fraction=0.0))
+    unfitted = Analysis(AnalysisConfig(mission=example_dir).with_changes(diagnosis={"holdout_fraction": 0.0}))
     with pytest.raises(EstimationError, match="fit"):
         save_calibration(unfitted, tmp_path / "scds.h5")
     assert not (tmp_path / "scds.h5").exists()

@@ -59,16 +59,18 @@ def test_documented_example_loads_with_every_key(tmp_path):
     path = write(tmp_path, example_text(MISSION))
     cfg = C.load_config(path)
     assert cfg.mission == MISSION and cfg.method == "whole_span" and cfg.name == "nominal, first look"
-    assert cfg.physics == {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True,
+    assert cfg.physics.as_dict() == {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True,
                            "earth_oblateness": True, "field_model": "igrf"}
     assert cfg.models == {"CSS1": "coarse_sun", "IRU": "gyro"}
-    assert cfg.effects == ("TAM1.alignment",) and cfg.exclude == ()
-    assert cfg.elements == {"TAM1.bias_x": C.ElementConfig("solve-for", 0.0, 200.0)}
-    assert (cfg.attitude_sigma_deg, cfg.block_seconds, cfg.edit_k, cfg.max_iterations) == (1.0, 600.0, 5.0, 20)
-    assert (cfg.significance, cfg.holdout_fraction) == (0.001, 0.25)
-    assert (cfg.pred_start, cfg.pred_end, cfg.pred_step, cfg.gaps) == (0.0, 7200.0, 10.0, ((1800.0, 2400.0),))
-    assert cfg.maneuvers == (C.Maneuver(3000.0, 600.0, "yaw", 0.1),)
-    assert cfg.requirement_deg == 0.01
+    assert cfg.state.effects == ("TAM1.alignment",) and cfg.state.exclude == ()
+    assert cfg.state.elements == {"TAM1.bias_x": C.ElementConfig("solve-for", 0.0, 200.0)}
+    assert cfg.state.attitude_sigma_deg == 1.0
+    assert cfg.filter == C.FilterConfig(600.0, 5.0, 20, {"FHST1": 4.0})
+    assert (cfg.diagnosis.significance, cfg.diagnosis.holdout_fraction) == (0.001, 0.25)
+    p = cfg.prediction
+    assert (p.start, p.end, p.step, p.gaps) == (0.0, 7200.0, 10.0, ((1800.0, 2400.0),))
+    assert cfg.prediction.maneuvers == (C.Maneuver(3000.0, 600.0, "yaw", 0.1),)
+    assert cfg.verification.requirement_deg == 0.01
 
 
 def test_every_documented_key_survives_save_and_load(tmp_path):
@@ -98,9 +100,9 @@ def test_documented_example_names_every_key_the_loader_knows():
 
 def test_infinite_sigma_and_label_round_trip(tmp_path):
     cfg = C.load_config(write(tmp_path, BASE + 'name = "run 1"\n[state.elements."CSS1.b_alpha"]\nsigma = inf\n'))
-    assert cfg.elements["CSS1.b_alpha"].sigma == math.inf
+    assert cfg.state.elements["CSS1.b_alpha"].sigma == math.inf
     again = C.load_config(C.save_config(cfg, tmp_path / "b.toml"))
-    assert again.elements == cfg.elements and again.name == "run 1"
+    assert again.state.elements == cfg.state.elements and again.name == "run 1"
     assert replace(cfg, name=None).digest() == cfg.digest()     # the label is not a setting
 
 
@@ -249,9 +251,9 @@ def _template(node) -> str | None:
 
 
 def test_config_checks_doc_in_sync():
-    """docs/input_checks.md tables the messages of gcs_core/config.py (and its checks) and gcs_tui/cli.py."""
+    """docs/input_checks.md tables the messages of gcs_core/config.py (and its checks) and gcs_tui/cli/commands.py."""
     raised = set()
-    for source in (ROOT / "gcs_core" / "config.py", ROOT / "gcs_core" / "config_checks.py", ROOT / "gcs_tui" / "cli.py"):
+    for source in (ROOT / "gcs_core" / "config.py", ROOT / "gcs_core" / "config_checks.py", ROOT / "gcs_tui" / "cli" / "commands.py"):
         for node in ast.walk(ast.parse(source.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call):
                 name = node.func.id if isinstance(node.func, ast.Name) else getattr(node.func, "attr", None)
@@ -269,3 +271,31 @@ def test_config_checks_doc_in_sync():
 
 def test_config_errors_are_input_errors():
     assert issubclass(ConfigError, InputError)
+
+
+# ---------------------------------------------------------------------------- the nested tables
+def test_tables_and_the_fit_key_come_from_the_dataclasses():
+    """``TABLES`` lists each table dataclass's fields; the fit key ignores exactly the tables
+    marked as not changing a fit (the plan, the requirement, the planning tables)."""
+    from dataclasses import fields
+    assert C.TABLES["filter"] == tuple(f.name for f in fields(C.FilterConfig))
+    assert C.TABLES["prediction"] == tuple(f.name for f in fields(C.PredictionConfig))
+    base = C.AnalysisConfig(mission=MISSION)
+    same = base.with_changes(prediction={"start": 10.0, "end": 99.0, "step": 3.0},
+                             verification={"requirement_deg": 0.5}, trade={"top": 2}, path=Path("x.toml"))
+    assert C.fit_key(same) == C.fit_key(base)
+    for changed in (base.with_changes(filter={"edit_k": 4.0}), base.with_changes(diagnosis={"significance": 0.01}),
+                    base.with_changes(physics={"sun_parallax": False}), base.with_changes(method="batch"),
+                    base.with_changes(state={"effects": ("TAM1.alignment",)})):
+        assert C.fit_key(changed) != C.fit_key(base)
+
+
+def test_config_for_opens_what_either_face_is_given(tmp_path):
+    """One rule for ``gcs <command> TARGET`` and the TUI's open: a mission directory or its
+    mission.toml gives the default config, a .toml file is read, anything else is refused."""
+    assert C.config_for(MISSION) == C.default_config(MISSION)
+    assert C.config_for(MISSION / "mission.toml") == C.default_config(MISSION)
+    path = write(tmp_path, BASE + '[diagnosis]\nsignificance = 0.01\n')
+    assert C.config_for(path).diagnosis.significance == 0.01
+    with pytest.raises(ConfigError, match="no such mission directory or config file"):
+        C.config_for(tmp_path / "nothing-here")

@@ -126,7 +126,7 @@ def test_refuses_a_full_output_directory(tmp_path):
 
 
 def test_cli_convert_import_and_noise(tmp_path, capsys):
-    from gcs_tui.cli import EXIT_INPUT, EXIT_OK, main
+    from gcs_tui.cli.commands import EXIT_INPUT, EXIT_OK, main
 
     src = _trial(tmp_path / "t.hdf5")
     assert main(["-q", "convert", "broad", str(src), "--out", str(tmp_path / "m")]) == EXIT_OK

@@ -12,14 +12,16 @@ import pytest
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import determination
-from gcs_core.reporting import state_table
+from gcs_core.reporting import analysis_report
+from gcs_tui.cli.tables import state_table
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
 
 
 def _fit(folder, cfg):
-    a = Analysis(AnalysisConfig(mission=write_mission(cfg, folder), holdout_fraction=0.0))
+    a = Analysis(AnalysisConfig(mission=write_mission(cfg, folder)).with_changes(
+        diagnosis={"holdout_fraction": 0.0}))
     a.fit(holdout=False)
     return a
 
@@ -34,7 +36,7 @@ def test_frequencies_with_zero_amplitude_are_not_determined(nominal):
     assert {"FSS1.k_alpha", "FSS1.k_beta"} <= set(loose)
     assert "FSS1.B3" in loose["FSS1.k_beta"] and "consistent with 0" in loose["FSS1.k_beta"]
     assert all(n.startswith("FSS1.k_") for n in loose)          # nothing else is flagged
-    rows = {r["name"]: r for r in nominal.report()["state"]}
+    rows = {r["name"]: r for r in analysis_report(nominal)["state"]}
     assert rows["FSS1.k_beta"]["determined"] is False and "note" in rows["FSS1.k_beta"]
     assert rows["att.roll"]["determined"] is True
     assert any("not determined by the data" in line for line in state_table(nominal))

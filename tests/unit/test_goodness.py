@@ -17,7 +17,8 @@ import pytest
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import determination, goodness
-from gcs_core.reporting import analysis_report, fit_table, icd_report_problems, state_table
+from gcs_core.reporting import analysis_report, icd_report_problems
+from gcs_tui.cli.tables import fit_table, state_table
 from gcs_core.session import Analysis
 
 from repo_paths import SAMPLE_MISSIONS
@@ -108,7 +109,7 @@ def test_nominal_sample_reads_noise_and_names_what_the_a_priori_set():
     a = Analysis(AnalysisConfig(mission=SAMPLE_MISSIONS / "nominal-sunpoint"))
     a.fit()
     assert a.goodness().adequate, a.goodness().verdict
-    rep = a.report()
+    rep = analysis_report(a, command="batch")
     rows = {r["name"]: r for r in rep["state"]}
     marked = {n for n, r in rows.items() if r.get("set_by_prior")}
     assert marked == set(a.set_by_prior())

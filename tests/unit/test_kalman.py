@@ -26,7 +26,9 @@ from gcs_core.filtr import kalman_kernels
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.filtr.kalman import LinearBlock, referred_transitions, solve_block
 from gcs_core.filtr.mekf import gyro_rates
-from gcs_core.filtr.stepping import BlockReport, FilterOptions, Filtr
+from gcs_core.filtr.filter_options import FilterOptions
+from gcs_core.filtr.results import BlockReport
+from gcs_core.filtr.stepping import Filtr
 from gcs_core.frames.rotations import rotvec_to_dcm
 from test_filter_consistency import sim_problem, simulate
 from repo_paths import ROOT
@@ -250,7 +252,7 @@ def test_covariance_symmetric_positive_definite_over_a_day():
     res = f.run(progress=check)
     assert f.records_on_disk
     assert min(worst) > 1e-6 and len(worst) == 48
-    assert abs(res.nis / res.dof - 1.0) < 4 * np.sqrt(2.0 / res.dof)
+    assert abs(res.nis / res.nis_dof - 1.0) < 4 * np.sqrt(2.0 / res.nis_dof)
     # the same from memory, over the first hours only (the store path is what differs)
     g = Filtr(prob, options=FilterOptions(max_passes=1), block_seconds=1800)
     for _ in range(4):
@@ -286,7 +288,7 @@ def test_covariance_symmetric_positive_definite_over_a_week():
     assert np.all(np.isfinite(res.trajectory.sigma_att)) and np.all(res.trajectory.sigma_att > 0)
     # steady state: the last day's attitude σ within a factor 2 of the second day's
     assert 0.5 < sig_att[-1] / sig_att[7] < 2.0
-    assert abs(res.nis / res.dof - 1.0) < 4 * np.sqrt(2.0 / res.dof)
+    assert abs(res.nis / res.nis_dof - 1.0) < 4 * np.sqrt(2.0 / res.nis_dof)
 
 
 # ----------------------------------------------------------------------------------------

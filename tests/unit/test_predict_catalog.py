@@ -56,7 +56,7 @@ def inertial_mission(folder: Path, seed: int) -> tuple[Path, tuple[float, float,
 @pytest.fixture(scope="module", params=SEEDS, ids=[f"seed{s}" for s in SEEDS])
 def inertial(request, tmp_path_factory):
     mdir, rpy0 = inertial_mission(tmp_path_factory.mktemp("cat"), request.param)
-    analysis = Analysis(AnalysisConfig(mission=mdir, holdout_fraction=0.0))
+    analysis = Analysis(AnalysisConfig(mission=mdir).with_changes(diagnosis={"holdout_fraction": 0.0}))
     fit = analysis.fit(holdout=False)
     plan = DataPlan(0.0, SPAN_S, step=60.0, rpy0=tuple(a * DEG for a in rpy0), maneuvers=MANEUVERS,
                     stars="catalog")
@@ -194,12 +194,12 @@ def test_plan_validation_of_the_star_model(small_mission, tmp_path):
 def test_config_keys_stars_and_catalog(small_mission, tmp_path):
     base = {"analysis": {"mission": str(small_mission)}}
     cfg = config_from_dict({**base, "prediction": {"catalog": "star_catalog.csv"}}, path=tmp_path / "a.toml")
-    assert cfg.pred_catalog == small_mission / "star_catalog.csv"        # relative to the mission
+    assert cfg.prediction.catalog == small_mission / "star_catalog.csv"        # relative to the mission
     plan = DataPlan.from_config(cfg, span=(0.0, 600.0))
     assert (plan.stars, plan.catalog) == ("catalog", small_mission / "star_catalog.csv")
     assert DataPlan.from_config(cfg, span=(0.0, 600.0), stars="sky").catalog is None
     saved = load_config(save_config(cfg, tmp_path / "sub" / "saved.toml"))
-    assert saved.pred_catalog == cfg.pred_catalog and saved.digest() == cfg.digest()
+    assert saved.prediction.catalog == cfg.prediction.catalog and saved.digest() == cfg.digest()
     tm = config_from_dict({**base, "prediction": {"stars": "telemetry"}})
     assert DataPlan.from_config(tm, span=(0.0, 600.0)).stars == "telemetry"
     assert DataPlan.from_config(config_from_dict(base), span=(0.0, 600.0)).stars == "sky"

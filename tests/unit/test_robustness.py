@@ -97,10 +97,8 @@ def test_editing_is_configurable_per_sensor(dirty, method):
     """``[filter.edit_k_sensor]``: k = 0 turns one sensor's editing (batch) or innovation
     gate (Kalman) off: its spikes stay in the fit and its RMS shows them; the other
     sensors are edited as before."""
-    from dataclasses import replace
-
     a, spikes, _ = dirty
-    b = Analysis(replace(a.config, method=method, edit_k_sensor={"TAM1": 0.0}), mission=a.mission)
+    b = Analysis(a.config.with_changes(method=method, filter={"edit_k_sensor": {"TAM1": 0.0}}), mission=a.mission)
     b.fit(holdout=False)
     tam = b.result.residuals["TAM1"]
     assert not tam.edited.any()

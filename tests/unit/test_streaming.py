@@ -41,7 +41,7 @@ def mission_dir(tmp_path_factory):
 def _analysis(mission_dir, chunk: int) -> Analysis:
     physics = {"stellar_aberration": False, "solar_aberration": True, "sun_parallax": True,
                "field_model": "igrf"}
-    a = Analysis(AnalysisConfig(mission=mission_dir, physics=physics))
+    a = Analysis(AnalysisConfig(mission=mission_dir).with_changes(physics=physics))
     a.problem.set_chunk(chunk)
     return a
 

@@ -48,7 +48,7 @@ def test_sensor_keys(base):
     fh = s.spec.sensor("FHST1")
     assert fh.alignment_deg[1] == 5.0 and fh.noise == 1e-5
     assert s.spec.sensor("IRU").book["arw"] == 1e-6
-    assert "FHST1.alignment" in s.config.effects and "TAM1.alignment" not in s.config.effects   # TAM1 is off
+    assert "FHST1.alignment" in s.config.state.effects and "TAM1.alignment" not in s.config.state.effects   # TAM1 is off
     d = s.describe()
     assert d["sensors"]["FHST2"]["on"] is False and d["sensors"]["FHST1"]["alignment_deg"][1] == 5.0
 

@@ -136,8 +136,8 @@ def sim_pair(tmp_path_factory):
 
 
 def test_simulated_onboard_error_is_flagged_and_clean_one_is_not(sim_pair):
-    clean = verify_analysis(Analysis(AnalysisConfig(mission=sim_pair["clean"], holdout_fraction=0.0)))
-    bad = verify_analysis(Analysis(AnalysisConfig(mission=sim_pair["injected"], holdout_fraction=0.0)))
+    clean = verify_analysis(Analysis(AnalysisConfig(mission=sim_pair["clean"]).with_changes(diagnosis={"holdout_fraction": 0.0})))
+    bad = verify_analysis(Analysis(AnalysisConfig(mission=sim_pair["injected"]).with_changes(diagnosis={"holdout_fraction": 0.0})))
     assert not clean.flag, clean.reason
     assert np.all(clean.sigma < 0.01 * units.DEG)
     assert bad.flag and bad.flag_axes[0], bad.reason
@@ -148,7 +148,8 @@ def test_simulated_onboard_error_is_flagged_and_clean_one_is_not(sim_pair):
 def test_example_mission_and_its_rotated_onboard_attitude(example_dir):
     """sunpoint-nominal: its onboard yaw differs from the ground fit by about 0.02°, so it
     passes a 0.03° requirement; the same quaternions turned 0.05° about x do not."""
-    cfg = AnalysisConfig(mission=example_dir, holdout_fraction=0.0, requirement_deg=0.03)
+    cfg = AnalysisConfig(mission=example_dir).with_changes(diagnosis={"holdout_fraction": 0.0},
+                                                 verification={"requirement_deg": 0.03})
     analysis = Analysis(cfg)
     ok = verify_analysis(analysis)
     assert not ok.flag, ok.reason

@@ -1,0 +1,91 @@
+"""The frame around every screen: the navigation bar on top and the status line below.
+
+Both are drawn from plain data (the current view, the app's job state); neither knows
+about the engine.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from rich.text import Text
+from textual.app import ComposeResult
+from textual.containers import Horizontal
+from textual.reactive import reactive
+from textual.widget import Widget
+from textual.widgets import ProgressBar, Static
+
+from gcs_tui.tui.keys import VIEWS
+
+
+class NavBar(Widget):
+    """One line: every screen with its key, the current one highlighted.
+
+    Three densities, the first that fits: full titles, short titles, or only the keys
+    with the current screen's title. A click on an entry switches to it.
+    """
+
+    current: reactive[str] = reactive("mission")
+    """Mode id of the screen this bar sits on."""
+
+    def __init__(self, current: str, **kw) -> None:
+        super().__init__(**kw)
+        self.set_reactive(NavBar.current, current)
+
+    def _entries(self, width: int) -> list[tuple[str, str]]:
+        """``(mode, label)`` per screen at the densest form that fits ``width``."""
+        for form in ("full", "short"):
+            entries = [(mode, f"{key} {title if form == 'full' else short}") for mode, key, title, short in VIEWS]
+            if 5 + sum(len(label) + 2 for _, label in entries) <= width:
+                return entries
+        return [(mode, f"{key} {title}" if mode == self.current else key) for mode, key, title, _ in VIEWS]
+
+    def render(self) -> Text:
+        width = self.size.width or 80
+        out = Text()
+        out.append(" GCS ", style="bold reverse")
+        for mode, label in self._entries(width):
+            out.append(" ")
+            out.append(label, style="bold reverse" if mode == self.current else "")
+            out.append(" ")
+        out.truncate(width)
+        return out
+
+    def on_click(self, event) -> None:
+        pos = 5
+        for mode, label in self._entries(self.size.width or 80):
+            if pos <= event.x < pos + len(label) + 2:
+                self.app.action_view(mode)
+                return
+            pos += len(label) + 2
+
+
+@dataclass(frozen=True)
+class JobState:
+    """What the status line shows about background work."""
+
+    label: str = ""
+    done: float = 0.0
+    total: float | None = None
+    text: str = ""
+
+    @property
+    def busy(self) -> bool:
+        return bool(self.label)
+
+
+class StatusBar(Horizontal):
+    """Mission, fit status and the running job with its progress bar."""
+
+    def compose(self) -> ComposeResult:
+        yield Static("", id="status-text", markup=False)
+        yield ProgressBar(id="status-progress", show_eta=False, show_percentage=True)
+
+    def show(self, text: str, job: JobState) -> None:
+        """Update the line: ``text`` on the left, ``job`` on the right when busy."""
+        line = f"{job.label}: {job.text}" if job.busy and job.text else (job.label or text)
+        self.query_one("#status-text", Static).update(Text(line))
+        self.set_class(job.busy, "-busy")
+        bar = self.query_one("#status-progress", ProgressBar)
+        if job.busy:
+            bar.update(total=job.total, progress=job.done)

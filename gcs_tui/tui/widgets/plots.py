@@ -1,0 +1,79 @@
+"""A plotext plot that repaints itself from a stored painter at every render.
+
+Screens hand :meth:`GcsPlot.paint` a function ``painter(plt)`` that draws with the
+plotext API; the widget clears the figure, calls it and builds the text at the
+widget's current size, so a resize redraws the same data at the new resolution.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from textual_plotext import PlotextPlot
+
+Painter = Callable[[object], None]
+
+
+class GcsPlot(PlotextPlot):
+    """A :class:`textual_plotext.PlotextPlot` driven by a painter function."""
+
+    def __init__(self, *, title: str = "", **kw) -> None:
+        super().__init__(**kw)
+        self._painter: Painter | None = None
+        self._empty_title = title
+
+    def paint(self, painter: Painter | None, *, empty: str = "") -> None:
+        """Draw with ``painter`` from now on (None: an empty frame titled ``empty``)."""
+        self._painter = painter
+        if empty:
+            self._empty_title = empty
+        self.refresh()
+
+    def render(self):
+        plt = self.plt
+        plt.clear_figure()
+        if self._painter is not None:
+            self._painter(plt)
+        else:
+            plt.title(self._empty_title)
+            plt.xticks([])
+            plt.yticks([])
+        return super().render()
+
+
+def nice_y(plt, lo: float, hi: float, n: int = 5) -> None:
+    """Round y ticks (1, 2, 2.5, 5 × 10^k) over [lo, hi], a little margin around the data."""
+    from gcs_core import display as fmt
+
+    if not (lo < hi):
+        return
+    pad = 0.05 * (hi - lo)
+    lo, hi = lo - pad, hi + pad
+    ticks = fmt.nice_ticks(lo, hi, n)
+    plt.ylim(lo, hi)
+    if len(ticks) >= 2:
+        plt.yticks(ticks, fmt.tick_labels(ticks))
+
+
+def nice_x(plt, lo: float, hi: float, n: int = 6) -> None:
+    """Round x ticks over [lo, hi] (see :func:`nice_y`)."""
+    from gcs_core import display as fmt
+
+    if not (lo < hi):
+        return
+    ticks = fmt.nice_ticks(lo, hi, n)
+    if len(ticks) >= 2:
+        plt.xticks(ticks, fmt.tick_labels(ticks))
+
+
+def marked_line(plt, x, y, colour, mark: str, *, marks: int = 12, line: bool = True) -> None:
+    """A series drawn thin (braille) with its marker at about ``marks`` evenly spaced points,
+    so that series differ by shape as well as colour without the markers hiding the data."""
+    x, y = list(x), list(y)
+    if line:
+        plt.plot(x, y, color=colour, marker="braille")
+    else:
+        plt.scatter(x, y, color=colour, marker="braille")
+    if x:
+        step = max(1, len(x) // marks)
+        plt.scatter(x[step // 2::step], y[step // 2::step], color=colour, marker=mark)
