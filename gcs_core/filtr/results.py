@@ -8,14 +8,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import TYPE_CHECKING, Mapping, Protocol
+from typing import Mapping, Protocol
 
 import numpy as np
 
+from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.problem.state import StateVector
 
-if TYPE_CHECKING:                      # the smoother builds SensorResiduals: no import at run time
-    from gcs_core.filtr.smoother import SmoothedTrajectory
 
 
 class FitResult(Protocol):
@@ -63,6 +62,33 @@ class FitResult(Protocol):
 
     @property
     def consider_budget(self) -> Mapping[str, np.ndarray]: ...
+
+
+
+@dataclass(frozen=True)
+class SmoothedTrajectory:
+    """Smoothed attitude (and gyro biases) at every epoch of the filter.
+
+    Attributes
+    ----------
+    t : (N,) epoch times [s] (frame times, block boundaries; a boundary appears twice).
+    q_BI : (N, 4) GCI-to-body quaternion, scalar last (ICD §2).
+    sigma_att : (N, 3) 1-sigma of the attitude error about the body axes [rad].
+    bias : (N, nb) smoothed random-walking gyro biases [rad/s], or None.
+    sigma_bias : (N, nb) their 1-sigma, or None.
+    bias_names : element names of the biases.
+    """
+
+    t: np.ndarray
+    q_BI: np.ndarray
+    sigma_att: np.ndarray
+    bias: np.ndarray | None = None
+    sigma_bias: np.ndarray | None = None
+    bias_names: tuple[str, ...] = ()
+
+    def C_BI(self, k) -> np.ndarray:
+        """Attitude matrices at epochs ``k`` (index or array)."""
+        return quat_to_dcm(self.q_BI[k])
 
 
 @dataclass(frozen=True)

@@ -38,10 +38,9 @@ from typing import Mapping
 
 import numpy as np
 
-from gcs_core.filtr.results import SensorResiduals
+from gcs_core.filtr.results import SensorResiduals, SmoothedTrajectory
 from gcs_core.filtr.mekf import gyro_rates, sensor_window, step_quaternions
-from gcs_core.frames.rotations import (dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize,
-                                       quat_to_dcm)
+from gcs_core.frames.rotations import (dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize)
 
 log = logging.getLogger(__name__)
 
@@ -110,32 +109,6 @@ class EpochStore:
         if self._file is not None:
             self._file.close()
             self._file = None
-
-
-@dataclass(frozen=True)
-class SmoothedTrajectory:
-    """Smoothed attitude (and gyro biases) at every epoch of the filter.
-
-    Attributes
-    ----------
-    t : (N,) epoch times [s] (frame times, block boundaries; a boundary appears twice).
-    q_BI : (N, 4) GCI-to-body quaternion, scalar last (ICD §2).
-    sigma_att : (N, 3) 1-sigma of the attitude error about the body axes [rad].
-    bias : (N, nb) smoothed random-walking gyro biases [rad/s], or None.
-    sigma_bias : (N, nb) their 1-sigma, or None.
-    bias_names : element names of the biases.
-    """
-
-    t: np.ndarray
-    q_BI: np.ndarray
-    sigma_att: np.ndarray
-    bias: np.ndarray | None = None
-    sigma_bias: np.ndarray | None = None
-    bias_names: tuple[str, ...] = ()
-
-    def C_BI(self, k) -> np.ndarray:
-        """Attitude matrices at epochs ``k`` (index or array)."""
-        return quat_to_dcm(self.q_BI[k])
 
 
 @dataclass(frozen=True)

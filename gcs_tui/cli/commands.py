@@ -45,6 +45,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
+from gcs_tui.cli.arguments import whole_number
 from gcs_tui.cli.progress import MODES, LogHandler, Progress
 
 log = logging.getLogger("gcs")
@@ -351,19 +352,6 @@ class _Parser(argparse.ArgumentParser):
 
     def error(self, message: str):
         self.exit(EXIT_INPUT, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
-
-
-def whole_number(minimum: int):
-    """An argparse type: a whole number of at least ``minimum``, with a one-line refusal."""
-    def parse(text: str) -> int:
-        try:
-            v = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
-        if v < minimum:
-            raise argparse.ArgumentTypeError(f"must be ≥ {minimum}, not {v}")
-        return v
-    return parse
 
 
 _positive_int = whole_number(1)

@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from gcs_core.errors import InputError
+from gcs_tui.cli.arguments import whole_number
 
 EXIT_OK, EXIT_FLAG, EXIT_INTERRUPT = 0, 1, 130
 
@@ -42,7 +43,6 @@ def _progress(task, what: str):
 
 
 def _count(text: str) -> int:
-    from gcs_tui.cli.commands import whole_number
     return whole_number(0)(text)
 
 
