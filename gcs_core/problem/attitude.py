@@ -317,6 +317,9 @@ class ProviderDefaults:
     t_ref: float | None = None
     ref: "ReferenceAttitude | ManeuverAttitude | None" = None
 
+    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
+        raise NotImplementedError
+
     def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
         return FrameAttitude.of(self.evaluate(values, t))
 

@@ -32,6 +32,7 @@ def discovered():
     return a
 
 
+@pytest.mark.slow
 def test_discovery_runs_to_its_end_and_every_addition_lowers_the_held_out_rms(discovered):
     a = discovered
     added = [s for s in a.steps if s.action == "add"]

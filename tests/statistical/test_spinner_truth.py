@@ -23,6 +23,7 @@ z_bound = 3.0                   # every determined element within 3σ of the tru
 SLICE = [(90.0, "d_gamma", 2), (51.6, "height", 2)]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("inclination,hidden,seed", SLICE, ids=[f"{i}-{h}-{s}" for i, h, s in SLICE])
 def test_spinner_discovery_and_truth(inclination, hidden, seed, tmp_path):
     o = run_case(inclination, hidden, seed, tmp_path)

@@ -106,6 +106,7 @@ def test_discover_report_has_the_icd_fields(discovered):
     assert (out / "plots" / "residuals.html").read_text().startswith("<!doctype html>")
 
 
+@pytest.mark.slow
 def test_discover_strict_exits_1_as_a_process():
     """The real process: exit status 1 when --strict and an effect was added; no traceback."""
     proc = run_process("discover", TAM, "--strict", "--max-steps", "1")

@@ -7,6 +7,7 @@ every solve-for estimate and σ of the TUI's fit to 1e-9 relative.
 
 from __future__ import annotations
 
+import pytest
 import numpy as np
 from textual.widgets import DataTable
 
@@ -22,6 +23,7 @@ NEW_SIGMA_NT = 150.0
 EDITED = "TAM1.bias_x"
 
 
+@pytest.mark.slow
 async def test_saved_config_runs_headless_to_the_same_estimates(shared_example, tmp_path):
     config, hidden, _ = hidden_effect_case(shared_example, tmp_path)
     saved = tmp_path / "saved" / "from-tui.toml"

@@ -16,6 +16,7 @@ from __future__ import annotations
 import shutil
 from pathlib import Path
 
+import pytest
 from textual.widgets import DataTable
 
 from gcs_core.config import AnalysisConfig, save_config
@@ -58,6 +59,7 @@ async def open_by_keys(pilot, path: Path) -> None:
     await settle(pilot)
 
 
+@pytest.mark.slow
 async def test_find_hidden_effect_by_keys(shared_example, tmp_path):
     config, hidden, affected = hidden_effect_case(shared_example, tmp_path)
     app = GcsApp()
@@ -94,6 +96,7 @@ async def test_find_hidden_effect_by_keys(shared_example, tmp_path):
     assert app.return_code in (0, None)
 
 
+@pytest.mark.slow
 async def test_editing_screens_by_keys(shared_example, tmp_path):
     """Models, State, Data plan, the palette and the help, by keys, before any fit."""
     config, _, _ = hidden_effect_case(shared_example, tmp_path)

@@ -86,7 +86,7 @@ def test_both_converters_mark_estimated_noise_one_way(tmp_path):
 
     from gcs_core.convert import convert
     from gcs_core.filtr.noise import ESTIMATED_MARK, noise_estimated
-    from tests.unit.test_convert_broad import _trial
+    from test_convert_broad import _trial
 
     data = TEST_DATA / "astropi"
     convert("astropi", data / "astropi_extract.csv", tmp_path / "a",

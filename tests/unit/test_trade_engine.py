@@ -71,6 +71,7 @@ def test_parse_values():
         parse_values("5:0:1", "trade.vary.k")
 
 
+@pytest.mark.slow
 def test_killed_study_keeps_finished_plans_and_resume_computes_the_rest(tmp_path, monkeypatch):
     out = tmp_path / "study.h5"
     args = ["trade", str(CONFIG), "--output", str(out), "--progress", "plain"]
@@ -141,6 +142,7 @@ def test_serial_path_never_imports_dask(tmp_path):
     assert out.stdout.split() == ["False", "False"], out.stderr
 
 
+@pytest.mark.slow
 def test_identical_numbers_serially_and_on_a_local_cluster(tmp_path):
     pytest.importorskip("distributed")
     vary = ["span_min=10,20", "start_min=0,30"]
