@@ -48,7 +48,7 @@ sys.path.insert(0, str(REPO))
 from gcs_core.filtr import batch_kernels as kernels  # noqa: E402
 from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations  # noqa: E402
 from gcs_core.filtr.problem import build_problem, iter_blocks  # noqa: E402
-from gcs_core.filtr.mekf import GyroNoise  # noqa: E402
+from gcs_core.models.gyro_noise import GyroNoise  # noqa: E402
 from gcs_core.filtr.smoothing_batch import whole_span_fit  # noqa: E402
 from gcs_core.sidp.importer import load_mission  # noqa: E402
 from gcs_core.sim.scenarios import nominal_threeaxis  # noqa: E402

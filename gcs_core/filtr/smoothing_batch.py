@@ -48,9 +48,10 @@ from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitu
 from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
                                   edit_frames, name_combinations, residuals_from)
 from gcs_core.filtr.linearization import iter_blocks
-from gcs_core.filtr.mekf import GyroNoise, gyro_noise
+from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.filtr.problem import Problem
 from gcs_core.frames.rotations import rotvec_to_dcm
+from gcs_core.models.gyro_noise import GyroNoise
 
 log = logging.getLogger(__name__)
 
@@ -167,8 +168,8 @@ def process_noise(problem: Problem) -> GyroNoise | None:
     """The gyro noise of the data book when the attitude is gyro-carried and noisy."""
     if problem.gyro_name is None or not isinstance(problem.attitude, GyroAttitude):
         return None
-    noise = gyro_noise(problem)
-    return noise if (noise.sigma_v > 0 or noise.sigma_u > 0) else None
+    noise = attitude_gyro_noise(problem)
+    return noise if noise.process else None
 
 
 def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, names, *,
@@ -281,7 +282,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     opts = options or BatchOptions()
     batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
     noise = noise if noise is not None else process_noise(problem)
-    if noise is None or (noise.sigma_v <= 0 and noise.sigma_u <= 0) \
+    if noise is None or not noise.process \
             or not isinstance(problem.attitude, GyroAttitude):
         return batch
     state = problem.state
