@@ -97,12 +97,13 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from gcs_core.config_checks import (_choice, _fail, _list, _number, _pair, _quote, _require, _show,
-                                   _table, _unknown)
+from gcs_core.config_checks import _choice, _fail, _list, _number, _pair, _require, _table, _unknown
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import make_usual
 from gcs_core.models.base import ROLES
 from gcs_core.sidp.types import SENSOR_TYPES
+from gcs_core.toml_values import quote as _quote
+from gcs_core.toml_values import show as _show
 
 METHODS = ("whole_span", "batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole", "constant")

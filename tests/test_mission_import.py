@@ -332,11 +332,12 @@ def _template(node) -> str | None:
 
 def _code_templates() -> tuple[set[str], set[str]]:
     """(messages raised by the sidp readers, every string template in their sources and in
-    the epoch parser they call, :func:`gcs_core.ephem.timescale.parse_utc`)."""
+    what they call for words: the epoch parser :func:`gcs_core.ephem.timescale.parse_utc`
+    and the value complaints of :mod:`gcs_core.toml_values`)."""
     import ast
     raised, everything = set(), set()
     sources = sorted((REPO / "gcs_core" / "sidp").glob("*.py"))
-    for source in sources + [REPO / "gcs_core" / "ephem" / "timescale.py"]:
+    for source in sources + [REPO / "gcs_core" / "ephem" / "timescale.py", REPO / "gcs_core" / "toml_values.py"]:
         for node in ast.walk(ast.parse(source.read_text())):
             t = _template(node)
             if t:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gcs_core.compiled import COMPILED
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr import smoothing_batch as sb
 from gcs_core.filtr.batch import BatchOptions, batch_fit
@@ -141,7 +142,7 @@ def test_knot_partials_against_finite_differences():
 def test_compiled_and_numpy_forms_agree(monkeypatch):
     """The fused compiled accumulation and attitude correction give the numpy forms'
     numbers (a machine without numba gets the same fit)."""
-    if not kn.COMPILED:
+    if not COMPILED:
         pytest.skip("numba not available: only the numpy form runs")
     problem, batch, grid, passes, x_bar, prior = _small()
     z = np.zeros((grid.K, grid.d))

@@ -47,12 +47,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_core.filtr.kalman_kernels import COMPILED, numba
+from gcs_core.compiled import COMPILED, jit
 from gcs_core.filtr.knot_kernels import (_accumulate, _accumulate_fused, _accumulate_numpy,  # noqa: F401
                                          correct_attitude)
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 
-_jit = numba.njit(cache=True) if COMPILED else (lambda fn: fn)
+_jit = jit()
 # the 6×6 knot products below run on strided slices by design; numba's advice to copy them
 # first is noise to a user reading the first (compiling) run's output
 warnings.filterwarnings("ignore", message="'@' is faster on contiguous arrays")

@@ -42,6 +42,7 @@ from typing import Mapping
 
 import numpy as np
 
+from gcs_core.compiled import COMPILED
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitude
@@ -119,7 +120,7 @@ class CorrectedAttitude:
     def _correct(self, C, t):
         if not np.any(self.z):
             return C
-        if kn.COMPILED:
+        if COMPILED:
             out = np.empty_like(C)
             kn.correct_attitude(np.ascontiguousarray(C), t, self.grid.index(t).astype(np.int64), self.grid.tau,
                                 self.z, self.R if self.R.shape[0] else np.eye(3)[None], out)

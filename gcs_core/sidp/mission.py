@@ -28,6 +28,8 @@ from typing import Any, Callable
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
 from gcs_core.sidp.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
+from gcs_core.toml_values import number_complaint
+from gcs_core.toml_values import show as _show
 
 log = logging.getLogger(__name__)
 
@@ -194,17 +196,10 @@ class _Ctx:
 # --- values ---------------------------------------------------------------------------
 
 def _number(ctx: _Ctx, value: Any, key: str, table: str, index: int, tkey: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ctx.error(f"must be a number, not {_show(value)}", key, table, index, tkey)
-    v = float(value)
-    if not math.isfinite(v):
-        raise ctx.error(f"must be finite, not {v}", key, table, index, tkey)
-    return v
-
-
-def _show(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:40] + "..."
+    complaint = number_complaint(value)
+    if complaint:
+        raise ctx.error(complaint, key, table, index, tkey)
+    return float(value)
 
 
 def _numbers(ctx: _Ctx, value: Any, size: int, key: str, table: str, index: int,
