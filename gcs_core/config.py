@@ -91,7 +91,6 @@ import hashlib
 import json
 import os
 import re
-import tempfile
 import tomllib
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -99,7 +98,7 @@ from typing import Any
 
 from gcs_core.config_checks import _choice, _fail, _list, _number, _pair, _require, _table, _unknown
 from gcs_core.errors import ConfigError
-from gcs_core.fileperm import make_usual
+from gcs_core.fileperm import write_atomic
 from gcs_core.models.base import ROLES
 from gcs_core.sidp.types import SENSOR_TYPES
 from gcs_core.toml_values import quote as _quote
@@ -473,20 +472,7 @@ def save_config(cfg: AnalysisConfig, path: str | Path) -> Path:
 
     path = Path(path)
     text = tomli_w.dumps(to_dict(cfg, relative_to=path.parent))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        make_usual(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_atomic(path, text, parents=True)
 
 
 def default_config(mission_dir: str | Path) -> AnalysisConfig:

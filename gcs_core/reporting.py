@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import textwrap
 from pathlib import Path
 from typing import Any, Iterable, Mapping
@@ -22,7 +20,7 @@ from typing import Any, Iterable, Mapping
 import numpy as np
 
 from gcs_core import display
-from gcs_core.fileperm import make_usual
+from gcs_core.fileperm import write_atomic
 
 
 def display_unit(unit: str, value: float, sigma: float | None = None) -> tuple[float, float | None, str]:
@@ -400,20 +398,6 @@ def _clean(o):
 
 
 def write_json_atomic(path: Path, data: dict) -> Path:
-    """Write JSON (NaN/inf as null) to a temp file, fsync, then replace ``path``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """Write JSON (NaN/inf as null) atomically (:func:`gcs_core.fileperm.write_atomic`)."""
     text = json.dumps(_clean(json.loads(json.dumps(data, default=_default))), indent=2)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        make_usual(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_atomic(path, text, parents=True)

@@ -29,7 +29,6 @@ from gcs_core.filtr.attitude import RPY, GyroAttitude
 from gcs_core.filtr.batch import name_combinations
 from gcs_core.filtr.linearization import linearize
 from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions
-from gcs_core.models import common
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.plan import DataPlan
