@@ -91,7 +91,6 @@ import hashlib
 import json
 import os
 import re
-import tomllib
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -100,7 +99,9 @@ from gcs_core.config_checks import _choice, _fail, _list, _number, _pair, _requi
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import write_atomic
 from gcs_core.models.base import ROLES
+from gcs_core.sidp.prepare import PhysicsOptions
 from gcs_core.sidp.types import SENSOR_TYPES
+from gcs_core import toml_values
 from gcs_core.toml_values import quote as _quote
 from gcs_core.toml_values import show as _show
 
@@ -114,7 +115,7 @@ MODEL_OFF = "off"
 #: the tables of a config and the keys each holds
 TABLES: dict[str, tuple[str, ...]] = {
     "analysis": ("mission", "name", "method"),
-    "physics": ("stellar_aberration", "solar_aberration", "sun_parallax", "earth_oblateness", "field_model"),
+    "physics": tuple(PhysicsOptions().as_dict()),
     "models": (),
     "state": ("effects", "exclude", "attitude_sigma_deg", "elements"),
     "filter": ("block_seconds", "edit_k", "max_iterations", "edit_k_sensor"),
@@ -186,9 +187,7 @@ class AnalysisConfig:
     path: Path | None = None
     mission: Path = Path(".")
     method: str = "whole_span"
-    physics: dict = field(default_factory=lambda: {"stellar_aberration": True, "solar_aberration": True,
-                                                   "sun_parallax": True, "earth_oblateness": True,
-                                                   "field_model": "igrf"})
+    physics: dict = field(default_factory=lambda: PhysicsOptions().as_dict())
     models: dict = field(default_factory=dict)
     effects: tuple[str, ...] = ()
     exclude: tuple[str, ...] = ()
@@ -238,32 +237,12 @@ def load_config(path: str | Path) -> AnalysisConfig:
         raw = path.read_bytes()
     except OSError as err:
         _fail(None, f"cannot read the config file ({err.strerror or err})", path)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as err:
-        line = raw[:err.start].count(b"\n") + 1
-        raise ConfigError(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path, line=line,
-                          column=err.start - (raw.rfind(b"\n", 0, err.start) + 1) + 1) from None
-    return config_from_dict(parse_toml(text, path), path=path)
+    return config_from_dict(parse_toml(toml_values.decode(raw, path, ConfigError), path), path=path)
 
 
 def parse_toml(text: str, path: Path | None = None) -> dict:
     """``tomllib.loads`` with its errors as :class:`ConfigError` at a line and column."""
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        msg = str(err).splitlines()[0] if str(err) else "invalid TOML"
-        m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
-        if m:
-            raise ConfigError(f"TOML syntax error: {msg[:m.start()]}", file=path,
-                              line=int(m.group(1)), column=int(m.group(2))) from None
-        m = re.search(r"\s*\(at end of document\)\s*$", msg)
-        if m:
-            raise ConfigError(f"TOML syntax error at the end of the file: {msg[:m.start()]}", file=path,
-                              line=max(1, text.count("\n") + (not text.endswith("\n")))) from None
-        raise ConfigError(f"TOML syntax error: {msg}", file=path) from None
-    except RecursionError:
-        raise ConfigError("TOML nesting too deep", file=path) from None
+    return toml_values.loads(text, path, ConfigError)
 
 
 def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
@@ -292,7 +271,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _unknown(phys, TABLES["physics"], "physics.", f)
     for k, v in phys.items():
         if k == "field_model":
-            ph[k] = _choice(phys, k, FIELD_MODELS, "igrf", "physics.field_model", f)
+            ph[k] = _choice(phys, k, FIELD_MODELS, ph[k], "physics.field_model", f)
         else:
             _require(isinstance(v, bool), f"physics.{k}", f"must be true or false, not {_show(v)}", f)
             ph[k] = v

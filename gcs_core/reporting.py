@@ -23,14 +23,6 @@ from gcs_core import display
 from gcs_core.fileperm import write_atomic
 
 
-def display_unit(unit: str, value: float, sigma: float | None = None) -> tuple[float, float | None, str]:
-    """(value, sigma, unit) converted for display by the one rule of :mod:`gcs_core.display`
-    (the unit chosen from σ, or from |value| without one)."""
-    shown = display.shown_unit(unit, value, sigma)
-    k = display.scale(unit, shown)
-    return value * k, (sigma * k if sigma is not None else None), display.unit_label(shown)
-
-
 def format_estimate(value: float, sigma: float | None, unit: str) -> str:
     """``value ± sigma unit`` rounded to the σ's second significant digit (:mod:`gcs_core.display`)."""
     return display.estimate(value, sigma, unit)

@@ -1,4 +1,4 @@
-"""How the TOML readers judge and quote values (the analysis config, :mod:`gcs_core.config`,
+"""How the TOML readers parse, judge and quote values (the analysis config, :mod:`gcs_core.config`,
 and mission.toml, :mod:`gcs_core.sidp.mission`): one wording for both.
 
 Each reader raises its own error with the file, line and key; these functions give the
@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import re
+import tomllib
 from typing import Any
 
 #: characters of a value shown in a message
@@ -43,3 +44,33 @@ def number_complaint(value: Any, *, allow_inf: bool = False) -> str | None:
     if not (allow_inf and v == math.inf) and not math.isfinite(v):
         return f"must be finite, not {v}"
     return None
+
+
+def decode(raw: bytes, path, error: type[Exception]) -> str:
+    """UTF-8 text of a TOML file, or ``error`` ("not UTF-8 text") at the bad byte's line and column."""
+    try:
+        return raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        line = raw[:err.start].count(b"\n") + 1
+        raise error(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path, line=line,
+                    column=err.start - (raw.rfind(b"\n", 0, err.start) + 1) + 1) from None
+
+
+def loads(text: str, path, error: type[Exception]) -> dict:
+    """``tomllib.loads`` with its errors as ``error`` at a line and column (``error`` takes
+    the message and ``file``, ``line``, ``column``, like :class:`~gcs_core.errors.InputError`)."""
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        msg = str(err).splitlines()[0] if str(err) else "invalid TOML"
+        m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
+        if m:
+            raise error(f"TOML syntax error: {msg[:m.start()]}", file=path,
+                        line=int(m.group(1)), column=int(m.group(2))) from None
+        m = re.search(r"\s*\(at end of document\)\s*$", msg)
+        if m:
+            raise error(f"TOML syntax error at the end of the file: {msg[:m.start()]}", file=path,
+                        line=max(1, text.count("\n") + (not text.endswith("\n")))) from None
+        raise error(f"TOML syntax error: {msg}", file=path) from None
+    except RecursionError:
+        raise error("TOML nesting too deep", file=path) from None

@@ -13,6 +13,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -125,3 +127,62 @@ def test_truth_recovered_with_read_out_noise():
     mission0, _ = simulate(42, duration_s=900.0, electronic=0.0)
     pred0 = predict(sim_problem(mission0), method="kalman")
     assert np.all(pred0.attitude_sigma[-1] < 0.85 * pred.attitude_sigma[-1])
+
+
+def test_physics_defaults_are_one_table():
+    """The config's physics defaults, its known keys, the catalogue's "on" values and the
+    problem's options are the table of PhysicsOptions."""
+    from gcs_core import config
+    from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
+
+    table = PhysicsOptions().as_dict()
+    assert config.AnalysisConfig().physics == table
+    assert config.TABLES["physics"] == tuple(table)
+    assert {k: on for k, (on, _) in PHYSICS_EFFECTS.items()} == table
+    assert config.parse_toml("[analysis]\nmission = '.'\n") and \
+        config.config_from_dict({"analysis": {"mission": "."}, "physics": {}}).physics == table
+
+
+def test_config_and_mission_word_bad_values_alike(tmp_path):
+    """One wording of TOML value complaints and syntax errors for the analysis config and
+    mission.toml (gcs_core.toml_values)."""
+    from gcs_core import config
+    from gcs_core.errors import ConfigError
+    from gcs_core.sidp.mission import read_mission_spec
+
+    root = Path(__file__).resolve().parents[1] / "sample_data" / "missions" / "hidden-tam-contamination"
+    sample = (root / "mission.toml").read_text()
+
+    def mission_error(text):
+        d = tmp_path / f"m{len(list(tmp_path.iterdir()))}"
+        for f in root.rglob("*.csv"):             # the files it names (mission.toml is read first)
+            (d / f.relative_to(root)).parent.mkdir(parents=True, exist_ok=True)
+            (d / f.relative_to(root)).touch()
+        (d / "mission.toml").write_text(text)
+        with pytest.raises(InputError) as err:
+            read_mission_spec(d)
+        return err.value
+
+    def config_error(text):
+        with pytest.raises(ConfigError) as err:
+            config.config_from_dict(config.parse_toml(text))
+        return err.value
+
+    long_text = "x" * 80
+    m = mission_error(sample.replace("noise = 25.0", f'noise = "{long_text}"', 1))
+    c = config_error(f'[analysis]\nmission = "."\n[diagnosis]\nsignificance = "{long_text}"\n')
+    assert m.message == c.message == f"must be a number, not '{long_text[:36]}..."
+    m = mission_error("[mission\nname = 1\n")
+    c = config_error("[analysis\nmission = 1\n")
+    assert m.message == c.message and m.message.startswith("TOML syntax error") and m.line == c.line == 1
+
+
+def test_robust_scale_is_the_noise_estimators():
+    """The batch's editing and the noise estimator use one MAD-to-σ constant."""
+    import inspect
+
+    from gcs_core.filtr import batch
+    from gcs_core.sidp import noise
+
+    assert batch.MAD_TO_SIGMA is noise.MAD_TO_SIGMA
+    assert "1.4826 *" not in inspect.getsource(batch)

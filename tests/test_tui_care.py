@@ -22,7 +22,7 @@ import numpy as np
 import pytest
 from textual.widgets import DataTable, Label, Static
 
-from gcs_core import reporting
+from gcs_core import display, reporting
 from gcs_core.units import ARCSEC, DEG
 from gcs_tui import format as fmt
 from gcs_tui.app import LOGGERS, GcsApp, detached_terminal_logging, poor_choice
@@ -173,9 +173,13 @@ async def test_dialog_labels_keep_their_units():
     ("1", 0.99996, 4.3e-5),
 ])
 def test_cli_and_tui_choose_the_same_unit_and_digits(unit, value, sigma):
-    _, _, cli_unit = reporting.display_unit(unit, value, sigma)
-    assert cli_unit == fmt.unit_label(fmt.shown_unit(unit, value, sigma))
-    assert reporting.format_estimate(value, sigma, unit) == fmt.estimate(value, sigma, unit)
+    """One rule (gcs_core.display): the TUI's is the same function, not a copy, and the
+    CLI's text for the same σ is the TUI's, in the unit the rule picks."""
+    assert fmt.display_unit is display.display_unit and fmt.shown_unit is display.shown_unit
+    assert fmt.estimate is display.estimate
+    text = reporting.format_estimate(value, sigma, unit)
+    assert text == fmt.estimate(value, sigma, unit)
+    assert text.endswith(display.unit_label(display.shown_unit(unit, value, sigma)))
 
 
 def test_rows_with_similar_sigma_share_a_unit():

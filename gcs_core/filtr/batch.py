@@ -60,6 +60,7 @@ from gcs_core.filtr.batch_results import (BatchResult, Residuals, SensorResidual
                                          make_residuals, residuals_from, weighted_masks)
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.problem import Problem
+from gcs_core.sidp.noise import MAD_TO_SIGMA
 
 log = logging.getLogger(__name__)
 
@@ -343,10 +344,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             budget[c] = np.sqrt(np.diag(contrib))
             P_cons += contrib
     unobs = tuple(name_combinations(A, names, opts.rank_tol * 1e3))
-    if suspect_all:
-        message += ("; not edited (more than "
-                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
-                    "is suspect): " + ", ".join(sorted(suspect_all)))
+    message += suspect_note(suspect_all, opts)
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, buffers, edits)
     return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,
@@ -380,6 +378,15 @@ def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], op
     return new_edits, suspect, changed
 
 
+def suspect_note(suspect, opts: BatchOptions) -> str:
+    """What a fit's message adds for the sensors :func:`edit_frames` left unedited ('' for none)."""
+    if not suspect:
+        return ""
+    return ("; not edited (more than "
+            f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
+            "is suspect): " + ", ".join(sorted(suspect)))
+
+
 def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarray:
     """Frames whose normalized residual ``z`` (N, m) is an outlier, among ``candidates``.
 
@@ -403,7 +410,7 @@ def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarr
     zc = z[candidates]
     with np.errstate(invalid="ignore"):
         dev = np.abs(zc - np.nanmedian(zc, axis=0))
-        s = 1.4826 * float(np.nanmedian(dev))
+        s = MAD_TO_SIGMA * float(np.nanmedian(dev))
         big = np.any(dev > k * max(1.0, s if np.isfinite(s) else 1.0), axis=1)
     out[np.flatnonzero(candidates)[big]] = True
     return out

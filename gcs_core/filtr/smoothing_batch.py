@@ -47,7 +47,7 @@ from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitude
 from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
-                                  edit_frames, name_combinations, residuals_from)
+                                  edit_frames, name_combinations, residuals_from, suspect_note)
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.filtr.problem import Problem
@@ -408,10 +408,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     chi2_proc = sysk.prior_cost()
     message = (f"whole-span fit with gyro process noise ({grid.K} knots every "
                f"{float(np.median(np.diff(grid.tau))):.3g} s): {message}")
-    if suspect_all:
-        message += ("; not edited (more than "
-                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
-                    "is suspect): " + ", ".join(sorted(suspect_all)))
+    message += suspect_note(suspect_all, opts)
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, passes.buffers, edits)
     dyn = Dynamics(grid, z, R, names, fac, P)

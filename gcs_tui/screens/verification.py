@@ -14,6 +14,7 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal
 from textual.widgets import DataTable, Static
 
+from gcs_core.display import common_unit
 from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
@@ -26,9 +27,7 @@ AXES = ("roll", "pitch", "yaw")
 
 def shown_unit(v) -> str:
     """One unit for the whole screen, from the largest σ or threshold (the display rule)."""
-    vals = np.concatenate([np.atleast_1d(v.sigma), np.atleast_1d(v.ground_accuracy), np.atleast_1d(v.requirement)])
-    vals = vals[np.isfinite(vals)]
-    return fmt.display_unit("rad", float(np.max(vals)) if vals.size else float("nan"))
+    return common_unit("rad", v.sigma, v.ground_accuracy, v.requirement)
 
 
 class VerificationScreen(GcsScreen):
