@@ -21,6 +21,7 @@ import numpy as np
 
 from gcs_core import display
 from gcs_core.fileperm import write_atomic
+from gcs_core.toml_values import is_number
 
 
 def format_estimate(value: float, sigma: float | None, unit: str) -> str:
@@ -315,9 +316,7 @@ def remaining_lines(analysis) -> list[str]:
 
 
 def _is_num(v, *, none_ok: bool = False) -> bool:
-    if v is None:
-        return none_ok
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    return none_ok if v is None else is_number(v)
 
 
 def icd_report_problems(rep: Mapping[str, Any]) -> list[str]:
