@@ -186,3 +186,16 @@ def test_robust_scale_is_the_noise_estimators():
 
     assert batch.MAD_TO_SIGMA is noise.MAD_TO_SIGMA
     assert "1.4826 *" not in inspect.getsource(batch)
+
+
+def test_one_atomic_write_helper():
+    """Only gcs_core/fileperm.py renames temporaries over files or fsyncs (the simulator
+    keeps its own on purpose: it imports nothing of the engine)."""
+    import re
+
+    root = Path(__file__).resolve().parents[1]
+    pattern = re.compile(r"os\.replace\(|mkstemp\(|mkdtemp\(|os\.fsync\(|\.rename\(")
+    allowed = {"gcs_core/fileperm.py", "gcs_core/sim/writer.py"}
+    offenders = [str(p.relative_to(root)) for pkg in ("gcs_core", "gcs_tui") for p in (root / pkg).rglob("*.py")
+                 if str(p.relative_to(root)) not in allowed and pattern.search(p.read_text(encoding="utf-8"))]
+    assert offenders == []

@@ -234,8 +234,6 @@ def _write_header(path: Path, fmt: str, version: int) -> None:
                 f"length {length}\nsha256 {digest}\n").encode("ascii")
         fh.seek(0)
         fh.write(text.ljust(USERBLOCK, b"\0"))
-        fh.flush()
-        os.fsync(fh.fileno())
 
 
 def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
@@ -415,7 +413,7 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int) -> Iterator[h
                     f.attrs[CREATED_ATTR] = utc_now()
                     f.attrs[GCS_VERSION_ATTR] = gcs_version()
                     yield f
-                _write_header(tmp, fmt, version)  # hashes, writes and fsyncs
+                _write_header(tmp, fmt, version)  # hashed and written; atomic_path syncs it
         except OSError as err:  # disk full, read-only directory, ...
             raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
 
