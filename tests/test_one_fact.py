@@ -94,7 +94,6 @@ def test_knots_use_farrenkopf_q():
         np.testing.assert_allclose(W @ Q, np.broadcast_to(np.eye(d), Q.shape), atol=1e-9)
 
 
-@pytest.mark.slow
 def test_truth_recovered_with_read_out_noise():
     """σ_e as large as the tracker noise (the tracker residual σ doubles in variance):
     the smoothed state's errors are N(0, P) over seeded runs — NEES in its 95 % χ² band,
