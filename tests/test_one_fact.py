@@ -71,7 +71,15 @@ def test_predictor_and_filter_share_gyro_noise_and_q(monkeypatch):
     predict(problem, method="kalman")
     assert calls, "the predictor did not call farrenkopf_q"
     noise, Wy, Wb, axes = calls[-1]
+    calls.clear()
+    monkeypatch.setattr(mekf, "farrenkopf_q", spy)
     filt = Filtr(problem, options=FilterOptions(max_passes=1))
+    filt.run()
+    assert calls, "the filter did not call farrenkopf_q"
+    f_noise, f_Wy, f_Wb, f_axes = calls[-1]              # at the filter's estimate, not the nominal
+    assert f_noise == noise and f_axes == axes
+    np.testing.assert_allclose(f_Wb, Wb, atol=ROUND_OFF)
+    np.testing.assert_allclose(f_Wy, Wy, atol=1e-2)    # G estimated: ΔG ~ 1e-3
     assert noise == filt._noise == mekf.attitude_gyro_noise(problem) == GyroNoise(3e-6, 3e-9, 5e-6)
     values = problem.state.values()
     _, _, Wy_f, Wb_f = mekf.gyro_rates(problem.attitude, values, 0, 1)
