@@ -206,3 +206,25 @@ def test_one_atomic_write_helper():
     offenders = [str(p.relative_to(root)) for pkg in ("gcs_core", "gcs_tui") for p in (root / pkg).rglob("*.py")
                  if str(p.relative_to(root)) not in allowed and pattern.search(p.read_text(encoding="utf-8"))]
     assert offenders == []
+
+
+@pytest.mark.parametrize("exchange", [True, False])
+def test_atomic_directory_replaces_or_leaves_untouched(tmp_path, monkeypatch, exchange):
+    """A staged directory replaces the old one (one-step exchange, or two renames where the
+    system has none); a failure inside leaves the old one as it was and no stage behind."""
+    from gcs_core import fileperm
+
+    if not exchange:
+        monkeypatch.setattr(fileperm, "_exchange", lambda a, b: False)
+    out = tmp_path / "mission"
+    for version in ("1", "2"):
+        with fileperm.atomic_directory(out) as stage:
+            (stage / "mission.toml").write_text(version)
+        assert (out / "mission.toml").read_text() == version
+        assert (out.stat().st_mode & 0o777) == 0o755
+    with pytest.raises(RuntimeError):
+        with fileperm.atomic_directory(out) as stage:
+            (stage / "mission.toml").write_text("3")
+            raise RuntimeError("half written")
+    assert (out / "mission.toml").read_text() == "2"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mission"]
