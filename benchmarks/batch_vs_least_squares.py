@@ -45,13 +45,13 @@ from scipy.optimize import least_squares
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gcs_core.problem import kernels  # noqa: E402
-from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations  # noqa: E402
+from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
 from gcs_core.problem.build import build_problem
-from gcs_core.problem.linearization import iter_blocks  # noqa: E402
-from gcs_core.filtr.mekf import GyroNoise  # noqa: E402
-from gcs_core.filtr.smoothing_batch import whole_span_fit  # noqa: E402
-from gcs_core.io.importer import load_mission  # noqa: E402
+from gcs_core.problem.linearization import iter_blocks
+from gcs_core.filtr.smoothing_batch import whole_span_fit
+from gcs_core.io.importer import load_mission
+from gcs_core.compiled import COMPILED
+from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.sim.scenarios import nominal_threeaxis  # noqa: E402
 from gcs_core.sim.writer import write_mission  # noqa: E402
 from _timing import best_of  # noqa: E402  (benchmarks/_timing.py)
@@ -136,8 +136,8 @@ def run(hours: float, folder: Path, skip_scipy: bool, *, repeats: int = 3, scipy
     # compiled kernels: loaded from numba's on-disk cache (compiled on a machine's first run)
     t0 = time.perf_counter()
     normal_equations(problem, problem.state.values(), names, {})
-    jit = " (loading or compiling the kernels included)" if kernels.COMPILED else ""
-    print(f"engine: {'numba kernels' if kernels.COMPILED else 'numpy'}, numpy {np.__version__}, "
+    jit = " (loading or compiling the kernels included)" if COMPILED else ""
+    print(f"engine: {'numba kernels' if COMPILED else 'numpy'}, numpy {np.__version__}, "
           f"first pass {time.perf_counter() - t0:.2f} s{jit}")
 
     opts = BatchOptions(edit_k=None, tol_step_sigma=1e-3)

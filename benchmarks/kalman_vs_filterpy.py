@@ -34,7 +34,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from gcs_core.filtr.kalman import ENGINE, LinearBlock, solve_block  # noqa: E402
-from gcs_core.filtr.mekf import GyroNoise, GyroSegment, farrenkopf_q  # noqa: E402
+from gcs_core.filtr.mekf import GyroSegment  # noqa: E402
+from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q  # noqa: E402
 from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm  # noqa: E402
 
 M_MEAS = 3

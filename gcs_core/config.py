@@ -91,19 +91,18 @@ import hashlib
 import json
 import os
 import re
-import tempfile
-import tomllib
 from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
-from gcs_core.config_checks import (_choice, _fail, _list, _number, _pair, _quote, _require, _show,
-                                   _table, _unknown)
+from gcs_core.config_checks import _choice, _fail, _list, _number, _pair, _require, _table, _unknown
 from gcs_core.errors import ConfigError
-from gcs_core.fileperm import make_usual
+from gcs_core.fileperm import write_atomic
 from gcs_core.problem.state import ROLES
 from gcs_core.io.types import SENSOR_TYPES
 from gcs_core.problem.prepare import PhysicsOptions
+from gcs_core import toml_values
+from gcs_core.toml_values import quote as _quote, show as _show
 
 METHODS = ("whole_span", "batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole", "constant")
@@ -316,32 +315,12 @@ def load_config(path: str | Path) -> AnalysisConfig:
         raw = path.read_bytes()
     except OSError as err:
         _fail(None, f"cannot read the config file ({err.strerror or err})", path)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as err:
-        line = raw[:err.start].count(b"\n") + 1
-        raise ConfigError(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path, line=line,
-                          column=err.start - (raw.rfind(b"\n", 0, err.start) + 1) + 1) from None
-    return config_from_dict(parse_toml(text, path), path=path)
+    return config_from_dict(parse_toml(toml_values.decode(raw, path, ConfigError), path), path=path)
 
 
 def parse_toml(text: str, path: Path | None = None) -> dict:
     """``tomllib.loads`` with its errors as :class:`ConfigError` at a line and column."""
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as err:
-        msg = str(err).splitlines()[0] if str(err) else "invalid TOML"
-        m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
-        if m:
-            raise ConfigError(f"TOML syntax error: {msg[:m.start()]}", file=path,
-                              line=int(m.group(1)), column=int(m.group(2))) from None
-        m = re.search(r"\s*\(at end of document\)\s*$", msg)
-        if m:
-            raise ConfigError(f"TOML syntax error at the end of the file: {msg[:m.start()]}", file=path,
-                              line=max(1, text.count("\n") + (not text.endswith("\n")))) from None
-        raise ConfigError(f"TOML syntax error: {msg}", file=path) from None
-    except RecursionError:
-        raise ConfigError("TOML nesting too deep", file=path) from None
+    return toml_values.loads(text, path, ConfigError)
 
 
 def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
@@ -370,7 +349,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _unknown(phys, TABLES["physics"], "physics.", f)
     for k, v in phys.items():
         if k == "field_model":
-            ph[k] = _choice(phys, k, FIELD_MODELS, "igrf", "physics.field_model", f)
+            ph[k] = _choice(phys, k, FIELD_MODELS, ph[k], "physics.field_model", f)
         else:
             _require(isinstance(v, bool), f"physics.{k}", f"must be true or false, not {_show(v)}", f)
             ph[k] = v
@@ -562,20 +541,7 @@ def save_config(cfg: AnalysisConfig, path: str | Path) -> Path:
 
     path = Path(path)
     text = tomli_w.dumps(to_dict(cfg, relative_to=path.parent))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        make_usual(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_atomic(path, text, parents=True)
 
 
 def default_config(mission_dir: str | Path) -> AnalysisConfig:

@@ -4,12 +4,11 @@
 from __future__ import annotations
 
 import difflib
-import json
 import math
-import re
 from typing import Any
 
 from gcs_core.errors import ConfigError
+from gcs_core.toml_values import is_number, number_complaint, quote, show
 
 
 def _fail(key: str | None, message: str, file) -> None:
@@ -21,30 +20,16 @@ def _require(cond: bool, key: str, message: str, file) -> None:
         _fail(key, message, file)
 
 
-def _quote(name: str) -> str:
-    """A TOML key part, quoted when it is not a bare key (element names hold a dot)."""
-    return name if re.fullmatch(r"[A-Za-z0-9_-]+", name) else json.dumps(name, ensure_ascii=False)
-
-
-def _show(v: Any) -> str:
-    text = repr(v)
-    return text if len(text) <= 40 else text[:37] + "..."
-
-
 def _table(parent: dict, key: str, full: str, file) -> dict:
     v = parent.get(key, {})
-    _require(isinstance(v, dict), full, f"must be a table, not {_show(v)}", file)
+    _require(isinstance(v, dict), full, f"must be a table, not {show(v)}", file)
     return v
 
 
 def _list(parent: dict, key: str, full: str, file) -> list:
     v = parent.get(key, [])
-    _require(isinstance(v, list), full, f"must be a list, not {_show(v)}", file)
+    _require(isinstance(v, list), full, f"must be a list, not {show(v)}", file)
     return v
-
-
-def _is_number(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
 def _number(table: dict, key: str, default, file, *, positive=False, lo=None, hi=None, prefix="",
@@ -53,11 +38,10 @@ def _number(table: dict, key: str, default, file, *, positive=False, lo=None, hi
     if key not in table:
         return default
     v = table[key]
-    _require(_is_number(v), full, f"must be a number, not {_show(v)}", file)
+    complaint = number_complaint(v, allow_inf=allow_inf)
+    if complaint:
+        _fail(full, complaint, file)
     v = float(v)
-    _require(not math.isnan(v), full, "must be a number, not nan", file)
-    if not (allow_inf and v == math.inf):
-        _require(math.isfinite(v), full, f"must be finite, not {v}", file)
     if integer:
         _require(v == int(v), full, f"must be a whole number, not {v}", file)
     if positive:
@@ -72,7 +56,7 @@ def _number(table: dict, key: str, default, file, *, positive=False, lo=None, hi
 def _choice(table: dict, key: str, choices, default, full: str, file):
     v = table.get(key, default)
     _require(isinstance(v, str) and v in choices, full,
-             f"must be one of {', '.join(choices)}, not {_show(v)}", file)
+             f"must be one of {', '.join(choices)}, not {show(v)}", file)
     return v
 
 
@@ -81,9 +65,9 @@ def _unknown(table: dict, known, prefix: str, file) -> None:
     if extra:
         close = difflib.get_close_matches(extra[0], list(known), n=1)
         hint = f"; did you mean '{close[0]}'?" if close else ""
-        _fail(f"{prefix}{_quote(extra[0])}", f"unknown key{hint} (known: {', '.join(sorted(known))})", file)
+        _fail(f"{prefix}{quote(extra[0])}", f"unknown key{hint} (known: {', '.join(sorted(known))})", file)
 
 
 def _pair(g: Any) -> bool:
-    return (isinstance(g, list) and len(g) == 2 and all(_is_number(x) and math.isfinite(x) for x in g)
+    return (isinstance(g, list) and len(g) == 2 and all(is_number(x) and math.isfinite(x) for x in g)
             and g[0] < g[1])

@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from gcs_core.units import DEG, UNIT_SCALE
 
 #: display unit -> multiply the internal value by this (UNIT_SCALE plus what only display needs)
@@ -58,6 +60,13 @@ def display_unit(unit: str, scale: float) -> str:
         return unit
     small, large = choice
     return large if math.isfinite(scale) and abs(scale) >= DEG_FROM_SIGMA else small
+
+
+def common_unit(unit: str, *arrays) -> str:
+    """One display unit for several quantities shown together (a table column, a screen):
+    :func:`display_unit` of the largest finite ``|x|`` among them."""
+    vals = [abs(float(x)) for a in arrays for x in np.ravel(np.asarray(a, dtype=float)) if math.isfinite(x)]
+    return display_unit(unit, max(vals) if vals else float("nan"))
 
 
 def shown_unit(unit: str, value: float, sigma: float | None = None) -> str:

@@ -10,15 +10,14 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 from pathlib import Path
 from typing import Any, Mapping
 
 import numpy as np
 
-from gcs_core.fileperm import make_usual
+from gcs_core.fileperm import write_atomic
 from gcs_core.problem.state import HELD, SOLVE_FOR
+from gcs_core.toml_values import is_number
 
 
 # ---------------------------------------------------------------------------- JSON (ICD §7)
@@ -176,9 +175,7 @@ def _noise_estimated(spec, name: str) -> bool:
 
 
 def _is_num(v, *, none_ok: bool = False) -> bool:
-    if v is None:
-        return none_ok
-    return isinstance(v, (int, float)) and not isinstance(v, bool)
+    return none_ok if v is None else is_number(v)
 
 
 def icd_report_problems(rep: Mapping[str, Any]) -> list[str]:
@@ -251,20 +248,6 @@ def _clean(o):
 
 
 def write_json_atomic(path: Path, data: dict) -> Path:
-    """Write JSON (NaN/inf as null) to a temp file, fsync, then replace ``path``."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    """Write JSON (NaN/inf as null) atomically (:func:`gcs_core.fileperm.write_atomic`)."""
     text = json.dumps(_clean(json.loads(json.dumps(data, default=_default))), indent=2)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-            fh.flush()
-            os.fsync(fh.fileno())
-        make_usual(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-    return path
+    return write_atomic(path, text, parents=True)

@@ -39,14 +39,13 @@ samples of a time window (explicit, for a small extract).
 from __future__ import annotations
 
 import json
-import os
 import shutil
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from gcs_core.convert import ConversionReport
+from gcs_core.convert.common import staged_directory
 from gcs_core.errors import InputError
 from gcs_core.filtr import noise as noise_mod
 
@@ -272,8 +271,7 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
                  f"{np.array2string(o_line, precision=7)} rad per sample")
     notes.append(f"gyro data-book bias = mean over the rest ({int(rest0.sum())} samples)")
 
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent if out.parent.exists() else None))
-    try:
+    with staged_directory(out) as tmp:   # refused above unless empty
         (tmp / "telemetry").mkdir()
         (tmp / "extra").mkdir()
         rows = {}
@@ -309,12 +307,6 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
             {"source": str(source), "format": "broad", "rows": rows, "transients": transients,
              "warnings": warnings, "notes": notes, "citation": CITATION}, indent=2) + "\n",
             encoding="utf-8")
-        if out.exists():
-            out.rmdir()
-        os.replace(tmp, out)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return report
 
 

@@ -8,15 +8,13 @@ import contextlib
 import csv
 import hashlib
 import math
-import os
-import shutil
-import tempfile
 from pathlib import Path
 from typing import Iterator, Sequence
 
 import numpy as np
 
 from gcs_core.errors import InputError
+from gcs_core.fileperm import atomic_directory
 
 __all__ = ["NamedCsv", "read_named_csv", "write_csv", "staged_directory", "sha256",
            "leading_transient"]
@@ -127,7 +125,8 @@ def write_csv(path: Path, header: Sequence[str], columns: Sequence[np.ndarray],
 
 @contextlib.contextmanager
 def staged_directory(out: Path, *, overwrite: bool = False) -> Iterator[Path]:
-    """Yield an empty directory next to ``out``; on success it replaces ``out``.
+    """Yield an empty directory next to ``out``; on success it replaces ``out``
+    (:func:`gcs_core.fileperm.atomic_directory`: its files synced, one rename).
 
     ``out`` may not exist or be empty; a non-empty one is refused unless ``overwrite``.
     On failure the staging directory is removed and ``out`` is untouched.
@@ -138,21 +137,8 @@ def staged_directory(out: Path, *, overwrite: bool = False) -> Iterator[Path]:
     if out.is_dir() and any(out.iterdir()) and not overwrite:
         raise InputError("the output directory is not empty (give --force to replace it)",
                          file=out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=out.parent))
-    stage.chmod(0o755)          # mkdtemp makes it private; a mission directory is not
-    try:
+    with atomic_directory(out, mode=0o755) as stage:   # a mission directory is not private
         yield stage
-        if out.exists():
-            old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", dir=out.parent))
-            os.replace(out, old / "x")
-            os.replace(stage, out)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            os.replace(stage, out)
-    except BaseException:
-        shutil.rmtree(stage, ignore_errors=True)
-        raise
 
 
 def sha256(path: Path) -> str:

@@ -61,6 +61,7 @@ from gcs_core.filtr.results import BatchResult
 from gcs_core.filtr.residuals import Residuals, residuals_from
 from gcs_core.problem.linearization import iter_blocks
 from gcs_core.problem.build import Problem
+from gcs_core.filtr.noise import MAD_TO_SIGMA
 
 log = logging.getLogger(__name__)
 
@@ -325,10 +326,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
 
     for j, nm in enumerate(names):
         values[nm] = x[j]
-    if suspect_all:
-        message += ("; not edited (more than "
-                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
-                    "is suspect): " + ", ".join(sorted(suspect_all)))
+    message += suspect_note(suspect_all, opts)
     final = stored[0] if not cons and _stored_at(stored[0], x, edits) else None
     return _solution(problem, opts, values, x, prior_info, edits, buffers, work, final,
                      tuple(history), it_total, status, message)
@@ -397,6 +395,15 @@ def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], op
     return new_edits, suspect, changed
 
 
+def suspect_note(suspect, opts: BatchOptions) -> str:
+    """What a fit's message adds for the sensors :func:`edit_frames` left unedited ('' for none)."""
+    if not suspect:
+        return ""
+    return ("; not edited (more than "
+            f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
+            "is suspect): " + ", ".join(sorted(suspect)))
+
+
 def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarray:
     """Frames whose normalized residual ``z`` (N, m) is an outlier, among ``candidates``.
 
@@ -420,7 +427,7 @@ def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarr
     zc = z[candidates]
     with np.errstate(invalid="ignore"):
         dev = np.abs(zc - np.nanmedian(zc, axis=0))
-        s = 1.4826 * float(np.nanmedian(dev))
+        s = MAD_TO_SIGMA * float(np.nanmedian(dev))
         big = np.any(dev > k * max(1.0, s if np.isfinite(s) else 1.0), axis=1)
     out[np.flatnonzero(candidates)[big]] = True
     return out

@@ -40,7 +40,7 @@ Two engines, one answer
 :func:`solve_block` runs the compiled frame-by-frame kernel of
 :mod:`gcs_core.filtr.kalman_kernels` (numba; the same Eq 3-3, 3-4 and Joseph update, one
 frame at a time, O(n² m) per frame) when numba imports, and the lifted-group numpy core
-above otherwise (:data:`ENGINE`, chosen once from ``kalman_kernels.COMPILED``). Both give
+above otherwise (:data:`ENGINE`, chosen once from :data:`gcs_core.compiled.COMPILED`). Both give
 the same state, covariance, per-frame diagnostics and gate decisions to round-off
 (``tests/unit/test_kalman.py``); the kernel is the faster (``benchmarks/kalman_vs_filterpy.py``).
 
@@ -59,13 +59,14 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.linalg import lapack
 
+from gcs_core.compiled import COMPILED
 from gcs_core.filtr import kalman_kernels
 
 __all__ = ["LinearBlock", "BlockSolution", "solve_block", "referred_transitions",
            "group_partition", "ENGINE"]
 
 #: engine of :func:`solve_block`: "compiled" (numba kernel) when numba imports, else "numpy".
-ENGINE = "compiled" if kalman_kernels.COMPILED else "numpy"
+ENGINE = "compiled" if COMPILED else "numpy"
 
 
 @dataclass(frozen=True)

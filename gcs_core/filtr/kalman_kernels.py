@@ -21,12 +21,10 @@ states ``e`` (the read-out error of the epoch): the rows become ``[A, H_θ]``, a
 epoch ``e`` is marginalized out (its rows and columns dropped) and re-introduced fresh,
 ``e ~ N(0, σ_e² I)``.
 
-Engine selection (one place): :data:`COMPILED` is True when numba imports (and the
-environment variable ``GCS_NO_NUMBA`` is unset); :mod:`gcs_core.filtr.kalman` then runs
-this kernel, otherwise its pure-numpy lifted-group core (same answer to round-off). The
-kernel is compiled on first call and cached next to this file (``__pycache__``), so the
-compile (a few seconds) is paid once per machine. Without numba the functions below are
-plain Python (correct, slow: tests only).
+Engine selection is :data:`gcs_core.compiled.COMPILED`: when it holds,
+:mod:`gcs_core.filtr.kalman` runs this kernel, otherwise its pure-numpy lifted-group core
+(same answer to round-off). Without numba the functions below are plain Python (correct,
+slow: tests only).
 
 References
 ----------
@@ -36,22 +34,14 @@ Bierman, *Factorization Methods for Discrete Sequential Estimation*, Academic Pr
 
 from __future__ import annotations
 
-import os
-
 import numpy as np
 
-try:
-    import numba
-except ImportError:                                     # the package still works without it
-    numba = None
+from gcs_core.compiled import jit
 
-__all__ = ["COMPILED", "filter_frames", "run_block"]
-
-#: True when the compiled kernel is used by :func:`gcs_core.filtr.kalman.solve_block`.
-COMPILED = numba is not None and not os.environ.get("GCS_NO_NUMBA")
+__all__ = ["filter_frames", "run_block"]
 
 #: ``@numba.njit(cache=True, fastmath=False)``, or the identity without numba.
-_jit = numba.njit(cache=True, fastmath=False) if COMPILED else (lambda fn: fn)
+_jit = jit(fastmath=False)
 
 #: states added for the read-out error of an epoch (a body rotation, 3 angles)
 N_READOUT = 3

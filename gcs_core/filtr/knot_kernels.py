@@ -6,7 +6,7 @@
   numpy form (segment sums), used without numba;
 * :func:`correct_attitude` — ``exp(−[δθ×]) C`` with ``δθ = C α(t)`` (Rodrigues).
 
-Engine selection is :data:`gcs_core.filtr.kalman_kernels.COMPILED`, as for the batch
+Engine selection is :data:`gcs_core.compiled.COMPILED`, as for the batch
 kernels; without numba these stay plain Python and the numpy forms run.
 """
 
@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from gcs_core.filtr.kalman_kernels import COMPILED, numba
+from gcs_core.compiled import jit
 
-_jit = numba.njit(cache=True) if COMPILED else (lambda fn: fn)
+_jit = jit()
 
 
 @_jit

@@ -12,7 +12,8 @@ body-axis drift-bias correction. Between knots the correction is carried by the 
     α(t) = α_j + Γ_j(t) β_j,   Γ_j(t) = −(t − τ_j) R_j,   R_j = C(τ_j + Δ_j/2)ᵀ
 
 and from knot to knot the increments are the process noise of Farrenkopf's model
-(:func:`gcs_core.filtr.mekf.farrenkopf_q` with ``W_b = −R``; ``R`` is a rotation)::
+(:func:`gcs_core.models.gyro_noise.farrenkopf_q` with ``W_y = I``, ``W_b = −R``; ``R`` is a
+rotation)::
 
     z_{j+1} = Φ_j z_j + w_j,   Φ_j = [[I, −Δ_j R_j], [0, I]],   w_j ~ N(0, Q_j)
     Q_j = [[a I, c R_j], [c R_jᵀ, e I]],  a = σ_v² Δ + σ_u² Δ³/3,  c = −σ_u² Δ²/2,  e = σ_u² Δ
@@ -46,10 +47,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_core.filtr.kalman_kernels import COMPILED, numba
 from gcs_core.filtr.knot_kernels import _accumulate, _accumulate_fused, _accumulate_numpy
+from gcs_core.compiled import COMPILED, jit
+from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 
-_jit = numba.njit(cache=True) if COMPILED else (lambda fn: fn)
+_jit = jit()
 # the 6×6 knot products below run on strided slices by design; numba's advice to copy them
 # first is noise to a user reading the first (compiling) run's output
 warnings.filterwarnings("ignore", message="'@' is faster on contiguous arrays")
@@ -137,28 +139,25 @@ def knot_spacing(sigma_v: float, info_rate: float, *, dt_min: float = 1.0, dt_ma
 
 
 def transitions(grid: KnotGrid, R: np.ndarray):
-    """Φ_j, Q_j⁻¹ (K−1, d, d) of every interval from the mid-interval ``R_j`` (K−1, 3, 3)."""
+    """Φ_j, Q_j⁻¹ (K−1, d, d) of every interval from the mid-interval ``R_j`` (K−1, 3, 3).
+
+    ``Q_j`` is Farrenkopf's (:func:`~gcs_core.models.gyro_noise.farrenkopf_q`) for the
+    GCI-frame ``α`` (``W_y = I``, ``W_b = −R_j``); it is inverted scaled to unit diagonal
+    (the α and β variances differ by many decades; their correlation is at most √3/2).
+    """
     dt = np.diff(grid.tau)
     n, d = dt.size, grid.d
-    v2, u2 = grid.sigma_v ** 2, grid.sigma_u ** 2
     Phi = np.zeros((n, d, d))
-    W = np.zeros((n, d, d))
     eye = np.eye(3)
     Phi[:, :3, :3] = eye
-    if d == 3:
-        W[:, :3, :3] = eye / (v2 * dt)[:, None, None]
-        return Phi, W
-    Phi[:, 3:, 3:] = eye
-    Phi[:, :3, 3:] = -dt[:, None, None] * R
-    a = v2 * dt + u2 * dt ** 3 / 3.0
-    c = -u2 * dt ** 2 / 2.0
-    e = u2 * dt
-    det = (a * e - c * c)[:, None, None]
-    W[:, :3, :3] = (e[:, None, None] * eye) / det
-    W[:, 3:, 3:] = (a[:, None, None] * eye) / det
-    W[:, :3, 3:] = -(c[:, None, None] * R) / det
-    W[:, 3:, :3] = np.swapaxes(W[:, :3, 3:], 1, 2)
-    return Phi, W
+    if d == 6:
+        Phi[:, 3:, 3:] = eye
+        Phi[:, :3, 3:] = -dt[:, None, None] * R
+    Q = farrenkopf_q(dt, GyroNoise(grid.sigma_v, grid.sigma_u), eye, -R if d == 6 else eye,
+                     range(3) if d == 6 else ())
+    s = 1.0 / np.sqrt(np.einsum("kii->ki", Q))
+    W = np.linalg.inv(Q * s[:, :, None] * s[:, None, :]) * s[:, :, None] * s[:, None, :]
+    return Phi, 0.5 * (W + np.swapaxes(W, 1, 2))
 
 
 def knot_rows(D: np.ndarray, C: np.ndarray, t: np.ndarray, j: np.ndarray, grid: KnotGrid,

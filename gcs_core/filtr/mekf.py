@@ -15,7 +15,7 @@ Two kinds of problem, one block format (:class:`~gcs_core.filtr.kalman.LinearBlo
 
       Φ_θθ = C_k C_{k−1}ᵀ,   Φ_θp = C_k (E_k − E_{k−1}) = W_k Δ_k,   Φ_bb = I      (Eq 4-38)
 
-  and Farrenkopf's process noise (:func:`farrenkopf_q`). Every sensor's predictions and
+  and Farrenkopf's process noise (:func:`~gcs_core.models.gyro_noise.farrenkopf_q`). Every sensor's predictions and
   partials are evaluated *vectorized* over the block at that nominal (through
   :func:`~gcs_core.problem.linearization.linearize`, the nominal being its attitude provider);
   the core then makes exact frame-by-frame linear updates with the accumulated error
@@ -50,55 +50,10 @@ from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.problem.prepare import SensorData
+from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q, gyro_noise
 
 #: filter columns of the attitude error δθ (body axes, rad).
 DTH = ("kf.dtheta_x", "kf.dtheta_y", "kf.dtheta_z")
-
-
-@dataclass(frozen=True)
-class GyroNoise:
-    """Gyro noise of the data book (ICD §5 ``gyro``), Farrenkopf's model.
-
-    Attributes
-    ----------
-    sigma_v : angle random walk σ_v [rad/s^0.5] (``arw``).
-    sigma_u : rate random walk σ_u [rad/s^1.5] (``rrw``); the bias random-walks iff > 0.
-    sigma_e : electronic (angle read-out) noise σ_e [rad] (``electronic``).
-    """
-
-    sigma_v: float = 0.0
-    sigma_u: float = 0.0
-    sigma_e: float = 0.0
-
-
-def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray,
-                 axes=()) -> np.ndarray:
-    """Process noise of one gyro step (Eq 4-38 noise matrix, Farrenkopf 1978).
-
-    Over a step ``Δt`` the attitude error gathers the rate noise and the integral of the
-    bias walk; the bias gathers the walk::
-
-        Q_θθ = σ_v² Δt W_y W_yᵀ + σ_u² Δt³/3 W_b W_bᵀ,   Q_θb = σ_u² Δt²/2 W_b,   Q_bb = σ_u² Δt I
-
-    with ``W_y = ∂ω/∂y = Mᵀ G⁻¹`` and ``W_b = ∂ω/∂b = −Mᵀ`` (Eq 4-32 inverted). The bias
-    walks on every axis; only the ``axes`` in the state get the ``θb``, ``bb`` blocks. The
-    read-out noise σ_e does not accumulate (the integrated angle telescopes), so it is not
-    in Q: it reaches the measurements as a white attitude error (:class:`LinearBlock`).
-
-    Parameters: dt (K,) [s]; Wy (3, 3); Wb (3, 3); axes: bias axes in the state (nb).
-    Returns (K, d, d), d = 3 + nb.
-    """
-    dt = np.asarray(dt, float)[:, None, None]
-    axes = list(axes)
-    nb = len(axes)
-    Q = np.zeros((dt.shape[0], 3 + nb, 3 + nb))
-    v2, u2 = noise.sigma_v ** 2, noise.sigma_u ** 2
-    Q[:, :3, :3] = v2 * dt * (Wy @ Wy.T) + u2 * dt ** 3 / 3.0 * (Wb @ Wb.T)
-    if nb:
-        Q[:, :3, 3:] = u2 * dt ** 2 / 2.0 * Wb[:, axes]
-        Q[:, 3:, :3] = np.swapaxes(Q[:, :3, 3:], 1, 2)
-        Q[:, 3:, 3:] = u2 * dt * np.eye(nb)
-    return Q
 
 
 def step_quaternions(omega: np.ndarray, dt: np.ndarray) -> np.ndarray:
@@ -136,7 +91,8 @@ class GyroSegment:
     Wg : (K, 3, ng) ``∂ω/∂p`` for the gyro parameters in the filter state, the nb
         random-walking biases first.
     C0 : (3, 3) nominal attitude at τ_0.
-    noise, Wy, Wb, axes : for :func:`farrenkopf_q` (axes: the random-walking biases).
+    noise, Wy, Wb, axes : for :func:`~gcs_core.models.gyro_noise.farrenkopf_q` (axes: the
+        random-walking biases).
     """
 
     def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb, axes=()):
@@ -224,20 +180,12 @@ class Layout:
         return self.d > 0
 
 
-def gyro_noise(problem: Problem, scale: float = 1.0) -> GyroNoise:
-    """σ_v, σ_u, σ_e of the gyro carrying the attitude (ICD §5 ``arw``, ``rrw``, ``electronic``).
-
-    Without ``arw`` the gyro's ``noise`` (a rate 1-sigma per sample) is taken as
-    ``σ_v = noise·sqrt(Δt)`` with Δt the median sample interval.
-    """
+def attitude_gyro_noise(problem: Problem, scale: float = 1.0) -> GyroNoise:
+    """σ_v, σ_u, σ_e of the gyro carrying the attitude (:func:`gcs_core.models.gyro_noise.gyro_noise`
+    at the median sample interval of its rows), times ``scale``."""
     spec = problem.builder.spec.sensor(problem.gyro_name)
-    arw = model_common.book_scalar(spec, "arw")
-    if arw is None:
-        dt = float(np.median(problem.attitude.dt))
-        arw = float(spec.noise or 0.0) * np.sqrt(dt)
-    rrw = model_common.book_scalar(spec, "rrw", 0.0) or 0.0
-    ele = model_common.book_scalar(spec, "electronic", 0.0) or 0.0
-    return GyroNoise(scale * float(arw), scale * float(rrw), scale * float(ele))
+    dt = float(np.median(problem.attitude.dt))
+    return gyro_noise(spec, dt).scaled(scale)
 
 
 def make_layout(problem: Problem, noise: GyroNoise | None) -> Layout:

@@ -42,18 +42,20 @@ from typing import Mapping
 
 import numpy as np
 
+from gcs_core.compiled import COMPILED
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.knot_kernels import correct_attitude
 from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
 from gcs_core.problem.gyro_attitude import GyroAttitude
-from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations
+from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations, suspect_note
 from gcs_core.filtr.results import BatchResult
 from gcs_core.filtr.residuals import Residuals, residuals_from
 from gcs_core.problem.linearization import iter_blocks
-from gcs_core.filtr.mekf import GyroNoise, gyro_noise
+from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.problem.build import Problem
 from gcs_core.frames.rotations import rotvec_to_dcm
+from gcs_core.models.gyro_noise import GyroNoise
 
 log = logging.getLogger(__name__)
 
@@ -121,7 +123,7 @@ class CorrectedAttitude:
     def _correct(self, C, t):
         if not np.any(self.z):
             return C
-        if kn.COMPILED:
+        if COMPILED:
             out = np.empty_like(C)
             correct_attitude(np.ascontiguousarray(C), t, self.grid.index(t).astype(np.int64), self.grid.tau,
                                 self.z, self.R if self.R.shape[0] else np.eye(3)[None], out)
@@ -170,8 +172,8 @@ def process_noise(problem: Problem) -> GyroNoise | None:
     """The gyro noise of the data book when the attitude is gyro-carried and noisy."""
     if problem.gyro_name is None or not isinstance(problem.attitude, GyroAttitude):
         return None
-    noise = gyro_noise(problem)
-    return noise if (noise.sigma_v > 0 or noise.sigma_u > 0) else None
+    noise = attitude_gyro_noise(problem)
+    return noise if noise.process else None
 
 
 def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, names, *,
@@ -284,7 +286,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     opts = options or BatchOptions()
     batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
     noise = noise if noise is not None else process_noise(problem)
-    if noise is None or (noise.sigma_v <= 0 and noise.sigma_u <= 0) \
+    if noise is None or not noise.process \
             or not isinstance(problem.attitude, GyroAttitude):
         return batch
     state = problem.state
@@ -409,10 +411,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     chi2_proc = sysk.prior_cost()
     message = (f"whole-span fit with gyro process noise ({grid.K} knots every "
                f"{float(np.median(np.diff(grid.tau))):.3g} s): {message}")
-    if suspect_all:
-        message += ("; not edited (more than "
-                    f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
-                    "is suspect): " + ", ".join(sorted(suspect_all)))
+    message += suspect_note(suspect_all, opts)
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, passes.buffers, edits)
     dyn = Dynamics(grid, z, R, names, fac, P)

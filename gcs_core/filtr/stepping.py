@@ -36,7 +36,14 @@ from gcs_core.filtr.residuals import make_residuals
 from gcs_core.filtr.results import BlockReport, FilterResult, FrameDiagnostics, InnovationStats
 from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.kalman import solve_block
-from gcs_core.filtr.mekf import GyroSegment, assemble, block_epochs, gyro_noise, gyro_rates, make_layout
+from gcs_core.filtr.mekf import (
+    GyroSegment,
+    assemble,
+    block_epochs,
+    gyro_rates,
+    make_layout,
+    attitude_gyro_noise,
+)
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.build import Problem
 from gcs_core.filtr.smoother import EpochStore, block_records, gyro_residuals, rts_smooth, trajectory
@@ -68,7 +75,7 @@ class Filtr:
     def _setup(self, problem: Problem) -> None:
         self.problem = problem
         self._gyro = problem.gyro_name is not None
-        self._noise = gyro_noise(problem, self.options.process_noise_scale) if self._gyro else None
+        self._noise = attitude_gyro_noise(problem, self.options.process_noise_scale) if self._gyro else None
         self._layout = make_layout(problem, self._noise)
         if self._layout.n == 0:
             raise EstimationError("nothing to estimate: every state element is held or consider")

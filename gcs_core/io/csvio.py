@@ -24,14 +24,13 @@ from __future__ import annotations
 import logging
 import os
 import re
-import tempfile
 from pathlib import Path
 from typing import Iterable, Mapping
 
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.fileperm import make_usual
+from gcs_core.fileperm import atomic_open
 from gcs_core.io.types import Table
 
 log = logging.getLogger(__name__)
@@ -335,37 +334,11 @@ def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray], *,
     if len(n) != 1:
         raise ValueError(f"columns have different lengths: {sorted(n)}")
     data = np.column_stack(arrays) if arrays[0].size else np.zeros((0, len(names)))
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as fh:
-            for c in comments:
-                for part in str(c).splitlines() or [""]:
-                    fh.write(f"# {part}\n")
-            fh.write(",".join(names) + "\n")
-            if data.shape[0]:
-                np.savetxt(fh, data, fmt=fmt, delimiter=",")
-            fh.flush()
-            os.fsync(fh.fileno())
-        make_usual(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except OSError:
-            pass
-        raise
-    _fsync_dir(path.parent)
+    with atomic_open(path, "w", newline="\n") as fh:
+        for c in comments:
+            for part in str(c).splitlines() or [""]:
+                fh.write(f"# {part}\n")
+        fh.write(",".join(names) + "\n")
+        if data.shape[0]:
+            np.savetxt(fh, data, fmt=fmt, delimiter=",")
     return path
-
-
-def _fsync_dir(directory: Path) -> None:
-    try:
-        fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)

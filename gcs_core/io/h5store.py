@@ -4,7 +4,7 @@ Guarantees every GCS data set gets:
 
 * **Atomic writes.** A file is written to a temporary file in the same directory,
   closed, given its header, ``fsync``-ed, renamed over the destination with ``os.replace`` and the directory
-  ``fsync``-ed: a crash or a kill at any moment leaves either the old file or the new
+  ``fsync``-ed (:func:`gcs_core.fileperm.atomic_path`): a crash or a kill at any moment leaves either the old file or the new
   one, never a mixture. Appending (SCDS versions, ASF solutions) copies the existing
   groups into the new file, so earlier groups are carried over byte for byte.
 * **Locking between GCS processes.** ``fcntl.flock`` on a sidecar ``<file>.lock``:
@@ -44,6 +44,7 @@ import h5py
 import numpy as np
 
 from gcs_core.errors import DataFileError
+from gcs_core.fileperm import atomic_path
 
 log = logging.getLogger(__name__)
 
@@ -233,8 +234,6 @@ def _write_header(path: Path, fmt: str, version: int) -> None:
                 f"length {length}\nsha256 {digest}\n").encode("ascii")
         fh.seek(0)
         fh.write(text.ljust(USERBLOCK, b"\0"))
-        fh.flush()
-        os.fsync(fh.fileno())
 
 
 def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
@@ -381,19 +380,6 @@ def verify(path: str | os.PathLike, fmt: str, *, max_version: int) -> int:
 
 # --- writing --------------------------------------------------------------------------
 
-def _fsync_path(path: Path, *, directory: bool = False) -> None:
-    try:
-        fd = os.open(path, os.O_RDONLY | (os.O_DIRECTORY if directory else 0))
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
-
-
 def _remove_stale_temps(path: Path) -> None:
     """Temporary files left by a killed writer (we hold the exclusive lock)."""
     for stale in glob.glob(os.path.join(glob.escape(str(path.parent)),
@@ -418,26 +404,18 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int) -> Iterator[h
         raise DataFileError("directory does not exist", file=path.parent)
     with locked(path, exclusive=True):
         _remove_stale_temps(path)
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.{os.urandom(4).hex()}.tmp")
         try:
-            with h5py.File(tmp, "w", libver=LIBVER, locking=False,
-                           userblock_size=USERBLOCK) as f:
-                f.attrs[FORMAT_ATTR] = fmt
-                f.attrs[VERSION_ATTR] = np.int64(version)
-                f.attrs[CREATED_ATTR] = utc_now()
-                f.attrs[GCS_VERSION_ATTR] = gcs_version()
-                yield f
-            _write_header(tmp, fmt, version)  # hashes, writes and fsyncs
-            os.replace(tmp, path)
-        except BaseException as err:
-            try:
-                os.unlink(tmp)
-            except OSError:
-                pass
-            if isinstance(err, OSError):  # disk full, read-only directory, ...
-                raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
-            raise
-        _fsync_path(path.parent, directory=True)
+            with atomic_path(path) as tmp:
+                with h5py.File(tmp, "w", libver=LIBVER, locking=False,
+                               userblock_size=USERBLOCK) as f:
+                    f.attrs[FORMAT_ATTR] = fmt
+                    f.attrs[VERSION_ATTR] = np.int64(version)
+                    f.attrs[CREATED_ATTR] = utc_now()
+                    f.attrs[GCS_VERSION_ATTR] = gcs_version()
+                    yield f
+                _write_header(tmp, fmt, version)  # hashed and written; atomic_path syncs it
+        except OSError as err:  # disk full, read-only directory, ...
+            raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
 
 
 def append_group(path: str | os.PathLike, fmt: str, version: int, collection: str,

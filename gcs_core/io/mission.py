@@ -19,7 +19,6 @@ import logging
 import math
 import os
 import re
-import tomllib
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -30,6 +29,7 @@ from gcs_core.errors import InputError
 from gcs_core.io.orbit_spec import ephemeris_or_orbit, ground_position
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
+from gcs_core import toml_values
 
 log = logging.getLogger(__name__)
 
@@ -265,28 +265,8 @@ def _load_toml(path: Path) -> tuple[dict, str]:
         raw = path.read_bytes()
     except OSError as err:
         raise InputError(f"cannot read {MISSION_FILE} ({err.strerror})", file=path) from None
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as err:
-        line = raw[:err.start].count(b"\n") + 1
-        raise InputError(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path,
-                         line=line) from None
-    try:
-        return tomllib.loads(text), text
-    except tomllib.TOMLDecodeError as err:
-        msg = str(err).splitlines()[0] if str(err) else "invalid TOML"
-        m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
-        if m:
-            raise InputError(f"TOML syntax error: {msg[:m.start()]}", file=path,
-                             line=int(m.group(1)), column=int(m.group(2))) from None
-        m = re.search(r"\s*\(at end of document\)\s*$", msg)
-        if m:
-            raise InputError(f"TOML syntax error at the end of the file: {msg[:m.start()]}",
-                             file=path, line=max(1, text.count("\n") + (not text.endswith("\n"))
-                                                 )) from None
-        raise InputError(f"TOML syntax error: {msg}", file=path) from None
-    except RecursionError:
-        raise InputError("TOML nesting too deep", file=path) from None
+    text = toml_values.decode(raw, path, InputError)
+    return toml_values.loads(text, path, InputError), text
 
 
 def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:

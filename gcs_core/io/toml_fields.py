@@ -9,7 +9,6 @@ value readers below are shared by mission.toml's readers (:mod:`gcs_core.io.miss
 
 from __future__ import annotations
 
-import math
 import os
 import re
 from dataclasses import dataclass
@@ -17,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core.errors import InputError
+from gcs_core.toml_values import number_complaint, show
 
 __all__ = ["Locator", "Ctx", "number", "show", "numbers", "string", "existing_file", "optional_file"]
 
@@ -65,17 +65,10 @@ class Ctx:
 # --- values ---------------------------------------------------------------------------
 
 def number(ctx: Ctx, value: Any, key: str, table: str, index: int, tkey: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ctx.error(f"must be a number, not {show(value)}", key, table, index, tkey)
-    v = float(value)
-    if not math.isfinite(v):
-        raise ctx.error(f"must be finite, not {v}", key, table, index, tkey)
-    return v
-
-
-def show(value: Any) -> str:
-    text = repr(value)
-    return text if len(text) <= 40 else text[:40] + "..."
+    complaint = number_complaint(value)
+    if complaint:
+        raise ctx.error(complaint, key, table, index, tkey)
+    return float(value)
 
 
 def numbers(ctx: Ctx, value: Any, size: int, key: str, table: str, index: int,

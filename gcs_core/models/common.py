@@ -33,25 +33,19 @@ and partials still come from one computation and cannot drift apart); :class:`Pa
 evaluates it the first time it is read.
 
 Two products over frames, ``C v`` and the rows ``A_r × u``, have an inner dimension of
-3, for which numpy's per-row overhead dominates; with numba (importable and
-``GCS_NO_NUMBA`` unset, the rule of :mod:`gcs_core.filtr.kalman_kernels`) they are
+3, for which numpy's per-row overhead dominates; with numba (:data:`gcs_core.compiled.COMPILED`) they are
 compiled loops, otherwise the numpy forms (same numbers to round-off).
 """
 
 from __future__ import annotations
 
-import os
 from functools import cached_property, lru_cache
 from typing import Callable, Iterator, Mapping, Union
 
 import numpy as np
 
-try:
-    import numba
-except ImportError:                                     # the models still work without it
-    numba = None
-
 from gcs_core import units
+from gcs_core.compiled import COMPILED, jit
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_partials, euler123_to_dcm, rotvec_to_dcm
 from gcs_core.models.base import Geometry, ParamSpec, Prediction
@@ -63,9 +57,7 @@ FOV_MARGIN = 0.1
 
 ALIGN_NAMES = ("align_1", "align_2", "align_3")
 
-#: the compiled frame loops below are used (module docstring)
-COMPILED = numba is not None and not os.environ.get("GCS_NO_NUMBA")
-_jit = numba.njit(cache=True, fastmath=False) if COMPILED else (lambda fn: fn)
+_jit = jit(fastmath=False)
 
 
 @_jit

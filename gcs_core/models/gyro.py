@@ -40,10 +40,10 @@ from typing import Mapping
 
 import numpy as np
 
-from gcs_core.errors import InputError
 from gcs_core.frames.rotations import quat_conjugate, quat_multiply
 from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
+from gcs_core.models.gyro_noise import gyro_noise
 
 AXES = ("x", "y", "z")
 G_NAMES = tuple(f"G_{i}{j}" for i in range(1, 4) for j in range(1, 4))
@@ -142,16 +142,10 @@ class GyroModel(ObservationModel):
         return tuple(specs)
 
     def sigma(self, dt: float = 1.0) -> np.ndarray:
-        """(3,) 1-sigma of a rate averaged over ``dt`` [s] (module docstring)."""
-        arw = common.book_scalar(self.sensor, "arw")
-        if arw is None:
-            if self.sensor.noise is None:
-                raise InputError(f"gyro '{self.name}' needs 'arw' (or 'noise')",
-                                 key=common.book_key(self.sensor, "arw"))
-            return np.full(3, float(self.sensor.noise))
-        rrw = common.book_scalar(self.sensor, "rrw", 0.0)
-        ele = common.book_scalar(self.sensor, "electronic", 0.0)
-        var = arw ** 2 / dt + 2.0 * ele ** 2 / dt ** 2 + rrw ** 2 * dt / 3.0
+        """(3,) 1-sigma of a rate averaged over ``dt`` [s] (module docstring; the noise is
+        :func:`~gcs_core.models.gyro_noise.gyro_noise`, with its rule for missing keys)."""
+        g = gyro_noise(self.sensor, dt)
+        var = g.sigma_v ** 2 / dt + 2.0 * g.sigma_e ** 2 / dt ** 2 + g.sigma_u ** 2 * dt / 3.0
         return np.full(3, np.sqrt(var))
 
     def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:

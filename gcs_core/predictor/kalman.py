@@ -15,14 +15,18 @@ event times the gyro carries the error (first order, :mod:`gcs_core.problem.atti
 
 ``E`` is read from the gyro attitude provider, so the transition is exactly the one the
 batch estimator uses; with zero process noise the recursion reproduces the information
-form (Eq 3-2) mapped to the current time. The process noise is Farrenkopf's gyro model
-(σ_v the angle random walk ``arw``, σ_u the rate random walk ``rrw``; the bias error
-enters the body rate as ``−Mᵀ δb``)::
+form (Eq 3-2) mapped to the current time. The process noise is the filter's:
+Farrenkopf's gyro model from the data book (:func:`~gcs_core.models.gyro_noise.gyro_noise`
+read as the filter reads it, :func:`~gcs_core.filtr.mekf.attitude_gyro_noise`) in
+:func:`~gcs_core.models.gyro_noise.farrenkopf_q` with the filter's maps ``W_y = Mᵀ G⁻¹``,
+``W_b = −Mᵀ``::
 
-    Q_θθ = (σ_v² Δt + σ_u² Δt³/3) I,   Q_θb = −Mᵀ σ_u² Δt²/2,   Q_bb = σ_u² Δt I
+    Q_θθ = σ_v² Δt W_y W_yᵀ + σ_u² Δt³/3 I,   Q_θb = −Mᵀ σ_u² Δt²/2,   Q_bb = σ_u² Δt I
 
-(``Q_θb`` and ``Q_bb`` only when the three gyro biases are solve-for). The electronic
-read-out noise σ_e is left out. The Joseph form keeps ``P`` symmetric and positive
+(``Q_θb`` and ``Q_bb`` on the solve-for gyro biases, which random-walk when σ_u > 0, as
+in the filter's state). The electronic read-out noise σ_e does not accumulate: as in the
+filter it is a white attitude error shared by the rows of one time, ``R = I + σ_e² H_θ
+H_θᵀ`` on the whitened rows. The Joseph form keeps ``P`` symmetric and positive
 under round-off. Consider elements are carried by their sensitivity ``S``
 (``S ← Φ S + Φ_c`` on propagation, ``S ← S − K (H S + H_c)`` on update), whose
 covariance contribution is ``S P_c Sᵀ`` (consider filter, Tapley et al. 2004 §6.3).
@@ -47,8 +51,11 @@ import numpy as np
 from gcs_core.problem.attitude import RPY
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.build import Problem
+from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.frames.rotations import dcm_to_euler123
 from gcs_core.models import common
+from gcs_core.models.gyro import G_NAMES, g_matrix
+from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 from gcs_core.predictor.information import weighted_rows
 from gcs_core.problem.attitude import ERR, BodyErrorAttitude, rpy_error_jacobians
 
@@ -59,7 +66,7 @@ BIG_SIGMA = 1e6
 def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequence[str],
                    consider: Sequence[str], sigma0: np.ndarray, sigma_c: np.ndarray,
                    times: np.ndarray, *, masks: Mapping[str, np.ndarray] | None = None,
-                   arw: float = 0.0, rrw: float = 0.0) -> dict:
+                   noise: GyroNoise | None = None) -> dict:
     """σ history of the covariance-only filter (module docstring).
 
     Parameters
@@ -70,7 +77,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     sigma0 : (n,) a-priori σ of ``names``; sigma_c : (c,) of ``consider``.
     times : (T,) output times.
     masks : sensor -> (N,) frames to use.
-    arw, rrw : gyro σ_v [rad/s^0.5] and σ_u [rad/s^1.5].
+    noise : the gyro's noise (None: the data book's, as the filter reads it).
 
     Returns
     -------
@@ -110,8 +117,14 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     cf = [(j, list(consider).index(p)) for j, p in enumerate(pnames) if p in consider]
     gyro = att.gyro
     bias_names = [f"{gyro}.bias_{a}" for a in "xyz"]
-    bias_idx = [3 + others.index(b) for b in bias_names] if all(b in others for b in bias_names) else None
-    M, _ = common.alignment_matrix({f"align_{k}": values.get(f"{gyro}.align_{k}", 0.0) for k in (1, 2, 3)})
+    noise = attitude_gyro_noise(problem) if noise is None else noise
+    # the filter's dynamic biases (mekf.make_layout): the solve-for ones, when σ_u > 0
+    axes = [a for a, b in enumerate(bias_names) if b in others] if noise.sigma_u > 0 else []
+    q_idx = [0, 1, 2] + [3 + others.index(bias_names[a]) for a in axes]
+    p_gyro = {k: values.get(f"{gyro}.{k}", 0.0) for k in G_NAMES + common.ALIGN_NAMES}
+    M, _ = common.alignment_matrix(p_gyro)
+    Wy, Wb = M.T @ np.linalg.inv(g_matrix(p_gyro)), -M.T          # ∂ω/∂y, ∂ω/∂b (Eq 4-32 inverted)
+    sig_e2 = noise.sigma_e ** 2
 
     # output-time mapping δθ -> δ(roll, pitch, yaw)
     A_out = att.ref.reference(np.maximum(times, t_ref))
@@ -167,21 +180,19 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
             for jp, jc in cf:
                 Sn[:, jc] += G[:, jp]
             S[:3, :] = Sn
-            P[:3, :3] += (arw ** 2 * dt + rrw ** 2 * dt ** 3 / 3.0) * np.eye(3)
-            if bias_idx is not None and rrw > 0:
-                qtb = -M.T * (rrw ** 2 * dt ** 2 / 2.0)
-                P[:3, bias_idx] += qtb
-                P[bias_idx, :3] += qtb.T
-                P[np.ix_(bias_idx, bias_idx)] += rrw ** 2 * dt * np.eye(3)
+            P[np.ix_(q_idx, q_idx)] += farrenkopf_q(np.array([dt]), noise, Wy, Wb, axes)[0]
         i0, i1 = starts[k], starts[k + 1]
         if i1 > i0:
             Y = np.concatenate([all_X[i] for i in order[i0:i1]], axis=0)
             Hx, Hc = Y[:, :n], Y[:, n:]
             PHt = P @ Hx.T
-            Sinn = Hx @ PHt + np.eye(Y.shape[0])                   # S = H P Hᵀ + R  (R = I, whitened)
+            R = np.eye(Y.shape[0])                                 # whitened rows
+            if sig_e2 > 0:                                         # + σ_e² H_θ H_θᵀ (read-out)
+                R += sig_e2 * (Hx[:, :3] @ Hx[:, :3].T)
+            Sinn = Hx @ PHt + R                                    # S = H P Hᵀ + R
             K = np.linalg.solve(Sinn, PHt.T).T                     # K = P Hᵀ S⁻¹ (S symmetric)
             IKH = eye_n - K @ Hx
-            P = IKH @ P @ IKH.T + K @ K.T                          # Joseph form
+            P = IKH @ P @ IKH.T + K @ R @ K.T                      # Joseph form
             P = 0.5 * (P + P.T)
             S = S - K @ (Hx @ S + Hc)
         for j in out_at.get(k, ()):

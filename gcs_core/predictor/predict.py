@@ -30,7 +30,6 @@ from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.filtr.batch import name_combinations
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions
-from gcs_core.models import common
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.plan import DataPlan
@@ -299,15 +298,6 @@ def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> Pr
     return _run(planned, plan, method)
 
 
-def _gyro_noise(problem: Problem) -> tuple[float, float]:
-    spec = problem.builder.spec
-    try:
-        g = spec.sensor(problem.gyro_name)
-    except KeyError:
-        return 0.0, 0.0
-    return (common.book_scalar(g, "arw", 0.0) or 0.0, common.book_scalar(g, "rrw", 0.0) or 0.0)
-
-
 def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResult:
     problem, values = planned.problem, planned.values
     state = problem.state
@@ -331,9 +321,7 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
     if method == "kalman" and not use_kalman:
         log.info("no gyro carries a solved-for attitude: the prediction uses Eq 3-2")
     if use_kalman:
-        arw, rrw = _gyro_noise(problem)
-        hist = kalman_history(problem, values, names, cons, sigma0, sigma_c, times, masks=masks,
-                              arw=arw, rrw=rrw)
+        hist = kalman_history(problem, values, names, cons, sigma0, sigma_c, times, masks=masks)
     else:
         A_cum = info.binned_information(rows, times, n + len(cons))
         hist = info.static_history(A_cum, n, info.prior_information(sigma0), sigma_c,

@@ -46,7 +46,8 @@ from typing import Mapping, Protocol, runtime_checkable
 
 import numpy as np
 
-from gcs_core.problem import kernels
+from gcs_core.problem import kernels as kernels
+from gcs_core.compiled import COMPILED
 from gcs_core.frames.reference import (earth_pointing_rate, reference_dcm, spin_axis,
                                        spin_axis_partials)
 from gcs_core.frames.rotations import dcm_to_euler123, euler123_partials, euler123_to_dcm
@@ -158,7 +159,7 @@ class FrameAttitude:
     @property
     def can_fill_rows(self) -> bool:
         """True when :meth:`fill_rows` can run (gyro-carried, factored, numba)."""
-        return self._gyro is not None and self._J is None and kernels.COMPILED
+        return self._gyro is not None and self._J is None and COMPILED
 
     def fill_rows(self, D: np.ndarray, sel, out: np.ndarray, *, w: np.ndarray | None = None,
                   P: np.ndarray | None = None, pcol=()) -> bool:

@@ -26,6 +26,7 @@ from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_d
 from gcs_core.models import make_model
 from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.models.base import ParamSpec
+from gcs_core.models.gyro_noise import gyro_noise
 from gcs_core.problem.prepare import (GeometryBuilder, HeldChannels, PhysicsOptions, SensorData,
                                    prepare_sensors)
 from gcs_core.problem.state import Element, StateVector
@@ -134,7 +135,7 @@ def default_role(sensor_type: str, spec: ParamSpec, sensor=None) -> str:
     A gyro whose data book declares a rate random walk (``rrw`` > 0) has a wandering
     bias: its bias instability (a linear drift over the span) is solved for too.
     """
-    if spec.effect == "bias_instability" and sensor is not None and float(sensor.get("rrw", 0.0) or 0.0) > 0:
+    if spec.effect == "bias_instability" and sensor is not None and gyro_noise(sensor).sigma_u > 0:
         return SOLVE_FOR
     if not spec.seed or spec.effect == "alignment":
         return HELD

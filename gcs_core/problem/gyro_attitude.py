@@ -17,6 +17,7 @@ from typing import Mapping
 
 import numpy as np
 
+from gcs_core.compiled import COMPILED
 from gcs_core.problem import kernels
 from gcs_core.problem.attitude import (BIAS_RATE_NAMES, BLOCK_KNOTS, RPY, AttitudeEval, FrameAttitude,
                                      ReferenceAttitude, rpy_error_jacobian)
@@ -306,7 +307,7 @@ class GyroAttitude:
     def _rate_terms(self, c: _GyroConsts, r0: int, r1: int):
         """``ω``, ``G⁻¹ y``, ``u = G⁻¹ y − b(t)`` (n, 3) and ``τ = t − t_mid`` (n,) of rows r0..r1−1."""
         tau = self.knots[r0 + 1:r1 + 1] - c.t_mid
-        if kernels.COMPILED:
+        if COMPILED:
             n = r1 - r0
             Gy, u, omega = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
             kernels.rates(self.y[r0:r1], c.Ginv, c.b, c.bdot, c.M, tau, Gy, u, omega)
@@ -337,7 +338,7 @@ class GyroAttitude:
         dt = self.knots[r0 + 1:r1 + 1] - self.knots[r0:r1]
         C = np.empty((n + 1, 3, 3))
         C[0] = C_s
-        if kernels.COMPILED:
+        if COMPILED:
             Q = np.empty((n, 4))
             kernels.propagate(q_s, omega, dt, Q, C[1:])
         else:
@@ -345,7 +346,7 @@ class GyroAttitude:
             Q = quat_multiply(_quat_scan(steps), np.broadcast_to(q_s, steps.shape))
             C[1:] = _dcm(Q)
         E = None
-        if with_E and kernels.COMPILED:
+        if with_E and COMPILED:
             E = self._spare_E(n + 1)
             kernels.gyro_sums(C, c.MtGinv, c.M, c.dM, Gy, u, tau, dt, E_s, E)
         elif with_E:

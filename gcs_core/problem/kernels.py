@@ -30,7 +30,7 @@ temporaries; compiled, each is one pass over its data.
   compiled code can be cached). The normal equations need only that sum; writing and
   re-reading the whole (N·m, k) H was a third of a linearization.
 
-Engine selection is :data:`gcs_core.models.common.COMPILED` (numba importable and
+Engine selection is :data:`gcs_core.compiled.COMPILED` (numba importable and
 ``GCS_NO_NUMBA`` unset); without it the callers use their numpy forms (the same numbers
 to round-off) and these functions stay plain Python, unused. The kernels are compiled on
 first use and cached on disk (``__pycache__``), like the Kalman kernel.
@@ -43,13 +43,13 @@ import math
 
 import numpy as np
 
-from gcs_core.models.common import COMPILED, numba
+from gcs_core.compiled import COMPILED, jit
 
-__all__ = ["COMPILED", "DSYRK", "rates", "propagate", "gyro_sums", "chain_rows", "chain_gram"]
+__all__ = ["DSYRK", "rates", "propagate", "gyro_sums", "chain_rows", "chain_gram"]
 
 #: ``@numba.njit(cache=True, fastmath=False)``, or the identity without numba.
-_jit = numba.njit(cache=True, fastmath=False) if COMPILED else (lambda fn: fn)
-_jit_fast = numba.njit(cache=True, fastmath={"contract", "arcp", "nsz"}) if COMPILED else (lambda fn: fn)
+_jit = jit(fastmath=False)
+_jit_fast = jit(fastmath={"contract", "arcp", "nsz"})
 
 
 def _blas_syrk():

@@ -31,7 +31,7 @@ a few tens of bytes per frame beyond the measurements.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Iterator, Mapping
 
 import numpy as np
@@ -49,7 +49,11 @@ from gcs_core.units import DEG
 
 @dataclass(frozen=True)
 class PhysicsOptions:
-    """Always-on physics applied to reference vectors (module docstring)."""
+    """Always-on physics applied to reference vectors (module docstring).
+
+    The defaults here are the one table of them: the analysis config
+    (:mod:`gcs_core.config`), the session and the predictor take theirs from it.
+    """
 
     stellar_aberration: bool = True
     solar_aberration: bool = True
@@ -58,22 +62,16 @@ class PhysicsOptions:
     field_model: str = "igrf"
 
     def as_dict(self) -> dict:
-        return {"stellar_aberration": self.stellar_aberration, "solar_aberration": self.solar_aberration,
-                "sun_parallax": self.sun_parallax, "earth_oblateness": self.earth_oblateness,
-                "field_model": self.field_model}
+        return {f.name: getattr(self, f.name) for f in fields(self)}
 
 
 #: frames per chunk when reference vectors are computed (bounded temporaries)
 CHUNK_FRAMES = 50_000
 
-#: physics effects of the catalogue: option name -> (value when on, value when off)
-PHYSICS_EFFECTS = {
-    "stellar_aberration": (True, False),
-    "solar_aberration": (True, False),
-    "sun_parallax": (True, False),
-    "earth_oblateness": (True, False),
-    "field_model": ("igrf", "dipole"),
-}
+#: physics effects of the catalogue: option name -> (value when on: the default, value when off)
+PHYSICS_EFFECTS = {name: (getattr(PhysicsOptions(), name), off) for name, off in
+                   {"stellar_aberration": False, "solar_aberration": False, "sun_parallax": False,
+                    "earth_oblateness": False, "field_model": "dipole"}.items()}
 
 
 @dataclass(frozen=True)

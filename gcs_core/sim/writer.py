@@ -267,6 +267,8 @@ def _truth(cfg: MissionConfig, record: dict) -> dict:
     return as_plain(out)
 
 
+# The engine's atomic writes are gcs_core.fileperm; the simulator keeps these few lines of
+# its own on purpose: it imports nothing of the engine it is meant to check.
 def _write_text_atomic(path: Path, text: str) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)

@@ -219,11 +219,8 @@ def _reason(sigma, ground, req, flags, n) -> str:
 
 
 def _shown(*arrays) -> str:
-    """One display unit for a verification's angles, chosen from the largest σ or threshold
-    (:mod:`gcs_core.display`)."""
-    vals = np.concatenate([np.atleast_1d(np.asarray(a, dtype=float)) for a in arrays])
-    vals = vals[np.isfinite(vals)]
-    return display.display_unit("rad", float(np.max(np.abs(vals))) if vals.size else float("nan"))
+    """One display unit for a verification's angles, chosen from the largest σ or threshold."""
+    return display.common_unit("rad", *arrays)
 
 
 def verify(onboard_t, onboard_q, ground_t, ground_q, ground_sigma_rad, *, requirement_rad,

@@ -11,27 +11,17 @@ plain characters (no terminal colour codes).
 from __future__ import annotations
 
 import html
-import os
 import re
-import tempfile
 from pathlib import Path
 
 import numpy as np
 import plotext as plt
 
 from gcs_core import display
-from gcs_core.fileperm import make_usual
+from gcs_core.fileperm import write_atomic
 
 #: terminal escape sequences (plotext adds colour resets even with the "clear" theme)
 _ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
-
-
-def _atomic_write(path: Path, text: str) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    with os.fdopen(fd, "w", encoding="utf-8") as fh:
-        fh.write(text)
-    make_usual(tmp)
-    os.replace(tmp, path)
 
 
 def text_plot(t, y, edited, sigma: float, title: str, unit: str, width: int = 100, height: int = 25) -> str:
@@ -132,7 +122,7 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
                      f"n {int(np.count_nonzero(~ed))}, edited {int(np.count_nonzero(ed))})")
             if fmt == "txt":
                 p = folder / f"residuals_{name}_{comp}.txt"
-                _atomic_write(p, text_plot(t, y, ed, sigma, title, unit))
+                write_atomic(p, text_plot(t, y, ed, sigma, title, unit))
                 out.append(p)
             else:
                 sections.append(svg_plot(t, y, ed, sigma, title, unit))
@@ -147,6 +137,6 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
                 "component against mission time, in the unit chosen from its σ; the shaded band is ±3σ "
                 "of the sensor's noise; red × marks frames edited out of the fit.</p>\n"
                 + "\n".join(sections) + "\n</body></html>\n")
-        _atomic_write(p, page)
+        write_atomic(p, page)
         out.append(p)
     return out

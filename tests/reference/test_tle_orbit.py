@@ -31,7 +31,7 @@ from gcs_core.ephem.timescale import julian_date
 from gcs_core.ephem.tle import read_tle, tle_states
 from gcs_core.io.tle_table import tle_ephemeris_table
 from gcs_core.errors import InputError
-from gcs_core.frames.rotations import T1, T2, T3
+from gcs_core.frames.rotations import T2, T3
 from gcs_core.io.mission import read_mission_spec
 from gcs_core.units import ARCSEC
 from repo_paths import TEST_DATA

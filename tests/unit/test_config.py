@@ -251,8 +251,14 @@ def _template(node) -> str | None:
 
 
 def test_config_checks_doc_in_sync():
-    """docs/input_checks.md tables the messages of gcs_core/config.py (and its checks) and gcs_tui/cli/commands.py."""
+    """docs/input_checks.md tables the messages of gcs_core/config.py (and its checks, with the
+    complaints of gcs_core/toml_values.py) and gcs_tui/cli/commands.py."""
     raised = set()
+    for node in ast.walk(ast.parse((ROOT / "gcs_core" / "toml_values.py").read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Return) and (t := _template(node.value)) and t.startswith("must"):
+            raised.add(t)
+        if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "error" and node.args:
+            raised.add(_template(node.args[0]))
     for source in (ROOT / "gcs_core" / "config.py", ROOT / "gcs_core" / "config_checks.py", ROOT / "gcs_tui" / "cli" / "commands.py"):
         for node in ast.walk(ast.parse(source.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call):

@@ -22,6 +22,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
+from gcs_core.compiled import COMPILED
 from gcs_core.filtr import kalman_kernels
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.filtr.kalman import LinearBlock, referred_transitions, solve_block
@@ -169,7 +170,7 @@ def test_compiled_kernel_equals_numpy_core(dynamic):
             _assert_same(getattr(sols[0], field), getattr(sols[1], field), field)
 
 
-@pytest.mark.skipif(not kalman_kernels.COMPILED, reason="numba not importable")
+@pytest.mark.skipif(not COMPILED, reason="numba not importable")
 def test_kernel_compiled_for_one_signature():
     """Every kind of block (gyro or not, read-out noise or not, gate or not, per-epoch
     posteriors or not) reaches the kernel with the same argument types, so its JIT
@@ -183,8 +184,11 @@ def test_kernel_compiled_for_one_signature():
 def test_numpy_engine_without_numba():
     """Without numba the package imports and solve_block runs the numpy core."""
     code = ("import sys; sys.modules['numba'] = None\n"
-            "from gcs_core.filtr import kalman, kalman_kernels\n"
-            "assert not kalman_kernels.COMPILED and kalman.ENGINE == 'numpy'\n")
+            "from gcs_core import compiled\n"
+            "from gcs_core.filtr import kalman\n"
+            "from gcs_core.models import common\n"
+            "assert not compiled.COMPILED and kalman.ENGINE == 'numpy'\n"
+            "assert common._jit(len) is len\n")
     root = ROOT
     subprocess.run([sys.executable, "-c", code], cwd=root, check=True)
 

@@ -13,6 +13,7 @@ import select
 import signal
 import struct
 import time
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -167,3 +168,112 @@ def test_sigkill_in_the_middle_of_writing_the_new_file(tmp_path):
                                covariance=np.eye(N_PARAMS) * 3, element_names=names,
                                provenance={"note": "v3"}) == 3
     assert not list(tmp_path.glob(".*.tmp"))
+
+
+# --- every other writer: one helper (gcs_core.fileperm), killed the same way ------------
+
+TEXT_LINES = 20000  # ~0.5 MB a version: a kill lands inside the write more often than not
+
+
+def _text(n: int) -> str:
+    return "".join(f"{n},{i}\n" for i in range(TEXT_LINES))
+
+
+def text_writer(path: str, fd: int) -> None:
+    """Child: rewrite a text file forever through the writers that use write_atomic and
+    atomic_open (a config or report, a CSV table); each version's lines name it."""
+    from gcs_core.fileperm import atomic_open, write_atomic
+    try:
+        n = 0
+        while True:
+            n += 1
+            if n % 2:
+                write_atomic(path, _text(n))
+            else:                       # line by line, flushed: a kill lands mid-file
+                with atomic_open(path, "w", newline="\n") as fh:
+                    for i, line in enumerate(_text(n).splitlines(keepends=True)):
+                        fh.write(line)
+                        if i % 200 == 0:
+                            fh.flush()
+            os.write(fd, struct.pack("<q", n))
+    except BaseException:
+        os._exit(3)
+
+
+def directory_writer(path: str, fd: int) -> None:
+    """Child: replace a mission-like directory forever (convert's staged directory)."""
+    from gcs_core.convert.common import staged_directory
+    try:
+        n = 0
+        while True:
+            n += 1
+            with staged_directory(Path(path), overwrite=True) as stage:
+                (stage / "telemetry").mkdir()
+                for name in ("mission.toml", "telemetry/A.csv", "telemetry/B.csv"):
+                    (stage / name).write_text(_text(n) if name.endswith(".csv") else f"# {n}\n")
+            os.write(fd, struct.pack("<q", n))
+    except BaseException:
+        os._exit(3)
+
+
+def _version_of_text(path: Path) -> int:
+    lines = path.read_text().splitlines()
+    assert len(lines) == TEXT_LINES, f"{path}: {len(lines)} lines"
+    versions = {line.split(",")[0] for line in lines}
+    assert len(versions) == 1, f"{path}: a mix of versions"
+    return int(versions.pop())
+
+
+def _kill_rounds(tmp_path, target, path: Path, check, kills: int, seed: int) -> int:
+    """Start ``target(path, fd)``, kill it at a random moment, ``check(path)`` -> version;
+    the version on disk is never older than the last confirmed one."""
+    rng = np.random.default_rng(seed)
+    ctx = multiprocessing.get_context("fork")
+    last = 0
+    for _ in range(kills):
+        read_fd, write_fd = os.pipe()
+        proc = ctx.Process(target=target, args=(str(path), write_fd), daemon=True)
+        proc.start()
+        os.close(write_fd)
+        first = wait_for_first(read_fd)
+        assert first, "the writer confirmed nothing"
+        time.sleep(float(rng.uniform(0.0, 0.03)))
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.join()
+        assert proc.exitcode == -signal.SIGKILL, "the writer died on its own"
+        done = first + confirmed(read_fd)
+        os.close(read_fd)
+        on_disk = check(path)
+        assert on_disk >= max(done), (on_disk, max(done))
+        assert on_disk <= max(done) + 1          # at most the one in flight landed
+        last = on_disk
+    return last
+
+
+def test_sigkill_while_rewriting_a_text_file(tmp_path):
+    """write_atomic / atomic_open (configs, reports, CSV tables, plots): after each kill
+    the file is one whole version, with the usual permissions."""
+    from gcs_core.fileperm import usual_mode
+    path = tmp_path / "report.json"
+
+    def check(p):
+        assert (p.stat().st_mode & 0o777) == usual_mode()
+        return _version_of_text(p)
+
+    _kill_rounds(tmp_path, text_writer, path, check, kills=15, seed=7)
+
+
+def test_sigkill_while_replacing_a_directory(tmp_path):
+    """atomic_directory (converted missions): after each kill the directory is there and
+    holds one whole version, every file of it."""
+    path = tmp_path / "mission"
+
+    def check(p):
+        versions = {_version_of_text(p / "telemetry" / n) for n in ("A.csv", "B.csv")}
+        versions.add(int((p / "mission.toml").read_text().split()[1]))
+        assert len(versions) == 1, f"a mix of versions: {versions}"
+        return versions.pop()
+
+    _kill_rounds(tmp_path, directory_writer, path, check, kills=15, seed=8)
+    left = [p.name for p in tmp_path.iterdir() if p.name != "mission"]
+    assert all(n.startswith(".mission.") for n in left), left    # only hidden stages of killed writers

@@ -328,12 +328,12 @@ def _template(node) -> str | None:
 
 def _code_templates() -> tuple[set[str], set[str]]:
     """(messages raised by the io readers and the noise estimate from data, every string
-    template in their sources and in the epoch parser they call,
-    :func:`gcs_core.ephem.timescale.parse_utc`)."""
+    template in their sources and in what they call for words: the epoch parser
+    :func:`gcs_core.ephem.timescale.parse_utc` and the value complaints of :mod:`gcs_core.toml_values`)."""
     import ast
     raised, everything = set(), set()
     sources = sorted((ROOT / "gcs_core" / "io").glob("*.py")) + [ROOT / "gcs_core" / "filtr" / "noise.py"]
-    for source in sources + [ROOT / "gcs_core" / "ephem" / "timescale.py"]:
+    for source in sources + [ROOT / "gcs_core" / "ephem" / "timescale.py", ROOT / "gcs_core" / "toml_values.py"]:
         for node in ast.walk(ast.parse(source.read_text())):
             t = _template(node)
             if t:

@@ -277,3 +277,26 @@ def test_bad_configuration_is_one_clear_line(tmp_path):
     with pytest.raises(InputError, match="attitude_mode"):
         write_mission(cfg, tmp_path / "x")
     assert not (tmp_path / "x").exists()
+
+
+def test_gyro_read_out_noise_telescopes(tmp_path):
+    """The electronic (read-out) noise σ_e is an error of the integrated angle at each
+    sample (ICD §5 ``electronic``): a rate row carries ``(e_k − e_{k−1})/Δt``, so its
+    spread is sqrt(2) σ_e/Δt with lag-one correlation −1/2, and the integrated angle error
+    over any span is the difference of two read-outs, sqrt(2) σ_e, not growing with it."""
+    cfg = nominal_threeaxis("sun_pointing", seed=9, duration_s=1800.0)
+    cfg.sensors = [s for s in cfg.sensors if s.type == "gyro"]
+    sig_e = 2e-5
+    cfg.sensors[0].true.update(arw=0.0, rrw=0.0, electronic=sig_e)
+    out = write_mission(cfg, tmp_path / "g")
+    _, y = _read(out / "telemetry/IRU.csv")
+    t = y[:, 0]
+    res = y[:, 1:] - World(cfg).omega_avg(t - 1.0, t)            # Δt = 1 s
+    n = res.shape[0]
+    assert np.std(res) == pytest.approx(math.sqrt(2.0) * sig_e, rel=4 / math.sqrt(3 * n))
+    lag1 = np.mean(res[1:] * res[:-1]) / np.mean(res * res)
+    assert lag1 == pytest.approx(-0.5, abs=4 / math.sqrt(3 * n))
+    S = np.cumsum(res, axis=0)                                    # integrated angle error
+    for T in (10, 900):
+        ang = S[T:] - S[:-T]                                      # e_{k+T} − e_k
+        assert np.std(ang) == pytest.approx(math.sqrt(2.0) * sig_e, rel=4 / math.sqrt(3 * (n - T))), T

@@ -23,10 +23,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from gcs_core.compiled import COMPILED
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr import smoothing_batch as sb
 from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.mekf import GyroNoise, gyro_noise
+from gcs_core.filtr.mekf import attitude_gyro_noise
+from gcs_core.models.gyro_noise import GyroNoise
 from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_error
 from test_truth_recovery import ONE_HOUR, fit_and_compare, threeaxis
 
@@ -45,7 +47,7 @@ def _small(seed=3, duration_s=300.0, spacing=20.0):
     x_bar = np.array([state[nm].value for nm in names])
     s0 = np.array([state[nm].sigma0 for nm in names])
     prior = 1.0 / s0 ** 2
-    noise = gyro_noise(problem)
+    noise = attitude_gyro_noise(problem)
     grid = sb.make_knots(problem, noise, batch.information, names, spacing=spacing)
     passes = sb.Passes(problem, names, grid, x_bar, prior)
     passes.stream = False                  # every knot's blocks kept (Dk, Bk) for inspection
@@ -140,7 +142,7 @@ def test_knot_partials_against_finite_differences():
 def test_compiled_and_numpy_forms_agree(monkeypatch):
     """The fused compiled accumulation and attitude correction give the numpy forms'
     numbers (a machine without numba gets the same fit)."""
-    if not kn.COMPILED:
+    if not COMPILED:
         pytest.skip("numba not available: only the numpy form runs")
     problem, batch, grid, passes, x_bar, prior = _small()
     z = np.zeros((grid.K, grid.d))
@@ -162,7 +164,7 @@ def test_reduces_to_the_batch_when_the_process_noise_vanishes():
     mission, _ = simulate(4, duration_s=900.0)
     problem = sim_problem(mission)
     batch = batch_fit(problem, NO_EDIT)
-    book = gyro_noise(problem)
+    book = attitude_gyro_noise(problem)
     res = sb.whole_span_fit(problem, NO_EDIT, start=batch,
                             noise=GyroNoise(1e-4 * book.sigma_v, 1e-4 * book.sigma_u))
     sig = np.sqrt(np.diag(batch.P))

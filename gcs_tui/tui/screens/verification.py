@@ -19,6 +19,7 @@ from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.theme import color, marker, rgb, series
 from gcs_tui.tui.widgets.plots import GcsPlot, marked_line, nice_x, nice_y
+from gcs_core.display import common_unit
 
 EMPTY = "No verification yet — press r to compare the onboard attitude with the ground solution."
 AXES = ("roll", "pitch", "yaw")
@@ -26,9 +27,7 @@ AXES = ("roll", "pitch", "yaw")
 
 def shown_unit(v) -> str:
     """One unit for the whole screen, from the largest σ or threshold (the display rule)."""
-    vals = np.concatenate([np.atleast_1d(v.sigma), np.atleast_1d(v.ground_accuracy), np.atleast_1d(v.requirement)])
-    vals = vals[np.isfinite(vals)]
-    return fmt.display_unit("rad", float(np.max(vals)) if vals.size else float("nan"))
+    return common_unit("rad", v.sigma, v.ground_accuracy, v.requirement)
 
 
 class VerificationScreen(GcsScreen):
