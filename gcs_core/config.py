@@ -349,7 +349,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _unknown(phys, TABLES["physics"], "physics.", f)
     for k, v in phys.items():
         if k == "field_model":
-            ph[k] = _choice(phys, k, FIELD_MODELS, ph[k], "physics.field_model", f)
+            ph[k] = _choice(phys, k, FIELD_MODELS, PhysicsOptions().field_model, "physics.field_model", f)
         else:
             _require(isinstance(v, bool), f"physics.{k}", f"must be true or false, not {_show(v)}", f)
             ph[k] = v

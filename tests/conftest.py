@@ -13,7 +13,10 @@ from pathlib import Path
 
 # Small matrices dominate GCS; OpenBLAS threads only contend on a 2-core machine.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-sys.path.insert(0, str(Path(__file__).resolve().parent / "helpers"))
+# helpers first; the kinds' folders too, so a test that reuses another's simulation
+# (``from test_filter_consistency import simulate``) imports it whatever is collected first
+for _folder in ("conformance", "tui", "unit", "reference", "statistical", "helpers"):
+    sys.path.insert(0, str(Path(__file__).resolve().parent / _folder))
 
 import pytest  # noqa: E402
 
