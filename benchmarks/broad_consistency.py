@@ -42,7 +42,10 @@ from gcs_core.sidp.importer import load_mission
 
 TRIALS = ("02_undisturbed_slow_rotation_B", "09_undisturbed_fast_rotation_with_breaks_B",
           "36_disturbed_attached_magnet_5cm")
-EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset")
+EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset",
+           "MAG.field_gradient")
+#: the field's gradient about the file's mean position (aux pos_x/y/z from the optical position)
+GRADIENT = tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
 #: a MEMS gyro's bias wanders by ~1e-4 rad/s over a minute (its Allan bias instability):
 #: the linear drift of the batch gets an a priori to match, not the flight default 1e-9 rad/s²
 BIAS_DRIFT = {f"GYR.bias_rate_{a}": ElementConfig(role="solve-for", sigma=1e-5) for a in "xyz"}
@@ -58,16 +61,16 @@ MEMS_PRIORS = {**{f"GYR.bias_{a}": ElementConfig(sigma=1e-1) for a in "xyz"},
 TAU_STAR_S = 4.0
 SHOWN = tuple(f"MAG.bias_{a}" for a in "xyz") + tuple(f"MAG.scale_{a}" for a in "xyz") + \
     ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz") + tuple(f"MAG.align_{k}" for k in (1, 2, 3)) + \
-    tuple(f"GYR.bias_{a}" for a in "xyz") + ("MAG.time_offset", "OPT.time_offset")
+    tuple(f"GYR.bias_{a}" for a in "xyz") + ("MAG.time_offset", "OPT.time_offset") + GRADIENT
 
 
-def fit(source: Path, work: Path, label: str, span=None, method="whole_span"):
+def fit(source: Path, work: Path, label: str, span=None, method="whole_span", effects=EFFECTS):
     out = work / label
     convert("broad", source, out, span=span)
     mission = load_mission(out)
     cfg = default_config(out)
     cfg = replace(cfg, method=method, physics={**cfg.physics, "field_model": "constant"},
-                  effects=tuple(EFFECTS), elements={**cfg.elements, **MEMS_PRIORS})
+                  effects=tuple(effects), elements={**cfg.elements, **MEMS_PRIORS})
     a = Analysis(cfg, mission=mission)
     t0 = time.perf_counter()
     res = a.fit(holdout=False)
@@ -76,7 +79,7 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span"):
     k = {s: residual_inflation(res.residuals[s], TAU_STAR_S) for s in ("MAG", "OPT")}
     print(f"  {label}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}), normalized RMS {rms}, "
           f"σ inflation k({TAU_STAR_S:g} s) MAG {k['MAG']:.2f}, OPT {k['OPT']:.2f}", flush=True)
-    return {n: (vals[n], res.sigma.get(n, np.nan), k.get(n.split(".")[0], 1.0))
+    return {n: (vals[n], res.sigma.get(n, np.nan), k.get(n.split(".")[0], k["MAG"]))
             for n in SHOWN if n in vals}
 
 
