@@ -42,7 +42,9 @@ def _position(t):
                             0.25 * np.sin(0.07 * t + 2.0)])
 
 
-def _simulate(rng):
+def _simulate(rng, hold: int = 1):
+    """The truth; ``hold`` > 1 holds each magnetometer noise draw over that many samples
+    (errors correlated over ``hold·DT``, which a white-noise fit undercounts)."""
     t = np.arange(N + 1) * DT
     w = _rate(t[1:] - 0.5 * DT)
     C = np.empty((N + 1, 3, 3))
@@ -60,15 +62,15 @@ def _simulate(rng):
     B_at = B_LAB + _position(t[k] + MAG_DT) @ G_TRUE.T          # the field where the unit is
     M = euler123_to_dcm(*MAG_ALIGN_RAD)
     B_S = np.einsum("ij,njk,nk->ni", (np.eye(3) + D_TRUE) @ M, shifted(MAG_DT), B_at) + MAG_BIAS
-    B_S += rng.normal(scale=MAG_NOISE, size=B_S.shape)
+    draws = rng.normal(scale=MAG_NOISE, size=(-(-B_S.shape[0] // hold), 3))
+    B_S += np.repeat(draws, hold, axis=0)[:B_S.shape[0]]
     C_opt = rotvec_to_dcm(rng.normal(scale=OPT_NOISE, size=(k.size, 3))) @ shifted(OPT_DT)
     return t, gyro, B_S, quat_from_dcm(C_opt)
 
 
-@pytest.fixture(scope="module")
-def mission(tmp_path_factory):
-    root = tmp_path_factory.mktemp("lab-gradient")
-    t, gyro, B_S, q = _simulate(np.random.default_rng(2022))
+def write_mission(root, rng, hold: int = 1):
+    """The truth as a mission directory with the position channels in aux.csv."""
+    t, gyro, B_S, q = _simulate(rng, hold)
     _write(root, t, gyro, B_S, q)
     np.savetxt(root / "aux.csv", np.column_stack([t, _position(t)]), delimiter=",",
                header="t,pos_x,pos_y,pos_z", comments="", fmt="%.10g")
@@ -77,7 +79,12 @@ def mission(tmp_path_factory):
     return root
 
 
-def _fit(root, effects):
+@pytest.fixture(scope="module")
+def mission(tmp_path_factory):
+    return write_mission(tmp_path_factory.mktemp("lab-gradient"), np.random.default_rng(2022))
+
+
+def fit(root, effects):
     cfg = default_config(root)
     cfg = replace(cfg, physics={**cfg.physics, "field_model": "constant"}, attitude_sigma_deg=10.0,
                   effects=effects, elements=MEMS_PRIORS)
@@ -99,9 +106,9 @@ def test_the_position_channels_feed_the_gradient_not_contamination():
 
 
 def test_gradient_estimated_against_truth_in_sigma(mission):
-    uniform, _ = _fit(mission, EFFECTS)
+    uniform, _ = fit(mission, EFFECTS)
     assert uniform.rms()["MAG"] > 1.5                      # a uniform field cannot explain it
-    a, res = _fit(mission, EFFECTS + ("MAG.field_gradient",))
+    a, res = fit(mission, EFFECTS + ("MAG.field_gradient",))
     v = res.state.values()
     truth = {**{f"field.G_{ab}": x for ab, x in GRADIENT.items()},
              **{f"field.B_{x}": B_LAB[i] for i, x in enumerate("xyz")},
