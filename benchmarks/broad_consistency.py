@@ -80,7 +80,7 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
     print(f"  {label}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}), normalized RMS {rms}, "
           f"sandwich σ scale ({BLOCK_S:g} s windows) {min(sc.values()):.2f} to {sc[worst]:.2f} ({worst})",
           flush=True)
-    return {n: (vals[n], res.sigma.get(n, np.nan), 1.0 if n.startswith("GYR.") else sc.get(n, 1.0))
+    return {n: (vals[n], res.sigma.get(n, np.nan), 1.0 if n.startswith("GYR.") else max(1.0, sc.get(n, 1.0)))
             for n in SHOWN if n in vals}
 
 

@@ -24,6 +24,17 @@ factor that inflates the estimate's scatter. ``s_i`` multiplies the fit's σ of 
 in the span: the estimate of each ``s_i²`` has about ``n_b`` (number of windows) degrees of
 freedom, so ``s`` itself scatters by about ``1/sqrt(2 n_b)``.
 
+Conditional on the attitude. ``A`` is the information with the attitude held; the fit's
+own covariance has the attitude (and, for the whole-span method, its knots) marginalized.
+For an element the attitude cannot absorb — a ground calibration under a precise attitude
+reference, the BROAD magnetometer against a reference 30 times finer than it — the two
+agree and ``s`` is the honest factor (``tests/test_sigma_scale.py``). For an element the
+attitude's freedom absorbs in part (a Sun sensor's or a gyro's in flight, against knots
+every tens of seconds) the residuals are orthogonal to what the attitude took, window by
+window, and ``s`` comes out below 1 on a correct model (0.3–0.9 on the 8-h Sun-pointing
+example): that is the method's blind spot, not better data, so
+:meth:`SigmaScale.honest_sigma` never scales a σ down.
+
 Residuals are the fit's own (``result.residuals``, knots included for the whole-span
 method); the partials are those of the sensor's model at the fitted state.
 """
@@ -60,8 +71,9 @@ class SigmaScale:
     scale: Mapping[str, float]
 
     def honest_sigma(self, sigma: Mapping[str, float]) -> dict[str, float]:
-        """``σ_i s_i`` (elements without a scale unchanged)."""
-        return {n: float(s * self.scale.get(n, 1.0)) for n, s in sigma.items()}
+        """``σ_i max(1, s_i)`` (elements without a scale unchanged; a scale below 1 is the
+        conditional sandwich's blind spot, module docstring, and never shrinks a σ)."""
+        return {n: float(s * max(1.0, self.scale.get(n, 1.0))) for n, s in sigma.items()}
 
 
 def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> SigmaScale:
