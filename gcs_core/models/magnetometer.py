@@ -34,7 +34,8 @@ expansion about that point::
 
 ``G`` symmetric (curl-free: no current in the volume, ∇×B = 0) and trace-free (∇·B = 0),
 hence five elements ``field.G_xx/xy/xz/yy/yz`` [nT/m] (Jackson, Classical
-Electrodynamics, 3rd ed., §5.1 and §5.8: B = −∇Φ with ∇²Φ = 0 in a current-free region).
+Electrodynamics, 3rd ed., ch. 5: ∇·B = 0, and where no current flows ∇×B = 0, so
+B = −∇Φ_M with ∇²Φ_M = 0).
 Partials ``∂y/∂G_ab = (I + D) M R C (∂G/∂G_ab) p``. The position channels feed only the
 gradient, not the contamination terms. The position is held over the time offset (the
 field a unit carried at 1 m/s sees change over 10 ms by G·1 cm, ~20 nT at 2 µT/m).
