@@ -8,8 +8,10 @@ Each trial (and each half, t < T/2 and t ≥ T/2) is converted with ``gcs conver
 temporary directory and fitted (the second argument: the method, default whole_span) with the constant lab field,
 the magnetometer's bias and 3×3 matrix ((I + D) M), the gyro's bias and matrix, and the time
 offsets of the magnetometer and of the optical reference (against the gyro-carried attitude).
-Prints one table per comparison; |z| ≤ 3 is the acceptance. Run under ``nice``: each fit
-takes 5–30 s on one core (whole_span), 20–60 s (batch).
+Prints one table per comparison; |z| ≤ 3 is the acceptance. Usage:
+``broad_consistency.py [FOLDER [METHOD [TRIAL,TRIAL... [uniform]]]]`` (an empty TRIAL list:
+all three). Run under ``nice``: each fit takes 6–180 s on the shared 2-core machine
+(whole_span), about 10 minutes for the nine fits.
 
 The residuals are not white on the time scale of the hand motions (the magnetometer's own
 slow wander, ≈0.1 µT over seconds at rest; the optical reference interpolated between its
