@@ -8,19 +8,21 @@ Each trial (and each half, t < T/2 and t ≥ T/2) is converted with ``gcs conver
 temporary directory and fitted (the second argument: the method, default whole_span) with the constant lab field,
 the magnetometer's bias and 3×3 matrix ((I + D) M), the gyro's bias and matrix, and the time
 offsets of the magnetometer and of the optical reference (against the gyro-carried attitude).
-Prints one table per comparison; |z| ≤ 3 is the acceptance. Run under ``nice``: each fit
-takes 5–30 s on one core (whole_span), 20–60 s (batch).
+Prints one table per comparison; |z| ≤ 3 is the acceptance. Usage:
+``broad_consistency.py [FOLDER [METHOD [TRIAL,TRIAL... [uniform]]]]`` (an empty TRIAL list:
+all three). Run under ``nice``: each fit takes 6–180 s on the shared 2-core machine
+(whole_span), about 10 minutes for the nine fits.
 
-The residuals are not white on the time scale of the hand motions (a room's field not
-uniform over the centimetres the unit moves, the magnetometer's own slow wander; the optical
-residual 2–3 times its noise), so σ computed for white noise of the stated σ are
-optimistic. Each table also gives ``z_k``: the σ of a sensor's elements (magnetometer,
-optical reference) inflated by ``k = σ_A(τ*) / (σ sqrt(τ0/τ*))``, the Allan deviation of
-the sensor's fitted residual at ``τ* =`` :data:`TAU_STAR_S` over what white noise of the
-σ the fit used would give there (the RMS over the components, at least 1): a parameter
-fitted from motions on time scale τ* averages errors ``k`` times larger than the fit
-assumed (IEEE Std 952-1997, Annex C; ``k`` includes the ratio of residual to stated
-noise). The gyro's elements are not inflated (its noise is the process noise).
+The residuals are not white on the time scale of the hand motions (the magnetometer's own
+slow wander, ≈0.1 µT over seconds at rest; the optical reference interpolated between its
+camera frames), so σ computed for white noise of the stated σ are optimistic. Each table
+also gives ``z_s``: the σ of the magnetometer's, the field's and the optical reference's
+elements scaled by the batch-means sandwich of :mod:`gcs_core.diagnosis.correlation`
+(windows of :data:`BLOCK_S`), which measures from the residuals how much information they
+really carry. The gyro's elements keep the fit's σ (its noise is the process noise of the
+whole-span fit, which the sandwich, conditional on the attitude, does not see). Fitting the
+field gradient (``MAG.field_gradient``, aux ``pos_x/y/z`` from the optical position) is the
+default; a fourth argument ``uniform`` leaves it out, for comparison.
 """
 
 from __future__ import annotations
@@ -36,12 +38,15 @@ from gcs_core.config import default_config
 from gcs_core.convert import convert
 from gcs_core.config import ElementConfig
 from gcs_core.session import Analysis
-from gcs_core.filtr import noise
 from gcs_core.io.importer import load_mission
+from gcs_core.diagnosis.correlation import sigma_scale
 
 TRIALS = ("02_undisturbed_slow_rotation_B", "09_undisturbed_fast_rotation_with_breaks_B",
           "36_disturbed_attached_magnet_5cm")
-EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset")
+EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset",
+           "MAG.field_gradient")
+#: the field's gradient about the file's mean position (aux pos_x/y/z from the optical position)
+GRADIENT = tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
 #: a MEMS gyro's bias wanders by ~1e-4 rad/s over a minute (its Allan bias instability):
 #: the linear drift of the batch gets an a priori to match, not the flight default 1e-9 rad/s²
 BIAS_DRIFT = {f"GYR.bias_rate_{a}": ElementConfig(role="solve-for", sigma=1e-5) for a in "xyz"}
@@ -52,47 +57,37 @@ MEMS_PRIORS = {**{f"GYR.bias_{a}": ElementConfig(sigma=1e-1) for a in "xyz"},
                **{f"GYR.G_{i}{j}": ElementConfig(sigma=0.05) for i in (1, 2, 3) for j in (1, 2, 3)},
                **{f"MAG.nonorth_{p}": ElementConfig(sigma=0.1) for p in ("xy", "xz", "yz")},
                **BIAS_DRIFT}
-#: the time scale of the hand motions [s]: the magnetometer's σ are inflated for its residual's
-#: excess over white noise there
-TAU_STAR_S = 4.0
+#: the sandwich's window [s]: longer than the hand motions' time scale (about a second)
+BLOCK_S = 4.0
 SHOWN = tuple(f"MAG.bias_{a}" for a in "xyz") + tuple(f"MAG.scale_{a}" for a in "xyz") + \
     ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz") + tuple(f"MAG.align_{k}" for k in (1, 2, 3)) + \
-    tuple(f"GYR.bias_{a}" for a in "xyz") + ("MAG.time_offset", "OPT.time_offset")
+    tuple(f"GYR.bias_{a}" for a in "xyz") + ("MAG.time_offset", "OPT.time_offset") + GRADIENT
 
 
-def fit(source: Path, work: Path, label: str, span=None, method="whole_span"):
+def fit(source: Path, work: Path, label: str, span=None, method="whole_span", effects=EFFECTS):
     out = work / label
     convert("broad", source, out, span=span)
     mission = load_mission(out)
     cfg = default_config(out)
     cfg = cfg.with_changes(method=method, physics={"field_model": "constant"}, state={
-        "effects": tuple(EFFECTS), "elements": {**cfg.state.elements, **MEMS_PRIORS}})
+        "effects": tuple(effects), "elements": {**cfg.state.elements, **MEMS_PRIORS}})
     a = Analysis(cfg, mission=mission)
     t0 = time.perf_counter()
     res = a.fit(holdout=False)
     vals = res.state.values()
-    rms = {s: round(float(v), 3) for s, v in a.rms().items()} if hasattr(a, "rms") else {}
-    k = {s: residual_inflation(res.residuals[s], TAU_STAR_S) for s in ("MAG", "OPT")}
+    rms = {s: round(float(v), 3) for s, v in a.rms().items()}
+    sc = sigma_scale(a.problem, res, block_s=BLOCK_S).scale
+    worst = max((n for n in sc if not n.startswith("GYR.")), key=lambda n: sc[n])
     print(f"  {label}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}), normalized RMS {rms}, "
-          f"σ inflation k({TAU_STAR_S:g} s) MAG {k['MAG']:.2f}, OPT {k['OPT']:.2f}", flush=True)
-    return {n: (vals[n], res.sigma.get(n, np.nan), k.get(n.split(".")[0], 1.0))
+          f"sandwich σ scale ({BLOCK_S:g} s windows) {min(sc.values()):.2f} to {sc[worst]:.2f} ({worst})",
+          flush=True)
+    return {n: (vals[n], res.sigma.get(n, np.nan), 1.0 if n.startswith("GYR.") else max(1.0, sc.get(n, 1.0)))
             for n in SHOWN if n in vals}
-
-
-def residual_inflation(r, tau_star: float) -> float:
-    """``k`` of the module docstring from a sensor's residuals (used frames), ≥ 1."""
-    t, e = r.t[r.used], r.residual[r.used]
-    dt = noise.sample_interval(t)
-    ratios = []
-    for c, curve in enumerate(noise.allan_deviation(t, e)):
-        i = int(np.argmin(np.abs(np.log(curve.tau / tau_star))))
-        ratios.append(curve.adev[i] / (r.sigma[c] * np.sqrt(dt / curve.tau[i])))
-    return max(1.0, float(np.sqrt(np.mean(np.square(ratios)))))
 
 
 def table(title: str, a: dict, b: dict) -> int:
     print(f"\n{title}")
-    print(f"{'element':<18}{'A':>14}{'σ_A':>11}{'B':>14}{'σ_B':>11}{'z':>8}{'z_k':>8}")
+    print(f"{'element':<18}{'A':>14}{'σ_A':>11}{'s_A':>6}{'B':>14}{'σ_B':>11}{'s_B':>6}{'z':>8}{'z_s':>8}")
     worst = worst_k = 0.0
     for n in SHOWN:
         if n not in a or n not in b:
@@ -101,16 +96,17 @@ def table(title: str, a: dict, b: dict) -> int:
         z = (xa - xb) / np.hypot(sa, sb)
         zk = (xa - xb) / np.hypot(ka * sa, kb * sb)
         worst, worst_k = max(worst, abs(z)), max(worst_k, abs(zk))
-        print(f"{n:<18}{xa:>14.6g}{sa:>11.3g}{xb:>14.6g}{sb:>11.3g}{z:>8.2f}{zk:>8.2f}")
-    print(f"worst |z| = {worst:.2f} ({'within' if worst <= 3 else 'beyond'} 3σ); with the "
-          f"σ inflated by k, {worst_k:.2f}")
-    return int(worst > 3)
+        print(f"{n:<18}{xa:>14.6g}{sa:>11.3g}{ka:>6.2f}{xb:>14.6g}{sb:>11.3g}{kb:>6.2f}{z:>8.2f}{zk:>8.2f}")
+    print(f"worst |z| = {worst:.2f} with the fit's σ; {worst_k:.2f} with the sandwich's "
+          f"({'within' if worst_k <= 3 else 'beyond'} 3σ)")
+    return int(worst_k > 3)
 
 
 def main() -> int:
     root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "shared/real/broad"
     method = sys.argv[2] if len(sys.argv) > 2 else "whole_span"
-    trials = sys.argv[3].split(",") if len(sys.argv) > 3 else TRIALS
+    trials = sys.argv[3].split(",") if len(sys.argv) > 3 and sys.argv[3] else TRIALS
+    effects = EFFECTS[:-1] if len(sys.argv) > 4 and sys.argv[4] == "uniform" else EFFECTS
     bad = 0
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
@@ -121,9 +117,9 @@ def main() -> int:
             import h5py
             with h5py.File(src) as f:
                 T = f["imu_gyr"].shape[0] / float(f.attrs["sampling_rate"])
-            full[trial] = fit(src, work, trial, method=method)
-            h1 = fit(src, work, trial + "-h1", span=(0.0, T / 2), method=method)
-            h2 = fit(src, work, trial + "-h2", span=(T / 2, T), method=method)
+            full[trial] = fit(src, work, trial, method=method, effects=effects)
+            h1 = fit(src, work, trial + "-h1", span=(0.0, T / 2), method=method, effects=effects)
+            h2 = fit(src, work, trial + "-h2", span=(T / 2, T), method=method, effects=effects)
             bad += table(f"{trial}: first half (A) against second half (B)", h1, h2)
         if all(t in full for t in TRIALS):
             bad += table("trial 02 (A) against trial 09 (B)", full[TRIALS[0]], full[TRIALS[1]])

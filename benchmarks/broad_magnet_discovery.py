@@ -5,8 +5,9 @@ Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC BY 4.0), t
 ``../shared/real/broad`` (or the folder given as the first argument).
 
 The magnetometer is calibrated on the undisturbed trial 02 (bias, the 3×3 matrix (I + D) M,
-time offset; the field of the lab estimated with them). That calibration becomes the data
-book of the other trials, with the magnetometer's bias held at it, and ``discover`` runs on
+time offset; the field of the lab and its gradient over the optical position estimated
+with them). That calibration, the room's gradient with it, becomes the data book of the
+other trials, with the magnetometer's bias held at it, and ``discover`` runs on
 trial 09 (undisturbed, fast) and trial 36 (a magnet attached 5 cm from the unit). Printed:
 the steps discovery takes on each, with their Δχ² and the held-out RMS. The magnet should
 show as the bias effect added first on trial 36 and be far weaker or absent on trial 09.
@@ -27,7 +28,11 @@ from gcs_core.io.importer import load_mission
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from broad_consistency import MEMS_PRIORS  # noqa: E402
 
-CAL = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset")
+CAL = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset",
+       "MAG.field_gradient")
+#: the room's field gradient [nT/m] (the same in every trial; B_0 is each trial's own, at its
+#: mean position)
+GRADIENT = tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
 MAG_ELEMENTS = tuple(f"MAG.{p}" for p in ("bias_x", "bias_y", "bias_z", "scale_x", "scale_y", "scale_z",
                                           "nonorth_xy", "nonorth_xz", "nonorth_yz", "align_1", "align_2",
                                           "align_3", "time_offset"))
@@ -57,7 +62,9 @@ def main() -> int:
             print(f"  {n:<18}{v[n]:>14.6g} ± {res.sigma[n]:.3g}", flush=True)
         # trial 02's values as the data book (roles by default: the matrix and time offset
         # held as extended physics, the bias held by ``exclude``; discovery may add them)
-        book = {n: ElementConfig(value=float(v[n])) for n in MAG_ELEMENTS}
+        for n in GRADIENT:
+            print(f"  {n:<18}{v[n]:>14.6g} ± {res.sigma[n]:.3g}", flush=True)
+        book = {n: ElementConfig(value=float(v[n])) for n in MAG_ELEMENTS + GRADIENT}
         for trial in ("36_disturbed_attached_magnet_5cm", "09_undisturbed_fast_rotation_with_breaks_B"):
             b = analysis(root / f"{trial}.hdf5", tmp / trial, effects=("OPT.time_offset",),
                          exclude=("MAG.bias",), elements=book)

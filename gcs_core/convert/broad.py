@@ -13,7 +13,7 @@ dataset         shape        content
 ``imu_mag``     (N, 3)       magnetometer [µT] (written in nT, ×1000)
 ``opt_quat``    (N, 4)       unit quaternion (w, x, y, z) of the unit against the
                              laboratory's East-North-Up frame; NaN while untracked
-``opt_pos``     (N, 3)       marker position [m] (kept in extra/)
+``opt_pos``     (N, 3)       marker position [m] in ENU (kept in extra/; aux.csv)
 ``movement``    (N,)         bool, the motion phase
 @sampling_rate  scalar       [Hz]
 ==============  ===========  ======================================================
@@ -23,7 +23,11 @@ laboratory's ENU frame standing where GCI stands in flight, ``ground_position_km
 Earth's centre seen from the laboratory (straight down), and the analysis config sets
 ``field_model = "constant"``. The optical quaternion becomes an ``attitude_reference``
 sensor: BROAD's ``(w, x, y, z)`` rotates unit-frame vectors into ENU, which is GCS's
-``C_BI`` of the scalar-last quaternion ``(x, y, z, w)`` (Eq 4-8) unchanged.
+``C_BI`` of the scalar-last quaternion ``(x, y, z, w)`` (Eq 4-8) unchanged. The optical
+position becomes the aux channels ``pos_x, pos_y, pos_z`` [m, ENU] of ``aux.csv``, measured
+from the mean tracked position of the whole file (the same point for any span of it), the
+lever of the magnetometer's ``field_gradient`` effect (:mod:`gcs_core.models.magnetometer`);
+untracked samples are left out of it (the channel holds the last tracked position).
 
 Noise figures are not published with the data; each sensor's is estimated from its own
 telemetry (:mod:`gcs_core.filtr.noise`) and written with a comment saying so. The gyro's
@@ -285,6 +289,10 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
                                            [t, *acc.T], ["%.6f"] + ["%.6g"] * 3)
         rows["extra/opt_pos.csv"] = _write_csv(tmp / "extra/opt_pos.csv", "t,x,y,z",
                                                [t, *d["opt_pos"].T], ["%.6f"] + ["%.6g"] * 3)
+        pos = d["opt_pos"] - np.nanmean(data["opt_pos"], axis=0)
+        placed = np.isfinite(pos).all(axis=1)
+        rows["aux.csv"] = _write_csv(tmp / "aux.csv", "t,pos_x,pos_y,pos_z", [t[placed], *pos[placed].T],
+                                     ["%.6f"] + ["%.6f"] * 3)
         rows["extra/movement.csv"] = _write_csv(tmp / "extra/movement.csv", "t,movement",
                                                 [t, moving.astype(float)], ["%.6f", "%d"])
         mname = name or f"broad-{source.stem}"
@@ -320,6 +328,9 @@ def _mission_toml(name, source, bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s
 name = "{name}"
 epoch = "{EPOCH}"   # the recording date is not published: the epoch only labels t
 attitude_mode = "inertial"        # the laboratory's East-North-Up frame stands for GCI
+
+[aux]
+file = "aux.csv"                  # pos_x, pos_y, pos_z [m, ENU]: the optical position from the file's mean
 
 [ephemeris]
 ground_position_km = [{LAB_POSITION_KM[0]:.1f}, {LAB_POSITION_KM[1]:.1f}, {LAB_POSITION_KM[2]:.1f}]   # the Earth's centre, straight down (ENU)

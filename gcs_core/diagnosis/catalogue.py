@@ -73,6 +73,12 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
     "field": ("reference", "The reference field of a ground calibration (field_model = \"constant\"): "
               "one unknown vector of the laboratory frame, the Earth's field as the room distorts "
               "it. Its magnitude and a magnetometer's common scale factor are one quantity."),
+    "field_gradient": ("reference", "The laboratory field is not uniform: near steel benches, "
+                       "frames and wiring it changes by µT over the decimetres a unit is carried. "
+                       "With the sensor's position in the aux channels pos_x/y/z (motion capture), "
+                       "the field is B_0 + G p with G symmetric and trace-free (a current-free "
+                       "room), five elements field.G_*. Residuals then follow where the unit was, "
+                       "not how it was turned."),
 }
 
 

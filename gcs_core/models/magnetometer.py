@@ -24,6 +24,22 @@ docs/ground.md): ``B_I`` is one unknown vector of the reference frame, the share
 elements ``field.B_x/y/z`` [nT] (solve-for by default, nominal 0, a-priori σ
 :data:`FIELD_SIGMA_NT`), with ``∂y/∂B_I = (I + D) M R C`` and ``Ḃ_I = 0``.
 
+Field gradient (effect ``field_gradient``, constant field only): a room's field is not
+uniform over the decimetres a unit is carried near steel and wiring. When the mission's
+aux channels hold the sensor's position in the reference frame, :data:`POSITION_CHANNELS`
+[m, from a fixed point of the room], the field at the sensor is the first-order Taylor
+expansion about that point::
+
+    B_I(p) = B_0 + G p,   G = [[G_xx, G_xy, G_xz], [G_xy, G_yy, G_yz], [G_xz, G_yz, −G_xx − G_yy]]
+
+``G`` symmetric (curl-free: no current in the volume, ∇×B = 0) and trace-free (∇·B = 0),
+hence five elements ``field.G_xx/xy/xz/yy/yz`` [nT/m] (Jackson, Classical
+Electrodynamics, 3rd ed., ch. 5: ∇·B = 0, and where no current flows ∇×B = 0, so
+B = −∇Φ_M with ∇²Φ_M = 0).
+Partials ``∂y/∂G_ab = (I + D) M R C (∂G/∂G_ab) p``. The position channels feed only the
+gradient, not the contamination terms. The position is held over the time offset (the
+field a unit carried at 1 m/s sees change over 10 ms by G·1 cm, ~20 nT at 2 µT/m).
+
 ``Ḃ_I`` (the field's rate along the orbit) is taken, in this order, from
 ``geom.extra["B_I_dot"]`` (N, 3) [nT/s] when the caller has precomputed it, else from a
 central difference of ``geom.field_model`` at ``(t ± h, r ± v h)`` with h = 1 s (two
@@ -52,6 +68,15 @@ FIELD_RATE_STEP_S = 1.0
 #: a-priori 1-sigma of each component of an unknown constant field [nT] (the Earth's
 #: field is below 7e4 nT; a laboratory may distort it by tens of percent)
 FIELD_SIGMA_NT = 1e5
+#: aux channels holding the sensor's position in the reference frame [m] (the gradient's lever)
+POSITION_CHANNELS = ("pos_x", "pos_y", "pos_z")
+#: (name, ∂G/∂G_ab) of the five free elements of a symmetric trace-free gradient
+GRADIENT = (("xx", ((1, 0, 0), (0, 0, 0), (0, 0, -1))), ("xy", ((0, 1, 0), (1, 0, 0), (0, 0, 0))),
+            ("xz", ((0, 0, 1), (0, 0, 0), (1, 0, 0))), ("yy", ((0, 0, 0), (0, 1, 0), (0, 0, -1))),
+            ("yz", ((0, 0, 0), (0, 0, 1), (0, 1, 0))))
+#: a-priori 1-sigma of each gradient element [nT/m] (a few µT/m within a metre of a steel
+#: bench; 1e5 nT/m leaves the data to decide)
+GRADIENT_SIGMA_NT_PER_M = 1e5
 
 
 class MagnetometerModel(ObservationModel):
@@ -67,6 +92,15 @@ class MagnetometerModel(ObservationModel):
     def __init__(self, sensor, *, aux_channels: tuple[str, ...] = (), constant_field: bool = False):
         super().__init__(sensor, aux_channels=aux_channels)
         self.constant_field = bool(constant_field)
+        #: the field gradient is a parameter (constant field and the position channels present)
+        self.gradient = self.constant_field and all(c in self.aux_channels for c in POSITION_CHANNELS)
+
+    @property
+    def contamination_channels(self) -> tuple[str, ...]:
+        """The aux channels with contamination terms (not the gradient's position)."""
+        if not self.gradient:
+            return self.aux_channels
+        return tuple(c for c in self.aux_channels if c not in POSITION_CHANNELS)
 
     def parameters(self) -> tuple[ParamSpec, ...]:
         return common.cached_parameters(self, self._parameters)
@@ -83,7 +117,7 @@ class MagnetometerModel(ObservationModel):
         specs += [ParamSpec(name, "1", 0.0, 0.01, seed=False, effect="nonorthogonality",
                             description=f"non-orthogonality D_{name[-2:]} = D_{name[-1:]}{name[-2]}")
                   for name, _, _ in NONORTH]
-        for ch in self.aux_channels:
+        for ch in self.contamination_channels:
             specs += [ParamSpec(f"contam_{ch}_{ax}", "nT/aux", 0.0, 10.0, seed=False,
                                 effect=f"contamination_{ch}",
                                 description=f"field along sensor {ax} per unit of aux channel '{ch}'")
@@ -95,6 +129,12 @@ class MagnetometerModel(ObservationModel):
                                 description=f"constant reference field along reference {ax} "
                                             "(field_model = constant)", element=f"field.B_{ax}")
                       for ax in AXES]
+        if self.gradient:
+            specs += [ParamSpec(f"gradient_{ab}", "nT/m", 0.0, GRADIENT_SIGMA_NT_PER_M, seed=False,
+                                effect="field_gradient", element=f"field.G_{ab}",
+                                description=f"field gradient ∂B_{ab[0]}/∂{ab[1]} of the reference frame "
+                                            "(symmetric, trace-free)")
+                      for ab, _ in GRADIENT]
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:
@@ -128,6 +168,10 @@ class MagnetometerModel(ObservationModel):
         if self.constant_field:
             B_I = np.broadcast_to(np.array([p["field_x"], p["field_y"], p["field_z"]]), (n, 3))
             rate = None
+            if self.gradient:
+                pos = np.column_stack([np.asarray(geom.aux[c], dtype=float) for c in POSITION_CHANNELS])
+                G = sum(p[f"gradient_{ab}"] * np.asarray(dG, dtype=float) for ab, dG in GRADIENT)
+                B_I = B_I + pos @ G.T
         if B_I is None:
             raise ValueError("magnetometer model needs B_I in the geometry")
         M, dM = common.alignment_matrix(p)
@@ -158,7 +202,7 @@ class MagnetometerModel(ObservationModel):
                 d_par[name] = nonorth
             for k, name in enumerate(common.ALIGN_NAMES):
                 d_par[name] = lambda k=k: bv.v_B @ (ID @ dM[k]).T
-            for ch in self.aux_channels:
+            for ch in self.contamination_channels:
                 k_ch = np.array([p[f"contam_{ch}_{ax}"] for ax in AXES])
                 if np.any(k_ch != 0.0):
                     y += np.asarray(geom.aux[ch], dtype=float)[:, None] * k_ch
@@ -171,5 +215,8 @@ class MagnetometerModel(ObservationModel):
                 RC = C if bv._R is None else bv._R @ C
                 for k, ax in enumerate(AXES):
                     d_par[f"field_{ax}"] = lambda k=k: RC[:, :, k] @ IDM.T      # (I+D) M R C e_k
+                for ab, dG in GRADIENT if self.gradient else ():
+                    d_par[f"gradient_{ab}"] = lambda dG=np.asarray(dG, dtype=float): np.einsum(
+                        "nij,nj->ni", RC, pos @ dG.T) @ IDM.T                 # (I+D) M R C ∂G p
             d_att = bv.left(IDM)
         return common.finish(y, d_att, d_par, np.ones(n, dtype=bool), specs)

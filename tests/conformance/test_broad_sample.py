@@ -3,13 +3,17 @@
 doi:10.3390/data6070072, CC BY 4.0): a small slice of ``benchmarks/broad_consistency.py``.
 
 The 45 s are cut into halves at t = 52.5 s and each is fitted with the sample config's
-state plus the time offsets. What must hold on real data is what the benchmark found to
-hold: the magnetometer's time offset (against the gyro-carried attitude) agrees between
-the halves within 3σ and lies 3 to 5 samples early (the config's method, ``whole_span``,
-carries the attitude with the gyro's own angle and rate random walks); the magnetometer
-then sits at its
-noise (normalized RMS near 0.6, the per-sample spread against the white-noise line of its
-correlated samples, README); the optical reference lags the gyro by 1 to 4 ms.
+state plus the effects discovery adds (the time offsets, the lab field's gradient over the
+optical position, the non-orthogonality). What must hold on real data is what the
+benchmark found to hold: the magnetometer's time offset (against the gyro-carried
+attitude) agrees between the halves within 3σ and lies 3 to 5 samples early (the config's
+method, ``whole_span``, carries the attitude with the gyro's own angle and rate random
+walks); the magnetometer then sits at its noise (normalized RMS near 0.6, the per-sample
+spread against the white-noise line of its correlated samples, README); the optical
+reference lags the gyro by 1 to 4 ms; and the magnetometer's bias and matrix, the field
+and its gradient agree between the halves within 3σ once the σ carry the residuals'
+correlation (the batch-means sandwich, :mod:`gcs_core.diagnosis.correlation`, in windows
+of :data:`WINDOW_S`: 23 per half); with the fit's white-noise σ they do not.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ import numpy as np
 import pytest
 
 from gcs_core.config import load_config
+from gcs_core.diagnosis.correlation import sigma_scale
 from gcs_core.session import Analysis
 from gcs_core.io.importer import load_mission
 from repo_paths import ROOT
@@ -29,6 +34,12 @@ CONFIG = ROOT / "sample_data" / "configs" / "real-broad-02-slow-rotation.toml"
 SPLIT_S = 52.5
 SAMPLE_S = 1.0 / 285.714
 three_sigma = 3.0
+#: the sandwich's window [s]: longer than the optical residual's correlation (≈0.1 s), and
+#: 23 windows per 22.5-s half (4-s windows, as the benchmark uses on whole trials, leave 5)
+WINDOW_S = 1.0
+EFFECTS = ("MAG.time_offset", "OPT.time_offset", "MAG.field_gradient", "MAG.nonorthogonality")
+MAGNETIC = tuple(f"MAG.bias_{a}" for a in "xyz") + ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz") \
+    + tuple(f"field.B_{a}" for a in "xyz") + tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
 
 
 def _half(tmp: Path, first: bool) -> Path:
@@ -50,8 +61,7 @@ def halves(tmp_path_factory):
     out = []
     for first in (True, False):
         cfg = load_config(CONFIG)
-        cfg = cfg.with_changes(mission=_half(tmp, first),
-                               state={"effects": ("MAG.time_offset", "OPT.time_offset", "MAG.nonorthogonality")})
+        cfg = cfg.with_changes(mission=_half(tmp, first), state={"effects": EFFECTS})
         a = Analysis(cfg, mission=load_mission(cfg.mission))
         res = a.fit(holdout=False)
         out.append((a, res))
@@ -74,9 +84,24 @@ def test_magnetometer_at_its_noise_and_reference_lag(halves):
         assert 1e-3 < res.state.values()["OPT.time_offset"] < 4e-3
 
 
-@pytest.mark.xfail(reason="the whole-span fit of the sample's second half (22.5 s) stops "
-                   "'diverged' (no step lowers its cost) at a gyro bias_x 18 σ from the first "
-                   "half's; the whole trial's halves agree (docs/benchmarks.md)", strict=False)
+def test_magnetometer_and_field_agree_between_halves_with_honest_sigma(halves):
+    (a_an, a), (b_an, b) = halves
+    sa = sigma_scale(a_an.problem, a, block_s=WINDOW_S).honest_sigma(a.sigma)
+    sb = sigma_scale(b_an.problem, b, block_s=WINDOW_S).honest_sigma(b.sigma)
+    va, vb = a.state.values(), b.state.values()
+    z = {n: (va[n] - vb[n]) / np.hypot(sa[n], sb[n]) for n in MAGNETIC}
+    z_fit = {n: (va[n] - vb[n]) / np.hypot(a.sigma[n], b.sigma[n]) for n in MAGNETIC}
+    worst = max(z, key=lambda n: abs(z[n]))
+    assert abs(z[worst]) < three_sigma, (worst, z[worst], z)
+    assert max(abs(x) for x in z_fit.values()) > three_sigma      # the white-noise σ are optimistic
+
+
+@pytest.mark.xfail(reason="the second half's gyro bias_x is 0.0113 rad/s against the first "
+                   "half's 0.0034 (the mean at rest): 18 σ of the fit, 3.1 σ of the sandwich's "
+                   "(which, conditional on the attitude, does not see the process noise the gyro "
+                   "elements are fitted under); in 22.5 s the bias_x is carried with the roll "
+                   "(correlation 0.58) and the drift; the whole trial's halves agree "
+                   "(docs/benchmarks.md)", strict=False)
 def test_gyro_bias_agrees_between_halves(halves):
     """With the gyro's noise as process noise the halves agree on its bias (the batch,
     carrying the attitude as exact, put them tens of σ apart: docs/benchmarks.md)."""

@@ -262,7 +262,29 @@ def magnetometer_constant_field_case(rng, n=N_FRAMES):
     return model, geom, params
 
 
+def magnetometer_field_gradient_case(rng, n=N_FRAMES):
+    """A lab magnetometer carried through a non-uniform field: the position channels give
+    the gradient its lever (and no contamination terms); a temperature channel keeps its own."""
+    model = make_model(sensor("MAG", "magnetometer", alignment_deg=_aligned(rng), noise=300.0,
+                              bias=tuple(rng.uniform(-500, 500, 3))),
+                       aux_channels=("pos_x", "pos_y", "pos_z", "temp"), constant_field=True)
+    t = _times(rng, n)
+    aux = {c: rng.uniform(-0.4, 0.4, n) for c in ("pos_x", "pos_y", "pos_z")}
+    aux["temp"] = rng.uniform(10, 30, n)
+    geom = Geometry(t=t, C_BI=random_dcm(rng, n), B_I=np.zeros((n, 3)), aux=aux,
+                    omega_B=rng.normal(scale=1.0, size=(n, 3)))
+    params = {f"bias_{a}": rng.uniform(-2000, 2000) for a in "xyz"}
+    params.update({f"field_{a}": v for a, v in zip("xyz", (300.0, 17000.0, -45000.0))})
+    params.update({f"gradient_{ab}": rng.uniform(-5000, 5000) for ab in ("xx", "xy", "xz", "yy", "yz")})
+    params.update({f"contam_temp_{a}": rng.uniform(-20, 20) for a in "xyz"})
+    _jitter_alignment(rng, model, params)
+    params.update({f"scale_{a}": rng.uniform(-2e-2, 2e-2) for a in "xyz"})
+    params["time_offset"] = rng.uniform(-0.02, 0.02)
+    return model, geom, params
+
+
 CASES = {
+    "magnetometer_field_gradient": magnetometer_field_gradient_case,
     "attitude_reference": attitude_reference_case,
     "magnetometer_constant_field": magnetometer_constant_field_case,
     "magnetometer": magnetometer_case,

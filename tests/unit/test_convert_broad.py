@@ -43,8 +43,10 @@ def _trial(path, *, drop=None, rate=RATE_HZ, bad_quat=False):
     B_enu = np.array([0.5, 17.0, -45.0])
     mag = np.einsum("nij,j->ni", C, B_enu) + rng.normal(scale=MAG_NOISE_UT, size=(N, 3))
     gyr = omega + 0.003 + rng.normal(scale=GYRO_NOISE, size=(N, 3))
+    pos = np.array([0.1, -0.4, 1.5]) + 0.2 * rng.normal(size=(N, 3))
+    pos[:15] = np.nan                                                 # untracked start
     data = {"imu_gyr": gyr, "imu_acc": rng.normal(size=(N, 3)), "imu_mag": mag, "opt_quat": q,
-            "opt_pos": rng.normal(size=(N, 3)), "movement": moving}
+            "opt_pos": pos, "movement": moving}
     with h5py.File(path, "w") as f:
         for k, v in data.items():
             if k != drop:
@@ -89,6 +91,25 @@ def test_span_extract(tmp_path):
     rep = convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m", span=(1.0, 9.0))
     assert rep.samples["telemetry/MAG.csv"] == 801
     assert any("extract" in w for w in rep.notes)
+
+
+def test_optical_position_becomes_the_gradient_lever(tmp_path):
+    """The optical position is the aux channels pos_x/y/z [m, ENU] from the whole file's mean
+    tracked position (the same point for any span), untracked samples left out."""
+    src = _trial(tmp_path / "t.hdf5")
+    pos = h5py.File(src)["opt_pos"][()]
+    mean = np.nanmean(pos, axis=0)
+    for out, span in ((tmp_path / "whole", None), (tmp_path / "part", (1.0, 9.0))):
+        convert("broad", src, out, span=span)
+        m = load_mission(out)
+        aux = m.aux
+        assert tuple(c for c in aux.columns if c != "t") == ("pos_x", "pos_y", "pos_z")
+        t = np.asarray(aux.t)
+        k = np.rint(t * RATE_HZ).astype(int)
+        assert np.all(np.isfinite(pos[k]).all(axis=1))                # untracked rows left out
+        assert len(t) == (N - 15 if span is None else 801)
+        got = np.column_stack([aux.columns[c] for c in ("pos_x", "pos_y", "pos_z")])
+        assert np.allclose(got, pos[k] - mean, atol=2e-6)             # written to 1 µm
 
 
 @pytest.mark.parametrize("kind, message", [

@@ -1,0 +1,141 @@
+"""Honest σ under correlated residuals: a per-element σ scale from the residuals themselves.
+
+The fit's covariance assumes each sensor's errors white with the stated σ. Real residuals
+are often correlated over the time scale on which the parameters are determined (a hand
+turning a unit every few seconds; a room's field; an optical reference interpolated
+between its camera frames), and then the σ are optimistic by a factor no white-noise
+statistic shows. The batch-means sandwich ("heteroskedasticity and autocorrelation
+consistent" covariance; Newey & West, Econometrica 55(3), 1987, 703–708; the batch-means
+form: Conway, Operations Research 11(1), 1963) measures it from the data:
+
+    A = Σ_k H_kᵀ R⁻¹ H_k + P₀⁻¹            (the information the fit assumed, a priori included)
+    g_b = Σ_{k ∈ b} H_kᵀ R⁻¹ r_k           (the score of block b: frames in one window of L s)
+    B = Σ_b g_b g_bᵀ                        (what the residuals actually supply)
+    Cov_honest = A⁻¹ B A⁻¹,    s_i = sqrt((A⁻¹ B A⁻¹)_ii / (A⁻¹)_ii)
+
+over the solve-for elements other than the attitude's (a sensor's own, the shared ones such
+as ``field.*``, and the gyro's, which the gyro-carried attitude passes to every sensor),
+with the scores of all the measurement sensors summed within each window (errors common to
+two sensors in one window count once, as they should), conditional on the attitude. With white residuals of
+the stated σ, ``E[B] = A − P₀⁻¹`` and ``s ≈ 1`` (less where the a priori carries the
+element); residuals correlated over windows shorter than ``L`` raise ``B`` by exactly the
+factor that inflates the estimate's scatter. ``s_i`` multiplies the fit's σ of element
+``i``. The window ``L`` must exceed the residual's correlation time and leave many windows
+in the span: the estimate of each ``s_i²`` has about ``n_b`` (number of windows) degrees of
+freedom, so ``s`` itself scatters by about ``1/sqrt(2 n_b)``.
+
+Conditional on the attitude. ``A`` is the information with the attitude held; the fit's
+own covariance has the attitude (and, for the whole-span method, its knots) marginalized.
+For an element the attitude cannot absorb — a ground calibration under a precise attitude
+reference, the BROAD magnetometer against a reference 30 times finer than it — the two
+agree and ``s`` is the honest factor (``tests/test_sigma_scale.py``). For an element the
+attitude's freedom absorbs in part (a Sun sensor's or a gyro's in flight, against knots
+every tens of seconds) the residuals are orthogonal to what the attitude took, window by
+window, and ``s`` comes out below 1 on a correct model (0.3–0.9 on the 8-h Sun-pointing
+example): that is the method's blind spot, not better data, so
+:meth:`SigmaScale.honest_sigma` never scales a σ down.
+
+Residuals are the fit's own (``result.residuals``, knots included for the whole-span
+method); the partials are those of the sensor's model at the fitted state.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+from gcs_core.errors import InputError
+from gcs_core.problem.linearization import iter_blocks
+
+#: default window [s]: several times the hand motions' time scale on the BROAD trials
+BLOCK_S = 4.0
+#: fewer windows than this: the scale is not estimated (its own scatter exceeds ~16 %)
+MIN_BLOCKS = 20
+
+
+@dataclass(frozen=True)
+class SigmaScale:
+    """σ scales of the solve-for elements.
+
+    Attributes
+    ----------
+    sensors : the sensors whose residuals entered; block_s : window [s]; n_blocks :
+        windows holding used frames.
+    scale : element -> ``s_i`` (module docstring); multiply the fit's σ by it.
+    """
+
+    sensors: tuple[str, ...]
+    block_s: float
+    n_blocks: int
+    scale: Mapping[str, float]
+
+    def honest_sigma(self, sigma: Mapping[str, float]) -> dict[str, float]:
+        """``σ_i max(1, s_i)`` (elements without a scale unchanged; a scale below 1 is the
+        conditional sandwich's blind spot, module docstring, and never shrinks a σ)."""
+        return {n: float(s * max(1.0, self.scale.get(n, 1.0))) for n, s in sigma.items()}
+
+
+def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> SigmaScale:
+    """The batch-means sandwich σ scale of the solve-for elements (module docstring).
+
+    Parameters
+    ----------
+    problem : the fitted :class:`~gcs_core.problem.build.Problem`.
+    result : its fit result (``state``, ``solve_for``, ``residuals``).
+    sensors : measurement sensor names (default: every sensor with residuals).
+    block_s : window length [s], > 0.
+
+    Raises
+    ------
+    InputError : an unknown sensor, a window that is not positive, or fewer than
+        :data:`MIN_BLOCKS` windows with used frames.
+    """
+
+    if not (np.isfinite(block_s) and block_s > 0):
+        raise InputError(f"window {block_s!r} s must be a positive number", key="block_s")
+    sensors = tuple(result.residuals) if sensors is None else tuple(sensors)
+    for name in sensors:
+        if name not in result.residuals:
+            raise InputError(f"no residuals of sensor '{name}' (known: {', '.join(result.residuals)})",
+                             key="sensor")
+    state = result.state
+    values = state.values()
+    columns = [n for n in result.solve_for if state[n].kind != "attitude"]
+    t0 = min(float(result.residuals[n].t[0]) for n in sensors)
+    bins, r_w, used = {}, {}, {}
+    for name in sensors:
+        res = result.residuals[name]
+        bins[name] = np.floor((np.asarray(res.t, float) - t0) / block_s).astype(np.int64)
+        used[name] = np.asarray(res.used, bool)
+        r_w[name] = np.where(used[name][:, None], np.asarray(res.residual, float), 0.0) \
+            / np.asarray(res.sigma, float)
+    n_bins = max(int(b.max()) for b in bins.values()) + 1
+    k = len(columns)
+    A = np.zeros((k, k))
+    G = np.zeros((n_bins, k))
+    touched = np.zeros(k, bool)
+    for blk in iter_blocks(problem, values, columns, weighted=True, sensors=list(sensors),
+                           exclude={n: ~used[n] for n in sensors}):
+        if blk.H is None or not blk.cols.size:
+            continue
+        H, c = blk.H, blk.cols                             # (n, m, k_s): R^-1/2 H, unused rows 0
+        Hf = H.reshape(-1, c.size)
+        A[np.ix_(c, c)] += Hf.T @ Hf
+        sc = np.einsum("nmk,nm->nk", H, r_w[blk.name][blk.lo:blk.hi])
+        np.add.at(G, (bins[blk.name][blk.lo:blk.hi][:, None], c[None, :]), sc)
+        touched[c] = True
+    names = [n for n, hit in zip(columns, touched) if hit]
+    idx = np.flatnonzero(touched)
+    n_blocks = int(np.unique(np.concatenate([bins[n][used[n]] for n in sensors])).size)
+    if n_blocks < MIN_BLOCKS:
+        raise InputError(f"{n_blocks} windows of {block_s:g} s hold used frames; at least "
+                         f"{MIN_BLOCKS} are needed for a σ scale", key="block_s")
+    A = A[np.ix_(idx, idx)] + np.diag([1.0 / state[n].sigma0 ** 2 if np.isfinite(state[n].sigma0)
+                                       and state[n].sigma0 > 0 else 0.0 for n in names])
+    G = G[:, idx]
+    Ainv = np.linalg.pinv(A)
+    honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)
+    scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
+    return SigmaScale(sensors, float(block_s), n_blocks, dict(zip(names, map(float, scale))))
