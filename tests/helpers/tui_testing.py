@@ -13,7 +13,7 @@ from pathlib import Path
 
 from gcs_tui.tui.app import GcsApp
 
-ROOT = Path(__file__).resolve().parents[1]
+from repo_paths import ROOT
 SAMPLE_DATA = ROOT / "sample_data"
 
 

@@ -29,6 +29,7 @@ from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q, gyro_noise
 from gcs_core.predictor import kalman as pk
 from gcs_core.predictor.predict import predict
 from gcs_core.io.types import SensorSpec
+from repo_paths import ROOT
 from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_error
 
 #: round-off of two evaluations of the same expression
@@ -144,11 +145,11 @@ def test_physics_defaults_are_one_table():
     from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
 
     table = PhysicsOptions().as_dict()
-    assert config.AnalysisConfig().physics == table
+    assert config.AnalysisConfig().physics == PhysicsOptions()
     assert config.TABLES["physics"] == tuple(table)
     assert {k: on for k, (on, _) in PHYSICS_EFFECTS.items()} == table
     assert config.parse_toml("[analysis]\nmission = '.'\n") and \
-        config.config_from_dict({"analysis": {"mission": "."}, "physics": {}}).physics == table
+        config.config_from_dict({"analysis": {"mission": "."}, "physics": {}}).physics == PhysicsOptions()
 
 
 def test_config_and_mission_word_bad_values_alike(tmp_path):
@@ -158,7 +159,7 @@ def test_config_and_mission_word_bad_values_alike(tmp_path):
     from gcs_core.errors import ConfigError
     from gcs_core.io.mission import read_mission_spec
 
-    root = Path(__file__).resolve().parents[1] / "sample_data" / "missions" / "hidden-tam-contamination"
+    root = ROOT / "sample_data" / "missions" / "hidden-tam-contamination"
     sample = (root / "mission.toml").read_text()
 
     def mission_error(text):
@@ -201,7 +202,7 @@ def test_one_atomic_write_helper():
     keeps its own on purpose: it imports nothing of the engine)."""
     import re
 
-    root = Path(__file__).resolve().parents[1]
+    root = ROOT
     pattern = re.compile(r"os\.replace\(|mkstemp\(|mkdtemp\(|os\.fsync\(|\.rename\(")
     allowed = {"gcs_core/fileperm.py", "gcs_core/sim/writer.py"}
     offenders = [str(p.relative_to(root)) for pkg in ("gcs_core", "gcs_tui") for p in (root / pkg).rglob("*.py")
