@@ -33,9 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-from gcs_core.config import default_config
+from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
-from gcs_core.config import ElementConfig
 from gcs_core.session import Analysis
 from gcs_core.sidp import noise
 from gcs_core.sidp.importer import load_mission

@@ -26,7 +26,7 @@ from gcs_core.session import Analysis
 from gcs_core.sidp.importer import load_mission
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from broad_consistency import MEMS_PRIORS  # noqa: E402
+from broad_consistency import MEMS_PRIORS
 
 CAL = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset")
 MAG_ELEMENTS = tuple(f"MAG.{p}" for p in ("bias_x", "bias_y", "bias_z", "scale_x", "scale_y", "scale_z",

@@ -23,10 +23,10 @@ from pathlib import Path
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gcs_core.errors import InputError  # noqa: E402
-from gcs_core.sidp.csvio import read_table  # noqa: E402
-from gcs_core.sidp.importer import load_mission  # noqa: E402
-from gcs_core.sidp.mission import read_mission_spec  # noqa: E402
+from gcs_core.errors import InputError
+from gcs_core.sidp.csvio import read_table
+from gcs_core.sidp.importer import load_mission
+from gcs_core.sidp.mission import read_mission_spec
 
 EXAMPLE = REPO.parent / "shared" / "examples" / "sunpoint-nominal"
 

@@ -33,9 +33,9 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gcs_core.filtr.kalman import ENGINE, LinearBlock, solve_block  # noqa: E402
-from gcs_core.filtr.mekf import GyroNoise, GyroSegment, farrenkopf_q  # noqa: E402
-from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm  # noqa: E402
+from gcs_core.filtr.kalman import ENGINE, LinearBlock, solve_block
+from gcs_core.filtr.mekf import GyroNoise, GyroSegment, farrenkopf_q
+from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm
 
 M_MEAS = 3
 BLOCK_FRAMES = 600

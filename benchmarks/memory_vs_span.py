@@ -58,8 +58,8 @@ def child(mission_dir: str) -> None:
     from gcs_core.diagnosis.catalogue import mission_catalogue
     from gcs_core.diagnosis.ranking import rank_candidates
     from gcs_core.filtr.batch import BatchOptions
-    from gcs_core.filtr.smoothing_batch import whole_span_fit
     from gcs_core.filtr.problem import build_problem
+    from gcs_core.filtr.smoothing_batch import whole_span_fit
     from gcs_core.models.base import HELD
     from gcs_core.sidp.importer import load_mission
     from gcs_core.sidp.prepare import PHYSICS_EFFECTS

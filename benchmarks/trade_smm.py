@@ -13,24 +13,24 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import math  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import math
+import sys
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
-from scipy import stats  # noqa: E402
+import numpy as np
+from scipy import stats
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_core.config import load_config  # noqa: E402
-from gcs_core.sidp.mission import read_mission_spec  # noqa: E402
-from gcs_core.trade import definition_from_config  # noqa: E402
-from gcs_core.trade.geometry import field_turn_deg  # noqa: E402
-from gcs_core.trade.run import run_study  # noqa: E402
-from gcs_core.trade.study import make_orbit  # noqa: E402
-from gcs_core.units import ARCSEC  # noqa: E402
+from gcs_core.config import load_config
+from gcs_core.sidp.mission import read_mission_spec
+from gcs_core.trade import definition_from_config
+from gcs_core.trade.geometry import field_turn_deg
+from gcs_core.trade.run import run_study
+from gcs_core.trade.study import make_orbit
+from gcs_core.units import ARCSEC
 
 CONFIGS = ROOT / "sample_data" / "trade"
 STARTS = tuple(range(0, 95, 5))
@@ -52,7 +52,7 @@ def main() -> None:
     _, two = study("tam-bias", {"passes": (2,), "pass_min": (10,), "separation_min": (30,), "start_min": STARTS})
     med = {s: float(np.median([rss(r) for r in rows if r.values["span_min"] == s])) for s in (10, 20, 48, 95)}
     med["2x10"] = float(np.median([rss(r) for r in two]))
-    g = lambda k, minutes: med[k] * math.sqrt(minutes) / (med[95] * math.sqrt(95))  # noqa: E731
+    g = lambda k, minutes: med[k] * math.sqrt(minutes) / (med[95] * math.sqrt(95))
     out.append(f"| §2.1.1 (1) | TAM bias from a short pass unreliable | TAM alone, pass length × start in the orbit "
                f"(19 starts) | 10 min: {med[10]:.1f} nT, {med[10] / med[95]:.0f}× the full orbit's {med[95]:.2f} nT "
                f"(median RSS of the 3 components) |")
@@ -77,7 +77,7 @@ def main() -> None:
     _, rows = study("tam-alignment", {"attitude_mode": ("inertial",),
                                       "maneuvers": ("none", "yaw:0.1:5", "roll:0.1:5,yaw:0.1:5")})
     by = {r.values["maneuvers"]: r for r in rows}
-    a = lambda r: "/".join(f"{r.sigma_of(f'TAM1.align_{k}') / ARCSEC:.0f}{'*' if r.prior_limited[r.elements.index(f'TAM1.align_{k}')] else ''}" for k in (1, 2, 3))  # noqa: E731
+    a = lambda r: "/".join(f"{r.sigma_of(f'TAM1.align_{k}') / ARCSEC:.0f}{'*' if r.prior_limited[r.elements.index(f'TAM1.align_{k}')] else ''}" for k in (1, 2, 3))
     out.append(f"| §2.1.2 (1) | TAM misalignment not separable from the attitude at an inertial attitude; with slews it "
                f"is | TAM + gyro, 1 h inertial, slews none / yaw 30° / roll 30° + yaw 30° | align 1/2/3: {a(by['none'])}″ "
                f"(* a priori: not separable) → {a(by['yaw:0.1:5'])}″ → {a(by['roll:0.1:5,yaw:0.1:5'])}″ |")
@@ -85,13 +85,13 @@ def main() -> None:
                              "models.FSS1": ("on", "off")})
     get = {(r.values["models.FHST2"], r.values["effects"], r.values["models.FSS1"]): r for r in rows}
     one, two_t = get[("off", "FHST1.alignment", "on")], get[("on", "FHST1.alignment", "on")]
-    m = lambda r, ax: f"{r.sigma_of(f'FHST1.misalign_{ax}') / ARCSEC:.3g}{'*' if r.prior_limited[r.elements.index(f'FHST1.misalign_{ax}')] else ''}"  # noqa: E731
+    m = lambda r, ax: f"{r.sigma_of(f'FHST1.misalign_{ax}') / ARCSEC:.3g}{'*' if r.prior_limited[r.elements.index(f'FHST1.misalign_{ax}')] else ''}"
     out.append(f"| §2.2.1.3 (3), (4) | one tracker: misalignment about the boresight much worse than about another "
                f"axis; no roll calibration | FHST1 + Sun-sensor reference, 1 h | about the boresight {m(one, 'x')}″, "
                f"about z {m(one, 'z')}″, about the roll axis {m(one, 'y')}″ (a priori); with FHST2: {m(two_t, 'x')}″, "
                f"{m(two_t, 'z')}″, {m(two_t, 'y')}″ |")
     alone, both = get[("off", "none", "off")], get[("on", "none", "off")]
-    at = lambda r: "/".join(f"{r.sigma_of(f'attitude.{k}') / ARCSEC:.3g}" for k in ("roll", "pitch", "yaw"))  # noqa: E731
+    at = lambda r: "/".join(f"{r.sigma_of(f'attitude.{k}') / ARCSEC:.3g}" for k in ("roll", "pitch", "yaw"))
     out.append(f"| §2.2.2 (3) | single-tracker attitude weak about the boresight; two trackers remove most of it | "
                f"trackers + gyro, 1 h | attitude roll/pitch/yaw (pitch = about FHST1's boresight): one tracker "
                f"{at(alone)}″, two {at(both)}″ |")

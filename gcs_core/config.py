@@ -97,8 +97,7 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
-from gcs_core.config_checks import (_choice, _fail, _list, _number, _pair, _quote, _require, _show,
-                                   _table, _unknown)
+from gcs_core.config_checks import _choice, _fail, _list, _number, _pair, _quote, _require, _show, _table, _unknown
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import make_usual
 from gcs_core.models.base import ROLES
@@ -213,7 +212,7 @@ class AnalysisConfig:
     montecarlo: dict = field(default_factory=dict)
 
     # ------------------------------------------------------------------ derived
-    def with_changes(self, **kw) -> "AnalysisConfig":
+    def with_changes(self, **kw) -> AnalysisConfig:
         return replace(self, **kw)
 
     def digest(self) -> str:

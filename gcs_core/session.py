@@ -9,21 +9,21 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field, replace
-from typing import Callable, Mapping
 
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.display import p_text
 from gcs_core.diagnosis import aliases, determination, goodness, physics, policy
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
+from gcs_core.display import p_text
 from gcs_core.errors import ConfigError
-from gcs_core.filtr.batch import BatchOptions, BatchResult, batch_fit  # noqa: F401
+from gcs_core.filtr.batch import BatchOptions, BatchResult
+from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.filtr.smoothing_batch import fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
-from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.models.base import HELD, SOLVE_FOR
 from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.units import DEG

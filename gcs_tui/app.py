@@ -13,9 +13,10 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from textual import work
 from textual.app import App
@@ -451,7 +452,7 @@ def poor_choice(c, alpha: float) -> str:
 class AppLogHandler(logging.Handler):
     """Engine warnings into the app (from any thread): each becomes an :class:`EngineLog`."""
 
-    def __init__(self, app: "GcsApp") -> None:
+    def __init__(self, app: GcsApp) -> None:
         super().__init__(logging.WARNING)
         self.app = app
 

@@ -67,8 +67,8 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
     x0, x1 = float(np.min(t)), float(np.max(t))
     if x1 <= x0:
         x1 = x0 + 1.0
-    sx = lambda v: left + (v - x0) / (x1 - x0) * pw              # noqa: E731
-    sy = lambda v: top + (lim - v) / (2 * lim) * ph               # noqa: E731
+    sx = lambda v: left + (v - x0) / (x1 - x0) * pw
+    sy = lambda v: top + (lim - v) / (2 * lim) * ph
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
              f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12">',
              f'<rect width="{width}" height="{height}" fill="white"/>',

@@ -9,8 +9,8 @@ into the plain numbers the FILTR screen draws. No Textual here.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Callable, Mapping
 
 from gcs_tui.derive import chi2_band
 from gcs_tui.jobs import engine

@@ -10,7 +10,28 @@ Nothing here imports Textual.
 
 from __future__ import annotations
 
-from gcs_core.display import (DEG_FROM_SIGMA, P_FLOOR, bar, decimals_of, display_unit, estimate,  # noqa: F401
-                              fixed, from_display, nice_ticks, p_text, pvalue, quantity, scale, seconds,
-                              shown_unit, sig, span, tick_labels, to_display, unit_column, unit_label,
-                              value_sigma, value_text)
+from gcs_core.display import (  # noqa: F401 — the face formats through these names (one copy, in the engine)
+                              DEG_FROM_SIGMA,
+                              P_FLOOR,
+                              bar,
+                              decimals_of,
+                              display_unit,
+                              estimate,
+                              fixed,
+                              from_display,
+                              nice_ticks,
+                              p_text,
+                              pvalue,
+                              quantity,
+                              scale,
+                              seconds,
+                              shown_unit,
+                              sig,
+                              span,
+                              tick_labels,
+                              to_display,
+                              unit_column,
+                              unit_label,
+                              value_sigma,
+                              value_text,
+)

@@ -125,7 +125,7 @@ def cmd_trade(args, prog) -> int:
     for line in study_table(rows, limit=args.limit):
         _out(line)
     _out("")
-    _out(f"error budget of the best plans (σ = noise ⊕ consider elements):")
+    _out("error budget of the best plans (σ = noise ⊕ consider elements):")
     for line in budget_lines(rows, defn.top):
         _out(line)
     if output is not None:

@@ -18,12 +18,11 @@ from __future__ import annotations
 import copy
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable
 
-from gcs_core.config import (METHODS, AnalysisConfig, ElementConfig, Maneuver, default_config,
-                             load_config, save_config)
+from gcs_core.config import METHODS, AnalysisConfig, ElementConfig, Maneuver, default_config, load_config, save_config
 from gcs_core.errors import ConfigError
 from gcs_core.models.base import ROLES
 from gcs_core.session import Analysis
@@ -119,7 +118,7 @@ class Workbench:
     # ------------------------------------------------------------------ opening
     @classmethod
     def open(cls, path: str | Path, *, save_path: str | Path | None = None,
-             scds_path: str | Path | None = None) -> "Workbench":
+             scds_path: str | Path | None = None) -> Workbench:
         """Import the mission of ``path`` (config or mission directory); no fit yet."""
         wb = cls(save_path=save_path, scds_path=scds_path)
         wb.load(path)

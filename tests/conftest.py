@@ -7,7 +7,7 @@ import os
 # Small matrices dominate GCS; OpenBLAS threads only contend on a 2-core machine.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-from pathlib import Path  # noqa: E402
+from pathlib import Path
 
 import pytest
 

@@ -10,7 +10,7 @@ quantized to 0.1 µT as the real file is, and a start-up settle from zero.
 
 from __future__ import annotations
 
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
@@ -25,7 +25,7 @@ from gcs_core.sim.field import igrf_gci
 
 DATA = Path(__file__).parent / "data" / "astropi"
 TLE = DATA / "iss-2022-01-31.tle"
-EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=timezone.utc)
+EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=UTC)
 JD0 = 2459611.0 + (12 * 3600 + 21 * 60 + 15) / 86400.0 - 0.5      # JD of EPOCH (UTC)
 SPAN_S, STEP_S = 6 * 3600.0, 5.0
 SIGMA_NT = 150.0

@@ -18,10 +18,10 @@ import pytest
 from gcs_core.convert import CONVERTERS, convert, converter
 from gcs_core.convert.astropi import procrustes_mounting
 from gcs_core.convert.common import leading_transient
-from gcs_core.sidp.noise import white_noise
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_to_dcm
 from gcs_core.sidp.importer import load_mission
+from gcs_core.sidp.noise import white_noise
 from gcs_tui import cli
 
 DATA = Path(__file__).parent / "data" / "astropi"

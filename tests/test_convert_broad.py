@@ -15,7 +15,7 @@ import pytest
 
 from gcs_core.convert import CONVERTERS, ConversionReport, convert
 from gcs_core.errors import InputError
-from gcs_core.frames.rotations import quat_to_dcm, rotvec_to_dcm, quat_from_dcm
+from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm, rotvec_to_dcm
 from gcs_core.sidp.importer import load_mission
 
 RATE_HZ = 100.0

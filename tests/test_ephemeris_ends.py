@@ -16,8 +16,8 @@ import pytest
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.errors import InputError
-from gcs_core.sidp.importer import TIME_TAG_BOUND_S, load_mission
 from gcs_core.session import Analysis
+from gcs_core.sidp.importer import TIME_TAG_BOUND_S, load_mission
 from gcs_core.sim import spinner_nominal, write_mission
 
 spin_period_s = 6.0                 # 10 rpm

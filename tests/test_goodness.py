@@ -15,12 +15,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from conftest import SAMPLE_MISSIONS
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import determination, goodness
 from gcs_core.reporting import analysis_report, fit_table, icd_report_problems, state_table
 from gcs_core.session import Analysis
-
-from conftest import SAMPLE_MISSIONS
 
 #: round-off of the Woodbury identity against the direct solve (relative)
 round_off = 1e-9

@@ -11,9 +11,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
 from gcs_core.sidp.importer import load_mission
-from gcs_core.ephem.timescale import parse_utc
 from gcs_core.sidp.mission import read_mission_spec
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "shared" / "examples" / "sunpoint-nominal"

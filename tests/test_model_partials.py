@@ -14,8 +14,12 @@ import numpy as np
 import pytest
 
 from gcs_core.models.base import Prediction
-from gcs_core.models.checks import (CENTRAL_DIFFERENCE_RTOL, FORWARD_DIFFERENCE_RTOL, assert_partials_match,
-                                    check_partials)
+from gcs_core.models.checks import (
+    CENTRAL_DIFFERENCE_RTOL,
+    FORWARD_DIFFERENCE_RTOL,
+    assert_partials_match,
+    check_partials,
+)
 from model_fixtures import CASES
 
 SEEDS = (0, 1, 2, 3)

@@ -14,7 +14,6 @@ from gcs_core.config import load_config
 from gcs_core.session import Analysis
 from gcs_tui.app import GcsApp
 from gcs_tui.testing import settle, type_text
-
 from test_tui_pilot import hidden_effect_case, open_by_keys
 
 #: the σ typed into the State screen for TAM1.bias_x [nT]

@@ -70,7 +70,7 @@ SENSORS = {"gyro": "GYR", "magnetometer": "MAG", "attitude_reference": "OPT"}
 
 
 def _read(source: Path) -> tuple[dict[str, np.ndarray], float, str]:
-    import h5py   # foreign HDF5 (GCS's own files go through gcs_core.sidp.h5store)
+    import h5py  # foreign HDF5 (GCS's own files go through gcs_core.sidp.h5store)
 
     try:
         f = h5py.File(source, "r")

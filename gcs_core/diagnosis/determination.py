@@ -16,7 +16,7 @@ estimated within :data:`AMPLITUDE_Z` of its σ from 0 (a two-sided 95 % test).
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -61,8 +61,8 @@ Tapley, Schutz & Born, *Statistical Orbit Determination*, Elsevier 2004, §4.16.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import linalg, stats

@@ -38,9 +38,9 @@ introduction*, Delft 2000, ch. 4 (DIA, minimal detectable bias).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import stats

@@ -32,14 +32,13 @@ memory does not grow with the span.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.filtr import batch_kernels as kernels
-from gcs_core.frames.reference import (earth_pointing_rate, reference_dcm, spin_axis,
-                                       spin_axis_partials)
+from gcs_core.frames.reference import earth_pointing_rate, reference_dcm, spin_axis, spin_axis_partials
 from gcs_core.frames.rotations import dcm_to_euler123, euler123_partials, euler123_to_dcm
 from gcs_core.models.base import ParamSpec
 from gcs_core.units import DEG
@@ -103,7 +102,7 @@ class FrameAttitude:
         self._gyro = gyro
 
     @classmethod
-    def of(cls, ev: AttitudeEval) -> "FrameAttitude":
+    def of(cls, ev: AttitudeEval) -> FrameAttitude:
         return cls(ev.C_BI, ev.spin_axis_I, ev.omega_B, ev.names, J=ev.J)
 
     @property
@@ -296,7 +295,7 @@ class ReferenceAttitude:
         J = np.broadcast_to(rpy_error_jacobian(*rpy), (C.shape[0], 3, 3))
         return AttitudeEval(C, None, RPY, J, omega_B=omega)
 
-    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
         return FrameAttitude.of(self.evaluate(values, t))
 
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
@@ -317,7 +316,7 @@ class SpinAttitude:
         J = np.broadcast_to(np.stack([d_ra, d_dec], -1), (n, 3, 2))
         return AttitudeEval(None, spin_axis(ra, dec), RADEC, J)
 
-    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
         return FrameAttitude.of(self.evaluate(values, t))
 
 

@@ -27,8 +27,8 @@ survey", J. Astronautical Sciences 50(4), 2002. Wertz (ed.) 1978, §7.6 (star se
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 

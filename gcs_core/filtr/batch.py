@@ -47,8 +47,8 @@ Wertz (ed.) 1978, §13.4 (batch estimators with a priori); Tapley, Schutz & Born
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import linalg
@@ -56,8 +56,15 @@ from scipy import linalg
 from gcs_core.diagnosis.aliases import _sparse_basis
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import curvature, local_refine
-from gcs_core.filtr.batch_results import (BatchResult, Residuals, SensorResiduals, accumulate,  # noqa: F401
-                                         make_residuals, residuals_from, weighted_masks)
+from gcs_core.filtr.batch_results import (  # noqa: F401 — re-exported: callers import the results from batch
+    BatchResult,
+    Residuals,
+    SensorResiduals,
+    accumulate,
+    make_residuals,
+    residuals_from,
+    weighted_masks,
+)
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.problem import Problem
 

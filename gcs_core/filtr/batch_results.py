@@ -5,8 +5,8 @@ fit's outcome, the residual buffers of a streaming pass. Split from
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -163,7 +163,7 @@ class Residuals:
     r: dict[str, np.ndarray] = field(default_factory=dict)
     valid: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def ensure(self, problem: Problem) -> "Residuals":
+    def ensure(self, problem: Problem) -> Residuals:
         for sd in problem.sensors:
             if sd.name not in self.r:
                 m = len(sd.sigma)

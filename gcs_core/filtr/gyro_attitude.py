@@ -12,16 +12,24 @@ from __future__ import annotations
 import operator
 import sys
 import weakref
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from gcs_core.filtr import batch_kernels as kernels
-from gcs_core.filtr.attitude import (BIAS_RATE_NAMES, BLOCK_KNOTS, RPY, AttitudeEval, FrameAttitude,
-                                     ReferenceAttitude, rpy_error_jacobian)
+from gcs_core.filtr.attitude import (
+    BIAS_RATE_NAMES,
+    BLOCK_KNOTS,
+    RPY,
+    AttitudeEval,
+    FrameAttitude,
+    ReferenceAttitude,
+    rpy_error_jacobian,
+)
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
+
 
 # ----------------------------------------------------------------------------------------
 # Quaternion helpers (fast forms of the Eq 4-8/4-10 products used along the gyro knots)
@@ -102,7 +110,7 @@ class _GyroConsts:
 
     __slots__ = ("Ginv", "M", "dM", "b", "bdot", "MtGinv", "C0", "J0", "Ma", "q0", "t_mid")
 
-    def __init__(self, att: "GyroAttitude", values: Mapping[str, float]):
+    def __init__(self, att: GyroAttitude, values: Mapping[str, float]):
         p = att._gyro_params(values)
         G = g_matrix(p)
         self.Ginv = np.linalg.inv(G)
@@ -171,7 +179,7 @@ class _Where:
     __slots__ = ("b", "j", "w", "g", "ig", "s")
 
     @classmethod
-    def of(cls, att: "GyroAttitude", t: np.ndarray) -> "_Where":
+    def of(cls, att: GyroAttitude, t: np.ndarray) -> _Where:
         self = cls()
         k = att._rows(t)
         b = (k - 1) // att._block_knots
@@ -413,7 +421,7 @@ class GyroAttitude:
         # interval k (1-based) holding t: τ_{k-1} < t ≤ τ_k; t = τ_0 maps to k = 1 with s = 0
         return np.clip(np.searchsorted(self.knots, t, side="left"), 1, K)
 
-    def _locate(self, t) -> "_Where":
+    def _locate(self, t) -> _Where:
         """Where the times ``t`` fall among the knots (:class:`_Where`).
 
         State-independent, so it is kept for times that view a longer array (a chunk of a
@@ -436,7 +444,7 @@ class GyroAttitude:
             self._where[key] = (weakref.ref(base), where)
         return where
 
-    def _frames_in_block(self, blk: _Block, t, where: "_Where") -> FrameAttitude:
+    def _frames_in_block(self, blk: _Block, t, where: _Where) -> FrameAttitude:
         c = self._consts
         j, g = where.j, where.g
         if g is None:                                            # every frame on a knot

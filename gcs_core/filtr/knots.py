@@ -47,8 +47,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.filtr.kalman_kernels import COMPILED, numba
-from gcs_core.filtr.knot_kernels import (_accumulate, _accumulate_fused, _accumulate_numpy,  # noqa: F401
-                                         correct_attitude)
+from gcs_core.filtr.knot_kernels import _accumulate, _accumulate_fused, _accumulate_numpy, correct_attitude  # noqa: F401 — smoothing_batch reaches correct_attitude through knots
 
 _jit = numba.njit(cache=True) if COMPILED else (lambda fn: fn)
 # the 6×6 knot products below run on strided slices by design; numba's advice to copy them

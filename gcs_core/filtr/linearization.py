@@ -10,16 +10,16 @@ through here, so memory is bounded by the chunk, not the span. Split from
 """
 
 
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.filtr.attitude import (FrameAttitude)
+from gcs_core.filtr.attitude import FrameAttitude
 from gcs_core.filtr.batch_kernels import GRAM_TILE_ROWS
 from gcs_core.filtr.curvature import block_curvature
-from gcs_core.sidp.prepare import (HeldChannels, SensorData)
 from gcs_core.filtr.problem import Problem
+from gcs_core.sidp.prepare import HeldChannels, SensorData
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ Ruhe & Wedin, "Algorithms for separable nonlinear least squares problems", SIAM 
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 

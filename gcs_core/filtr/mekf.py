@@ -36,8 +36,8 @@ solutions for two common spacecraft attitude estimators", J. Guidance & Control 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Mapping
 
 import numpy as np
 

@@ -13,22 +13,19 @@ columns ``H = ∂h/∂x``; its names are re-exported here.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.filtr.attitude import (RADEC, RPY, GyroAttitude, ReferenceAttitude,
-                                     SpinAttitude, rpy_specs)
+from gcs_core.filtr.attitude import RADEC, RPY, GyroAttitude, ReferenceAttitude, SpinAttitude, rpy_specs
 from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import HELD, SOLVE_FOR, ParamSpec
-from gcs_core.sidp.prepare import (GeometryBuilder, HeldChannels, PhysicsOptions, SensorData,
-                                   prepare_sensors)
+from gcs_core.sidp.prepare import GeometryBuilder, HeldChannels, PhysicsOptions, SensorData, prepare_sensors
 from gcs_core.sodl.state import Element, StateVector
 from gcs_core.units import DEG
-
 
 #: frames per chunk of the streaming linearization: memory is bounded by the chunk, not
 #: the span. Large enough that per-chunk overheads are small, small enough that a chunk's
@@ -107,7 +104,7 @@ class Problem:
     def params_of(self, sensor: str, values: Mapping[str, float]) -> dict[str, float]:
         return {local: values[el] for local, el in self.param_map[sensor].items()}
 
-    def with_state(self, state: StateVector) -> "Problem":
+    def with_state(self, state: StateVector) -> Problem:
         return replace(self, state=state)
 
 

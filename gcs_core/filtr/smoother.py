@@ -33,15 +33,14 @@ from __future__ import annotations
 
 import logging
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.filtr.batch import SensorResiduals
 from gcs_core.filtr.mekf import gyro_rates, sensor_window, step_quaternions
-from gcs_core.frames.rotations import (dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize,
-                                       quat_to_dcm)
+from gcs_core.frames.rotations import dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize, quat_to_dcm
 
 log = logging.getLogger(__name__)
 

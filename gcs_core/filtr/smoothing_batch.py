@@ -37,16 +37,24 @@ CRC 2012, §5.3 (fixed-interval smoothing), §7.2 (attitude estimation with gyro
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitude
-from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
-                                  edit_frames, name_combinations, residuals_from)
+from gcs_core.filtr.batch import (
+    BatchOptions,
+    BatchResult,
+    Residuals,
+    _solve_normal,
+    batch_fit,
+    edit_frames,
+    name_combinations,
+    residuals_from,
+)
 from gcs_core.filtr.linearization import iter_blocks
 from gcs_core.filtr.mekf import GyroNoise, gyro_noise
 from gcs_core.filtr.problem import Problem
@@ -78,7 +86,7 @@ class Dynamics:
     P: np.ndarray | None = None
     _cov: tuple | None = field(default=None, repr=False)
 
-    def attitude(self, base) -> "CorrectedAttitude":
+    def attitude(self, base) -> CorrectedAttitude:
         return CorrectedAttitude(base, self.grid, self.z, self.R)
 
     def problem(self, problem: Problem) -> Problem:

@@ -25,7 +25,7 @@ Consider elements are not carried by the filter (they stay at their values, as h
 from __future__ import annotations
 
 import logging
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 from scipy import special
@@ -33,15 +33,13 @@ from scipy import special
 from gcs_core.errors import EstimationError
 from gcs_core.filtr.attitude import RPY, rpy_error_jacobian
 from gcs_core.filtr.batch import make_residuals
-from gcs_core.filtr.filter_results import (BlockReport, FilterOptions, FilterResult,  # noqa: F401
-                                           FrameDiagnostics, InnovationStats)
+from gcs_core.filtr.filter_results import BlockReport, FilterOptions, FilterResult, FrameDiagnostics, InnovationStats
 from gcs_core.filtr.kalman import solve_block
-from gcs_core.filtr.mekf import GyroSegment, assemble, block_epochs, gyro_noise, gyro_rates, make_layout
 from gcs_core.filtr.linearization import linearize
+from gcs_core.filtr.mekf import GyroSegment, assemble, block_epochs, gyro_noise, gyro_rates, make_layout
 from gcs_core.filtr.problem import Problem
 from gcs_core.filtr.smoother import EpochStore, block_records, gyro_residuals, rts_smooth, trajectory
-from gcs_core.frames.rotations import (dcm_to_rotvec, euler123_to_dcm, quat_from_dcm,
-                                       rotvec_to_dcm)
+from gcs_core.frames.rotations import dcm_to_rotvec, euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
 
 log = logging.getLogger(__name__)
 

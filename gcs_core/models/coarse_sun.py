@@ -21,7 +21,7 @@ plus a 10 % margin.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -41,8 +41,9 @@ compiled loops, otherwise the numpy forms (same numbers to round-off).
 from __future__ import annotations
 
 import os
+from collections.abc import Callable, Iterator, Mapping
 from functools import cached_property, lru_cache
-from typing import Callable, Iterator, Mapping, Union
+from typing import Union
 
 import numpy as np
 

@@ -47,7 +47,7 @@ width) plus a 10 % margin.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

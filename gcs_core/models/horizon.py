@@ -58,7 +58,7 @@ Wertz (ed.) 1978, §7.1–7.2 and §12.2 (horizon sensor geometry); seed Referen
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

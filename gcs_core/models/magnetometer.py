@@ -34,7 +34,7 @@ only sees the attitude motion).
 from __future__ import annotations
 
 import logging
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -23,7 +23,7 @@ tracker and both angles are within ``fov_deg`` (half width) plus a 10 % margin.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -39,8 +39,8 @@ Born, G. H., *Statistical Orbit Determination*, Elsevier 2004, §4.7 and §6.3.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Mapping, Sequence
 
 import numpy as np
 

@@ -38,15 +38,14 @@ Which star a tracker frame identifies (the star models) is :mod:`gcs_core.predic
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from gcs_core.ephem.sun import earth_occults, sunlit_fraction
 from gcs_core.filtr.attitude import RPY, AttitudeEval, ReferenceAttitude
 from gcs_core.frames.reference import spin_axis
-from gcs_core.frames.rotations import (dcm_to_euler123, euler123_partials, euler123_to_dcm,
-                                       quat_from_dcm)
+from gcs_core.frames.rotations import dcm_to_euler123, euler123_partials, euler123_to_dcm, quat_from_dcm
 from gcs_core.models import common
 from gcs_core.models.gyro import rate_from_quaternions
 from gcs_core.sidp.types import SensorSpec

@@ -18,8 +18,9 @@ of each of them to every solve-for element and the noise-only part (an error bud
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -119,7 +120,7 @@ class PredictionResult:
     def as_report(self) -> dict[str, Any]:
         """JSON-ready summary: final σ, budget, availability, frames (internal units;
         an infinite σ becomes None)."""
-        num = lambda x: float(x) if np.isfinite(x) else None  # noqa: E731
+        num = lambda x: float(x) if np.isfinite(x) else None
         return {"method": self.method,
                 "plan": None if self.plan is None else {
                     "start": self.plan.start, "end": self.plan.end, "step": self.plan.step,

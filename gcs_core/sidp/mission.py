@@ -20,10 +20,11 @@ import math
 import os
 import re
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
@@ -435,8 +436,8 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     epoch_raw = m["epoch"]
     if isinstance(epoch_raw, datetime):
         try:
-            epoch = (epoch_raw.replace(tzinfo=timezone.utc) if epoch_raw.tzinfo is None
-                     else epoch_raw.astimezone(timezone.utc))
+            epoch = (epoch_raw.replace(tzinfo=UTC) if epoch_raw.tzinfo is None
+                     else epoch_raw.astimezone(UTC))
         except OverflowError:
             raise ctx.error("date-time out of range", "mission.epoch", "mission", 1,
                             "epoch") from None

@@ -31,8 +31,8 @@ a few tens of bytes per frame beyond the measurements.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
-from typing import Iterator, Mapping
 
 import numpy as np
 
@@ -42,8 +42,8 @@ from gcs_core.ephem.geomag import GeomagField
 from gcs_core.frames.reference import spin_axis
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry, ObservationModel
-from gcs_core.sidp.types import MissionSpec, Table
 from gcs_core.models.horizon import FLATTENING as WGS84_FLATTENING
+from gcs_core.sidp.types import MissionSpec, Table
 from gcs_core.units import DEG
 
 
@@ -166,12 +166,12 @@ class HeldChannels(Mapping):
     def __len__(self) -> int:
         return len(self._names)
 
-    def window(self, lo: int, hi: int) -> "HeldChannels":
+    def window(self, lo: int, hi: int) -> HeldChannels:
         w = HeldChannels(self._aux, self._t[lo:hi], keep=False, names=self._names)   # not listed again
         w._done = {k: v[lo:hi] for k, v in self._done.items()}
         return w
 
-    def subset(self, mask: np.ndarray) -> "HeldChannels":
+    def subset(self, mask: np.ndarray) -> HeldChannels:
         return HeldChannels(self._aux, self._t[mask], keep=self._keep, names=self._names)
 
 

@@ -30,18 +30,19 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any
 
 import h5py
 import numpy as np
 
+from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import DataFileError
 from gcs_core.sidp import h5store
 from gcs_core.sidp.importer import COLUMN_UNITS, ImportedMission
-from gcs_core.ephem.timescale import parse_utc
 
 FORMAT = "SDF"
 VERSION = 1
@@ -164,7 +165,7 @@ class SdfContents:
 # --- writing --------------------------------------------------------------------------
 
 def _epoch_text(epoch: datetime) -> str:
-    text = epoch.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
+    text = epoch.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S")
     if epoch.microsecond:
         text += f".{epoch.microsecond:06d}"
     return text + "Z"

@@ -18,17 +18,26 @@ CSS fov 60°, K = 0.25°/count, noise 0.577 counts.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.sim import astro
-from gcs_core.sim.astro import R_EARTH_KM
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
-from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
-                                 SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
+from gcs_core.sim.astro import R_EARTH_KM
+from gcs_core.sim.config import (
+    AuxConfig,
+    HiddenEffect,
+    MissionConfig,
+    OnboardConfig,
+    OrbitElements,
+    SensorConfig,
+    Slew,
+    SpinProfile,
+    ThreeAxisProfile,
+)
 
 __all__ = ["nominal_threeaxis", "spinner_nominal", "spinner_two_scanners", "sun_synchronous_inclination_deg",
            "with_effect", "EFFECTS", "list_effects"]

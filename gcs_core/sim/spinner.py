@@ -133,7 +133,7 @@ class SunSightings:
             t = np.unique(np.round(t, 6))
             t = t[(t >= t0) & (t < hi)]
             half = 0.02 * 2 * np.pi / w.spin_rate(t)
-            f = lambda x: self.sun_B(x) @ self.n_B          # noqa: E731
+            f = lambda x: self.sun_B(x) @ self.n_B
             fa, fb = f(t - half), f(t + half)
             good = (fa < 0) & (fb > 0)
             t, half, fa = t[good], half[good], fa[good]

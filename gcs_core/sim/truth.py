@@ -41,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_core.sim import astro, orbit
-from gcs_core.sim._rot import dcm_to_quat, dcm_to_rotvec, rotvec_to_dcm, rpy_to_dcm, rot3, unit
+from gcs_core.sim._rot import dcm_to_quat, dcm_to_rotvec, rot3, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.config import MissionConfig, SensorConfig, SpinProfile, ThreeAxisProfile
 
 __all__ = ["World", "slew_angle", "GyroSim", "onboard_quaternions"]

@@ -41,7 +41,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.sim.aux import AuxSchedule
-from gcs_core.sim.config import (ATTITUDE_MODES, SENSOR_TYPES, MissionConfig, as_plain)
+from gcs_core.sim.config import ATTITUDE_MODES, SENSOR_TYPES, MissionConfig, as_plain
 from gcs_core.sim.sensors import make_sensor_sim
 from gcs_core.sim.spinner import SunSightings
 from gcs_core.sim.stars import StarCatalog

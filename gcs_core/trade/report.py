@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 from gcs_core.trade.study import ATTITUDE_NAMES, PlanRow, ranked
 from gcs_core.units import ARCSEC

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable
 from dataclasses import asdict
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from gcs_core.trade.study import PlanRow, StudyDefinition, evaluate_plans
 
 def row_from_record(rec: dict) -> PlanRow:
     """A :class:`PlanRow` back from its stored record."""
-    tup = lambda v: tuple(float(x) for x in v)  # noqa: E731
+    tup = lambda v: tuple(float(x) for x in v)
     return PlanRow(int(rec["index"]), rec["plan_id"], rec["values"], rec["description"],
                    tuple(rec["elements"]), tup(rec["sigma"]), tup(rec["noise_only"]), tuple(rec["units"]),
                    {k: tup(v) for k, v in rec["budget"].items()}, tuple(rec["undetermined"]),

@@ -44,8 +44,9 @@ import itertools
 import json
 import math
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from gcs_core.config import AXES, AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.errors import InputError

@@ -22,9 +22,10 @@ import json
 import logging
 import math
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -89,7 +90,7 @@ class StudyDefinition:
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
     @classmethod
-    def from_json(cls, text: str) -> "StudyDefinition":
+    def from_json(cls, text: str) -> StudyDefinition:
         d = json.loads(text)
         return cls(d["config_path"], {k: tuple(v) for k, v in d["vary"].items()}, tuple(d["targets"]),
                    d.get("orbit"), d.get("method"), int(d.get("top", 3)))

@@ -19,7 +19,6 @@ from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Static
 
 from gcs_core.diagnosis.ranking import RULE
-
 from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen

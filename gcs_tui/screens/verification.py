@@ -75,7 +75,7 @@ class VerificationScreen(GcsScreen):
         table.add_column(Text("requirement", justify="right"))
         table.add_column("flag")
         for k, axis in enumerate(AXES):
-            q = lambda x: Text(fmt.quantity(float(x), "rad", digits=3, shown=u, with_unit=False),  # noqa: E731
+            q = lambda x: Text(fmt.quantity(float(x), "rad", digits=3, shown=u, with_unit=False),
                                justify="right")
             flagged = bool(v.flag_axes[k])
             table.add_row(axis, q(v.mean[k]), q(v.sigma[k]), q(v.ground_accuracy[k]), q(v.requirement[k]),

@@ -7,7 +7,7 @@ number cut). :func:`fill` measures the cells itself and gives each column its wi
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 from rich.text import Text
 from textual.widgets import DataTable
