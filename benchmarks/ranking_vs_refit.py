@@ -21,7 +21,8 @@ Both are timed against one batch iteration (:func:`~gcs_core.filtr.batch.normal_
 at the solution, the gyro propagation not cached, as in ``batch_vs_least_squares.py``)
 and one full fit. ``--method`` chooses the estimator: the default whole-span fit (gyro
 noise as process noise; the candidates' partials go through the same knot elimination, and
-Δχ² counts the data and process terms of the cost) or the batch. Prints the number of candidates; the ranking's time, also in units of
+Δχ² counts the data and process terms of the cost) or the batch. Prints the number of
+candidates; the ranking's time, also in units of
 batch iterations; the refit-all time and the ratio refit-all / ranking; and, per
 candidate, the score Δχ² against the refit Δχ². The score test is the local form of the
 likelihood-ratio test: for a model linear in the state and the candidate they agree. The

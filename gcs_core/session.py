@@ -430,7 +430,8 @@ class Analysis:
                 sensors[name] = {"n": r.n, "rms": [float(v) for v in rms] if rms.size > 1 else float(rms[0]),
                                  "rms_normalized": round(r.rms_normalized, 4),
                                  "edited": int(np.count_nonzero(r.edited)),
-                                 "holdout_rms_normalized": _round({name: self.holdout_rms.get(name, float("nan"))})[name],
+                                 "holdout_rms_normalized":
+                                     _round({name: self.holdout_rms.get(name, float("nan"))})[name],
                                  "unit": r.unit, "components": list(r.components)}
                 sensors[name].update(gof.sensor_report(name) if gof is not None else {})
         state = []

@@ -86,7 +86,8 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
         parts.append(f'<path d="M{a - 3:.1f},{b - 3:.1f}L{a + 3:.1f},{b + 3:.1f}M{a - 3:.1f},{b + 3:.1f}'
                      f'L{a + 3:.1f},{b - 3:.1f}" stroke="#c0392b" stroke-width="1.5"/>')
     # axes, ticks and labels
-    parts.append(f'<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#222" shape-rendering="crispEdges"/>')
+    parts.append(f'<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#222" '
+                 'shape-rendering="crispEdges"/>')
     xt = display.nice_ticks(x0, x1, 7)
     for v, lab in zip(xt, display.tick_labels(xt)):
         parts.append(f'<line x1="{sx(v):.1f}" x2="{sx(v):.1f}" y1="{top + ph}" y2="{top + ph + 5}" stroke="#333"/>'

@@ -163,7 +163,7 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
     try:
         a.fit()
         a.discover(max_steps=max_steps)
-    except Exception as exc:          # a failed fit is a finding of the sweep, not a crash of it
+    except Exception as exc:  # noqa: BLE001 — a failed fit is a finding of the sweep, not a crash of it
         status = f"{type(exc).__name__}: {exc}"
     t2 = time.perf_counter()
     rec = {"mission": cfg.name, "seed": cfg.seed, "hours": cfg.duration_s / ONE_HOUR,

@@ -92,7 +92,7 @@ def test_discover_report_has_the_icd_fields(discovered):
     _, _, _, rep, out = discovered
     assert icd_report_problems(rep) == []
     assert rep["mission"] == "hidden-tam-contamination" and rep["command"] == "discover"
-    for name, s in rep["sensors"].items():
+    for s in rep["sensors"].values():
         assert isinstance(s["n"], int) and s["n"] > 0
         assert isinstance(s["rms"], float) and isinstance(s["rms_normalized"], float)
     assert {"name", "estimate", "sigma", "unit"} <= set(rep["state"][0])

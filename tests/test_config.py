@@ -251,7 +251,8 @@ def _template(node) -> str | None:
 def test_config_checks_doc_in_sync():
     """docs/input_checks.md tables the messages of gcs_core/config.py (and its checks) and gcs_tui/cli.py."""
     raised = set()
-    for source in (ROOT / "gcs_core" / "config.py", ROOT / "gcs_core" / "config_checks.py", ROOT / "gcs_tui" / "cli.py"):
+    for source in (ROOT / "gcs_core" / "config.py", ROOT / "gcs_core" / "config_checks.py",
+                   ROOT / "gcs_tui" / "cli.py"):
         for node in ast.walk(ast.parse(source.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call):
                 name = node.func.id if isinstance(node.func, ast.Name) else getattr(node.func, "attr", None)

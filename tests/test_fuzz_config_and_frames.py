@@ -96,7 +96,8 @@ _SECTION = st.sampled_from(sorted(_LINES)).flatmap(
 
 
 @FUZZ
-@given(st.booleans(), st.lists(_SECTION, max_size=6, unique_by=lambda sec: sec.split("\n")[0]), st.lists(st.sampled_from(_STRAY), max_size=1),
+@given(st.booleans(), st.lists(_SECTION, max_size=6, unique_by=lambda sec: sec.split("\n")[0]),
+       st.lists(st.sampled_from(_STRAY), max_size=1),
        st.text(max_size=6))
 def test_config_loader_on_tomlish_text(with_analysis, sections, stray, noise):
     head = "[analysis]\nmission = \"m\"\nmethod = \"kalman\"\n" if with_analysis else ""

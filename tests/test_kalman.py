@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from gcs_core.errors import EstimationError
 from gcs_core.filtr import kalman_kernels
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.filtr.kalman import LinearBlock, referred_transitions, solve_block
@@ -315,7 +316,7 @@ def test_stepping_api():
     res = f.run(progress=seen.append)
     assert f.done and len(seen) == 2 and [b.index for b in f.blocks] == [0, 1, 2]
     assert res.status == "single_pass" and set(res.residuals) == {"ST1", "ST2"}
-    with pytest.raises(Exception):
+    with pytest.raises(EstimationError, match="processed all the data"):
         f.step()
     f.set_roles({"ST1.scale_h": "held"})
     assert "ST1.scale_h" not in f.step().names and len(f.blocks) == 1

@@ -75,7 +75,8 @@ def test_misidentified_stars_are_flagged(dirty):
     a, _, truth = dirty
     for name in ("FHST1", "FHST2"):
         r = a.result.residuals[name]
-        n_bad = truth["sensors"][name].get("n_misidentified") or truth.get("counters", {}).get(name, {}).get("n_misidentified")
+        n_bad = (truth["sensors"][name].get("n_misidentified")
+                 or truth.get("counters", {}).get(name, {}).get("n_misidentified"))
         flagged = int(np.count_nonzero(r.edited))
         assert flagged >= 1
         if n_bad:

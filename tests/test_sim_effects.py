@@ -157,7 +157,7 @@ def test_every_effect_applies_and_is_listed_in_the_answer_file(tmp_path):
     by_type = {s.type: s.name for s in three.sensors + spin.sensors}
     cfg_of = {s.name: (three if s in three.sensors else spin) for s in three.sensors + spin.sensors}
     n = 0
-    for effect, types, unit, desc in list_effects():
+    for effect, types, _unit, _desc in list_effects():
         for typ in types:
             sensor = "model" if typ == "model" else by_type[typ]
             cfg = three if sensor == "model" else cfg_of[sensor]

@@ -355,7 +355,7 @@ type = "attitude_reference"
 telemetry = "telemetry/OPT.csv"
 alignment_deg = [0.0, 0.0, 0.0]   # aligned to the unit by the data's authors
 noise = {_rms(o_line):.6g}   # rad, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest (per axis {np.array2string(o_line, precision=7)}; per-sample spread {np.array2string(s_opt, precision=7)})
-"""
+"""  # noqa: E501 — the written file's own lines
 
 
 def _source_md(source, info, rate, n_all, span, keep, transients, warnings) -> str:

@@ -66,7 +66,7 @@ class IndependentResult:
 
 def _gauss_newton(fun, x0: np.ndarray, max_iter: int = 20, tol: float = 1e-10):
     x = x0.astype(float).copy()
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 — the count is returned after the loop
         r, J = fun(x)
         JTJ = J.T @ J
         step = np.linalg.solve(JTJ, -(J.T @ r))

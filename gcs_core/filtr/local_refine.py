@@ -98,7 +98,7 @@ def refine_local(problem: Problem, values: dict, names: Sequence[str], x: np.nda
             continue
         base = problem.params_of(sensor, values)
 
-        def terms(z):
+        def terms(z, base=base, par=par, sd=sd, chunks=chunks, sel=sel):  # this iteration's sensor, bound
             params = dict(base)
             params.update({local: z[q] for local, q in par})
             Ag, bg, chi2, Kg = _held_normal(sd, chunks, params, par)

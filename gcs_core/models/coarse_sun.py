@@ -53,10 +53,10 @@ class CoarseSunModel(ObservationModel):
             raise InputError("'scale' [rad/count] must not be 0", key=common.book_key(self.sensor, "scale"))
         bias = common.book_vector(self.sensor, "bias", 2, default=(0.0, 0.0))
         specs = []
-        for i, (axis, _, kname, bname) in enumerate(AXES):
+        for i, (axis, _, kname, _b) in enumerate(AXES):
             specs.append(ParamSpec(kname, "rad/count", float(scale[i]), 0.05 * abs(scale[i]), seed=True,
                                    effect="scale", description=f"{axis} scale factor (Eq 4-16)"))
-        for i, (axis, _, kname, bname) in enumerate(AXES):
+        for i, (axis, _, _k, bname) in enumerate(AXES):
             specs.append(ParamSpec(bname, "rad", float(bias[i]), 1.0 * units.DEG, seed=True,
                                    effect="bias", description=f"{axis} angle bias (Eq 4-16)"))
         specs += common.alignment_specs(self.sensor, seed=False, sigma=0.02)

@@ -43,7 +43,6 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterator, Mapping
 from functools import cached_property, lru_cache
-from typing import Union
 
 import numpy as np
 
@@ -216,7 +215,7 @@ def _alignment(a1: float, a2: float, a3: float) -> tuple[np.ndarray, np.ndarray]
 # Body vector with a time-tag offset
 # --------------------------------------------------------------------------------------
 #: an (N, 3) rate of a reference vector, or a function giving it when it is needed
-RateSource = Union[np.ndarray, Callable[[], np.ndarray], None]
+RateSource = np.ndarray | Callable[[], np.ndarray] | None
 
 
 class BodyVector:
@@ -345,7 +344,7 @@ def fov_square_ok(S_S: np.ndarray, fov: float | None) -> np.ndarray:
 
 
 #: a partial as given by a model: an array broadcastable to (N, m), or a function giving it
-PartialSource = Union[np.ndarray, Callable[[], np.ndarray]]
+PartialSource = np.ndarray | Callable[[], np.ndarray]
 
 
 class Partials(Mapping):

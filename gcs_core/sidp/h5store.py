@@ -70,9 +70,9 @@ H5_ERRORS = (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError)
 def gcs_version() -> str:
     """Version string of the installed GCS package ("unknown" when not installed)."""
     try:
-        from importlib.metadata import version
+        from importlib.metadata import PackageNotFoundError, version
         return version("gcs")
-    except Exception:  # not installed (source checkout)
+    except PackageNotFoundError:  # not installed (source checkout)
         return "0+unknown"
 
 

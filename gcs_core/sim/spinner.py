@@ -10,7 +10,8 @@ Plane-field Sun sensor ("slit" plane through the spacecraft). Its plane contains
 radial direction ``u = x_B`` and the axis ``w = cos ε_S ẑ − sin ε_S (ẑ × u)``, tilted by
 ``ε_S`` about ``u``; normal ``n = u × w = (0, −cos ε_S, −sin ε_S)``. The Sun sighting is the
 root of ``f(t) = n · C_BI(t) Ŝ(t)`` (going − to +, with ``Ŝ_B · u > 0``), ``Ŝ`` the apparent
-unit Sun vector at the spacecraft (parallax and aberration per the mission physics). In that plane ``Ŝ = a u + b w`` and ``Â·Ŝ = b cos ε_S``, so the
+unit Sun vector at the spacecraft (parallax and aberration per the mission physics). In that plane
+``Ŝ = a u + b w`` and ``Â·Ŝ = b cos ε_S``, so the
 angle the sensor reads from ``w`` is ``acos(Ŝ·w) = acos((Â·Ŝ)/cos ε_S)`` (Eq 4-14)::
 
     β_m = acos(Ŝ_B · w) + Δβ + N(0, noise²)

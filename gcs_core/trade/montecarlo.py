@@ -127,7 +127,8 @@ def simulation(cfg, spec, plan, seed: int):
     profile = ThreeAxisProfile(rpy0_deg=rpy0, wobble_amp_deg=(0.0, 0.0, 0.0), slews=slews)
     epoch = spec.epoch.strftime("%Y-%m-%dT%H:%M:%SZ")
     return MissionConfig(name=spec.name, epoch=epoch, attitude_mode=spec.attitude_mode,
-                         duration_s=float(plan.end) + 1.0, orbit=OrbitElements(**{k: float(v) for k, v in orbit.items()}),
+                         duration_s=float(plan.end) + 1.0,
+                         orbit=OrbitElements(**{k: float(v) for k, v in orbit.items()}),
                          attitude=profile, sensors=sensors, aux=None, onboard=None, seed=int(seed))
 
 

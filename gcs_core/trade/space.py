@@ -320,7 +320,7 @@ def _maneuver(plan: DataPlan, combo: Mapping[str, Any], base: DataPlan) -> DataP
 
 def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
     sensors = list(spec.sensors)
-    for key, v in combo.items():
+    for key in combo:
         m = _ALIGN.match(key)
         b = _BOOK.match(key) if not m else None
         if not (m or b) or key in PLAN_KEYS or key.startswith(("models.", "maneuver.")):

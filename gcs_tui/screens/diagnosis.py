@@ -93,7 +93,8 @@ class DiagnosisScreen(GcsScreen):
         self.app.selected_candidate = c.id
         units = {e.name: e.unit for e in self.wb.analysis.problem.state}
         alpha = self.wb.analysis.config.significance
-        verdict = ("significant and identifiable: a good candidate to add (a)" if c.identifiable and c.p_adjusted < alpha
+        verdict = ("significant and identifiable: a good candidate to add (a)"
+                   if c.identifiable and c.p_adjusted < alpha
                    else "not significant" if c.identifiable else
                    "not identifiable" + ("" if c.p_adjusted < alpha else ", not significant"))
         lines = [f"{c.id} — {verdict}",

@@ -105,7 +105,7 @@ class HistoryScreen(GcsScreen):
             shown = fmt.shown_unit(unit, ref_v, ref_s)
             big = math.isfinite(z) and abs(z) > 3
 
-            def est(x, s):
+            def est(x, s, unit=unit, shown=shown):  # this row's units, bound
                 return fmt.estimate(x, s, unit, shown=shown, with_unit=False) if math.isfinite(x) else "—"
 
             # Δ at the decimal place of the combined σ, like the estimates

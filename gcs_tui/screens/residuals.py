@@ -50,7 +50,8 @@ def x_axes(sd, shown_unit: str, unit: str, orbit=None) -> list[tuple[str, str, n
     k = fmt.scale(unit, shown_unit)
     for j, comp in enumerate(sd.model.components):
         vals = sd.y[:, j] * k
-        out.append((f"measured {comp}", f"measured {comp}" + (f" [{fmt.unit_label(shown_unit)}]" if fmt.unit_label(shown_unit) else ""), vals))
+        label = fmt.unit_label(shown_unit)
+        out.append((f"measured {comp}", f"measured {comp}" + (f" [{label}]" if label else ""), vals))
     for name, values in sorted(g.aux.items()):
         u = derive.aux_unit(name)
         out.append((f"aux {name}", f"{name} [{u}]" if u else f"{name} (unit as in aux.csv)",

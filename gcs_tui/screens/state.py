@@ -15,6 +15,7 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
+from textual.widgets.data_table import RowDoesNotExist
 
 from gcs_tui import format as fmt
 from gcs_tui.keys import SCREENS, bindings
@@ -72,7 +73,7 @@ class StateScreen(GcsScreen):
         if selected is not None:
             try:
                 table.move_cursor(row=table.get_row_index(selected))
-            except Exception:  # the element is hidden now (held): keep the cursor where it is
+            except RowDoesNotExist:  # the element is hidden now (held): keep the cursor where it is
                 pass
         held = sum(1 for e in wb.analysis.problem.state if e.role == "held")
         self.query_one("#state-title", Label).update(

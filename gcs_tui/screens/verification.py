@@ -90,7 +90,7 @@ class VerificationScreen(GcsScreen):
         k_u = fmt.scale("rad", u)
         if v.n:
             t = v.t.tolist()
-            for k, axis in enumerate(AXES):
+            for k in range(len(AXES)):
                 marked_line(plt, t, (v.diff[:, k] * k_u).tolist(), series(k), marker(k), line=False)
             req = float(np.max(v.requirement)) * k_u
             plt.horizontal_line(req, color=rgb("gcs-bad"))
@@ -106,7 +106,7 @@ class VerificationScreen(GcsScreen):
         k_u = fmt.scale("rad", u)
         if len(v.trend_t):
             t = v.trend_t.tolist()
-            for k, axis in enumerate(AXES):
+            for k in range(len(AXES)):
                 marked_line(plt, t, (v.trend_sigma[:, k] * k_u).tolist(), series(k), marker(k))
             req = float(np.max(v.requirement)) * k_u
             plt.horizontal_line(req, color=rgb("gcs-bad"))
