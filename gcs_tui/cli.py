@@ -391,10 +391,10 @@ EPILOG = ("exit codes: 0 ok; 1 a finding to act on (verify flag, discover --stri
           "2 bad input; 3 estimation failed; 4 internal error; 130 interrupted")
 
 
-def _common(top: bool) -> argparse.ArgumentParser:
+def _common(top: bool) -> _Parser:
     """The options every command takes, before or after its name (the command's copies
     default to SUPPRESS so they do not undo what was given before the name)."""
-    common = argparse.ArgumentParser(add_help=False)
+    common = _Parser(add_help=False)
     dflt = (lambda v: v) if top else (lambda v: argparse.SUPPRESS)
     common.add_argument("-v", "--verbose", action="store_true", default=dflt(False),
                         help="debug logging (and the traceback of an internal error)")

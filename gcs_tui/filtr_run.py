@@ -105,7 +105,7 @@ class FiltrRun:
 
 
 def advance(wb, blocks: int | None, progress=None, cancelled=None,
-            on_block: Callable[[object], None] | None = None) -> FiltrRun:
+            on_block: Callable[[object], object] | None = None) -> FiltrRun:
     """Process ``blocks`` FILTR blocks (None: to the end), checking ``cancelled()``
     between blocks and calling ``on_block(report)`` after each."""
     if wb.filtr is None or wb.filtr.finished:            # a finished run starts again

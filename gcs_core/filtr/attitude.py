@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Protocol
 
 import numpy as np
 
@@ -69,6 +70,17 @@ class AttitudeEval:
     names: tuple[str, ...]
     J: np.ndarray
     omega_B: np.ndarray | None = None
+
+
+class AttitudeProvider(Protocol):
+    """What every attitude provider gives the estimators (reference, spin, gyro-carried,
+    corrected, ...): ``C_BI`` at the times ``t`` and its partials (:class:`AttitudeEval`)
+    with respect to the elements ``names``."""
+
+    @property
+    def names(self) -> tuple[str, ...]: ...
+
+    def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval: ...
 
 
 class FrameAttitude:

@@ -177,6 +177,12 @@ class _Where:
     """
 
     __slots__ = ("b", "j", "w", "g", "ig", "s")
+    b: int | None
+    j: slice | np.ndarray | None
+    w: slice | np.ndarray | None
+    g: np.ndarray | None
+    ig: np.ndarray | None
+    s: np.ndarray | None
 
     @classmethod
     def of(cls, att: GyroAttitude, t: np.ndarray) -> _Where:
@@ -194,9 +200,9 @@ class _Where:
             self.w = _progression(i)
             return self
         self.j = _progression(np.where(on_knot, i + 1, i))
-        self.w = i.astype(np.int32)
+        self.w = w = i.astype(np.int32)
         self.g = ~on_knot
-        self.ig = self.w[self.g]
+        self.ig = w[self.g]
         self.s = t[self.g] - att.knots[k[self.g] - 1]
         return self
 
@@ -235,7 +241,7 @@ class GyroAttitude:
         self.y = np.asarray(y_gyro, float)
         self.t_ref = float(self.knots[0])
         self._block_knots = max(1, int(block_knots))
-        self._key = None
+        self._key: tuple[float, ...] | None = None
         self._consts: _GyroConsts | None = None
         self._checkpoints: list = []
         self._blocks: dict[int, _Block] = {}
@@ -290,6 +296,8 @@ class GyroAttitude:
             self._key, self._consts = key, c
             self._checkpoints = [(c.q0, c.C0, np.zeros((3, len(self.param_names))))]
             self._drop_blocks()
+            return c
+        assert self._consts is not None                  # a key is only kept with its constants
         return self._consts
 
     def clear_cache(self) -> None:
@@ -336,6 +344,7 @@ class GyroAttitude:
         each; the numpy form below composes the steps by a blocked scan.
         """
         c = self._consts
+        assert c is not None                              # _block() computed the state first
         L = self._block_knots
         r0, r1 = b * L, min(self.y.shape[0], (b + 1) * L)
         n = r1 - r0
@@ -401,9 +410,9 @@ class GyroAttitude:
 
     def _block(self, values, b: int, with_E: bool = True) -> _Block:
         self._state(values)
-        blk = self._blocks.get(b)
-        if blk is not None and (blk.E is not None or not with_E):
-            return blk
+        held = self._blocks.get(b)
+        if held is not None and (held.E is not None or not with_E):
+            return held
         # nearest checkpoint at or before b that carries what this block needs
         j = min(b, len(self._checkpoints) - 1)
         while with_E and self._checkpoints[j][2] is None:
@@ -446,6 +455,7 @@ class GyroAttitude:
 
     def _frames_in_block(self, blk: _Block, t, where: _Where) -> FrameAttitude:
         c = self._consts
+        assert c is not None                              # blk came from _block(), after _state()
         j, g = where.j, where.g
         if g is None:                                            # every frame on a knot
             w = blk.omega[where.w]

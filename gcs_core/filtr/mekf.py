@@ -233,7 +233,7 @@ def gyro_noise(problem: Problem, scale: float = 1.0) -> GyroNoise:
     spec = problem.builder.spec.sensor(problem.gyro_name)
     arw = model_common.book_scalar(spec, "arw")
     if arw is None:
-        dt = float(np.median(problem.attitude.dt))
+        dt = float(np.median(problem.gyro_attitude.dt))
         arw = float(spec.noise or 0.0) * np.sqrt(dt)
     rrw = model_common.book_scalar(spec, "rrw", 0.0) or 0.0
     ele = model_common.book_scalar(spec, "electronic", 0.0) or 0.0
@@ -250,7 +250,7 @@ def make_layout(problem: Problem, noise: GyroNoise | None) -> Layout:
     if missing:
         raise EstimationError("the Kalman filter estimates the attitude with the gyros: make "
                               + ", ".join(missing) + " solve-for")
-    pnames = list(problem.attitude.param_names)
+    pnames = list(problem.gyro_attitude.param_names)
     bias = [f"{problem.gyro_name}.bias_{a}" for a in "xyz"]
     dyn = [b for b in bias if b in solve] if noise is not None and noise.sigma_u > 0 else []
     static = [n for n in solve if n not in RPY and n not in dyn]

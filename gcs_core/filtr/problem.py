@@ -15,11 +15,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
+from typing import cast
 
 import numpy as np
 
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.filtr.attitude import RADEC, RPY, GyroAttitude, ReferenceAttitude, SpinAttitude, rpy_specs
+from gcs_core.filtr.attitude import RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude, rpy_specs
+from gcs_core.filtr.gyro_attitude import GyroAttitude
 from gcs_core.frames.rotations import quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import HELD, SOLVE_FOR, ParamSpec
@@ -78,7 +80,7 @@ class Problem:
     """
 
     state: StateVector
-    attitude: object
+    attitude: AttitudeProvider
     sensors: list[SensorData]
     param_map: dict[str, dict[str, str]]
     builder: GeometryBuilder
@@ -87,6 +89,13 @@ class Problem:
     gyro_name: str | None = None
     edited: dict[str, np.ndarray] = field(default_factory=dict)
     chunk_frames: int = CHUNK_FRAMES
+
+    @property
+    def gyro_attitude(self) -> GyroAttitude:
+        """The attitude provider as carried by the gyro (``gyro_name`` set): a
+        :class:`GyroAttitude`, or a wrapper (the smoother's corrected attitude) that forwards
+        its attributes; for the type checker only, nothing is converted or checked here."""
+        return cast(GyroAttitude, self.attitude)
 
     def set_chunk(self, frames: int) -> None:
         """Chunk length of the streaming linearization and of the gyro propagation blocks
@@ -191,6 +200,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     mode = spec.attitude_mode
     gyros = [s for s in spec.sensors if s.type == "gyro"]
     gyro_name = None
+    attitude: AttitudeProvider
     if mode == "spinning":
         attitude = SpinAttitude()
     elif gyros and use_gyro:

@@ -183,7 +183,7 @@ def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, name
                spacing: float | None = None) -> kn.KnotGrid:
     """Knots over the span of the gyro knots, spaced by :func:`knots.knot_spacing` from the
     information per second the data give the attitude (the batch's roll/pitch/yaw block)."""
-    att = problem.attitude
+    att = problem.gyro_attitude
     t0, t1 = float(att.knots[0]), float(att.knots[-1])
     for sd in problem.sensors:
         if sd.n:

@@ -86,7 +86,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     lins = linearize(err_problem, values, list(ERR) + others + list(consider))
     rows = [weighted_rows(lin, sd.t, masks.get(sd.name)) for lin, sd in zip(lins, problem.sensors)]
 
-    t_ref = float(att.t_ref)
+    t_ref = float(problem.gyro_attitude.t_ref)
     t_rows = np.concatenate([t for t, _ in rows] + [np.zeros(0)])
     events = np.unique(np.concatenate([[t_ref], t_rows[t_rows >= t_ref], times[times >= t_ref]]))
 
@@ -114,7 +114,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     M, _ = common.alignment_matrix({f"align_{k}": values.get(f"{gyro}.align_{k}", 0.0) for k in (1, 2, 3)})
 
     # output-time mapping δθ -> δ(roll, pitch, yaw)
-    A_out = att.ref.reference(np.maximum(times, t_ref))
+    A_out = problem.gyro_attitude.ref.reference(np.maximum(times, t_ref))
     C_out = att.evaluate(values, np.maximum(times, t_ref)).C_BI
     rpy_out = np.column_stack(dcm_to_euler123(C_out @ np.swapaxes(A_out, -1, -2)))
     Jr = rpy_error_jacobians(rpy_out)

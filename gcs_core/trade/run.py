@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
 
@@ -87,7 +87,7 @@ def varied_keys(rows: list[PlanRow]) -> tuple[str, ...]:
     return tuple(sorted((k for k in keys if count[k] > 1), key=lambda k: -count[k]))
 
 
-def sigma_grid(rows: list[PlanRow], element: str, keys: tuple[str, ...]) -> tuple[list, list, np.ndarray]:
+def sigma_grid(rows: Sequence[PlanRow], element: str, keys: tuple[str, ...]) -> tuple[list, list, np.ndarray]:
     """σ of ``element`` over one or two varied keys: (values of key 1, of key 2 or [None],
     (n1, n2) array, the minimum over the other keys' values for each cell)."""
     k1 = keys[0]

@@ -20,6 +20,7 @@ from gcs_tui import jobs
 from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import color
+from gcs_tui.widgets.tables import cursor_key
 
 
 class HistoryScreen(GcsScreen):
@@ -123,7 +124,7 @@ class HistoryScreen(GcsScreen):
         table = self.query_one("#versions", DataTable)
         if table.row_count == 0:
             return
-        self.marks[which] = int(table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value)
+        self.marks[which] = int(cursor_key(table))
         row = table.cursor_row
         self.refresh_view()
         table.move_cursor(row=row)

@@ -18,6 +18,7 @@ from gcs_tui.screens.base import GcsScreen
 from gcs_tui.screens.dialogs import Field, FormScreen
 from gcs_tui.theme import series
 from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.widgets.tables import cursor_key
 from gcs_tui.workbench import maneuver
 
 
@@ -100,15 +101,18 @@ class PlanScreen(GcsScreen):
         table = self.query_one(f"#{table_id}", DataTable)
         if table.row_count == 0:
             return None
-        return int(table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value)
+        return int(cursor_key(table))
 
     def action_edit_span(self) -> None:
         cfg = self.wb.config
         t0, t1 = self.wb.plan_span()
         fields = [Field("start", "start [s]", _num(t0)), Field("end", "end [s]", _num(t1)),
                   Field("step", "step [s]", _num(cfg.pred_step), positive=True)]
-        self.app.push_screen(FormScreen("Plan span and output step", fields),
-                             lambda v: v and self._apply(start=v["start"], end=v["end"], step=v["step"]))
+        def done(v: dict | None) -> None:
+            if v:
+                self._apply(start=v["start"], end=v["end"], step=v["step"])
+
+        self.app.push_screen(FormScreen("Plan span and output step", fields), done)
 
     def _gap_form(self, title: str, a: float, b: float, index: int | None) -> None:
         def done(v):
@@ -156,7 +160,7 @@ class PlanScreen(GcsScreen):
         focused = self.focused
         if not isinstance(focused, DataTable):
             return
-        i = self._row(focused.id)
+        i = self._row(str(focused.id))
         if i is None:
             return
         if focused.id == "gaps":
@@ -165,7 +169,7 @@ class PlanScreen(GcsScreen):
             self._apply(maneuvers=tuple(m for j, m in enumerate(self.wb.config.maneuvers) if j != i))
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
-        i = int(event.row_key.value)
+        i = int(str(event.row_key.value))
         if event.data_table.id == "gaps":
             a, b = self.wb.config.gaps[i]
             self._gap_form("Edit the data gap", a, b, i)

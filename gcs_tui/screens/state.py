@@ -22,7 +22,7 @@ from gcs_tui.keys import SCREENS, bindings
 from gcs_tui.screens.base import GcsScreen
 from gcs_tui.screens.dialogs import Field, FormScreen
 from gcs_tui.screens.models import role_text
-from gcs_tui.widgets.tables import fill
+from gcs_tui.widgets.tables import cursor_key, fill
 
 
 class StateScreen(GcsScreen):
@@ -87,7 +87,7 @@ class StateScreen(GcsScreen):
         table = self.query_one("#elements", DataTable)
         if table.row_count == 0:
             return None
-        return table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value
+        return cursor_key(table)
 
     def _detail(self) -> None:
         name = self._selected()

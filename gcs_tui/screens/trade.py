@@ -9,8 +9,10 @@ plotted, ``escape`` closes the screen.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from rich.text import Text
+from textual import getters
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
@@ -24,6 +26,9 @@ from gcs_core.trade.study import ranked
 from gcs_tui.theme import series
 from gcs_tui.widgets.plots import GcsPlot
 
+if TYPE_CHECKING:
+    from gcs_tui.app import GcsApp
+
 #: plan keys the Data plan screen shows; the others (sensors, mountings) are named on open
 PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min", "gap_min",
              "maneuvers")
@@ -31,6 +36,9 @@ PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "g
 
 class TradeScreen(Screen):
     """The rows of one trade study (module docstring)."""
+
+    if TYPE_CHECKING:                # for the type checker: the running app is a GcsApp
+        app = getters.app(GcsApp)
 
     CSS_PATH = "trade.tcss"
     BINDINGS = [Binding("enter", "open_plan", "Open in Data plan", id="trade.open"),
