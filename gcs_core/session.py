@@ -22,7 +22,7 @@ from gcs_core.display import p_text
 from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions, BatchResult
 from gcs_core.filtr.problem import ElementOverride, Problem, StateOptions, build_problem
-from gcs_core.filtr.smoothing_batch import fit_problem
+from gcs_core.filtr.smoothing_batch import SmoothedResult, fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
 from gcs_core.models.base import HELD, SOLVE_FOR
 from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
@@ -188,7 +188,7 @@ class Analysis:
                 {"initial": res.state.values()}
             res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
             self.holdout_rms = (smoothed_holdout_rms(self.problem, res_train, masks)
-                                if getattr(res_train, "dynamics", None) is not None
+                                if isinstance(res_train, SmoothedResult) and res_train.dynamics is not None
                                 else static_holdout_rms(self.problem, res_train, masks))
             self.holdout_chi2 = goodness.holdout_tests(self.problem, res_train, masks)
         else:
@@ -240,9 +240,8 @@ class Analysis:
         return batch_result_from_filter(fr)
 
     def rank(self) -> list[Candidate]:
-        if self.result is None:
-            self.fit()
-        self.candidates = rank_candidates(self.problem, self.result, self.candidate_effects(),
+        res = self.result if self.result is not None else self.fit()
+        self.candidates = rank_candidates(self.problem, res, self.candidate_effects(),
                                           alpha=self.config.significance,
                                           smoothed=self.config.method == "kalman")
         return self.candidates
@@ -289,11 +288,10 @@ class Analysis:
         self._rebuild()
 
     def _apply(self, action: str, effect_id: str, on: bool) -> Step:
-        if self.result is None:
-            self.fit()
+        res = self.result if self.result is not None else self.fit()
         before = self.rms()
-        chi_before = self.result.chi2
-        prev_values = self.result.state.values()
+        chi_before = res.chi2
+        prev_values = res.state.values()
         self._set_effect(effect_id, on)
         # warm start from the previous solution; the a priori stays the configured one
         warm = {k: v for k, v in prev_values.items() if k in self.problem.state}

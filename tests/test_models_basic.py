@@ -67,6 +67,24 @@ def test_magnetometer_zero_alignment_is_attitude_times_field_plus_bias():
     np.testing.assert_allclose(pred.y, expected, atol=1e-6 * one_nT)
 
 
+def test_magnetometer_time_offset_without_field_model_leaves_the_field_still():
+    """No field model in the geometry (no Ḃ_I): a time-tag offset rotates the measured field
+    with the body only; the prediction and its time_offset partial stay finite and agree
+    with a central difference (they were NaN and a ValueError)."""
+    rng = np.random.default_rng(12)
+    model = make_model(sensor("TAM1", "magnetometer"))
+    n = 5
+    geom = Geometry(t=np.arange(float(n)), C_BI=random_dcm(rng, n), B_I=rng.normal(scale=3e4, size=(n, 3)),
+                    omega_B=rng.normal(scale=1e-2, size=(n, 3)))
+    dt, h = 0.3, 1e-4                                      # [s]
+    pred = model.predict(geom, {"time_offset": dt})
+    slope = np.asarray(pred.d_par["time_offset"])
+    assert np.all(np.isfinite(pred.y)) and np.all(np.isfinite(slope))
+    plus = model.predict(geom, {"time_offset": dt + h}).y
+    minus = model.predict(geom, {"time_offset": dt - h}).y
+    np.testing.assert_allclose(slope, (plus - minus) / (2 * h), atol=1e-6 * one_nT)
+
+
 def test_magnetometer_contamination_adds_k_times_channel():
     model = make_model(sensor("TAM1", "magnetometer"), aux_channels=("mtb_x",))
     geom = Geometry(t=np.arange(2.0), C_BI=np.stack([np.eye(3)] * 2), B_I=np.zeros((2, 3)),

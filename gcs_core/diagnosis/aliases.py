@@ -89,8 +89,8 @@ def _sparse_basis(V: np.ndarray) -> np.ndarray:
     for i in range(k):
         rest = np.abs(B[i:, :]).copy()
         rest[:, used] = 0.0
-        r, c = np.unravel_index(int(np.argmax(rest)), rest.shape)
-        r += i
+        ri, ci = np.unravel_index(int(np.argmax(rest)), rest.shape)
+        r, c = int(ri) + i, int(ci)
         B[[i, r]] = B[[r, i]]
         B[i] /= B[i, c]
         for j in range(k):

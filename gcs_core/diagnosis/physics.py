@@ -7,6 +7,8 @@ oblateness) is scored like a candidate effect at the current solution, with its 
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from scipy import stats
 
@@ -24,7 +26,7 @@ def physics_needed(problem, result, effects, *, alpha: float, smoothed: bool = F
     ``physics``), largest cost first.
     """
     crit = float(stats.chi2.isf(alpha, 1))
-    out = []
+    out: list[dict[str, Any]] = []
     for c in rank_candidates(problem, result, effects, alpha=alpha, smoothed=smoothed):
         sig = c.sigma.get(c.id, float("inf"))
         c_hat = c.estimate.get(c.id, 0.0)

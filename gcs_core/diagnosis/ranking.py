@@ -204,6 +204,7 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
             continue
         sd = blk.sensor
         H, c = blk.H, blk.cols
+        assert H is not None                            # rows stored (not gram-only blocks)
         extra = _physics_block(problem, blk, values, phys_ids) if phys_ids else []
         if extra:
             w = blk.used[:, None] / sd.sigma[None, :]
@@ -365,7 +366,8 @@ def _alias_bound(S_all: np.ndarray, ixs: Sequence[Sequence[int]],
     for j, (ix, L) in enumerate(zip(ixs, pinvs)):
         member[r:r + len(ix), j] = 1.0
         r += len(ix)
-        blocks.append(L @ S_all[np.ix_(ix, flat)] if L is not None else np.zeros((len(ix), flat.size)))
+        rows = np.asarray(ix, dtype=int)
+        blocks.append(L @ S_all[np.ix_(rows, flat)] if L is not None else np.zeros((len(ix), flat.size)))
     P = np.concatenate(blocks, axis=0) if blocks else np.zeros((0, 0))
     return member.T @ (P * P.T) @ member
 

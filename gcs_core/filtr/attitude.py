@@ -312,7 +312,8 @@ class ReferenceAttitude:
 
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
         A = self.reference(np.atleast_1d(t))[0]
-        return tuple(float(a) for a in dcm_to_euler123(C @ A.T))
+        roll, pitch, yaw = (float(a) for a in dcm_to_euler123(C @ A.T))
+        return roll, pitch, yaw
 
 
 class SpinAttitude:

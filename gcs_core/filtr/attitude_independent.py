@@ -84,6 +84,8 @@ def magnetometer_bias_from_magnitude(problem: Problem, sensor: str,
     if sd.model.type_name != "magnetometer":
         raise EstimationError(f"{sensor} is not a magnetometer")
     B_m = sd.y
+    if sd.geom.B_I is None:
+        raise EstimationError(f"{sensor}: no reference field in the geometry")
     ref = np.linalg.norm(sd.geom.B_I, axis=1)
     sigma = float(np.mean(sd.sigma))
     ok = np.all(np.isfinite(B_m), axis=1) & np.isfinite(ref)
@@ -126,6 +128,8 @@ def star_tracker_scales_from_separations(problem: Problem, sensor: str, *,
     if att.C_BI is None:
         raise EstimationError("star-tracker separations need a three-axis attitude")
     star = sd.geom.star_I
+    if star is None:
+        raise EstimationError(f"{sensor}: no catalog star vectors in the geometry")
     i = np.arange(sd.n - 1)
     j = i + 1
     sep_cat = np.arccos(np.clip(np.sum(star[i] * star[j], axis=1), -1.0, 1.0))

@@ -143,9 +143,9 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
         # Hᵀ R⁻¹ H, Hᵀ R⁻¹ r and rᵀ R⁻¹ r
         c = blk.cols
         k = c.size
-        if blk.curv:
+        if blk.curv and second_order is not None:               # curvature is formed only when asked
             curvature.add_block(second_order, c, blk.curv)
-        G = blk.G if blk.G is not None else blk.Hr.T @ blk.Hr
+        G = blk.gram()
         chi2 += float(G[k, k])
         if k == n and np.array_equal(c, np.arange(n)):
             A += G[:k, :k]
@@ -174,7 +174,7 @@ def name_combinations(A: np.ndarray, names: Sequence[str], rank_tol: float) -> l
         terms = [f"{v[j]:+.2f}·{names[j]}" for j in order if abs(v[j]) > 0.1][:6]
         out.append(" ".join(terms))
     for j in np.nonzero(d == 0)[0]:
-        out.append(f"{names[j]} (no data depends on it)")
+        out.append(f"{names[int(j)]} (no data depends on it)")
     return out
 
 
@@ -225,7 +225,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     counts = [0]
     buffers = Residuals().ensure(problem)
     work: dict = {}                     # chunk buffers, reused by every pass
-    stored = [None]                     # (x, edits, A, χ², m) of the pass the buffers hold
+    stored: list[tuple | None] = [None]   # (x, edits, A, χ², m) of the pass the buffers hold
 
     def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):
@@ -337,7 +337,9 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         A_all, _, chi2, m_used = normal_equations(problem, values, names + cons, edits, store=buffers,
                                                   work=work)
     else:
-        A_all, chi2, m_used = stored[0][2:]
+        held = stored[0]
+        assert held is not None                                 # _stored_at said it is this pass
+        A_all, chi2, m_used = held[2:]
     A = A_all[:n, :n]
     Nmat = A + np.diag(prior_info)
     _, P = _solve_normal(Nmat, np.zeros(n))

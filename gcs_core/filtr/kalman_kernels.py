@@ -43,7 +43,7 @@ import numpy as np
 try:
     import numba
 except ImportError:                                     # the package still works without it
-    numba = None
+    numba = None  # type: ignore[assignment]  # the module or None
 
 __all__ = ["COMPILED", "filter_frames", "run_block"]
 

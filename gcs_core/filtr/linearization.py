@@ -19,6 +19,7 @@ from gcs_core.filtr.attitude import FrameAttitude
 from gcs_core.filtr.batch_kernels import GRAM_TILE_ROWS
 from gcs_core.filtr.curvature import block_curvature
 from gcs_core.filtr.problem import Problem
+from gcs_core.models.base import Geometry, Prediction
 from gcs_core.sidp.prepare import HeldChannels, SensorData
 
 
@@ -72,7 +73,7 @@ class Block:
     sensor: SensorData
     lo: int
     hi: int
-    geom: object
+    geom: Geometry
     y_pred: np.ndarray
     r: np.ndarray
     valid: np.ndarray
@@ -81,12 +82,20 @@ class Block:
     H: np.ndarray | None
     Hr: np.ndarray | None = None
     curv: tuple = ()
-    pred: object = None
+    pred: Prediction | None = None
     G: np.ndarray | None = None
 
     @property
     def name(self) -> str:
         return self.sensor.name
+
+    def gram(self) -> np.ndarray:
+        """``[H r]ᵀ [H r]`` (k_s + 1, k_s + 1): ``G`` when the block was formed without its rows."""
+        if self.G is not None:
+            return self.G
+        if self.Hr is None:
+            raise ValueError("this block carries neither its rows nor their Gram matrix")
+        return self.Hr.T @ self.Hr
 
     def weighted_residual(self) -> np.ndarray:
         """(n·m,) ``R^-1/2 r`` with unused frames zero."""
@@ -232,6 +241,7 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
                 if _block_jacobian(pred, fr, att_sel, par, cols.size, w, buf, r if aug else None, P,
                                    gram=None if G is None else (G, tile)) is None:
                     del fr
+                    assert G is not None                   # None returned: the rows went into G
                     G = np.tril(G) + np.tril(G, -1).T      # chain_gram fills the lower triangle
                     yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, None, None, curv, pred, G)
                     continue

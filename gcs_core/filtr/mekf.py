@@ -230,6 +230,8 @@ def gyro_noise(problem: Problem, scale: float = 1.0) -> GyroNoise:
     Without ``arw`` the gyro's ``noise`` (a rate 1-sigma per sample) is taken as
     ``σ_v = noise·sqrt(Δt)`` with Δt the median sample interval.
     """
+    if problem.gyro_name is None:
+        raise EstimationError("no gyro carries the attitude of this problem")
     spec = problem.builder.spec.sensor(problem.gyro_name)
     arw = model_common.book_scalar(spec, "arw")
     if arw is None:
@@ -399,9 +401,10 @@ def assemble(problem: Problem, layout: Layout, values: Mapping[str, float], seg:
         k = np.nonzero(used)[0]
         if k.size == 0:
             continue
+        assert lin.H is not None                              # linearize() stores the rows
         H = lin.H[k]
         mj = H.shape[1]
-        A = H if seg is None else H + H[:, :, :3] @ (Psi_d[ep[k], :3, :] - np.eye(3, n))  # A = H Ψ
+        A = H if Psi_d is None else H + H[:, :, :3] @ (Psi_d[ep[k], :3, :] - np.eye(3, n))  # A = H Ψ
         w = 1.0 / lin.sigma                                   # whiten: R = I
         parts["A"].append((A * w[None, :, None]).reshape(-1, n))
         parts["r"].append((lin.r[k] * w).reshape(-1))

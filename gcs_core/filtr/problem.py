@@ -236,7 +236,8 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
                                     "spin-axis " + ("right ascension" if n.endswith("ra") else "declination")
                                     + ", Eq 4-2"))
     else:
-        for spec_ in rpy_specs(*(att0[n] for n in RPY), sigma=options.attitude_sigma):
+        roll, pitch, yaw = (att0[n] for n in RPY)
+        for spec_ in rpy_specs(roll, pitch, yaw, sigma=options.attitude_sigma):
             elements.append(_element_from_spec(None, spec_, SOLVE_FOR, kind="attitude"))
 
     param_map: dict[str, dict[str, str]] = {}

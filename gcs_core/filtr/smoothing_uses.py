@@ -66,6 +66,7 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
     valid frames of a whole-span fit, chunk by chunk: the variance
     ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of the static elements and the knots."""
     dyn = res.dynamics
+    assert dyn is not None                      # a whole-span fit with knots (callers check)
     names = tuple(res.solve_for)
     for blk in iter_blocks(dyn.problem(problem), res.state.values(), names, weighted=False):
         m = select.get(blk.name)

@@ -173,8 +173,9 @@ class ObservationModel:
     type_name: ClassVar[str] = ""
     #: telemetry columns required besides ``t``.
     columns: ClassVar[tuple[str, ...]] = ()
-    #: names of the m measurement components (residual axes), e.g. ("bx", "by", "bz").
-    components: ClassVar[tuple[str, ...]] = ()
+    #: names of the m measurement components (residual axes), e.g. ("bx", "by", "bz");
+    #: a class attribute, which an instance may set from its data book (the horizon scanner)
+    components: tuple[str, ...] = ()
     #: unit of the measurements, for display.
     unit: ClassVar[str] = ""
     #: "three_axis", "spinning" or "rate" (the gyro: ``d_att`` is ∂y/∂ω): what the

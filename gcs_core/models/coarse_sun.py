@@ -77,7 +77,7 @@ class CoarseSunModel(ObservationModel):
         M, dM = common.alignment_matrix(p)
         y = np.zeros((n, 2))
         J = np.zeros((n, 2, 3))                        # ∂n/∂S_S
-        d_par: dict[str, np.ndarray] = {}
+        d_par: dict[str, common.PartialSource] = {}
         with np.errstate(all="ignore"):
             bv = common.body_vector(geom, geom.sun_I, p["time_offset"])
             S = bv.v_B @ M.T

@@ -104,6 +104,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     # attitude transition pieces at the events
     ae = att.evaluate(values, events)
     C = ae.C_BI
+    assert C is not None                                           # a three-axis attitude
     pnames = list(ae.names[3:])
     F = np.einsum("eji,ejp->eip", C, ae.J[:, :, 3:])              # E(t) = Cᵀ ∂δθ/∂p
     sf = [(j, 3 + others.index(p)) for j, p in enumerate(pnames) if p in others]
@@ -130,10 +131,10 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
 
     T = times.size
     out = {"sigma": np.zeros((T, n)), "sigma_noise": np.zeros((T, n)), "attitude_sigma": np.zeros((T, 3))}
-    out_at = {int(e): [] for e in np.searchsorted(events, times[times >= t_ref])}
+    out_at: dict[int, list[int]] = {int(e): [] for e in np.searchsorted(events, times[times >= t_ref])}
     for j in np.flatnonzero(times >= t_ref):
-        out_at[int(np.searchsorted(events, times[j]))].append(j)
-    last = {}
+        out_at[int(np.searchsorted(events, times[j]))].append(int(j))
+    last: dict = {}
 
     def record(j):
         Tm = np.eye(n)
@@ -184,7 +185,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
             P = IKH @ P @ IKH.T + K @ K.T                          # Joseph form
             P = 0.5 * (P + P.T)
             S = S - K @ (Hx @ S + Hc)
-        for j in out_at.get(k, ()):
-            record(j)
+        for jo in out_at.get(k, ()):
+            record(jo)
     return {**out, "P": last["P"], "P_consider": last["P_consider"], "budget": last["budget"],
             "unobservable": np.zeros(n, dtype=bool)}

@@ -109,6 +109,7 @@ class NominalAttitude:
         """(N, 3, 3) nominal ``C_BI`` (Eq 4-6)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         a = self.rpy(t)
+        assert self.reference is not None                  # a three-axis plan (not spinning)
         return euler123_to_dcm(a[:, 0], a[:, 1], a[:, 2]) @ self.reference.reference(t)
 
     def mean_rates(self, knots) -> np.ndarray:
@@ -138,7 +139,8 @@ class ManeuverAttitude:
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
         A = self.reference_attitude.reference(np.atleast_1d(t))[0]
         rpy = np.array(dcm_to_euler123(C @ A.T)) - self.offsets(np.atleast_1d(t))[0]
-        return tuple(float(a) for a in rpy)
+        roll, pitch, yaw = (float(a) for a in rpy)
+        return roll, pitch, yaw
 
 
 class BodyErrorAttitude:

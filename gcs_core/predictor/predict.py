@@ -198,11 +198,12 @@ def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float)
             return eph
         if orbit is None and getattr(spec, "orbit_tle", None) is None:
             eph.check_covers(np.array([plan.start, plan.end]), what="the prediction plan")
-    if orbit is None and getattr(spec, "orbit_tle", None) is not None:
+    tle = getattr(spec, "orbit_tle", None)
+    if orbit is None and tle is not None:
         # the mission's [orbit] tle propagated over the plan (gcs_core.ephem.tle)
         from gcs_core.ephem.tle import tle_ephemeris_table
         return Ephemeris.from_table(tle_ephemeris_table(
-            spec.orbit_tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
+            tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
             step_s=spec.orbit_step_s, margin_s=EPHEMERIS_MARGIN_S))
     if orbit is None:
         raise InputError("no ephemeris for the plan: give the mission's ephemeris.csv or an orbit "
@@ -296,6 +297,8 @@ def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> Pr
 
 def _gyro_noise(problem: Problem) -> tuple[float, float]:
     spec = problem.builder.spec
+    if problem.gyro_name is None:
+        return 0.0, 0.0
     try:
         g = spec.sensor(problem.gyro_name)
     except KeyError:

@@ -39,6 +39,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import overload
 
 import h5py
 import numpy as np
@@ -182,8 +183,8 @@ def locked(path: str | os.PathLike, *, exclusive: bool, wait: float | None = Non
 # --- opening --------------------------------------------------------------------------
 
 def _one_line(err: BaseException) -> str:
-    text = str(err).strip().splitlines()
-    text = text[0] if text else type(err).__name__
+    lines = str(err).strip().splitlines()
+    text = lines[0] if lines else type(err).__name__
     return text.strip("'\"")
 
 
@@ -501,6 +502,10 @@ def read_strings(ds: h5py.Dataset) -> list[str]:
     return [v.decode("utf-8") if isinstance(v, bytes) else str(v) for v in ds[()].reshape(-1)]
 
 
+@overload
+def attr_str(obj, key: str, default: str) -> str: ...
+@overload
+def attr_str(obj, key: str, default: None = None) -> str | None: ...
 def attr_str(obj, key: str, default: str | None = None) -> str | None:
     value = obj.attrs.get(key, default)
     if isinstance(value, bytes):

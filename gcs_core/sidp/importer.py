@@ -321,6 +321,7 @@ def _check_covered(table: Table, eph: Table, sensor: str, margin: float) -> None
     if not np.any(out):
         return
     i = _first(out)
+    assert i is not None                                  # some row is out
     lo, hi = float(np.min(t[out])), float(np.max(t[out]))
     spans = [f"t = {a:.6g} to {b:.6g} s" for a, b, on in ((lo, e0, lo < e0), (e1, hi, hi > e1)) if on]
     uncovered = " and ".join(spans)
@@ -387,6 +388,7 @@ def _tle_ephemeris(spec: MissionSpec, tables) -> Table:
     """The ephemeris propagated from ``[orbit] tle`` over every table's span (ephem/tle.py)."""
     from gcs_core.ephem.tle import tle_ephemeris_table
 
+    assert spec.orbit_tle is not None                     # called for a mission with [orbit] tle
     spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
     if not spans:
         raise InputError("no telemetry rows to propagate the orbit over", file=spec.orbit_tle)
@@ -502,8 +504,10 @@ def ground_ephemeris(spec: MissionSpec, telemetry: Mapping[str, Table]) -> Table
     n = max(2, int(np.ceil((t1 - t0) / MAX_EPHEMERIS_STEP_S)) + 1)
     t = np.linspace(t0, t1, n)
     cols = {"t": t}
+    pos = spec.ground_position_km
+    assert pos is not None                                # called for a ground mission
     for k, name in enumerate(("rx", "ry", "rz")):
-        cols[name] = np.full(n, float(spec.ground_position_km[k]))
+        cols[name] = np.full(n, float(pos[k]))
     for name in ("vx", "vy", "vz", "sy", "sz"):
         cols[name] = np.zeros(n)
     cols["sx"] = np.full(n, AU_KM)

@@ -162,7 +162,8 @@ class _Locator:
     def __init__(self, text: str):
         self.tables: dict[tuple[str, int], int] = {}
         self.keys: dict[tuple[str, int, str], int] = {}
-        current, index, counts = "", 0, {}
+        current, index = "", 0
+        counts: dict[str, int] = {}
         for lineno, line in enumerate(text.splitlines(), start=1):
             h = _HEADER.match(line)
             if h:
@@ -251,6 +252,7 @@ def _book_value(ctx: _Ctx, spec: BookKey, value: Any, key: str, index: int, tkey
             raise ctx.error(f"must be one of {', '.join(spec.choices)}, not {text!r}", key,
                             "sensor", index, tkey)
         return text
+    vals: tuple[float, ...]
     if spec.size == 0:
         vals = (_number(ctx, value, key, "sensor", index, tkey),)
     else:
@@ -303,14 +305,15 @@ def _read_sensor(ctx: _Ctx, root: Path, raw: Any, index: int, mode: str) -> Sens
                         f"{mode!r}", f"{base}.type", "sensor", index, "type")
     telemetry = _existing_file(ctx, root, raw.get("telemetry"), f"{base}.telemetry", "sensor",
                                f"telemetry (sensor {name!r})", index, "telemetry")
-    alignment = None
+    alignment: tuple[float, float, float] | None = None
     if "alignment_deg" in raw:
         if stype in SPINNER_TYPES:
             raise ctx.error(f"a {stype} sensor of a spinning mission is placed by its own keys, "
                             "not by alignment_deg (ICD §2)", f"{base}.alignment_deg", "sensor",
                             index, "alignment_deg")
-        alignment = _numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
-                             index, "alignment_deg")
+        a1, a2, a3 = _numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
+                              index, "alignment_deg")
+        alignment = (a1, a2, a3)
         for i, a in enumerate(alignment):
             if abs(a) > 360.0:
                 raise ctx.error(f"must be in [-360, 360], not {a:g} [deg]",

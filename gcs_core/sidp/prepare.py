@@ -33,6 +33,7 @@ from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -140,9 +141,10 @@ class HeldChannels(Mapping):
         self._idx: np.ndarray | None = None
 
     def _index(self) -> np.ndarray:
-        idx = self._idx
+        idx, aux = self._idx, self._aux
         if idx is None:
-            idx = np.clip(np.searchsorted(self._aux.t, self._t, side="right") - 1, 0, len(self._aux) - 1)
+            assert aux is not None                  # channels are named only with aux data
+            idx = np.clip(np.searchsorted(aux.t, self._t, side="right") - 1, 0, len(aux) - 1)
             if not self._keep:                  # a chunk's mapping: every channel reads it
                 self._idx = idx
         return idx
@@ -152,6 +154,7 @@ class HeldChannels(Mapping):
             raise KeyError(name)
         out = self._done.get(name)
         if out is None:
+            assert self._aux is not None            # channels are named only with aux data
             out = np.asarray(self._aux.columns[name])[self._index()]
             if self._keep:
                 self._done[name] = out
@@ -243,7 +246,7 @@ class GeometryBuilder:
             fld = self.field(ph.field_model)
             kw["B_I"], extra["B_I_dot"] = np.empty((n, 3)), np.empty((n, 3))
             kw["field_model"] = fld.field_I
-        if star:
+        if star and table is not None:
             kw["star_I"] = np.empty((n, 3))
             ra, dec = np.asarray(table.columns["ra"]), np.asarray(table.columns["dec"])
         for lo in range(0, n, CHUNK_FRAMES) if (sun or mag or star) else ():
@@ -314,7 +317,7 @@ def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) ->
     for opt in relevant:
         on, off = PHYSICS_EFFECTS[opt]
         current = getattr(builder.physics, opt)
-        flipped = off if current == on else on
+        flipped: Any = off if current == on else on         # a bool or a model name, as the field
         ph = replace(builder.physics, **{opt: flipped})
         out[f"model.{opt}"] = builder.geometry(sd.model.type_name, sd.t, table, ph)
     return out

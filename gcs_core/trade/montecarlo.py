@@ -42,6 +42,7 @@ import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -117,12 +118,13 @@ def simulation(cfg, spec, plan, seed: int):
         raise InputError("Monte Carlo of spinning missions is not supported", key="analysis.mission")
     sensors = []
     for s in spec.sensors:
-        book = {"alignment_deg": list(s.alignment_deg or (0.0, 0.0, 0.0))}
+        book: dict[str, Any] = {"alignment_deg": list(s.alignment_deg or (0.0, 0.0, 0.0))}
         if s.noise is not None:
             book["noise"] = float(s.noise)
         book.update({k: (list(v) if isinstance(v, tuple) else v) for k, v in s.book.items()})
         sensors.append(SensorConfig(s.name, s.type, float(cadence_of(s, None, plan)), book))
-    rpy0 = tuple(float(a) / DEG for a in plan.rpy0) if plan.rpy0 is not None else (0.0, 0.0, 0.0)
+    r0, p0, y0 = (float(a) / DEG for a in plan.rpy0) if plan.rpy0 is not None else (0.0, 0.0, 0.0)
+    rpy0 = (r0, p0, y0)
     slews = [Slew(m.start, m.duration, m.axis, m.rate_deg_s, ramp_s=RAMP_S) for m in plan.maneuvers]
     profile = ThreeAxisProfile(rpy0_deg=rpy0, wobble_amp_deg=(0.0, 0.0, 0.0), slews=slews)
     epoch = spec.epoch.strftime("%Y-%m-%dT%H:%M:%SZ")

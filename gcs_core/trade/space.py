@@ -325,7 +325,10 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         b = _BOOK.match(key) if not m else None
         if not (m or b) or key in PLAN_KEYS or key.startswith(("models.", "maneuver.")):
             continue
-        name = (m or b).group(1)
+        found = m or b
+        assert found is not None                      # skipped above otherwise
+        name = found.group(1)
+        field = b.group(2) if b is not None else ""   # the data-book key of a book entry
         idx = next((i for i, s in enumerate(sensors) if s.name == name), None)
         if idx is None:
             raise InputError(f"no sensor named '{name}' in the mission", key=f"trade.vary.{key}")
@@ -334,17 +337,17 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         if m:
             a = list(s.alignment_deg or (0.0, 0.0, 0.0))
             a[int(m.group(2)) - 1] = x
-            sensors[idx] = replace(s, alignment_deg=tuple(a))
-        elif b.group(2) == "noise" and s.noise is not None:
+            sensors[idx] = replace(s, alignment_deg=(a[0], a[1], a[2]))
+        elif field == "noise" and s.noise is not None:
             if not x > 0:
                 raise InputError(f"noise must be > 0, not {x}", key=f"trade.vary.{key}")
             sensors[idx] = replace(s, noise=x)
         else:
             book = dict(s.book)
-            if b.group(2) in book and not isinstance(book[b.group(2)], (int, float)):
-                raise InputError(f"{name}.{b.group(2)} is not a scalar data-book key",
+            if field in book and not isinstance(book[field], (int, float)):
+                raise InputError(f"{name}.{field} is not a scalar data-book key",
                                  key=f"trade.vary.{key}")
-            book[b.group(2)] = x
+            book[field] = x
             sensors[idx] = replace(s, book=book)
     return replace(spec, sensors=tuple(sensors))
 

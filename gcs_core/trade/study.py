@@ -189,7 +189,8 @@ def make_orbit(orbit: Mapping[str, float] | None, epoch):
     if missing:
         raise InputError(f"missing {', '.join(missing)} (an orbit needs {', '.join(ORBIT_KEYS)})",
                          key="trade.orbit")
-    return KeplerOrbit(*(float(orbit[k]) for k in ORBIT_KEYS), epoch)
+    a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg = (float(orbit[k]) for k in ORBIT_KEYS)
+    return KeplerOrbit(a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg, epoch)
 
 
 def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -197,7 +198,7 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
     sensors' models), ``attitude`` to the three attitude angles."""
     from gcs_core.models import make_model
 
-    params = {}
+    params: dict[str, list[tuple[str, str]]] = {}
     for s in spec.sensors:
         try:
             for p in make_model(s).parameters():
@@ -302,7 +303,7 @@ def _misalignment(res, spec, name: str, total: bool) -> float:
 
 def _row(index, pid, combo, setup, res, names, units, seconds) -> PlanRow:
     sig, noise = [], []
-    cols = []
+    cols: list = []
     for n in names:
         if n.rpartition(".")[2] in MISALIGN:
             sig.append(_misalignment(res, setup.spec, n, True))
