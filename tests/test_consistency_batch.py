@@ -38,6 +38,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 from scipy import stats
 
 from test_truth_recovery import fit_and_compare, threeaxis
@@ -99,6 +100,7 @@ def nees_band(dof: int, level: float) -> tuple[float, float]:
     return float(stats.chi2.ppf(a, dof)), float(stats.chi2.ppf(1.0 - a, dof))
 
 
+@pytest.mark.slow
 def test_batch_covariance_matches_monte_carlo_scatter(tmp_path):
     """30 seeds × 30 min: per-element variance ratios inside their 1 % (family-wise) bands,
     summed NEES of the 13 headline elements inside its 95 % χ²_{390} band."""

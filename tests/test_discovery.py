@@ -16,7 +16,7 @@ noise_floor_bound = 1.05      # normalized RMS: 1.0 is the noise floor (issue 3)
                               # has enough samples for its RMS to be known to about 2 %)
 
 
-@pytest.mark.parametrize("seed", [1, 2, 3])
+@pytest.mark.parametrize("seed", [1, pytest.param(2, marks=pytest.mark.slow), pytest.param(3, marks=pytest.mark.slow)])
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_discovery_adds_exactly_the_hidden_effect(case, seed, tmp_path):
     mission = simulate(case, seed, tmp_path)

@@ -166,6 +166,7 @@ def test_long_mission_without_gyro_noise_adds_nothing(tmp_path):
 LONG_SEEDS = range(100, 140)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", LONG_SEEDS)
 def test_long_inertial_missions_with_the_kalman_method_add_nothing(seed, tmp_path):
     """Two-hour inertial missions (where the batch alarms on 5 of these 40 seeds): the

@@ -8,6 +8,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -179,6 +180,7 @@ def test_read_mission_spec_returns_a_spec_or_refuses_in_one_line(ops):
             assert s.noise is None or (math.isfinite(s.noise) and s.noise > 0)
 
 
+@pytest.mark.slow
 def test_seeded_ten_thousand_case_fuzz_run_has_no_unhandled_exception(capsys):
     """Issue 5: "a seeded fuzz run of at least 10,000 cases over the readers ends with no
     unhandled exception" — the script of ``benchmarks/fuzz_readers.py``, run here in CI

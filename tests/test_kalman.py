@@ -263,6 +263,7 @@ def test_covariance_symmetric_positive_definite_over_a_day():
     assert np.all(np.isfinite(res.trajectory.sigma_att)) and np.all(res.trajectory.sigma_att > 0)
 
 
+@pytest.mark.slow
 def test_covariance_symmetric_positive_definite_over_a_week():
     """Issue 6: "the covariance stays symmetric positive-definite over a week of 1 Hz data".
     604 800 gyro frames and one tracker every 10 s, one EKF pass in 6-hour blocks spilled

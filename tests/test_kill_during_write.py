@@ -99,6 +99,7 @@ def check_file(path: str, at_least: int) -> int:
     return len(versions)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("kills", [100])
 def test_sigkill_while_appending_never_loses_a_version(tmp_path, kills):
     rng = np.random.default_rng(20240320)

@@ -140,6 +140,7 @@ def test_serial_path_never_imports_dask(tmp_path):
     assert out.stdout.split() == ["False", "False"], out.stderr
 
 
+@pytest.mark.slow
 def test_identical_numbers_serially_and_on_a_local_cluster(tmp_path):
     pytest.importorskip("distributed")
     vary = ["span_min=10,20", "start_min=0,30"]
