@@ -27,7 +27,7 @@ import sys
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import IO
+from typing import IO, Any
 
 MODES = ("auto", "bar", "plain", "off")
 
@@ -60,7 +60,7 @@ class Progress:
         if mode == "auto":
             mode = "bar" if (console is not None or _is_terminal(self.stream)) else "plain"
         self.mode = mode
-        self._live = None          # rich.progress.Progress while a task runs (bar mode)
+        self._live: Any = None     # rich.progress.Progress while a task runs (bar mode)
         self._t0 = time.monotonic()
 
     # ------------------------------------------------------------------ output

@@ -161,7 +161,7 @@ class Workbench:
 
     @property
     def mission(self):
-        return self.analysis.mission
+        return self.current.mission
 
     @property
     def result(self):
@@ -396,7 +396,7 @@ class Workbench:
 
     def goodness(self):
         """The goodness-of-fit tests and verdict of the latest fit (None before one)."""
-        return None if self.result is None or self.stale else self.analysis.goodness()
+        return None if self.result is None or self.stale else self.current.goodness()
 
     def estimates(self) -> dict[str, tuple[float, float]]:
         """Solve-for element -> (estimate, σ) of the latest fit."""

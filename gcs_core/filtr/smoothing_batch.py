@@ -99,6 +99,7 @@ class Dynamics:
     def covariance(self):
         """(Σ_j (K, d, d), Cov(z_j, x) (K, d, n)) at the solution (computed once)."""
         if self._cov is None and self.factors is not None:
+            assert self.P is not None                       # set with the factors
             self._cov = kn.KnotSystem.covariance(self.factors, self.P)
         return self._cov
 

@@ -25,7 +25,7 @@ from gcs_tui.screens.base import GcsScreen
 from gcs_tui.theme import color, marker, series
 from gcs_tui.theme import rgb as color_rgb
 from gcs_tui.widgets.plots import GcsPlot, nice_y
-from gcs_tui.widgets.tables import fill
+from gcs_tui.widgets.tables import cursor_key, fill
 
 
 def step_label(step) -> str:
@@ -81,7 +81,7 @@ class DiagnosisScreen(GcsScreen):
         cands = self.wb.analysis.candidates
         if table.row_count == 0 or not cands:
             return None
-        key = table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value
+        key = cursor_key(table)
         return next((c for c in cands if c.id == key), None)
 
     def _explain(self) -> None:

@@ -25,6 +25,7 @@ from gcs_core.trade.run import sigma_grid, varied_keys
 from gcs_core.trade.study import ranked
 from gcs_tui.theme import series
 from gcs_tui.widgets.plots import GcsPlot
+from gcs_tui.widgets.tables import cursor_key
 
 if TYPE_CHECKING:
     from gcs_tui.app import GcsApp
@@ -118,7 +119,7 @@ class TradeScreen(Screen):
         table = self.query_one("#trade-table", DataTable)
         if table.row_count == 0:
             return None
-        index = int(table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value)
+        index = int(cursor_key(table))
         return next(r for r in self.rows if r.index == index)
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
