@@ -1,7 +1,9 @@
 # Two commands do everything on a fresh machine:
 #   make run    - the TUI on the bundled sample mission
-#   make test   - the whole test suite
+#   make test   - lint, format check, type check, then the whole test suite (what CI runs)
 # Each creates the virtual environment it needs (.venv) on first use.
+# For the developer loop: make check (lint + types), make quick (the tests not marked slow),
+# make fix (ruff's safe fixes and formatting).
 
 PYTHON ?= python3
 VENV   := .venv
@@ -9,14 +11,19 @@ BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 SAMPLE ?= sample_data/missions/hidden-tam-contamination
 
-.PHONY: run test bench clean-venv browser
+# Lint, format and type checks cover these
+CODE   := gcs_core gcs_tui tests benchmarks
 
-$(STAMP): pyproject.toml
+.PHONY: run test quick check fix bench clean-venv browser constraints
+
+# Every package at the version in constraints.txt (the versions the SVG snapshots and the
+# documented numbers were made with); pyproject.toml states only the compatible ranges.
+$(STAMP): pyproject.toml constraints.txt
 	@echo "make: first use: creating $(VENV) and installing GCS with its dependencies"
-	@echo "      (numpy, scipy, h5py, numba, textual, pytest ...; about a minute, once)"
+	@echo "      (numpy, scipy, h5py, numba, textual, pytest, ruff, mypy ...; about a minute, once)"
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[fast,test,dev,bench]'
 	touch $(STAMP)
 	@echo "make: $(VENV) is ready"
 
@@ -35,12 +42,33 @@ browser:
 	        >/dev/null || echo "make: chromium not installed; the browser test will be skipped"; \
 	    else echo "make: no apt-get; the browser test will be skipped"; fi; }
 
+# Lint (ruff check), formatting (ruff format --check) and types (mypy, files from pyproject.toml).
+check: $(STAMP)
+	$(BIN)/python -m ruff check $(CODE)
+	$(BIN)/python -m ruff format --check $(CODE)
+	$(BIN)/python -m mypy
+
+# ruff's safe fixes (import order, modern spellings, stale noqa) and the formatter.
+fix: $(STAMP)
+	$(BIN)/python -m ruff check --fix $(CODE)
+	$(BIN)/python -m ruff format $(CODE)
+
 # NO_COLOR breaks the SVG snapshots, so it is removed from the environment here.
-test: $(STAMP) browser
+test: check browser
 	env -u NO_COLOR OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 $(PYTEST_ARGS)
+
+# The developer loop: every test not marked slow, no checks first.
+quick: $(STAMP)
+	env -u NO_COLOR OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 -m "not slow" $(PYTEST_ARGS)
 
 bench: $(STAMP)
 	for f in benchmarks/*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done
 
 clean-venv:
 	rm -rf $(VENV)
+
+# After a deliberate upgrade in .venv: record the versions (then regenerate snapshots, re-run make bench).
+constraints: $(STAMP)
+	{ echo "# Exact versions for make's installs (pip install -c constraints.txt); pyproject.toml has the ranges."; \
+	  echo "# Regenerate with 'make constraints' after a deliberate upgrade."; \
+	  $(BIN)/python -m pip freeze --exclude-editable | grep -v '^gcs=='; } > constraints.txt

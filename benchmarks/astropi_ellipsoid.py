@@ -30,16 +30,16 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-from gcs_core.config import default_config, load_config  # noqa: E402
-from gcs_core.convert.astropi import procrustes_mounting  # noqa: E402
-from gcs_core.ephem.ephemeris import Ephemeris  # noqa: E402
-from gcs_core.ephem.geomag import GeomagField  # noqa: E402
-from gcs_core.filtr.batch import batch_fit  # noqa: E402
-from gcs_core.frames.reference import reference_dcm  # noqa: E402
-from gcs_core.session import Analysis  # noqa: E402
-from gcs_core.io.importer import load_mission  # noqa: E402
+from gcs_core.config import default_config, load_config
+from gcs_core.convert.astropi import procrustes_mounting
+from gcs_core.ephem.ephemeris import Ephemeris
+from gcs_core.ephem.geomag import GeomagField
+from gcs_core.filtr.batch import batch_fit
+from gcs_core.frames.reference import reference_dcm
+from gcs_core.io.importer import load_mission
+from gcs_core.session import Analysis
 
 UT = 1000.0   # nT per µT
 
@@ -153,7 +153,7 @@ def ellipsoid(target: Path):
     # the calibrated vectors against IGRF in LVLH through the best constant rotation
     R, off = procrustes_mounting(B_L[train], cal[train])       # B_L ≈ R cal + off
     resid = B_L - cal @ R.T - off
-    vec = lambda k: _rms(resid[k]) / UT                             # noqa: E731
+    vec = lambda k: _rms(resid[k]) / UT
     return (_rms(dm[train]) / UT, _rms(dm[held]) / UT, vec(train), vec(held))
 
 
@@ -189,6 +189,7 @@ def file_positions(target: Path, source_csv: Path):
     """Bias + 3×3 against IGRF in LVLH along the TLE orbit and along the file's own
     latitude/longitude (at the TLE's radius), fitted and held-out RMS [µT] of each."""
     import csv
+
     from gcs_core.ephem.timescale import gmst_rad
     cfg = load_config(target) if target.suffix == ".toml" else default_config(target)
     m = load_mission(cfg.mission)

@@ -45,17 +45,16 @@ from scipy.optimize import least_squares
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
+from _timing import best_of
+from gcs_core.compiled import COMPILED
 from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
-from gcs_core.problem.build import build_problem
-from gcs_core.problem.linearization import iter_blocks
 from gcs_core.filtr.smoothing_batch import whole_span_fit
 from gcs_core.io.importer import load_mission
-from gcs_core.compiled import COMPILED
 from gcs_core.models.gyro_noise import GyroNoise
-from gcs_core.sim.scenarios import nominal_threeaxis  # noqa: E402
-from gcs_core.sim.writer import write_mission  # noqa: E402
-from _timing import best_of  # noqa: E402  (benchmarks/_timing.py)
-
+from gcs_core.problem.build import build_problem
+from gcs_core.problem.linearization import iter_blocks
+from gcs_core.sim.scenarios import nominal_threeaxis
+from gcs_core.sim.writer import write_mission
 
 #: The benchmark's gyro (data book = truth): angle random walk σ_v [rad/s^½] and rate random
 #: walk σ_u [rad/s^{3/2}] of a high-end (strategic/navigation-grade) IRU. The batch model

@@ -34,12 +34,11 @@ from pathlib import Path
 
 import numpy as np
 
-from gcs_core.config import default_config
+from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
-from gcs_core.config import ElementConfig
-from gcs_core.session import Analysis
-from gcs_core.io.importer import load_mission
 from gcs_core.diagnosis.correlation import sigma_scale
+from gcs_core.io.importer import load_mission
+from gcs_core.session import Analysis
 
 TRIALS = ("02_undisturbed_slow_rotation_B", "09_undisturbed_fast_rotation_with_breaks_B",
           "36_disturbed_attached_magnet_5cm")

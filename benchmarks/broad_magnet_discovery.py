@@ -22,11 +22,11 @@ from pathlib import Path
 
 from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
-from gcs_core.session import Analysis
 from gcs_core.io.importer import load_mission
+from gcs_core.session import Analysis
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from broad_consistency import MEMS_PRIORS  # noqa: E402
+from broad_consistency import MEMS_PRIORS
 
 CAL = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset",
        "MAG.field_gradient")

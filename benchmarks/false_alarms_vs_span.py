@@ -42,22 +42,22 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # small matrices: threads only contend
 
-import argparse  # noqa: E402
-import logging  # noqa: E402
-import json  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from multiprocessing import get_context  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import json
+import logging
+import sys
+import tempfile
+import time
+from multiprocessing import get_context
+from pathlib import Path
 
-import numpy as np  # noqa: E402
-from scipy import stats  # noqa: E402
+import numpy as np
+from scipy import stats
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers")]
 
-import honesty_cases as hc  # noqa: E402
+import honesty_cases as hc
 
 #: issue 10: the share of seeds that must pass each check
 required_share = 0.95

@@ -20,23 +20,24 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import logging  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import logging
+import sys
+import tempfile
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
-from scipy import stats  # noqa: E402
+import numpy as np
+from scipy import stats
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers")]
 
-import honesty_cases as hc  # noqa: E402
-from gcs_core.config import AnalysisConfig  # noqa: E402
-from gcs_core.session import Analysis  # noqa: E402
-from gcs_core.sim.writer import write_mission  # noqa: E402
+import honesty_cases as hc
+
+from gcs_core.config import AnalysisConfig
+from gcs_core.session import Analysis
+from gcs_core.sim.writer import write_mission
 
 
 def main() -> int:

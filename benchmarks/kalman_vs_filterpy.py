@@ -33,10 +33,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gcs_core.filtr.kalman import ENGINE, LinearBlock, solve_block  # noqa: E402
-from gcs_core.filtr.mekf import GyroSegment  # noqa: E402
-from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q  # noqa: E402
-from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm  # noqa: E402
+from gcs_core.filtr.kalman import ENGINE, LinearBlock, solve_block
+from gcs_core.filtr.mekf import GyroSegment
+from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm
+from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 
 M_MEAS = 3
 BLOCK_FRAMES = 600

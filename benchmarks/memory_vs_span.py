@@ -36,12 +36,12 @@ def simulate(days: float, seed: int, cache: Path) -> Path:
     out = cache / f"threeaxis-{days:g}d-seed{seed}"
     if (out / "mission.toml").exists():
         return out
-    code = ("import sys; from pathlib import Path; sys.path.insert(0, %r)\n"
+    truth = str(out) + "-truth.json"
+    code = (f"import sys; from pathlib import Path; sys.path.insert(0, {str(REPO)!r})\n"
             "from gcs_core.sim.scenarios import nominal_threeaxis\n"
             "from gcs_core.sim.writer import write_mission\n"
-            "cfg = nominal_threeaxis('sun_pointing', seed=%d, duration_s=%r)\n"
-            "write_mission(cfg, Path(%r), truth_path=Path(%r))\n"
-            % (str(REPO), seed, days * 86400.0, str(out), str(out) + "-truth.json"))
+            f"cfg = nominal_threeaxis('sun_pointing', seed={seed:d}, duration_s={days * 86400.0!r})\n"
+            f"write_mission(cfg, Path({str(out)!r}), truth_path=Path({truth!r}))\n")
     subprocess.run([sys.executable, "-c", code], check=True)
     return out
 
@@ -59,10 +59,10 @@ def child(mission_dir: str) -> None:
     from gcs_core.diagnosis.ranking import rank_candidates
     from gcs_core.filtr.batch import BatchOptions
     from gcs_core.filtr.smoothing_batch import whole_span_fit
-    from gcs_core.problem.build import build_problem
-    from gcs_core.problem.state import HELD
     from gcs_core.io.importer import load_mission
+    from gcs_core.problem.build import build_problem
     from gcs_core.problem.prepare import PHYSICS_EFFECTS
+    from gcs_core.problem.state import HELD
 
     def peak_mb() -> float:
         return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

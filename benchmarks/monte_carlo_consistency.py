@@ -42,22 +42,22 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # small matrices: threads only contend
 
-import argparse  # noqa: E402
-import logging  # noqa: E402
-import math  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from multiprocessing import get_context  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import logging
+import math
+import sys
+import tempfile
+import time
+from multiprocessing import get_context
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "statistical"), str(ROOT / "tests" / "helpers")]
 
-from test_consistency_batch import HEADLINE, headline, nees_band  # noqa: E402
-from test_truth_recovery import simulate, threeaxis, truth_values  # noqa: E402
+from test_consistency_batch import HEADLINE, headline, nees_band
+from test_truth_recovery import simulate, threeaxis, truth_values
 
 #: a predicted σ within this fraction of the Monte-Carlo σ "matches" (issue 6)
 match_fraction = 0.15

@@ -23,21 +23,21 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import sys
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_core.config import load_config, save_config  # noqa: E402
-from gcs_core.io.mission import read_mission_spec  # noqa: E402
-from gcs_core.trade.montecarlo import MATCH_FRACTION, MonteCarlo, run_montecarlo, summary_lines  # noqa: E402
-from gcs_core.trade.optimize import Budget, optimize, parse_target  # noqa: E402
-from gcs_core.trade.study import sensor_axes_covariance  # noqa: E402
+from gcs_core.config import load_config, save_config
+from gcs_core.io.mission import read_mission_spec
+from gcs_core.trade.montecarlo import MATCH_FRACTION, MonteCarlo, run_montecarlo, summary_lines
+from gcs_core.trade.optimize import Budget, optimize, parse_target
+from gcs_core.trade.study import sensor_axes_covariance
 
 CONFIG = ROOT / "sample_data" / "trade" / "optimize-tam-fhst.toml"
 

@@ -36,14 +36,14 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gcs_core.config import AnalysisConfig, Maneuver  # noqa: E402
-from gcs_core.ephem.ephemeris import Ephemeris  # noqa: E402
-from gcs_core.predictor import DataPlan, predict  # noqa: E402
-from gcs_core.predictor.synth import plan_problem  # noqa: E402
-from gcs_core.session import Analysis  # noqa: E402
-from gcs_core.sim import nominal_threeaxis, write_mission  # noqa: E402
-from gcs_core.sim.config import Slew, ThreeAxisProfile  # noqa: E402
-from gcs_core.units import DEG  # noqa: E402
+from gcs_core.config import AnalysisConfig, Maneuver
+from gcs_core.ephem.ephemeris import Ephemeris
+from gcs_core.predictor import DataPlan, predict
+from gcs_core.predictor.synth import plan_problem
+from gcs_core.session import Analysis
+from gcs_core.sim import nominal_threeaxis, write_mission
+from gcs_core.sim.config import Slew, ThreeAxisProfile
+from gcs_core.units import DEG
 
 TOLERANCE = 0.15
 OFFSETS_DEG = {"sun_pointing": (1.0, 3.0, -2.0), "inertial": (0.0, 0.0, 0.0), "earth_pointing": (0.0, 0.0, 0.0)}

@@ -21,7 +21,8 @@ Both are timed against one batch iteration (:func:`~gcs_core.filtr.batch.normal_
 at the solution, the gyro propagation not cached, as in ``batch_vs_least_squares.py``)
 and one full fit. ``--method`` chooses the estimator: the default whole-span fit (gyro
 noise as process noise; the candidates' partials go through the same knot elimination, and
-Δχ² counts the data and process terms of the cost) or the batch. Prints the number of candidates; the ranking's time, also in units of
+Δχ² counts the data and process terms of the cost) or the batch. Prints the number of
+candidates; the ranking's time, also in units of
 batch iterations; the refit-all time and the ratio refit-all / ranking; and, per
 candidate, the score Δχ² against the refit Δχ². The score test is the local form of the
 likelihood-ratio test: for a model linear in the state and the candidate they agree. The
@@ -48,26 +49,26 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # a shared machine: threads only contend
 
-import argparse  # noqa: E402
-import copy  # noqa: E402
-import logging  # noqa: E402
-import math  # noqa: E402
-import sys  # noqa: E402
-import tempfile  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import copy
+import logging
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
 
-import numpy as np  # noqa: E402
+import numpy as np
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gcs_core.config import AnalysisConfig  # noqa: E402
-from gcs_core.filtr.batch import normal_equations  # noqa: E402
-from gcs_core.session import Analysis  # noqa: E402
-from gcs_core.sim.scenarios import nominal_threeaxis, with_effect  # noqa: E402
-from gcs_core.sim.writer import write_mission  # noqa: E402
-from _timing import best_of  # noqa: E402  (benchmarks/_timing.py)
+from _timing import best_of
+from gcs_core.config import AnalysisConfig
+from gcs_core.filtr.batch import normal_equations
+from gcs_core.session import Analysis
+from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
+from gcs_core.sim.writer import write_mission
 
 #: the hidden effects: (catalogue id, magnitude in the unit of ``gcs_core.sim.EFFECTS``, options)
 HIDDEN = (("TAM1.contamination_mtb_x", 0.3, {}),

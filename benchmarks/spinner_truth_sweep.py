@@ -31,7 +31,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers")]
 
-from spinner_cases import HIDDEN, INCLINATIONS, run_case  # noqa: E402
+from spinner_cases import HIDDEN, INCLINATIONS, run_case
 
 RMS_BOUND = 1.05
 Z_BOUND = 3.0

@@ -26,18 +26,18 @@ import os
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import sys
+import time
+from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_core.config import load_config  # noqa: E402
-from gcs_core.trade import definition_from_config  # noqa: E402
-from gcs_core.trade.engine import connect  # noqa: E402
-from gcs_core.trade.run import run_study  # noqa: E402
+from gcs_core.config import load_config
+from gcs_core.trade import definition_from_config
+from gcs_core.trade.engine import connect
+from gcs_core.trade.run import run_study
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-gyro.toml"
 #: the speed-up the scale-out must reach on two idle cores

@@ -22,8 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core.errors import EstimationError, InputError
-from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.io import asf, scds
+from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.verif.ground import covered, ground_attitude
 
 __all__ = ["save_calibration", "save_ground_attitude", "calibration_provenance"]

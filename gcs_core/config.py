@@ -95,14 +95,15 @@ from dataclasses import dataclass, field, fields, replace
 from pathlib import Path
 from typing import Any
 
+from gcs_core import toml_values
 from gcs_core.config_checks import _choice, _fail, _list, _number, _pair, _require, _table, _unknown
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import write_atomic
-from gcs_core.problem.state import ROLES
 from gcs_core.io.types import SENSOR_TYPES
 from gcs_core.problem.prepare import PhysicsOptions
-from gcs_core import toml_values
-from gcs_core.toml_values import quote as _quote, show as _show
+from gcs_core.problem.state import ROLES
+from gcs_core.toml_values import quote as _quote
+from gcs_core.toml_values import show as _show
 
 METHODS = ("whole_span", "batch", "kalman")
 FIELD_MODELS = ("igrf", "dipole", "constant")
@@ -258,7 +259,7 @@ class AnalysisConfig:
     montecarlo: dict = field(default_factory=dict, metadata={**_NOT_FIT, **_OMIT_EMPTY})
 
     # ------------------------------------------------------------------ derived
-    def with_changes(self, **kw) -> "AnalysisConfig":
+    def with_changes(self, **kw) -> AnalysisConfig:
         """A copy with attributes changed; a table's keys are given as ``table={key: value}``
         (``cfg.with_changes(diagnosis={"holdout_fraction": 0.0})``)."""
         out = {}

@@ -73,7 +73,7 @@ def shown_unit(unit: str, value: float, sigma: float | None = None) -> str:
     """The display unit :func:`estimate` picks for ``value ± sigma``: from σ when it is
     finite and positive, from ``|value|`` otherwise."""
     usable = sigma is not None and math.isfinite(sigma) and sigma > 0
-    return display_unit(unit, sigma if usable else abs(value))
+    return display_unit(unit, sigma if usable and sigma is not None else abs(value))
 
 
 def scale(unit: str, shown: str) -> float:
@@ -157,8 +157,7 @@ def value_sigma(value: float, sigma: float | None) -> tuple[str, str]:
     are below :data:`FIXED_LIMIT`; otherwise both share a power of ten.
     """
     if sigma is None or not math.isfinite(sigma) or sigma <= 0:
-        s = "∞" if sigma is not None and math.isinf(sigma) else "—"
-        return sig(value, 6), s
+        return sig(value, 6), "∞" if sigma is not None and math.isinf(sigma) else "—"
     exp_s = math.floor(math.log10(sigma))
     decimals = 1 - exp_s                        # keep 2 significant digits of σ
     ref = max(abs(value), sigma)

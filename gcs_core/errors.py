@@ -7,8 +7,8 @@ configuration key. The command-line and TUI layers catch :class:`GcsError` and p
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
-from pathlib import Path
 
 
 class GcsError(Exception):
@@ -28,7 +28,7 @@ class InputError(GcsError):
     """
 
     message: str
-    file: str | Path | None = None
+    file: str | os.PathLike | None = None
     line: int | None = None
     column: int | str | None = None
     key: str | None = None

@@ -8,8 +8,8 @@ here knows about screens or terminals.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable, Mapping
 from dataclasses import replace
-from typing import Callable, Mapping
 
 import numpy as np
 
@@ -22,11 +22,11 @@ from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions
 from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.results import FitResult
-from gcs_core.filtr.smoothing_batch import fit_problem
+from gcs_core.filtr.smoothing_batch import SmoothedResult, fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
-from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
+from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
@@ -162,7 +162,7 @@ class Analysis:
                 {"initial": res.state.values()}
             res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
             self.holdout_rms = (smoothed_holdout_rms(self.problem, res_train, masks)
-                                if getattr(res_train, "dynamics", None) is not None
+                                if isinstance(res_train, SmoothedResult) and res_train.dynamics is not None
                                 else static_holdout_rms(self.problem, res_train, masks))
             self.holdout_chi2 = goodness.holdout_tests(self.problem, res_train, masks)
         else:
@@ -260,11 +260,10 @@ class Analysis:
         self.problem = self._build()
 
     def _apply(self, action: str, effect_id: str, on: bool) -> Step:
-        if self.result is None:
-            self.fit()
+        res = self.result if self.result is not None else self.fit()
         before = self.rms()
-        chi_before = self.result.chi2
-        prev_values = self.result.state.values()
+        chi_before = res.chi2
+        prev_values = res.state.values()
         self._set_effect(effect_id, on)
         # warm start from the previous solution; the a priori stays the configured one
         warm = {k: v for k, v in prev_values.items() if k in self.problem.state}

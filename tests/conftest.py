@@ -19,7 +19,6 @@ for _folder in ("conformance", "tui", "unit", "reference", "statistical", "helpe
     sys.path.insert(0, str(Path(__file__).resolve().parent / _folder))
 
 import pytest  # noqa: E402
-
 from repo_paths import SHARED_EXAMPLES  # noqa: E402
 
 

@@ -42,14 +42,13 @@ Psychometrika 31(1), 1–10 (1966).
 from __future__ import annotations
 
 import shutil
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 
 from gcs_core.convert import ConversionReport
-from gcs_core.convert.common import (leading_transient, read_named_csv, sha256,
-                                     staged_directory, write_csv)
+from gcs_core.convert.common import leading_transient, read_named_csv, sha256, staged_directory, write_csv
 from gcs_core.errors import InputError
 from gcs_core.filtr.noise import ESTIMATED_MARK, white_noise
 
@@ -74,7 +73,7 @@ def _times(table) -> tuple[datetime, np.ndarray]:
     stamps = []
     for k, text in enumerate(table.text(TIME_COLUMN)):
         try:
-            stamps.append(datetime.strptime(text.strip(), _TIME_FORMAT).replace(tzinfo=timezone.utc))
+            stamps.append(datetime.strptime(text.strip(), _TIME_FORMAT).replace(tzinfo=UTC))
         except ValueError:
             raise table.error(k, TIME_COLUMN, f"{text.strip()!r} is not a UTC time "
                               "'YYYY-MM-DD HH:MM:SS'") from None

@@ -73,7 +73,7 @@ SENSORS = {"gyro": "GYR", "magnetometer": "MAG", "attitude_reference": "OPT"}
 
 
 def _read(source: Path) -> tuple[dict[str, np.ndarray], float, str]:
-    import h5py   # foreign HDF5 (GCS's own files go through gcs_core.io.h5store)
+    import h5py  # foreign HDF5 (GCS's own files go through gcs_core.io.h5store)
 
     try:
         f = h5py.File(source, "r")
@@ -358,7 +358,7 @@ type = "attitude_reference"
 telemetry = "telemetry/OPT.csv"
 alignment_deg = [0.0, 0.0, 0.0]   # aligned to the unit by the data's authors
 noise = {_rms(o_line):.6g}   # rad, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest (per axis {np.array2string(o_line, precision=7)}; per-sample spread {np.array2string(s_opt, precision=7)})
-"""
+"""  # noqa: E501 — the written file's own lines
 
 
 def _source_md(source, info, rate, n_all, span, keep, transients, warnings) -> str:

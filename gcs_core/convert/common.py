@@ -8,8 +8,8 @@ import contextlib
 import csv
 import hashlib
 import math
+from collections.abc import Iterator, Sequence
 from pathlib import Path
-from typing import Iterator, Sequence
 
 import numpy as np
 

@@ -13,6 +13,7 @@ the predictions with and without the option.
 from __future__ import annotations
 
 from dataclasses import dataclass
+
 from gcs_core.problem.prepare import PHYSICS_EFFECTS
 
 #: effect name -> (family, physical explanation). The explanation says what the

@@ -41,8 +41,8 @@ method); the partials are those of the sensor's model at the fitted state.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 

@@ -16,9 +16,10 @@ estimated within :data:`AMPLITUDE_Z` of its σ from 0 (a two-sided 95 % test).
 from __future__ import annotations
 
 import math
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
+
 from gcs_core.filtr.batch import name_combinations, normal_equations
 
 #: an amplitude within this many σ of zero is "consistent with zero" (two-sided 95 %)

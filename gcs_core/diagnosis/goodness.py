@@ -61,8 +61,8 @@ Tapley, Schutz & Born, *Statistical Orbit Determination*, Elsevier 2004, §4.16.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import linalg, stats
@@ -195,7 +195,7 @@ class GoodnessOfFit:
         """A sensor's χ² fields for the ICD §7 ``sensors`` entry: ``chi2``, ``dof``,
         ``p_value`` and, with a held-out span, ``holdout_chi2``, ``holdout_dof``,
         ``holdout_p_value``."""
-        out = {}
+        out: dict[str, float | int] = {}
         for prefix, tests in (("", self.sensors), ("holdout_", self.holdout_sensors)):
             t = tests.get(name)
             if t is not None:
@@ -262,7 +262,7 @@ def sensor_leverage(problem, result) -> dict[str, float]:
             continue
         c = blk.cols
         k = c.size
-        G = blk.G if blk.G is not None else blk.Hr.T @ blk.Hr
+        G = blk.gram()
         A[blk.name][np.ix_(c, c)] += G[:k, :k]
     return {name: effective_parameters(P, As) for name, As in A.items()}
 
@@ -336,7 +336,7 @@ def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, 
         a = acc.setdefault(blk.name, [np.zeros((n, n)), np.zeros(n), 0.0, 0])
         c = blk.cols
         k = c.size
-        G = blk.G if blk.G is not None else blk.Hr.T @ blk.Hr
+        G = blk.gram()
         a[0][np.ix_(c, c)] += G[:k, :k]
         a[1][c] += G[:k, k]
         a[2] += float(G[k, k])

@@ -38,18 +38,18 @@ introduction*, Delft 2000, ch. 4 (DIA, minimal detectable bias).
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from functools import lru_cache
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
-from gcs_core.filtr.results import FitResult
 from gcs_core.filtr.knots import KnotSystem
-from gcs_core.problem.linearization import iter_blocks, window_geometry
+from gcs_core.filtr.results import FitResult
 from gcs_core.problem.build import Problem
+from gcs_core.problem.linearization import iter_blocks, window_geometry
 from gcs_core.problem.prepare import geometry_variants
 
 #: canonical correlation above which two candidates are called indistinguishable
@@ -203,6 +203,7 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
             continue
         sd = blk.sensor
         H, c = blk.H, blk.cols
+        assert H is not None                            # rows stored (not gram-only blocks)
         extra = _physics_block(problem, blk, values, phys_ids) if phys_ids else []
         if extra:
             w = blk.used[:, None] / sd.sigma[None, :]
@@ -364,7 +365,8 @@ def _alias_bound(S_all: np.ndarray, ixs: Sequence[Sequence[int]],
     for j, (ix, L) in enumerate(zip(ixs, pinvs)):
         member[r:r + len(ix), j] = 1.0
         r += len(ix)
-        blocks.append(L @ S_all[np.ix_(ix, flat)] if L is not None else np.zeros((len(ix), flat.size)))
+        rows = np.asarray(ix, dtype=int)
+        blocks.append(L @ S_all[np.ix_(rows, flat)] if L is not None else np.zeros((len(ix), flat.size)))
     P = np.concatenate(blocks, axis=0) if blocks else np.zeros((0, 0))
     return member.T @ (P * P.T) @ member
 

@@ -97,7 +97,7 @@ class Ephemeris:
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_table(cls, table, *, margin_s: float = 0.0) -> "Ephemeris":
+    def from_table(cls, table, *, margin_s: float = 0.0) -> Ephemeris:
         """Build from an ephemeris.csv :class:`gcs_core.io.types.Table` (ICD §4 columns),
         extrapolated by at most ``margin_s`` past either end."""
         for name in EPHEMERIS_COLUMNS:

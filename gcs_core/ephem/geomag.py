@@ -127,13 +127,15 @@ def spherical_harmonic_field(r_km, theta, phi, g, h, *, max_degree: int,
     Bt = np.zeros_like(r)
     Bp = np.zeros_like(r)
     # Legendre P[n][m] and dP[n][m] kept for the two previous degrees only.
-    P_prev2 = P_prev = None
-    dP_prev2 = dP_prev = None
+    P_prev2: list[np.ndarray] = []
+    P_prev: list[np.ndarray] = []
+    dP_prev2: list[np.ndarray] = []
+    dP_prev: list[np.ndarray] = []
     Pnn, dPnn = np.ones_like(r), np.zeros_like(r)        # P_0^0 and its derivative
     rn = ratio ** 2                                      # (a/r)^(n+2) at n = 0
     for n in range(0, N + 1):
-        P = [None] * (n + 1)
-        dP = [None] * (n + 1)
+        P: list[np.ndarray] = [Pnn] * (n + 1)       # every entry is set below
+        dP: list[np.ndarray] = [dPnn] * (n + 1)
         if n == 0:
             P[0], dP[0] = Pnn, dPnn
         else:

@@ -154,7 +154,7 @@ class TleOrbit:
         from sgp4.api import Satrec
         try:
             self._sat = Satrec.twoline2rv(line1.strip(), line2.strip())
-        except Exception as exc:  # sgp4 raises ValueError with its own wording
+        except Exception as exc:  # noqa: BLE001 — whatever sgp4 raises, in its own wording, becomes one line
             raise InputError(f"cannot read the two-line elements: {exc}", key="orbit.tle") from None
         if self._sat.error != 0:
             raise InputError(f"SGP4 rejects the two-line elements (error {self._sat.error})",

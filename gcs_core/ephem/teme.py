@@ -44,7 +44,7 @@ on nutation", Celestial Mechanics 27, 79–106 (1982).
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -59,12 +59,12 @@ __all__ = ["ORBIT_FRAMES", "tt_minus_utc", "precession_angles", "nutation_angles
 ORBIT_FRAMES = ("teme", "j2000")
 
 #: (UTC date from which it holds, TAI − UTC [s]) since 1999.
-_LEAP_SECONDS = ((datetime(1999, 1, 1, tzinfo=timezone.utc), 32.0),
-                 (datetime(2006, 1, 1, tzinfo=timezone.utc), 33.0),
-                 (datetime(2009, 1, 1, tzinfo=timezone.utc), 34.0),
-                 (datetime(2012, 7, 1, tzinfo=timezone.utc), 35.0),
-                 (datetime(2015, 7, 1, tzinfo=timezone.utc), 36.0),
-                 (datetime(2017, 1, 1, tzinfo=timezone.utc), 37.0))
+_LEAP_SECONDS = ((datetime(1999, 1, 1, tzinfo=UTC), 32.0),
+                 (datetime(2006, 1, 1, tzinfo=UTC), 33.0),
+                 (datetime(2009, 1, 1, tzinfo=UTC), 34.0),
+                 (datetime(2012, 7, 1, tzinfo=UTC), 35.0),
+                 (datetime(2015, 7, 1, tzinfo=UTC), 36.0),
+                 (datetime(2017, 1, 1, tzinfo=UTC), 37.0))
 _TT_MINUS_TAI = 32.184
 _REV = 1296000.0      # arcsec in a revolution
 

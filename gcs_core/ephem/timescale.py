@@ -28,7 +28,7 @@ Eq 3-45/3-47 and Example 3-5 (GMST).
 from __future__ import annotations
 
 import re
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 
 import numpy as np
 
@@ -40,7 +40,7 @@ __all__ = [
 ]
 
 #: J2000.0 as a UTC instant (the UT1=UTC convention of ICD §2 makes it the GMST origin).
-J2000 = datetime(2000, 1, 1, 12, 0, 0, tzinfo=timezone.utc)
+J2000 = datetime(2000, 1, 1, 12, 0, 0, tzinfo=UTC)
 #: Julian date of J2000.0.
 JD_J2000 = 2451545.0
 _DAYS_PER_CENTURY = 36525.0
@@ -67,7 +67,7 @@ def parse_utc(text: str) -> datetime:
         raise ValueError(f"leap second in {text!r}: choose an epoch off the leap second")
     try:
         dt = datetime(int(y), int(mo), int(d), int(hh or 0), int(mm or 0), int(ss or 0),
-                      tzinfo=timezone.utc)
+                      tzinfo=UTC)
     except ValueError as err:
         raise ValueError(f"not a valid date-time: {text!r} ({err})") from None
     try:
@@ -117,8 +117,8 @@ def parse_epoch(text, *, key: str | None = None) -> datetime:
         except ValueError as exc:
             raise InputError(str(exc), key=key) from None
     if dt.tzinfo is None:
-        dt = dt.replace(tzinfo=timezone.utc)
-    return dt.astimezone(timezone.utc)
+        dt = dt.replace(tzinfo=UTC)
+    return dt.astimezone(UTC)
 
 def _epoch_seconds_since_j2000(epoch: datetime) -> float:
     """Exact seconds from J2000.0 to ``epoch`` (integer arithmetic, then one float)."""
@@ -202,7 +202,7 @@ def decimal_year(epoch, t) -> np.ndarray:
     t0 = _epoch_seconds_since_j2000(epoch)
     years = range(epoch.year + int(np.floor(np.min(t) / (366 * 86400.0))) - 1,
                   epoch.year + int(np.ceil(np.max(t) / (365 * 86400.0))) + 2)
-    starts = np.array([_epoch_seconds_since_j2000(datetime(y, 1, 1, tzinfo=timezone.utc))
+    starts = np.array([_epoch_seconds_since_j2000(datetime(y, 1, 1, tzinfo=UTC))
                        for y in years]) - t0   # mission seconds at each Jan 1
     k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(starts) - 2)
     frac = (t - starts[k]) / (starts[k + 1] - starts[k])

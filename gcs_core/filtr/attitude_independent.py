@@ -27,14 +27,14 @@ survey", J. Astronautical Sciences 50(4), 2002. Wertz (ed.) 1978, §7.6 (star se
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.problem.build import Problem
 from gcs_core.models import common as model_common
+from gcs_core.problem.build import Problem
 
 
 @dataclass(frozen=True)
@@ -66,7 +66,7 @@ class IndependentResult:
 
 def _gauss_newton(fun, x0: np.ndarray, max_iter: int = 20, tol: float = 1e-10):
     x = x0.astype(float).copy()
-    for it in range(1, max_iter + 1):
+    for it in range(1, max_iter + 1):  # noqa: B007 — the count is returned after the loop
         r, J = fun(x)
         JTJ = J.T @ J
         step = np.linalg.solve(JTJ, -(J.T @ r))
@@ -84,6 +84,8 @@ def magnetometer_bias_from_magnitude(problem: Problem, sensor: str,
     if sd.model.type_name != "magnetometer":
         raise EstimationError(f"{sensor} is not a magnetometer")
     B_m = sd.y
+    if sd.geom.B_I is None:
+        raise EstimationError(f"{sensor}: no reference field in the geometry")
     ref = np.linalg.norm(sd.geom.B_I, axis=1)
     sigma = float(np.mean(sd.sigma))
     ok = np.all(np.isfinite(B_m), axis=1) & np.isfinite(ref)
@@ -126,6 +128,8 @@ def star_tracker_scales_from_separations(problem: Problem, sensor: str, *,
     if att.C_BI is None:
         raise EstimationError("star-tracker separations need a three-axis attitude")
     star = sd.geom.star_I
+    if star is None:
+        raise EstimationError(f"{sensor}: no catalog star vectors in the geometry")
     i = np.arange(sd.n - 1)
     j = i + 1
     sep_cat = np.arccos(np.clip(np.sum(star[i] * star[j], axis=1), -1.0, 1.0))

@@ -47,21 +47,21 @@ Wertz (ed.) 1978, §13.4 (batch estimators with a priori); Tapley, Schutz & Born
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 from scipy import linalg
 
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.linalg import sparse_basis
 from gcs_core.filtr import local_refine
-from gcs_core.problem import curvature
-from gcs_core.filtr.results import BatchResult
-from gcs_core.filtr.residuals import Residuals, residuals_from
-from gcs_core.problem.linearization import iter_blocks
-from gcs_core.problem.build import Problem
 from gcs_core.filtr.noise import MAD_TO_SIGMA
+from gcs_core.filtr.residuals import Residuals, residuals_from
+from gcs_core.filtr.results import BatchResult
+from gcs_core.linalg import sparse_basis
+from gcs_core.problem import curvature
+from gcs_core.problem.build import Problem
+from gcs_core.problem.linearization import iter_blocks
 
 log = logging.getLogger(__name__)
 
@@ -138,9 +138,9 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
         # Hᵀ R⁻¹ H, Hᵀ R⁻¹ r and rᵀ R⁻¹ r
         c = blk.cols
         k = c.size
-        if blk.curv:
+        if blk.curv and second_order is not None:               # curvature is formed only when asked
             curvature.add_block(second_order, c, blk.curv)
-        G = blk.G if blk.G is not None else blk.Hr.T @ blk.Hr
+        G = blk.gram()
         chi2 += float(G[k, k])
         if k == n and np.array_equal(c, np.arange(n)):
             A += G[:k, :k]
@@ -169,7 +169,7 @@ def name_combinations(A: np.ndarray, names: Sequence[str], rank_tol: float) -> l
         terms = [f"{v[j]:+.2f}·{names[j]}" for j in order if abs(v[j]) > 0.1][:6]
         out.append(" ".join(terms))
     for j in np.nonzero(d == 0)[0]:
-        out.append(f"{names[j]} (no data depends on it)")
+        out.append(f"{names[int(j)]} (no data depends on it)")
     return out
 
 
@@ -220,7 +220,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
     counts = [0]
     buffers = Residuals().ensure(problem)
     work: dict = {}                     # chunk buffers, reused by every pass
-    stored = [None]                     # (x, edits, A, χ², m) of the pass the buffers hold
+    stored: list[tuple | None] = [None]   # (x, edits, A, χ², m) of the pass the buffers hold
 
     def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):

@@ -304,7 +304,7 @@ class _Group:
 
     def run(self, y0, P0, edit_k, raw: _Raw, gated, y_ep, P_ep):
         local = np.arange(self.m.size)                       # frames taking part
-        rows = slice(None)
+        rows: slice | np.ndarray = slice(None)
         Ge = self.e1 - self.e0
         while local.size:
             pat = _pattern(self.rep[rows], self.m[local], Ge)

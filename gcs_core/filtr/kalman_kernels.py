@@ -263,8 +263,8 @@ def run_block(y0, P0, blk, edit_k, keep_epochs: bool):
     ``edit_k``: the gate, None (none), one k, or (F,) per frame.
     Every argument is passed with one dtype and layout, so the kernel is compiled once.
     """
-    f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)   # noqa: E731
-    i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)     # noqa: E731
+    f64 = lambda a: np.ascontiguousarray(a, dtype=np.float64)
+    i64 = lambda a: np.ascontiguousarray(a, dtype=np.int64)
     A = f64(blk.A)
     n = A.shape[1]
     G, F = blk.t.size, blk.frame_start.size

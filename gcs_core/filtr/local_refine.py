@@ -28,15 +28,15 @@ Ruhe & Wedin, "Algorithms for separable nonlinear least squares problems", SIAM 
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.problem import curvature
-from gcs_core.problem.linearization import iter_blocks
-from gcs_core.problem.build import Problem
 from gcs_core.models import common
 from gcs_core.models.base import ObservationModel
+from gcs_core.problem import curvature
+from gcs_core.problem.build import Problem
+from gcs_core.problem.linearization import iter_blocks
 
 #: inner Newton iterations per sensor and refinement
 MAX_INNER = 10
@@ -98,7 +98,7 @@ def refine_local(problem: Problem, values: dict, names: Sequence[str], x: np.nda
             continue
         base = problem.params_of(sensor, values)
 
-        def terms(z):
+        def terms(z, base=base, par=par, sd=sd, chunks=chunks, sel=sel):  # this iteration's sensor, bound
             params = dict(base)
             params.update({local: z[q] for local, q in par})
             Ag, bg, chi2, Kg = _held_normal(sd, chunks, params, par)

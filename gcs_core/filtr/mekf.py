@@ -36,21 +36,21 @@ solutions for two common spacecraft attitude estimators", J. Guidance & Control 
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.problem.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval, ProviderDefaults
 from gcs_core.filtr.kalman import LinearBlock
-from gcs_core.problem.linearization import linearize
-from gcs_core.problem.build import Problem
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
-from gcs_core.problem.prepare import SensorData
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q, gyro_noise
+from gcs_core.problem.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval, ProviderDefaults
+from gcs_core.problem.build import Problem
+from gcs_core.problem.linearization import linearize
+from gcs_core.problem.prepare import SensorData
 
 #: filter columns of the attitude error δθ (body axes, rad).
 DTH = ("kf.dtheta_x", "kf.dtheta_y", "kf.dtheta_z")
@@ -198,7 +198,7 @@ def make_layout(problem: Problem, noise: GyroNoise | None) -> Layout:
     if missing:
         raise EstimationError("the Kalman filter estimates the attitude with the gyros: make "
                               + ", ".join(missing) + " solve-for")
-    pnames = list(problem.attitude.param_names)
+    pnames = list(problem.gyro_attitude.param_names)
     bias = [f"{problem.gyro_name}.bias_{a}" for a in "xyz"]
     dyn = [b for b in bias if b in solve] if noise is not None and noise.sigma_u > 0 else []
     static = [n for n in solve if n not in RPY and n not in dyn]
@@ -347,9 +347,10 @@ def assemble(problem: Problem, layout: Layout, values: Mapping[str, float], seg:
         k = np.nonzero(used)[0]
         if k.size == 0:
             continue
+        assert lin.H is not None                              # linearize() stores the rows
         H = lin.H[k]
         mj = H.shape[1]
-        A = H if seg is None else H + H[:, :, :3] @ (Psi_d[ep[k], :3, :] - np.eye(3, n))  # A = H Ψ
+        A = H if Psi_d is None else H + H[:, :, :3] @ (Psi_d[ep[k], :3, :] - np.eye(3, n))  # A = H Ψ
         w = 1.0 / lin.sigma                                   # whiten: R = I
         parts["A"].append((A * w[None, :, None]).reshape(-1, n))
         parts["r"].append((lin.r[k] * w).reshape(-1))

@@ -197,7 +197,7 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
     return _clipped_std(dd) / np.sqrt(6.0)
 
 
-def white_level(curve: "AllanCurve", dt: float) -> tuple[float, float, bool]:
+def white_level(curve: AllanCurve, dt: float) -> tuple[float, float, bool]:
     """The white-noise line of an Allan curve as a per-sample σ: ``σ(τ) sqrt(τ/τ0)`` read
     at the short-τ point whose local slope is nearest −1/2 (the first half of the curve).
 

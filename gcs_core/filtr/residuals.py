@@ -5,15 +5,15 @@ the normal-equation accumulation over a whole-span linearization and the
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.problem.linearization import Linearization
-from gcs_core.problem.build import Problem
 from gcs_core.filtr.results import SensorResiduals
 from gcs_core.models.base import ObservationModel
+from gcs_core.problem.build import Problem
+from gcs_core.problem.linearization import Linearization
 
 
 def weighted_masks(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray]):
@@ -54,7 +54,7 @@ class Residuals:
     r: dict[str, np.ndarray] = field(default_factory=dict)
     valid: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def ensure(self, problem: Problem) -> "Residuals":
+    def ensure(self, problem: Problem) -> Residuals:
         for sd in problem.sensors:
             if sd.name not in self.r:
                 m = len(sd.sigma)

@@ -6,15 +6,15 @@ the screens read any of them; plus the stepping filter's per-block and per-frame
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Mapping, Protocol
+from typing import Protocol
 
 import numpy as np
 
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.problem.state import StateVector
-
 
 
 class FitResult(Protocol):
@@ -40,7 +40,7 @@ class FitResult(Protocol):
     consider: tuple[str, ...]
     x: np.ndarray
     P: np.ndarray
-    residuals: dict[str, "SensorResiduals"]
+    residuals: dict[str, SensorResiduals]
     status: str
     message: str
     unobservable: tuple[str, ...]

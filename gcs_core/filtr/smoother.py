@@ -33,14 +33,15 @@ from __future__ import annotations
 
 import logging
 import tempfile
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
-from typing import Mapping
+from typing import Literal
 
 import numpy as np
 
-from gcs_core.filtr.results import SensorResiduals, SmoothedTrajectory
 from gcs_core.filtr.mekf import gyro_rates, sensor_window, step_quaternions
-from gcs_core.frames.rotations import (dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize)
+from gcs_core.filtr.results import SensorResiduals, SmoothedTrajectory
+from gcs_core.frames.rotations import dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize
 
 log = logging.getLogger(__name__)
 
@@ -83,8 +84,9 @@ class EpochStore:
         """True when the records are in a temporary file (mapped a slab at a time)."""
         return self._file is not None
 
-    def _slab(self, k0: int, k1: int, mode: str) -> np.ndarray:
+    def _slab(self, k0: int, k1: int, mode: Literal["r", "r+"]) -> np.ndarray:
         if self._file is None:
+            assert self.data is not None                         # in memory when not spilled
             return self.data[k0:k1]
         # map only the rows in use: the process keeps no pages of the file once unmapped
         return np.memmap(self._file, dtype=np.float64, mode=mode, offset=k0 * self.width * 8,
@@ -199,7 +201,7 @@ def trajectory(store: EpochStore, sm: SmoothedStates, nb: int,
         t[k0:k1] = rec["t"]
         dq = step_quaternions(sm.x[k0:k1, :3], np.ones(k1 - k0))
         q[k0:k1] = quat_normalize(quat_multiply(dq, rec["q"]))
-        if nb:
+        if bias is not None:
             bias[k0:k1] = rec["bnom"] + sm.x[k0:k1, 3:3 + nb]
     return SmoothedTrajectory(t, q, sm.sigma[:, :3], bias, sm.sigma[:, 3:3 + nb] if nb else None,
                               tuple(bias_names))

@@ -37,25 +37,25 @@ CRC 2012, §5.3 (fixed-interval smoothing), §7.2 (attitude estimation with gyro
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.compiled import COMPILED
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
-from gcs_core.filtr.knot_kernels import correct_attitude
-from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
-from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations, suspect_note
-from gcs_core.filtr.results import BatchResult
-from gcs_core.filtr.residuals import Residuals, residuals_from
-from gcs_core.problem.linearization import iter_blocks
+from gcs_core.filtr.knot_kernels import correct_attitude
 from gcs_core.filtr.mekf import attitude_gyro_noise
-from gcs_core.problem.build import Problem
+from gcs_core.filtr.residuals import Residuals, residuals_from
+from gcs_core.filtr.results import BatchResult
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.models.gyro_noise import GyroNoise
+from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
+from gcs_core.problem.build import Problem
+from gcs_core.problem.gyro_attitude import GyroAttitude
+from gcs_core.problem.linearization import iter_blocks
 
 log = logging.getLogger(__name__)
 
@@ -83,7 +83,7 @@ class Dynamics:
     P: np.ndarray | None = None
     _cov: tuple | None = field(default=None, repr=False)
 
-    def attitude(self, base) -> "CorrectedAttitude":
+    def attitude(self, base) -> CorrectedAttitude:
         return CorrectedAttitude(base, self.grid, self.z, self.R)
 
     def problem(self, problem: Problem) -> Problem:
@@ -96,6 +96,7 @@ class Dynamics:
     def covariance(self):
         """(Σ_j (K, d, d), Cov(z_j, x) (K, d, n)) at the solution (computed once)."""
         if self._cov is None and self.factors is not None:
+            assert self.P is not None                       # set with the factors
             self._cov = kn.KnotSystem.covariance(self.factors, self.P)
         return self._cov
 
@@ -180,7 +181,7 @@ def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, name
                spacing: float | None = None) -> kn.KnotGrid:
     """Knots over the span of the gyro knots, spaced by :func:`knots.knot_spacing` from the
     information per second the data give the attitude (the batch's roll/pitch/yaw block)."""
-    att = problem.attitude
+    att = problem.gyro_attitude
     t0, t1 = float(att.knots[0]), float(att.knots[-1])
     for sd in problem.sensors:
         if sd.n:

@@ -10,16 +10,16 @@
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from gcs_core.filtr import knots as kn
-from gcs_core.filtr.results import BatchResult
 from gcs_core.filtr.batch import _solve_normal
-from gcs_core.problem.linearization import iter_blocks, linearize
+from gcs_core.filtr.results import BatchResult
+from gcs_core.filtr.smoothing_batch import Dynamics, Passes, SmoothedResult, make_knots, process_noise
 from gcs_core.problem.build import Problem
-from gcs_core.filtr.smoothing_batch import Dynamics, SmoothedResult, Passes, make_knots, process_noise
+from gcs_core.problem.linearization import iter_blocks, linearize
 
 
 def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | None = None,
@@ -65,6 +65,7 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
     valid frames of a whole-span fit, chunk by chunk: the variance
     ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of the static elements and the knots."""
     dyn = res.dynamics
+    assert dyn is not None                      # a whole-span fit with knots (callers check)
     names = tuple(res.solve_for)
     for blk in iter_blocks(dyn.problem(problem), res.state.values(), names, weighted=False):
         m = select.get(blk.name)

@@ -25,30 +25,29 @@ Consider elements are not carried by the filter (they stay at their values, as h
 from __future__ import annotations
 
 import logging
-from typing import Callable, Mapping
+from collections.abc import Callable, Mapping
 
 import numpy as np
 from scipy import special
 
 from gcs_core.errors import EstimationError
-from gcs_core.problem.attitude import RPY, rpy_error_jacobian
-from gcs_core.filtr.residuals import make_residuals
-from gcs_core.filtr.results import BlockReport, FilterResult, FrameDiagnostics, InnovationStats
 from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.kalman import solve_block
 from gcs_core.filtr.mekf import (
     GyroSegment,
     assemble,
+    attitude_gyro_noise,
     block_epochs,
     gyro_rates,
     make_layout,
-    attitude_gyro_noise,
 )
-from gcs_core.problem.linearization import linearize
+from gcs_core.filtr.residuals import make_residuals
+from gcs_core.filtr.results import BlockReport, FilterResult, FrameDiagnostics, InnovationStats, SmoothedTrajectory
+from gcs_core.filtr.smoother import EpochStore, SmoothedStates, block_records, gyro_residuals, rts_smooth, trajectory
+from gcs_core.frames.rotations import dcm_to_rotvec, euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
+from gcs_core.problem.attitude import RPY, rpy_error_jacobian
 from gcs_core.problem.build import Problem
-from gcs_core.filtr.smoother import EpochStore, block_records, gyro_residuals, rts_smooth, trajectory
-from gcs_core.frames.rotations import (dcm_to_rotvec, euler123_to_dcm, quat_from_dcm,
-                                       rotvec_to_dcm)
+from gcs_core.problem.linearization import linearize
 
 log = logging.getLogger(__name__)
 
@@ -80,8 +79,9 @@ class Filtr:
         if self._layout.n == 0:
             raise EstimationError("nothing to estimate: every state element is held or consider")
         self._windows = self._make_windows()
-        if getattr(self, "_store", None) is not None:
-            self._store.close()                                 # a new problem: new records
+        store = getattr(self, "_store", None)
+        if store is not None:
+            store.close()                                       # a new problem: new records
         counts = [block_epochs(problem, ta, tb, b == 0)[0].size
                   for b, (ta, tb, _, _) in enumerate(self._windows)]
         self._offsets = np.concatenate([[0], np.cumsum(counts)]).astype(int)
@@ -91,7 +91,7 @@ class Filtr:
 
     def _make_windows(self):
         if self._gyro:
-            kn = self.problem.attitude.knots
+            kn = self.problem.gyro_attitude.knots
             K, bounds = kn.size - 1, [0]
             while bounds[-1] < K:
                 k = int(np.searchsorted(kn, kn[bounds[-1]] + self.block_seconds - 1e-9))
@@ -117,9 +117,9 @@ class Filtr:
                         self.options.diffuse_sigma)
             sig = np.where(np.isfinite(sig), sig, self.options.diffuse_sigma)
         P = np.diag(sig ** 2)
-        self._C0 = None
+        self._C0: np.ndarray | None = None
         if self._gyro:
-            att = self.problem.attitude
+            att = self.problem.gyro_attitude
             rpy = [self._vals0[n] for n in RPY]
             J0 = rpy_error_jacobian(*rpy)                      # δθ = J0 δ(roll, pitch, yaw)
             P[:3, :3] = J0 @ P[:3, :3] @ J0.T
@@ -132,9 +132,10 @@ class Filtr:
         self.blocks: list[BlockReport] = []
         self._pass = 0
         self._done = False
-        self._ref = None
-        self._prev = None
-        self._status, self._smooth = "", None
+        self._ref: dict | None = None                           # the last pass's smoothed nominal
+        self._prev: tuple[np.ndarray, np.ndarray] | None = None
+        self._status = ""
+        self._smooth: tuple[SmoothedStates, SmoothedTrajectory, np.ndarray] | None = None
         self._start_pass()
 
     def set_roles(self, roles: Mapping[str, str]) -> None:
@@ -218,7 +219,7 @@ class Filtr:
     def _start_pass(self) -> None:
         self._block = 0
         self._vals = dict(self._vals0)
-        self._C = None if self._C0 is None else self._C0.copy()
+        self._C: np.ndarray | None = None if self._C0 is None else self._C0.copy()
         self._P = self._P0.copy()
         self._prev_nom = None
         self._diag = {}
@@ -237,6 +238,7 @@ class Filtr:
     def _end_pass(self) -> None:
         lay = self._layout
         if self._gyro:
+            assert self._store is not None and self._C0 is not None       # set up for the gyro
             s_star = np.array([self._vals[e] for e in lay.elements[lay.d:]])
             sm = rts_smooth(self._store, s_star, self._P[lay.d:, lay.d:], lay.gs_pos)
             traj = trajectory(self._store, sm, lay.nb, lay.elements[3:lay.d])
@@ -244,7 +246,7 @@ class Filtr:
             starts = self._offsets[:-1]
             ref = {"C": traj.C_BI(starts), "bias": None if traj.bias is None else traj.bias[starts]}
             cur = np.concatenate([dcm_to_rotvec(traj.C_BI(0) @ self._C0.T),
-                                  traj.bias[0] if lay.nb else [], s_star])
+                                  traj.bias[0] if traj.bias is not None else [], s_star])
             sig = np.concatenate([sm.sigma[0], np.sqrt(np.diag(self._P))[lay.d:]])
         else:
             ref = {}
@@ -308,10 +310,12 @@ class Filtr:
 
     def _gyro_block(self, b: int):
         t_a, t_b, k_a, k_b = self._windows[b]
-        lay, att, o = self._layout, self.problem.attitude, self.options
+        lay, att, o = self._layout, self.problem.gyro_attitude, self.options
+        store, noise, C = self._store, self._noise, self._C
+        assert store is not None and noise is not None and C is not None   # set up for the gyro
         nom = dict(self._vals)
         if self._ref is None:                                   # EKF: linearize at the estimate
-            C_a = self._C
+            C_a = C
         else:                                                   # iterated: at the smoothed one
             C_a = self._ref["C"][b]
             nom.update({e: self._ref["values"][e] for e in lay.elements[lay.d:]})
@@ -320,13 +324,13 @@ class Filtr:
         axes = ["xyz".index(e[-1]) for e in lay.elements[3:lay.d]]
         for it in range(self._block_iterations()):
             y0 = np.zeros(lay.n)
-            y0[:3] = dcm_to_rotvec(self._C @ C_a.T)             # C = exp(−[δθ×]) C_a
+            y0[:3] = dcm_to_rotvec(C @ C_a.T)                   # C = exp(−[δθ×]) C_a
             y0[3:] = [self._vals[e] - nom[e] for e in lay.elements[3:]]
             omega, W, Wy, Wb = gyro_rates(att, nom, k_a, k_b)
-            seg = GyroSegment(att.knots[k_a:k_b + 1], omega, W[:, :, lay.gyro_w], C_a, self._noise,
+            seg = GyroSegment(att.knots[k_a:k_b + 1], omega, W[:, :, lay.gyro_w], C_a, noise,
                               Wy, Wb, axes)
             blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0,
-                                   self._pre_edited(), self._noise.sigma_e ** 2)
+                                   self._pre_edited(), noise.sigma_e ** 2)
             sol = solve_block(y0, self._P, blk, edit_k=self._gates(frames), group_rows=o.group_rows,
                               keep_epochs=True)
             # y is referred to the block start: its δθ estimates the start's attitude error,
@@ -336,6 +340,7 @@ class Filtr:
             C_a = rotvec_to_dcm(sol.y[:3]) @ C_a                # re-linearize at the update
             for j, e in enumerate(lay.elements[3:], start=3):
                 nom[e] += sol.y[j]
+        assert blk.Psi_d is not None                            # a gyro block carries its transitions
         Psi = np.eye(lay.n)
         Psi[:lay.d] = blk.Psi_d[-1]
         x = Psi @ sol.y                                         # x = Ψ(t_b) y
@@ -345,7 +350,7 @@ class Filtr:
         for j, e in enumerate(lay.elements[3:], start=3):
             self._vals[e] = nom[e] + x[j]
         recs, self._prev_nom = block_records(lay, blk, sol, seg, nom, C_a, self._prev_nom)
-        self._store.write(int(self._offsets[b]), **recs)
+        store.write(int(self._offsets[b]), **recs)
         return frames, sol, quat_from_dcm(self._C)
 
     # ------------------------------------------------------------------ reporting
@@ -355,7 +360,7 @@ class Filtr:
         x = np.array([self._vals[e] for e in lay.elements])
         P = self._P
         if self._gyro:
-            rpy = self.problem.attitude.ref.rpy_from_dcm(self._C, t)
+            rpy = self.problem.gyro_attitude.ref.rpy_from_dcm(self._C, t)
             x[:3] = rpy
             T = np.eye(lay.n)
             T[:3, :3] = np.linalg.inv(rpy_error_jacobian(*rpy))  # δ(rpy) = J⁻¹ δθ
@@ -419,18 +424,21 @@ class Filtr:
                   for n, f in diag.items()}
         x, P, traj = np.array([self._vals[e] for e in lay.elements]), self._P, None
         if self._gyro:
+            assert self._store is not None                      # set up for the gyro
+            sm: SmoothedStates | None
             if self._done or (self._block == 0 and self._smooth is not None):
+                assert self._smooth is not None                 # every finished pass smooths
                 sm, traj, s_star = self._smooth                 # the last completed pass
             else:
                 n_ep = int(self._offsets[self._block])
                 s_star = x[lay.d:]
                 sm = rts_smooth(self._store, s_star, P[lay.d:, lay.d:], lay.gs_pos, n=n_ep) \
                     if n_ep else None
-                traj = trajectory(self._store, sm, lay.nb, lay.elements[3:lay.d]) if n_ep else None
-            if traj is not None:
-                att = prob.attitude
+                traj = trajectory(self._store, sm, lay.nb, lay.elements[3:lay.d]) if sm is not None else None
+            if traj is not None and sm is not None:
+                att = prob.gyro_attitude
                 rpy = att.ref.rpy_from_dcm(traj.C_BI(0), att.t_ref)
-                x = np.concatenate([rpy, traj.bias[0] if lay.nb else [], s_star])
+                x = np.concatenate([rpy, traj.bias[0] if traj.bias is not None else [], s_star])
                 Pss = P[lay.d:, lay.d:]
                 cross = sm.Gamma0 @ Pss                         # cov(d_0, s) = Γ_0 P_ss
                 P = np.block([[sm.P0, cross], [cross.T, Pss]])

@@ -67,7 +67,8 @@ def euler123_to_dcm(roll, pitch, yaw):
 def dcm_to_euler123(B):
     """Eq 4-5: roll, pitch, yaw from ``[B] = T3(ψ) T2(θ) T1(φ)``.
 
-    ``φ = atan2(−B32, B33)``, ``θ = asin(B31)`` (computed as ``atan2(B31, hypot(B11, B21))``), ``ψ = atan2(−B21, B11)``. Roll and yaw
+    ``φ = atan2(−B32, B33)``, ``θ = asin(B31)`` (computed as ``atan2(B31, hypot(B11, B21))``),
+    ``ψ = atan2(−B21, B11)``. Roll and yaw
     come back in ``(−π, π]`` (the seed's ``[0, 2π)`` is the same angle), pitch in
     ``[−π/2, π/2]``. At gimbal lock (``|θ| = π/2``) roll is set to zero and yaw
     carries the whole rotation about the common axis: ``ψ = atan2(B12, B22)``.

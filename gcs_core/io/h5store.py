@@ -35,10 +35,11 @@ import logging
 import os
 import threading
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Callable, Iterator
+from typing import overload
 
 import h5py
 import numpy as np
@@ -71,14 +72,14 @@ H5_ERRORS = (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError)
 def gcs_version() -> str:
     """Version string of the installed GCS package ("unknown" when not installed)."""
     try:
-        from importlib.metadata import version
+        from importlib.metadata import PackageNotFoundError, version
         return version("gcs")
-    except Exception:  # not installed (source checkout)
+    except PackageNotFoundError:  # not installed (source checkout)
         return "0+unknown"
 
 
 def utc_now() -> str:
-    return datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
+    return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
 
 
 # --- locking --------------------------------------------------------------------------
@@ -183,8 +184,8 @@ def locked(path: str | os.PathLike, *, exclusive: bool, wait: float | None = Non
 # --- opening --------------------------------------------------------------------------
 
 def _one_line(err: BaseException) -> str:
-    text = str(err).strip().splitlines()
-    text = text[0] if text else type(err).__name__
+    lines = str(err).strip().splitlines()
+    text = lines[0] if lines else type(err).__name__
     return text.strip("'\"")
 
 
@@ -479,6 +480,10 @@ def read_strings(ds: h5py.Dataset) -> list[str]:
     return [v.decode("utf-8") if isinstance(v, bytes) else str(v) for v in ds[()].reshape(-1)]
 
 
+@overload
+def attr_str(obj, key: str, default: str) -> str: ...
+@overload
+def attr_str(obj, key: str, default: None = None) -> str | None: ...
 def attr_str(obj, key: str, default: str | None = None) -> str | None:
     value = obj.attrs.get(key, default)
     if isinstance(value, bytes):

@@ -27,17 +27,17 @@ from __future__ import annotations
 
 import logging
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.io.csvio import read_table
 from gcs_core.io.mission import read_mission_spec
-from gcs_core.io.types import MissionSpec, Table
 from gcs_core.io.tle_table import tle_ephemeris_table
+from gcs_core.io.types import MissionSpec, Table
 
 log = logging.getLogger(__name__)
 
@@ -322,6 +322,7 @@ def _check_covered(table: Table, eph: Table, sensor: str, margin: float) -> None
     if not np.any(out):
         return
     i = _first(out)
+    assert i is not None                                  # some row is out
     lo, hi = float(np.min(t[out])), float(np.max(t[out]))
     spans = [f"t = {a:.6g} to {b:.6g} s" for a, b, on in ((lo, e0, lo < e0), (e1, hi, hi > e1)) if on]
     uncovered = " and ".join(spans)
@@ -501,8 +502,10 @@ def ground_ephemeris(spec: MissionSpec, telemetry: Mapping[str, Table]) -> Table
     n = max(2, int(np.ceil((t1 - t0) / MAX_EPHEMERIS_STEP_S)) + 1)
     t = np.linspace(t0, t1, n)
     cols = {"t": t}
+    pos = spec.ground_position_km
+    assert pos is not None                                # called for a ground mission
     for k, name in enumerate(("rx", "ry", "rz")):
-        cols[name] = np.full(n, float(spec.ground_position_km[k]))
+        cols[name] = np.full(n, float(pos[k]))
     for name in ("vx", "vy", "vz", "sy", "sz"):
         cols[name] = np.zeros(n)
     cols["sx"] = np.full(n, AU_KM)

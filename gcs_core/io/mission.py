@@ -19,17 +19,18 @@ import logging
 import math
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
+from gcs_core import toml_values
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
 from gcs_core.io.orbit_spec import ephemeris_or_orbit, ground_position
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
-from gcs_core import toml_values
 
 log = logging.getLogger(__name__)
 
@@ -158,6 +159,7 @@ def _book_value(ctx: Ctx, spec: BookKey, value: Any, key: str, index: int, tkey:
             raise ctx.error(f"must be one of {', '.join(spec.choices)}, not {text!r}", key,
                             "sensor", index, tkey)
         return text
+    vals: tuple[float, ...]
     if spec.size == 0:
         vals = (number(ctx, value, key, "sensor", index, tkey),)
     else:
@@ -210,7 +212,7 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
                         f"{mode!r}", f"{base}.type", "sensor", index, "type")
     telemetry = existing_file(ctx, root, raw.get("telemetry"), f"{base}.telemetry", "sensor",
                                f"telemetry (sensor {name!r})", index, "telemetry")
-    alignment = None
+    alignment: tuple[float, float, float] | None = None
     if "alignment_deg" in raw:
         if stype in SPINNER_TYPES:
             raise ctx.error(f"a {stype} sensor of a spinning mission is placed by its own keys, "
@@ -311,8 +313,8 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     epoch_raw = m["epoch"]
     if isinstance(epoch_raw, datetime):
         try:
-            epoch = (epoch_raw.replace(tzinfo=timezone.utc) if epoch_raw.tzinfo is None
-                     else epoch_raw.astimezone(timezone.utc))
+            epoch = (epoch_raw.replace(tzinfo=UTC) if epoch_raw.tzinfo is None
+                     else epoch_raw.astimezone(UTC))
         except OverflowError:
             raise ctx.error("date-time out of range", "mission.epoch", "mission", 1,
                             "epoch") from None

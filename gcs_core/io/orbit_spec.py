@@ -79,4 +79,4 @@ def ground_position(ctx: Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[f
                         f"\"inertial\" (the laboratory frame), not {mode!r}",
                         "mission.attitude_mode", "mission", 1, "attitude_mode")
     unknown += [f"ephemeris.{k}" for k in e if k != "ground_position_km"]
-    return pos
+    return pos[0], pos[1], pos[2]

@@ -30,18 +30,19 @@ from __future__ import annotations
 import json
 import math
 import os
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
-from typing import Any, Iterator, Mapping
+from typing import Any
 
 import h5py
 import numpy as np
 
+from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import DataFileError
 from gcs_core.io import h5store
 from gcs_core.io.importer import COLUMN_UNITS, ImportedMission
-from gcs_core.ephem.timescale import parse_utc
 
 FORMAT = "SDF"
 VERSION = 1
@@ -164,7 +165,7 @@ class SdfContents:
 # --- writing --------------------------------------------------------------------------
 
 def _epoch_text(epoch: datetime) -> str:
-    text = epoch.astimezone(timezone.utc).strftime("%Y-%m-%dT%H:%M:%S")
+    text = epoch.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S")
     if epoch.microsecond:
         text += f".{epoch.microsecond:06d}"
     return text + "Z"
@@ -224,7 +225,9 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
             "attitude_mode": spec.attitude_mode, "source_dir": str(spec.root),
             "block_seconds": float(block_seconds), "sensor_names": _json(names),
         })
-        frames_t, frames_block, frames_points = [], [], []
+        frames_t: list[np.ndarray] = []
+        frames_block: list[np.ndarray] = []
+        frames_points: list[np.ndarray] = []
         blocks = f.create_group("blocks")
         n_blocks = 0
         for w in windows:
@@ -255,7 +258,7 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
                     h5store.write_array(sg, "frame", frame)
                     if not headers_only:
                         h5store.write_array(sg, "data", tables[n].stack(cols)[sel])
-                        if aux is not None and aux_columns:
+                        if aux is not None and aux_values is not None and aux_columns:
                             h5store.write_array(sg, "aux", _hold(aux.t, aux_values, t))
                 frames_t.append(frame_t)
                 frames_block.append(np.full(frame_t.size, n_blocks, dtype=np.int32))
@@ -332,7 +335,7 @@ def _read_block(f: h5py.File, name: str, file_type: int) -> SdfBlock:
                                        columns=cols, aux=aux,
                                        aux_columns=aux_cols if aux is not None else ())
     fr = f["frames"]
-    return SdfBlock(index=int(name), kind=h5store.attr_str(g, "kind"),
+    return SdfBlock(index=int(name), kind=h5store.attr_str(g, "kind", ""),
                     block_id=int(a["block_id"]), t0=float(a["t0"]), t1=float(a["t1"]),
                     frame_t=fr["t"][start:start + n_frames],
                     n_points=fr["n_points"][start:start + n_frames], sensors=sensors)
@@ -344,7 +347,7 @@ def _header(f: h5py.File, path: Path) -> dict:
     if file_type not in (FILE_TYPE_DATA, FILE_TYPE_HEADERS):
         raise DataFileError(f"unknown SDF file type {file_type}", file=path)
     try:
-        epoch = parse_utc(h5store.attr_str(f, "epoch"))
+        epoch = parse_utc(h5store.attr_str(f, "epoch", ""))      # missing: "bad epoch", one line
     except ValueError as err:
         raise DataFileError(f"bad epoch attribute ({err})", file=path) from None
     return {"file_type": file_type, "mission": h5store.attr_str(f, "mission"), "epoch": epoch,
@@ -358,9 +361,9 @@ def _read_sensors(f: h5py.File) -> dict[str, SdfSensor]:
     for name in _loads(f.attrs["sensor_names"]):
         a = f["sensors"][name].attrs
         align = _loads(a["alignment_deg"])
-        out[name] = SdfSensor(name=name, type=h5store.attr_str(f["sensors"][name], "type"),
-                              kind=h5store.attr_str(f["sensors"][name], "kind"),
-                              telemetry=h5store.attr_str(f["sensors"][name], "telemetry"),
+        out[name] = SdfSensor(name=name, type=h5store.attr_str(f["sensors"][name], "type", ""),
+                              kind=h5store.attr_str(f["sensors"][name], "kind", ""),
+                              telemetry=h5store.attr_str(f["sensors"][name], "telemetry", ""),
                               alignment_deg=tuple(align) if align is not None else None,
                               noise=_loads(a["noise"]), book=_loads(a["book"]),
                               columns=tuple(_loads(a["columns"])),

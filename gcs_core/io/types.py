@@ -7,10 +7,11 @@ I/O. Angles stay in the units of the ICD here (degrees where the key ends in
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from datetime import datetime
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 

@@ -8,6 +8,7 @@ the shared partial-derivative checker in :mod:`gcs_core.models.checks`.
 from __future__ import annotations
 
 from gcs_core.errors import InputError
+from gcs_core.io.types import SensorSpec
 from gcs_core.models.attitude_reference import AttitudeReferenceModel
 from gcs_core.models.base import ObservationModel
 from gcs_core.models.coarse_sun import CoarseSunModel
@@ -17,7 +18,6 @@ from gcs_core.models.horizon import HorizonModel
 from gcs_core.models.magnetometer import MagnetometerModel
 from gcs_core.models.plane_field_sun import PlaneFieldSunModel
 from gcs_core.models.star_tracker import StarTrackerModel
-from gcs_core.io.types import SensorSpec
 
 __all__ = ["MODEL_TYPES", "make_model", "ObservationModel", "MagnetometerModel", "GyroModel",
            "StarTrackerModel", "FineSunModel", "CoarseSunModel", "PlaneFieldSunModel", "HorizonModel",

@@ -40,14 +40,14 @@ representations).
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from gcs_core.frames.rotations import dcm_to_rotvec, quat_normalize, quat_to_dcm, rotvec_to_dcm
+from gcs_core.io.types import Table
 from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
-from gcs_core.io.types import Table
 
 QUATERNION_COLUMNS = ("q1", "q2", "q3", "q4")
 

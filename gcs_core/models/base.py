@@ -25,8 +25,9 @@ Parameters are passed and returned by name (``dict[str, float]`` and
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, ClassVar, Mapping
+from typing import Any, ClassVar
 
 import numpy as np
 
@@ -167,8 +168,9 @@ class ObservationModel:
     type_name: ClassVar[str] = ""
     #: telemetry columns required besides ``t``.
     columns: ClassVar[tuple[str, ...]] = ()
-    #: names of the m measurement components (residual axes), e.g. ("bx", "by", "bz").
-    components: ClassVar[tuple[str, ...]] = ()
+    #: names of the m measurement components (residual axes), e.g. ("bx", "by", "bz");
+    #: a class attribute, which an instance may set from its data book (the horizon scanner)
+    components: tuple[str, ...] = ()
     #: unit of the measurements, for display.
     unit: ClassVar[str] = ""
     #: "three_axis", "spinning" or "rate" (the gyro: ``d_att`` is ∂y/∂ω): what the
@@ -212,7 +214,7 @@ class ObservationModel:
         raise NotImplementedError
 
     def held(self, geom: Geometry, params: Mapping[str, float], rows: np.ndarray | None = None
-             ) -> Callable[[Mapping[str, float]], "HeldPrediction"] | None:
+             ) -> Callable[[Mapping[str, float]], HeldPrediction] | None:
         """A fast evaluation in the :attr:`nonlinear_pairs` parameters with everything else
         held (the attitude, the ephemeris and the other parameters at ``params``): a
         function ``(params, wanted=None) -> HeldPrediction`` at the frames ``rows`` of

@@ -33,8 +33,8 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping
 
 import numpy as np
 
@@ -220,9 +220,9 @@ def check_partials(model: ObservationModel, geom: Geometry, params: Mapping[str,
 
     h_att, make = _attitude_perturbations(model, geom, rel_step)
     for k, name in enumerate(ATTITUDE_NAMES):
-        def run(sign, _k=k):
+        def run_att(sign, _k=k):
             return model.predict(make(_k, sign), values)
-        elements.append(compare(name, h_att, np.asarray(base.d_att)[..., k], run))
+        elements.append(compare(name, h_att, np.asarray(base.d_att)[..., k], run_att))
 
     return CheckReport(model=f"{model.type_name}:{model.name}", scheme=scheme, n_frames=geom.n,
                        n_valid=int(np.count_nonzero(base.valid)), elements=tuple(elements))

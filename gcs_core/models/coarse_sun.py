@@ -21,7 +21,7 @@ plus a 10 % margin.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -53,10 +53,10 @@ class CoarseSunModel(ObservationModel):
             raise InputError("'scale' [rad/count] must not be 0", key=common.book_key(self.sensor, "scale"))
         bias = common.book_vector(self.sensor, "bias", 2, default=(0.0, 0.0))
         specs = []
-        for i, (axis, _, kname, bname) in enumerate(AXES):
+        for i, (axis, _, kname, _b) in enumerate(AXES):
             specs.append(ParamSpec(kname, "rad/count", float(scale[i]), 0.05 * abs(scale[i]), seed=True,
                                    effect="scale", description=f"{axis} scale factor (Eq 4-16)"))
-        for i, (axis, _, kname, bname) in enumerate(AXES):
+        for i, (axis, _, _k, bname) in enumerate(AXES):
             specs.append(ParamSpec(bname, "rad", float(bias[i]), 1.0 * units.DEG, seed=True,
                                    effect="bias", description=f"{axis} angle bias (Eq 4-16)"))
         specs += common.alignment_specs(self.sensor, seed=False, sigma=0.02)
@@ -77,7 +77,7 @@ class CoarseSunModel(ObservationModel):
         M, dM = common.alignment_matrix(p)
         y = np.zeros((n, 2))
         J = np.zeros((n, 2, 3))                        # ∂n/∂S_S
-        d_par: dict[str, np.ndarray] = {}
+        d_par: dict[str, common.PartialSource] = {}
         with np.errstate(all="ignore"):
             bv = common.body_vector(geom, geom.sun_I, p["time_offset"])
             S = bv.v_B @ M.T

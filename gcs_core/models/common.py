@@ -39,8 +39,9 @@ compiled loops, otherwise the numpy forms (same numbers to round-off).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Iterator, Mapping
 from functools import cached_property, lru_cache
-from typing import Callable, Iterator, Mapping, Union
+from typing import Any, overload
 
 import numpy as np
 
@@ -48,8 +49,8 @@ from gcs_core import units
 from gcs_core.compiled import COMPILED, jit
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_partials, euler123_to_dcm, rotvec_to_dcm
-from gcs_core.models.base import Geometry, ParamSpec, Prediction
 from gcs_core.io.types import SensorSpec
+from gcs_core.models.base import Geometry, ParamSpec, Prediction
 
 #: Fraction of the half field of view added as a margin before a frame is rejected, so
 #: that alignment errors being calibrated do not throw away genuine data near the edge.
@@ -120,6 +121,10 @@ def book_vector(sensor: SensorSpec, key: str, size: int, default=None) -> np.nda
     return arr
 
 
+@overload
+def book_scalar(sensor: SensorSpec, key: str, default: float) -> float: ...
+@overload
+def book_scalar(sensor: SensorSpec, key: str, default: None = None) -> float | None: ...
 def book_scalar(sensor: SensorSpec, key: str, default: float | None = None) -> float | None:
     """Data-book value ``key`` as a float (``default`` when absent)."""
     value = sensor.get(key, None)
@@ -207,7 +212,7 @@ def _alignment(a1: float, a2: float, a3: float) -> tuple[np.ndarray, np.ndarray]
 # Body vector with a time-tag offset
 # --------------------------------------------------------------------------------------
 #: an (N, 3) rate of a reference vector, or a function giving it when it is needed
-RateSource = Union[np.ndarray, Callable[[], np.ndarray], None]
+RateSource = np.ndarray | Callable[..., np.ndarray | None] | None   # a function: called with no arguments
 
 
 class BodyVector:
@@ -272,7 +277,10 @@ class BodyVector:
 
 
 def _rate(src: RateSource) -> np.ndarray | None:
-    return np.asarray(src(), dtype=float) if callable(src) else src
+    """The (N, 3) rate ``src`` holds or gives; None when it gives none (a magnetometer
+    without a field model: the field's motion is then left out, not made NaN)."""
+    rate = src() if callable(src) else src
+    return None if rate is None else np.asarray(rate, dtype=float)
 
 
 def body_vector(geom: Geometry, v_I: np.ndarray, dt: float, vdot_I: RateSource = None) -> BodyVector:
@@ -290,7 +298,8 @@ def body_vector(geom: Geometry, v_I: np.ndarray, dt: float, vdot_I: RateSource =
     w_I = v_I
     if dt != 0.0 and vdot_I is not None:
         vdot_I = _rate(vdot_I)
-        w_I = v_I + dt * vdot_I
+        if vdot_I is not None:
+            w_I = v_I + dt * vdot_I
     u_B = rotate(C, w_I)                                       # C (v_I + Δt v̇_I)
     omega = None
     if geom.omega_B is not None:
@@ -336,7 +345,7 @@ def fov_square_ok(S_S: np.ndarray, fov: float | None) -> np.ndarray:
 
 
 #: a partial as given by a model: an array broadcastable to (N, m), or a function giving it
-PartialSource = Union[np.ndarray, Callable[[], np.ndarray]]
+PartialSource = np.ndarray | Callable[..., np.ndarray]   # a function: called with no arguments
 
 
 class Partials(Mapping):
@@ -387,7 +396,7 @@ def column(n: int, m: int, i: int, value) -> np.ndarray:
 
 
 def finish(y: np.ndarray, d_att: np.ndarray, d_par: Mapping[str, PartialSource], valid: np.ndarray,
-           specs: tuple[ParamSpec, ...], d2_par: Mapping[tuple[str, str], PartialSource] | None = None
+           specs: tuple[ParamSpec, ...], d2_par: Mapping[tuple[str, str], tuple[int, Any]] | None = None
            ) -> Prediction:
     """Check that every parameter has a partial, NaN-out invalid frames, build the Prediction
     (partials given as functions are formed when read, :class:`Partials`); ``d2_par`` the

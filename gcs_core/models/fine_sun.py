@@ -47,7 +47,8 @@ width) plus a 10 % margin.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 
@@ -155,7 +156,7 @@ class FineSunModel(ObservationModel):
         n = geom.n
         M, dM = common.alignment_matrix(p)
         d_par: dict[str, common.PartialSource] = {}
-        d2: dict[tuple[str, str], common.PartialSource] = {}
+        d2: dict[tuple[str, str], tuple[int, Any]] = {}   # (a, b) -> (component, ∂²y_c/∂a∂b)
         y = np.empty((n, 2))
         J = np.zeros((n, 2, 3))                     # ∂n/∂S_S
         with np.errstate(all="ignore"):

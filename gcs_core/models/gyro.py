@@ -36,7 +36,7 @@ accuracy solutions for two common spacecraft attitude estimators", J. Guidance &
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -60,7 +60,7 @@ class GyroNoise:
         """Whether the gyro adds process noise (σ_v or σ_u > 0; σ_e does not accumulate)."""
         return self.sigma_v > 0 or self.sigma_u > 0
 
-    def scaled(self, k: float) -> "GyroNoise":
+    def scaled(self, k: float) -> GyroNoise:
         """Every σ multiplied by ``k`` (a process-noise tuning factor)."""
         return GyroNoise(k * self.sigma_v, k * self.sigma_u, k * self.sigma_e)
 

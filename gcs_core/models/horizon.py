@@ -58,15 +58,15 @@ Wertz (ed.) 1978, §7.1–7.2 and §12.2 (horizon sensor geometry); seed Referen
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from gcs_core import units
 from gcs_core.errors import InputError
+from gcs_core.io.types import SensorSpec, Table
 from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
-from gcs_core.io.types import SensorSpec, Table
 
 TWO_PI = 2.0 * np.pi
 FLATTENING = 1.0 / 298.257223563          # WGS-84 (NIMA TR8350.2, 3rd ed., 2000, Table 3.1)

@@ -50,7 +50,7 @@ only sees the attitude motion).
 from __future__ import annotations
 
 import logging
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -164,7 +164,8 @@ class MagnetometerModel(ObservationModel):
         specs = self.parameters()
         p = common.merged_params(specs, params)
         n = geom.n
-        B_I, rate = geom.B_I, (lambda: self._field_rate(geom))
+        B_I = geom.B_I
+        rate: common.RateSource = lambda: self._field_rate(geom)
         if self.constant_field:
             B_I = np.broadcast_to(np.array([p["field_x"], p["field_y"], p["field_z"]]), (n, 3))
             rate = None

@@ -22,7 +22,7 @@ A frame is valid when ``|u| < 1``.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 

@@ -23,13 +23,13 @@ tracker and both angles are within ``fov_deg`` (half width) plus a 10 % margin.
 
 from __future__ import annotations
 
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
+from gcs_core.io.types import Table
 from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
-from gcs_core.io.types import Table
 
 
 class StarTrackerModel(ObservationModel):
@@ -84,7 +84,7 @@ class StarTrackerModel(ObservationModel):
             J[:, 1, 1] = F[:, 0] / (S_V * rho2)
             d_att = bv.left((J.reshape(-1, 3) @ M).reshape(-1, 2, 3))    # J M ∂F_B/∂δθ
             # parameter partials, formed when read (common.Partials)
-            d_par = {name: (lambda k=k: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T))
+            d_par: dict[str, common.PartialSource] = {name: (lambda k=k: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T))
                      for k, name in enumerate(common.ALIGN_NAMES)}
             n = geom.n
             d_par["scale_h"] = lambda: common.column(n, 2, 0, -asin_z / S_H ** 2)

@@ -32,7 +32,7 @@ Tapley, B. D., Schutz, B. E., Born, G. H., *Statistical Orbit Determination*, El
 
 from __future__ import annotations
 
-from typing import Mapping, Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 

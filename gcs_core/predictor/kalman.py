@@ -43,21 +43,20 @@ Born, G. H., *Statistical Orbit Determination*, Elsevier 2004, §4.7 and §6.3.
 
 from __future__ import annotations
 
+from collections.abc import Mapping, Sequence
 from dataclasses import replace
-from typing import Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.problem.attitude import RPY
-from gcs_core.problem.linearization import linearize
-from gcs_core.problem.build import Problem
 from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.frames.rotations import dcm_to_euler123
 from gcs_core.models import common
 from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 from gcs_core.predictor.information import weighted_rows
-from gcs_core.problem.attitude import ERR, BodyErrorAttitude, rpy_error_jacobians
+from gcs_core.problem.attitude import ERR, RPY, BodyErrorAttitude, rpy_error_jacobians
+from gcs_core.problem.build import Problem
+from gcs_core.problem.linearization import linearize
 
 #: a-priori σ used in place of an infinite one (the covariance form needs a finite P)
 BIG_SIGMA = 1e6
@@ -93,7 +92,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     lins = linearize(err_problem, values, list(ERR) + others + list(consider))
     rows = [weighted_rows(lin, sd.t, masks.get(sd.name)) for lin, sd in zip(lins, problem.sensors)]
 
-    t_ref = float(att.t_ref)
+    t_ref = float(problem.gyro_attitude.t_ref)
     t_rows = np.concatenate([t for t, _ in rows] + [np.zeros(0)])
     events = np.unique(np.concatenate([[t_ref], t_rows[t_rows >= t_ref], times[times >= t_ref]]))
 
@@ -111,6 +110,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     # attitude transition pieces at the events
     ae = att.evaluate(values, events)
     C = ae.C_BI
+    assert C is not None                                           # a three-axis attitude
     pnames = list(ae.names[3:])
     F = np.einsum("eji,ejp->eip", C, ae.J[:, :, 3:])              # E(t) = Cᵀ ∂δθ/∂p
     sf = [(j, 3 + others.index(p)) for j, p in enumerate(pnames) if p in others]
@@ -127,7 +127,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     sig_e2 = noise.sigma_e ** 2
 
     # output-time mapping δθ -> δ(roll, pitch, yaw)
-    A_out = att.ref.reference(np.maximum(times, t_ref))
+    A_out = problem.gyro_attitude.ref.reference(np.maximum(times, t_ref))
     C_out = att.evaluate(values, np.maximum(times, t_ref)).C_BI
     rpy_out = np.column_stack(dcm_to_euler123(C_out @ np.swapaxes(A_out, -1, -2)))
     Jr = rpy_error_jacobians(rpy_out)
@@ -143,10 +143,10 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
 
     T = times.size
     out = {"sigma": np.zeros((T, n)), "sigma_noise": np.zeros((T, n)), "attitude_sigma": np.zeros((T, 3))}
-    out_at = {int(e): [] for e in np.searchsorted(events, times[times >= t_ref])}
+    out_at: dict[int, list[int]] = {int(e): [] for e in np.searchsorted(events, times[times >= t_ref])}
     for j in np.flatnonzero(times >= t_ref):
-        out_at[int(np.searchsorted(events, times[j]))].append(j)
-    last = {}
+        out_at[int(np.searchsorted(events, times[j]))].append(int(j))
+    last: dict = {}
 
     def record(j):
         Tm = np.eye(n)
@@ -195,7 +195,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
             P = IKH @ P @ IKH.T + K @ R @ K.T                      # Joseph form
             P = 0.5 * (P + P.T)
             S = S - K @ (Hx @ S + Hc)
-        for j in out_at.get(k, ()):
-            record(j)
+        for jo in out_at.get(k, ()):
+            record(jo)
     return {**out, "P": last["P"], "P_consider": last["P_consider"], "budget": last["budget"],
             "unobservable": np.zeros(n, dtype=bool)}

@@ -35,12 +35,12 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_core.ephem.sun import earth_occults, sunlit_fraction
-from gcs_core.problem.attitude import ReferenceAttitude
 from gcs_core.frames.reference import spin_axis
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm
+from gcs_core.io.types import SensorSpec
 from gcs_core.models import common
 from gcs_core.models.gyro import rate_from_quaternions
-from gcs_core.io.types import SensorSpec
+from gcs_core.problem.attitude import ReferenceAttitude
 from gcs_core.units import DEG
 
 #: default exclusion angles of a star tracker [deg] (typical FHST values)
@@ -82,6 +82,7 @@ class PlanAttitude:
         """(N, 3, 3) nominal ``C_BI`` (Eq 4-6)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         a = self.rpy(t)
+        assert self.reference is not None                  # a three-axis plan (not spinning)
         return euler123_to_dcm(a[:, 0], a[:, 1], a[:, 2]) @ self.reference.reference(t)
 
     def mean_rates(self, knots) -> np.ndarray:

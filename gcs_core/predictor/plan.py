@@ -24,9 +24,9 @@ attitude between observations (Eq 4-38), is taken to run through them.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
@@ -117,7 +117,7 @@ class DataPlan:
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_config(cls, cfg: AnalysisConfig, *, span: tuple[float, float] | None = None,
-                    **overrides) -> "DataPlan":
+                    **overrides) -> DataPlan:
         """The plan of an analysis config's ``[prediction]`` table.
 
         ``span`` supplies start/end where the config leaves them out (e.g. the

@@ -18,31 +18,32 @@ of each of them to every solve-for element and the noise-only part (an error bud
 from __future__ import annotations
 
 import logging
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping, Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
+from gcs_core.ephem.ephemeris import Ephemeris
+from gcs_core.ephem.orbit import build_ephemeris
 from gcs_core.errors import InputError
-from gcs_core.problem.attitude import RPY
-from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.filtr.batch import name_combinations
-from gcs_core.problem.linearization import linearize
-from gcs_core.problem.build import ElementOverride, Problem, StateOptions
+from gcs_core.filtr.smoothing_uses import predicted_covariance
+from gcs_core.io.csvio import read_table
+from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
+from gcs_core.io.tle_table import tle_ephemeris_table
+from gcs_core.io.types import MissionSpec
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
+from gcs_core.problem.attitude import RPY
+from gcs_core.problem.build import ElementOverride, Problem, StateOptions
+from gcs_core.problem.gyro_attitude import GyroAttitude
+from gcs_core.problem.linearization import linearize
 from gcs_core.problem.prepare import PhysicsOptions
-from gcs_core.io.csvio import read_table
-from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
-from gcs_core.io.types import MissionSpec
 from gcs_core.units import DEG
-from gcs_core.filtr.smoothing_uses import predicted_covariance
-from gcs_core.io.tle_table import tle_ephemeris_table
-from gcs_core.ephem.orbit import build_ephemeris
-from gcs_core.ephem.ephemeris import Ephemeris
 
 log = logging.getLogger(__name__)
 
@@ -134,7 +135,7 @@ class PredictionResult:
     def as_report(self) -> dict[str, Any]:
         """JSON-ready summary: final σ, budget, availability, frames (internal units;
         an infinite σ becomes None)."""
-        num = lambda x: float(x) if np.isfinite(x) else None  # noqa: E731
+        num = lambda x: float(x) if np.isfinite(x) else None
         return {"method": self.method,
                 "plan": None if self.plan is None else {
                     "start": self.plan.start, "end": self.plan.end, "step": self.plan.step,
@@ -205,10 +206,11 @@ def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float)
             return eph
         if orbit is None and getattr(spec, "orbit_tle", None) is None:
             eph.check_covers(np.array([plan.start, plan.end]), what="the prediction plan")
-    if orbit is None and getattr(spec, "orbit_tle", None) is not None:
+    tle = getattr(spec, "orbit_tle", None)
+    if orbit is None and tle is not None:
         # the mission's [orbit] tle propagated over the plan (gcs_core.ephem.tle)
         return Ephemeris.from_table(tle_ephemeris_table(
-            spec.orbit_tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
+            tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
             step_s=spec.orbit_step_s, margin_s=EPHEMERIS_MARGIN_S))
     if orbit is None:
         raise InputError("no ephemeris for the plan: give the mission's ephemeris.csv or an orbit "

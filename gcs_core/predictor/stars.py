@@ -40,17 +40,17 @@ from __future__ import annotations
 
 import functools
 import os
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from gcs_core.errors import InputError
-from gcs_core.models import common
-from gcs_core.predictor.nominal import PlanAttitude, _alignment
 from gcs_core.io import csvio
 from gcs_core.io.types import SensorSpec, Table
+from gcs_core.models import common
+from gcs_core.predictor.nominal import PlanAttitude, _alignment
 from gcs_core.units import DEG
 
 #: the catalog a mission directory may carry (written by :func:`gcs_core.sim.write_mission`)

@@ -26,32 +26,36 @@ same SODL state, same models, same reference vectors — from frame *times* only
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
 from gcs_core.ephem.ephemeris import EPHEMERIS_COLUMNS, Ephemeris
 from gcs_core.errors import InputError
-from gcs_core.problem.attitude import RPY, ReferenceAttitude
-from gcs_core.problem.gyro_attitude import GyroAttitude
-from gcs_core.problem.linearization import linearize
-from gcs_core.problem.build import Problem, StateOptions, build_problem
 from gcs_core.frames.reference import ra_dec_from_vector
 from gcs_core.frames.rotations import dcm_to_euler123, quat_normalize, quat_to_dcm
+from gcs_core.io.importer import TELEMETRY_COLUMNS, ImportedMission
+from gcs_core.io.types import MissionSpec, SensorSpec, Table
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry
-from gcs_core.problem.attitude import ManeuverAttitude
 from gcs_core.predictor.nominal import PlanAttitude, available, nominal_spin_axis
-from gcs_core.predictor.stars import (STAR_CATALOG_FILE, catalog_stars, default_sky, read_catalog,
-                                      synthetic_stars, telemetry_catalog)
 from gcs_core.predictor.plan import DEFAULT_CADENCE_S, DEFAULT_TRACKER_CADENCE_S, DataPlan
-from gcs_core.io.importer import TELEMETRY_COLUMNS, ImportedMission
+from gcs_core.predictor.stars import (
+    STAR_CATALOG_FILE,
+    catalog_stars,
+    default_sky,
+    read_catalog,
+    synthetic_stars,
+    telemetry_catalog,
+)
+from gcs_core.problem.attitude import RPY, ManeuverAttitude, ReferenceAttitude
+from gcs_core.problem.build import Problem, StateOptions, build_problem
+from gcs_core.problem.gyro_attitude import GyroAttitude
+from gcs_core.problem.linearization import linearize
 from gcs_core.problem.prepare import PhysicsOptions
-from gcs_core.io.types import MissionSpec, SensorSpec, Table
 from gcs_core.units import DEG
-
 
 SPINNER_TYPES = ("plane_field_sun", "horizon")
 #: room left at the end of a spinner plan for the horizon model's time shifts [s]

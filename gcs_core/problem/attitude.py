@@ -41,17 +41,17 @@ memory does not grow with the span.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Mapping, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
-from gcs_core.problem import kernels as kernels
 from gcs_core.compiled import COMPILED
-from gcs_core.frames.reference import (earth_pointing_rate, reference_dcm, spin_axis,
-                                       spin_axis_partials)
+from gcs_core.frames.reference import earth_pointing_rate, reference_dcm, spin_axis, spin_axis_partials
 from gcs_core.frames.rotations import dcm_to_euler123, euler123_partials, euler123_to_dcm
 from gcs_core.models.base import ParamSpec
+from gcs_core.problem import kernels as kernels
 from gcs_core.units import DEG
 
 RPY = ("att.roll", "att.pitch", "att.yaw")
@@ -115,7 +115,7 @@ class FrameAttitude:
         self._gyro = gyro
 
     @classmethod
-    def of(cls, ev: AttitudeEval) -> "FrameAttitude":
+    def of(cls, ev: AttitudeEval) -> FrameAttitude:
         return cls(ev.C_BI, ev.spin_axis_I, ev.omega_B, ev.names, J=ev.J)
 
     @property
@@ -295,12 +295,12 @@ class AttitudeProvider(Protocol):
     def names(self) -> tuple[str, ...]: ...
 
     @property
-    def ref(self) -> "ReferenceAttitude | ManeuverAttitude | None": ...
+    def ref(self) -> ReferenceAttitude | ManeuverAttitude | None: ...
 
     def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
         """Attitude and partials at the times ``t`` (N,)."""
 
-    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
         """The same at the frames of one chunk, partials kept factored (:class:`FrameAttitude`)."""
 
     def covers(self, t) -> np.ndarray:
@@ -316,12 +316,12 @@ class ProviderDefaults:
 
     gyro: str | None = None
     t_ref: float | None = None
-    ref: "ReferenceAttitude | ManeuverAttitude | None" = None
+    ref: ReferenceAttitude | ManeuverAttitude | None = None
 
     def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
         raise NotImplementedError
 
-    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> "FrameAttitude":
+    def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
         return FrameAttitude.of(self.evaluate(values, t))
 
     def covers(self, t) -> np.ndarray:
@@ -342,7 +342,7 @@ class ReferenceAttitude(ProviderDefaults):
         self.builder = builder
 
     @property
-    def ref(self) -> "ReferenceAttitude":
+    def ref(self) -> ReferenceAttitude:
         """Itself: the elements are roll/pitch/yaw about its reference frame."""
         return self
 
@@ -379,7 +379,8 @@ class ReferenceAttitude(ProviderDefaults):
 
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
         A = self.reference(np.atleast_1d(t))[0]
-        return tuple(float(a) for a in dcm_to_euler123(C @ A.T))
+        roll, pitch, yaw = (float(a) for a in dcm_to_euler123(C @ A.T))
+        return roll, pitch, yaw
 
 
 class SpinAttitude(ProviderDefaults):
@@ -426,7 +427,7 @@ class ManeuverAttitude(ProviderDefaults):
         return AttitudeEval(C, None, RPY, rpy_error_jacobians(rpy))
 
     @property
-    def ref(self) -> "ManeuverAttitude":
+    def ref(self) -> ManeuverAttitude:
         """Itself: the elements are the roll/pitch/yaw at ``start``, before the maneuvers."""
         return self
 

@@ -13,26 +13,23 @@ columns ``H = ∂h/∂x``.
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
-from typing import Mapping
+from typing import cast
 
 import numpy as np
 
+from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.errors import ConfigError, InputError
-from gcs_core.problem.attitude import (RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude,
-                                       rpy_specs)
-from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
-from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.models.base import ParamSpec
 from gcs_core.models.gyro_noise import gyro_noise
-from gcs_core.problem.prepare import (GeometryBuilder, HeldChannels, PhysicsOptions, SensorData,
-                                   prepare_sensors)
-from gcs_core.problem.state import Element, StateVector
+from gcs_core.problem.attitude import RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude, rpy_specs
+from gcs_core.problem.gyro_attitude import GyroAttitude
+from gcs_core.problem.prepare import GeometryBuilder, HeldChannels, PhysicsOptions, SensorData, prepare_sensors
+from gcs_core.problem.state import HELD, SOLVE_FOR, Element, StateVector
 from gcs_core.units import DEG
-from gcs_core.ephem.ephemeris import Ephemeris
-
 
 #: frames per chunk of the streaming linearization: memory is bounded by the chunk, not
 #: the span. Large enough that per-chunk overheads are small, small enough that a chunk's
@@ -95,6 +92,13 @@ class Problem:
     edited: dict[str, np.ndarray] = field(default_factory=dict)
     chunk_frames: int = CHUNK_FRAMES
 
+    @property
+    def gyro_attitude(self) -> GyroAttitude:
+        """The attitude provider as carried by the gyro (``gyro_name`` set): a
+        :class:`GyroAttitude`, or a wrapper (the smoother's corrected attitude) that forwards
+        its attributes; for the type checker only, nothing is converted or checked here."""
+        return cast(GyroAttitude, self.attitude)
+
     def set_chunk(self, frames: int) -> None:
         """Chunk length of the streaming linearization and of the gyro propagation blocks
         (results do not depend on it beyond round-off; memory and speed do)."""
@@ -111,7 +115,7 @@ class Problem:
     def params_of(self, sensor: str, values: Mapping[str, float]) -> dict[str, float]:
         return {local: values[el] for local, el in self.param_map[sensor].items()}
 
-    def with_state(self, state: StateVector) -> "Problem":
+    def with_state(self, state: StateVector) -> Problem:
         return replace(self, state=state)
 
 
@@ -194,6 +198,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     mode = spec.attitude_mode
     gyros = [s for s in spec.sensors if s.type == "gyro"]
     gyro_name = None
+    attitude: AttitudeProvider
     if mode == "spinning":
         attitude = SpinAttitude()
     elif gyros and use_gyro:
@@ -229,7 +234,8 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
                                     "spin-axis " + ("right ascension" if n.endswith("ra") else "declination")
                                     + ", Eq 4-2"))
     else:
-        for spec_ in rpy_specs(*(att0[n] for n in RPY), sigma=options.attitude_sigma):
+        roll, pitch, yaw = (att0[n] for n in RPY)
+        for spec_ in rpy_specs(roll, pitch, yaw, sigma=options.attitude_sigma):
             elements.append(_element_from_spec(None, spec_, SOLVE_FOR, kind="attitude"))
 
     param_map: dict[str, dict[str, str]] = {}

@@ -13,17 +13,25 @@ from __future__ import annotations
 import operator
 import sys
 import weakref
-from typing import Mapping
+from collections.abc import Mapping
 
 import numpy as np
 
 from gcs_core.compiled import COMPILED
-from gcs_core.problem import kernels
-from gcs_core.problem.attitude import (BIAS_RATE_NAMES, BLOCK_KNOTS, RPY, AttitudeEval, FrameAttitude,
-                                     ReferenceAttitude, rpy_error_jacobian)
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
+from gcs_core.problem import kernels
+from gcs_core.problem.attitude import (
+    BIAS_RATE_NAMES,
+    BLOCK_KNOTS,
+    RPY,
+    AttitudeEval,
+    FrameAttitude,
+    ReferenceAttitude,
+    rpy_error_jacobian,
+)
+
 
 # ----------------------------------------------------------------------------------------
 # Quaternion helpers (fast forms of the Eq 4-8/4-10 products used along the gyro knots)
@@ -104,7 +112,7 @@ class _GyroConsts:
 
     __slots__ = ("Ginv", "M", "dM", "b", "bdot", "MtGinv", "C0", "J0", "Ma", "q0", "t_mid")
 
-    def __init__(self, att: "GyroAttitude", values: Mapping[str, float]):
+    def __init__(self, att: GyroAttitude, values: Mapping[str, float]):
         p = att._gyro_params(values)
         G = g_matrix(p)
         self.Ginv = np.linalg.inv(G)
@@ -171,9 +179,15 @@ class _Where:
     """
 
     __slots__ = ("b", "j", "w", "g", "ig", "s")
+    b: int | None
+    j: slice | np.ndarray | None
+    w: slice | np.ndarray | None
+    g: np.ndarray | None
+    ig: np.ndarray | None
+    s: np.ndarray | None
 
     @classmethod
-    def of(cls, att: "GyroAttitude", t: np.ndarray) -> "_Where":
+    def of(cls, att: GyroAttitude, t: np.ndarray) -> _Where:
         self = cls()
         k = att._rows(t)
         b = (k - 1) // att._block_knots
@@ -188,9 +202,9 @@ class _Where:
             self.w = _progression(i)
             return self
         self.j = _progression(np.where(on_knot, i + 1, i))
-        self.w = i.astype(np.int32)
+        self.w = w = i.astype(np.int32)
         self.g = ~on_knot
-        self.ig = self.w[self.g]
+        self.ig = w[self.g]
         self.s = t[self.g] - att.knots[k[self.g] - 1]
         return self
 
@@ -229,7 +243,7 @@ class GyroAttitude:
         self.y = np.asarray(y_gyro, float)
         self.t_ref = float(self.knots[0])
         self._block_knots = max(1, int(block_knots))
-        self._key = None
+        self._key: tuple[float, ...] | None = None
         self._consts: _GyroConsts | None = None
         self._checkpoints: list = []
         self._blocks: dict[int, _Block] = {}
@@ -284,6 +298,8 @@ class GyroAttitude:
             self._key, self._consts = key, c
             self._checkpoints = [(c.q0, c.C0, np.zeros((3, len(self.param_names))))]
             self._drop_blocks()
+            return c
+        assert self._consts is not None                  # a key is only kept with its constants
         return self._consts
 
     def clear_cache(self) -> None:
@@ -330,6 +346,7 @@ class GyroAttitude:
         each; the numpy form below composes the steps by a blocked scan.
         """
         c = self._consts
+        assert c is not None                              # _block() computed the state first
         L = self._block_knots
         r0, r1 = b * L, min(self.y.shape[0], (b + 1) * L)
         n = r1 - r0
@@ -395,9 +412,9 @@ class GyroAttitude:
 
     def _block(self, values, b: int, with_E: bool = True) -> _Block:
         self._state(values)
-        blk = self._blocks.get(b)
-        if blk is not None and (blk.E is not None or not with_E):
-            return blk
+        held = self._blocks.get(b)
+        if held is not None and (held.E is not None or not with_E):
+            return held
         # nearest checkpoint at or before b that carries what this block needs
         j = min(b, len(self._checkpoints) - 1)
         while with_E and self._checkpoints[j][2] is None:
@@ -415,7 +432,7 @@ class GyroAttitude:
         # interval k (1-based) holding t: τ_{k-1} < t ≤ τ_k; t = τ_0 maps to k = 1 with s = 0
         return np.clip(np.searchsorted(self.knots, t, side="left"), 1, K)
 
-    def _locate(self, t) -> "_Where":
+    def _locate(self, t) -> _Where:
         """Where the times ``t`` fall among the knots (:class:`_Where`).
 
         State-independent, so it is kept for times that view a longer array (a chunk of a
@@ -438,8 +455,9 @@ class GyroAttitude:
             self._where[key] = (weakref.ref(base), where)
         return where
 
-    def _frames_in_block(self, blk: _Block, t, where: "_Where") -> FrameAttitude:
+    def _frames_in_block(self, blk: _Block, t, where: _Where) -> FrameAttitude:
         c = self._consts
+        assert c is not None                              # blk came from _block(), after _state()
         j, g = where.j, where.g
         if g is None:                                            # every frame on a knot
             w = blk.omega[where.w]

@@ -10,15 +10,16 @@ through here, so memory is bounded by the chunk, not the span. It builds on
 """
 
 
+from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Iterator, Mapping, Sequence
 
 import numpy as np
 
-from gcs_core.problem.kernels import GRAM_TILE_ROWS
-from gcs_core.problem.curvature import block_curvature
-from gcs_core.problem.prepare import (HeldChannels, SensorData)
+from gcs_core.models.base import Geometry, Prediction
 from gcs_core.problem.build import Problem
+from gcs_core.problem.curvature import block_curvature
+from gcs_core.problem.kernels import GRAM_TILE_ROWS
+from gcs_core.problem.prepare import HeldChannels, SensorData
 
 
 @dataclass(frozen=True)
@@ -71,7 +72,7 @@ class Block:
     sensor: SensorData
     lo: int
     hi: int
-    geom: object
+    geom: Geometry
     y_pred: np.ndarray
     r: np.ndarray
     valid: np.ndarray
@@ -80,12 +81,20 @@ class Block:
     H: np.ndarray | None
     Hr: np.ndarray | None = None
     curv: tuple = ()
-    pred: object = None
+    pred: Prediction | None = None
     G: np.ndarray | None = None
 
     @property
     def name(self) -> str:
         return self.sensor.name
+
+    def gram(self) -> np.ndarray:
+        """``[H r]ᵀ [H r]`` (k_s + 1, k_s + 1): ``G`` when the block was formed without its rows."""
+        if self.G is not None:
+            return self.G
+        if self.Hr is None:
+            raise ValueError("this block carries neither its rows nor their Gram matrix")
+        return self.Hr.T @ self.Hr
 
     def weighted_residual(self) -> np.ndarray:
         """(n·m,) ``R^-1/2 r`` with unused frames zero."""

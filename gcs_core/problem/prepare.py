@@ -31,8 +31,9 @@ a few tens of bytes per frame beyond the measurements.
 
 from __future__ import annotations
 
+from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, fields, replace
-from typing import Iterator, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -40,9 +41,9 @@ from gcs_core.ephem import corrections
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.geomag import GeomagField
 from gcs_core.frames.reference import spin_axis
+from gcs_core.io.types import MissionSpec, Table
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry, ObservationModel
-from gcs_core.io.types import MissionSpec, Table
 from gcs_core.models.horizon import FLATTENING as WGS84_FLATTENING
 from gcs_core.units import DEG
 
@@ -138,9 +139,10 @@ class HeldChannels(Mapping):
         self._idx: np.ndarray | None = None
 
     def _index(self) -> np.ndarray:
-        idx = self._idx
+        idx, aux = self._idx, self._aux
         if idx is None:
-            idx = np.clip(np.searchsorted(self._aux.t, self._t, side="right") - 1, 0, len(self._aux) - 1)
+            assert aux is not None                  # channels are named only with aux data
+            idx = np.clip(np.searchsorted(aux.t, self._t, side="right") - 1, 0, len(aux) - 1)
             if not self._keep:                  # a chunk's mapping: every channel reads it
                 self._idx = idx
         return idx
@@ -150,6 +152,7 @@ class HeldChannels(Mapping):
             raise KeyError(name)
         out = self._done.get(name)
         if out is None:
+            assert self._aux is not None            # channels are named only with aux data
             out = np.asarray(self._aux.columns[name])[self._index()]
             if self._keep:
                 self._done[name] = out
@@ -164,12 +167,12 @@ class HeldChannels(Mapping):
     def __len__(self) -> int:
         return len(self._names)
 
-    def window(self, lo: int, hi: int) -> "HeldChannels":
+    def window(self, lo: int, hi: int) -> HeldChannels:
         w = HeldChannels(self._aux, self._t[lo:hi], keep=False, names=self._names)   # not listed again
         w._done = {k: v[lo:hi] for k, v in self._done.items()}
         return w
 
-    def subset(self, mask: np.ndarray) -> "HeldChannels":
+    def subset(self, mask: np.ndarray) -> HeldChannels:
         return HeldChannels(self._aux, self._t[mask], keep=self._keep, names=self._names)
 
 
@@ -241,7 +244,7 @@ class GeometryBuilder:
             fld = self.field(ph.field_model)
             kw["B_I"], extra["B_I_dot"] = np.empty((n, 3)), np.empty((n, 3))
             kw["field_model"] = fld.field_I
-        if star:
+        if star and table is not None:
             kw["star_I"] = np.empty((n, 3))
             ra, dec = np.asarray(table.columns["ra"]), np.asarray(table.columns["dec"])
         for lo in range(0, n, CHUNK_FRAMES) if (sun or mag or star) else ():
@@ -312,7 +315,7 @@ def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) ->
     for opt in relevant:
         on, off = PHYSICS_EFFECTS[opt]
         current = getattr(builder.physics, opt)
-        flipped = off if current == on else on
+        flipped: Any = off if current == on else on         # a bool or a model name, as the field
         ph = replace(builder.physics, **{opt: flipped})
         out[f"model.{opt}"] = builder.geometry(sd.model.type_name, sd.t, table, ph)
     return out

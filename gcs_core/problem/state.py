@@ -15,8 +15,8 @@ from :meth:`StateVector.index`.
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -129,19 +129,19 @@ class StateVector:
         return {e.param: vals[e.name] for e in self.elements if e.sensor == sensor}
 
     # --- edits (return new vectors; the state is immutable) ----------------------
-    def replace_element(self, name: str, **changes) -> "StateVector":
+    def replace_element(self, name: str, **changes) -> StateVector:
         i = self.index(name)
         elems = list(self.elements)
         elems[i] = replace(elems[i], **changes)
         return StateVector(tuple(elems))
 
-    def with_roles(self, roles: Mapping[str, str]) -> "StateVector":
+    def with_roles(self, roles: Mapping[str, str]) -> StateVector:
         out = self
         for name, role in roles.items():
             out = out.replace_element(name, role=role)
         return out
 
-    def with_values(self, values: Mapping[str, float]) -> "StateVector":
+    def with_values(self, values: Mapping[str, float]) -> StateVector:
         elems = [replace(e, value=float(values[e.name])) if e.name in values else e for e in self.elements]
         return StateVector(tuple(elems))
 

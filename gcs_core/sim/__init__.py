@@ -21,8 +21,17 @@ Typical use::
     write_mission(cfg, "out/mission", truth_path="out/answers/mission.json")
 """
 
-from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
-                                 SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
+from gcs_core.sim.config import (
+                                 AuxConfig,
+                                 HiddenEffect,
+                                 MissionConfig,
+                                 OnboardConfig,
+                                 OrbitElements,
+                                 SensorConfig,
+                                 Slew,
+                                 SpinProfile,
+                                 ThreeAxisProfile,
+)
 from gcs_core.sim.scenarios import EFFECTS, list_effects, nominal_threeaxis, spinner_nominal, with_effect
 from gcs_core.sim.writer import write_mission
 

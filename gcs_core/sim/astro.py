@@ -38,7 +38,7 @@ Wertz (ed.), *Spacecraft Attitude Determination and Control*, Reidel 1978, §3.3
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 
@@ -61,8 +61,8 @@ def parse_epoch(text: str) -> datetime:
     except ValueError as exc:
         raise InputError(f"bad epoch '{text}': {exc}", key="mission.epoch") from None
     if dt.tzinfo is None:
-        dt = dt.replace(tzinfo=timezone.utc)
-    return dt.astimezone(timezone.utc)
+        dt = dt.replace(tzinfo=UTC)
+    return dt.astimezone(UTC)
 
 
 def epoch_jd(epoch: datetime) -> float:

@@ -235,7 +235,7 @@ class MissionConfig:
                 return s
         raise KeyError(name)
 
-    def copy(self) -> "MissionConfig":
+    def copy(self) -> MissionConfig:
         return copy.deepcopy(self)
 
     @property

@@ -18,17 +18,26 @@ CSS fov 60°, K = 0.25°/count, noise 0.577 counts.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.sim import astro
-from gcs_core.sim.astro import R_EARTH_KM
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
-from gcs_core.sim.config import (AuxConfig, HiddenEffect, MissionConfig, OnboardConfig, OrbitElements,
-                                 SensorConfig, Slew, SpinProfile, ThreeAxisProfile)
+from gcs_core.sim.astro import R_EARTH_KM
+from gcs_core.sim.config import (
+    AuxConfig,
+    HiddenEffect,
+    MissionConfig,
+    OnboardConfig,
+    OrbitElements,
+    SensorConfig,
+    Slew,
+    SpinProfile,
+    ThreeAxisProfile,
+)
 from gcs_core.sim.truth import World
 
 __all__ = ["nominal_threeaxis", "spinner_nominal", "spinner_two_scanners", "sun_synchronous_inclination_deg",
@@ -86,13 +95,13 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
     """
     if mode not in ("inertial", "earth_pointing", "sun_pointing"):
         raise InputError(f"unknown three-axis mode '{mode}'", key="mode")
+    p = ThreeAxisProfile(slews=default_slews(duration_s))
     cfg = MissionConfig(name=name or f"nominal-{mode.replace('_', '')}", epoch=epoch, attitude_mode=mode,
                         duration_s=float(duration_s), orbit=orbit or OrbitElements(),
-                        attitude=ThreeAxisProfile(slews=default_slews(duration_s)),
+                        attitude=p,
                         aux=AuxConfig(cadence_s=1.0 if duration_s <= 86400 else 10.0),
                         onboard=OnboardConfig(error_deg=(0.03, -0.04, 0.0)), seed=int(seed))
     if sweep_deg > 0:
-        p = cfg.attitude
         p.wobble_amp_deg = (p.wobble_amp_deg[0], float(sweep_deg), float(sweep_deg))
         p.wobble_period_s = (p.wobble_period_s[0], 2300.0, 1700.0)
     sun_align, fhst1 = (0.0, 0.0, 0.0), (0.0, 0.0, 90.0)
@@ -101,7 +110,8 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
         probe = MissionConfig(name="probe", epoch=epoch, attitude_mode="sun_pointing", duration_s=1.0,
                               orbit=cfg.orbit)
         A0 = World(probe).reference(np.array([0.0]))[0]
-        cfg.attitude.rpy0_deg = tuple(float(np.degrees(x)) for x in dcm_to_rpy(A0))
+        r0, p0, y0 = (float(np.degrees(x)) for x in dcm_to_rpy(A0))
+        p.rpy0_deg = (r0, p0, y0)
     elif mode == "earth_pointing":
         # Sun sensors look at the zenith, tilted toward the Sun's side of the orbit plane by the
         # beta angle; FHST1 looks along ±y away from the Sun, raised 30° toward the zenith.
@@ -184,7 +194,7 @@ class EffectSpec:
     types: tuple[str, ...]
     unit: str
     description: str
-    apply: Callable[[SensorConfig, float, dict], None]
+    apply: Callable[[SensorConfig, float, dict], None] | None   # None: set on the mission (d_t)
 
 
 def _pattern(n, axis):
@@ -353,7 +363,7 @@ def with_effect(base: MissionConfig, effect_id: str, magnitude: float, *, name: 
             raise InputError(f"effect '{effect}' does not apply to {s.type} {sensor_name}", key="effect_id")
         if effect == "d_t":
             cfg.ephemeris_time_error_s = float(magnitude)
-        else:
+        elif spec.apply is not None:
             spec.apply(s, float(magnitude), kw)
         unit_, desc = spec.unit, spec.description
     cfg.effects.append(HiddenEffect(effect_id, float(magnitude), unit_, description or desc))

@@ -10,7 +10,8 @@ Plane-field Sun sensor ("slit" plane through the spacecraft). Its plane contains
 radial direction ``u = x_B`` and the axis ``w = cos ε_S ẑ − sin ε_S (ẑ × u)``, tilted by
 ``ε_S`` about ``u``; normal ``n = u × w = (0, −cos ε_S, −sin ε_S)``. The Sun sighting is the
 root of ``f(t) = n · C_BI(t) Ŝ(t)`` (going − to +, with ``Ŝ_B · u > 0``), ``Ŝ`` the apparent
-unit Sun vector at the spacecraft (parallax and aberration per the mission physics). In that plane ``Ŝ = a u + b w`` and ``Â·Ŝ = b cos ε_S``, so the
+unit Sun vector at the spacecraft (parallax and aberration per the mission physics). In that plane
+``Ŝ = a u + b w`` and ``Â·Ŝ = b cos ε_S``, so the
 angle the sensor reads from ``w`` is ``acos(Ŝ·w) = acos((Â·Ŝ)/cos ε_S)`` (Eq 4-14)::
 
     β_m = acos(Ŝ_B · w) + Δβ + N(0, noise²)
@@ -133,7 +134,7 @@ class SunSightings:
             t = np.unique(np.round(t, 6))
             t = t[(t >= t0) & (t < hi)]
             half = 0.02 * 2 * np.pi / w.spin_rate(t)
-            f = lambda x: self.sun_B(x) @ self.n_B          # noqa: E731
+            f = lambda x: self.sun_B(x) @ self.n_B
             fa, fb = f(t - half), f(t + half)
             good = (fa < 0) & (fb > 0)
             t, half, fa = t[good], half[good], fa[good]

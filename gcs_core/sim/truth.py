@@ -41,7 +41,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_core.sim import astro, orbit
-from gcs_core.sim._rot import dcm_to_quat, dcm_to_rotvec, rotvec_to_dcm, rpy_to_dcm, rot3, unit
+from gcs_core.sim._rot import dcm_to_quat, dcm_to_rotvec, rot3, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.config import MissionConfig, SensorConfig, SpinProfile, ThreeAxisProfile
 
 __all__ = ["World", "slew_angle", "GyroSim", "onboard_quaternions"]
@@ -79,7 +79,8 @@ class World:
         self.epoch = astro.parse_epoch(cfg.epoch)
         self.jd0 = astro.epoch_jd(self.epoch)
         if cfg.spinning:
-            sp: SpinProfile = cfg.attitude
+            sp = cfg.attitude
+            assert isinstance(sp, SpinProfile)
             ra, dec = np.radians(sp.ra_deg), np.radians(sp.dec_deg)
             self.spin_axis_I = np.array([np.cos(ra) * np.cos(dec), np.sin(ra) * np.cos(dec), np.sin(dec)])
             x0 = np.cross([0.0, 0.0, 1.0], self.spin_axis_I)
@@ -122,7 +123,8 @@ class World:
     # --- attitude --------------------------------------------------------------------
     def rpy(self, t) -> np.ndarray:
         """Roll, pitch, yaw [rad] of the three-axis profile, (N, 3)."""
-        p: ThreeAxisProfile = self.cfg.attitude
+        p = self.cfg.attitude
+        assert isinstance(p, ThreeAxisProfile)
         t = np.atleast_1d(np.asarray(t, dtype=float))
         out = np.radians(np.asarray(p.rpy0_deg, dtype=float))[None, :] \
             + np.radians(np.asarray(p.drift_deg_s, dtype=float))[None, :] * t[:, None]
@@ -137,14 +139,16 @@ class World:
 
     def spin_phase(self, t) -> np.ndarray:
         """Spin phase ``φ(t) = φ0 + ω t + ω̇ t²/2`` [rad], (N,)."""
-        sp: SpinProfile = self.cfg.attitude
+        sp = self.cfg.attitude
+        assert isinstance(sp, SpinProfile)
         t = np.asarray(t, dtype=float)
         w0 = sp.rate_rpm * 2 * np.pi / 60.0
         return np.radians(sp.phase0_deg) + w0 * t + 0.5 * sp.rate_dot_rad_s2 * t * t
 
     def spin_rate(self, t) -> np.ndarray:
         """Instantaneous spin rate ``ω(t)`` [rad/s], (N,)."""
-        sp: SpinProfile = self.cfg.attitude
+        sp = self.cfg.attitude
+        assert isinstance(sp, SpinProfile)
         return sp.rate_rpm * 2 * np.pi / 60.0 + sp.rate_dot_rad_s2 * np.asarray(t, dtype=float)
 
     def attitude(self, t, r=None, v=None, s=None) -> np.ndarray:

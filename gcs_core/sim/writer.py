@@ -41,7 +41,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.sim.aux import AuxSchedule
-from gcs_core.sim.config import ATTITUDE_MODES, SENSOR_TYPES, MissionConfig, SensorConfig, as_plain
+from gcs_core.sim.config import ATTITUDE_MODES, SENSOR_TYPES, MissionConfig, SensorConfig, SpinProfile, as_plain
 from gcs_core.sim.sensors import CoarseSunSim, FineSunSim, MagnetometerSim
 from gcs_core.sim.spinner import HorizonSim, PlaneFieldSim, SunSightings
 from gcs_core.sim.stars import StarCatalog, StarTrackerSim
@@ -141,6 +141,7 @@ def mission_toml(cfg: MissionConfig) -> str:
            f"attitude_mode = {_toml_value(cfg.attitude_mode)}"]
     if cfg.spinning:
         sp = cfg.attitude
+        assert isinstance(sp, SpinProfile)
         guess = [round(sp.ra_deg + sp.guess_error_deg[0], 6), round(sp.dec_deg + sp.guess_error_deg[1], 6)]
         out.append(f"spin_axis_guess_deg = {_toml_value(guess)}")
     out += ["", "[ephemeris]", 'file = "ephemeris.csv"']
@@ -205,9 +206,9 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
             r, v = world.orbit(te - cfg.ephemeris_time_error_s)      # Δt = 0 unless hidden
             sun = world.sun(te)
             files["ephemeris"].append(dict(zip(_EPH_COLS, [te, *r.T, *v.T, *sun.T])))
-            if aux is not None:
+            if aux is not None and cfg.aux is not None:
                 files["aux"].append(aux.rows(time_grid(cfg.aux.cadence_s, 0.0, t0, t1, last=last)))
-            if "onboard" in files:
+            if "onboard" in files and cfg.onboard is not None:
                 to = time_grid(cfg.onboard.cadence_s, 0.0, t0, t1, last=last)
                 q = onboard_quaternions(world, to, cfg.onboard.error_deg, cfg.onboard.noise_arcsec, onboard_rng)
                 files["onboard"].append({"t": to, "q1": q[:, 0], "q2": q[:, 1], "q3": q[:, 2], "q4": q[:, 3]})
@@ -263,7 +264,9 @@ def _truth(cfg: MissionConfig, record: dict) -> dict:
     if "gyro_bias" in record:
         out["gyro_bias_history"] = record["gyro_bias"]
     if cfg.spinning:
-        out["spin_axis_deg"] = [cfg.attitude.ra_deg, cfg.attitude.dec_deg]
+        sp = cfg.attitude
+        assert isinstance(sp, SpinProfile)
+        out["spin_axis_deg"] = [sp.ra_deg, sp.dec_deg]
     return as_plain(out)
 
 

@@ -28,7 +28,8 @@ import logging
 import math
 import os
 import time
-from typing import Any, Callable, Sequence
+from collections.abc import Callable, Sequence
+from typing import Any
 
 log = logging.getLogger(__name__)
 
@@ -124,6 +125,7 @@ def connect(workers: int | None, scheduler: str | None):
         os.environ.setdefault(k, v)
     dask.config.set({"distributed.nanny.pre-spawn-environ": dict(PIN_ENV),
                      "distributed.worker.daemon": False})
+    assert workers is not None                        # without a scheduler the caller gives a count
     cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
                            dashboard_address=":0", silence_logs=logging.ERROR)
     return Client(cluster), cluster

@@ -39,9 +39,10 @@ import json
 import math
 import tempfile
 import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -88,8 +89,8 @@ def _context(mc: MonteCarlo):
     key = mc.config_path
     if key not in _CTX:
         from gcs_core.config import load_config
-        from gcs_core.predictor.plan import DataPlan
         from gcs_core.io.mission import read_mission_spec
+        from gcs_core.predictor.plan import DataPlan
 
         cfg = load_config(mc.config_path)
         spec = read_mission_spec(cfg.mission)
@@ -117,17 +118,19 @@ def simulation(cfg, spec, plan, seed: int):
         raise InputError("Monte Carlo of spinning missions is not supported", key="analysis.mission")
     sensors = []
     for s in spec.sensors:
-        book = {"alignment_deg": list(s.alignment_deg or (0.0, 0.0, 0.0))}
+        book: dict[str, Any] = {"alignment_deg": list(s.alignment_deg or (0.0, 0.0, 0.0))}
         if s.noise is not None:
             book["noise"] = float(s.noise)
         book.update({k: (list(v) if isinstance(v, tuple) else v) for k, v in s.book.items()})
         sensors.append(SensorConfig(s.name, s.type, float(cadence_of(s, None, plan)), book))
-    rpy0 = tuple(float(a) / DEG for a in plan.rpy0) if plan.rpy0 is not None else (0.0, 0.0, 0.0)
+    r0, p0, y0 = (float(a) / DEG for a in plan.rpy0) if plan.rpy0 is not None else (0.0, 0.0, 0.0)
+    rpy0 = (r0, p0, y0)
     slews = [Slew(m.start, m.duration, m.axis, m.rate_deg_s, ramp_s=RAMP_S) for m in plan.maneuvers]
     profile = ThreeAxisProfile(rpy0_deg=rpy0, wobble_amp_deg=(0.0, 0.0, 0.0), slews=slews)
     epoch = spec.epoch.strftime("%Y-%m-%dT%H:%M:%SZ")
     return MissionConfig(name=spec.name, epoch=epoch, attitude_mode=spec.attitude_mode,
-                         duration_s=float(plan.end) + 1.0, orbit=OrbitElements(**{k: float(v) for k, v in orbit.items()}),
+                         duration_s=float(plan.end) + 1.0,
+                         orbit=OrbitElements(**{k: float(v) for k, v in orbit.items()}),
                          attitude=profile, sensors=sensors, aux=None, onboard=None, seed=int(seed))
 
 
@@ -191,8 +194,8 @@ def _truth(truth: dict, problem, values_book: dict, method: str = "batch") -> di
 
 def one_run(mc: MonteCarlo, i: int) -> dict:
     """Simulate and fit run ``i``: a JSON-ready record (seed, names, x̂, truth, P, status)."""
-    from gcs_core.session import Analysis
     from gcs_core.io.importer import load_mission
+    from gcs_core.session import Analysis
     from gcs_core.sim.writer import write_mission
 
     cfg, spec, plan = _context(mc)
@@ -228,8 +231,8 @@ def _runs(mc: MonteCarlo, batch: list) -> list[dict]:
 # ---------------------------------------------------------------------------- prediction
 def predicted(mc: MonteCarlo):
     """The predictor's result for the plan, the trackers' stars from the simulator's catalog."""
-    from gcs_core.predictor import predict
     from gcs_core.io.mission import read_mission_spec
+    from gcs_core.predictor import predict
     from gcs_core.sim.writer import write_mission
 
     cfg, spec, plan = _context(mc)

@@ -27,9 +27,10 @@ from __future__ import annotations
 import itertools
 import math
 import re
-from pathlib import Path
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Sequence
+from pathlib import Path
+from typing import Any
 
 from gcs_core.config import AXES, AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
@@ -83,7 +84,7 @@ class Budget:
     rates: tuple[float, ...] = DEFAULT_RATES
 
     @classmethod
-    def from_mapping(cls, d: Mapping[str, Any], *, slew_min=None, hours=None, axes=None, rates=None) -> "Budget":
+    def from_mapping(cls, d: Mapping[str, Any], *, slew_min=None, hours=None, axes=None, rates=None) -> Budget:
         b = cls()
         sm = slew_min if slew_min is not None else d.get("slew_min", b.slew_min)
         hr = hours if hours is not None else d.get("hours", b.hours)

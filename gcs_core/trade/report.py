@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from typing import Sequence
+from collections.abc import Sequence
 
 from gcs_core.trade.study import ATTITUDE_NAMES, PlanRow, ranked
 from gcs_core.units import ARCSEC
@@ -66,7 +66,7 @@ def study_table(rows: Sequence[PlanRow], *, limit: int | None = 20) -> list[str]
 def budget_lines(rows: Sequence[PlanRow], top: int = 3) -> list[str]:
     """The error budget (noise only and each consider element) of the ``top`` best plans."""
     out = []
-    for rank, (sc, r) in enumerate(ranked(rows)[:top], start=1):
+    for rank, (_, r) in enumerate(ranked(rows)[:top], start=1):
         if r.status != "ok":
             break
         out.append(f"plan {rank}: {r.plan_id}")

@@ -10,9 +10,9 @@ from __future__ import annotations
 
 import json
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import asdict
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -22,7 +22,7 @@ from gcs_core.trade.study import PlanRow, StudyDefinition, evaluate_plans
 
 def row_from_record(rec: dict) -> PlanRow:
     """A :class:`PlanRow` back from its stored record."""
-    tup = lambda v: tuple(float(x) for x in v)  # noqa: E731
+    tup = lambda v: tuple(float(x) for x in v)
     return PlanRow(int(rec["index"]), rec["plan_id"], rec["values"], rec["description"],
                    tuple(rec["elements"]), tup(rec["sigma"]), tup(rec["noise_only"]), tuple(rec["units"]),
                    {k: tup(v) for k, v in rec["budget"].items()}, tuple(rec["undetermined"]),
@@ -87,7 +87,7 @@ def varied_keys(rows: list[PlanRow]) -> tuple[str, ...]:
     return tuple(sorted((k for k in keys if count[k] > 1), key=lambda k: -count[k]))
 
 
-def sigma_grid(rows: list[PlanRow], element: str, keys: tuple[str, ...]) -> tuple[list, list, np.ndarray]:
+def sigma_grid(rows: Sequence[PlanRow], element: str, keys: tuple[str, ...]) -> tuple[list, list, np.ndarray]:
     """σ of ``element`` over one or two varied keys: (values of key 1, of key 2 or [None],
     (n1, n2) array, the minimum over the other keys' values for each cell)."""
     k1 = keys[0]

@@ -44,13 +44,14 @@ import itertools
 import json
 import math
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from gcs_core.config import AXES, AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.errors import InputError
-from gcs_core.predictor.plan import DataPlan
 from gcs_core.io.types import MissionSpec
+from gcs_core.predictor.plan import DataPlan
 
 PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min",
              "gap_min", "maneuver.axis", "maneuver.rate_deg_s", "maneuver.start_min",
@@ -320,12 +321,15 @@ def _maneuver(plan: DataPlan, combo: Mapping[str, Any], base: DataPlan) -> DataP
 
 def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
     sensors = list(spec.sensors)
-    for key, v in combo.items():
+    for key in combo:
         m = _ALIGN.match(key)
         b = _BOOK.match(key) if not m else None
         if not (m or b) or key in PLAN_KEYS or key.startswith(("models.", "maneuver.")):
             continue
-        name = (m or b).group(1)
+        found = m or b
+        assert found is not None                      # skipped above otherwise
+        name = found.group(1)
+        field = b.group(2) if b is not None else ""   # the data-book key of a book entry
         idx = next((i for i, s in enumerate(sensors) if s.name == name), None)
         if idx is None:
             raise InputError(f"no sensor named '{name}' in the mission", key=f"trade.vary.{key}")
@@ -334,17 +338,17 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         if m:
             a = list(s.alignment_deg or (0.0, 0.0, 0.0))
             a[int(m.group(2)) - 1] = x
-            sensors[idx] = replace(s, alignment_deg=tuple(a))
-        elif b.group(2) == "noise" and s.noise is not None:
+            sensors[idx] = replace(s, alignment_deg=(a[0], a[1], a[2]))
+        elif field == "noise" and s.noise is not None:
             if not x > 0:
                 raise InputError(f"noise must be > 0, not {x}", key=f"trade.vary.{key}")
             sensors[idx] = replace(s, noise=x)
         else:
             book = dict(s.book)
-            if b.group(2) in book and not isinstance(book[b.group(2)], (int, float)):
-                raise InputError(f"{name}.{b.group(2)} is not a scalar data-book key",
+            if field in book and not isinstance(book[field], (int, float)):
+                raise InputError(f"{name}.{field} is not a scalar data-book key",
                                  key=f"trade.vary.{key}")
-            book[b.group(2)] = x
+            book[field] = x
             sensors[idx] = replace(s, book=book)
     return replace(spec, sensors=tuple(sensors))
 

@@ -21,8 +21,9 @@ readable; :func:`done_indices` tells a resumed study what is already there.
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 

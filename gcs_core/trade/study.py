@@ -22,9 +22,10 @@ import json
 import logging
 import math
 import time
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -89,7 +90,7 @@ class StudyDefinition:
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
     @classmethod
-    def from_json(cls, text: str) -> "StudyDefinition":
+    def from_json(cls, text: str) -> StudyDefinition:
         d = json.loads(text)
         return cls(d["config_path"], {k: tuple(v) for k, v in d["vary"].items()}, tuple(d["targets"]),
                    d.get("orbit"), d.get("method"), int(d.get("top", 3)))
@@ -159,8 +160,8 @@ def _context(defn: StudyDefinition):
     ctx = _CONTEXT.get(key)
     if ctx is None:
         from gcs_core.config import check_against_mission
-        from gcs_core.predictor.plan import DataPlan
         from gcs_core.io.mission import read_mission_spec
+        from gcs_core.predictor.plan import DataPlan
 
         cfg = load_config(defn.config_path)
         if defn.method is not None:
@@ -188,7 +189,8 @@ def make_orbit(orbit: Mapping[str, float] | None, epoch):
     if missing:
         raise InputError(f"missing {', '.join(missing)} (an orbit needs {', '.join(ORBIT_KEYS)})",
                          key="trade.orbit")
-    return KeplerOrbit(*(float(orbit[k]) for k in ORBIT_KEYS), epoch)
+    a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg = (float(orbit[k]) for k in ORBIT_KEYS)
+    return KeplerOrbit(a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg, epoch)
 
 
 def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -196,7 +198,7 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
     sensors' models), ``attitude`` to the three attitude angles."""
     from gcs_core.models import make_model
 
-    params = {}
+    params: dict[str, list[tuple[str, str]]] = {}
     for s in spec.sensors:
         try:
             for p in make_model(s).parameters():
@@ -301,7 +303,7 @@ def _misalignment(res, spec, name: str, total: bool) -> float:
 
 def _row(index, pid, combo, setup, res, names, units, seconds) -> PlanRow:
     sig, noise = [], []
-    cols = []
+    cols: list = []
     for n in names:
         if n.rpartition(".")[2] in MISALIGN:
             sig.append(_misalignment(res, setup.spec, n, True))

@@ -44,12 +44,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core import display
-
 from gcs_core.errors import InputError
-from gcs_core.frames.rotations import (dcm_to_euler123, dcm_to_rotvec, quat_normalize,
-                                       quat_to_dcm)
-from gcs_core.units import DEG
+from gcs_core.frames.rotations import dcm_to_euler123, dcm_to_rotvec, quat_normalize, quat_to_dcm
 from gcs_core.problem.attitude import AttitudeProvider, ReferenceAttitude
+from gcs_core.units import DEG
 
 AXES = ("roll", "pitch", "yaw")
 ANGLES = ("euler", "body")
@@ -96,7 +94,7 @@ class VerifResult:
     def summary(self) -> str:
         """A few lines for a terminal: per-axis mean and σ against both thresholds, the flag."""
         u = _shown(self.sigma, self.ground_accuracy, self.requirement)
-        q = lambda x: display.quantity(float(x), "rad", shown=u, with_unit=False)  # noqa: E731
+        q = lambda x: display.quantity(float(x), "rad", shown=u, with_unit=False)
         lines = [f"{self.n} onboard attitudes compared ({self.angles} angles); "
                  "§4.4 σ = RMS of onboard − ground about zero (N − 1)",
                  f"{'axis':6s} {f'mean [{u}]':>14s} {f'§4.4 σ [{u}]':>14s} {f'ground [{u}]':>14s} "
@@ -110,7 +108,7 @@ class VerifResult:
 
     def as_report(self) -> dict:
         """JSON-ready summary in degrees."""
-        deg = lambda a: [float(x) / DEG for x in a]  # noqa: E731
+        deg = lambda a: [float(x) / DEG for x in a]
         return {"n": self.n, "angles": self.angles, "axes": list(AXES), "mean_deg": deg(self.mean),
                 "sigma_deg": deg(self.sigma), "ground_accuracy_deg": deg(self.ground_accuracy),
                 "requirement_deg": deg(self.requirement), "flag_axes": [bool(f) for f in self.flag_axes],
@@ -206,7 +204,7 @@ def _reason(sigma, ground, req, flags, n) -> str:
         return f"{n} onboard attitude(s) overlap the ground attitude: at least 2 are needed"
     parts = []
     u = _shown(sigma, ground, req)
-    q = lambda x: display.quantity(float(x), "rad", shown=u)  # noqa: E731
+    q = lambda x: display.quantity(float(x), "rad", shown=u)
     for a, s, g, r, f in zip(AXES, sigma, ground, req, flags):
         if f:
             parts.append(f"{a}: σ = {q(s)} exceeds both the ground accuracy {q(g)} "

@@ -19,9 +19,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import EstimationError, InputError
+from gcs_core.filtr.smoothing_uses import attitude_covariance
 from gcs_core.frames.rotations import dcm_to_euler123, quat_from_dcm, quat_normalize
 from gcs_core.problem.attitude import rpy_error_jacobians
-from gcs_core.filtr.smoothing_uses import attitude_covariance
 
 
 @dataclass(frozen=True)
@@ -84,6 +84,6 @@ def ground_attitude(analysis, t) -> GroundAttitude:
     rpy = np.column_stack(dcm_to_euler123(att.C_BI @ np.swapaxes(A, -1, -2)))
     Jr_inv = np.linalg.solve(rpy_error_jacobians(rpy), np.broadcast_to(np.eye(3), (t.size, 3, 3)))
     S_rpy = Jr_inv @ S_body @ np.swapaxes(Jr_inv, -1, -2)
-    diag = lambda S: np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0.0, None))  # noqa: E731
+    diag = lambda S: np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0.0, None))
     return GroundAttitude(t=t, q=quat_normalize(quat_from_dcm(att.C_BI)), C_BI=att.C_BI,
                           sigma_body=diag(S_body), sigma_rpy=diag(S_rpy), A=A)

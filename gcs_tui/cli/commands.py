@@ -222,8 +222,8 @@ def cmd_convert(args, prog: Progress) -> int:
 
 
 def cmd_noise(args, prog: Progress) -> int:
-    from gcs_core.io.importer import load_mission
     from gcs_core.filtr.noise import mission_noise, noise_lines
+    from gcs_core.io.importer import load_mission
 
     with prog.task(f"reading mission {args.mission}"):
         m = load_mission(args.mission)
@@ -259,7 +259,11 @@ def cmd_batch(args, prog: Progress) -> int:
 def cmd_discover(args, prog: Progress) -> int:
 
     from gcs_core.reporting import analysis_report, physics_why
-    from gcs_tui.cli.tables import candidate_table, remaining_lines, steps_table
+    from gcs_tui.cli.tables import (
+        candidate_table,
+        remaining_lines,
+        steps_table,
+    )
 
     a = _analysis(args, prog)
     if args.significance is not None:
@@ -371,10 +375,10 @@ EPILOG = ("exit codes: 0 ok; 1 a finding to act on (verify flag, discover --stri
           "2 bad input; 3 estimation failed; 4 internal error; 130 interrupted")
 
 
-def _common(top: bool) -> argparse.ArgumentParser:
+def _common(top: bool) -> _Parser:
     """The options every command takes, before or after its name (the command's copies
     default to SUPPRESS so they do not undo what was given before the name)."""
-    common = argparse.ArgumentParser(add_help=False)
+    common = _Parser(add_help=False)
     dflt = (lambda v: v) if top else (lambda v: argparse.SUPPRESS)
     common.add_argument("-v", "--verbose", action="store_true", default=dflt(False),
                         help="debug logging (and the traceback of an internal error)")

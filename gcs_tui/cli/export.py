@@ -57,8 +57,8 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
     x0, x1 = float(np.min(t)), float(np.max(t))
     if x1 <= x0:
         x1 = x0 + 1.0
-    sx = lambda v: left + (v - x0) / (x1 - x0) * pw              # noqa: E731
-    sy = lambda v: top + (lim - v) / (2 * lim) * ph               # noqa: E731
+    sx = lambda v: left + (v - x0) / (x1 - x0) * pw
+    sy = lambda v: top + (lim - v) / (2 * lim) * ph
     parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
              f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12">',
              f'<rect width="{width}" height="{height}" fill="white"/>',
@@ -76,7 +76,8 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
         parts.append(f'<path d="M{a - 3:.1f},{b - 3:.1f}L{a + 3:.1f},{b + 3:.1f}M{a - 3:.1f},{b + 3:.1f}'
                      f'L{a + 3:.1f},{b - 3:.1f}" stroke="#c0392b" stroke-width="1.5"/>')
     # axes, ticks and labels
-    parts.append(f'<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#222" shape-rendering="crispEdges"/>')
+    parts.append(f'<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#222" '
+                 'shape-rendering="crispEdges"/>')
     xt = display.nice_ticks(x0, x1, 7)
     for v, lab in zip(xt, display.tick_labels(xt)):
         parts.append(f'<line x1="{sx(v):.1f}" x2="{sx(v):.1f}" y1="{top + ph}" y2="{top + ph + 5}" stroke="#333"/>'

@@ -25,8 +25,9 @@ import logging
 import os
 import sys
 import time
+from collections.abc import Iterator
 from contextlib import contextmanager
-from typing import IO, Iterator
+from typing import IO, Any
 
 MODES = ("auto", "bar", "plain", "off")
 
@@ -34,7 +35,7 @@ MODES = ("auto", "bar", "plain", "off")
 class Task:
     """Handle of one running task: ``task(done, total, text)`` updates it."""
 
-    def __init__(self, owner: "Progress", task_id, text: str):
+    def __init__(self, owner: Progress, task_id, text: str):
         self._owner, self._id, self.text, self.last = owner, task_id, text, ""
 
     def __call__(self, done: float | None = None, total: float | None = None, text: str = "") -> None:
@@ -59,7 +60,7 @@ class Progress:
         if mode == "auto":
             mode = "bar" if (console is not None or _is_terminal(self.stream)) else "plain"
         self.mode = mode
-        self._live = None          # rich.progress.Progress while a task runs (bar mode)
+        self._live: Any = None     # rich.progress.Progress while a task runs (bar mode)
         self._t0 = time.monotonic()
 
     # ------------------------------------------------------------------ output
@@ -125,8 +126,8 @@ class Progress:
 
     def _start_live(self):
         from rich.console import Console
-        from rich.progress import (BarColumn, Progress as RichProgress, SpinnerColumn, TextColumn,
-                                   TimeElapsedColumn)
+        from rich.progress import BarColumn, SpinnerColumn, TextColumn, TimeElapsedColumn
+        from rich.progress import Progress as RichProgress
 
         console = self._console or Console(file=self.stream, highlight=False)
         # "done/total" only when the total is known; the bar pulses otherwise

@@ -10,14 +10,13 @@ from __future__ import annotations
 
 import math
 import textwrap
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Iterable
 
 import numpy as np
 
 from gcs_core import display
 from gcs_core.reporting import remaining_summary
-
 
 #: what "unobservable" means, said once under the list
 UNOBSERVABLE_NOTE = ("(unobservable: the data constrain only the combination named; each element's σ "

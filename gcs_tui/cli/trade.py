@@ -102,6 +102,7 @@ def cmd_trade(args, prog) -> int:
     from gcs_core.trade.space import parse_vary
 
     cfg = load_config(args.target)
+    assert cfg.path is not None                      # a loaded config keeps its file's path
     args.config_path = cfg.path
     defn = definition_from_config(cfg, parse_vary(args.vary), args.target_ or None,
                                   method=args.method, top=args.top)
@@ -125,7 +126,7 @@ def cmd_trade(args, prog) -> int:
     for line in study_table(rows, limit=args.limit):
         _out(line)
     _out("")
-    _out(f"error budget of the best plans (σ = noise ⊕ consider elements):")
+    _out("error budget of the best plans (σ = noise ⊕ consider elements):")
     for line in budget_lines(rows, defn.top):
         _out(line)
     if output is not None:
@@ -164,7 +165,7 @@ def cmd_optimize(args, prog) -> int:
                        scheduler=args.scheduler, progress=_progress(task, "plans"))
     for line in res.lines():
         _out(line)
-    if res.best is not None and args.write_config:
+    if res.best is not None and res.config is not None and args.write_config:
         path = save_config(res.config, Path(args.write_config))
         _out(f"plan written to {path} (gcs montecarlo {path} checks it)")
     return EXIT_OK if res.best is not None else EXIT_FLAG
@@ -176,6 +177,7 @@ def cmd_montecarlo(args, prog) -> int:
     from gcs_core.trade.montecarlo import MonteCarlo, replay, run_montecarlo, summary_lines
 
     cfg = load_config(args.target)
+    assert cfg.path is not None                      # a loaded config keeps its file's path
     args.config_path = cfg.path
     mc = cfg.montecarlo
     runs = args.runs or int(mc.get("runs", 100))

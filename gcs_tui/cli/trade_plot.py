@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import plotext as plt
@@ -37,7 +37,7 @@ def study_plot(rows: Sequence, keys: tuple[str, ...], *, width: int = 100, heigh
     out = []
     for name, unit in zip(r0.elements, r0.units):
         if len(keys) >= 2:
-            out.append(heat_map(ok, name, unit, keys[:2]))
+            out.append(heat_map(ok, name, unit, (keys[0], keys[1])))
             continue
         v1, _, G = sigma_grid(ok, name, keys[:1])
         y = [sigma_display(float(g), unit)[0] for g in G[:, 0]]

@@ -13,12 +13,14 @@ from __future__ import annotations
 
 import logging
 import time
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Callable, Iterator
+from typing import Any
 
 from textual import work
 from textual.app import App
+from textual.screen import Screen
 from textual.worker import get_current_worker
 
 from gcs_core.errors import GcsError
@@ -45,7 +47,7 @@ from gcs_tui.tui.workbench import Workbench
 
 log = logging.getLogger(__name__)
 
-SCREENS_BY_VIEW = {
+SCREENS_BY_VIEW: dict[str, str | Callable[[], Screen]] = {
     "mission": MissionScreen, "models": ModelsScreen, "state": StateScreen, "plan": PlanScreen,
     "filtr": FiltrScreen, "residuals": ResidualsScreen, "diagnosis": DiagnosisScreen,
     "predictor": PredictorScreen, "verification": VerificationScreen, "history": HistoryScreen,
@@ -231,8 +233,8 @@ class GcsApp(App):
             if wb.stale:
                 parts.append("config changed — f refits")
         added: list[str] = []
-        for step in wb.analysis.steps:
-            if step.action == "add":
+        for step in wb.current.steps:
+            if step.action == "add" and step.effect is not None:
                 added.append(step.effect)
             elif step.action == "remove" and step.effect in added:
                 added.remove(step.effect)
@@ -251,7 +253,11 @@ class GcsApp(App):
         start = str(self.source or "")
         self.push_screen(FormScreen("Open a mission directory or analysis config",
                                     [Field("path", "Path", start, kind="text")]),
-                         lambda v: v and self.open_path(v["path"]))
+                         self._open_chosen)
+
+    def _open_chosen(self, v: dict | None) -> None:
+        if v:
+            self.open_path(v["path"])
 
     def action_fit(self) -> None:
         if not self.workbench.ready:
@@ -287,7 +293,7 @@ class GcsApp(App):
     def action_messages(self) -> None:
         self.push_screen(MessagesScreen("Warnings from the engine", self.messages))
 
-    def action_quit(self) -> None:
+    async def action_quit(self) -> None:
         """Quit; with unsaved config edits, ask first (saving is ctrl+s)."""
         if not self.workbench.unsaved:
             self.exit()
@@ -296,7 +302,11 @@ class GcsApp(App):
             "Quit with unsaved edits?",
             "The analysis config has changes not saved to a file (models, roles, σ, the data plan). "
             "Quitting loses them; esc stays, ctrl+s saves.", yes="quit", no="stay"),
-            lambda ok: ok and self.exit())
+            self._quit_if)
+
+    def _quit_if(self, ok: bool | None) -> None:
+        if ok:
+            self.exit()
 
     def work_dir(self) -> Path:
         """Where the app writes what the user did not name: beside the analysis config the
@@ -330,7 +340,11 @@ class GcsApp(App):
         default = str(wb.save_path) if wb.save_path else "gcs.toml"
         self.push_screen(FormScreen("Save the analysis config", [Field("path", "File", default, kind="text")],
                                     note="Paths inside are written relative to the file."),
-                         lambda v: v and self.save_config_to(v["path"]))
+                         self._save_chosen)
+
+    def _save_chosen(self, v: dict | None) -> None:
+        if v:
+            self.save_config_to(v["path"])
 
     def save_config_to(self, path: str | Path) -> Path | None:
         try:
@@ -350,11 +364,11 @@ class GcsApp(App):
 
     def action_add_top_candidate(self) -> None:
         wb = self.workbench
-        if not wb.ready or not wb.analysis.candidates:
+        if not wb.ready or not wb.current.candidates:
             self.notify("no ranked candidates — fit first (f)", severity="warning")
             return
-        ok = [c for c in wb.analysis.candidates if c.identifiable]
-        self.add_candidate(ok[0] if ok else wb.analysis.candidates[0])
+        ok = [c for c in wb.current.candidates if c.identifiable]
+        self.add_candidate(ok[0] if ok else wb.current.candidates[0])
 
     def add_candidate(self, c) -> None:
         """Add candidate ``c`` and refit; ask first when it is a poor choice (not significant
@@ -363,16 +377,22 @@ class GcsApp(App):
         if not why:
             self.change_effect(c.id, True)
             return
-        self.push_screen(ConfirmScreen(f"Add {c.id}?", why + " Add it anyway?", yes="add", no="cancel"),
-                         lambda ok: ok and self.change_effect(c.id, True))
+        def add_if(ok: bool | None) -> None:
+            if ok:
+                self.change_effect(c.id, True)
+
+        self.push_screen(ConfirmScreen(f"Add {c.id}?", why + " Add it anyway?", yes="add", no="cancel"), add_if)
 
     def action_remove_effect(self) -> None:
         wb = self.workbench
         if not wb.ready:
             return
         options = [(e, e) for e in wb.removable_effects()]
-        self.push_screen(ChoiceScreen("Remove an effect from the state (then refit)", options),
-                         lambda eid: eid and self.change_effect(eid, False))
+        def remove(eid: str | None) -> None:
+            if eid:
+                self.change_effect(eid, False)
+
+        self.push_screen(ChoiceScreen("Remove an effect from the state (then refit)", options), remove)
 
     def action_predict(self) -> None:
         if self.workbench.ready:
@@ -403,7 +423,7 @@ class GcsApp(App):
     def open_trade(self, path: str | Path) -> bool:
         """Show a trade study's results file (``gcs trade --output``) in the Trade screen."""
         from gcs_core.trade.run import read_study
-        from gcs_tui.screens.trade import TradeScreen
+        from gcs_tui.tui.screens.trade import TradeScreen
 
         try:
             _, rows = read_study(path)
@@ -420,7 +440,11 @@ class GcsApp(App):
             start = str(Path(cfg.path).parent / cfg.trade["output"])
         self.push_screen(FormScreen("Open a trade study's results (gcs trade --output)",
                                     [Field("path", "HDF5 file", start, kind="text")]),
-                         lambda v: v and self.open_trade(v["path"]))
+                         self._trade_chosen)
+
+    def _trade_chosen(self, v: dict | None) -> None:
+        if v:
+            self.open_trade(v["path"])
 
     def action_filtr_step(self) -> None:
         self.switch_mode("filtr")
@@ -451,7 +475,7 @@ def poor_choice(c, alpha: float) -> str:
 class AppLogHandler(logging.Handler):
     """Engine warnings into the app (from any thread): each becomes an :class:`EngineLog`."""
 
-    def __init__(self, app: "GcsApp") -> None:
+    def __init__(self, app: GcsApp) -> None:
         super().__init__(logging.WARNING)
         self.app = app
 

@@ -9,8 +9,8 @@ into the plain numbers the FILTR screen draws. No Textual here.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Callable, Mapping
 
 from gcs_tui.tui.derive import chi2_band
 from gcs_tui.tui.jobs import engine
@@ -103,7 +103,7 @@ class FiltrRun:
 
 
 def advance(wb, blocks: int | None, progress=None, cancelled=None,
-            on_block: Callable[[object], None] | None = None) -> FiltrRun:
+            on_block: Callable[[object], object] | None = None) -> FiltrRun:
     """Process ``blocks`` FILTR blocks (None: to the end), checking ``cancelled()``
     between blocks and calling ``on_block(report)`` after each."""
     if wb.filtr is None or wb.filtr.finished:            # a finished run starts again

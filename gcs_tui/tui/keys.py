@@ -23,7 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from textual.binding import Binding
+from textual.binding import Binding, BindingType
 
 
 @dataclass(frozen=True)
@@ -130,7 +130,7 @@ SCREENS: dict[str, tuple[Key, ...]] = {
 }
 
 
-def bindings(keys: tuple[Key, ...]) -> list[Binding]:
+def bindings(keys: tuple[Key, ...]) -> list[BindingType]:
     """Textual bindings of a tuple of :class:`Key` rows."""
     return [Binding(k.keys, k.action, k.description, show=k.show, priority=k.priority, id=k.id)
             for k in keys]

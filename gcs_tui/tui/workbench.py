@@ -18,16 +18,17 @@ from __future__ import annotations
 import copy
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable
+from types import EllipsisType
+from typing import Any
 
-from gcs_core.config import (METHODS, AnalysisConfig, ElementConfig, config_for, fit_key,
-                             save_config)
+from gcs_core.config import METHODS, AnalysisConfig, ElementConfig, config_for, fit_key, save_config
 from gcs_core.errors import ConfigError
+from gcs_core.problem.prepare import PHYSICS_EFFECTS
 from gcs_core.problem.state import ROLES
 from gcs_core.session import Analysis
-from gcs_core.problem.prepare import PHYSICS_EFFECTS
 from gcs_tui.tui.derive import segments
 
 log = logging.getLogger(__name__)
@@ -107,7 +108,7 @@ class Workbench:
     # ------------------------------------------------------------------ opening
     @classmethod
     def open(cls, path: str | Path, *, save_path: str | Path | None = None,
-             scds_path: str | Path | None = None) -> "Workbench":
+             scds_path: str | Path | None = None) -> Workbench:
         """Import the mission of ``path`` (config or mission directory); no fit yet."""
         wb = cls(save_path=save_path, scds_path=scds_path)
         wb.load(path)
@@ -136,12 +137,19 @@ class Workbench:
         return self.analysis is not None
 
     @property
+    def current(self) -> Analysis:
+        """The open analysis (what every view below reads; a mission must be open)."""
+        if self.analysis is None:
+            raise ConfigError("no mission is open")
+        return self.analysis
+
+    @property
     def config(self) -> AnalysisConfig:
-        return self.analysis.config
+        return self.current.config
 
     @property
     def mission(self):
-        return self.analysis.mission
+        return self.current.mission
 
     @property
     def result(self):
@@ -237,7 +245,7 @@ class Workbench:
     def set_element(self, name: str, *, role: str | None = None, value: float | None = None,
                     sigma: float | None = None) -> None:
         """Override an element's role, a-priori value or σ (internal units) in the config."""
-        if name not in self.analysis.problem.state:
+        if name not in self.current.problem.state:
             raise ConfigError(f"no state element named '{name}'", key=f"state.elements.{name}")
         if role is not None and role not in ROLES:
             raise ConfigError(f"must be one of {', '.join(ROLES)}", key=f"state.elements.{name}.role")
@@ -254,11 +262,12 @@ class Workbench:
         elements[name] = new
         self.set_config(cfg.with_changes(state={"elements": elements}))
 
-    def set_plan(self, *, start: float | None = ..., end: float | None = ..., step: float | None = None,
+    def set_plan(self, *, start: float | EllipsisType | None = ..., end: float | EllipsisType | None = ...,
+                 step: float | None = None,
                  gaps: tuple | None = None, maneuvers: tuple | None = None) -> None:
         """Change the predictor's data plan (``...`` leaves a field as it is)."""
         cfg = self.config
-        kw = {}
+        kw: dict[str, Any] = {}
         if start is not ...:
             kw["start"] = start
         if end is not ...:
@@ -295,7 +304,7 @@ class Workbench:
             raise ConfigError("no file to save the config to")
         out = save_config(self.config, path)
         self.save_path = out
-        self.analysis.config = replace(self.config, path=out)
+        self.current.config = replace(self.config, path=out)
         self._saved = analysis_key(self.config)
         return out
 
@@ -309,7 +318,7 @@ class Workbench:
         """
         say = progress or (lambda *a: None)
         stop = cancelled or (lambda: False)
-        old = self.analysis
+        old = self.current
         say(0, 3, "building the state")
         fresh = Analysis(old.config, mission=old.mission)
         fresh.steps = list(old.steps)
@@ -338,7 +347,7 @@ class Workbench:
         """
         say = progress or (lambda *a: None)
         stop = cancelled or (lambda: False)
-        a = copy.copy(self.analysis)
+        a = copy.copy(self.current)
         a.steps = list(a.steps)
         if a.result is None:
             say(0, 3, "first fit")
@@ -361,19 +370,19 @@ class Workbench:
 
     def removable_effects(self) -> list[str]:
         """Effects in the state that can be removed (every one but the attitude)."""
-        return [e for e in self.analysis.effects_in_state() if not e.endswith(".attitude")]
+        return [e for e in self.current.effects_in_state() if not e.endswith(".attitude")]
 
     def not_determined(self) -> dict[str, str]:
         """Solve-for elements the latest fit did not determine, with the reason."""
-        return {} if self.result is None or self.stale else self.analysis.not_determined()
+        return {} if self.result is None or self.stale else self.current.not_determined()
 
     def set_by_prior(self) -> dict[str, str]:
         """Solve-for elements the a priori set rather than the data, with the reason."""
-        return {} if self.result is None or self.stale else self.analysis.set_by_prior()
+        return {} if self.result is None or self.stale else self.current.set_by_prior()
 
     def goodness(self):
         """The goodness-of-fit tests and verdict of the latest fit (None before one)."""
-        return None if self.result is None or self.stale else self.analysis.goodness()
+        return None if self.result is None or self.stale else self.current.goodness()
 
     def estimates(self) -> dict[str, tuple[float, float]]:
         """Solve-for element -> (estimate, σ) of the latest fit."""

@@ -23,12 +23,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.config import load_config
 from gcs_core.diagnosis.correlation import sigma_scale
-from gcs_core.session import Analysis
 from gcs_core.io.importer import load_mission
-from repo_paths import ROOT
+from gcs_core.session import Analysis
 
 CONFIG = ROOT / "sample_data" / "configs" / "real-broad-02-slow-rotation.toml"
 SPLIT_S = 52.5

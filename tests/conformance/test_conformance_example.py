@@ -41,7 +41,7 @@ def test_discover_adds_nothing_and_reports(fitted):
     rep = analysis_report(fitted, command="discover")      # what `gcs discover --report` writes
     assert [s for s in rep["steps"]] == []
     assert rep["mission"] == "sunpoint-nominal"
-    for name, s in rep["sensors"].items():
+    for s in rep["sensors"].values():
         assert s["rms_normalized"] <= noise_floor_bound
         assert {"n", "rms", "rms_normalized"} <= set(s)
     for row in rep["state"]:

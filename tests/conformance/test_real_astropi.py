@@ -9,14 +9,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.config import load_config
-from gcs_core.problem.attitude import ReferenceAttitude
 from gcs_core.frames.rotations import dcm_to_rotvec
+from gcs_core.io.importer import load_mission
+from gcs_core.problem.attitude import ReferenceAttitude
 from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
-from gcs_core.io.importer import load_mission
-from repo_paths import ROOT
 
 CONFIG = ROOT / "sample_data" / "configs" / "real-astropi-iss.toml"
 REAL = Path("/work/shared/real/astropi-iss")

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.session import Analysis
 from gcs_core.problem.prepare import PHYSICS_EFFECTS
+from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, spinner_nominal, with_effect
 from gcs_core.sim.writer import write_mission
 

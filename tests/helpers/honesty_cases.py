@@ -33,17 +33,17 @@ from __future__ import annotations
 import json
 import math
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
+from test_truth_recovery import _angle_diff, truth_values
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
-from test_truth_recovery import _angle_diff, truth_values
 
 ONE_HOUR = 3600.0
 MODES = ("sun_pointing", "inertial", "earth_pointing")
@@ -163,7 +163,7 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
     try:
         a.fit()
         a.discover(max_steps=max_steps)
-    except Exception as exc:          # a failed fit is a finding of the sweep, not a crash of it
+    except Exception as exc:  # noqa: BLE001 — a failed fit is a finding of the sweep, not a crash of it
         status = f"{type(exc).__name__}: {exc}"
     t2 = time.perf_counter()
     rec = {"mission": cfg.name, "seed": cfg.seed, "hours": cfg.duration_s / ONE_HOUR,

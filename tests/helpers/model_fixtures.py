@@ -15,10 +15,10 @@ import numpy as np
 
 from gcs_core import units
 from gcs_core.frames.rotations import T1, T3, quat_to_dcm, rotvec_to_dcm
+from gcs_core.io.types import SensorSpec
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry
 from gcs_core.models.common import alignment_matrix
-from gcs_core.io.types import SensorSpec
 
 N_FRAMES = 8
 

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from test_truth_recovery import normalized_errors, simulate, truth_values
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.problem.linearization import linearize
@@ -24,7 +25,6 @@ from gcs_core.problem.state import HELD
 from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import spinner_two_scanners, with_effect
-from test_truth_recovery import normalized_errors, simulate, truth_values
 
 INCLINATIONS = (28.5, 51.6, 90.0, "sso")
 #: hidden effect -> (effect id, magnitude, seed effects the starting state leaves out)

@@ -11,9 +11,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from repo_paths import ROOT
+
 from gcs_tui.tui.app import GcsApp
 
-from repo_paths import ROOT
 SAMPLE_DATA = ROOT / "sample_data"
 
 

@@ -1,6 +1,6 @@
 """Reference tests for mission time: GMST (IAU 1982), Julian dates, decimal years, epochs."""
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 import pytest
@@ -83,11 +83,11 @@ def test_decimal_year_convention():
 
 
 @pytest.mark.parametrize("text, expected", [
-    ("2024-03-20T06:00:00Z", datetime(2024, 3, 20, 6, tzinfo=timezone.utc)),
-    ("2024-03-20T06:00:00.250Z", datetime(2024, 3, 20, 6, 0, 0, 250000, tzinfo=timezone.utc)),
-    ("2024-03-20 06:00:00", datetime(2024, 3, 20, 6, tzinfo=timezone.utc)),
-    ("2024-03-20T08:00:00+02:00", datetime(2024, 3, 20, 6, tzinfo=timezone.utc)),
-    ("2024-03-20", datetime(2024, 3, 20, tzinfo=timezone.utc)),
+    ("2024-03-20T06:00:00Z", datetime(2024, 3, 20, 6, tzinfo=UTC)),
+    ("2024-03-20T06:00:00.250Z", datetime(2024, 3, 20, 6, 0, 0, 250000, tzinfo=UTC)),
+    ("2024-03-20 06:00:00", datetime(2024, 3, 20, 6, tzinfo=UTC)),
+    ("2024-03-20T08:00:00+02:00", datetime(2024, 3, 20, 6, tzinfo=UTC)),
+    ("2024-03-20", datetime(2024, 3, 20, tzinfo=UTC)),
 ])
 def test_parse_epoch_accepts_iso_utc(text, expected):
     got = ts.parse_epoch(text, key="mission.epoch")
@@ -96,7 +96,7 @@ def test_parse_epoch_accepts_iso_utc(text, expected):
 
 def test_parse_epoch_accepts_datetime():
     """TOML's native datetimes arrive as datetime objects; naive ones are UTC."""
-    assert ts.parse_epoch(datetime(2024, 3, 20, 6)) == datetime(2024, 3, 20, 6, tzinfo=timezone.utc)
+    assert ts.parse_epoch(datetime(2024, 3, 20, 6)) == datetime(2024, 3, 20, 6, tzinfo=UTC)
 
 
 @pytest.mark.parametrize("bad", ["yesterday", "2024-13-01T00:00:00Z", "2024-02-30", "", 42])

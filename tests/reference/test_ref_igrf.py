@@ -2,7 +2,7 @@
 
 import contextlib
 import io
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 import pytest
@@ -87,7 +87,7 @@ def test_against_ppigrf_between_epochs():
     when = datetime(2024, 3, 20, 6)
     Br, Bt, Bp = _ppigrf_gc(r, th, ph, when)
     field = GeomagField("2024-03-20T06:00:00Z")
-    year = timescale.decimal_year(when.replace(tzinfo=timezone.utc), 0.0)
+    year = timescale.decimal_year(when.replace(tzinfo=UTC), 0.0)
     g, h = field.coefficients_at(year)
     ours = spherical_harmonic_field(r, np.radians(th), np.radians(ph), g, h, max_degree=13)
     for a, b in zip(ours, (Br[0], Bt[0], Bp[0])):

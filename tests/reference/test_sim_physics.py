@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import math
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 
 import numpy as np
 import pytest
@@ -23,7 +23,7 @@ one_nT = 1.0
 def test_gmst_vallado_example_3_5():
     """Vallado, Fundamentals of Astrodynamics, 4th ed., Example 3-5: 1992 Aug 20, 12:14 UT1,
     JD 2448855.009722, GMST (IAU-82) = 152.578787810 deg."""
-    jd = astro.epoch_jd(datetime(1992, 8, 20, 12, 14, tzinfo=timezone.utc))
+    jd = astro.epoch_jd(datetime(1992, 8, 20, 12, 14, tzinfo=UTC))
     assert jd == pytest.approx(2448855.009722, abs=1e-6)
     assert math.degrees(astro.gmst_rad(jd, [0.0])[0]) == pytest.approx(152.578787810, abs=1e-6)
 
@@ -31,7 +31,7 @@ def test_gmst_vallado_example_3_5():
 def test_sun_vallado_example_5_1():
     """Vallado 4th ed., Example 5-1: 2006 April 2, 0h UTC, r_sun = (0.9771945, 0.1924424,
     0.0834308) AU. The low-precision Almanac series is good to 0.01 deg."""
-    jd = astro.epoch_jd(datetime(2006, 4, 2, tzinfo=timezone.utc))
+    jd = astro.epoch_jd(datetime(2006, 4, 2, tzinfo=UTC))
     s = astro.sun_position_km(jd, [0.0])[0] / astro.AU_KM
     ref = np.array([0.9771945, 0.1924424, 0.0834308])
     ang = math.acos(s @ ref / np.linalg.norm(s) / np.linalg.norm(ref))
@@ -40,7 +40,7 @@ def test_sun_vallado_example_5_1():
 
 
 def test_earth_velocity_is_about_30_km_s_and_eclipse_geometry():
-    jd = astro.epoch_jd(datetime(2024, 3, 20, 6, tzinfo=timezone.utc))
+    jd = astro.epoch_jd(datetime(2024, 3, 20, 6, tzinfo=UTC))
     v = astro.earth_velocity_km_s(jd, [0.0])[0]
     s = astro.sun_position_km(jd, [0.0])[0]
     assert np.linalg.norm(v) == pytest.approx(29.8, abs=0.6)
@@ -61,7 +61,7 @@ def test_igrf_frame_conversion_against_a_dipole():
     formula evaluated independently in ECEF.
     """
     import ppigrf
-    epoch = datetime(2024, 5, 14, 4, tzinfo=timezone.utc)
+    epoch = datetime(2024, 5, 14, 4, tzinfo=UTC)
     jd = astro.epoch_jd(epoch)
     a = 6371.2
     date = epoch.replace(tzinfo=None)
@@ -156,11 +156,11 @@ def test_field_pipeline_reproduces_the_independent_example_mission(example_dir):
     """shared/examples/sunpoint-nominal comes from an independent simulator (data book = truth,
     TAM noise 25 nT). Our IGRF/GMST/frame pipeline, with the example's onboard attitude (a few
     arcsec to arcmin from its truth), must explain its TAM data to about the noise."""
-    load = lambda f: np.loadtxt(example_dir / f, delimiter=",", skiprows=1)   # noqa: E731
+    load = lambda f: np.loadtxt(example_dir / f, delimiter=",", skiprows=1)
     eph, tam, ob = load("ephemeris.csv"), load("telemetry/TAM1.csv"), load("onboard_attitude.csv")
     epoch = astro.parse_epoch("2024-03-20T06:00:00Z")
     t = ob[:, 0]
-    from scipy.interpolate import CubicHermiteSpline                      # ICD §4 interpolation
+    from scipy.interpolate import CubicHermiteSpline  # ICD §4 interpolation
     r = CubicHermiteSpline(eph[:, 0], eph[:, 1:4], eph[:, 4:7])(t)
     B_S = np.einsum("nij,nj->ni", _rot.quat_to_dcm(ob[:, 1:]), igrf_gci(epoch, astro.epoch_jd(epoch), t, r))
     res = tam[np.searchsorted(tam[:, 0], t), 1:] - B_S

@@ -17,11 +17,12 @@ and the tolerances below say so.
 
 from __future__ import annotations
 
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import TEST_DATA
 
 from gcs_core.ephem import teme
 from gcs_core.ephem.ephemeris import Ephemeris
@@ -29,19 +30,18 @@ from gcs_core.ephem.orbit import TleOrbit
 from gcs_core.ephem.sun import sun_position_km
 from gcs_core.ephem.timescale import julian_date
 from gcs_core.ephem.tle import read_tle, tle_states
-from gcs_core.io.tle_table import tle_ephemeris_table
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import T2, T3
 from gcs_core.io.mission import read_mission_spec
+from gcs_core.io.tle_table import tle_ephemeris_table
 from gcs_core.units import ARCSEC
-from repo_paths import TEST_DATA
 
 TLE = TEST_DATA / "astropi" / "iss-2022-01-31.tle"
-EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=timezone.utc)
+EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=UTC)
 one_metre = 1e-3      # km
 one_mm = 1e-6         # km
 
-VALLADO_EPOCH = datetime(2000, 6, 28, 15, 8, 51, 655000, tzinfo=timezone.utc)
+VALLADO_EPOCH = datetime(2000, 6, 28, 15, 8, 51, 655000, tzinfo=UTC)
 R_TEME = np.array([3961.0035498, 6010.7511740, 4619.3009301])
 R_TOD = np.array([3961.4214985, 6010.4752688, 4619.3015310])
 R_PEF = np.array([298.8036328, -7192.3146229, 4619.3015310])

@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
 from scipy import stats
 
 from gcs_core.config import load_config
@@ -36,7 +37,6 @@ from gcs_core.trade import definition_from_config
 from gcs_core.trade.geometry import field_turn_deg
 from gcs_core.trade.run import run_study
 from gcs_core.trade.study import make_orbit
-from repo_paths import ROOT
 
 CONFIGS = ROOT / "sample_data" / "trade"
 #: "several times larger": at least this factor

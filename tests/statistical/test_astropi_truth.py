@@ -10,23 +10,23 @@ quantized to 0.1 µT as the real file is, and a start-up settle from zero.
 
 from __future__ import annotations
 
-from datetime import datetime, timedelta, timezone
+from datetime import UTC, datetime, timedelta
 from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import TEST_DATA
 
 from gcs_core.config import load_config
 from gcs_core.convert import convert
-from gcs_core.session import Analysis
 from gcs_core.io.importer import load_mission
+from gcs_core.session import Analysis
 from gcs_core.sim._rot import rpy_to_dcm
 from gcs_core.sim.field import igrf_gci
-from repo_paths import TEST_DATA
 
 DATA = TEST_DATA / "astropi"
 TLE = DATA / "iss-2022-01-31.tle"
-EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=timezone.utc)
+EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=UTC)
 JD0 = 2459611.0 + (12 * 3600 + 21 * 60 + 15) / 86400.0 - 0.5      # JD of EPOCH (UTC)
 SPAN_S, STEP_S = 6 * 3600.0, 5.0
 SIGMA_NT = 150.0

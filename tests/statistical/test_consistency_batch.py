@@ -37,10 +37,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 import numpy as np
+import pytest
 from scipy import stats
-
 from test_truth_recovery import fit_and_compare, threeaxis
 
 RUNS = 30

@@ -8,8 +8,8 @@ fitted span and on the held-out span. Three seeds each.
 from __future__ import annotations
 
 import pytest
-
 from discovery_cases import CASES, analyse, simulate
+
 from gcs_core.reporting import analysis_report
 
 noise_floor_bound = 1.05      # normalized RMS: 1.0 is the noise floor (issue 3), fitted and

@@ -29,7 +29,8 @@ within the allowance is reported as a warning naming the effect added.
 
 Scope: 30-minute three-axis missions with the default (whole-span) method, which carries
 the gyro noise as process noise. On two-hour inertial missions with the default gyro
-noise, batch discovery (``method = "batch"``) adds an effect on 5 of 40 seeds (100–139: FHST1/FSS1 time offsets, FSS1 harmonic), because the batch fit propagates
+noise, batch discovery (``method = "batch"``) adds an effect on 5 of 40 seeds (100–139: FHST1/FSS1
+time offsets, FSS1 harmonic), because the batch fit propagates
 the attitude with the gyros at Q = 0: the gyro's angle and rate random walks leave slow
 attitude wander in the residuals that the χ² statistics take for white noise (the session
 warns and recommends ``method = "kalman"``). The same seeds with a noiseless gyro add
@@ -58,12 +59,12 @@ from pathlib import Path
 
 import pytest
 from scipy import stats
+from test_truth_recovery import ONE_HOUR, threeaxis
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import spinner_nominal
 from gcs_core.sim.writer import write_mission
-from test_truth_recovery import ONE_HOUR, threeaxis
 
 SEEDS = range(100)
 MAX_ALARMS = 1
@@ -118,7 +119,7 @@ def test_discovery_adds_nothing_on_nominal_missions(seed, tmp_path, outcomes_dir
     tmp.write_text(json.dumps(record))
     tmp.replace(outcomes_dir / f"seed-{seed}.json")            # atomic: readers see whole files
     if added:
-        warnings.warn(f"false alarm on nominal {kind_of(seed)} seed {seed}: added {added}")
+        warnings.warn(f"false alarm on nominal {kind_of(seed)} seed {seed}: added {added}", stacklevel=2)
     recorded = [json.loads(p.read_text()) for p in outcomes_dir.glob("seed-*.json")]
     alarms = [r for r in recorded if r["added"]]
     assert len(alarms) <= MAX_ALARMS, (

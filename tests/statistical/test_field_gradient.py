@@ -17,15 +17,31 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_ground_mission import (
+    B_LAB,
+    D_TRUE,
+    DT,
+    GYRO_BIAS,
+    GYRO_NOISE,
+    MAG_ALIGN_RAD,
+    MAG_BIAS,
+    MAG_DT,
+    MAG_NOISE,
+    MEMS_PRIORS,
+    OPT_DT,
+    OPT_NOISE,
+    Z_MAX,
+    N,
+    _rate,
+    _write,
+)
 
 from gcs_core.config import default_config
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
-from gcs_core.models.magnetometer import MagnetometerModel
-from gcs_core.session import Analysis
 from gcs_core.io.importer import load_mission
 from gcs_core.io.types import SensorSpec
-from test_ground_mission import (B_LAB, D_TRUE, DT, GYRO_BIAS, GYRO_NOISE, MAG_ALIGN_RAD, MAG_BIAS, MAG_DT,
-                                 MAG_NOISE, MEMS_PRIORS, N, OPT_DT, OPT_NOISE, Z_MAX, _rate, _write)
+from gcs_core.models.magnetometer import MagnetometerModel
+from gcs_core.session import Analysis
 
 #: the field's gradient [nT/m]: symmetric, trace-free, a few µT/m (what the BROAD lab shows)
 G_TRUE = np.array([[800.0, 400.0, -900.0], [400.0, 2400.0, -400.0], [-900.0, -400.0, -3200.0]])

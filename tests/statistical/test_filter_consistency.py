@@ -18,7 +18,7 @@ Navigation*, Wiley 2001, §5.4 (NEES/NIS tests over Monte-Carlo runs).
 from __future__ import annotations
 
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 
 import numpy as np
@@ -26,15 +26,15 @@ import pytest
 from scipy import stats
 
 from gcs_core import units
-from gcs_core.problem.build import StateOptions, build_problem
-from gcs_core.filtr.stepping import Filtr
 from gcs_core.filtr.filter_options import FilterOptions
+from gcs_core.filtr.stepping import Filtr
 from gcs_core.frames.rotations import T1, T2, T3, dcm_to_rotvec, euler123_to_dcm, rotvec_to_dcm
 from gcs_core.io.importer import ImportedMission
-from gcs_core.problem.prepare import PhysicsOptions
 from gcs_core.io.types import MissionSpec, SensorSpec, Table
+from gcs_core.problem.build import StateOptions, build_problem
+from gcs_core.problem.prepare import PhysicsOptions
 
-EPOCH = datetime(2024, 3, 20, 6, 0, 0, tzinfo=timezone.utc)
+EPOCH = datetime(2024, 3, 20, 6, 0, 0, tzinfo=UTC)
 #: physics the simulator does not model (so the filter must not either)
 PHYSICS = PhysicsOptions(stellar_aberration=False, solar_aberration=False, sun_parallax=False,
                          field_model="dipole")

@@ -18,8 +18,8 @@ import pytest
 from gcs_core.config import ElementConfig, default_config
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
-from gcs_core.session import Analysis
 from gcs_core.io.importer import load_mission
+from gcs_core.session import Analysis
 
 DT = 0.02                              # s (50 Hz)
 N = 3000                               # 60 s

@@ -29,9 +29,9 @@ the wander, χ²/dof 1.0095).
 
 from __future__ import annotations
 
+import honesty_cases as hc
 import pytest
 
-import honesty_cases as hc
 from gcs_core.config import AnalysisConfig
 
 FOUR_HOURS = 4.0

@@ -14,14 +14,13 @@ truth simulator and fitted with the default (whole-span) method:
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.trade import montecarlo as mc_mod
 from gcs_core.trade import store
 from gcs_core.trade.montecarlo import MonteCarlo, replay, run_montecarlo
-from repo_paths import ROOT
 
 #: a predicted σ and a fit's σ for the same plan agree to this fraction (the trackers'
 #: scale factors depend on exactly which stars a 10-minute still pointing sees; the

@@ -11,6 +11,7 @@ predictor's synthetic sky) and the linearization point (nominal against fitted s
 from __future__ import annotations
 
 from dataclasses import replace
+from datetime import UTC
 from pathlib import Path
 
 import numpy as np
@@ -18,9 +19,9 @@ import pytest
 
 from gcs_core.config import AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.ephem.orbit import KeplerOrbit
+from gcs_core.io.importer import load_mission
 from gcs_core.predictor import DataPlan, predict
 from gcs_core.session import Analysis
-from gcs_core.io.importer import load_mission
 from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import Slew, ThreeAxisProfile
 from gcs_core.units import DEG
@@ -166,7 +167,7 @@ def test_prelaunch_prediction_from_an_orbit(sim_mission):
 def test_prelaunch_spinner_from_the_data_book_alone(tmp_path):
     """A spinner described only by its data book (no files): one frame per spin, the spin
     rate from ``spin_rate_rpm``, no frames in shadow (the horizon timing needs the Sun)."""
-    from datetime import datetime, timezone
+    from datetime import datetime
 
     from gcs_core.io.types import MissionSpec, SensorSpec
 
@@ -175,7 +176,7 @@ def test_prelaunch_spinner_from_the_data_book_alone(tmp_path):
     hs = SensorSpec("HS1", "horizon", tmp_path / "none.csv", noise=0.0015,
                     book={"gamma_deg": 80.0, "phi_h_deg": 40.0, "horizon_height_km": 40.0,
                           "sun_sensor": "PSS1"})
-    epoch = datetime(2024, 9, 2, 10, tzinfo=timezone.utc)
+    epoch = datetime(2024, 9, 2, 10, tzinfo=UTC)
     spec = MissionSpec(tmp_path, "spinner", epoch, "spinning", None, (pss, hs),
                        spin_axis_guess_deg=(320.0, 50.0))
     orbit = KeplerOrbit(7078.137, 0.001, 28.5, 35.0, 60.0, 10.0, epoch)

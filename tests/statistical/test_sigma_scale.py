@@ -12,11 +12,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_field_gradient import EFFECTS, GRADIENT, fit, write_mission
+from test_ground_mission import B_LAB, MAG_BIAS, Z_MAX
 
 from gcs_core.diagnosis.correlation import sigma_scale
 from gcs_core.errors import InputError
-from test_field_gradient import EFFECTS, GRADIENT, fit, write_mission
-from test_ground_mission import B_LAB, MAG_BIAS, Z_MAX
 
 HOLD = 10
 #: windows of 1 s: 60 over the span, so each scale scatters by about 1/sqrt(2·60) = 9 %;

@@ -13,7 +13,6 @@ expresses it (:func:`spinner_cases.expected_estimates`).
 from __future__ import annotations
 
 import pytest
-
 from spinner_cases import HIDDEN, run_case
 
 noise_floor_bound = 1.05        # normalized RMS, fitted and held-out (issue 11)

@@ -1,7 +1,7 @@
 """The ``gcs`` command (gcs_tui/cli.py): every command on the bundled sample missions, the
 ICD §7 JSON report, exit codes, one-line errors without tracebacks, and the progress display.
 
-Commands run in-process through ``gcs_tui.cli.commands.main([...])``; two runs go through a real
+Commands run in-process through ``gcs_tui.cli.main([...])``; two runs go through a real
 interpreter (``python -m gcs_tui.cli``) to check the process exit code and that stderr
 holds no traceback.
 """
@@ -20,10 +20,10 @@ from contextlib import redirect_stderr, redirect_stdout
 from pathlib import Path
 
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.reporting import icd_report_problems
-from repo_paths import ROOT
-from gcs_tui.cli import commands as cli
+from gcs_tui.cli.commands import commands as cli
 from gcs_tui.cli.commands import main
 
 MISSIONS = ROOT / "sample_data" / "missions"
@@ -92,7 +92,7 @@ def test_discover_report_has_the_icd_fields(discovered):
     _, _, _, rep, out = discovered
     assert icd_report_problems(rep) == []
     assert rep["mission"] == "hidden-tam-contamination" and rep["command"] == "discover"
-    for name, s in rep["sensors"].items():
+    for s in rep["sensors"].values():
         assert isinstance(s["n"], int) and s["n"] > 0
         assert isinstance(s["rms"], float) and isinstance(s["rms_normalized"], float)
     assert {"name", "estimate", "sigma", "unit"} <= set(rep["state"][0])

@@ -5,10 +5,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
 from textual.app import App
 
 from gcs_core.filtr.noise import sensor_noise
-from repo_paths import ROOT
 from gcs_tui.tui.screens.allan import AllanScreen, summary
 from gcs_tui.tui.theme import VARIABLES
 
@@ -54,8 +54,9 @@ async def test_palette_command_on_the_broad_sample(tmp_path):
     Data 6(7), 2021, doi:10.3390/data6070072, CC BY 4.0) opens the dialog, one chart per
     sensor; escape closes it."""
 
-    from gcs_tui.tui.app import GcsApp
     from tui_testing import settle
+
+    from gcs_tui.tui.app import GcsApp
     from gcs_tui.tui.workbench import Workbench
 
     config = ROOT / "sample_data/configs/real-broad-02-slow-rotation.toml"

@@ -21,15 +21,15 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 from textual.widgets import DataTable, Label, Static
-
-from gcs_core import reporting
-from gcs_tui.cli import tables
-from gcs_core.units import ARCSEC, DEG
-from gcs_core import display as fmt
-from gcs_tui.tui.app import LOGGERS, GcsApp, detached_terminal_logging, poor_choice
-from gcs_tui.cli.progress import LogHandler, Progress
-from gcs_tui.tui.screens.dialogs import ConfirmScreen, Field, FormScreen
 from tui_testing import ROOT, sample_mission, settle
+
+from gcs_core import display as fmt
+from gcs_core import reporting
+from gcs_core.units import ARCSEC, DEG
+from gcs_tui.cli.commands import tables
+from gcs_tui.cli.progress import LogHandler, Progress
+from gcs_tui.tui.app import LOGGERS, GcsApp, detached_terminal_logging, poor_choice
+from gcs_tui.tui.screens.dialogs import ConfirmScreen, Field, FormScreen
 
 MISSION = "hidden-tam-contamination"
 one_arcsecond = ARCSEC

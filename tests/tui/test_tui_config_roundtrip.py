@@ -7,16 +7,15 @@ every solve-for estimate and σ of the TUI's fit to 1e-9 relative.
 
 from __future__ import annotations
 
-import pytest
 import numpy as np
+import pytest
+from test_tui_pilot import hidden_effect_case, open_by_keys
 from textual.widgets import DataTable
+from tui_testing import settle, type_text
 
 from gcs_core.config import load_config
 from gcs_core.session import Analysis
 from gcs_tui.tui.app import GcsApp
-from tui_testing import settle, type_text
-
-from test_tui_pilot import hidden_effect_case, open_by_keys
 
 #: the σ typed into the State screen for TAM1.bias_x [nT]
 NEW_SIGMA_NT = 150.0

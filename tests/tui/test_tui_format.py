@@ -11,8 +11,8 @@ import math
 
 import pytest
 
-from gcs_core.units import ARCSEC, DEG
 from gcs_core import display as fmt
+from gcs_core.units import ARCSEC, DEG
 
 
 @pytest.mark.parametrize("value, sigma, unit, expected", [

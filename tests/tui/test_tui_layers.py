@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import ast
 from pathlib import Path
+
 from repo_paths import ROOT
 
 #: gcs_tui modules that must stay free of Textual and Rich (plain Python over the engine)

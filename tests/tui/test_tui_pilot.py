@@ -18,12 +18,12 @@ from pathlib import Path
 
 import pytest
 from textual.widgets import DataTable
+from tui_testing import sample_answer, sample_mission, settle, type_text
 
 from gcs_core.config import AnalysisConfig, save_config
 from gcs_tui.tui.app import GcsApp
 from gcs_tui.tui.screens.diagnosis import DiagnosisScreen
 from gcs_tui.tui.screens.residuals import ResidualsScreen
-from tui_testing import sample_answer, sample_mission, settle, type_text
 
 #: normalized RMS above this fails: 5 % above the noise floor
 RMS_LIMIT = 1.05

@@ -11,12 +11,12 @@ workers (``settle``) so nothing is caught half-drawn. Update with
 from __future__ import annotations
 
 import pytest
+from tui_testing import sample_mission, settle
 
 from gcs_core.io import h5store
 from gcs_tui.tui import filtr_run, jobs
 from gcs_tui.tui.app import GcsApp
 from gcs_tui.tui.keys import VIEWS
-from tui_testing import sample_mission, settle
 from gcs_tui.tui.workbench import Workbench
 
 MISSION = "hidden-tam-contamination"

@@ -3,16 +3,15 @@ plan screen (the plan's span and gaps become the config's ``[prediction]`` plan)
 
 from __future__ import annotations
 
-
 import pytest
+from repo_paths import ROOT
+from tui_testing import sample_mission, settle
 
 from gcs_core.config import load_config
 from gcs_core.trade import definition_from_config
 from gcs_core.trade.run import run_study
 from gcs_tui.tui.app import GcsApp
 from gcs_tui.tui.screens.trade import TradeScreen
-from repo_paths import ROOT
-from tui_testing import sample_mission, settle
 from gcs_tui.tui.workbench import Workbench
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-tam-bias.toml"

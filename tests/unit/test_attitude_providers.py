@@ -7,8 +7,15 @@ import numpy as np
 import pytest
 
 from gcs_core.models.gyro import G_NAMES
-from gcs_core.problem.attitude import (RADEC, RPY, AttitudeProvider, BodyErrorAttitude, ManeuverAttitude,
-                                       ReferenceAttitude, SpinAttitude)
+from gcs_core.problem.attitude import (
+    RADEC,
+    RPY,
+    AttitudeProvider,
+    BodyErrorAttitude,
+    ManeuverAttitude,
+    ReferenceAttitude,
+    SpinAttitude,
+)
 from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.units import DEG
 

@@ -11,11 +11,11 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from repo_paths import ROOT
 
 from gcs_core import config as C
 from gcs_core.errors import ConfigError, InputError
 from gcs_core.io.importer import load_mission
-from repo_paths import ROOT
 
 MISSIONS = ROOT / "sample_data" / "missions"
 CONFIGS = ROOT / "sample_data" / "configs"

@@ -14,16 +14,18 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from repo_paths import TEST_DATA
 
 from gcs_core.convert import CONVERTERS, convert, converter
 from gcs_core.convert.astropi import procrustes_mounting
 from gcs_core.convert.common import leading_transient
-from gcs_core.filtr.noise import white_noise
 from gcs_core.errors import InputError
+from gcs_core.filtr.noise import white_noise
 from gcs_core.frames.rotations import euler123_to_dcm
 from gcs_core.io.importer import load_mission
-from repo_paths import TEST_DATA
-from gcs_tui.cli import commands as cli
+from gcs_tui.cli.commands import (
+    commands as cli,
+)
 
 DATA = TEST_DATA / "astropi"
 CSV = DATA / "astropi_extract.csv"

@@ -15,7 +15,7 @@ import pytest
 
 from gcs_core.convert import CONVERTERS, ConversionReport, convert
 from gcs_core.errors import InputError
-from gcs_core.frames.rotations import quat_to_dcm, rotvec_to_dcm, quat_from_dcm
+from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm, rotvec_to_dcm
 from gcs_core.io.importer import load_mission
 
 RATE_HZ = 100.0
@@ -147,7 +147,11 @@ def test_refuses_a_full_output_directory(tmp_path):
 
 
 def test_cli_convert_import_and_noise(tmp_path, capsys):
-    from gcs_tui.cli.commands import EXIT_INPUT, EXIT_OK, main
+    from gcs_tui.cli.commands import (
+        EXIT_INPUT,
+        EXIT_OK,
+        main,
+    )
 
     src = _trial(tmp_path / "t.hdf5")
     assert main(["-q", "convert", "broad", str(src), "--out", str(tmp_path / "m")]) == EXIT_OK

@@ -13,10 +13,10 @@ import pytest
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import determination
 from gcs_core.reporting import analysis_report
-from gcs_tui.cli.tables import state_table
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
+from gcs_tui.cli.tables import state_table
 
 
 def _fit(folder, cfg):

@@ -96,7 +96,8 @@ _SECTION = st.sampled_from(sorted(_LINES)).flatmap(
 
 
 @FUZZ
-@given(st.booleans(), st.lists(_SECTION, max_size=6, unique_by=lambda sec: sec.split("\n")[0]), st.lists(st.sampled_from(_STRAY), max_size=1),
+@given(st.booleans(), st.lists(_SECTION, max_size=6, unique_by=lambda sec: sec.split("\n")[0]),
+       st.lists(st.sampled_from(_STRAY), max_size=1),
        st.text(max_size=6))
 def test_config_loader_on_tomlish_text(with_analysis, sections, stray, noise):
     head = "[analysis]\nmission = \"m\"\nmethod = \"kalman\"\n" if with_analysis else ""
@@ -209,7 +210,7 @@ def test_euler123_round_trip_away_from_gimbal_lock(roll, pitch, yaw):
     grows as 1/cos θ, the conditioning of Eq 4-5 near the lock."""
     r, p, y = R.dcm_to_euler123(R.euler123_to_dcm(roll, pitch, yaw))
     tol = round_off / math.cos(pitch)
-    wrap = lambda a: (a + math.pi) % (2 * math.pi) - math.pi  # noqa: E731
+    wrap = lambda a: (a + math.pi) % (2 * math.pi) - math.pi
     assert abs(p - pitch) < round_off
     assert abs(wrap(r - roll)) < tol and abs(wrap(y - yaw)) < tol
 

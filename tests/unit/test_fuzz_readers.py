@@ -7,16 +7,16 @@ import math
 import tempfile
 from pathlib import Path
 
-import pytest
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from repo_paths import ROOT
 
 from gcs_core.errors import InputError
 from gcs_core.io.csvio import read_table
 from gcs_core.io.mission import read_mission_spec
 from gcs_core.io.types import MissionSpec, Table
-from repo_paths import ROOT
 
 FUZZ = settings(max_examples=300, derandomize=True, database=None, deadline=None,
                 suppress_health_check=list(HealthCheck))

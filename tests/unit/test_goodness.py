@@ -14,14 +14,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from repo_paths import SAMPLE_MISSIONS
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import determination, goodness
 from gcs_core.reporting import analysis_report, icd_report_problems
-from gcs_tui.cli.tables import fit_table, state_table
 from gcs_core.session import Analysis
-
-from repo_paths import SAMPLE_MISSIONS
+from gcs_tui.cli.tables import (
+    fit_table,
+    state_table,
+)
 
 #: round-off of the Woodbury identity against the direct solve (relative)
 round_off = 1e-9

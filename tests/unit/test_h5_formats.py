@@ -10,12 +10,12 @@ import textwrap
 import h5py
 import numpy as np
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.errors import DataFileError
 from gcs_core.io import asf, h5store, scds
 from gcs_core.io.importer import load_mission
 from gcs_core.io.sdf import iter_blocks, read_sdf, write_sdf
-from repo_paths import ROOT
 
 one_nT = 1.0
 

@@ -18,12 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from model_fixtures import sensor
 
 from gcs_core import units
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry
 from gcs_core.models.horizon import FLATTENING
-from model_fixtures import sensor
 
 H_KM, ALT_KM = 40.0, 700.0
 sigma_phase = 1.5e-3 * 2 * np.pi / 6.0          # 1.5 ms at 10 rpm [rad]

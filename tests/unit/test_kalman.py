@@ -21,18 +21,19 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from repo_paths import ROOT
+from test_filter_consistency import sim_problem, simulate
 
 from gcs_core.compiled import COMPILED
+from gcs_core.errors import EstimationError
 from gcs_core.filtr import kalman_kernels
 from gcs_core.filtr.batch import BatchOptions, batch_fit
+from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.kalman import LinearBlock, referred_transitions, solve_block
 from gcs_core.filtr.mekf import gyro_rates
-from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.results import BlockReport
 from gcs_core.filtr.stepping import Filtr
 from gcs_core.frames.rotations import rotvec_to_dcm
-from test_filter_consistency import sim_problem, simulate
-from repo_paths import ROOT
 
 #: tolerances: round-off of the lifted core, and agreement of two converged estimators
 ROUND_OFF = 1e-9
@@ -323,7 +324,7 @@ def test_stepping_api():
     res = f.run(progress=seen.append)
     assert f.done and len(seen) == 2 and [b.index for b in f.blocks] == [0, 1, 2]
     assert res.status == "single_pass" and set(res.residuals) == {"ST1", "ST2"}
-    with pytest.raises(Exception):
+    with pytest.raises(EstimationError, match="processed all the data"):
         f.step()
     f.set_roles({"ST1.scale_h": "held"})
     assert "ST1.scale_h" not in f.step().names and len(f.blocks) == 1

@@ -57,7 +57,7 @@ def appender(path: str, fd: int, pause_in_write: bool = False) -> None:
             if got != n:
                 os._exit(4)
             os.write(fd, struct.pack("<q", n))
-    except BaseException:
+    except BaseException:  # noqa: BLE001 — the child reports any failure by its exit code
         os._exit(3)
 
 

@@ -4,6 +4,9 @@ mission files (io) → problem (state, geometry, attitude) → estimators (filtr
 predictor) → diagnosis → reports and the session → the faces (gcs_tui). Every module's
 imports, at any depth of the file (function-level imports included), are read with
 ``ast``; nothing is imported, so the test is fast and sees imports that never run.
+Imports under ``if TYPE_CHECKING:`` are left out: they are annotations for the type
+checker (a screen's ``app`` is the running ``GcsApp``), never executed, so they order
+nothing at run time.
 """
 
 from __future__ import annotations
@@ -20,6 +23,7 @@ PACKAGES = ("gcs_core", "gcs_tui")
 #: layers from the bottom; a module may import its own layer (without cycles) and those below
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("foundation", ("gcs_core", "gcs_core.errors", "gcs_core.units", "gcs_core.fileperm",
+                    "gcs_core.compiled", "gcs_core.toml_values",
                     "gcs_core.display", "gcs_core.linalg", "gcs_core.frames", "gcs_core.ephem",
                     "gcs_core.sim")),
     ("mission files", ("gcs_core.io",)),
@@ -66,13 +70,21 @@ def _targets(module: str, is_pkg: bool, node: ast.Import | ast.ImportFrom) -> li
     return [f"{source}.{a.name}" if f"{source}.{a.name}" in MODULES else source for a in node.names]
 
 
+def _is_type_checking(test: ast.expr) -> bool:
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or \
+        (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+
+
 def _graph() -> tuple[dict[str, set[str]], dict[str, set[str]]]:
     """(module -> internal modules it imports, module -> third-party top-level names)."""
     internal: dict[str, set[str]] = defaultdict(set)
     external: dict[str, set[str]] = defaultdict(set)
     for module, (path, is_pkg) in MODULES.items():
-        for node in ast.walk(ast.parse(path.read_text(), filename=str(path))):
-            if not isinstance(node, (ast.Import, ast.ImportFrom)):
+        tree = ast.parse(path.read_text(), filename=str(path))
+        typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If) and _is_type_checking(block.test)
+                       for stmt in block.body for n in ast.walk(stmt)}
+        for node in ast.walk(tree):
+            if not isinstance(node, (ast.Import, ast.ImportFrom)) or id(node) in typing_only:
                 continue
             for target in _targets(module, is_pkg, node):
                 if target.split(".")[0] not in PACKAGES:

@@ -10,14 +10,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from gcs_core.errors import InputError
-from gcs_core.io.importer import load_mission
-from gcs_core.ephem.timescale import parse_utc
-from gcs_core.io.mission import read_mission_spec
 from repo_paths import ROOT
 
-
+from gcs_core.ephem.timescale import parse_utc
+from gcs_core.errors import InputError
+from gcs_core.io.importer import load_mission
+from gcs_core.io.mission import read_mission_spec
 
 
 @pytest.fixture

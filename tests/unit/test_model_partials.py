@@ -12,11 +12,15 @@ import dataclasses
 
 import numpy as np
 import pytest
+from model_fixtures import CASES
 
 from gcs_core.models.base import Prediction
-from gcs_core.models.checks import (CENTRAL_DIFFERENCE_RTOL, FORWARD_DIFFERENCE_RTOL, assert_partials_match,
-                                    check_partials)
-from model_fixtures import CASES
+from gcs_core.models.checks import (
+    CENTRAL_DIFFERENCE_RTOL,
+    FORWARD_DIFFERENCE_RTOL,
+    assert_partials_match,
+    check_partials,
+)
 
 SEEDS = (0, 1, 2, 3)
 

@@ -19,16 +19,16 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from model_fixtures import fine_sun_case
 
 from gcs_core.filtr import batch as batch_mod
 from gcs_core.filtr import local_refine
 from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
-from gcs_core.problem.build import build_problem
-from gcs_core.models import common
 from gcs_core.io.importer import load_mission
+from gcs_core.models import common
+from gcs_core.problem.build import build_problem
 from gcs_core.sim.scenarios import nominal_threeaxis
 from gcs_core.sim.writer import write_mission
-from model_fixtures import fine_sun_case
 
 #: "the same minimum": every element within this fraction of its σ
 same_minimum = 1e-3

@@ -10,10 +10,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from repo_paths import TEST_DATA
 
 from gcs_core.errors import InputError
 from gcs_core.filtr import noise
-from repo_paths import TEST_DATA
 
 DT = 0.01                      # s
 N_ARW = 1e-3                   # rad/s^0.5
@@ -84,9 +84,10 @@ def test_both_converters_mark_estimated_noise_one_way(tmp_path):
     estimated from the data' for every sensor whose noise they estimated; a data book
     without the marker is not."""
 
+    from test_convert_broad import _trial
+
     from gcs_core.convert import convert
     from gcs_core.filtr.noise import ESTIMATED_MARK, noise_estimated
-    from test_convert_broad import _trial
 
     data = TEST_DATA / "astropi"
     convert("astropi", data / "astropi_extract.csv", tmp_path / "a",

@@ -13,24 +13,22 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
+from repo_paths import ROOT
+from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_error
 
 from gcs_core.errors import InputError
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr import mekf
-from gcs_core.filtr.stepping import Filtr
 from gcs_core.filtr.filter_options import FilterOptions
+from gcs_core.filtr.stepping import Filtr
 from gcs_core.frames.rotations import rotvec_to_dcm
+from gcs_core.io.types import SensorSpec
 from gcs_core.models import make_model
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q, gyro_noise
 from gcs_core.predictor import kalman as pk
 from gcs_core.predictor.predict import predict
-from gcs_core.io.types import SensorSpec
-from repo_paths import ROOT
-from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_error
 
 #: round-off of two evaluations of the same expression
 ROUND_OFF = 1e-12
@@ -190,8 +188,7 @@ def test_robust_scale_is_the_noise_estimators():
     """The batch's editing and the noise estimator use one MAD-to-σ constant."""
     import inspect
 
-    from gcs_core.filtr import batch
-    from gcs_core.filtr import noise
+    from gcs_core.filtr import batch, noise
 
     assert batch.MAD_TO_SIGMA is noise.MAD_TO_SIGMA
     assert "1.4826 *" not in inspect.getsource(batch)

@@ -9,14 +9,13 @@ says the roll maneuver is what determines G_11.
 
 from __future__ import annotations
 
-
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.config import load_config
 from gcs_core.errors import InputError
 from gcs_core.trade.optimize import MARGIN, Budget, candidates, optimize, parse_target
 from gcs_core.units import ARCSEC, DEG
-from repo_paths import ROOT
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-gyro.toml"
 

@@ -26,11 +26,11 @@ import pytest
 
 from gcs_core.config import AnalysisConfig, ConfigError, Maneuver, config_from_dict, load_config, save_config
 from gcs_core.errors import InputError
+from gcs_core.io.importer import load_mission
+from gcs_core.io.types import Table
 from gcs_core.predictor import DataPlan, predict
 from gcs_core.predictor.stars import STAR_CATALOG_FILE, Catalog, read_catalog, telemetry_catalog
 from gcs_core.session import Analysis
-from gcs_core.io.importer import load_mission
-from gcs_core.io.types import Table
 from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import Slew, ThreeAxisProfile
 from gcs_core.sim.stars import StarCatalog
@@ -124,7 +124,7 @@ def test_telemetry_source_collects_the_distinct_stars(small_mission):
     d = np.abs(full.ra_deg[None, :] - cat.ra_deg[:, None]) + np.abs(full.dec_deg[None, :] - cat.dec_deg[:, None])
     assert np.all(d.min(axis=1) < one_arcsecond_deg)           # every one a catalog star
     # the same star in two rows (and two trackers) is one entry
-    row = lambda *v: Table(Path("x.csv"), np.arange(len(v), dtype=float),  # noqa: E731
+    row = lambda *v: Table(Path("x.csv"), np.arange(len(v), dtype=float),
                            {"ra": np.array([a for a, _, _ in v]), "dec": np.array([b for _, b, _ in v]),
                             "mag": np.array([m for _, _, m in v])}, np.arange(len(v)))
     two = telemetry_catalog([row((10.0, 20.0, 4.0), (10.0, 20.0, 4.0), (11.0, 20.0, 5.0)),

@@ -17,12 +17,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from test_truth_recovery import normalized_errors, truth_values
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
-from test_truth_recovery import normalized_errors, truth_values
 
 three_sigma = 3.0
 spike_nT = 3000.0            # a telemetry hit: 120 σ of the 25 nT TAM noise
@@ -75,7 +75,8 @@ def test_misidentified_stars_are_flagged(dirty):
     a, _, truth = dirty
     for name in ("FHST1", "FHST2"):
         r = a.result.residuals[name]
-        n_bad = truth["sensors"][name].get("n_misidentified") or truth.get("counters", {}).get(name, {}).get("n_misidentified")
+        n_bad = (truth["sensors"][name].get("n_misidentified")
+                 or truth.get("counters", {}).get(name, {}).get("n_misidentified"))
         flagged = int(np.count_nonzero(r.edited))
         assert flagged >= 1
         if n_bad:

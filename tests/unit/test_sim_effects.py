@@ -17,10 +17,9 @@ from gcs_core.errors import InputError
 from gcs_core.frames import rotations as R
 from gcs_core.sim import list_effects, nominal_threeaxis, spinner_nominal, with_effect, write_mission
 from gcs_core.sim.aux import AuxSchedule
-from gcs_core.sim.writer import make_sensor_sim
 from gcs_core.sim.stars import StarCatalog
 from gcs_core.sim.truth import World
-from gcs_core.sim.writer import _rng
+from gcs_core.sim.writer import _rng, make_sensor_sim
 
 one_nT = 1.0
 one_arcsecond = units.ARCSEC
@@ -157,7 +156,7 @@ def test_every_effect_applies_and_is_listed_in_the_answer_file(tmp_path):
     by_type = {s.type: s.name for s in three.sensors + spin.sensors}
     cfg_of = {s.name: (three if s in three.sensors else spin) for s in three.sensors + spin.sensors}
     n = 0
-    for effect, types, unit, desc in list_effects():
+    for effect, types, _unit, _desc in list_effects():
         for typ in types:
             sensor = "model" if typ == "model" else by_type[typ]
             cfg = three if sensor == "model" else cfg_of[sensor]

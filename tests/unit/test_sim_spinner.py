@@ -15,9 +15,9 @@ import pytest
 
 from gcs_core import units
 from gcs_core.sim import spinner_nominal, with_effect, write_mission
-from gcs_core.sim.writer import make_sensor_sim
 from gcs_core.sim.spinner import SunSightings
 from gcs_core.sim.truth import World
+from gcs_core.sim.writer import make_sensor_sim
 
 one_microsecond = 1e-6
 
@@ -145,7 +145,7 @@ def test_horizon_oblateness_and_time_offset_act_as_physics():
         runs[eid] = make_sensor_sim(cfg.sensor("HS1"), world, np.random.default_rng(0),
                                     sightings=sight).run_span(0.0, 1200.0, 1180.0)
     nominal, oblate, shifted = runs[None], runs["HS1.oblateness"], runs["HS1.time_offset"]
-    width = lambda d: d["dt_out"] - d["dt_in"]               # noqa: E731
+    width = lambda d: d["dt_out"] - d["dt_in"]
     n = min(nominal["t"].size, oblate["t"].size)
     # A smaller polar radius narrows the Earth seen by the scanner by up to ~21 km / 7000 km.
     assert 0.0 < np.max(width(nominal)[:n] - width(oblate)[:n]) < 0.02

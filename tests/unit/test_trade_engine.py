@@ -17,15 +17,14 @@ import time
 from pathlib import Path
 
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.config import load_config
 from gcs_core.errors import InputError
-from gcs_core.trade import definition_from_config
+from gcs_core.trade import definition_from_config, store
 from gcs_core.trade import run as trade_run
-from gcs_core.trade import store
 from gcs_core.trade.run import read_study, run_study
 from gcs_core.trade.space import parse_values, parse_vary
-from repo_paths import ROOT
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-tam-bias.toml"
 #: the kill test's study: 2 spans × 48 starts = 96 short plans (a few seconds serially,
@@ -53,7 +52,7 @@ def _wait_for_rows(path: Path, proc, minimum: int = 1, timeout: float = 60.0) ->
         if path.exists():
             try:
                 n = len(read_study(path)[1])
-            except Exception:  # noqa: BLE001 - a file being replaced: look again
+            except Exception:  # noqa: BLE001 — a file being replaced: look again
                 n = 0
             if n >= minimum:
                 return n

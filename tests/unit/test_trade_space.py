@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-
 import pytest
+from repo_paths import ROOT
 
 from gcs_core.config import load_config
 from gcs_core.errors import InputError
-from gcs_core.predictor.plan import DataPlan
 from gcs_core.io.mission import read_mission_spec
+from gcs_core.predictor.plan import DataPlan
 from gcs_core.trade import space
 from gcs_core.trade.study import sensor_axes_covariance
-from repo_paths import ROOT
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-fhst.toml"
 

@@ -16,7 +16,7 @@ import pytest
 
 from gcs_core import units
 from gcs_core.config import AnalysisConfig
-from gcs_core.frames.rotations import (euler123_to_dcm, quat_from_dcm, quat_to_dcm, rotvec_to_dcm)
+from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_to_dcm, rotvec_to_dcm
 from gcs_core.session import Analysis
 from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import OnboardConfig

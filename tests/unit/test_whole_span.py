@@ -22,6 +22,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_error
+from test_truth_recovery import ONE_HOUR, fit_and_compare, threeaxis
 
 from gcs_core.compiled import COMPILED
 from gcs_core.filtr import knots as kn
@@ -29,8 +31,6 @@ from gcs_core.filtr import smoothing_batch as sb
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.models.gyro_noise import GyroNoise
-from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_error
-from test_truth_recovery import ONE_HOUR, fit_and_compare, threeaxis
 
 NO_EDIT = BatchOptions(edit_k=None)
 #: round-off of the eliminated solve against the dense one, relative

@@ -8,8 +8,9 @@ the visible screen that something changed.
 
 from __future__ import annotations
 
-from typing import ClassVar
+from typing import TYPE_CHECKING, ClassVar
 
+from textual import getters
 from textual.app import ComposeResult
 from textual.containers import Container
 from textual.css.query import NoMatches
@@ -17,6 +18,9 @@ from textual.screen import Screen
 from textual.widgets import Footer, Static
 
 from gcs_tui.tui.widgets.chrome import NavBar, StatusBar
+
+if TYPE_CHECKING:
+    from gcs_tui.tui.app import GcsApp
 
 EMPTY_NOTE = "No mission open — press o to open a mission directory or an analysis config (.toml)."
 
@@ -36,6 +40,9 @@ class GcsScreen(Screen):
     def __init__(self) -> None:
         super().__init__()
         self._drawn = -1
+
+    if TYPE_CHECKING:                # for the type checker: the running app is a GcsApp
+        app = getters.app(GcsApp)
 
     # ------------------------------------------------------------------ frame
     def compose(self) -> ComposeResult:

@@ -18,15 +18,14 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Static
 
-from gcs_core.diagnosis.ranking import RULE
-
 from gcs_core import display as fmt
+from gcs_core.diagnosis.ranking import RULE
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.theme import color, marker, series
 from gcs_tui.tui.theme import rgb as color_rgb
 from gcs_tui.tui.widgets.plots import GcsPlot, nice_y
-from gcs_tui.tui.widgets.tables import fill
+from gcs_tui.tui.widgets.tables import cursor_key, fill
 
 
 def step_label(step) -> str:
@@ -82,7 +81,7 @@ class DiagnosisScreen(GcsScreen):
         cands = self.wb.analysis.candidates
         if table.row_count == 0 or not cands:
             return None
-        key = table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value
+        key = cursor_key(table)
         return next((c for c in cands if c.id == key), None)
 
     def _explain(self) -> None:

@@ -11,9 +11,8 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, ProgressBar, Static
 
-from gcs_tui.tui import filtr_run
-from gcs_tui.tui import jobs
 from gcs_core import display as fmt
+from gcs_tui.tui import filtr_run, jobs
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.messages import FiltrBlock
 from gcs_tui.tui.screens.base import GcsScreen

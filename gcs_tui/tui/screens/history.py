@@ -14,12 +14,13 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
 
-from gcs_core.errors import GcsError
 from gcs_core import display as fmt
+from gcs_core.errors import GcsError
 from gcs_tui.tui import jobs
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.theme import color
+from gcs_tui.tui.widgets.tables import cursor_key
 
 
 class HistoryScreen(GcsScreen):
@@ -105,7 +106,7 @@ class HistoryScreen(GcsScreen):
             shown = fmt.shown_unit(unit, ref_v, ref_s)
             big = math.isfinite(z) and abs(z) > 3
 
-            def est(x, s):
+            def est(x, s, unit=unit, shown=shown):  # this row's units, bound
                 return fmt.estimate(x, s, unit, shown=shown, with_unit=False) if math.isfinite(x) else "—"
 
             # Δ at the decimal place of the combined σ, like the estimates
@@ -123,7 +124,7 @@ class HistoryScreen(GcsScreen):
         table = self.query_one("#versions", DataTable)
         if table.row_count == 0:
             return
-        self.marks[which] = int(table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value)
+        self.marks[which] = int(cursor_key(table))
         row = table.cursor_row
         self.refresh_view()
         table.move_cursor(row=row)

@@ -14,6 +14,7 @@ from gcs_core import display as fmt
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.theme import color
+from gcs_tui.tui.widgets.tables import cursor_key
 
 ROLE_STYLE = {"solve-for": "gcs-ok", "consider": "gcs-warn", "held": "gcs-muted"}
 
@@ -70,7 +71,7 @@ class ModelsScreen(GcsScreen):
         table = self.query_one("#models-table", DataTable)
         if table.row_count == 0:
             return
-        key = table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value
+        key = cursor_key(table)
         self.app.run_job("models", f"model {key}", lambda p, c: self.wb.cycle_model(key))
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:

@@ -10,14 +10,15 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
 
+from gcs_core import display as fmt
 from gcs_core.config import AXES, Maneuver, PredictionConfig
 from gcs_core.errors import GcsError
-from gcs_core import display as fmt
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.screens.dialogs import FormScreen, key_fields
 from gcs_tui.tui.theme import series
 from gcs_tui.tui.widgets.plots import GcsPlot
+from gcs_tui.tui.widgets.tables import cursor_key
 
 
 def _num(v: float) -> str:
@@ -99,7 +100,7 @@ class PlanScreen(GcsScreen):
         table = self.query_one(f"#{table_id}", DataTable)
         if table.row_count == 0:
             return None
-        return int(table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value)
+        return int(cursor_key(table))
 
     def action_edit_span(self) -> None:
         cfg = self.wb.config
@@ -153,7 +154,7 @@ class PlanScreen(GcsScreen):
         focused = self.focused
         if not isinstance(focused, DataTable):
             return
-        i = self._row(focused.id)
+        i = self._row(str(focused.id))
         if i is None:
             return
         if focused.id == "gaps":
@@ -162,7 +163,7 @@ class PlanScreen(GcsScreen):
             self._apply(maneuvers=tuple(m for j, m in enumerate(self.wb.config.prediction.maneuvers) if j != i))
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:
-        i = int(event.row_key.value)
+        i = int(str(event.row_key.value))
         if event.data_table.id == "gaps":
             a, b = self.wb.config.prediction.gaps[i]
             self._gap_form("Edit the data gap", a, b, i)

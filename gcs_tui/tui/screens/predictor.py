@@ -71,7 +71,7 @@ class PredictorScreen(GcsScreen):
         t = p.times.tolist()
         if what == "attitude":
             u = fmt.display_unit("rad", float(np.nanmax(p.attitude_sigma)) if p.attitude_sigma.size else 0.0)
-            for k, axis in enumerate(("x", "y", "z")):
+            for k in range(3):
                 y = p.attitude_sigma[:, k] * fmt.scale("rad", u)
                 marked_line(plt, t, y.tolist(), series(k), marker(k))
             if p.attitude_sigma.size:

@@ -20,8 +20,8 @@ from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Static
 
-from gcs_tui.tui import derive
 from gcs_core import display as fmt
+from gcs_tui.tui import derive
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.theme import color, rgb
@@ -50,7 +50,8 @@ def x_axes(sd, shown_unit: str, unit: str, orbit=None) -> list[tuple[str, str, n
     k = fmt.scale(unit, shown_unit)
     for j, comp in enumerate(sd.model.components):
         vals = sd.y[:, j] * k
-        out.append((f"measured {comp}", f"measured {comp}" + (f" [{fmt.unit_label(shown_unit)}]" if fmt.unit_label(shown_unit) else ""), vals))
+        label = fmt.unit_label(shown_unit)
+        out.append((f"measured {comp}", f"measured {comp}" + (f" [{label}]" if label else ""), vals))
     for name, values in sorted(g.aux.items()):
         u = derive.aux_unit(name)
         out.append((f"aux {name}", f"{name} [{u}]" if u else f"{name} (unit as in aux.csv)",

@@ -15,13 +15,14 @@ from rich.text import Text
 from textual.app import ComposeResult
 from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
+from textual.widgets.data_table import RowDoesNotExist
 
 from gcs_core import display as fmt
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.screens.dialogs import Field, FormScreen
 from gcs_tui.tui.screens.models import role_text
-from gcs_tui.tui.widgets.tables import fill
+from gcs_tui.tui.widgets.tables import cursor_key, fill
 
 
 class StateScreen(GcsScreen):
@@ -72,7 +73,7 @@ class StateScreen(GcsScreen):
         if selected is not None:
             try:
                 table.move_cursor(row=table.get_row_index(selected))
-            except Exception:  # the element is hidden now (held): keep the cursor where it is
+            except RowDoesNotExist:  # the element is hidden now (held): keep the cursor where it is
                 pass
         held = sum(1 for e in wb.analysis.problem.state if e.role == "held")
         self.query_one("#state-title", Label).update(
@@ -86,7 +87,7 @@ class StateScreen(GcsScreen):
         table = self.query_one("#elements", DataTable)
         if table.row_count == 0:
             return None
-        return table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value
+        return cursor_key(table)
 
     def _detail(self) -> None:
         name = self._selected()

@@ -9,8 +9,10 @@ plotted, ``escape`` closes the screen.
 from __future__ import annotations
 
 import math
+from typing import TYPE_CHECKING
 
 from rich.text import Text
+from textual import getters
 from textual.app import ComposeResult
 from textual.binding import Binding
 from textual.screen import Screen
@@ -23,6 +25,10 @@ from gcs_core.trade.run import sigma_grid, varied_keys
 from gcs_core.trade.study import ranked
 from gcs_tui.tui.theme import series
 from gcs_tui.tui.widgets.plots import GcsPlot
+from gcs_tui.tui.widgets.tables import cursor_key
+
+if TYPE_CHECKING:
+    from gcs_tui.tui.app import GcsApp
 
 #: plan keys the Data plan screen shows; the others (sensors, mountings) are named on open
 PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min", "gap_min",
@@ -31,6 +37,9 @@ PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "g
 
 class TradeScreen(Screen):
     """The rows of one trade study (module docstring)."""
+
+    if TYPE_CHECKING:                # for the type checker: the running app is a GcsApp
+        app = getters.app(GcsApp)
 
     CSS_PATH = "trade.tcss"
     BINDINGS = [Binding("enter", "open_plan", "Open in Data plan", id="trade.open"),
@@ -110,7 +119,7 @@ class TradeScreen(Screen):
         table = self.query_one("#trade-table", DataTable)
         if table.row_count == 0:
             return None
-        index = int(table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value)
+        index = int(cursor_key(table))
         return next(r for r in self.rows if r.index == index)
 
     def on_data_table_row_selected(self, event: DataTable.RowSelected) -> None:

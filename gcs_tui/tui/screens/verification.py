@@ -15,11 +15,11 @@ from textual.containers import Horizontal
 from textual.widgets import DataTable, Static
 
 from gcs_core import display as fmt
+from gcs_core.display import common_unit
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.theme import color, marker, rgb, series
 from gcs_tui.tui.widgets.plots import GcsPlot, marked_line, nice_x, nice_y
-from gcs_core.display import common_unit
 
 EMPTY = "No verification yet — press r to compare the onboard attitude with the ground solution."
 AXES = ("roll", "pitch", "yaw")
@@ -74,7 +74,7 @@ class VerificationScreen(GcsScreen):
         table.add_column(Text("requirement", justify="right"))
         table.add_column("flag")
         for k, axis in enumerate(AXES):
-            q = lambda x: Text(fmt.quantity(float(x), "rad", digits=3, shown=u, with_unit=False),  # noqa: E731
+            q = lambda x: Text(fmt.quantity(float(x), "rad", digits=3, shown=u, with_unit=False),
                                justify="right")
             flagged = bool(v.flag_axes[k])
             table.add_row(axis, q(v.mean[k]), q(v.sigma[k]), q(v.ground_accuracy[k]), q(v.requirement[k]),
@@ -89,7 +89,7 @@ class VerificationScreen(GcsScreen):
         k_u = fmt.scale("rad", u)
         if v.n:
             t = v.t.tolist()
-            for k, axis in enumerate(AXES):
+            for k in range(len(AXES)):
                 marked_line(plt, t, (v.diff[:, k] * k_u).tolist(), series(k), marker(k), line=False)
             req = float(np.max(v.requirement)) * k_u
             plt.horizontal_line(req, color=rgb("gcs-bad"))
@@ -105,7 +105,7 @@ class VerificationScreen(GcsScreen):
         k_u = fmt.scale("rad", u)
         if len(v.trend_t):
             t = v.trend_t.tolist()
-            for k, axis in enumerate(AXES):
+            for k in range(len(AXES)):
                 marked_line(plt, t, (v.trend_sigma[:, k] * k_u).tolist(), series(k), marker(k))
             req = float(np.max(v.requirement)) * k_u
             plt.horizontal_line(req, color=rgb("gcs-bad"))

@@ -7,8 +7,10 @@ about the engine.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 from rich.text import Text
+from textual import getters
 from textual.app import ComposeResult
 from textual.containers import Horizontal
 from textual.reactive import reactive
@@ -17,6 +19,9 @@ from textual.widgets import ProgressBar, Static
 
 from gcs_tui.tui.keys import VIEWS
 
+if TYPE_CHECKING:
+    from gcs_tui.tui.app import GcsApp
+
 
 class NavBar(Widget):
     """One line: every screen with its key, the current one highlighted.
@@ -24,6 +29,9 @@ class NavBar(Widget):
     Three densities, the first that fits: full titles, short titles, or only the keys
     with the current screen's title. A click on an entry switches to it.
     """
+
+    if TYPE_CHECKING:                # for the type checker: the running app is a GcsApp
+        app = getters.app(GcsApp)
 
     current: reactive[str] = reactive("mission")
     """Mode id of the screen this bar sits on."""

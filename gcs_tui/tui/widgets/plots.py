@@ -7,7 +7,7 @@ widget's current size, so a resize redraws the same data at the new resolution.
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from textual_plotext import PlotextPlot
 

@@ -7,14 +7,20 @@ number cut). :func:`fill` measures the cells itself and gives each column its wi
 
 from __future__ import annotations
 
-from typing import Iterable, Sequence
+from collections.abc import Iterable, Sequence
 
 from rich.text import Text
+from textual.coordinate import Coordinate
 from textual.widgets import DataTable
 
 
 def _width(cell) -> int:
     return (cell if isinstance(cell, Text) else Text(str(cell))).cell_len
+
+
+def cursor_key(table: DataTable) -> str:
+    """The key :func:`fill` gave the row under the cursor (the table has rows)."""
+    return str(table.coordinate_to_cell_key(Coordinate(table.cursor_row, 0)).row_key.value)
 
 
 def fill(table: DataTable, labels: Sequence, rows: Iterable[tuple[Sequence, str | None]]) -> None:
