@@ -170,16 +170,22 @@ class Analysis:
             out[sd.name] = ((block % every) == every // 2) & (block < n_blocks - 1)
         return out
 
-    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> BatchResult:
+    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None,
+            previous: BatchResult | None = None) -> BatchResult:
         """Fit the current state; with ``holdout`` also score the held-out span.
 
         ``initial`` warm-starts the iterations (e.g. from the previous step's solution);
-        the a priori stays at the configured values.
+        the a priori stays at the configured values. ``previous`` (whole-span method) is the
+        solution under the state before a step: the refit starts at it, knots and edits
+        included, and cannot end above its cost.
         """
         if self.config.method == "kalman":
             res = self._kalman_fit()
         else:
-            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial)
+            warm_start = {"previous": previous} if previous is not None and self.config.method == "whole_span" \
+                else {}
+            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial,
+                              **warm_start)
         masks = self.holdout_masks() if holdout else {}
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
@@ -293,11 +299,12 @@ class Analysis:
             self.fit()
         before = self.rms()
         chi_before = self.result.chi2
-        prev_values = self.result.state.values()
+        previous = self.result
+        prev_values = previous.state.values()
         self._set_effect(effect_id, on)
         # warm start from the previous solution; the a priori stays the configured one
         warm = {k: v for k, v in prev_values.items() if k in self.problem.state}
-        res = self.fit(initial=warm)
+        res = self.fit(initial=warm, previous=previous)
         est = {}
         e = {x.id: x for x in self.catalogue()}.get(effect_id)
         if e is not None:

@@ -44,6 +44,7 @@ import numpy as np
 
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
+from gcs_core.filtr import stopping
 from gcs_core.filtr.attitude import RPY, AttitudeEval, FrameAttitude, GyroAttitude
 from gcs_core.filtr.batch import (BatchOptions, BatchResult, Residuals, _solve_normal, batch_fit,
                                   edit_frames, name_combinations, residuals_from)
@@ -270,17 +271,25 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                    edited: Mapping[str, np.ndarray] | None = None,
                    initial: Mapping[str, float] | None = None,
                    noise: GyroNoise | None = None, spacing: float | None = None,
-                   start: BatchResult | None = None) -> BatchResult:
+                   start: BatchResult | None = None, previous: BatchResult | None = None) -> BatchResult:
     """The whole-span fit with gyro process noise (module docstring).
 
     ``noise`` overrides the data book's gyro noise (None: the book's); ``spacing`` the
     knot spacing [s]; ``start`` a result on the same problem to start from, with its edits
     (a batch result, or a whole-span one whose knots are reused; else the batch is run
-    first). Without gyro noise the batch's result is returned.
+    first). ``previous`` is a whole-span solution of the same data under another state (the
+    step before an effect was added or removed): the fit starts at it — its values, knots
+    and edits, each new element at its a-priori value — so the refit starts at the previous
+    minimum's cost and, its steps only ever lowering the cost, ends at or below it (with
+    the same edits). Without gyro noise the batch's result is returned.
     """
     opts = options or BatchOptions()
-    batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
     noise = noise if noise is not None else process_noise(problem)
+    if previous is not None and start is None and getattr(previous, "dynamics", None) is not None \
+            and noise is not None and not edited and spacing is None \
+            and (previous.dynamics.grid.sigma_v, previous.dynamics.grid.sigma_u) == (noise.sigma_v, noise.sigma_u):
+        start = _restart(problem, previous)
+    batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
     if noise is None or (noise.sigma_v <= 0 and noise.sigma_u <= 0) \
             or not isinstance(problem.attitude, GyroAttitude):
         return batch
@@ -308,6 +317,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     history: list[float] = []
     it_total = 0
     status, message = "max_iterations", ""
+    change = 0.0                        # the cost's fall in the last accepted iteration
     lin = None                          # (A, b, χ², m, system, R) at (x, z) with the edits
     for edit_pass in range(opts.edit_passes if edits_on else 1):
         if lin is None:
@@ -355,8 +365,9 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                     status, message = "converged", (f"converged after {it} iterations (no shorter "
                                                     f"step lowers the cost; predicted gain {gain:.3g})")
                 else:
-                    status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
-                                                   "(the model cannot describe these data)")
+                    # the cost is finite and never rose: a stall, not a divergence
+                    status, message = stopping.stalled(it, cost, change, gain,
+                                                       "no shortened step lowers the cost")
                 break
             change = cost - cost_t
             x, z = x_try, z_try
@@ -370,7 +381,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:
-            status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
+            status, message = stopping.iteration_limit(opts.max_iterations, cost, change)
         if not edits_on:
             break
         edits, suspect, changed = edit_frames(problem, passes.buffers, preflag, opts, edits)
@@ -414,10 +425,38 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     residuals = residuals_from(problem, passes.buffers, edits)
     dyn = Dynamics(grid, z, R, names, fac, P)
     sig = np.sqrt(np.diag(P))
+    if not np.isfinite(chi2 + chi2_proc):
+        status, message = stopping.diverged(it_total)
+    restarted = isinstance(batch, _Restart)
     return SmoothedResult(new_state, names, cons, x, P, P_cons, residuals, chi2 + chi2_proc, m_used - n,
-                          tuple(history), it_total + batch.iterations, status, message, info, unobs, budget,
-                          dynamics=dyn, chi2_process=chi2_proc,
-                          batch_delta_sigma=(np.asarray(batch.x) - x) / sig)
+                          tuple(history), it_total + (0 if restarted else batch.iterations), status, message,
+                          info, unobs, budget, dynamics=dyn, chi2_process=chi2_proc,
+                          batch_delta_sigma=None if restarted else (np.asarray(batch.x) - x) / sig)
+
+
+@dataclass(frozen=True)
+class _Restart:
+    """A start for :func:`whole_span_fit` made from a solution under another state
+    (:func:`_restart`): what the fit reads of a start result."""
+
+    solve_for: tuple
+    consider: tuple
+    x: np.ndarray
+    residuals: Mapping
+    dynamics: Dynamics
+    iterations: int = 0
+
+
+def _restart(problem: Problem, previous: BatchResult) -> _Restart:
+    """The previous solution's values (the elements solved for before) and a-priori values
+    (the others), its knots and its edits, as a start on ``problem``."""
+    state = problem.state
+    names, cons = tuple(state.solve_for), tuple(state.consider)
+    before = set(previous.solve_for)
+    pv = previous.state.values()
+    x = np.array([float(pv[nm]) if nm in before and nm in pv else float(state[nm].value) for nm in names])
+    dyn = previous.dynamics
+    return _Restart(names, cons, x, previous.residuals, Dynamics(dyn.grid, dyn.z.copy(), dyn.R))
 
 
 def fit_problem(problem: Problem, method: str, options: BatchOptions | None = None, **kw) -> BatchResult:
