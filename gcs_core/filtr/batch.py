@@ -292,7 +292,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             else:
                 # the cost is finite and never rose (steps are accepted only when they lower
                 # it): a stall, reported with its numbers (stopping.py)
-                status, message = stopping.stalled(it, cost, change, float(rhs @ step),
+                status, message = stopping.stalled(it_total - 1, cost, change, float(rhs @ step),
                                                    "no damped step lowers the cost")
                 break
             frac = 1.0 if lam == 0 else 0.0

@@ -366,7 +366,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                                                     f"step lowers the cost; predicted gain {gain:.3g})")
                 else:
                     # the cost is finite and never rose: a stall, not a divergence
-                    status, message = stopping.stalled(it, cost, change, gain,
+                    status, message = stopping.stalled(it_total - 1, cost, change, gain,
                                                        "no shortened step lowers the cost")
                 break
             change = cost - cost_t
