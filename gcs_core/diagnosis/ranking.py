@@ -48,6 +48,7 @@ from scipy import stats
 from gcs_core.diagnosis.catalogue import Effect
 from gcs_core.filtr.batch import BatchResult
 from gcs_core.filtr.knots import KnotSystem
+from gcs_core.filtr.knots import chained_attitude as kn_chain
 from gcs_core.filtr.linearization import iter_blocks, window_geometry
 from gcs_core.filtr.problem import Problem
 
@@ -218,7 +219,9 @@ def rank_candidates(problem: Problem, result: BatchResult, effects: Sequence[Eff
         gs = Hm.T @ rw
         D = getattr(blk.pred, "d_att", None)
         if knots is not None and D is not None and blk.geom.C_BI is not None:
-            knots.add_rows(D, blk.geom.C_BI, blk.used[:, None] / sd.sigma[None, :], sd.t[blk.lo:blk.hi],
+            t_blk = sd.t[blk.lo:blk.hi]
+            C = np.ascontiguousarray(kn_chain(blk.geom.C_BI, dyn.grid, dyn.z, dyn.R, t_blk))
+            knots.add_rows(D, C, blk.used[:, None] / sd.sigma[None, :], t_blk,
                            np.ascontiguousarray(Hm), np.ascontiguousarray(rw), c)
         if knots is not None:
             knots.passed(sd, blk.hi)

@@ -201,6 +201,11 @@ class _Passes:
         self.work: dict = {}
         self.buffers = Residuals().ensure(problem)
         self.stream, self.keep = True, True        # knots eliminated as the data pass them
+        # the knots' drift-bias axes R_j (knots.py), taken from the trajectory where the fit
+        # starts and then held: the cost is a function of (x, z) alone, and the Jacobian
+        # (which has no ∂R/∂x) is its exact one. Re-taken at every x, R moved with steps of
+        # the statics of degrees (a week's wander) and the steps stopped lowering the cost.
+        self.R_fixed: np.ndarray | None = None
 
     def set_x(self, x, names=None):
         for j, nm in enumerate(self.names if names is None else names):
@@ -210,7 +215,9 @@ class _Passes:
         """One pass: (A, b, χ², m, system) at (x, z); the residual buffers are filled."""
         cols = tuple(columns or self.names)
         self.set_x(x)
-        R = mid_rotations(self.base, self.values, self.grid.mid_times())
+        if self.R_fixed is None:
+            self.R_fixed = mid_rotations(self.base, self.values, self.grid.mid_times())
+        R = self.R_fixed
         sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream,
                              keep=self.keep)
         sysk.track(self.problem.sensors)
@@ -256,10 +263,11 @@ class _Passes:
             return
         t = sd.t[blk.lo:blk.hi]
         w = blk.used[:, None] / sd.sigma[None, :]
+        C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
         if blk.Hr is not None:
-            sysk.add_rows(D, blk.geom.C_BI, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+            sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
         else:
-            sysk.add_rows(D, blk.geom.C_BI, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
+            sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
                           np.zeros(0, np.int64))
 
     def cost(self, x, chi2, sysk) -> float:
@@ -307,7 +315,10 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     else:
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
+        warm = None
     passes = _Passes(problem, names, grid, x_bar, prior_info)
+    if warm is not None and warm.R is not None and warm.R.shape[0] == grid.K - 1:
+        passes.R_fixed = warm.R                      # ... and their drift-bias axes
     x = np.array(batch.x, float)
     preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
     edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool))
