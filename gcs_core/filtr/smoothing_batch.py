@@ -130,7 +130,10 @@ class CorrectedAttitude:
     def frames(self, values, t, *, partials: bool = True) -> FrameAttitude:
         t = np.atleast_1d(np.asarray(t, float))
         fr = self.base.frames(values, t, partials=partials)
-        return FrameAttitude(self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro)
+        # the statics' partials stay the gyro-carried attitude's (C_chain, exact: a body-frame
+        # perturbation ε of C_gyro moves C = C_gyro exp(−[α×]) by the same ε)
+        return FrameAttitude(self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro,
+                             C_chain=fr.C_BI)
 
     def evaluate(self, values, t) -> AttitudeEval:
         t = np.atleast_1d(np.asarray(t, float))
