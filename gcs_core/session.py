@@ -175,17 +175,14 @@ class Analysis:
         """Fit the current state; with ``holdout`` also score the held-out span.
 
         ``initial`` warm-starts the iterations (e.g. from the previous step's solution);
-        the a priori stays at the configured values. ``previous`` (whole-span method) is the
-        solution under the state before a step: the refit starts at it, knots and edits
-        included, and cannot end above its cost.
+        the a priori stays at the configured values. ``previous``: the solution before a step
+        (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
         if self.config.method == "kalman":
             res = self._kalman_fit()
         else:
-            warm_start = {"previous": previous} if previous is not None and self.config.method == "whole_span" \
-                else {}
-            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial,
-                              **warm_start)
+            kw = {"previous": previous} if previous is not None and self.config.method == "whole_span" else {}
+            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
         masks = self.holdout_masks() if holdout else {}
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
@@ -298,8 +295,7 @@ class Analysis:
         if self.result is None:
             self.fit()
         before = self.rms()
-        chi_before = self.result.chi2
-        previous = self.result
+        chi_before, previous = self.result.chi2, self.result
         prev_values = previous.state.values()
         self._set_effect(effect_id, on)
         # warm start from the previous solution; the a priori stays the configured one
