@@ -8,7 +8,7 @@
   edits; the new elements at their a priori), so its first cost is the previous minimum's
   and its χ² ends at or below it (a refit with one more free element cannot end above).
 
-Twenty minutes of the Sun-pointing scenario with its flight-typical IRU, seed 5.
+Fifteen minutes of the Sun-pointing scenario with its flight-typical IRU, seed 5.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ same_cost = 1e-9
 
 @pytest.fixture(scope="module")
 def analysis(tmp_path_factory):
-    cfg = with_effect(nominal_threeaxis("sun_pointing", seed=5, duration_s=1200.0), "TAM1.scale", 2e-3)
+    cfg = with_effect(nominal_threeaxis("sun_pointing", seed=5, duration_s=900.0), "TAM1.scale", 2e-3)
     a = Analysis(AnalysisConfig(mission=write_mission(cfg, tmp_path_factory.mktemp("stop") / "m"),
                                 holdout_fraction=0.0))
     a.fit(holdout=False)

@@ -60,6 +60,9 @@ warnings.filterwarnings("ignore", message="'@' is faster on contiguous arrays")
 SPACING_EPS = 0.05
 #: halvings of the first knot interval, where the static attitude is (:func:`make_grid`)
 START_REFINE = 3
+#: knot corrections below this [rad] chain through ``C`` alone (:func:`chained_attitude`):
+#: the left Jacobian differs from I by |α|/2 ≤ 1e-4 there, below what moves a solution
+SMALL_CORRECTION = 2e-4
 
 
 @dataclass(frozen=True)
@@ -219,7 +222,10 @@ def chained_attitude(C: np.ndarray, grid: KnotGrid, z: np.ndarray, R: np.ndarray
     """
     if not np.any(z) or C is None:
         return C
-    return np.matmul(C, left_jacobian(alpha_at(grid, z, R, t)))
+    a = alpha_at(grid, z, R, t)
+    if not a.size or float(np.max(np.abs(a))) < SMALL_CORRECTION:
+        return C
+    return np.matmul(C, left_jacobian(a))
 
 
 def alpha_at(grid: KnotGrid, z: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:
