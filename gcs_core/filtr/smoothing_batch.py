@@ -326,6 +326,10 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
     edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool))
              for nm, r in batch.residuals.items()}
+    # what the end needs of the start; its residuals (a week: 32 MB) are not kept alive
+    restarted = isinstance(batch, _Restart)
+    start_x, start_iterations = np.array(batch.x, float), (0 if restarted else batch.iterations)
+    del batch, start
     edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
     suspect_all: set[str] = set()
     history: list[float] = []
@@ -441,11 +445,10 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     sig = np.sqrt(np.diag(P))
     if not np.isfinite(chi2 + chi2_proc):
         status, message = stopping.diverged(it_total)
-    restarted = isinstance(batch, _Restart)
     return SmoothedResult(new_state, names, cons, x, P, P_cons, residuals, chi2 + chi2_proc, m_used - n,
-                          tuple(history), it_total + (0 if restarted else batch.iterations), status, message,
+                          tuple(history), it_total + start_iterations, status, message,
                           info, unobs, budget, dynamics=dyn, chi2_process=chi2_proc,
-                          batch_delta_sigma=None if restarted else (np.asarray(batch.x) - x) / sig)
+                          batch_delta_sigma=None if restarted else (start_x - x) / sig)
 
 
 @dataclass(frozen=True)
