@@ -367,9 +367,14 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                 status, message = "converged", f"converged after {it} iterations"
                 it_total -= 1
                 break
+            # the line search holds one linearization at a time (their knot blocks and
+            # factors grow with the span: tens of MB each on a week)
+            del fac, N_red, A, b, sysk
+            lin = trial = None
             step = 1.0
             for attempt in range(10):
                 x_try, z_try = x + step * dx, z + step * dz
+                trial = None
                 trial = passes.run(x_try, z_try, edits, jacobian=attempt == 0)
                 cost_t = passes.cost(x_try, trial[2], trial[4])
                 if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
