@@ -144,16 +144,19 @@ class Analysis:
             out[sd.name] = ((block % every) == every // 2) & (block < n_blocks - 1)
         return out
 
-    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> FitResult:
+    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None,
+            previous: FitResult | None = None) -> FitResult:
         """Fit the current state; with ``holdout`` also score the held-out span.
 
         ``initial`` warm-starts the iterations (e.g. from the previous step's solution);
-        the a priori stays at the configured values.
+        the a priori stays at the configured values. ``previous``: the solution before a step
+        (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
         if self.config.method == "kalman":
             res = self._kalman_fit()
         else:
-            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial)
+            kw = {"previous": previous} if previous is not None and self.config.method == "whole_span" else {}
+            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
         masks = self.holdout_masks() if holdout else {}
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
@@ -262,12 +265,12 @@ class Analysis:
     def _apply(self, action: str, effect_id: str, on: bool) -> Step:
         res = self.result if self.result is not None else self.fit()
         before = self.rms()
-        chi_before = res.chi2
-        prev_values = res.state.values()
+        chi_before, previous = res.chi2, res
+        prev_values = previous.state.values()
         self._set_effect(effect_id, on)
         # warm start from the previous solution; the a priori stays the configured one
         warm = {k: v for k, v in prev_values.items() if k in self.problem.state}
-        res = self.fit(initial=warm)
+        res = self.fit(initial=warm, previous=previous)
         est = {}
         e = {x.id: x for x in self.catalogue()}.get(effect_id)
         if e is not None:

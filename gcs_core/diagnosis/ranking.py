@@ -51,6 +51,7 @@ from gcs_core.filtr.results import FitResult
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, window_geometry
 from gcs_core.problem.prepare import geometry_variants
+from gcs_core.filtr.knots import chained_attitude as kn_chain
 
 #: canonical correlation above which two candidates are called indistinguishable
 ALIAS_TOL = 0.98
@@ -218,7 +219,9 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
         gs = Hm.T @ rw
         D = getattr(blk.pred, "d_att", None)
         if knots is not None and D is not None and blk.geom.C_BI is not None:
-            knots.add_rows(D, blk.geom.C_BI, blk.used[:, None] / sd.sigma[None, :], sd.t[blk.lo:blk.hi],
+            t_blk = sd.t[blk.lo:blk.hi]
+            C = np.ascontiguousarray(kn_chain(blk.geom.C_BI, dyn.grid, dyn.z, dyn.R, t_blk))
+            knots.add_rows(D, C, blk.used[:, None] / sd.sigma[None, :], t_blk,
                            np.ascontiguousarray(Hm), np.ascontiguousarray(rw), c)
         if knots is not None:
             knots.passed(sd, blk.hi)

@@ -54,7 +54,7 @@ import numpy as np
 from scipy import linalg
 
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr import local_refine
+from gcs_core.filtr import local_refine, stopping
 from gcs_core.filtr.noise import MAD_TO_SIGMA
 from gcs_core.filtr.residuals import Residuals, residuals_from
 from gcs_core.filtr.results import BatchResult
@@ -215,6 +215,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         x = np.array([float(initial.get(nm, x_bar[j])) for j, nm in enumerate(names)])
     history: list[float] = []
     status, message = "max_iterations", ""
+    change = 0.0                        # the cost's fall in the last accepted iteration
     suspect_all: set[str] = set()
     it_total = 0
     counts = [0]
@@ -291,8 +292,10 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                     break
                 lam = max(lam * 10.0, 1e-4)
             else:
-                status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
-                                               "(the model cannot describe these data)")
+                # the cost is finite and never rose (steps are accepted only when they lower
+                # it): a stall, reported with its numbers (stopping.py)
+                status, message = stopping.stalled(it_total - 1, cost, change, float(rhs @ step),
+                                                   "no damped step lowers the cost")
                 break
             frac = 1.0 if lam == 0 else 0.0
             lam_state = lam / 10.0 if lam > 1e-4 else 0.0
@@ -310,7 +313,7 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:
-            status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
+            status, message = stopping.iteration_limit(opts.max_iterations, cost, change)
         for j, nm in enumerate(names):
             values[nm] = x[j]
         if not edits_on:

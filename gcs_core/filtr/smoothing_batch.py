@@ -50,12 +50,13 @@ from gcs_core.filtr.knot_kernels import correct_attitude
 from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.filtr.residuals import Residuals, residuals_from
 from gcs_core.filtr.results import BatchResult
-from gcs_core.frames.rotations import rotvec_to_dcm
-from gcs_core.models.gyro_noise import GyroNoise
+from gcs_core.filtr import stopping
 from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
-from gcs_core.problem.build import Problem
 from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.problem.linearization import iter_blocks
+from gcs_core.problem.build import Problem
+from gcs_core.frames.rotations import rotvec_to_dcm
+from gcs_core.models.gyro_noise import GyroNoise
 
 log = logging.getLogger(__name__)
 
@@ -135,7 +136,10 @@ class CorrectedAttitude:
     def frames(self, values, t, *, partials: bool = True) -> FrameAttitude:
         t = np.atleast_1d(np.asarray(t, float))
         fr = self.base.frames(values, t, partials=partials)
-        return FrameAttitude(self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro)
+        # the statics' partials stay the gyro-carried attitude's (C_chain, exact: a body-frame
+        # perturbation ε of C_gyro moves C = C_gyro exp(−[α×]) by the same ε)
+        return FrameAttitude(self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro,
+                             C_chain=fr.C_BI)
 
     def evaluate(self, values, t) -> AttitudeEval:
         t = np.atleast_1d(np.asarray(t, float))
@@ -206,6 +210,11 @@ class Passes:
         self.work: dict = {}
         self.buffers = Residuals().ensure(problem)
         self.stream, self.keep = True, True        # knots eliminated as the data pass them
+        # the knots' drift-bias axes R_j (knots.py), taken from the trajectory where the fit
+        # starts and then held: the cost is a function of (x, z) alone, and the Jacobian
+        # (which has no ∂R/∂x) is its exact one. Re-taken at every x, R moved with steps of
+        # the statics of degrees (a week's wander) and the steps stopped lowering the cost.
+        self.R_fixed: np.ndarray | None = None
 
     def set_x(self, x, names=None):
         for j, nm in enumerate(self.names if names is None else names):
@@ -215,7 +224,9 @@ class Passes:
         """One pass: (A, b, χ², m, system) at (x, z); the residual buffers are filled."""
         cols = tuple(columns or self.names)
         self.set_x(x)
-        R = mid_rotations(self.base, self.values, self.grid.mid_times())
+        if self.R_fixed is None:
+            self.R_fixed = mid_rotations(self.base, self.values, self.grid.mid_times())
+        R = self.R_fixed
         sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream,
                              keep=self.keep)
         sysk.track(self.problem.sensors)
@@ -261,10 +272,11 @@ class Passes:
             return
         t = sd.t[blk.lo:blk.hi]
         w = blk.used[:, None] / sd.sigma[None, :]
+        C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
         if blk.Hr is not None:
-            sysk.add_rows(D, blk.geom.C_BI, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+            sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
         else:
-            sysk.add_rows(D, blk.geom.C_BI, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
+            sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
                           np.zeros(0, np.int64))
 
     def cost(self, x, chi2, sysk) -> float:
@@ -276,17 +288,25 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                    edited: Mapping[str, np.ndarray] | None = None,
                    initial: Mapping[str, float] | None = None,
                    noise: GyroNoise | None = None, spacing: float | None = None,
-                   start: BatchResult | None = None) -> BatchResult:
+                   start: BatchResult | None = None, previous: BatchResult | None = None) -> BatchResult:
     """The whole-span fit with gyro process noise (module docstring).
 
     ``noise`` overrides the data book's gyro noise (None: the book's); ``spacing`` the
     knot spacing [s]; ``start`` a result on the same problem to start from, with its edits
     (a batch result, or a whole-span one whose knots are reused; else the batch is run
-    first). Without gyro noise the batch's result is returned.
+    first). ``previous`` is a whole-span solution of the same data under another state (the
+    step before an effect was added or removed): the fit starts at it — its values, knots
+    and edits, each new element at its a-priori value — so the refit starts at the previous
+    minimum's cost and, its steps only ever lowering the cost, ends at or below it (with
+    the same edits). Without gyro noise the batch's result is returned.
     """
     opts = options or BatchOptions()
-    batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
     noise = noise if noise is not None else process_noise(problem)
+    if previous is not None and start is None and getattr(previous, "dynamics", None) is not None \
+            and noise is not None and not edited and spacing is None \
+            and (previous.dynamics.grid.sigma_v, previous.dynamics.grid.sigma_u) == (noise.sigma_v, noise.sigma_u):
+        start = _restart(problem, previous)
+    batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
     if noise is None or not noise.process \
             or not isinstance(problem.attitude, GyroAttitude):
         return batch
@@ -304,16 +324,24 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     else:
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
+        warm = None
     passes = Passes(problem, names, grid, x_bar, prior_info)
+    if warm is not None and warm.R is not None and warm.R.shape[0] == grid.K - 1:
+        passes.R_fixed = warm.R                      # ... and their drift-bias axes
     x = np.array(batch.x, float)
     preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
     edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool))
              for nm, r in batch.residuals.items()}
+    # what the end needs of the start; its residuals (a week: 32 MB) are not kept alive
+    restarted = isinstance(batch, _Restart)
+    start_x, start_iterations = np.array(batch.x, float), (0 if restarted else batch.iterations)
+    del batch, start
     edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
     suspect_all: set[str] = set()
     history: list[float] = []
     it_total = 0
     status, message = "max_iterations", ""
+    change = 0.0                        # the cost's fall in the last accepted iteration
     lin = None                          # (A, b, χ², m, system, R) at (x, z) with the edits
     for edit_pass in range(opts.edit_passes if edits_on else 1):
         if lin is None:
@@ -345,9 +373,14 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                 status, message = "converged", f"converged after {it} iterations"
                 it_total -= 1
                 break
+            # the line search holds one linearization at a time (their knot blocks and
+            # factors grow with the span: tens of MB each on a week)
+            del fac, N_red, A, b, sysk
+            lin = trial = None
             step = 1.0
             for attempt in range(10):
                 x_try, z_try = x + step * dx, z + step * dz
+                trial = None
                 trial = passes.run(x_try, z_try, edits, jacobian=attempt == 0)
                 cost_t = passes.cost(x_try, trial[2], trial[4])
                 if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
@@ -361,8 +394,9 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                     status, message = "converged", (f"converged after {it} iterations (no shorter "
                                                     f"step lowers the cost; predicted gain {gain:.3g})")
                 else:
-                    status, message = "diverged", (f"no step reduces the cost after {it + 1} iterations "
-                                                   "(the model cannot describe these data)")
+                    # the cost is finite and never rose: a stall, not a divergence
+                    status, message = stopping.stalled(it_total - 1, cost, change, gain,
+                                                       "no shortened step lowers the cost")
                 break
             change = cost - cost_t
             x, z = x_try, z_try
@@ -376,7 +410,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                 status, message = "converged", f"converged after {it + 1} iterations"
                 break
         else:
-            status, message = "max_iterations", f"stopped after {opts.max_iterations} iterations"
+            status, message = stopping.iteration_limit(opts.max_iterations, cost, change)
         if not edits_on:
             break
         edits, suspect, changed = edit_frames(problem, passes.buffers, preflag, opts, edits)
@@ -417,10 +451,37 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     residuals = residuals_from(problem, passes.buffers, edits)
     dyn = Dynamics(grid, z, R, names, fac, P)
     sig = np.sqrt(np.diag(P))
+    if not np.isfinite(chi2 + chi2_proc):
+        status, message = stopping.diverged(it_total)
     return SmoothedResult(new_state, names, cons, x, P, P_cons, residuals, chi2 + chi2_proc, m_used - n,
-                          tuple(history), it_total + batch.iterations, status, message, info, unobs, budget,
-                          dynamics=dyn, chi2_process=chi2_proc,
-                          batch_delta_sigma=(np.asarray(batch.x) - x) / sig)
+                          tuple(history), it_total + start_iterations, status, message,
+                          info, unobs, budget, dynamics=dyn, chi2_process=chi2_proc,
+                          batch_delta_sigma=None if restarted else (start_x - x) / sig)
+
+
+@dataclass(frozen=True)
+class _Restart:
+    """A start for :func:`whole_span_fit` made from a solution under another state
+    (:func:`_restart`): what the fit reads of a start result."""
+
+    solve_for: tuple
+    consider: tuple
+    x: np.ndarray
+    residuals: Mapping
+    dynamics: Dynamics
+    iterations: int = 0
+
+
+def _restart(problem: Problem, previous: BatchResult) -> _Restart:
+    """The previous solution's values (the elements solved for before) and a-priori values
+    (the others), its knots and its edits, as a start on ``problem``."""
+    state = problem.state
+    names, cons = tuple(state.solve_for), tuple(state.consider)
+    before = set(previous.solve_for)
+    pv = previous.state.values()
+    x = np.array([float(pv[nm]) if nm in before and nm in pv else float(state[nm].value) for nm in names])
+    dyn = previous.dynamics
+    return _Restart(names, cons, x, previous.residuals, Dynamics(dyn.grid, dyn.z.copy(), dyn.R))
 
 
 def fit_problem(problem: Problem, method: str, options: BatchOptions | None = None, **kw) -> BatchResult:

@@ -82,7 +82,8 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
         if D is not None and blk.geom.C_BI is not None:
             t = sd.t[blk.lo:blk.hi][sel]
             j = dyn.grid.index(t)
-            U = kn.knot_rows(np.nan_to_num(D[sel]), blk.geom.C_BI[sel], t, j, dyn.grid, dyn.R)
+            C = kn.chained_attitude(blk.geom.C_BI[sel], dyn.grid, dyn.z, dyn.R, t)
+            U = kn.knot_rows(np.nan_to_num(D[sel]), C, t, j, dyn.grid, dyn.R)
             var = var + knot_variance(dyn, U, j, H, c)
         yield blk.name, blk.r[sel], sd.sigma, np.clip(var, 0, None)
 
@@ -147,7 +148,8 @@ def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarr
     ``δθ = C [I | Γ_j(t)] z_j`` with ``J`` (N, 3, n) the static partials over ``dyn.names``."""
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     j = dyn.grid.index(t)
-    U = kn.knot_rows(eye, C, t, j, dyn.grid, dyn.R)             # (N, 3, d): ∂δθ/∂z_j
+    U = kn.knot_rows(eye, kn.chained_attitude(C, dyn.grid, dyn.z, dyn.R, t), t, j, dyn.grid,
+                     dyn.R)                                    # (N, 3, d): ∂δθ/∂z_j
     Sig, X = dyn.covariance()
     S = np.einsum("nia,nab,njb->nij", U, Sig[j], U, optimize=True)
     cross = np.einsum("nia,nak,njk->nij", U, X[j], J, optimize=True)

@@ -102,17 +102,22 @@ class FrameAttitude:
     ----------
     C_BI : (N, 3, 3) or None; spin_axis_I : (3,) or None; omega_B : (N, 3) or None.
     names : element names of the partials.
+    C_chain : (N, 3, 3) the attitude the factored partials ``C X`` are taken at, when it
+        is not ``C_BI``: a correction applied on top of a provider's attitude
+        (``C_BI = C_chain exp(−[α×])``, the whole-span knots) leaves the body-frame
+        partials of the statics those of the provider, ``C_chain X``, not ``C_BI X``.
     """
 
-    __slots__ = ("C_BI", "spin_axis_I", "omega_B", "names", "_J", "_gyro")
+    __slots__ = ("C_BI", "spin_axis_I", "omega_B", "names", "_J", "_gyro", "C_chain")
 
-    def __init__(self, C_BI, spin_axis_I, omega_B, names, J=None, gyro=None):
+    def __init__(self, C_BI, spin_axis_I, omega_B, names, J=None, gyro=None, C_chain=None):
         self.C_BI = C_BI
         self.spin_axis_I = spin_axis_I
         self.omega_B = omega_B
         self.names = tuple(names)
         self._J = J
         self._gyro = gyro
+        self.C_chain = C_BI if C_chain is None else C_chain
 
     @classmethod
     def of(cls, ev: AttitudeEval) -> FrameAttitude:
@@ -122,9 +127,9 @@ class FrameAttitude:
     def J(self) -> np.ndarray:
         """(N, 3, k) ``∂δθ/∂x`` (materialized)."""
         if self._J is None:
-            n = self.C_BI.shape[0]
+            n = self.C_chain.shape[0]
             eye = np.broadcast_to(np.eye(3), (n, 3, 3))
-            self._J = self._gyro_chain(eye, self.C_BI, np.arange(len(self.names)))
+            self._J = self._gyro_chain(eye, self.C_chain, np.arange(len(self.names)))
         return self._J
 
     def chain(self, D: np.ndarray, sel, out: np.ndarray | None = None, *,
@@ -154,7 +159,7 @@ class FrameAttitude:
                     np.matmul(D, J[:, :, a:b], out=out[:, :, o:o + b - a])
                     o += b - a
             return out
-        return self._gyro_chain(D, D @ self.C_BI, sel, out)
+        return self._gyro_chain(D, D @ self.C_chain, sel, out)
 
     @property
     def can_fill_rows(self) -> bool:
@@ -179,7 +184,7 @@ class FrameAttitude:
         rs, ps = sel[sel < 3], sel[sel >= 3] - 3
         if P is None:
             P = np.empty((0, n, m))
-        kernels.chain_rows(D, np.ones((n, m)) if w is None else w, self.C_BI, E, jidx, Ma, rs, ps,
+        kernels.chain_rows(D, np.ones((n, m)) if w is None else w, self.C_chain, E, jidx, Ma, rs, ps,
                            P, np.asarray(pcol, dtype=np.int64), out)
         if gen is not None and ps.size:
             g, Wg, sg = gen
@@ -209,7 +214,7 @@ class FrameAttitude:
             Wg, sg = np.ascontiguousarray(Wg, dtype=float), np.ascontiguousarray(sg, dtype=float)
         else:
             Wg, sg = np.zeros((1, 3, 1)), np.zeros(1)
-        kernels.chain_gram(D, w, self.C_BI, E, jidx, Ma, rs, ps, P, np.asarray(pcol, dtype=np.int64), gidx,
+        kernels.chain_gram(D, w, self.C_chain, E, jidx, Ma, rs, ps, P, np.asarray(pcol, dtype=np.int64), gidx,
                            Wg, sg, G, buf, kernels.DSYRK)
         return True
 

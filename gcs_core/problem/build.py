@@ -146,6 +146,29 @@ def default_role(sensor_type: str, spec: ParamSpec, sensor=None) -> str:
     return SOLVE_FOR
 
 
+def unseen_at_prior(model) -> set[str]:
+    """Parameters of ``model`` the data cannot see at the a priori: those it declares seen
+    only through amplitudes (``ObservationModel.seen_through``) whose data-book values are
+    all 0 — the fine Sun sensor's frequency ``k`` of ``A3 sin(k tan α)`` (Eq 4-23) when the
+    book gives ``A3 = 0``.
+
+    Such a frequency is held at its book value by default. Its information is ∝ A3², zero
+    at the a priori, so Gauss–Newton steps in it are set by whatever the model misses: a
+    second harmonic ``H sin(2k tan α)`` is exactly ``A3' sin(k' tan α)`` with ``k' = 2k``,
+    and a free ``k`` slides along that alias (the fit's cost has many minima in ``k``, and
+    ``(k, A3, A4h)`` and ``(−k, −A3, −A4h)`` give the same data). Holding it costs nothing
+    when the amplitude is truly 0 (the data do not depend on ``k`` there) and keeps the
+    harmonic a distinct effect for discovery; an analyst who expects a ripple gives its
+    amplitude in the data book (``k`` is then solved for) or overrides the role.
+    """
+    seen = getattr(model, "seen_through", None) or {}
+    if not seen:
+        return set()
+    nominal = {p.name: p.nominal for p in model.parameters()}
+    return {name for name, amps in seen.items()
+            if all(nominal.get(a, 0.0) == 0.0 for a in amps)}
+
+
 def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
     """A-priori attitude element values.
 
@@ -245,8 +268,11 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     for s in spec.sensors:
         model = models[s.name]
         pmap = {}
+        amplitudes_zero = unseen_at_prior(model)
         for p in model.parameters():
             role = default_role(s.type, p, s)
+            if role == SOLVE_FOR and p.name in amplitudes_zero:
+                role = HELD
             if s.type == "gyro" and (not use_gyro or s.name != gyro_name):
                 role = HELD
             el = _element_from_spec(s.name, p, role)

@@ -1,8 +1,9 @@
 """Elements a fit does not determine (gcs_core.diagnosis.determination).
 
 The fine Sun sensor's frequencies ``k_α``, ``k_β`` reach the data only through the sine
-amplitudes ``A3``, ``B3`` of Eq 4-23. With the data-book amplitudes 0 (the truth here) the
-fitted amplitudes are noise, so the frequencies are flagged; with a hidden amplitude of
+amplitudes ``A3``, ``B3`` of Eq 4-23. With the data-book amplitudes 0 they are held by
+default (``problem.unseen_at_prior``); solved for on request, the fitted amplitudes are
+noise (0 is the truth here), so the frequencies are flagged; with a hidden amplitude of
 many σ (the transfer-function effect) they are not.
 """
 
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config import AnalysisConfig, ElementConfig
 from gcs_core.diagnosis import determination
 from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
@@ -19,9 +20,13 @@ from gcs_core.sim.writer import write_mission
 from gcs_tui.cli.tables import state_table
 
 
-def _fit(folder, cfg):
+FREQUENCIES = ("FSS1.k_alpha", "FSS1.k_beta")
+
+
+def _fit(folder, cfg, *, solve_k=True):
+    elements = {n: ElementConfig(role="solve-for") for n in FREQUENCIES} if solve_k else {}
     a = Analysis(AnalysisConfig(mission=write_mission(cfg, folder)).with_changes(
-        diagnosis={"holdout_fraction": 0.0}))
+        diagnosis={"holdout_fraction": 0.0}, state={"elements": elements}))
     a.fit(holdout=False)
     return a
 
@@ -29,6 +34,14 @@ def _fit(folder, cfg):
 @pytest.fixture(scope="module")
 def nominal(tmp_path_factory):
     return _fit(tmp_path_factory.mktemp("det") / "m", nominal_threeaxis("sun_pointing", seed=4, duration_s=1200.0))
+
+
+def test_frequencies_of_zero_book_amplitudes_are_held_by_default(tmp_path):
+    a = Analysis(AnalysisConfig(mission=write_mission(nominal_threeaxis("sun_pointing", seed=4, duration_s=600.0),
+                                                      tmp_path / "m"), holdout_fraction=0.0))
+    state = a.problem.state
+    assert all(state[n].role == "held" and state[n].value == 50.0 for n in FREQUENCIES)
+    assert state["FSS1.A3"].role == "solve-for"
 
 
 def test_frequencies_with_zero_amplitude_are_not_determined(nominal):

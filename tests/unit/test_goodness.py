@@ -117,6 +117,7 @@ def test_nominal_sample_reads_noise_and_names_what_the_a_priori_set():
     assert marked == set(a.set_by_prior())
     for n in marked:        # the a priori gives more than half of what is known about them
         assert rows[n]["prior_share"] > determination.PRIOR_SHARE
-    # the FSS frequencies reach the data only through amplitudes that are 0 a priori
-    assert any("FSS1.k_alpha" in c for c in rep["unobservable_at_prior"])
+    # the FSS frequencies reach the data only through amplitudes that are 0 a priori:
+    # held by default
+    assert a.problem.state["FSS1.k_alpha"].role == "held"
     assert len(state_table(a)) > len(rows)

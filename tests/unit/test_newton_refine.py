@@ -26,7 +26,8 @@ from gcs_core.filtr import local_refine
 from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
 from gcs_core.io.importer import load_mission
 from gcs_core.models import common
-from gcs_core.problem.build import build_problem
+from gcs_core.problem.build import build_problem, ElementOverride, StateOptions
+from gcs_core.problem.state import SOLVE_FOR
 from gcs_core.sim.scenarios import nominal_threeaxis
 from gcs_core.sim.writer import write_mission
 
@@ -39,11 +40,13 @@ hessian_agreement = 1e-3
 @pytest.fixture(scope="module")
 def problem(tmp_path_factory):
     """Twenty minutes of the Sun-pointing sample mission (FSS, TAM, trackers, gyro); the
-    data-book transfer function is the truth (A3 = 0: k rests on its a priori)."""
+    data-book transfer function is the truth (A3 = 0: k rests on its a priori). The
+    frequencies, held by default with a zero book amplitude, are solved for here."""
     cfg = nominal_threeaxis("sun_pointing", seed=7, duration_s=1200.0)
     cfg.sensors = [s for s in cfg.sensors if s.type != "coarse_sun"]
     mdir = write_mission(cfg, tmp_path_factory.mktemp("newton") / "m")
-    return build_problem(load_mission(mdir))
+    solve_k = {n: ElementOverride(role=SOLVE_FOR) for n in ("FSS1.k_alpha", "FSS1.k_beta")}
+    return build_problem(load_mission(mdir), options=StateOptions(overrides=solve_k))
 
 
 @pytest.fixture(scope="module")

@@ -7,13 +7,13 @@ scale factors depends on exactly which stars lie in its field: with the syntheti
 the predictor was up to 24 % off, with the mission's own catalog (``star_catalog.csv``,
 written by the simulator) it is within 10 % (benchmarks/predictor_vs_fit.py, 5 seeds).
 
-The comparison holds for the elements the plan determines. One element is not:
-``FSS1.k_beta``. The Sun stays near the FSS boresight, the amplitude ``B3`` of
-``B3 sin(k_β tan β)`` (Eq 4-23b) is nominally 0, so the plan gives ``k_β`` no information
-and the predictor says so (``PredictionResult.undetermined``: σ = its a priori), while the
-post-fit σ is linearized at the fitted ``B̂3`` (noise) and shrinks with ``B̂3²``: 3.2 to
-4.9 against the a priori 5 over the benchmark's five seeds. Seed 3 is one where that
-post-fit σ is 13 % below the a priori.
+The comparison holds for the elements the plan determines. ``FSS1.k_beta`` is not one
+of them: the amplitude ``B3`` of ``B3 sin(k_β tan β)`` (Eq 4-23b) is 0 in the data book,
+so ``k_β`` is held by default (``problem.unseen_at_prior``). Solved for, the plan gives it
+no information and the predictor says so (``PredictionResult.undetermined``: σ = its a
+priori), while the post-fit σ is linearized at the fitted ``B̂3`` (noise) and shrinks with
+``B̂3²``: 3.2 to 4.9 against the a priori 5 over the benchmark's five seeds; seed 3 is
+one where that post-fit σ is 13 % below the a priori.
 """
 
 from __future__ import annotations
@@ -69,9 +69,9 @@ def test_inertial_plan_with_the_catalog_matches_post_fit_sigma_within_15_percent
     pred = predict(analysis.mission, plan=plan, method="whole_span")      # the fit's method
     assert pred.names == fit.solve_for
     ratio = pred.noise_only / np.sqrt(np.diag(fit.P))
-    # the plan does not determine k_beta (B3 nominally 0): the predictor says so, and the
-    # fit cannot know more than its a priori
-    assert "FSS1.k_beta" in pred.undetermined
+    # k_beta is held (B3 is 0 in the data book); anything the plan does not determine is
+    # flagged by the predictor, and the fit cannot know more than its a priori there
+    assert "FSS1.k_beta" not in pred.names
     und = np.array([n in pred.undetermined for n in pred.names])
     prior = np.array([analysis.problem.state[n].sigma0 for n in pred.names])
     assert np.all(np.sqrt(np.diag(fit.P))[und] <= prior[und] * (1 + 1e-9))
