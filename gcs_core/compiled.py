@@ -11,7 +11,9 @@ seconds) is paid once per machine.
 from __future__ import annotations
 
 import os
+from types import ModuleType
 
+numba: ModuleType | None
 try:
     import numba
 except ImportError:                                     # GCS works without it, slower
@@ -26,5 +28,6 @@ COMPILED = numba is not None and not os.environ.get("GCS_NO_NUMBA")
 def jit(**options):
     """``numba.njit(cache=True, **options)`` when :data:`COMPILED`, else the identity."""
     if COMPILED:
+        assert numba is not None                        # COMPILED holds only when numba imported
         return numba.njit(cache=True, **options)
     return lambda fn: fn

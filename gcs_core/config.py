@@ -91,7 +91,7 @@ import hashlib
 import json
 import os
 import re
-from dataclasses import dataclass, field, fields, replace
+from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -291,7 +291,7 @@ PLANNING_TABLES: dict[str, tuple[str, ...]] = {
 }
 #: the tables of a config and the keys each holds (from the dataclasses' fields)
 TABLES: dict[str, tuple[str, ...]] = {"analysis": ANALYSIS_KEYS, **{
-    f.name: (tuple(g.name for g in fields(f.default_factory)) if _is_table(f.default_factory) else ())
+    f.name: (tuple(g.name for g in fields(f.default_factory)) if is_dataclass(f.default_factory) else ())
     for f in fields(AnalysisConfig) if f.name not in ("path", *ANALYSIS_KEYS, *PLANNING_TABLES)}}
 
 

@@ -16,8 +16,8 @@ def sparse_basis(V: np.ndarray) -> np.ndarray:
     for i in range(k):
         rest = np.abs(B[i:, :]).copy()
         rest[:, used] = 0.0
-        r, c = np.unravel_index(int(np.argmax(rest)), rest.shape)
-        r += i
+        r0, c0 = np.unravel_index(int(np.argmax(rest)), rest.shape)
+        r, c = int(r0) + i, int(c0)
         B[[i, r]] = B[[r, i]]
         B[i] /= B[i, c]
         for j in range(k):

@@ -17,11 +17,12 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
+from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions
 from gcs_core.filtr.filter_options import FilterOptions
-from gcs_core.filtr.results import FitResult
+from gcs_core.filtr.results import BatchResult, FitResult
 from gcs_core.filtr.smoothing_batch import SmoothedResult, fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
@@ -189,6 +190,7 @@ class Analysis:
         """
         if self.config.method != "batch" or self.problem.gyro_name is None or self.result is None:
             return []
+        assert isinstance(self.result, BatchResult)        # method "batch": fit() ran fit_problem
         cost = batch_wander_cost(self.problem, self.result)
         if cost is None or cost["worst_bias_sigma"] < 0.5:
             return []
@@ -216,14 +218,13 @@ class Analysis:
         return replace(fr, message=f"Kalman filter + smoother: {fr.message}")
 
     def rank(self) -> list[Candidate]:
-        if self.result is None:
-            self.fit()
-        self.candidates = rank_candidates(self.problem, self.result, self.candidate_effects(),
+        res = self.result if self.result is not None else self.fit()
+        self.candidates = rank_candidates(self.problem, res, self.candidate_effects(),
                                           alpha=self.config.diagnosis.significance,
                                           smoothed=self.config.method == "kalman")
         return self.candidates
 
-    def physics_needed(self) -> list[physics.PhysicsNeed]:
+    def physics_needed(self) -> list[PhysicsNeed]:
         """For each always-on physics option in the model, what switching it off would cost
         (:func:`gcs_core.diagnosis.physics.physics_needed`), once per fit."""
         if self.result is None:

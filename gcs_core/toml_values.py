@@ -12,10 +12,23 @@ import json
 import math
 import re
 import tomllib
-from typing import Any
+from typing import TYPE_CHECKING, Any, Protocol
+
+if TYPE_CHECKING:
+    import os
+
+    from gcs_core.errors import GcsError
 
 #: characters of a value shown in a message
 SHOWN = 40
+
+
+class LocatedError(Protocol):
+    """An error class that takes the message and ``file``, ``line``, ``column``
+    (like :class:`~gcs_core.errors.InputError` and :class:`~gcs_core.errors.ConfigError`)."""
+
+    def __call__(self, message: str, *, file: str | os.PathLike | None = ...,
+                 line: int | None = ..., column: int | str | None = ...) -> GcsError: ...
 
 
 def show(value: Any) -> str:
@@ -46,7 +59,7 @@ def number_complaint(value: Any, *, allow_inf: bool = False) -> str | None:
     return None
 
 
-def decode(raw: bytes, path, error: type[Exception]) -> str:
+def decode(raw: bytes, path, error: LocatedError) -> str:
     """UTF-8 text of a TOML file, or ``error`` ("not UTF-8 text") at the bad byte's line and column."""
     try:
         return raw.decode("utf-8")
@@ -56,7 +69,7 @@ def decode(raw: bytes, path, error: type[Exception]) -> str:
                     column=err.start - (raw.rfind(b"\n", 0, err.start) + 1) + 1) from None
 
 
-def loads(text: str, path, error: type[Exception]) -> dict:
+def loads(text: str, path, error: LocatedError) -> dict:
     """``tomllib.loads`` with its errors as ``error`` at a line and column (``error`` takes
     the message and ``file``, ``line``, ``column``, like :class:`~gcs_core.errors.InputError`)."""
     try:

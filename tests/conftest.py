@@ -18,8 +18,8 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 for _folder in ("conformance", "tui", "unit", "reference", "statistical", "helpers"):
     sys.path.insert(0, str(Path(__file__).resolve().parent / _folder))
 
-import pytest  # noqa: E402
-from repo_paths import SHARED_EXAMPLES  # noqa: E402
+import pytest  # noqa: E402 — after the helpers' folders are on sys.path
+from repo_paths import SHARED_EXAMPLES  # noqa: E402 — found on the path set above
 
 
 @pytest.fixture(scope="session")

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from scipy import stats
@@ -52,7 +51,7 @@ def physics_needed(problem, result, effects, *, alpha: float, smoothed: bool = F
     cost first.
     """
     crit = float(stats.chi2.isf(alpha, 1))
-    out: list[dict[str, Any]] = []
+    out: list[PhysicsNeed] = []
     for c in rank_candidates(problem, result, effects, alpha=alpha, smoothed=smoothed):
         sig = c.sigma.get(c.id, float("inf"))
         c_hat = c.estimate.get(c.id, 0.0)

@@ -183,8 +183,9 @@ class Layout:
 def attitude_gyro_noise(problem: Problem, scale: float = 1.0) -> GyroNoise:
     """σ_v, σ_u, σ_e of the gyro carrying the attitude (:func:`gcs_core.models.gyro_noise.gyro_noise`
     at the median sample interval of its rows), times ``scale``."""
+    assert problem.gyro_name is not None                  # called for a gyro-carried attitude
     spec = problem.builder.spec.sensor(problem.gyro_name)
-    dt = float(np.median(problem.attitude.dt))
+    dt = float(np.median(problem.gyro_attitude.dt))
     return gyro_noise(spec, dt).scaled(scale)
 
 

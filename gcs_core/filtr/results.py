@@ -35,15 +35,32 @@ class FitResult(Protocol):
     consider_budget : consider element -> (n,) its σ contribution to each solve-for element.
     """
 
-    state: StateVector
-    solve_for: tuple[str, ...]
-    consider: tuple[str, ...]
-    x: np.ndarray
-    P: np.ndarray
-    residuals: dict[str, SensorResiduals]
-    status: str
-    message: str
-    unobservable: tuple[str, ...]
+    @property
+    def state(self) -> StateVector: ...
+
+    @property
+    def solve_for(self) -> tuple[str, ...]: ...
+
+    @property
+    def consider(self) -> tuple[str, ...]: ...
+
+    @property
+    def x(self) -> np.ndarray: ...
+
+    @property
+    def P(self) -> np.ndarray: ...
+
+    @property
+    def residuals(self) -> dict[str, SensorResiduals]: ...
+
+    @property
+    def status(self) -> str: ...
+
+    @property
+    def message(self) -> str: ...
+
+    @property
+    def unobservable(self) -> tuple[str, ...]: ...
 
     @property
     def P_consider(self) -> np.ndarray: ...

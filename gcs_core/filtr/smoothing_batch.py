@@ -204,7 +204,7 @@ class Passes:
 
     def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info):
         self.problem, self.names, self.grid = problem, tuple(names), grid
-        self.base = problem.attitude
+        self.base = problem.gyro_attitude          # the whole-span problem is gyro-carried
         self.x_bar, self.prior_info = x_bar, prior_info
         self.values = problem.state.values()
         self.work: dict = {}

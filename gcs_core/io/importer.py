@@ -388,6 +388,8 @@ def _drop_flagged(table: Table) -> tuple[Table, int]:
 def _tle_ephemeris(spec: MissionSpec, tables) -> Table:
     """The ephemeris propagated from ``[orbit] tle`` over every table's span (ephem/tle.py)."""
     spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
+    if spec.orbit_tle is None:          # a ground mission whose every sensor was left out (no rows)
+        raise InputError("no sensor has any telemetry rows", file=spec.root / "mission.toml")
     if not spans:
         raise InputError("no telemetry rows to propagate the orbit over", file=spec.orbit_tle)
     return tle_ephemeris_table(spec.orbit_tle, spec.epoch, min(a for a, _ in spans),

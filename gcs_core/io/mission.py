@@ -218,8 +218,9 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
             raise ctx.error(f"a {stype} sensor of a spinning mission is placed by its own keys, "
                             "not by alignment_deg (ICD §2)", f"{base}.alignment_deg", "sensor",
                             index, "alignment_deg")
-        alignment = numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
+        a1, a2, a3 = numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
                              index, "alignment_deg")
+        alignment = (a1, a2, a3)
         for i, a in enumerate(alignment):
             if abs(a) > 360.0:
                 raise ctx.error(f"must be in [-360, 360], not {a:g} [deg]",

@@ -32,7 +32,8 @@ class Locator:
     def __init__(self, text: str):
         self.tables: dict[tuple[str, int], int] = {}
         self.keys: dict[tuple[str, int, str], int] = {}
-        current, index, counts = "", 0, {}
+        current, index = "", 0
+        counts: dict[str, int] = {}
         for lineno, line in enumerate(text.splitlines(), start=1):
             h = _HEADER.match(line)
             if h:

@@ -171,7 +171,8 @@ class MagnetometerModel(ObservationModel):
             rate = None
             if self.gradient:
                 pos = np.column_stack([np.asarray(geom.aux[c], dtype=float) for c in POSITION_CHANNELS])
-                G = sum(p[f"gradient_{ab}"] * np.asarray(dG, dtype=float) for ab, dG in GRADIENT)
+                G = sum((p[f"gradient_{ab}"] * np.asarray(dG, dtype=float) for ab, dG in GRADIENT),
+                        np.zeros((3, 3)))
                 B_I = B_I + pos @ G.T
         if B_I is None:
             raise ValueError("magnetometer model needs B_I in the geometry")
@@ -216,8 +217,9 @@ class MagnetometerModel(ObservationModel):
                 RC = C if bv._R is None else bv._R @ C
                 for k, ax in enumerate(AXES):
                     d_par[f"field_{ax}"] = lambda k=k: RC[:, :, k] @ IDM.T      # (I+D) M R C e_k
-                for ab, dG in GRADIENT if self.gradient else ():
-                    d_par[f"gradient_{ab}"] = lambda dG=np.asarray(dG, dtype=float): np.einsum(
+                for ab, dG_ab in GRADIENT if self.gradient else ():
+                    dG = np.asarray(dG_ab, dtype=float)
+                    d_par[f"gradient_{ab}"] = lambda dG=dG: np.einsum(
                         "nij,nj->ni", RC, pos @ dG.T) @ IDM.T                 # (I+D) M R C ∂G p
             d_att = bv.left(IDM)
         return common.finish(y, d_att, d_par, np.ones(n, dtype=bool), specs)

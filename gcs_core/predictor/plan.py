@@ -27,6 +27,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -125,12 +126,15 @@ class DataPlan:
         catalog but no star model means ``stars = "catalog"``.
         """
         start, end = cfg.prediction.start, cfg.prediction.end
-        if (start is None or end is None) and span is None:
-            raise InputError("the plan needs prediction.start and prediction.end (no telemetry "
-                             "span to default to)", file=cfg.path, key="prediction.start")
-        kw = dict(start=float(span[0] if start is None else start),
-                  end=float(span[1] if end is None else end),
-                  step=cfg.prediction.step, gaps=tuple(cfg.prediction.gaps), maneuvers=tuple(cfg.prediction.maneuvers))
+        if start is None or end is None:
+            if span is None:
+                raise InputError("the plan needs prediction.start and prediction.end (no telemetry "
+                                 "span to default to)", file=cfg.path, key="prediction.start")
+            start = span[0] if start is None else start
+            end = span[1] if end is None else end
+        kw: dict[str, Any] = dict(start=float(start), end=float(end),
+                                  step=cfg.prediction.step, gaps=tuple(cfg.prediction.gaps),
+                                  maneuvers=tuple(cfg.prediction.maneuvers))
         stars = cfg.prediction.stars or ("catalog" if cfg.prediction.catalog is not None else None)
         if stars is not None:
             kw["stars"] = stars

@@ -293,8 +293,12 @@ class AttitudeProvider(Protocol):
     """
 
     kind: str
-    gyro: str | None
-    t_ref: float | None
+
+    @property
+    def gyro(self) -> str | None: ...
+
+    @property
+    def t_ref(self) -> float | None: ...
 
     @property
     def names(self) -> tuple[str, ...]: ...
@@ -321,7 +325,10 @@ class ProviderDefaults:
 
     gyro: str | None = None
     t_ref: float | None = None
-    ref: ReferenceAttitude | ManeuverAttitude | None = None
+
+    @property
+    def ref(self) -> ReferenceAttitude | ManeuverAttitude | None:
+        return None
 
     def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
         raise NotImplementedError
@@ -442,8 +449,8 @@ class ManeuverAttitude(ProviderDefaults):
 
     def rpy_from_dcm(self, C, t) -> tuple[float, float, float]:
         A = self.reference_attitude.reference(np.atleast_1d(t))[0]
-        rpy = np.array(dcm_to_euler123(C @ A.T)) - self.offsets(np.atleast_1d(t))[0]
-        return tuple(float(a) for a in rpy)
+        roll, pitch, yaw = np.array(dcm_to_euler123(C @ A.T)) - self.offsets(np.atleast_1d(t))[0]
+        return float(roll), float(pitch), float(yaw)
 
 
 class BodyErrorAttitude(ProviderDefaults):

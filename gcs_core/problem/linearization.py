@@ -259,6 +259,7 @@ def _block_partials(sd, pred, fr, r, used, att_sel, par, k: int, work, *, weight
     tile = _buffer(work, (sd.name, "tile"), (max(GRAM_TILE_ROWS, m), k + 1)) if G is not None else None
     if _block_jacobian(pred, fr, att_sel, par, k, w, buf, r if aug else None, P,
                        gram=None if G is None else (G, tile)) is None:
+        assert G is not None            # None comes back only when the rows went into G
         return None, None, np.tril(G) + np.tril(G, -1).T      # chain_gram fills the lower triangle
     if weighted and not np.all(used):
         buf[~used] = 0.0              # NaN partials/residuals of unused frames

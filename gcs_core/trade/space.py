@@ -229,8 +229,9 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
     for s in spec.sensors:
         key = f"models.{s.name}"
         if key in combo:
+            current = cfg.models.get(s.name)
             models[s.name] = "off" if not _flag(combo[key], key) else (
-                cfg.models.get(s.name) if cfg.models.get(s.name) not in (None, "off") else s.type)
+                current if current is not None and current != "off" else s.type)
     off = {k for k, v in models.items() if v == "off"}
     elements = {k: v for k, v in cfg.state.elements.items() if k.split(".")[0] not in off}
     effects = tuple(e for e in cfg.state.effects if e.split(".")[0] not in off)

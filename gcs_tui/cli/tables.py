@@ -52,9 +52,9 @@ def fit_table(analysis) -> list[str]:
     if res.unobservable:
         lines.append(UNOBSERVABLE_NOTE)
     if hasattr(analysis, "null_at_prior"):
-        shown = set(res.unobservable)
+        listed = set(res.unobservable)
         for u in analysis.null_at_prior():
-            if u not in shown:
+            if u not in listed:
                 lines.append(f"not determined at the a-priori linearization: {u}")
     return lines
 

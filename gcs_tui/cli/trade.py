@@ -141,10 +141,10 @@ def cmd_trade(args, prog) -> int:
 
 
 def _write(path: Path, text: str) -> None:
-    from gcs_tui.cli.export import _atomic_write
+    from gcs_core.fileperm import write_atomic
     if not path.parent.is_dir():
         raise InputError("directory does not exist", file=path.parent)
-    _atomic_write(path, text)
+    write_atomic(path, text)
 
 
 # ---------------------------------------------------------------------------- optimize

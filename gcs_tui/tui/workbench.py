@@ -288,7 +288,7 @@ class Workbench:
         if s is not None and e is not None and not e > s:
             raise ConfigError("the plan needs end > start", key="prediction.end")
         # the plan does not change the fit: keep the analysis, swap the config only
-        self.analysis.config = cfg.with_changes(prediction=kw)
+        self.current.config = cfg.with_changes(prediction=kw)
         self.prediction = None
 
     def plan_span(self) -> tuple[float, float]:

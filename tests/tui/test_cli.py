@@ -23,7 +23,7 @@ import pytest
 from repo_paths import ROOT
 
 from gcs_core.reporting import icd_report_problems
-from gcs_tui.cli.commands import commands as cli
+from gcs_tui.cli import commands as cli
 from gcs_tui.cli.commands import main
 
 MISSIONS = ROOT / "sample_data" / "missions"

@@ -23,7 +23,7 @@ def mission(example_dir, tmp_path) -> Path:
     """A writable copy of the example mission."""
     dst = tmp_path / "mission"
     shutil.copytree(example_dir, dst, copy_function=shutil.copyfile)
-    for root, dirs, files in os.walk(dst):
+    for root, _dirs, files in os.walk(dst):
         os.chmod(root, 0o755)
         for f in files:
             os.chmod(os.path.join(root, f), 0o644)

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs_core.filtr import kalman_kernels
+from gcs_core import compiled
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -32,15 +32,15 @@ round_off = 1e-8
 FITS = """
 import json, sys
 import numpy as np
-sys.path.insert(0, "tests")
-from gcs_core.filtr import kalman_kernels
+sys.path.insert(0, "tests/statistical")
+from gcs_core import compiled
 from gcs_core.filtr.batch import batch_fit
 from gcs_core.filtr.smoothing_batch import whole_span_fit
 from gcs_core.filtr.stepping import Filtr
 from test_filter_consistency import sim_problem, simulate
 
 mission, _ = simulate(7, duration_s=600.0)
-out = {"compiled": bool(kalman_kernels.COMPILED)}
+out = {"compiled": bool(compiled.COMPILED)}
 for name, fit in (("batch", lambda p: batch_fit(p)), ("whole_span", lambda p: whole_span_fit(p)),
                   ("kalman", lambda p: Filtr(p, block_seconds=200.0).run())):
     r = fit(sim_problem(mission))
@@ -62,7 +62,7 @@ def _fits(no_numba: bool) -> dict:
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
-@pytest.mark.skipif(not kalman_kernels.COMPILED, reason="numba not importable: only the numpy forms run")
+@pytest.mark.skipif(not compiled.COMPILED, reason="numba not importable: only the numpy forms run")
 def test_numpy_forms_fit_as_the_compiled_kernels():
     fast, plain = _fits(no_numba=False), _fits(no_numba=True)
     assert fast["compiled"] and not plain["compiled"]

@@ -107,8 +107,11 @@ class PlanScreen(GcsScreen):
         t0, t1 = self.wb.plan_span()
         fields = key_fields(PredictionConfig, {"start": _num(t0), "end": _num(t1),
                                                "step": _num(cfg.prediction.step)}, ("start", "end", "step"))
-        self.app.push_screen(FormScreen("Plan span and output step", fields),
-                             lambda v: v and self._apply(start=v["start"], end=v["end"], step=v["step"]))
+        def done(v):
+            if v:
+                self._apply(start=v["start"], end=v["end"], step=v["step"])
+
+        self.app.push_screen(FormScreen("Plan span and output step", fields), done)
 
     def _gap_form(self, title: str, a: float, b: float, index: int | None) -> None:
         def done(v):
