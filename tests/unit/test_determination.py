@@ -38,7 +38,8 @@ def nominal(tmp_path_factory):
 
 def test_frequencies_of_zero_book_amplitudes_are_held_by_default(tmp_path):
     a = Analysis(AnalysisConfig(mission=write_mission(nominal_threeaxis("sun_pointing", seed=4, duration_s=600.0),
-                                                      tmp_path / "m"), holdout_fraction=0.0))
+                                                      tmp_path / "m")).with_changes(
+        diagnosis={"holdout_fraction": 0.0}))
     state = a.problem.state
     assert all(state[n].role == "held" and state[n].value == 50.0 for n in FREQUENCIES)
     assert state["FSS1.A3"].role == "solve-for"

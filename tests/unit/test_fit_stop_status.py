@@ -30,8 +30,8 @@ same_cost = 1e-9
 @pytest.fixture(scope="module")
 def analysis(tmp_path_factory):
     cfg = with_effect(nominal_threeaxis("sun_pointing", seed=5, duration_s=900.0), "TAM1.scale", 2e-3)
-    a = Analysis(AnalysisConfig(mission=write_mission(cfg, tmp_path_factory.mktemp("stop") / "m"),
-                                holdout_fraction=0.0))
+    a = Analysis(AnalysisConfig(mission=write_mission(cfg, tmp_path_factory.mktemp("stop") / "m")).with_changes(
+        diagnosis={"holdout_fraction": 0.0}))
     a.fit(holdout=False)
     return a
 
