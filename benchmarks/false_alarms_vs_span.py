@@ -112,6 +112,10 @@ def summarize(recs: list[dict]) -> dict:
     # every one is within 3σ on a share 0.9973^k of seeds (0.905 for 37), not 100 %
     k = float(np.median([len(hc.calibrated_z(r)) for r in recs])) if recs else 0.0
     out["truth_expected"] = float((1.0 - 2.0 * stats.norm.sf(hc.three_sigma)) ** k)
+    # and a right model's RMS passes "every sensor ≤ 1.05, fitted and held-out" on a share
+    # set by each sensor's χ² scatter (few hundred held-out tracker measurements)
+    ideal = [hc.rms_ideal_share(r) for r in recs if r.get("chi2_n")]
+    out["rms_expected"] = float(np.mean(ideal)) if ideal else float("nan")
     out["worst_z"] = max(zs) if zs else (float("nan"), "-")
     alarms: dict[str, int] = {}
     for r in recs:
@@ -126,7 +130,7 @@ def summarize(recs: list[dict]) -> dict:
 def print_table(groups: dict, method: str) -> bool:
     print(f"\nmethod {method}: share of seeds passing (one-sided 95 % bound on the failure rate)")
     print(f"{'mode':9s} {'span':>5s} {'seeds':>5s} {'no effect':>17s} {'RMS ≤ 1.05':>17s} "
-          f"{'truth 3σ':>17s} {'(ideal)':>7s} {'consistent':>10s} {'worst RMS':>9s} {'worst |z|':>24s} {'s/run':>6s}")
+          f"{'(ideal)':>7s} {'truth 3σ':>17s} {'(ideal)':>7s} {'consistent':>10s} {'worst RMS':>9s} {'worst |z|':>24s} {'s/run':>6s}")
     ok_all = True
     for (mode, hours), recs in sorted(groups.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         s = summarize(recs)
@@ -136,8 +140,8 @@ def print_table(groups: dict, method: str) -> bool:
             cells.append(f"{100 * share:5.1f}% (<{100 * bound:4.1f}%)")
             ok_all &= share >= required_share
         z, zname = s["worst_z"]
-        print(f"{MODE_SHORT[mode]:9s} {hours:4g}h {s['n']:5d} {cells[0]:>17s} {cells[1]:>17s} {cells[2]:>17s} "
-              f"{100 * s['truth_expected']:6.1f}% {100 * s['consistent']:9.1f}% {s['worst_rms']:9.3f} {z:6.2f} "
+        print(f"{MODE_SHORT[mode]:9s} {hours:4g}h {s['n']:5d} {cells[0]:>17s} {cells[1]:>17s} "
+              f"{100 * s['rms_expected']:6.1f}% {cells[2]:>17s} {100 * s['truth_expected']:6.1f}% {100 * s['consistent']:9.1f}% {s['worst_rms']:9.3f} {z:6.2f} "
               f"{zname:>17s} {s['seconds']:6.1f}")
         if s["alarms"]:
             print("    added: " + ", ".join(f"{k} ×{v}" for k, v in sorted(s["alarms"].items())))
