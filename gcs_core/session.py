@@ -30,6 +30,12 @@ from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
 
+#: held-out block length [s]: short against an orbit (so the blocks sample its phases),
+#: long against the knot spacing and a tracker's cadence (:meth:`Analysis.holdout_masks`)
+HOLDOUT_BLOCK_S = 300.0
+#: 1/φ: block b is held out when frac(b/φ) < holdout_fraction (an aperiodic, even spread)
+GOLDEN_STEP = (np.sqrt(5.0) - 1.0) / 2.0
+
 
 @dataclass(frozen=True)
 class Step:
@@ -151,23 +157,29 @@ class Analysis:
     def holdout_masks(self) -> dict[str, np.ndarray]:
         """Held-out frames per sensor (True = held out).
 
-        The span is cut into 20 equal blocks and every ``round(1/holdout_fraction)``-th
-        block is held out (never the first or the last), so the held-out frames sample every
-        part of the span (slews, eclipses) while the fit interpolates into them rather than
-        extrapolating past the end of its data.
+        The span is cut into blocks of :data:`HOLDOUT_BLOCK_S` (at least 20 blocks), and
+        block ``b`` is held out when ``frac(b/φ) < holdout_fraction`` (φ the golden ratio;
+        never the first or the last block): about that fraction of the blocks, spread
+        evenly but with no period, so the held-out frames sample every part of the orbit
+        (slews, eclipses, the Sun's and the stars' geometry) while the fit interpolates into
+        them rather than extrapolating past the end of its data. A periodic choice (every
+        4th of 20 blocks) aliases with the orbit: at 8 h its held-out blocks recur every
+        96 min, one orbital period, so they all saw one orbital phase (a star tracker kept
+        2 of 3300 measurements there). docs/statistics.md gives the check's calibration.
         """
         f = self.config.holdout_fraction
         if f <= 0:
             return {}
         t_all = np.concatenate([sd.t for sd in self.problem.sensors])
         t0, t1 = float(t_all.min()), float(t_all.max())
-        n_blocks = 20
-        every = max(2, int(round(1.0 / f)))
+        n_blocks = max(20, int(round((t1 - t0) / HOLDOUT_BLOCK_S)))
         width = (t1 - t0) / n_blocks or 1.0
+        b = np.arange(n_blocks)
+        held = (np.mod(b * GOLDEN_STEP, 1.0) < f) & (b > 0) & (b < n_blocks - 1)
         out = {}
         for sd in self.problem.sensors:
             block = np.minimum(((sd.t - t0) / width).astype(int), n_blocks - 1)
-            out[sd.name] = ((block % every) == every // 2) & (block < n_blocks - 1)
+            out[sd.name] = held[block]
         return out
 
     def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> BatchResult:
