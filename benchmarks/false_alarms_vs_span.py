@@ -170,7 +170,9 @@ def main() -> int:
         for mode in args.modes:
             for run in range(n):
                 jobs.append((mode, float(hours), run, seed_of(args.entropy, mode, hours, run), args.method))
-    todo = [j for j in jobs if (j[0], j[1], j[3], j[4]) not in done]
+    # round-robin over the modes (and spans), so a sweep cut short still covers each
+    todo = sorted((j for j in jobs if (j[0], j[1], j[3], j[4]) not in done),
+                  key=lambda j: (j[1] >= 24, j[2], j[1], hc.MODES.index(j[0])))
     print(f"{len(jobs)} runs ({len(jobs) - len(todo)} from {args.records}), method {args.method}, "
           f"{args.processes} process(es)", flush=True)
     out = dict(done)
