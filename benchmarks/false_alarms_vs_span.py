@@ -10,7 +10,11 @@ Issue 10's acceptance on nominal missions (data book = truth, a flight-typical I
 
 and, printed beside them, the share of seeds a perfect estimator would keep within 3σ
 ("ideal": ``0.9973^k`` for k calibrated elements, 90.5 % for 37, so "≥ 95 %" is stricter
-than chance allows on a mission of 37 elements), the goodness-of-fit verdict ("consistent": the fraction whose
+than chance allows on a mission of 37 elements), the share of seeds on which a right model
+passes the RMS check ("(ideal)" after "RMS ≤ 1.05": each sensor's fitted χ² on its effective
+dof and held-out χ² on its n at most 1.05² per measurement, :func:`honesty_cases.rms_ideal_share`;
+a tracker with a few hundred held-out measurements exceeds 1.05 on several per cent of right
+fits), the goodness-of-fit verdict ("consistent": the fraction whose
 final fit reads "consistent with noise"). Each cell also gives the one-sided 95 %
 Clopper–Pearson bound on the rate of the failures seen (the claim "≥ 95 %" is shown when
 the bound on the failure rate is below 5 %: 0 failures in ≥ 59 seeds, 1 in ≥ 93).
