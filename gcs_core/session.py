@@ -17,6 +17,7 @@ import numpy as np
 from gcs_core.config import AnalysisConfig
 from gcs_core.display import p_text
 from gcs_core.diagnosis import aliases, determination, goodness, physics, policy
+from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
@@ -29,12 +30,6 @@ from gcs_core.sidp.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
-
-#: held-out block length [s]: short against an orbit (so the blocks sample its phases),
-#: long against the knot spacing and a tracker's cadence (:meth:`Analysis.holdout_masks`)
-HOLDOUT_BLOCK_S = 300.0
-#: 1/φ: block b is held out when frac(b/φ) < holdout_fraction (an aperiodic, even spread)
-GOLDEN_STEP = (np.sqrt(5.0) - 1.0) / 2.0
 
 
 @dataclass(frozen=True)
@@ -155,32 +150,9 @@ class Analysis:
                             edit_k_sensor={k: (v or None) for k, v in self.config.edit_k_sensor.items()})
 
     def holdout_masks(self) -> dict[str, np.ndarray]:
-        """Held-out frames per sensor (True = held out).
-
-        The span is cut into blocks of :data:`HOLDOUT_BLOCK_S` (at least 20 blocks), and
-        block ``b`` is held out when ``frac(b/φ) < holdout_fraction`` (φ the golden ratio;
-        never the first or the last block): about that fraction of the blocks, spread
-        evenly but with no period, so the held-out frames sample every part of the orbit
-        (slews, eclipses, the Sun's and the stars' geometry) while the fit interpolates into
-        them rather than extrapolating past the end of its data. A periodic choice (every
-        4th of 20 blocks) aliases with the orbit: at 8 h its held-out blocks recur every
-        96 min, one orbital period, so they all saw one orbital phase (a star tracker kept
-        2 of 3300 measurements there). docs/statistics.md gives the check's calibration.
-        """
-        f = self.config.holdout_fraction
-        if f <= 0:
-            return {}
-        t_all = np.concatenate([sd.t for sd in self.problem.sensors])
-        t0, t1 = float(t_all.min()), float(t_all.max())
-        n_blocks = max(20, int(round((t1 - t0) / HOLDOUT_BLOCK_S)))
-        width = (t1 - t0) / n_blocks or 1.0
-        b = np.arange(n_blocks)
-        held = (np.mod(b * GOLDEN_STEP, 1.0) < f) & (b > 0) & (b < n_blocks - 1)
-        out = {}
-        for sd in self.problem.sensors:
-            block = np.minimum(((sd.t - t0) / width).astype(int), n_blocks - 1)
-            out[sd.name] = held[block]
-        return out
+        """Held-out frames per sensor (True = held out): 5-min blocks spread over the span
+        by the golden-ratio rotation (:mod:`gcs_core.diagnosis.holdout`)."""
+        return held_out.holdout_masks(self.problem.sensors, self.config.holdout_fraction)
 
     def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None) -> BatchResult:
         """Fit the current state; with ``holdout`` also score the held-out span.

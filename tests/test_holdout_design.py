@@ -1,4 +1,4 @@
-"""The held-out design (:meth:`gcs_core.session.Analysis.holdout_masks`).
+"""The held-out design (:mod:`gcs_core.diagnosis.holdout`, :meth:`Analysis.holdout_masks`).
 
 The held-out frames must sample every part of the orbit, at every span: blocks of 5 min
 held out by the golden-ratio rotation. The periodic design it replaces (every 4th of 20
@@ -14,7 +14,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gcs_core.session import Analysis
+from gcs_core.diagnosis.holdout import holdout_masks
 
 #: a LEO period [s]
 orbit_s = 95.0 * 60.0
@@ -26,9 +26,7 @@ phase_share_min = 0.10
 
 def _masks(hours: float, fraction: float = 0.25, cadence: float = 10.0):
     t = np.arange(0.0, hours * 3600.0, cadence)
-    fake = SimpleNamespace(config=SimpleNamespace(holdout_fraction=fraction),
-                           problem=SimpleNamespace(sensors=[SimpleNamespace(name="FHST1", t=t)]))
-    return t, Analysis.holdout_masks(fake).get("FHST1")
+    return t, holdout_masks([SimpleNamespace(name="FHST1", t=t)], fraction).get("FHST1")
 
 
 @pytest.mark.parametrize("hours", [1.0, 3.0, 4.0, 8.0, 24.0])
