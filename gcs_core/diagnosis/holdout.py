@@ -17,7 +17,7 @@ cadence. The check's calibration against truth: docs/statistics.md.
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -38,7 +38,7 @@ def holdout_masks(sensors: Sequence, fraction: float) -> dict[str, np.ndarray]:
     if not t_all.size:
         return {}
     t0, t1 = float(t_all.min()), float(t_all.max())
-    n_blocks = max(MIN_BLOCKS, int(round((t1 - t0) / BLOCK_S)))
+    n_blocks = max(MIN_BLOCKS, round((t1 - t0) / BLOCK_S))
     width = (t1 - t0) / n_blocks or 1.0
     b = np.arange(n_blocks)
     held = (np.mod(b * GOLDEN_STEP, 1.0) < fraction) & (b > 0) & (b < n_blocks - 1)
