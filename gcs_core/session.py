@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
+from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics, holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.physics import PhysicsNeed
@@ -124,26 +124,9 @@ class Analysis:
                             edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()})
 
     def holdout_masks(self) -> dict[str, np.ndarray]:
-        """Held-out frames per sensor (True = held out).
-
-        The span is cut into 20 equal blocks and every ``round(1/holdout_fraction)``-th
-        block is held out (never the first or the last), so the held-out frames sample every
-        part of the span (slews, eclipses) while the fit interpolates into them rather than
-        extrapolating past the end of its data.
-        """
-        f = self.config.diagnosis.holdout_fraction
-        if f <= 0:
-            return {}
-        t_all = np.concatenate([sd.t for sd in self.problem.sensors])
-        t0, t1 = float(t_all.min()), float(t_all.max())
-        n_blocks = 20
-        every = max(2, int(round(1.0 / f)))
-        width = (t1 - t0) / n_blocks or 1.0
-        out = {}
-        for sd in self.problem.sensors:
-            block = np.minimum(((sd.t - t0) / width).astype(int), n_blocks - 1)
-            out[sd.name] = ((block % every) == every // 2) & (block < n_blocks - 1)
-        return out
+        """Held-out frames per sensor (True = held out): 5-min blocks spread over the span
+        by the golden-ratio rotation (:mod:`gcs_core.diagnosis.holdout`)."""
+        return held_out.holdout_masks(self.problem.sensors, self.config.diagnosis.holdout_fraction)
 
     def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None,
             previous: FitResult | None = None) -> FitResult:
