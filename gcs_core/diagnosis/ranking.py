@@ -219,6 +219,7 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
         gs = Hm.T @ rw
         D = getattr(blk.pred, "d_att", None)
         if knots is not None and D is not None and blk.geom.C_BI is not None:
+            assert dyn is not None                   # the knot system is built from it
             t_blk = sd.t[blk.lo:blk.hi]
             C = np.ascontiguousarray(kn_chain(blk.geom.C_BI, dyn.grid, dyn.z, dyn.R, t_blk))
             knots.add_rows(D, C, blk.used[:, None] / sd.sigma[None, :], t_blk,

@@ -49,7 +49,7 @@ from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_fr
 from gcs_core.filtr.knot_kernels import correct_attitude
 from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.filtr.residuals import Residuals, residuals_from
-from gcs_core.filtr.results import BatchResult
+from gcs_core.filtr.results import BatchResult, FitResult
 from gcs_core.filtr import stopping
 from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
 from gcs_core.problem.gyro_attitude import GyroAttitude
@@ -288,7 +288,8 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                    edited: Mapping[str, np.ndarray] | None = None,
                    initial: Mapping[str, float] | None = None,
                    noise: GyroNoise | None = None, spacing: float | None = None,
-                   start: BatchResult | None = None, previous: BatchResult | None = None) -> BatchResult:
+                   start: BatchResult | _Restart | None = None,
+                   previous: FitResult | None = None) -> BatchResult:
     """The whole-span fit with gyro process noise (module docstring).
 
     ``noise`` overrides the data book's gyro noise (None: the book's); ``spacing`` the
@@ -302,13 +303,16 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     """
     opts = options or BatchOptions()
     noise = noise if noise is not None else process_noise(problem)
-    if previous is not None and start is None and getattr(previous, "dynamics", None) is not None \
+    prev_dyn: Dynamics | None = getattr(previous, "dynamics", None)
+    if previous is not None and start is None and prev_dyn is not None \
             and noise is not None and not edited and spacing is None \
-            and (previous.dynamics.grid.sigma_v, previous.dynamics.grid.sigma_u) == (noise.sigma_v, noise.sigma_u):
-        start = _restart(problem, previous)
-    batch = start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
+            and (prev_dyn.grid.sigma_v, prev_dyn.grid.sigma_u) == (noise.sigma_v, noise.sigma_u):
+        start = _restart(problem, previous, prev_dyn)
+    batch: BatchResult | _Restart = start if start is not None else \
+        batch_fit(problem, opts, edited=edited, initial=initial)
     if noise is None or not noise.process \
             or not isinstance(problem.attitude, GyroAttitude):
+        assert isinstance(batch, BatchResult)        # a restart is made only with process noise
         return batch
     state = problem.state
     names = tuple(batch.solve_for)
@@ -322,6 +326,7 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
             and warm.grid.sigma_u == noise.sigma_u:
         grid, z = warm.grid, warm.z.copy()           # a whole-span start: its knots too
     else:
+        assert batch.information is not None         # no knots to reuse: a batch result, with its information
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
         warm = None
@@ -470,9 +475,10 @@ class _Restart:
     residuals: Mapping
     dynamics: Dynamics
     iterations: int = 0
+    information: np.ndarray | None = None        # never read: a restart carries its knots
 
 
-def _restart(problem: Problem, previous: BatchResult) -> _Restart:
+def _restart(problem: Problem, previous: FitResult, dyn: Dynamics) -> _Restart:
     """The previous solution's values (the elements solved for before) and a-priori values
     (the others), its knots and its edits, as a start on ``problem``."""
     state = problem.state
@@ -480,7 +486,6 @@ def _restart(problem: Problem, previous: BatchResult) -> _Restart:
     before = set(previous.solve_for)
     pv = previous.state.values()
     x = np.array([float(pv[nm]) if nm in before and nm in pv else float(state[nm].value) for nm in names])
-    dyn = previous.dynamics
     return _Restart(names, cons, x, previous.residuals, Dynamics(dyn.grid, dyn.z.copy(), dyn.R))
 
 
