@@ -32,7 +32,11 @@ def _check(case: str, tmp_path):
     z = {n: round(rec["z"].get(n, float("nan")), 2) for n in h.recover}
     assert checks["added"], (rec["added"], rec.get("status"))
     assert checks["no_divergence"], rec.get("peak_rms")
-    assert checks["rms"], (rec.get("rms"), rec.get("holdout_rms"))
+    # fitted RMS against the fixed bound; the held-out span through its χ² test (a star tracker
+    # with ≈300 held-out measurements exceeds 1.05 on ≈10 % of right fits: hc.rms_ideal_share)
+    assert all(v <= hc.rms_limit for v in rec["rms"].values()), rec.get("rms")
+    assert rec.get("verdict", "").startswith("consistent with noise"), \
+        (rec.get("verdict"), rec.get("holdout_rms"), hc.rms_ideal_share(rec))
     assert checks["hidden"], f"the harmonic's amplitudes against truth (z): {z}"
     assert rec["fit_status"] == "converged", rec.get("fit_status")
     return rec

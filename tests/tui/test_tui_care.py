@@ -26,7 +26,7 @@ from tui_testing import ROOT, sample_mission, settle
 from gcs_core import display as fmt
 from gcs_core import reporting
 from gcs_core.units import ARCSEC, DEG
-from gcs_tui.cli.commands import tables
+from gcs_tui.cli import tables
 from gcs_tui.cli.progress import LogHandler, Progress
 from gcs_tui.tui.app import LOGGERS, GcsApp, detached_terminal_logging, poor_choice
 from gcs_tui.tui.screens.dialogs import ConfirmScreen, Field, FormScreen

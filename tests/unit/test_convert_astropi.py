@@ -23,9 +23,7 @@ from gcs_core.errors import InputError
 from gcs_core.filtr.noise import white_noise
 from gcs_core.frames.rotations import euler123_to_dcm
 from gcs_core.io.importer import load_mission
-from gcs_tui.cli.commands import (
-    commands as cli,
-)
+from gcs_tui.cli import commands as cli
 
 DATA = TEST_DATA / "astropi"
 CSV = DATA / "astropi_extract.csv"
