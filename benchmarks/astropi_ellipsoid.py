@@ -41,12 +41,12 @@ from gcs_core.frames.reference import reference_dcm
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis
 
-UT = 1000.0   # nT per µT
+UT = 1000.0  # nT per µT
 
 
 def _rms(x) -> float:
     x = np.asarray(x, dtype=float)
-    return float(np.sqrt(np.mean(x ** 2))) if x.size else float("nan")
+    return float(np.sqrt(np.mean(x**2))) if x.size else float("nan")
 
 
 def gcs_steps(target: Path) -> list[tuple[str, float, float, float, float]]:
@@ -63,8 +63,7 @@ def gcs_steps(target: Path) -> list[tuple[str, float, float, float, float]]:
         res = a.result
         r = res.residuals["MAG"]
         fitted = _rms(r.residual[r.used])
-        train = batch_fit(a.problem, a.batch_options(), edited=masks,
-                          initial=res.state.values())
+        train = batch_fit(a.problem, a.batch_options(), edited=masks, initial=res.state.values())
         rt = train.residuals["MAG"]
         held = _rms(rt.residual[masks["MAG"] & rt.valid])
         y = next(s for s in a.problem.sensors if s.name == "MAG").y
@@ -74,8 +73,9 @@ def gcs_steps(target: Path) -> list[tuple[str, float, float, float, float]]:
         u = yhat / np.linalg.norm(yhat, axis=1)[:, None]
         perp = r.residual - np.sum(r.residual * u, axis=1)[:, None] * u
         ang = np.degrees(_rms((np.linalg.norm(perp, axis=1) / np.linalg.norm(yhat, axis=1))[r.used]))
-        rows.append((label, fitted / UT, held / UT, r.rms_normalized,
-                     a.holdout_rms.get("MAG", float("nan")), mag / UT, ang))
+        rows.append(
+            (label, fitted / UT, held / UT, r.rms_normalized, a.holdout_rms.get("MAG", float("nan")), mag / UT, ang)
+        )
 
     record("fit (bias, attitude)")
     while True:
@@ -122,7 +122,7 @@ def ellipsoid_fit(B, ref_mag, iterations=50):
         u = d @ A.T
         m = np.linalg.norm(u, axis=1)
         r = m - ref_mag
-        g = u / m[:, None]                       # ∂m/∂u
+        g = u / m[:, None]  # ∂m/∂u
         J = np.empty((B.shape[0], 9))
         for k, (i, j) in enumerate(zip(*iu)):
             # ∂u/∂A_ij = e_i d_j (+ e_j d_i off the diagonal)
@@ -151,7 +151,7 @@ def ellipsoid(target: Path):
     cal = (B - b) @ A.T
     dm = np.linalg.norm(cal, axis=1) - np.linalg.norm(B_I, axis=1)
     # the calibrated vectors against IGRF in LVLH through the best constant rotation
-    R, off = procrustes_mounting(B_L[train], cal[train])       # B_L ≈ R cal + off
+    R, off = procrustes_mounting(B_L[train], cal[train])  # B_L ≈ R cal + off
     resid = B_L - cal @ R.T - off
     vec = lambda k: _rms(resid[k]) / UT
     return (_rms(dm[train]) / UT, _rms(dm[held]) / UT, vec(train), vec(held))
@@ -166,14 +166,15 @@ def residual_structure(a: Analysis) -> str:
     lat = np.degrees(np.arcsin(pos[:, 2] / np.linalg.norm(pos, axis=1)))
     x = r.residual - r.residual[r.used].mean(axis=0)
     lags = {"1 min": 12, "10 min": 120, "30 min": 360}
-    corr = {k: float(np.mean([np.corrcoef(x[:-n, j], x[n:, j])[0, 1] for j in range(3)]))
-            for k, n in lags.items()}
+    corr = {k: float(np.mean([np.corrcoef(x[:-n, j], x[n:, j])[0, 1] for j in range(3)])) for k, n in lags.items()}
     bands = [(0, 15), (15, 30), (30, 45), (45, 90)]
-    rms = [_rms(r.residual[(np.abs(lat) >= lo) & (np.abs(lat) < hi) & r.used]) / UT
-           for lo, hi in bands]
-    return ("residual correlation after " + ", ".join(f"{k}: {v:.2f}" for k, v in corr.items())
-            + "; RMS by |latitude| " + ", ".join(f"{lo}-{hi}°: {v:.2f} µT"
-                                               for (lo, hi), v in zip(bands, rms)))
+    rms = [_rms(r.residual[(np.abs(lat) >= lo) & (np.abs(lat) < hi) & r.used]) / UT for lo, hi in bands]
+    return (
+        "residual correlation after "
+        + ", ".join(f"{k}: {v:.2f}" for k, v in corr.items())
+        + "; RMS by |latitude| "
+        + ", ".join(f"{lo}-{hi}°: {v:.2f} µT" for (lo, hi), v in zip(bands, rms))
+    )
 
 
 def linear_fit_rms(B_S, B_L, train, held):
@@ -191,6 +192,7 @@ def file_positions(target: Path, source_csv: Path):
     import csv
 
     from gcs_core.ephem.timescale import gmst_rad
+
     cfg = load_config(target) if target.suffix == ".toml" else default_config(target)
     m = load_mission(cfg.mission)
     tab = m.telemetry["MAG"]
@@ -204,11 +206,10 @@ def file_positions(target: Path, source_csv: Path):
         rows = list(csv.DictReader(fh))
     lat = np.radians([float(x["Latitude"]) for x in rows])
     lon = np.radians([float(x["Longitude"]) for x in rows])
-    keep = np.asarray(tab.lines) - 2 - 2            # file line of each kept row -> source row
+    keep = np.asarray(tab.lines) - 2 - 2  # file line of each kept row -> source row
     lat, lon = lat[keep], lon[keep]
     rad = np.linalg.norm(r, axis=1)
-    r_E = rad[:, None] * np.column_stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon),
-                                          np.sin(lat)])
+    r_E = rad[:, None] * np.column_stack([np.cos(lat) * np.cos(lon), np.cos(lat) * np.sin(lon), np.sin(lat)])
     g = gmst_rad(m.spec.epoch, t)
     c, s_ = np.cos(g), np.sin(g)
     r_f = np.column_stack([c * r_E[:, 0] - s_ * r_E[:, 1], s_ * r_E[:, 0] + c * r_E[:, 1], r_E[:, 2]])
@@ -221,15 +222,21 @@ def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     target = Path(argv[0]) if argv else ROOT / "sample_data" / "configs" / "real-astropi-iss.toml"
     print(f"Astro Pi magnetometer on the ISS ({target})")
-    print(f"{'step':40s} {'fitted µT':>10s} {'held-out µT':>12s} {'norm.':>7s} {'held norm.':>10s}"
-          f" {'|B| µT':>7s} {'angle °':>8s}")
+    print(
+        f"{'step':40s} {'fitted µT':>10s} {'held-out µT':>12s} {'norm.':>7s} {'held norm.':>10s}"
+        f" {'|B| µT':>7s} {'angle °':>8s}"
+    )
     rows, a = gcs_steps(target)
     for label, fit, held, nrm, hnrm, mag, ang in rows:
         print(f"{label:40s} {fit:10.3f} {held:12.3f} {nrm:7.2f} {hnrm:10.2f} {mag:7.3f} {ang:8.2f}")
-    print("(µT: RMS per component; |B|: RMS of the magnitude residual; angle: RMS of the residual "
-          "across the predicted field, as a direction error)")
-    print("after the last step, a separate best rotation per window leaves "
-          + ", ".join(f"{windowed_rotation(a, w):.3f} µT ({w / 60:.0f} min)" for w in (5400.0, 600.0)))
+    print(
+        "(µT: RMS per component; |B|: RMS of the magnitude residual; angle: RMS of the residual "
+        "across the predicted field, as a direction error)"
+    )
+    print(
+        "after the last step, a separate best rotation per window leaves "
+        + ", ".join(f"{windowed_rotation(a, w):.3f} µT ({w / 60:.0f} min)" for w in (5400.0, 600.0))
+    )
     print(residual_structure(a))
     mag_fit, mag_held, vec_fit, vec_held = ellipsoid(target)
     print()
@@ -238,13 +245,17 @@ def main(argv=None) -> int:
         source = Path(argv[1])
     if source.is_file():
         (tf, th), (ff, fh) = file_positions(target, source)
-        print(f"bias + general 3x3 against IGRF in LVLH (linear least squares): along the TLE orbit "
-              f"{tf:.3f} µT (held-out {th:.3f}); along the file's own latitude/longitude "
-              f"{ff:.3f} µT ({fh:.3f})")
+        print(
+            f"bias + general 3x3 against IGRF in LVLH (linear least squares): along the TLE orbit "
+            f"{tf:.3f} µT (held-out {th:.3f}); along the file's own latitude/longitude "
+            f"{ff:.3f} µT ({fh:.3f})"
+        )
     print("ellipsoid fit of |B| (bias + symmetric 3x3, attitude-independent):")
     print(f"  magnitude residual RMS   fitted {mag_fit:.3f} µT, held-out {mag_held:.3f} µT")
-    print(f"  vector RMS per component after the best constant rotation onto LVLH: "
-          f"fitted {vec_fit:.3f} µT, held-out {vec_held:.3f} µT")
+    print(
+        f"  vector RMS per component after the best constant rotation onto LVLH: "
+        f"fitted {vec_fit:.3f} µT, held-out {vec_held:.3f} µT"
+    )
     return 0
 
 

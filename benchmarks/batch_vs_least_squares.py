@@ -77,7 +77,7 @@ def make_mission(hours: float, folder: Path) -> Path:
     cfg = nominal_threeaxis("sun_pointing", seed=11, duration_s=hours * 3600.0)
     cfg.sensors = [s for s in cfg.sensors if s.type != "coarse_sun"]
     for s in cfg.sensors:
-        if s.type == "gyro":                  # this copy only: the scenario's default stays
+        if s.type == "gyro":  # this copy only: the scenario's default stays
             s.book = {**s.book, "arw": BENCH_ARW, "rrw": BENCH_RRW}
     return write_mission(cfg, out, truth_path=folder / f"truth-quiet-iru-{hours:g}h.json")
 
@@ -113,31 +113,38 @@ def scipy_residuals(problem, names):
         count[0] += 1
         for j, nm in enumerate(names):
             work[nm] = x_bar[j] + s_bar[j] * z[j]
-        parts = [np.where(b.valid[:, None], b.r / b.sensor.sigma, 0.0).ravel()
-                 for b in iter_blocks(problem, work, jacobian=False)]
-        parts.append(np.asarray(z, dtype=float).copy())         # (x − x̄)/σ̄
+        parts = [
+            np.where(b.valid[:, None], b.r / b.sensor.sigma, 0.0).ravel()
+            for b in iter_blocks(problem, work, jacobian=False)
+        ]
+        parts.append(np.asarray(z, dtype=float).copy())  # (x − x̄)/σ̄
         return np.concatenate(parts)
 
     return fun, x_of, np.zeros(len(names)), count
 
 
-def run(hours: float, folder: Path, skip_scipy: bool, *, repeats: int = 3, scipy_tol: float = 1e-8,
-        scipy_repeats: int = 2) -> dict:
+def run(
+    hours: float, folder: Path, skip_scipy: bool, *, repeats: int = 3, scipy_tol: float = 1e-8, scipy_repeats: int = 2
+) -> dict:
     t0 = time.perf_counter()
     mission = load_mission(make_mission(hours, folder))
     problem = build_problem(mission)
     del mission
     n_meas = sum(s.n * s.y.shape[1] for s in problem.sensors)
     names = list(problem.state.solve_for)
-    print(f"problem: {hours:g} h, sensors {[s.name for s in problem.sensors]}, {n_meas} measurements, "
-          f"{len(names)} solve-for elements (set-up {time.perf_counter() - t0:.1f} s)")
+    print(
+        f"problem: {hours:g} h, sensors {[s.name for s in problem.sensors]}, {n_meas} measurements, "
+        f"{len(names)} solve-for elements (set-up {time.perf_counter() - t0:.1f} s)"
+    )
 
     # compiled kernels: loaded from numba's on-disk cache (compiled on a machine's first run)
     t0 = time.perf_counter()
     normal_equations(problem, problem.state.values(), names, {})
     jit = " (loading or compiling the kernels included)" if COMPILED else ""
-    print(f"engine: {'numba kernels' if COMPILED else 'numpy'}, numpy {np.__version__}, "
-          f"first pass {time.perf_counter() - t0:.2f} s{jit}")
+    print(
+        f"engine: {'numba kernels' if COMPILED else 'numpy'}, numpy {np.__version__}, "
+        f"first pass {time.perf_counter() - t0:.2f} s{jit}"
+    )
 
     opts = BatchOptions(edit_k=None, tol_step_sigma=1e-3)
     res = None
@@ -149,8 +156,7 @@ def run(hours: float, folder: Path, skip_scipy: bool, *, repeats: int = 3, scipy
     t_gcs = best_of(fit, repeats)
     m = sum(r.n * len(r.sigma) for r in res.residuals.values())
     chi2_m = res.chi2 / m
-    print(f"gcs batch: {t_gcs:.2f} s, {res.iterations} iterations, {res.status}; "
-          f"chi2/m = {chi2_m:.4f} (m = {m})")
+    print(f"gcs batch: {t_gcs:.2f} s, {res.iterations} iterations, {res.status}; chi2/m = {chi2_m:.4f} (m = {m})")
     out = {"hours": hours, "measurements": n_meas, "n": len(names), "t_gcs": t_gcs, "chi2_m": chi2_m}
 
     # the default estimator (whole-span least squares with the gyro noise as process
@@ -186,21 +192,24 @@ def run(hours: float, folder: Path, skip_scipy: bool, *, repeats: int = 3, scipy
     H = np.random.default_rng(0).standard_normal((m, len(names)))
     t_roof = best_of(lambda H=H: H.T @ H, 5 * repeats)
     del H
-    print(f"one gcs iteration: {t_iter:.3f} s; bare HᵀWH ({m}×{len(names)}): {t_roof:.3f} s; "
-          f"ratio {t_iter / t_roof:.1f}× the roofline")
+    print(
+        f"one gcs iteration: {t_iter:.3f} s; bare HᵀWH ({m}×{len(names)}): {t_roof:.3f} s; "
+        f"ratio {t_iter / t_roof:.1f}× the roofline"
+    )
     out.update(t_iter=t_iter, t_roof=t_roof, rows=m)
     if skip_scipy:
         return out
 
     # the reference minimum: the batch iterated far past its own stopping rule; both the
     # batch and least_squares are scored by their distance to it, in units of the batch σ
-    ref = batch_fit(problem, BatchOptions(edit_k=None, tol_step_sigma=1e-6, tol_chi2=1e-9,
-                                          max_iterations=50))
+    ref = batch_fit(problem, BatchOptions(edit_k=None, tol_step_sigma=1e-6, tol_chi2=1e-9, max_iterations=50))
     sig = np.sqrt(np.diag(res.P))
     dx_gcs = float(np.max(np.abs(res.x - ref.x) / sig))
     cost_gcs = float(res.cost_history[-1])
-    print(f"reference minimum (batch to 1e-6 σ steps, {ref.iterations} iterations): cost "
-          f"{ref.cost_history[-1]:.4f}; gcs batch cost {cost_gcs:.4f}, max |x − x_ref|/σ = {dx_gcs:.1e}")
+    print(
+        f"reference minimum (batch to 1e-6 σ steps, {ref.iterations} iterations): cost "
+        f"{ref.cost_history[-1]:.4f}; gcs batch cost {cost_gcs:.4f}, max |x − x_ref|/σ = {dx_gcs:.1e}"
+    )
     out.update(dx_gcs=dx_gcs)
     runs = {}
     for method in SCIPY_METHODS:
@@ -209,32 +218,37 @@ def run(hours: float, folder: Path, skip_scipy: bool, *, repeats: int = 3, scipy
         for _ in range(scipy_repeats):
             count[0] = 0
             t0 = time.perf_counter()
-            ls = least_squares(fun, z0, jac="2-point", method=method, ftol=scipy_tol, xtol=scipy_tol,
-                               gtol=scipy_tol)
+            ls = least_squares(fun, z0, jac="2-point", method=method, ftol=scipy_tol, xtol=scipy_tol, gtol=scipy_tol)
             t_ls = min(t_ls, time.perf_counter() - t0)
         x_ls = x_of(ls.x)
         dx = float(np.max(np.abs(x_ls - res.x) / sig))
         dx_ref = float(np.max(np.abs(x_ls - ref.x) / sig))
         cost_ls = float(ls.fun @ ls.fun)
         same = dx < SAME_ANSWER_SIGMA
-        print(f"scipy least_squares ({method}, 2-point FD Jacobian, tol {scipy_tol:g}): {t_ls:.1f} s, "
-              f"{count[0]} residual evaluations ({ls.njev} Jacobians); cost {cost_ls:.4f}; "
-              f"max |Δx|/σ = {dx:.1e} against gcs, {dx_ref:.1e} against the reference"
-              f"{'' if same else ' — NOT the same answer'}")
-        runs[method] = dict(t_ls=t_ls, dx_sigma=dx, dx_ref=dx_ref, cost_ls=cost_ls, nfev=count[0],
-                            same=same)
+        print(
+            f"scipy least_squares ({method}, 2-point FD Jacobian, tol {scipy_tol:g}): {t_ls:.1f} s, "
+            f"{count[0]} residual evaluations ({ls.njev} Jacobians); cost {cost_ls:.4f}; "
+            f"max |Δx|/σ = {dx:.1e} against gcs, {dx_ref:.1e} against the reference"
+            f"{'' if same else ' — NOT the same answer'}"
+        )
+        runs[method] = dict(t_ls=t_ls, dx_sigma=dx, dx_ref=dx_ref, cost_ls=cost_ls, nfev=count[0], same=same)
     out["scipy"] = runs
     same = {k: v for k, v in runs.items() if v["same"]}
     if same:
         best = min(same, key=lambda k: same[k]["t_ls"])
         ratio = same[best]["t_ls"] / t_gcs
-        print(f"RATIO gcs batch is {ratio:.0f}× faster than least_squares ({best}, the faster "
-              f"scipy method on the same answer)")
-        print(f"RATIO gcs default (whole_span) without process noise is {same[best]['t_ls'] / t_ws0:.0f}× "
-              f"faster than least_squares ({best}; acceptance ≥ 30); with the book's gyro noise "
-              f"{same[best]['t_ls'] / t_ws:.0f}×")
-        out.update(ratio=ratio, scipy_method=best, ratio_ws0=same[best]["t_ls"] / t_ws0,
-                   ratio_ws=same[best]["t_ls"] / t_ws)
+        print(
+            f"RATIO gcs batch is {ratio:.0f}× faster than least_squares ({best}, the faster "
+            f"scipy method on the same answer)"
+        )
+        print(
+            f"RATIO gcs default (whole_span) without process noise is {same[best]['t_ls'] / t_ws0:.0f}× "
+            f"faster than least_squares ({best}; acceptance ≥ 30); with the book's gyro noise "
+            f"{same[best]['t_ls'] / t_ws:.0f}×"
+        )
+        out.update(
+            ratio=ratio, scipy_method=best, ratio_ws0=same[best]["t_ls"] / t_ws0, ratio_ws=same[best]["t_ls"] / t_ws
+        )
     return out
 
 
@@ -244,8 +258,7 @@ def main() -> None:
     ap.add_argument("--skip-scipy", action="store_true")
     ap.add_argument("--cache", type=Path, default=None, help="keep the simulated mission here")
     ap.add_argument("--repeats", type=int, default=3, help="timings are the best of this many")
-    ap.add_argument("--scipy-tol", type=float, default=1e-8,
-                    help="ftol = xtol = gtol of least_squares (its default)")
+    ap.add_argument("--scipy-tol", type=float, default=1e-8, help="ftol = xtol = gtol of least_squares (its default)")
     ap.add_argument("--scipy-repeats", type=int, default=2, help="least_squares runs per method (best kept)")
     args = ap.parse_args()
     kw = {"repeats": args.repeats, "scipy_tol": args.scipy_tol, "scipy_repeats": args.scipy_repeats}

@@ -40,10 +40,19 @@ from gcs_core.diagnosis.correlation import sigma_scale
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis
 
-TRIALS = ("02_undisturbed_slow_rotation_B", "09_undisturbed_fast_rotation_with_breaks_B",
-          "36_disturbed_attached_magnet_5cm")
-EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset",
-           "MAG.field_gradient")
+TRIALS = (
+    "02_undisturbed_slow_rotation_B",
+    "09_undisturbed_fast_rotation_with_breaks_B",
+    "36_disturbed_attached_magnet_5cm",
+)
+EFFECTS = (
+    "MAG.scale",
+    "MAG.nonorthogonality",
+    "MAG.alignment",
+    "MAG.time_offset",
+    "OPT.time_offset",
+    "MAG.field_gradient",
+)
 #: the field's gradient about the file's mean position (aux pos_x/y/z from the optical position)
 GRADIENT = tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
 #: a MEMS gyro's bias wanders by ~1e-4 rad/s over a minute (its Allan bias instability):
@@ -52,15 +61,23 @@ BIAS_DRIFT = {f"GYR.bias_rate_{a}": ElementConfig(role="solve-for", sigma=1e-5) 
 #: a-priori σ of a MEMS unit (the flight defaults, 1e-5 rad/s of gyro bias and 1e-3 of its
 #: matrix, are a navigation-grade IRU's): the gyro bias and matrix free, the magnetometer's
 #: non-orthogonality a few percent (as in tests/statistical/test_ground_mission.py)
-MEMS_PRIORS = {**{f"GYR.bias_{a}": ElementConfig(sigma=1e-1) for a in "xyz"},
-               **{f"GYR.G_{i}{j}": ElementConfig(sigma=0.05) for i in (1, 2, 3) for j in (1, 2, 3)},
-               **{f"MAG.nonorth_{p}": ElementConfig(sigma=0.1) for p in ("xy", "xz", "yz")},
-               **BIAS_DRIFT}
+MEMS_PRIORS = {
+    **{f"GYR.bias_{a}": ElementConfig(sigma=1e-1) for a in "xyz"},
+    **{f"GYR.G_{i}{j}": ElementConfig(sigma=0.05) for i in (1, 2, 3) for j in (1, 2, 3)},
+    **{f"MAG.nonorth_{p}": ElementConfig(sigma=0.1) for p in ("xy", "xz", "yz")},
+    **BIAS_DRIFT,
+}
 #: the sandwich's window [s]: longer than the hand motions' time scale (about a second)
 BLOCK_S = 4.0
-SHOWN = tuple(f"MAG.bias_{a}" for a in "xyz") + tuple(f"MAG.scale_{a}" for a in "xyz") + \
-    ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz") + tuple(f"MAG.align_{k}" for k in (1, 2, 3)) + \
-    tuple(f"GYR.bias_{a}" for a in "xyz") + ("MAG.time_offset", "OPT.time_offset") + GRADIENT
+SHOWN = (
+    tuple(f"MAG.bias_{a}" for a in "xyz")
+    + tuple(f"MAG.scale_{a}" for a in "xyz")
+    + ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz")
+    + tuple(f"MAG.align_{k}" for k in (1, 2, 3))
+    + tuple(f"GYR.bias_{a}" for a in "xyz")
+    + ("MAG.time_offset", "OPT.time_offset")
+    + GRADIENT
+)
 
 
 def fit(source: Path, work: Path, label: str, span=None, method="whole_span", effects=EFFECTS):
@@ -68,8 +85,11 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
     convert("broad", source, out, span=span)
     mission = load_mission(out)
     cfg = default_config(out)
-    cfg = cfg.with_changes(method=method, physics={"field_model": "constant"}, state={
-        "effects": tuple(effects), "elements": {**cfg.state.elements, **MEMS_PRIORS}})
+    cfg = cfg.with_changes(
+        method=method,
+        physics={"field_model": "constant"},
+        state={"effects": tuple(effects), "elements": {**cfg.state.elements, **MEMS_PRIORS}},
+    )
     a = Analysis(cfg, mission=mission)
     t0 = time.perf_counter()
     res = a.fit(holdout=False)
@@ -77,11 +97,16 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
     rms = {s: round(float(v), 3) for s, v in a.rms().items()}
     sc = sigma_scale(a.problem, res, block_s=BLOCK_S).scale
     worst = max((n for n in sc if not n.startswith("GYR.")), key=lambda n: sc[n])
-    print(f"  {label}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}), normalized RMS {rms}, "
-          f"sandwich σ scale ({BLOCK_S:g} s windows) {min(sc.values()):.2f} to {sc[worst]:.2f} ({worst})",
-          flush=True)
-    return {n: (vals[n], res.sigma.get(n, np.nan), 1.0 if n.startswith("GYR.") else max(1.0, sc.get(n, 1.0)))
-            for n in SHOWN if n in vals}
+    print(
+        f"  {label}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}), normalized RMS {rms}, "
+        f"sandwich σ scale ({BLOCK_S:g} s windows) {min(sc.values()):.2f} to {sc[worst]:.2f} ({worst})",
+        flush=True,
+    )
+    return {
+        n: (vals[n], res.sigma.get(n, np.nan), 1.0 if n.startswith("GYR.") else max(1.0, sc.get(n, 1.0)))
+        for n in SHOWN
+        if n in vals
+    }
 
 
 def table(title: str, a: dict, b: dict) -> int:
@@ -96,8 +121,10 @@ def table(title: str, a: dict, b: dict) -> int:
         zk = (xa - xb) / np.hypot(ka * sa, kb * sb)
         worst, worst_k = max(worst, abs(z)), max(worst_k, abs(zk))
         print(f"{n:<18}{xa:>14.6g}{sa:>11.3g}{ka:>6.2f}{xb:>14.6g}{sb:>11.3g}{kb:>6.2f}{z:>8.2f}{zk:>8.2f}")
-    print(f"worst |z| = {worst:.2f} with the fit's σ; {worst_k:.2f} with the sandwich's "
-          f"({'within' if worst_k <= 3 else 'beyond'} 3σ)")
+    print(
+        f"worst |z| = {worst:.2f} with the fit's σ; {worst_k:.2f} with the sandwich's "
+        f"({'within' if worst_k <= 3 else 'beyond'} 3σ)"
+    )
     return int(worst_k > 3)
 
 
@@ -114,6 +141,7 @@ def main() -> int:
             src = root / f"{trial}.hdf5"
             print(f"{trial}:", flush=True)
             import h5py
+
             with h5py.File(src) as f:
                 T = f["imu_gyr"].shape[0] / float(f.attrs["sampling_rate"])
             full[trial] = fit(src, work, trial, method=method, effects=effects)
@@ -122,8 +150,7 @@ def main() -> int:
             bad += table(f"{trial}: first half (A) against second half (B)", h1, h2)
         if all(t in full for t in TRIALS):
             bad += table("trial 02 (A) against trial 09 (B)", full[TRIALS[0]], full[TRIALS[1]])
-            bad += table("trial 36, magnet attached (A), against trial 02 (B)", full[TRIALS[2]],
-                         full[TRIALS[0]])
+            bad += table("trial 36, magnet attached (A), against trial 02 (B)", full[TRIALS[2]], full[TRIALS[0]])
     print(f"\n{bad} comparison(s) beyond 3σ")
     return 0
 

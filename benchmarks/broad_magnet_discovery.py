@@ -28,21 +28,37 @@ from gcs_core.session import Analysis
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from broad_consistency import MEMS_PRIORS
 
-CAL = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset",
-       "MAG.field_gradient")
+CAL = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset", "MAG.field_gradient")
 #: the room's field gradient [nT/m] (the same in every trial; B_0 is each trial's own, at its
 #: mean position)
 GRADIENT = tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
-MAG_ELEMENTS = tuple(f"MAG.{p}" for p in ("bias_x", "bias_y", "bias_z", "scale_x", "scale_y", "scale_z",
-                                          "nonorth_xy", "nonorth_xz", "nonorth_yz", "align_1", "align_2",
-                                          "align_3", "time_offset"))
+MAG_ELEMENTS = tuple(
+    f"MAG.{p}"
+    for p in (
+        "bias_x",
+        "bias_y",
+        "bias_z",
+        "scale_x",
+        "scale_y",
+        "scale_z",
+        "nonorth_xy",
+        "nonorth_xz",
+        "nonorth_yz",
+        "align_1",
+        "align_2",
+        "align_3",
+        "time_offset",
+    )
+)
 
 
 def analysis(src: Path, out: Path, *, effects=(), exclude=(), elements=None) -> Analysis:
     convert("broad", src, out)
     cfg = default_config(out)
-    cfg = cfg.with_changes(physics={"field_model": "constant"}, state={
-        "effects": tuple(effects), "exclude": tuple(exclude), "elements": {**MEMS_PRIORS, **(elements or {})}})
+    cfg = cfg.with_changes(
+        physics={"field_model": "constant"},
+        state={"effects": tuple(effects), "exclude": tuple(exclude), "elements": {**MEMS_PRIORS, **(elements or {})}},
+    )
     return Analysis(cfg, mission=load_mission(out))
 
 
@@ -66,18 +82,27 @@ def main() -> int:
             print(f"  {n:<18}{v[n]:>14.6g} ± {res.sigma[n]:.3g}", flush=True)
         book = {n: ElementConfig(value=float(v[n])) for n in MAG_ELEMENTS + GRADIENT}
         for trial in ("36_disturbed_attached_magnet_5cm", "09_undisturbed_fast_rotation_with_breaks_B"):
-            b = analysis(root / f"{trial}.hdf5", tmp / trial, effects=("OPT.time_offset",),
-                         exclude=("MAG.bias",), elements=book)
+            b = analysis(
+                root / f"{trial}.hdf5", tmp / trial, effects=("OPT.time_offset",), exclude=("MAG.bias",), elements=book
+            )
             first = b.first_step()
-            print(f"\n{trial}: magnetometer held at trial 02's calibration; first fit normalized "
-                  f"RMS {_r(first.rms_after)}, held-out {_r(first.holdout_after)}")
+            print(
+                f"\n{trial}: magnetometer held at trial 02's calibration; first fit normalized "
+                f"RMS {_r(first.rms_after)}, held-out {_r(first.holdout_after)}"
+            )
             top = b.rank()[:3]
-            print("  ranked: " + "; ".join(f"{c.id} Δχ² {c.delta_chi2:.4g}"
-                                           + ("" if c.identifiable else " (not identifiable)") for c in top),
-                  flush=True)
+            print(
+                "  ranked: "
+                + "; ".join(
+                    f"{c.id} Δχ² {c.delta_chi2:.4g}" + ("" if c.identifiable else " (not identifiable)") for c in top
+                ),
+                flush=True,
+            )
             for step in b.discover(max_steps=2)[1:]:
-                print(f"  {step.action} {step.effect}: Δχ² {step.delta_chi2:.4g}, normalized RMS "
-                      f"{_r(step.rms_after)}, held-out {_r(step.holdout_after)}")
+                print(
+                    f"  {step.action} {step.effect}: Δχ² {step.delta_chi2:.4g}, normalized RMS "
+                    f"{_r(step.rms_after)}, held-out {_r(step.holdout_after)}"
+                )
                 if step.effect == "MAG.bias":
                     print("    estimates: " + ", ".join(f"{n} {x:.5g}" for n, x in step.estimates.items()))
             print(f"  stopped: {b.stop_reason}")

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # small matrices: threads only contend
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only contend
 
 import argparse
 import json
@@ -81,7 +81,7 @@ def failure_bound(failures: int, n: int, level: float = 0.95) -> float:
 
 
 def _job(job):
-    logging.getLogger("gcs_core").setLevel(logging.ERROR)   # the per-run method warnings
+    logging.getLogger("gcs_core").setLevel(logging.ERROR)  # the per-run method warnings
     mode, hours, run, seed, method = job
     with tempfile.TemporaryDirectory(prefix="gcs-fa-") as d:
         rec = hc.run_discovery(hc.nominal(mode, seed, hours), Path(d), method)
@@ -133,8 +133,11 @@ def summarize(recs: list[dict]) -> dict:
 
 def print_table(groups: dict, method: str) -> bool:
     print(f"\nmethod {method}: share of seeds passing (one-sided 95 % bound on the failure rate)")
-    print(f"{'mode':9s} {'span':>5s} {'seeds':>5s} {'no effect':>17s} {'RMS ≤ 1.05':>17s} "
-          f"{'(ideal)':>7s} {'truth 3σ':>17s} {'(ideal)':>7s} {'consistent':>10s} {'worst RMS':>9s} {'worst |z|':>24s} {'s/run':>6s}")
+    print(
+        f"{'mode':9s} {'span':>5s} {'seeds':>5s} {'no effect':>17s} {'RMS ≤ 1.05':>17s} "
+        f"{'(ideal)':>7s} {'truth 3σ':>17s} {'(ideal)':>7s} {'consistent':>10s} {'worst RMS':>9s} "
+        f"{'worst |z|':>24s} {'s/run':>6s}"
+    )
     ok_all = True
     for (mode, hours), recs in sorted(groups.items(), key=lambda kv: (kv[0][1], kv[0][0])):
         s = summarize(recs)
@@ -144,14 +147,19 @@ def print_table(groups: dict, method: str) -> bool:
             cells.append(f"{100 * share:5.1f}% (<{100 * bound:4.1f}%)")
             ok_all &= share >= required_share
         z, zname = s["worst_z"]
-        print(f"{MODE_SHORT[mode]:9s} {hours:4g}h {s['n']:5d} {cells[0]:>17s} {cells[1]:>17s} "
-              f"{100 * s['rms_expected']:6.1f}% {cells[2]:>17s} {100 * s['truth_expected']:6.1f}% {100 * s['consistent']:9.1f}% {s['worst_rms']:9.3f} {z:6.2f} "
-              f"{zname:>17s} {s['seconds']:6.1f}")
+        print(
+            f"{MODE_SHORT[mode]:9s} {hours:4g}h {s['n']:5d} {cells[0]:>17s} {cells[1]:>17s} "
+            f"{100 * s['rms_expected']:6.1f}% {cells[2]:>17s} {100 * s['truth_expected']:6.1f}% "
+            f"{100 * s['consistent']:9.1f}% {s['worst_rms']:9.3f} {z:6.2f} "
+            f"{zname:>17s} {s['seconds']:6.1f}"
+        )
         if s["alarms"]:
             print("    added: " + ", ".join(f"{k} ×{v}" for k, v in sorted(s["alarms"].items())))
         if s["errors"]:
-            print(f"    {s['errors']} run(s) failed: " + "; ".join(
-                r["status"] for r in recs if r.get("status") != "ok")[:300])
+            print(
+                f"    {s['errors']} run(s) failed: "
+                + "; ".join(r["status"] for r in recs if r.get("status") != "ok")[:300]
+            )
     return ok_all
 
 
@@ -175,10 +183,15 @@ def main() -> int:
             for run in range(n):
                 jobs.append((mode, float(hours), run, seed_of(args.entropy, mode, hours, run), args.method))
     # round-robin over the modes (and spans), so a sweep cut short still covers each
-    todo = sorted((j for j in jobs if (j[0], j[1], j[3], j[4]) not in done),
-                  key=lambda j: (j[1] >= 24, j[2], j[1], hc.MODES.index(j[0])))
-    print(f"{len(jobs)} runs ({len(jobs) - len(todo)} from {args.records}), method {args.method}, "
-          f"{args.processes} process(es)", flush=True)
+    todo = sorted(
+        (j for j in jobs if (j[0], j[1], j[3], j[4]) not in done),
+        key=lambda j: (j[1] >= 24, j[2], j[1], hc.MODES.index(j[0])),
+    )
+    print(
+        f"{len(jobs)} runs ({len(jobs) - len(todo)} from {args.records}), method {args.method}, "
+        f"{args.processes} process(es)",
+        flush=True,
+    )
     out = dict(done)
     sink = args.records.open("a") if args.records else None
     try:
@@ -189,8 +202,11 @@ def main() -> int:
                 if sink:
                     sink.write(json.dumps(rec) + "\n")
                     sink.flush()
-                print(f"  {k + 1}/{len(todo)} {rec['mode']} {rec['hours']:g} h seed {rec['seed']}: "
-                      f"added {rec['added'] or 'nothing'}, {rec['discover_s']:.0f} s", flush=True)
+                print(
+                    f"  {k + 1}/{len(todo)} {rec['mode']} {rec['hours']:g} h seed {rec['seed']}: "
+                    f"added {rec['added'] or 'nothing'}, {rec['discover_s']:.0f} s",
+                    flush=True,
+                )
     finally:
         if sink:
             sink.close()
@@ -199,8 +215,10 @@ def main() -> int:
         rec = out[(j[0], j[1], j[3], j[4])]
         groups.setdefault((j[0], j[1]), []).append(rec)
     ok = print_table(groups, args.method)
-    print(f"\n{time.perf_counter() - t0:.0f} s; every check at ≥ {100 * required_share:g} % of seeds: "
-          f"{'yes' if ok else 'NO'}")
+    print(
+        f"\n{time.perf_counter() - t0:.0f} s; every check at ≥ {100 * required_share:g} % of seeds: "
+        f"{'yes' if ok else 'NO'}"
+    )
     return 0 if ok else 1
 
 

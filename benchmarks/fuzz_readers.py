@@ -30,16 +30,18 @@ from gcs_core.io.mission import read_mission_spec
 
 EXAMPLE = REPO.parent / "shared" / "examples" / "sunpoint-nominal"
 
-CSV = (b"# simulated magnetometer\n"
-       b"t,bx,by,bz,temp\n"
-       b"0.000,-27.329,1243.023,29400.574,20\n"
-       b"1.000,20.965,1157.964,29340.706,20.1\n"
-       b"2.000,-46.982,1207.348,29357.913,20.2\n"
-       b"2.000,-46.982,1207.348,29357.913,20.2\n"
-       b"3.5,,1140.691,29339.207,20.3\n"
-       b"4.0,-1.1e2,1.14e3,2.9339207e4,nan\n")
+CSV = (
+    b"# simulated magnetometer\n"
+    b"t,bx,by,bz,temp\n"
+    b"0.000,-27.329,1243.023,29400.574,20\n"
+    b"1.000,20.965,1157.964,29340.706,20.1\n"
+    b"2.000,-46.982,1207.348,29357.913,20.2\n"
+    b"2.000,-46.982,1207.348,29357.913,20.2\n"
+    b"3.5,,1140.691,29339.207,20.3\n"
+    b"4.0,-1.1e2,1.14e3,2.9339207e4,nan\n"
+)
 
-TOML = b'''# a small mission
+TOML = b"""# a small mission
 [mission]
 name = "fuzz"
 epoch = "2024-03-20T06:00:00Z"
@@ -87,33 +89,97 @@ fov_deg = 60.0
 noise = 0.577
 scale = [4.36e-03, 4.36e-03]
 bias = [0.0, 0.0]
-'''
+"""
 
-TOKENS = [b"", b",", b",,", b"nan", b"NaN", b"inf", b"-inf", b"1e400", b"#", b"\n", b"\r\n",
-          b"\x00", b"\xff\xfe", "\ufeff".encode(), b"t", b"1", b"-0", b"1e-320", b"abc", b" ",
-          b'"', b"0x10", b"1_0", "\u0661".encode(), b"9" * 400, b"-1e308", b"[", b"]", b"=",
-          b"[[sensor]]", b"[mission]", b"'", b"\\", b"{", b"}", b"1979-05-27T07:32:00Z"]
-VALUES = [b'""', b'"x"', b"-1", b"0", b"1e999", b"inf", b"nan", b"-inf", b"true", b"[]",
-          b"[1, 2]", b"[1, 2, 3]", b"[1, 2, 3, 4]", b"[[1]]", b"{a = 1}", b"1979-05-27T07:32:00Z",
-          b"1979-05-27", b"07:32:00", b'"/"', b'"telemetry"', b'"horizon"', b'"spinning"',
-          b'"PFS"', b'"HS"', b'"TAM1"', b'"9999-12-31T23:59:59.9999999-23:59"', b"[0.0, 1e300]",
-          b'"0001-01-01T00:00:00+23:59"', b"'''x'''", b'"a\\u0000b"', b'"sun_pointing"',
-          b'"../mission.toml"', b'"' + b"x" * 300 + b'"']
+TOKENS = [
+    b"",
+    b",",
+    b",,",
+    b"nan",
+    b"NaN",
+    b"inf",
+    b"-inf",
+    b"1e400",
+    b"#",
+    b"\n",
+    b"\r\n",
+    b"\x00",
+    b"\xff\xfe",
+    "\ufeff".encode(),
+    b"t",
+    b"1",
+    b"-0",
+    b"1e-320",
+    b"abc",
+    b" ",
+    b'"',
+    b"0x10",
+    b"1_0",
+    "\u0661".encode(),
+    b"9" * 400,
+    b"-1e308",
+    b"[",
+    b"]",
+    b"=",
+    b"[[sensor]]",
+    b"[mission]",
+    b"'",
+    b"\\",
+    b"{",
+    b"}",
+    b"1979-05-27T07:32:00Z",
+]
+VALUES = [
+    b'""',
+    b'"x"',
+    b"-1",
+    b"0",
+    b"1e999",
+    b"inf",
+    b"nan",
+    b"-inf",
+    b"true",
+    b"[]",
+    b"[1, 2]",
+    b"[1, 2, 3]",
+    b"[1, 2, 3, 4]",
+    b"[[1]]",
+    b"{a = 1}",
+    b"1979-05-27T07:32:00Z",
+    b"1979-05-27",
+    b"07:32:00",
+    b'"/"',
+    b'"telemetry"',
+    b'"horizon"',
+    b'"spinning"',
+    b'"PFS"',
+    b'"HS"',
+    b'"TAM1"',
+    b'"9999-12-31T23:59:59.9999999-23:59"',
+    b"[0.0, 1e300]",
+    b'"0001-01-01T00:00:00+23:59"',
+    b"'''x'''",
+    b'"a\\u0000b"',
+    b'"sun_pointing"',
+    b'"../mission.toml"',
+    b'"' + b"x" * 300 + b'"',
+]
 
 
 def mutate(rng: random.Random, data: bytes, n_ops: int) -> bytes:
     for _ in range(n_ops):
-        kind = rng.choice(("insert", "delete", "flip", "dupline", "swaplines", "delline",
-                           "setvalue", "setvalue", "truncate"))
+        kind = rng.choice(
+            ("insert", "delete", "flip", "dupline", "swaplines", "delline", "setvalue", "setvalue", "truncate")
+        )
         p = rng.randint(0, len(data))
         if kind == "insert":
             tok = rng.choice(TOKENS) if rng.random() < 0.8 else rng.randbytes(rng.randint(1, 4))
             data = data[:p] + tok + data[p:]
         elif kind == "delete":
-            data = data[:p] + data[p + rng.randint(1, 40):]
+            data = data[:p] + data[p + rng.randint(1, 40) :]
         elif kind == "flip" and data:
             p = min(p, len(data) - 1)
-            data = data[:p] + bytes([rng.randrange(256)]) + data[p + 1:]
+            data = data[:p] + bytes([rng.randrange(256)]) + data[p + 1 :]
         elif kind == "truncate":
             data = data[:p]
         else:
@@ -141,9 +207,9 @@ def mutate(rng: random.Random, data: bytes, n_ops: int) -> bytes:
 def make_spinner(root: Path) -> Path:
     d = root / "spinner"
     (d / "telemetry").mkdir(parents=True)
-    (d / "ephemeris.csv").write_text("t,rx,ry,rz,vx,vy,vz,sx,sy,sz\n"
-                                     "0,7000,0,0,0,7.5,0,1.496e8,0,0\n"
-                                     "60,7000,450,0,-0.5,7.5,0,1.496e8,1,0\n")
+    (d / "ephemeris.csv").write_text(
+        "t,rx,ry,rz,vx,vy,vz,sx,sy,sz\n0,7000,0,0,0,7.5,0,1.496e8,0,0\n60,7000,450,0,-0.5,7.5,0,1.496e8,1,0\n"
+    )
     (d / "onboard.csv").write_text("t,q1,q2,q3,q4\n0,0,0,0,1\n")
     (d / "telemetry/TAM1.csv").write_text("t,bx,by,bz\n0,1,2,3\n")
     (d / "telemetry/PFS.csv").write_text("t,beta\n1,1.2\n")
@@ -189,8 +255,15 @@ def run(cases: int, seed: int) -> int:
                     (spinner / "mission.toml").write_bytes(mutate(rng, TOML, n_ops))
                     read_mission_spec(spinner)
                 else:
-                    victim = rng.choice(["telemetry/TAM1.csv", "telemetry/FHST1.csv",
-                                         "ephemeris.csv", "onboard_attitude.csv", "aux.csv"])
+                    victim = rng.choice(
+                        [
+                            "telemetry/TAM1.csv",
+                            "telemetry/FHST1.csv",
+                            "ephemeris.csv",
+                            "onboard_attitude.csv",
+                            "aux.csv",
+                        ]
+                    )
                     original = (EXAMPLE / victim).read_bytes()
                     (example / victim).write_bytes(mutate(rng, original, n_ops))
                     try:
@@ -212,10 +285,14 @@ def run(cases: int, seed: int) -> int:
     finally:
         shutil.rmtree(work, ignore_errors=True)
         logging.disable(previous)
-    print(f"fuzz_readers: {cases} cases (seed {seed}) in {elapsed:.1f} s: "
-          + ", ".join(f"{k} {v}" for k, v in sorted(by_target.items())))
-    print(f"  accepted {counts['accepted']}, refused with InputError {counts['refused']}, "
-          f"unhandled exceptions {counts['unhandled']}")
+    print(
+        f"fuzz_readers: {cases} cases (seed {seed}) in {elapsed:.1f} s: "
+        + ", ".join(f"{k} {v}" for k, v in sorted(by_target.items()))
+    )
+    print(
+        f"  accepted {counts['accepted']}, refused with InputError {counts['refused']}, "
+        f"unhandled exceptions {counts['unhandled']}"
+    )
     for text in unhandled[:5]:
         print(text)
     return counts["unhandled"]

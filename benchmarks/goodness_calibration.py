@@ -68,18 +68,24 @@ def main() -> int:
             key = f"{span} {'all' if t.label == 'all sensors' else t.label}"
             pv.setdefault(key, []).append(t.p_value)
         print(f"  {k + 1}/{args.runs}: χ²/dof {g.fit.reduced:.4f}, p {g.fit.p_value:.3f}", flush=True)
-    print(f"\n{args.runs} runs, {args.mode}, {args.hours:g} h, method {args.method}, "
-          f"gyro noise {'on' if args.gyro_noise else 'off'}")
+    print(
+        f"\n{args.runs} runs, {args.mode}, {args.hours:g} h, method {args.method}, "
+        f"gyro noise {'on' if args.gyro_noise else 'off'}"
+    )
     print(f"{'test':22s} {'n':>4s} {'KS p':>7s} {'p<0.05':>7s} {'p<0.01':>7s} {'mean p':>7s}")
     allp = []
     for key, v in sorted(pv.items()):
         v = np.asarray(v)
         allp += list(v)
-        print(f"{key:22s} {v.size:4d} {stats.kstest(v, 'uniform').pvalue:7.3f} {np.mean(v < 0.05):7.3f} "
-              f"{np.mean(v < 0.01):7.3f} {np.mean(v):7.3f}")
+        print(
+            f"{key:22s} {v.size:4d} {stats.kstest(v, 'uniform').pvalue:7.3f} {np.mean(v < 0.05):7.3f} "
+            f"{np.mean(v < 0.01):7.3f} {np.mean(v):7.3f}"
+        )
     allp = np.asarray(allp)
-    print(f"{'every test':22s} {allp.size:4d} {'':>7s} {np.mean(allp < 0.05):7.3f} {np.mean(allp < 0.01):7.3f} "
-          f"{np.mean(allp):7.3f}")
+    print(
+        f"{'every test':22s} {allp.size:4d} {'':>7s} {np.mean(allp < 0.05):7.3f} {np.mean(allp < 0.01):7.3f} "
+        f"{np.mean(allp):7.3f}"
+    )
     print(f"verdict 'model inadequate' on {inadequate} of {args.runs} fits (expected ≈ 0.1 %)")
     print(f"{time.perf_counter() - t0:.0f} s")
     return 0

@@ -56,7 +56,7 @@ def seed_of(entropy: int, case: str, mode: str, hours: float, run: int) -> int:
 
 
 def _job(job):
-    logging.getLogger("gcs_core").setLevel(logging.ERROR)   # the per-run method warnings
+    logging.getLogger("gcs_core").setLevel(logging.ERROR)  # the per-run method warnings
     case_id, mode, hours, seed, method = job
     h = hc.HIDDEN_BY_ID[case_id]
     with tempfile.TemporaryDirectory(prefix="gcs-he-") as d:
@@ -83,8 +83,13 @@ def main() -> int:
     args = ap.parse_args()
     t0 = time.perf_counter()
     done = {(k[0], k[1], k[2], k[3]): v for k, v in _load(args.records).items()}
-    jobs = [(c, m, float(hr), seed_of(args.entropy, c, m, hr, i), args.method)
-            for hr in args.spans for c in args.cases for m in args.modes for i in range(args.seeds)]
+    jobs = [
+        (c, m, float(hr), seed_of(args.entropy, c, m, hr, i), args.method)
+        for hr in args.spans
+        for c in args.cases
+        for m in args.modes
+        for i in range(args.seeds)
+    ]
     todo = [j for j in jobs if (j[1], j[2], j[3], j[4]) not in done]
     print(f"{len(jobs)} runs ({len(jobs) - len(todo)} from {args.records}), method {args.method}", flush=True)
     out = dict(done)
@@ -96,14 +101,19 @@ def main() -> int:
                 if sink:
                     sink.write(json.dumps(rec) + "\n")
                     sink.flush()
-                print(f"  {k + 1}/{len(todo)} {rec['case']} {rec['hours']:g} h seed {rec['seed']}: added "
-                      f"{rec['added'] or 'nothing'}, {rec['discover_s']:.0f} s", flush=True)
+                print(
+                    f"  {k + 1}/{len(todo)} {rec['case']} {rec['hours']:g} h seed {rec['seed']}: added "
+                    f"{rec['added'] or 'nothing'}, {rec['discover_s']:.0f} s",
+                    flush=True,
+                )
     finally:
         if sink:
             sink.close()
     print(f"\nmethod {args.method}: runs passing each check (of seeds); worst numbers over the seeds")
-    print(f"{'case':26s} {'span':>5s} {'added':>6s} {'RMS':>5s} {'no div.':>7s} {'hidden 3σ':>9s} "
-          f"{'truth 3σ':>8s} {'consistent':>10s} {'worst RMS':>9s} {'peak RMS':>9s} {'worst hidden z':>22s}  added")
+    print(
+        f"{'case':26s} {'span':>5s} {'added':>6s} {'RMS':>5s} {'no div.':>7s} {'hidden 3σ':>9s} "
+        f"{'truth 3σ':>8s} {'consistent':>10s} {'worst RMS':>9s} {'peak RMS':>9s} {'worst hidden z':>22s}  added"
+    )
     ok_all = True
     for hr in args.spans:
         for c in args.cases:
@@ -119,10 +129,12 @@ def main() -> int:
             zk, zv = hc.worst({k: v for k, v in zh.items() if np.isfinite(v)}) if zh else ("-", float("nan"))
             cons = sum(bool(r.get("adequate")) for r in recs)
             added = sorted({"+".join(r["added"]) or "nothing" for r in recs})
-            print(f"{c:26s} {hr:4g}h {counts['added']:4d}/{n} {counts['rms']:3d}/{n} {counts['no_divergence']:5d}/{n} "
-                  f"{counts['hidden']:7d}/{n} {counts['truth']:6d}/{n} {cons:8d}/{n} "
-                  f"{max(rms) if rms else float('nan'):9.3f} {max(peak) if peak else float('nan'):9.2f} "
-                  f"{zv:+6.2f} {zk:>15s}  {', '.join(added)}")
+            print(
+                f"{c:26s} {hr:4g}h {counts['added']:4d}/{n} {counts['rms']:3d}/{n} {counts['no_divergence']:5d}/{n} "
+                f"{counts['hidden']:7d}/{n} {counts['truth']:6d}/{n} {cons:8d}/{n} "
+                f"{max(rms) if rms else float('nan'):9.3f} {max(peak) if peak else float('nan'):9.2f} "
+                f"{zv:+6.2f} {zk:>15s}  {', '.join(added)}"
+            )
             errs = [r["status"] for r in recs if r.get("status") != "ok"]
             if errs:
                 print("    failed: " + "; ".join(errs)[:300])

@@ -55,32 +55,31 @@ def make_problem(n_frames: int, n_states: int = 15, seed: int = 7) -> dict:
     knots = np.arange(n_frames + 1.0)
     dt = np.diff(knots)
     t = knots[1:]
-    omega = np.column_stack([1e-3 * np.sin(2e-3 * t), 5e-4 * np.cos(1e-3 * t),
-                             np.full(n_frames, 1e-3)])
-    Wg = np.zeros((n_frames, 3, 6))                       # ∂ω/∂(b, scale) = (−I, −diag ω)
+    omega = np.column_stack([1e-3 * np.sin(2e-3 * t), 5e-4 * np.cos(1e-3 * t), np.full(n_frames, 1e-3)])
+    Wg = np.zeros((n_frames, 3, 6))  # ∂ω/∂(b, scale) = (−I, −diag ω)
     Wg[:, :, :3] = -np.eye(3)
     Wg[:, range(3), range(3, 6)] = -omega
     seg = GyroSegment(knots, omega, Wg, np.eye(3), NOISE, np.eye(3), -np.eye(3), range(3))
-    C = seg.C                                             # nominal attitude at the knots
+    C = seg.C  # nominal attitude at the knots
     H = np.zeros((n_frames, m, n))
     H[:, :, :3] = rng.normal(size=(n_frames, m, 3))
     H[:, :, 9:] = rng.normal(size=(n_frames, m, n - 9)) * 0.3
     R = np.array([1e-3, 2e-3, 1e-3]) ** 2
     F = np.broadcast_to(np.eye(n), (n_frames, n, n)).copy()
-    F[:, :3, :3] = C[1:] @ np.swapaxes(C[:-1], 1, 2)       # Φ_θθ = C_k C_{k−1}ᵀ
-    F[:, :3, 3:9] = Wg * dt[:, None, None]                 # Φ_θp = W_k Δ_k
+    F[:, :3, :3] = C[1:] @ np.swapaxes(C[:-1], 1, 2)  # Φ_θθ = C_k C_{k−1}ᵀ
+    F[:, :3, 3:9] = Wg * dt[:, None, None]  # Φ_θp = W_k Δ_k
     Q = np.zeros((n_frames, n, n))
     Q[:, :6, :6] = farrenkopf_q(dt, NOISE, np.eye(3), -np.eye(3), range(3))
-    x = np.concatenate([rng.normal(size=3) * 1e-2, rng.normal(size=3) * 1e-4,
-                        rng.normal(size=3) * 1e-3, rng.normal(size=n - 9) * 1e-2])
+    x = np.concatenate(
+        [rng.normal(size=3) * 1e-2, rng.normal(size=3) * 1e-4, rng.normal(size=3) * 1e-3, rng.normal(size=n - 9) * 1e-2]
+    )
     z = np.empty((n_frames, m))
     chol = np.linalg.cholesky(Q[0, :6, :6])
     for k in range(n_frames):
         x = F[k] @ x
         x[:6] += chol @ rng.normal(size=6)
         z[k] = H[k] @ x + np.sqrt(R) * rng.normal(size=m)
-    P0 = np.diag(np.r_[np.full(3, 1e-2), np.full(3, 1e-4), np.full(3, 1e-3),
-                       np.full(n - 9, 1e-2)] ** 2)
+    P0 = np.diag(np.r_[np.full(3, 1e-2), np.full(3, 1e-4), np.full(3, 1e-3), np.full(n - 9, 1e-2)] ** 2)
     return dict(knots=knots, omega=omega, Wg=Wg, C=C, H=H, R=R, F=F, Q=Q, z=z, P0=P0)
 
 
@@ -96,29 +95,36 @@ def gcs_pass(pb: dict, engine: str = ENGINE):
     for k0 in range(0, N, BLOCK_FRAMES):
         k1 = min(k0 + BLOCK_FRAMES, N)
         K = k1 - k0
-        seg = GyroSegment(pb["knots"][k0:k1 + 1], pb["omega"][k0:k1], pb["Wg"][k0:k1], C0, NOISE,
-                          np.eye(3), -np.eye(3), range(3))
+        seg = GyroSegment(
+            pb["knots"][k0 : k1 + 1], pb["omega"][k0:k1], pb["Wg"][k0:k1], C0, NOISE, np.eye(3), -np.eye(3), range(3)
+        )
         CC0, CE, Pi = seg.at_knots()
-        Psi_d = np.zeros((K + 1, 6, n))                   # x_d = Ψ_d y
+        Psi_d = np.zeros((K + 1, 6, n))  # x_d = Ψ_d y
         Psi_d[:, :3, :3] = CC0
         Psi_d[:, :3, gcols] = CE
         Psi_d[:, 3:, 3:6] = np.eye(3)
         Hk = H[k0:k1]
-        A = Hk.copy()                                     # A = H Ψ
+        A = Hk.copy()  # A = H Ψ
         A[:, :, :3] = Hk[:, :, :3] @ CC0[1:]
         A[:, :, gcols] += Hk[:, :, :3] @ CE[1:]
-        blk = LinearBlock(t=pb["knots"][k0:k1 + 1], Pi=Pi, Psi_d=Psi_d,
-                          A=(A / sig[None, :, None]).reshape(K * m, n),
-                          r=(z[k0:k1] / sig).reshape(-1), sigma=np.tile(sig, K),
-                          row_epoch=np.repeat(np.arange(1, K + 1), m),
-                          frame_start=np.arange(K) * m, frame_m=np.full(K, m),
-                          frame_epoch=np.arange(1, K + 1))
+        blk = LinearBlock(
+            t=pb["knots"][k0 : k1 + 1],
+            Pi=Pi,
+            Psi_d=Psi_d,
+            A=(A / sig[None, :, None]).reshape(K * m, n),
+            r=(z[k0:k1] / sig).reshape(-1),
+            sigma=np.tile(sig, K),
+            row_epoch=np.repeat(np.arange(1, K + 1), m),
+            frame_start=np.arange(K) * m,
+            frame_m=np.full(K, m),
+            frame_epoch=np.arange(1, K + 1),
+        )
         sol = solve_block(x, P, blk, edit_k=None, engine=engine)
         nus[k0:k1] = sol.nu
         Psi = np.eye(n)
         Psi[:6] = Psi_d[-1]
-        x, P = Psi @ sol.y, Psi @ sol.P @ Psi.T            # to current-time coordinates
-        C0 = quat_to_dcm(quat_from_dcm(seg.C[-1]))        # next block starts on the nominal
+        x, P = Psi @ sol.y, Psi @ sol.P @ Psi.T  # to current-time coordinates
+        C0 = quat_to_dcm(quat_from_dcm(seg.C[-1]))  # next block starts on the nominal
     return x, P, nus
 
 
@@ -160,7 +166,7 @@ def main(argv=None) -> int:
     pb = make_problem(args.frames, args.states)
     N = args.frames
     t0 = time.perf_counter()
-    gcs_pass(make_problem(20, args.states), args.engine)       # JIT compile / cache load
+    gcs_pass(make_problem(20, args.states), args.engine)  # JIT compile / cache load
     t_warm = time.perf_counter() - t0
     (x_g, P_g, nu_g), t_gcs = cpu_time(gcs_pass, pb, args.engine)
     (x_f, P_f, _), t_fp = cpu_time(filterpy_pass, pb)
@@ -173,13 +179,18 @@ def main(argv=None) -> int:
     ok = dx < 1e-6 and dP < 1e-6 and dnu < 1e-6
     ratio = t_fp / t_gcs
     print(f"problem: n = {args.states} states (6 dynamic), m = {M_MEAS}, {N} frames")
-    print(f"same answer: max |Δx|/σ = {dx:.1e}, max |ΔP|/σσ = {dP:.1e}, "
-          f"max |Δν|/|ν| = {dnu:.1e} -> {'OK' if ok else 'MISMATCH'}")
+    print(
+        f"same answer: max |Δx|/σ = {dx:.1e}, max |ΔP|/σσ = {dP:.1e}, "
+        f"max |Δν|/|ν| = {dnu:.1e} -> {'OK' if ok else 'MISMATCH'}"
+    )
     print(f"filterpy KalmanFilter: {t_fp / N * 1e6:7.2f} µs/frame (CPU)")
-    print(f"GCS kalman core:       {t_gcs / N * 1e6:7.2f} µs/frame (CPU), engine {args.engine} "
-          f"(warm-up {t_warm:.2f} s, not timed)")
-    print(f"speed ratio: {ratio:.1f}x (target ≥ {TARGET_RATIO:.0f}x) -> "
-          f"{'met' if ratio >= TARGET_RATIO else 'NOT met'}")
+    print(
+        f"GCS kalman core:       {t_gcs / N * 1e6:7.2f} µs/frame (CPU), engine {args.engine} "
+        f"(warm-up {t_warm:.2f} s, not timed)"
+    )
+    print(
+        f"speed ratio: {ratio:.1f}x (target ≥ {TARGET_RATIO:.0f}x) -> {'met' if ratio >= TARGET_RATIO else 'NOT met'}"
+    )
     return 0 if ok else 1
 
 

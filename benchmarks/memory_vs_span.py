@@ -37,11 +37,13 @@ def simulate(days: float, seed: int, cache: Path) -> Path:
     if (out / "mission.toml").exists():
         return out
     truth = str(out) + "-truth.json"
-    code = (f"import sys; from pathlib import Path; sys.path.insert(0, {str(REPO)!r})\n"
-            "from gcs_core.sim.scenarios import nominal_threeaxis\n"
-            "from gcs_core.sim.writer import write_mission\n"
-            f"cfg = nominal_threeaxis('sun_pointing', seed={seed:d}, duration_s={days * 86400.0!r})\n"
-            f"write_mission(cfg, Path({str(out)!r}), truth_path=Path({truth!r}))\n")
+    code = (
+        f"import sys; from pathlib import Path; sys.path.insert(0, {str(REPO)!r})\n"
+        "from gcs_core.sim.scenarios import nominal_threeaxis\n"
+        "from gcs_core.sim.writer import write_mission\n"
+        f"cfg = nominal_threeaxis('sun_pointing', seed={seed:d}, duration_s={days * 86400.0!r})\n"
+        f"write_mission(cfg, Path({str(out)!r}), truth_path=Path({truth!r}))\n"
+    )
     subprocess.run([sys.executable, "-c", code], check=True)
     return out
 
@@ -78,10 +80,12 @@ def child(mission_dir: str) -> None:
     result = whole_span_fit(problem, BatchOptions())
     stages["fit"] = peak_mb()
     physics = problem.builder.physics.as_dict()
-    effects = [e for e in mission_catalogue(problem, problem.builder.physics)
-               if (e.physics and physics[e.effect] != PHYSICS_EFFECTS[e.effect][0])
-               or (not e.physics and e.effect != "attitude"
-                   and all(problem.state[n].role == HELD for n in e.elements))]
+    effects = [
+        e
+        for e in mission_catalogue(problem, problem.builder.physics)
+        if (e.physics and physics[e.effect] != PHYSICS_EFFECTS[e.effect][0])
+        or (not e.physics and e.effect != "attitude" and all(problem.state[n].role == HELD for n in e.elements))
+    ]
     cands = rank_candidates(problem, result, effects)
     stages["rank"] = peak_mb()
     frames = sum(sd.n for sd in problem.sensors)
@@ -106,14 +110,29 @@ def child(mission_dir: str) -> None:
     res = 0
     for r in result.residuals.values():
         res += sum(size(x) for x in (r.y_pred_, r.residual, r.normalized_, r.used, r.valid, r.edited))
-    print(json.dumps({"stages": stages, "seconds": time.perf_counter() - t0, "frames": frames,
-                      "iterations": result.iterations, "status": result.status,
-                      "candidates": len(cands), "data_mb": data / 1e6, "residuals_mb": res / 1e6}))
+    print(
+        json.dumps(
+            {
+                "stages": stages,
+                "seconds": time.perf_counter() - t0,
+                "frames": frames,
+                "iterations": result.iterations,
+                "status": result.status,
+                "candidates": len(cands),
+                "data_mb": data / 1e6,
+                "residuals_mb": res / 1e6,
+            }
+        )
+    )
 
 
 def measure(mission: Path) -> dict:
-    out = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", str(mission)],
-                         check=True, capture_output=True, text=True)
+    out = subprocess.run(
+        [sys.executable, str(Path(__file__).resolve()), "--child", str(mission)],
+        check=True,
+        capture_output=True,
+        text=True,
+    )
     return json.loads(out.stdout.strip().splitlines()[-1])
 
 
@@ -134,15 +153,19 @@ def main() -> None:
         cache = Path(tmp.name)
     cache.mkdir(parents=True, exist_ok=True)
     rows = {}
-    print(f"{'span':>6} {'frames':>9} {'import':>7} {'prepare':>8} {'fit':>7} {'rank':>7} {'data':>7} "
-          f"{'resid':>7} {'time':>7}   (peak RSS so far, MB; data/resid: MB kept)")
+    print(
+        f"{'span':>6} {'frames':>9} {'import':>7} {'prepare':>8} {'fit':>7} {'rank':>7} {'data':>7} "
+        f"{'resid':>7} {'time':>7}   (peak RSS so far, MB; data/resid: MB kept)"
+    )
     for d in args.days:
         r = measure(simulate(d, args.seed, cache))
         s = r["stages"]
         rows[d] = r
-        print(f"{d:5g}d {r['frames']:9d} {s['import']:7.0f} {s['prepare']:8.0f} {s['fit']:7.0f} "
-              f"{s['rank']:7.0f} {r['data_mb']:7.1f} {r['residuals_mb']:7.1f} {r['seconds']:6.0f}s "
-              f"({r['iterations']} iterations, {r['status']}, {r['candidates']} candidates)")
+        print(
+            f"{d:5g}d {r['frames']:9d} {s['import']:7.0f} {s['prepare']:8.0f} {s['fit']:7.0f} "
+            f"{s['rank']:7.0f} {r['data_mb']:7.1f} {r['residuals_mb']:7.1f} {r['seconds']:6.0f}s "
+            f"({r['iterations']} iterations, {r['status']}, {r['candidates']} candidates)"
+        )
     if 1.0 in rows and 7.0 in rows:
         day, week = rows[1.0], rows[7.0]
         ratio = week["stages"]["rank"] / day["stages"]["rank"]

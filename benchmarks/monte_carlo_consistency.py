@@ -40,7 +40,7 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # small matrices: threads only contend
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # small matrices: threads only contend
 
 import argparse
 import logging
@@ -76,15 +76,14 @@ def one_run(seed: int, folder: Path, minutes: float, method: str, mode: str, bia
 
 
 def _worker(job):
-    logging.getLogger("gcs_core").setLevel(logging.ERROR)   # the per-run method warnings
+    logging.getLogger("gcs_core").setLevel(logging.ERROR)  # the per-run method warnings
     seed, minutes, method, mode, bias_form = job
     with tempfile.TemporaryDirectory(prefix="gcs-mc-") as d:
         e, P = one_run(seed, Path(d), minutes, method, mode, bias_form)
     return seed, e, P
 
 
-def run(runs: int, minutes: float, method: str, mode: str, processes: int, first_seed: int,
-        bias_form: str = "batch"):
+def run(runs: int, minutes: float, method: str, mode: str, processes: int, first_seed: int, bias_form: str = "batch"):
     jobs = [(s, minutes, method, mode, bias_form) for s in range(first_seed, first_seed + runs)]
     out = {}
     with get_context("spawn").Pool(processes) as pool:
@@ -103,20 +102,23 @@ def table(E: np.ndarray, Ps: np.ndarray) -> bool:
     mean_z = np.mean(E, axis=0) / pred
     t_bound = 2.576 / math.sqrt(N)
     ok_all = True
-    print(f"\n{'parameter':<15}{'predicted σ':>13}{'MC σ':>13}{'ratio':>8}  {'within 15%?':<12}"
-          f"{'mean/σ':>8}")
+    print(f"\n{'parameter':<15}{'predicted σ':>13}{'MC σ':>13}{'ratio':>8}  {'within 15%?':<12}{'mean/σ':>8}")
     for j, name in enumerate(HEADLINE):
         ratio = mc[j] / pred[j]
         ok = abs(ratio - 1.0) <= match_fraction
         ok_all &= ok
         flag = "" if abs(mean_z[j]) <= t_bound else " (biased)"
-        print(f"{name:<15}{pred[j]:>13.4g}{mc[j]:>13.4g}{ratio:>8.3f}  {'yes' if ok else 'NO':<12}"
-              f"{mean_z[j]:>+8.3f}{flag}")
+        print(
+            f"{name:<15}{pred[j]:>13.4g}{mc[j]:>13.4g}{ratio:>8.3f}  {'yes' if ok else 'NO':<12}"
+            f"{mean_z[j]:>+8.3f}{flag}"
+        )
     nees = float(sum(e @ np.linalg.solve(P, e) for e, P in zip(E, Ps)))
     lo, hi = nees_band(N * E.shape[1], 0.95)
     print(f"\nmean |t| bound for 'mean/σ' at 1 %: {t_bound:.3f}")
-    print(f"NEES (headline, summed over {N} runs): {nees:.1f}, 95 % band [{lo:.1f}, {hi:.1f}], "
-          f"mean per element {nees / (N * E.shape[1]):.3f}")
+    print(
+        f"NEES (headline, summed over {N} runs): {nees:.1f}, 95 % band [{lo:.1f}, {hi:.1f}], "
+        f"mean per element {nees / (N * E.shape[1]):.3f}"
+    )
     return ok_all
 
 
@@ -135,12 +137,16 @@ def main() -> int:
         args.minutes = 60.0 * args.hours
     bias_form = args.bias_form or ("batch" if args.method == "batch" else "kalman")
     t0 = time.perf_counter()
-    print(f"{args.runs} runs, {args.mode}, {args.minutes:g} min, method {args.method}, "
-          f"gyro bias as in the {bias_form} form, {args.processes} processes")
+    print(
+        f"{args.runs} runs, {args.mode}, {args.minutes:g} min, method {args.method}, "
+        f"gyro bias as in the {bias_form} form, {args.processes} processes"
+    )
     E, Ps = run(args.runs, args.minutes, args.method, args.mode, args.processes, args.first_seed, bias_form)
     ok = table(E, Ps)
-    print(f"\n{time.perf_counter() - t0:.1f} s; predicted σ {'matches' if ok else 'does NOT match'} "
-          f"the Monte-Carlo σ within {100 * match_fraction:g} % for every headline element")
+    print(
+        f"\n{time.perf_counter() - t0:.1f} s; predicted σ {'matches' if ok else 'does NOT match'} "
+        f"the Monte-Carlo σ within {100 * match_fraction:g} % for every headline element"
+    )
     return 0 if ok else 1
 
 

@@ -61,14 +61,19 @@ def main() -> int:
         return 1
     plan = save_config(res.config, out / "plan.toml")
     t0 = time.perf_counter()
-    mc = run_montecarlo(MonteCarlo(str(plan.resolve()), args.runs, int(cfg.montecarlo.get("seed", 1))),
-                        out / "montecarlo.h5", workers=args.workers or None, resume=args.resume,
-                        overwrite=not args.resume)
+    mc = run_montecarlo(
+        MonteCarlo(str(plan.resolve()), args.runs, int(cfg.montecarlo.get("seed", 1))),
+        out / "montecarlo.h5",
+        workers=args.workers or None,
+        resume=args.resume,
+        overwrite=not args.resume,
+    )
     print(f"\nMonte Carlo: {time.perf_counter() - t0:.1f} s")
     print("\n".join(summary_lines(mc)))
     # the targets against the scatter: TAM1 alignment angles and FHST1's misalignment about
     # its own axes, from the errors of every run
     from gcs_core.trade import store
+
     _, recs = store.read(out / "montecarlo.h5", store.MONTECARLO)
     recs = [r for r in recs if r.get("names")]
     names = recs[0]["names"]
@@ -90,11 +95,19 @@ def main() -> int:
             met = s_mc < t.limit
             within = abs(s_mc / s_pred - 1.0) <= MATCH_FRACTION
             ok &= met and within
-            print(f"  {n:<18} predicted {s_pred / 4.84813681109536e-06:8.3f}″  MC {s_mc / 4.84813681109536e-06:8.3f}″  "
-                  f"ratio {s_mc / s_pred:6.3f}  target {'met' if met else 'MISSED'}, "
-                  f"{'within' if within else 'OUTSIDE'} 15 %")
-    print(f"\n{len(recs)} runs; " + ("every target met by the scatter and predicted within 15 %" if ok
-                                      else "a target missed or a ratio outside 15 %"))
+            print(
+                f"  {n:<18} predicted {s_pred / 4.84813681109536e-06:8.3f}″  MC {s_mc / 4.84813681109536e-06:8.3f}″  "
+                f"ratio {s_mc / s_pred:6.3f}  target {'met' if met else 'MISSED'}, "
+                f"{'within' if within else 'OUTSIDE'} 15 %"
+            )
+    print(
+        f"\n{len(recs)} runs; "
+        + (
+            "every target met by the scatter and predicted within 15 %"
+            if ok
+            else "a target missed or a ratio outside 15 %"
+        )
+    )
     return 0 if ok else 1
 
 

@@ -56,8 +56,12 @@ def case(mode: str, seed: int, span: float, folder: Path, stars=STAR_MODELS):
     """Fit one simulated mission and predict its plan with each star model in ``stars``:
     (fit, {model: (prediction, ratio predicted/post-fit σ)}, fit time, predict times)."""
     cfg = nominal_threeaxis(mode, seed=seed, duration_s=span)
-    slews = [Slew(0.22 * span, 600.0, "roll", 0.04, ramp_s=0.0), Slew(0.45 * span, 300.0, "pitch", 0.02, ramp_s=0.0),
-             Slew(0.60 * span, 300.0, "yaw", -0.02, ramp_s=0.0), Slew(0.75 * span, 600.0, "roll", -0.04, ramp_s=0.0)]
+    slews = [
+        Slew(0.22 * span, 600.0, "roll", 0.04, ramp_s=0.0),
+        Slew(0.45 * span, 300.0, "pitch", 0.02, ramp_s=0.0),
+        Slew(0.60 * span, 300.0, "yaw", -0.02, ramp_s=0.0),
+        Slew(0.75 * span, 600.0, "roll", -0.04, ramp_s=0.0),
+    ]
     rpy0 = tuple(np.add(cfg.attitude.rpy0_deg, OFFSETS_DEG[mode]))
     cfg.attitude = ThreeAxisProfile(rpy0_deg=rpy0, wobble_amp_deg=(0.0, 0.0, 0.0), slews=slews)
     mdir = write_mission(cfg, folder / f"{mode}-{seed}")
@@ -68,8 +72,7 @@ def case(mode: str, seed: int, span: float, folder: Path, stars=STAR_MODELS):
     maneuvers = tuple(Maneuver(s.t_start, s.duration_s, s.axis, s.rate_deg_s) for s in slews)
     out, t_pred = {}, {}
     for model in stars:
-        plan = DataPlan(0.0, span, step=60.0, rpy0=tuple(a * DEG for a in rpy0), stars=model,
-                        maneuvers=maneuvers)
+        plan = DataPlan(0.0, span, step=60.0, rpy0=tuple(a * DEG for a in rpy0), stars=model, maneuvers=maneuvers)
         t0 = time.perf_counter()
         pred = predict(analysis.mission, plan=plan)
         t_pred[model] = time.perf_counter() - t0
@@ -80,8 +83,14 @@ def case(mode: str, seed: int, span: float, folder: Path, stars=STAR_MODELS):
 def at_fitted_state(analysis, fit, plan) -> np.ndarray:
     """Ratio predicted/post-fit σ for the plan's frames linearized at the fitted state."""
     m = analysis.mission
-    planned = plan_problem(m.spec, Ephemeris.from_table(m.ephemeris_table), replace(plan, stars="catalog"),
-                           telemetry=m.telemetry, aux=m.aux, onboard=m.onboard)
+    planned = plan_problem(
+        m.spec,
+        Ephemeris.from_table(m.ephemeris_table),
+        replace(plan, stars="catalog"),
+        telemetry=m.telemetry,
+        aux=m.aux,
+        onboard=m.onboard,
+    )
     problem = planned.problem
     problem = problem.with_state(problem.state.with_values(dict(zip(fit.solve_for, map(float, fit.x)))))
     return predict(problem, plan=plan).noise_only / np.sqrt(np.diag(fit.P))
@@ -106,8 +115,10 @@ def main() -> None:
                 refit = None
                 pred0 = preds[models[0]][0]
                 frames = {k: (pred0.frames[k], r.n) for k, r in fit.residuals.items()}
-                print(f"{mode:14s} seed {seed}: fit {t_fit:5.2f} s, predict {t_pred[models[0]]:5.2f} s; "
-                      f"frames ({models[0]}, fitted) {frames}")
+                print(
+                    f"{mode:14s} seed {seed}: fit {t_fit:5.2f} s, predict {t_pred[models[0]]:5.2f} s; "
+                    f"frames ({models[0]}, fitted) {frames}"
+                )
                 for model, (pred, ratio) in preds.items():
                     # the elements the plan does not determine (σ = a priori) are listed apart
                     und = set(pred.undetermined)
@@ -117,36 +128,52 @@ def main() -> None:
                         for i, n in enumerate(pred.names):
                             if n in und:
                                 undetermined_of.setdefault((mode, model), {}).setdefault(
-                                    n, [pred.noise_only[i]]).append(post[i])
+                                    n, [pred.noise_only[i]]
+                                ).append(post[i])
                     worst = int(np.argmax(np.abs(ratio - 1.0)))
                     outside = [f"{n} {r:.2f}" for n, r in zip(pred.names, ratio) if abs(r - 1.0) > TOLERANCE]
                     outside_total[model] += len(outside)
-                    for group, sel in (("all", range(len(ratio))),
-                                       ("FHST", [i for i, n in enumerate(pred.names) if n.startswith("FHST")])):
+                    for group, sel in (
+                        ("all", range(len(ratio))),
+                        ("FHST", [i for i, n in enumerate(pred.names) if n.startswith("FHST")]),
+                    ):
                         w = max(sel, key=lambda i: abs(ratio[i] - 1.0))
                         prev = worst_of.get((mode, model, group))
                         if prev is None or abs(ratio[w] - 1.0) > abs(prev[1] - 1.0):
                             worst_of[(mode, model, group)] = (pred.names[w], float(ratio[w]), seed)
-                    print(f"    {model:9s} worst {pred.names[worst]:15s} {ratio[worst]:.3f}"
-                          + (f"; outside ±15 %: {outside}" if outside else ""))
+                    print(
+                        f"    {model:9s} worst {pred.names[worst]:15s} {ratio[worst]:.3f}"
+                        + (f"; outside ±15 %: {outside}" if outside else "")
+                    )
                     if outside and model == "catalog":
                         refit = at_fitted_state(analysis, fit, plan) if refit is None else refit
-                        print("              linearized at the fitted state: " + ", ".join(
-                            f"{n} {refit[i]:.3f}" for i, n in enumerate(pred.names)
-                            if abs(ratio[i] - 1.0) > TOLERANCE))
+                        print(
+                            "              linearized at the fitted state: "
+                            + ", ".join(
+                                f"{n} {refit[i]:.3f}"
+                                for i, n in enumerate(pred.names)
+                                if abs(ratio[i] - 1.0) > TOLERANCE
+                            )
+                        )
     print("\nworst predicted/post-fit σ over the seeds (every element; FHST elements only):")
     print(f"  {'mode':20s} " + " ".join(f"{m:>32s}" for m in models))
     for mode in args.modes.split(","):
         for group in ("all", "FHST"):
             cells = [worst_of[(mode, m, group)] for m in models]
-            print(f"  {mode + ' ' + group:20s} "
-                  + " ".join(f"{f'{n} {r:.3f} (seed {sd})':>32s}" for n, r, sd in cells))
-    print("elements outside ±15 %: " + ", ".join(f"{m} {outside_total[m]}" for m in models)
-          + " (the elements the plan determines)")
+            print(f"  {mode + ' ' + group:20s} " + " ".join(f"{f'{n} {r:.3f} (seed {sd})':>32s}" for n, r, sd in cells))
+    print(
+        "elements outside ±15 %: "
+        + ", ".join(f"{m} {outside_total[m]}" for m in models)
+        + " (the elements the plan determines)"
+    )
     for (mode, model), items in undetermined_of.items():
-        print(f"undetermined by the plan ({mode}, {model}): " + "; ".join(
-            f"{n} predicted {v[0]:.3g} (the a priori), post-fit {min(v[1:]):.3g}–{max(v[1:]):.3g}"
-            for n, v in items.items()))
+        print(
+            f"undetermined by the plan ({mode}, {model}): "
+            + "; ".join(
+                f"{n} predicted {v[0]:.3g} (the a priori), post-fit {min(v[1:]):.3g}–{max(v[1:]):.3g}"
+                for n, v in items.items()
+            )
+        )
 
 
 if __name__ == "__main__":

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import os
 
-os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")     # a shared machine: threads only contend
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")  # a shared machine: threads only contend
 
 import argparse
 import copy
@@ -71,8 +71,7 @@ from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
 
 #: the hidden effects: (catalogue id, magnitude in the unit of ``gcs_core.sim.EFFECTS``, options)
-HIDDEN = (("TAM1.contamination_mtb_x", 0.3, {}),
-          ("FHST1.alignment", math.radians(0.02), {"axis": (1.0, 0.0, 0.0)}))
+HIDDEN = (("TAM1.contamination_mtb_x", 0.3, {}), ("FHST1.alignment", math.radians(0.02), {"axis": (1.0, 0.0, 0.0)}))
 #: a refit landing within this many σ of the ranking's one-step prediction of the candidate
 #: stays in the neighbourhood of the solution where the score test reads the χ² surface
 LOCAL_SIGMA = 1.0
@@ -106,21 +105,34 @@ def refit_with(base: Analysis, cand, repeats: int) -> dict:
     for _ in range(repeats):
         work = copy.copy(base)
         t0 = time.perf_counter()
-        work._set_effect(effect_id, True)                 # new config, problem rebuilt
+        work._set_effect(effect_id, True)  # new config, problem rebuilt
         t1 = time.perf_counter()
         warm = {k: v for k, v in warm_all.items() if k in work.problem.state}
         res = work.fit(holdout=False, initial=warm)
         t2 = time.perf_counter()
         t_build, t_fit = min(t_build, t1 - t0), min(t_fit, t2 - t1)
-    step = max((abs(res.state[n].value - v) / cand.sigma[n] for n, v in cand.estimate.items()
-                if n in res.state and 0 < cand.sigma.get(n, 0.0) < np.inf), default=float("nan"))
-    return {"delta_chi2": base.result.chi2 - res.chi2, "iterations": res.iterations,
-            "status": res.status, "t_build": t_build, "t_fit": t_fit,
-            "edits": n_edited(res) - n_edited(base.result), "step": step}
+    step = max(
+        (
+            abs(res.state[n].value - v) / cand.sigma[n]
+            for n, v in cand.estimate.items()
+            if n in res.state and 0 < cand.sigma.get(n, 0.0) < np.inf
+        ),
+        default=float("nan"),
+    )
+    return {
+        "delta_chi2": base.result.chi2 - res.chi2,
+        "iterations": res.iterations,
+        "status": res.status,
+        "t_build": t_build,
+        "t_fit": t_fit,
+        "edits": n_edited(res) - n_edited(base.result),
+        "step": step,
+    }
 
 
-def run(hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: int, top: int,
-        method: str = "whole_span") -> dict:
+def run(
+    hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: int, top: int, method: str = "whole_span"
+) -> dict:
     t0 = time.perf_counter()
     mission = make_mission(hours, folder, seed)
     t_sim = time.perf_counter() - t0
@@ -129,17 +141,21 @@ def run(hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: i
     problem = a.problem
     n_meas = sum(s.n * s.y.shape[1] for s in problem.sensors)
     print(f"method: {method}")
-    print(f"problem: {hours:g} h, sensors {[s.name for s in problem.sensors]}, {n_meas} measurements; "
-          f"hidden: {', '.join(e for e, _, _ in HIDDEN)} (simulated in {t_sim:.1f} s, "
-          f"set-up {time.perf_counter() - t0:.1f} s)")
+    print(
+        f"problem: {hours:g} h, sensors {[s.name for s in problem.sensors]}, {n_meas} measurements; "
+        f"hidden: {', '.join(e for e, _, _ in HIDDEN)} (simulated in {t_sim:.1f} s, "
+        f"set-up {time.perf_counter() - t0:.1f} s)"
+    )
 
     # one full fit from the a priori (no held-out refit)
     t_fit = best_of(lambda: a.fit(holdout=False), max(2, repeats // 2))
     res = a.result
     names = list(res.solve_for)
-    print(f"full fit: {t_fit:.3f} s, {res.iterations} iterations, {res.status}; "
-          f"{len(names)} solve-for elements, χ² = {res.chi2:.1f} on {res.dof} dof, "
-          f"{n_edited(res)} frames edited")
+    print(
+        f"full fit: {t_fit:.3f} s, {res.iterations} iterations, {res.status}; "
+        f"{len(names)} solve-for elements, χ² = {res.chi2:.1f} on {res.dof} dof, "
+        f"{n_edited(res)} frames edited"
+    )
     print("normalized RMS: " + ", ".join(f"{k} {r.rms_normalized:.2f}" for k, r in res.residuals.items()))
 
     # one batch iteration at the solution, the propagation recomputed (as in a fit's pass)
@@ -167,8 +183,7 @@ def run(hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: i
     t_rank = best_of(rank, repeats)
     ranked = a.candidates
     print(f"ranking: {len(cands)} candidates in {t_rank:.4f} s")
-    print(f"RATIO ranking costs {t_rank / t_iter:.2f} batch iterations "
-          f"({t_rank / t_fit:.2f} of one full fit)")
+    print(f"RATIO ranking costs {t_rank / t_iter:.2f} batch iterations ({t_rank / t_fit:.2f} of one full fit)")
 
     # the naive alternative: one refit per candidate
     refits = {}
@@ -179,10 +194,11 @@ def run(hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: i
     t_refit = sum(r["t_build"] + r["t_fit"] for r in refits.values())
     t_refit_fit = sum(r["t_fit"] for r in refits.values())
     iters = sum(r["iterations"] for r in refits.values())
-    print(f"refit all: {t_refit:.2f} s ({t_refit_fit:.2f} s fitting, {iters} iterations in all; "
-          f"{t_refit - t_refit_fit:.2f} s rebuilding the problem; wall {t_wall:.1f} s)")
-    print(f"RATIO refit-all / ranking = {t_refit / t_rank:.0f}× "
-          f"(fitting alone {t_refit_fit / t_rank:.0f}×)")
+    print(
+        f"refit all: {t_refit:.2f} s ({t_refit_fit:.2f} s fitting, {iters} iterations in all; "
+        f"{t_refit - t_refit_fit:.2f} s rebuilding the problem; wall {t_wall:.1f} s)"
+    )
+    print(f"RATIO refit-all / ranking = {t_refit / t_rank:.0f}× (fitting alone {t_refit_fit / t_rank:.0f}×)")
 
     # score Δχ² (no refit) against the refit's likelihood-ratio Δχ²
     rows = ranked if top <= 0 else ranked[:top]
@@ -190,15 +206,19 @@ def run(hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: i
     # "edits": frames the refit's editing adds (+) or takes back (−); "step σ": how far the
     # refit lands from the ranking's one-step prediction of the candidate (the score test is
     # local: it reads the χ² surface at the solution)
-    print(f"\n{'candidate':28s} {'dof':>3s} {'score Δχ²':>12s} {'refit Δχ²':>12s} {'score/refit':>11s} "
-          f"{'adj. p':>8s} {'iters':>5s} {'edits':>5s} {'step σ':>7s} {'refit s':>7s}")
+    print(
+        f"\n{'candidate':28s} {'dof':>3s} {'score Δχ²':>12s} {'refit Δχ²':>12s} {'score/refit':>11s} "
+        f"{'adj. p':>8s} {'iters':>5s} {'edits':>5s} {'step σ':>7s} {'refit s':>7s}"
+    )
     for c in rows:
         r = refits[c.id]
         ratio = c.delta_chi2 / r["delta_chi2"] if r["delta_chi2"] > 0 else float("nan")
         flag = "" if c.identifiable else "  (not identifiable)"
-        print(f"{c.id:28s} {c.dof:3d} {c.delta_chi2:12.2f} {r['delta_chi2']:12.2f} {ratio:11.4f} "
-              f"{c.p_adjusted:8.1e} {r['iterations']:5d} {r['edits']:+5d} {r['step']:7.2f} "
-              f"{r['t_build'] + r['t_fit']:7.2f}{flag}")
+        print(
+            f"{c.id:28s} {c.dof:3d} {c.delta_chi2:12.2f} {r['delta_chi2']:12.2f} {ratio:11.4f} "
+            f"{c.p_adjusted:8.1e} {r['iterations']:5d} {r['edits']:+5d} {r['step']:7.2f} "
+            f"{r['t_build'] + r['t_fit']:7.2f}{flag}"
+        )
 
     def worst(cs):
         dev = [abs(c.delta_chi2 / refits[c.id]["delta_chi2"] - 1.0) for c in cs]
@@ -207,12 +227,21 @@ def run(hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: i
     sig = [c for c in ranked if c.p_adjusted < alpha and refits[c.id]["delta_chi2"] > 0]
     local = [c for c in sig if refits[c.id]["edits"] == 0 and refits[c.id]["step"] <= LOCAL_SIGMA]
     top_refit = max(refits, key=lambda k: refits[k]["delta_chi2"]) if refits else None
-    print(f"\nsignificant at family-wise α = {alpha:g}: {len(sig)}; |score/refit − 1| at most {worst(sig)}; "
-          f"where the refit edits the same frames and lands within {LOCAL_SIGMA:g} σ of the one-step "
-          f"prediction: {worst(local)}")
+    print(
+        f"\nsignificant at family-wise α = {alpha:g}: {len(sig)}; |score/refit − 1| at most {worst(sig)}; "
+        f"where the refit edits the same frames and lands within {LOCAL_SIGMA:g} σ of the one-step "
+        f"prediction: {worst(local)}"
+    )
     print(f"strongest by score {ranked[0].id if ranked else None}, by refit {top_refit}")
-    return {"hours": hours, "candidates": len(cands), "t_iter": t_iter, "t_fit": t_fit, "t_rank": t_rank,
-            "t_refit": t_refit, "t_refit_fit": t_refit_fit}
+    return {
+        "hours": hours,
+        "candidates": len(cands),
+        "t_iter": t_iter,
+        "t_fit": t_fit,
+        "t_rank": t_rank,
+        "t_refit": t_refit,
+        "t_refit_fit": t_refit_fit,
+    }
 
 
 def main() -> None:
@@ -223,13 +252,16 @@ def main() -> None:
     ap.add_argument("--refit-repeats", type=int, default=1, help="best of this many per candidate refit")
     ap.add_argument("--top", type=int, default=0, help="table rows (0: every candidate)")
     ap.add_argument("--cache", type=Path, default=None, help="keep the simulated mission here")
-    ap.add_argument("--method", default="whole_span", choices=("whole_span", "batch"),
-                    help="the estimator (default: the default config's, whole_span)")
+    ap.add_argument(
+        "--method",
+        default="whole_span",
+        choices=("whole_span", "batch"),
+        help="the estimator (default: the default config's, whole_span)",
+    )
     args = ap.parse_args()
     # the session warns (once per fit) that the batch's σ are optimistic; not this benchmark's point
     logging.getLogger("gcs_core").setLevel(logging.ERROR)
-    kw = dict(seed=args.seed, repeats=args.repeats, refit_repeats=args.refit_repeats, top=args.top,
-              method=args.method)
+    kw = dict(seed=args.seed, repeats=args.repeats, refit_repeats=args.refit_repeats, top=args.top, method=args.method)
     if args.cache is not None:
         args.cache.mkdir(parents=True, exist_ok=True)
         run(args.hours, args.cache, **kw)

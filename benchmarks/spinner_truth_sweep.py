@@ -50,8 +50,10 @@ def main(argv=None) -> int:
     seeds = [int(s) for s in args.seeds.split(",")]
     incs = [_inc(s) for s in args.inclinations.split(",")]
     hidden = args.hidden.split(",")
-    print(f"{'incl.':>6} {'hidden':8} {'seed':>4} {'added (or: aliased with)':34} {'RMS':>6} {'held':>6} "
-          f"{'worst z vs truth':>26} {'vs expected':>26} {'s':>5}  set by the a priori")
+    print(
+        f"{'incl.':>6} {'hidden':8} {'seed':>4} {'added (or: aliased with)':34} {'RMS':>6} {'held':>6} "
+        f"{'worst z vs truth':>26} {'vs expected':>26} {'s':>5}  set by the a priori"
+    )
     tally = {"cases": 0, "added": 0, "rms": 0, "z": 0, "z_exp": 0}
     t_all = time.perf_counter()
     for inc in incs:
@@ -74,13 +76,18 @@ def main(argv=None) -> int:
                 added = ",".join(o.added) or ("(" + ",".join(o.hidden_aliases) + ")" if aliased else "-")
                 loose = ", ".join(sorted(o.set_by_prior)) or "-"
                 flag = "" if ok_added or aliased else " (!)"
-                print(f"{str(inc):>6} {h:8} {seed:>4} {added + flag:34} {fit_rms:6.3f} {held:6.3f} "
-                      f"{name:>19} {z:+6.2f} {name_e:>19} {z_e:+6.2f} {o.seconds:5.1f}  {loose}", flush=True)
+                print(
+                    f"{str(inc):>6} {h:8} {seed:>4} {added + flag:34} {fit_rms:6.3f} {held:6.3f} "
+                    f"{name:>19} {z:+6.2f} {name_e:>19} {z_e:+6.2f} {o.seconds:5.1f}  {loose}",
+                    flush=True,
+                )
     n = tally["cases"]
-    print(f"\n{n} cases in {time.perf_counter() - t_all:.0f} s: exactly the hidden effect added, or its "
-          f"alias named, in {tally['added']}/{n}; every RMS ≤ {RMS_BOUND} (fitted and held-out) in "
-          f"{tally['rms']}/{n}; every determined element within {Z_BOUND:g}σ of truth in {tally['z']}/{n}, "
-          f"of the truth as the state expresses it in {tally['z_exp']}/{n}")
+    print(
+        f"\n{n} cases in {time.perf_counter() - t_all:.0f} s: exactly the hidden effect added, or its "
+        f"alias named, in {tally['added']}/{n}; every RMS ≤ {RMS_BOUND} (fitted and held-out) in "
+        f"{tally['rms']}/{n}; every determined element within {Z_BOUND:g}σ of truth in {tally['z']}/{n}, "
+        f"of the truth as the state expresses it in {tally['z_exp']}/{n}"
+    )
     return 0
 
 

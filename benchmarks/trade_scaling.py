@@ -62,7 +62,7 @@ def parallel_ceiling(n: int = 10_000_000) -> float:
     _spin(n)
     serial = time.perf_counter() - t
     with get_context("spawn").Pool(2) as pool:
-        pool.map(_spin, [1, 1])                    # the workers' start and imports, untimed
+        pool.map(_spin, [1, 1])  # the workers' start and imports, untimed
         t = time.perf_counter()
         pool.map(_spin, [n, n])
         return serial / (time.perf_counter() - t)
@@ -75,13 +75,19 @@ def main() -> int:
     ap.add_argument("--starts", type=int, default=6)
     args = ap.parse_args()
     angles = tuple(round(2.0 + i * (88.0 / max(1, args.angles - 1)), 3) for i in range(args.angles))
-    vary = {"maneuver.axis": ("roll", "pitch", "yaw"), "maneuver.angle_deg": angles,
-            "maneuver.rate_deg_s": (0.1,), "maneuver.start_min": tuple(range(5, 5 + 5 * args.starts, 5)),
-            "maneuver.back": (True,)}
+    vary = {
+        "maneuver.axis": ("roll", "pitch", "yaw"),
+        "maneuver.angle_deg": angles,
+        "maneuver.rate_deg_s": (0.1,),
+        "maneuver.start_min": tuple(range(5, 5 + 5 * args.starts, 5)),
+        "maneuver.back": (True,),
+    }
     defn = definition_from_config(load_config(CONFIG), vary)
     n = len(defn.combos())
-    print(f"{n} plans; load average before: {os.getloadavg()[0]:.2f}; two plain processes run "
-          f"{parallel_ceiling():.2f}× faster than one now")
+    print(
+        f"{n} plans; load average before: {os.getloadavg()[0]:.2f}; two plain processes run "
+        f"{parallel_ceiling():.2f}× faster than one now"
+    )
     run_study(definition_from_config(load_config(CONFIG), {"maneuver.axis": ("roll",)}))  # warm the caches
     t0 = time.perf_counter()
     serial = run_study(defn)
@@ -94,7 +100,7 @@ def main() -> int:
     t_start = time.perf_counter() - t0
     try:
         warm = definition_from_config(load_config(CONFIG), {"maneuver.axis": ("roll", "yaw")})
-        run_study(warm, scheduler=address, batch=1)          # every worker imports GCS once
+        run_study(warm, scheduler=address, batch=1)  # every worker imports GCS once
         t1 = time.perf_counter()
         dask_rows = run_study(defn, scheduler=address)
         t_dask = time.perf_counter() - t1
@@ -104,26 +110,36 @@ def main() -> int:
     t0 = time.perf_counter()
     cold = run_study(defn, workers=args.workers)
     t_cold = time.perf_counter() - t0
-    same = all(a.sigma == b.sigma == c.sigma and a.noise_only == b.noise_only == c.noise_only
-               for a, b, c in zip(serial, dask_rows, cold))
-    print(f"LocalCluster of {args.workers} workers: {t_dask:.1f} s on a running cluster "
-          f"(started in {t_start:.1f} s); {t_cold:.1f} s with its start and stop")
+    same = all(
+        a.sigma == b.sigma == c.sigma and a.noise_only == b.noise_only == c.noise_only
+        for a, b, c in zip(serial, dask_rows, cold)
+    )
+    print(
+        f"LocalCluster of {args.workers} workers: {t_dask:.1f} s on a running cluster "
+        f"(started in {t_start:.1f} s); {t_cold:.1f} s with its start and stop"
+    )
     print(f"identical numbers serially and on the cluster: {'yes' if same else 'NO'}")
     # where the time goes: a plan's own time (PlanRow.seconds, wall clock in its process)
     # serially and on the workers, and how busy the workers were during the study
     busy_serial = sum(r.seconds for r in serial)
     busy_dask = sum(r.seconds for r in dask_rows)
-    print(f"a plan: {busy_serial / n * 1000:.0f} ms serially, {busy_dask / n * 1000:.0f} ms on a worker "
-          f"({busy_dask / busy_serial:.2f}×: the cores the workers share with everything else); workers busy "
-          f"{100 * busy_dask / (args.workers * t_dask):.0f} % of the running-cluster time (the engine's "
-          f"scheduling, transfer and the last task's wait are the rest)")
+    print(
+        f"a plan: {busy_serial / n * 1000:.0f} ms serially, {busy_dask / n * 1000:.0f} ms on a worker "
+        f"({busy_dask / busy_serial:.2f}×: the cores the workers share with everything else); workers busy "
+        f"{100 * busy_dask / (args.workers * t_dask):.0f} % of the running-cluster time (the engine's "
+        f"scheduling, transfer and the last task's wait are the rest)"
+    )
     ceiling = parallel_ceiling()
-    print(f"load average after: {os.getloadavg()[0]:.2f} (cores: {os.cpu_count()}); two plain processes "
-          f"{ceiling:.2f}× faster than one")
-    print(f"\nRATIO serial / LocalCluster of {args.workers} workers, {n} plans: "
-          f"{t_serial / t_dask:.2f}× on a running cluster (target ≥ {TARGET:g}×: "
-          f"{'met' if t_serial / t_dask >= TARGET else 'NOT met'}); {t_serial / t_cold:.2f}× with the "
-          f"cluster started and stopped by the study; the machine's ceiling now {ceiling:.2f}×")
+    print(
+        f"load average after: {os.getloadavg()[0]:.2f} (cores: {os.cpu_count()}); two plain processes "
+        f"{ceiling:.2f}× faster than one"
+    )
+    print(
+        f"\nRATIO serial / LocalCluster of {args.workers} workers, {n} plans: "
+        f"{t_serial / t_dask:.2f}× on a running cluster (target ≥ {TARGET:g}×: "
+        f"{'met' if t_serial / t_dask >= TARGET else 'NOT met'}); {t_serial / t_cold:.2f}× with the "
+        f"cluster started and stopped by the study; the machine's ceiling now {ceiling:.2f}×"
+    )
     print(f"benchmark: {time.perf_counter() - T_START:.0f} s")
     return 0 if same else 1
 

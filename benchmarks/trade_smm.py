@@ -53,31 +53,44 @@ def main() -> None:
     med = {s: float(np.median([rss(r) for r in rows if r.values["span_min"] == s])) for s in (10, 20, 48, 95)}
     med["2x10"] = float(np.median([rss(r) for r in two]))
     g = lambda k, minutes: med[k] * math.sqrt(minutes) / (med[95] * math.sqrt(95))
-    out.append(f"| §2.1.1 (1) | TAM bias from a short pass unreliable | TAM alone, pass length × start in the orbit "
-               f"(19 starts) | 10 min: {med[10]:.1f} nT, {med[10] / med[95]:.0f}× the full orbit's {med[95]:.2f} nT "
-               f"(median RSS of the 3 components) |")
-    out.append(f"| §2.1.1 (2) | two 10-min passes 30 min apart close to a full orbit | 2 passes, gap 30 min | "
-               f"{med['2x10']:.2f} nT: {med['2x10'] / med[10]:.2f}× the single pass, "
-               f"{med['2x10'] / med[95]:.1f}× the full orbit with {20 / 95:.0%} of its data; "
-               f"per unit of data (σ·√min) {g('2x10', 20):.1f}× the full orbit, the single pass {g(10, 10):.1f}× |")
-    out.append(f"| §2.1.2 (2) | half an orbit near the best | 48-min pass | "
-               f"{med[48]:.2f} nT = {med[48] / med[95]:.2f}× the full orbit with half its data (√2 = 1.41); "
-               f"per unit of data {g(48, 48):.2f}× |")
+    out.append(
+        f"| §2.1.1 (1) | TAM bias from a short pass unreliable | TAM alone, pass length × start in the orbit "
+        f"(19 starts) | 10 min: {med[10]:.1f} nT, {med[10] / med[95]:.0f}× the full orbit's {med[95]:.2f} nT "
+        f"(median RSS of the 3 components) |"
+    )
+    out.append(
+        f"| §2.1.1 (2) | two 10-min passes 30 min apart close to a full orbit | 2 passes, gap 30 min | "
+        f"{med['2x10']:.2f} nT: {med['2x10'] / med[10]:.2f}× the single pass, "
+        f"{med['2x10'] / med[95]:.1f}× the full orbit with {20 / 95:.0%} of its data; "
+        f"per unit of data (σ·√min) {g('2x10', 20):.1f}× the full orbit, the single pass {g(10, 10):.1f}× |"
+    )
+    out.append(
+        f"| §2.1.2 (2) | half an orbit near the best | 48-min pass | "
+        f"{med[48]:.2f} nT = {med[48] / med[95]:.2f}× the full orbit with half its data (√2 = 1.41); "
+        f"per unit of data {g(48, 48):.2f}× |"
+    )
     spec = read_mission_spec(cfg.mission)
     orbit = make_orbit(cfg.trade["orbit"], spec.epoch)
     sel = [r for r in rows if r.values["span_min"] == 20]
-    turn = np.array([field_turn_deg(orbit, spec.epoch, 60.0 * r.values["start_min"],
-                                    60.0 * (r.values["start_min"] + 20)) for r in sel])
+    turn = np.array(
+        [
+            field_turn_deg(orbit, spec.epoch, 60.0 * r.values["start_min"], 60.0 * (r.values["start_min"] + 20))
+            for r in sel
+        ]
+    )
     sig = np.array([rss(r) for r in sel])
     rho = stats.spearmanr(turn, sig).statistic
     b = int(np.argmin(sig))
-    out.append(f"| §2.1.2, Fig. 2-1 | best time of the orbit where the field direction varies most | 20-min pass, "
-               f"19 starts | rank correlation σ vs field turn {rho:.2f}; best pass "
-               f"(start {sel[b].values['start_min']} min, σ {sig[b]:.2f} nT) turns {turn[b]:.0f}° "
-               f"(most of any start: {turn.max():.0f}°); worst {sig.max():.1f} nT "
-               f"turns {turn[int(np.argmax(sig))]:.0f}° |")
-    _, rows = study("tam-alignment", {"attitude_mode": ("inertial",),
-                                      "maneuvers": ("none", "yaw:0.1:5", "roll:0.1:5,yaw:0.1:5")})
+    out.append(
+        f"| §2.1.2, Fig. 2-1 | best time of the orbit where the field direction varies most | 20-min pass, "
+        f"19 starts | rank correlation σ vs field turn {rho:.2f}; best pass "
+        f"(start {sel[b].values['start_min']} min, σ {sig[b]:.2f} nT) turns {turn[b]:.0f}° "
+        f"(most of any start: {turn.max():.0f}°); worst {sig.max():.1f} nT "
+        f"turns {turn[int(np.argmax(sig))]:.0f}° |"
+    )
+    _, rows = study(
+        "tam-alignment", {"attitude_mode": ("inertial",), "maneuvers": ("none", "yaw:0.1:5", "roll:0.1:5,yaw:0.1:5")}
+    )
     by = {r.values["maneuvers"]: r for r in rows}
 
     def flagged(r, name, form):
@@ -86,29 +99,40 @@ def main() -> None:
         return f"{r.sigma_of(name) / ARCSEC:{form}}{star}"
 
     a = lambda r: "/".join(flagged(r, f"TAM1.align_{k}", ".0f") for k in (1, 2, 3))
-    out.append(f"| §2.1.2 (1) | TAM misalignment not separable from the attitude at an inertial attitude; "
-               f"with slews it is | TAM + gyro, 1 h inertial, slews none / yaw 30° / roll 30° + yaw 30° | "
-               f"align 1/2/3: {a(by['none'])}″ (* a priori: not separable) → {a(by['yaw:0.1:5'])}″ "
-               f"→ {a(by['roll:0.1:5,yaw:0.1:5'])}″ |")
-    _, rows = study("fhst", {"models.FHST2": ("on", "off"), "effects": ("none", "FHST1.alignment"),
-                             "models.FSS1": ("on", "off")})
+    out.append(
+        f"| §2.1.2 (1) | TAM misalignment not separable from the attitude at an inertial attitude; "
+        f"with slews it is | TAM + gyro, 1 h inertial, slews none / yaw 30° / roll 30° + yaw 30° | "
+        f"align 1/2/3: {a(by['none'])}″ (* a priori: not separable) → {a(by['yaw:0.1:5'])}″ "
+        f"→ {a(by['roll:0.1:5,yaw:0.1:5'])}″ |"
+    )
+    _, rows = study(
+        "fhst", {"models.FHST2": ("on", "off"), "effects": ("none", "FHST1.alignment"), "models.FSS1": ("on", "off")}
+    )
     get = {(r.values["models.FHST2"], r.values["effects"], r.values["models.FSS1"]): r for r in rows}
     one, two_t = get[("off", "FHST1.alignment", "on")], get[("on", "FHST1.alignment", "on")]
     m = lambda r, ax: flagged(r, f"FHST1.misalign_{ax}", ".3g")
-    out.append(f"| §2.2.1.3 (3), (4) | one tracker: misalignment about the boresight much worse than about another "
-               f"axis; no roll calibration | FHST1 + Sun-sensor reference, 1 h | about the boresight {m(one, 'x')}″, "
-               f"about z {m(one, 'z')}″, about the roll axis {m(one, 'y')}″ (a priori); with FHST2: {m(two_t, 'x')}″, "
-               f"{m(two_t, 'z')}″, {m(two_t, 'y')}″ |")
+    out.append(
+        f"| §2.2.1.3 (3), (4) | one tracker: misalignment about the boresight much worse than about another "
+        f"axis; no roll calibration | FHST1 + Sun-sensor reference, 1 h | about the boresight {m(one, 'x')}″, "
+        f"about z {m(one, 'z')}″, about the roll axis {m(one, 'y')}″ (a priori); with FHST2: {m(two_t, 'x')}″, "
+        f"{m(two_t, 'z')}″, {m(two_t, 'y')}″ |"
+    )
     alone, both = get[("off", "none", "off")], get[("on", "none", "off")]
     at = lambda r: "/".join(f"{r.sigma_of(f'attitude.{k}') / ARCSEC:.3g}" for k in ("roll", "pitch", "yaw"))
-    out.append(f"| §2.2.2 (3) | single-tracker attitude weak about the boresight; two trackers remove most of it | "
-               f"trackers + gyro, 1 h | attitude roll/pitch/yaw (pitch = about FHST1's boresight): one tracker "
-               f"{at(alone)}″, two {at(both)}″ |")
+    out.append(
+        f"| §2.2.2 (3) | single-tracker attitude weak about the boresight; two trackers remove most of it | "
+        f"trackers + gyro, 1 h | attitude roll/pitch/yaw (pitch = about FHST1's boresight): one tracker "
+        f"{at(alone)}″, two {at(both)}″ |"
+    )
     _, rows = study("gyro", {"maneuver.axis": ("roll",), "maneuver.angle_deg": (2, 5, 10, 20, 45, 90)})
-    gs = " → ".join(f"{r.values['maneuver.angle_deg']}°: {r.sigma_of('IRU.G_11') * 1e6:.3g}"
-                    for r in sorted(rows, key=lambda r: r.values["maneuver.angle_deg"]))
-    out.append(f"| §2.3.2 | gyro scale and misalignment need long slews; σ falls with slew angle | roll slew out and "
-               f"back at 0.1°/s | σ of the roll-gyro scale G₁₁ [ppm], {gs} |")
+    gs = " → ".join(
+        f"{r.values['maneuver.angle_deg']}°: {r.sigma_of('IRU.G_11') * 1e6:.3g}"
+        for r in sorted(rows, key=lambda r: r.values["maneuver.angle_deg"])
+    )
+    out.append(
+        f"| §2.3.2 | gyro scale and misalignment need long slews; σ falls with slew angle | roll slew out and "
+        f"back at 0.1°/s | σ of the roll-gyro scale G₁₁ [ppm], {gs} |"
+    )
     print("\n".join(out))
     print(f"\n{time.perf_counter() - t0:.1f} s")
 

@@ -96,13 +96,18 @@ def save_calibration(analysis, scds_path, *, note: str = "") -> int:
         if not math.isfinite(s):
             raise InputError(f"element '{e.name}' has no finite sigma to store", key=f"state.{e.name}")
         params[e.name] = (float(e.value), float(s), e.unit)
-    return scds.append_version(scds_path, sensor_params=params, covariance=np.asarray(res.P_consider),
-                               element_names=list(res.solve_for),
-                               provenance=calibration_provenance(analysis, note=note))
+    return scds.append_version(
+        scds_path,
+        sensor_params=params,
+        covariance=np.asarray(res.P_consider),
+        element_names=list(res.solve_for),
+        provenance=calibration_provenance(analysis, note=note),
+    )
 
 
-def save_ground_attitude(analysis, asf_path, *, step: float | None = None, note: str = "",
-                         scds_version: int | None = None) -> int:
+def save_ground_attitude(
+    analysis, asf_path, *, step: float | None = None, note: str = "", scds_version: int | None = None
+) -> int:
     """Append the fitted attitude with its 1-σ to the ASF; return the solution number.
 
     Parameters
@@ -127,11 +132,14 @@ def save_ground_attitude(analysis, asf_path, *, step: float | None = None, note:
     if t.size == 0:
         raise EstimationError("no time of the fitted span is covered by the attitude")
     g = ground_attitude(analysis, t)
-    prov = {"note": str(note), "config_hash": analysis.config.digest(),
-            "mission": analysis.mission.spec.name, "status": res.status,
-            "sigma_axes": "body x, y, z"}
+    prov = {
+        "note": str(note),
+        "config_hash": analysis.config.digest(),
+        "mission": analysis.mission.spec.name,
+        "status": res.status,
+        "sigma_axes": "body x, y, z",
+    }
     if scds_version is not None:
         prov["scds_version"] = int(scds_version)
     source = "filter" if analysis.config.method == "kalman" else "batch"
-    return asf.append_solution(Path(asf_path), t=g.t, q=g.q, sigma=g.sigma_body, source=source,
-                               provenance=prov)
+    return asf.append_solution(Path(asf_path), t=g.t, q=g.q, sigma=g.sigma_body, source=source, provenance=prov)

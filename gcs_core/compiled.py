@@ -16,7 +16,7 @@ from types import ModuleType
 numba: ModuleType | None
 try:
     import numba
-except ImportError:                                     # GCS works without it, slower
+except ImportError:  # GCS works without it, slower
     numba = None
 
 __all__ = ["COMPILED", "jit", "numba"]
@@ -28,6 +28,6 @@ COMPILED = numba is not None and not os.environ.get("GCS_NO_NUMBA")
 def jit(**options):
     """``numba.njit(cache=True, **options)`` when :data:`COMPILED`, else the identity."""
     if COMPILED:
-        assert numba is not None                        # COMPILED holds only when numba imported
+        assert numba is not None  # COMPILED holds only when numba imported
         return numba.njit(cache=True, **options)
     return lambda fn: fn

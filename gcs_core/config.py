@@ -273,7 +273,7 @@ class AnalysisConfig:
         planning tables are left out."""
         d = to_dict(self)
         d["analysis"].pop("name", None)
-        for extra in PLANNING_TABLES:         # planning settings do not change a calibration
+        for extra in PLANNING_TABLES:  # planning settings do not change a calibration
             d.pop(extra, None)
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
@@ -290,9 +290,14 @@ PLANNING_TABLES: dict[str, tuple[str, ...]] = {
     "montecarlo": ("runs", "seed", "output"),
 }
 #: the tables of a config and the keys each holds (from the dataclasses' fields)
-TABLES: dict[str, tuple[str, ...]] = {"analysis": ANALYSIS_KEYS, **{
-    f.name: (tuple(g.name for g in fields(f.default_factory)) if is_dataclass(f.default_factory) else ())
-    for f in fields(AnalysisConfig) if f.name not in ("path", *ANALYSIS_KEYS, *PLANNING_TABLES)}}
+TABLES: dict[str, tuple[str, ...]] = {
+    "analysis": ANALYSIS_KEYS,
+    **{
+        f.name: (tuple(g.name for g in fields(f.default_factory)) if is_dataclass(f.default_factory) else ())
+        for f in fields(AnalysisConfig)
+        if f.name not in ("path", *ANALYSIS_KEYS, *PLANNING_TABLES)
+    },
+}
 
 
 def fit_key(cfg: AnalysisConfig) -> str:
@@ -300,8 +305,9 @@ def fit_key(cfg: AnalysisConfig) -> str:
     (the path, the data plan, the requirement, the planning tables), which take their
     defaults."""
     default = AnalysisConfig()
-    return replace(cfg, **{f.name: getattr(default, f.name) for f in fields(AnalysisConfig)
-                           if not f.metadata.get("fit", True)}).digest()
+    return replace(
+        cfg, **{f.name: getattr(default, f.name) for f in fields(AnalysisConfig) if not f.metadata.get("fit", True)}
+    ).digest()
 
 
 # ---------------------------------------------------------------------------- reading
@@ -335,8 +341,12 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _unknown(an, TABLES["analysis"], "analysis.", f)
     _require("mission" in an, "analysis.mission", "missing: name the mission directory", f)
     mission_s = an["mission"]
-    _require(isinstance(mission_s, str) and mission_s.strip() != "" and "\0" not in mission_s,
-             "analysis.mission", f"must be the mission directory as a string, not {_show(mission_s)}", f)
+    _require(
+        isinstance(mission_s, str) and mission_s.strip() != "" and "\0" not in mission_s,
+        "analysis.mission",
+        f"must be the mission directory as a string, not {_show(mission_s)}",
+        f,
+    )
     base = path.parent if path is not None else Path(".")
     mission = Path(mission_s)
     if not mission.is_absolute():
@@ -357,8 +367,12 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
 
     models = tables["models"]
     for k, v in models.items():
-        _require(isinstance(v, str) and v in SENSOR_TYPES + (MODEL_OFF,), f"models.{_quote(k)}",
-                 f"must be the sensor's type ({', '.join(SENSOR_TYPES)}) or \"off\", not {_show(v)}", f)
+        _require(
+            isinstance(v, str) and v in SENSOR_TYPES + (MODEL_OFF,),
+            f"models.{_quote(k)}",
+            f'must be the sensor\'s type ({", ".join(SENSOR_TYPES)}) or "off", not {_show(v)}',
+            f,
+        )
 
     st = tables["state"]
     _unknown(st, TABLES["state"], "state.", f)
@@ -366,21 +380,31 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     for key in ("effects", "exclude"):
         lst = _list(st, key, f"state.{key}", f)
         for i, e in enumerate(lst, start=1):
-            _require(isinstance(e, str) and _ID.match(e) is not None, f"state.{key}[{i}]",
-                     f"must be an effect id like \"TAM1.alignment\" (see gcs effects), not {_show(e)}", f)
+            _require(
+                isinstance(e, str) and _ID.match(e) is not None,
+                f"state.{key}[{i}]",
+                f'must be an effect id like "TAM1.alignment" (see gcs effects), not {_show(e)}',
+                f,
+            )
         lists[key] = tuple(lst)
     elements = {}
     for name_e, ov in _table(st, "elements", "state.elements", f).items():
         pre = f"state.elements.{_quote(name_e)}."
-        _require("." in name_e, pre[:-1], "must be an element name like \"TAM1.bias_x\"", f)
+        _require("." in name_e, pre[:-1], 'must be an element name like "TAM1.bias_x"', f)
         _require(isinstance(ov, dict), pre[:-1], f"must be a table (role, value, sigma), not {_show(ov)}", f)
         _unknown(ov, ELEMENT_KEYS, pre, f)
         role = ov.get("role")
-        _require(role is None or (isinstance(role, str) and role in ROLES), pre + "role",
-                 f"must be one of {', '.join(ROLES)}, not {_show(role)}", f)
-        elements[name_e] = ElementConfig(role, _number(ov, "value", None, f, prefix=pre),
-                                         _number(ov, "sigma", None, f, positive=True, prefix=pre,
-                                                 allow_inf=True))
+        _require(
+            role is None or (isinstance(role, str) and role in ROLES),
+            pre + "role",
+            f"must be one of {', '.join(ROLES)}, not {_show(role)}",
+            f,
+        )
+        elements[name_e] = ElementConfig(
+            role,
+            _number(ov, "value", None, f, prefix=pre),
+            _number(ov, "sigma", None, f, positive=True, prefix=pre, allow_inf=True),
+        )
     att_sig = _number(st, "attitude_sigma_deg", 1.0, f, positive=True, hi=180.0, prefix="state.")
 
     fl = tables["filter"]
@@ -391,8 +415,12 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _unknown(pr, TABLES["prediction"], "prediction.", f)
     gaps = _list(pr, "gaps", "prediction.gaps", f)
     for i, g in enumerate(gaps, start=1):
-        _require(_pair(g), f"prediction.gaps[{i}]",
-                 f"must be a [start, end] pair of numbers with start < end, not {_show(g)}", f)
+        _require(
+            _pair(g),
+            f"prediction.gaps[{i}]",
+            f"must be a [start, end] pair of numbers with start < end, not {_show(g)}",
+            f,
+        )
     mans = []
     for i, m in enumerate(_list(pr, "maneuvers", "prediction.maneuvers", f), start=1):
         pre = f"prediction.maneuvers[{i}]."
@@ -400,55 +428,80 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         _unknown(m, MANEUVER_KEYS, pre, f)
         for k in MANEUVER_KEYS:
             _require(k in m, pre + k, "missing: a maneuver needs start, duration, axis and rate_deg_s", f)
-        mans.append(Maneuver(_number(m, "start", 0.0, f, prefix=pre),
-                             _number(m, "duration", 0.0, f, positive=True, prefix=pre),
-                             _choice(m, "axis", AXES, None, pre + "axis", f),
-                             _number(m, "rate_deg_s", 0.0, f, lo=-180.0, hi=180.0, prefix=pre)))
+        mans.append(
+            Maneuver(
+                _number(m, "start", 0.0, f, prefix=pre),
+                _number(m, "duration", 0.0, f, positive=True, prefix=pre),
+                _choice(m, "axis", AXES, None, pre + "axis", f),
+                _number(m, "rate_deg_s", 0.0, f, lo=-180.0, hi=180.0, prefix=pre),
+            )
+        )
     pred_start = _number(pr, "start", None, f, prefix="prediction.")
     pred_end = _number(pr, "end", None, f, prefix="prediction.")
     if pred_start is not None and pred_end is not None:
-        _require(pred_end > pred_start, "prediction.end",
-                 f"must be later than prediction.start ({pred_start}), not {pred_end}", f)
+        _require(
+            pred_end > pred_start,
+            "prediction.end",
+            f"must be later than prediction.start ({pred_start}), not {pred_end}",
+            f,
+        )
     pred_stars = _choice(pr, "stars", STAR_MODELS, None, "prediction.stars", f) if "stars" in pr else None
     pred_catalog = None
     if "catalog" in pr:
-        cat = pr["catalog"]      # a file beside any stars but "catalog": DataPlan refuses it
-        _require(isinstance(cat, str) and cat.strip() != "" and "\0" not in cat, "prediction.catalog",
-                 f"must be a string, not {_show(cat)}", f)
+        cat = pr["catalog"]  # a file beside any stars but "catalog": DataPlan refuses it
+        _require(
+            isinstance(cat, str) and cat.strip() != "" and "\0" not in cat,
+            "prediction.catalog",
+            f"must be a string, not {_show(cat)}",
+            f,
+        )
         pred_catalog = Path(os.path.normpath(mission / cat))
     vf = tables["verification"]
     _unknown(vf, TABLES["verification"], "verification.", f)
     for extra, keys in PLANNING_TABLES.items():
         _unknown(tables[extra], keys, f"{extra}.", f)
     return AnalysisConfig(
-        path=path, mission=mission, name=name, method=method, physics=PhysicsOptions(**ph),
+        path=path,
+        mission=mission,
+        name=name,
+        method=method,
+        physics=PhysicsOptions(**ph),
         models=dict(models),
-        state=StateConfig(effects=lists["effects"], exclude=lists["exclude"], attitude_sigma_deg=att_sig,
-                          elements=elements),
+        state=StateConfig(
+            effects=lists["effects"], exclude=lists["exclude"], attitude_sigma_deg=att_sig, elements=elements
+        ),
         filter=FilterConfig(
             block_seconds=_number(fl, "block_seconds", 600.0, f, positive=True, prefix="filter."),
             edit_k=_number(fl, "edit_k", 5.0, f, lo=0.0, prefix="filter."),
             max_iterations=_number(fl, "max_iterations", 20, f, lo=1, hi=1000, integer=True, prefix="filter."),
-            edit_k_sensor=_edit_k_sensor(fl, f)),
+            edit_k_sensor=_edit_k_sensor(fl, f),
+        ),
         diagnosis=DiagnosisConfig(
             significance=_number(dg, "significance", 0.001, f, lo=1e-12, hi=0.5, prefix="diagnosis."),
-            holdout_fraction=_number(dg, "holdout_fraction", 0.25, f, lo=0.0, hi=0.9, prefix="diagnosis.")),
+            holdout_fraction=_number(dg, "holdout_fraction", 0.25, f, lo=0.0, hi=0.9, prefix="diagnosis."),
+        ),
         prediction=PredictionConfig(
             step=_number(pr, "step", 10.0, f, positive=True, prefix="prediction."),
-            gaps=tuple((float(a), float(b)) for a, b in gaps), maneuvers=tuple(mans),
-            start=pred_start, end=pred_end, stars=pred_stars, catalog=pred_catalog),
+            gaps=tuple((float(a), float(b)) for a, b in gaps),
+            maneuvers=tuple(mans),
+            start=pred_start,
+            end=pred_end,
+            stars=pred_stars,
+            catalog=pred_catalog,
+        ),
         verification=VerificationConfig(
-            requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0,
-                                    prefix="verification.")),
-        trade=dict(tables["trade"]), montecarlo=dict(tables["montecarlo"]))
+            requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0, prefix="verification.")
+        ),
+        trade=dict(tables["trade"]),
+        montecarlo=dict(tables["montecarlo"]),
+    )
 
 
 def _edit_k_sensor(fl: dict, f) -> dict[str, float]:
     """``[filter.edit_k_sensor]``: sensor name -> k ≥ 0 (sensor names are checked against
     the mission by :func:`check_against_mission`)."""
     table = _table(fl, "edit_k_sensor", "filter.edit_k_sensor", f)
-    return {str(name): _number(table, name, 5.0, f, lo=0.0, prefix="filter.edit_k_sensor.")
-            for name in table}
+    return {str(name): _number(table, name, 5.0, f, lo=0.0, prefix="filter.edit_k_sensor.") for name in table}
 
 
 def check_against_mission(cfg: AnalysisConfig, spec) -> None:
@@ -464,20 +517,36 @@ def check_against_mission(cfg: AnalysisConfig, spec) -> None:
     for name, model in cfg.models.items():
         key = f"models.{_quote(name)}"
         _require(name in types, key, f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
-        _require(model in (types[name], MODEL_OFF), key,
-                 f"sensor {name} is a {types[name]}: use \"{types[name]}\" or \"off\", not {_show(model)}", f)
+        _require(
+            model in (types[name], MODEL_OFF),
+            key,
+            f'sensor {name} is a {types[name]}: use "{types[name]}" or "off", not {_show(model)}',
+            f,
+        )
     for key, ids in (("state.effects", st.effects), ("state.exclude", st.exclude)):
         for i, e in enumerate(ids, start=1):
             owner = e.split(".")[0]
-            _require(owner in types or owner == "model", f"{key}[{i}]",
-                     f"effect {e}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})", f)
+            _require(
+                owner in types or owner == "model",
+                f"{key}[{i}]",
+                f"effect {e}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})",
+                f,
+            )
     for name in cfg.filter.edit_k_sensor:
-        _require(name in types, f"filter.edit_k_sensor.{_quote(name)}",
-                 f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
+        _require(
+            name in types,
+            f"filter.edit_k_sensor.{_quote(name)}",
+            f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})",
+            f,
+        )
     for name in st.elements:
         owner = name.split(".")[0]
-        _require(owner in types or owner == "att", f"state.elements.{_quote(name)}",
-                 f"element {name}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})", f)
+        _require(
+            owner in types or owner == "att",
+            f"state.elements.{_quote(name)}",
+            f"element {name}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})",
+            f,
+        )
 
 
 # ---------------------------------------------------------------------------- writing
@@ -513,7 +582,7 @@ def _table_dict(table, cfg: AnalysisConfig) -> dict[str, Any]:
         v = getattr(table, f.name)
         if v is None or (f.metadata.get("omit_empty") and not v):
             continue
-        if isinstance(v, Path):                  # prediction.catalog
+        if isinstance(v, Path):  # prediction.catalog
             try:
                 v = Path(_relpath(v, cfg.mission)).as_posix()
             except ValueError:
@@ -557,7 +626,7 @@ def config_for(target: str | Path) -> AnalysisConfig:
     p = Path(target).expanduser()
     if p.is_dir():
         return default_config(p)
-    if p.name == "mission.toml" and p.is_file():      # the mission's own file: its directory
+    if p.name == "mission.toml" and p.is_file():  # the mission's own file: its directory
         return default_config(p.parent)
     if p.suffix == ".toml" or p.is_file():
         return load_config(p)

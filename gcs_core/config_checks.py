@@ -32,8 +32,9 @@ def _list(parent: dict, key: str, full: str, file) -> list:
     return v
 
 
-def _number(table: dict, key: str, default, file, *, positive=False, lo=None, hi=None, prefix="",
-            integer=False, allow_inf=False):
+def _number(
+    table: dict, key: str, default, file, *, positive=False, lo=None, hi=None, prefix="", integer=False, allow_inf=False
+):
     full = f"{prefix}{key}"
     if key not in table:
         return default
@@ -55,8 +56,7 @@ def _number(table: dict, key: str, default, file, *, positive=False, lo=None, hi
 
 def _choice(table: dict, key: str, choices, default, full: str, file):
     v = table.get(key, default)
-    _require(isinstance(v, str) and v in choices, full,
-             f"must be one of {', '.join(choices)}, not {show(v)}", file)
+    _require(isinstance(v, str) and v in choices, full, f"must be one of {', '.join(choices)}, not {show(v)}", file)
     return v
 
 
@@ -69,5 +69,4 @@ def _unknown(table: dict, known, prefix: str, file) -> None:
 
 
 def _pair(g: Any) -> bool:
-    return (isinstance(g, list) and len(g) == 2 and all(is_number(x) and math.isfinite(x) for x in g)
-            and g[0] < g[1])
+    return isinstance(g, list) and len(g) == 2 and all(is_number(x) and math.isfinite(x) for x in g) and g[0] < g[1]

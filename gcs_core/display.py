@@ -31,8 +31,12 @@ import numpy as np
 from gcs_core.units import DEG, UNIT_SCALE
 
 #: display unit -> multiply the internal value by this (UNIT_SCALE plus what only display needs)
-SCALE: dict[str, float] = {**UNIT_SCALE, "deg/h2": (3600.0 / DEG) * 3600.0, "arcsec/count": 1.0 / (DEG / 3600.0),
-                           "deg/count": 1.0 / DEG}
+SCALE: dict[str, float] = {
+    **UNIT_SCALE,
+    "deg/h2": (3600.0 / DEG) * 3600.0,
+    "arcsec/count": 1.0 / (DEG / 3600.0),
+    "deg/count": 1.0 / DEG,
+}
 
 #: σ (internal units) from which an angle is shown in degrees instead of arcsec
 DEG_FROM_SIGMA = 1.0 * DEG
@@ -122,7 +126,7 @@ def fixed(x: float, decimals: int) -> str:
         return "—"
     if math.isinf(x):
         return "∞" if x > 0 else "-∞"
-    return f"{round(x, decimals) + 0.0:.{decimals}f}"    # + 0.0: no "-0.0"
+    return f"{round(x, decimals) + 0.0:.{decimals}f}"  # + 0.0: no "-0.0"
 
 
 #: below this a p-value is not resolved in double precision (1 − P rounds to 1)
@@ -159,22 +163,21 @@ def value_sigma(value: float, sigma: float | None) -> tuple[str, str]:
     if sigma is None or not math.isfinite(sigma) or sigma <= 0:
         return sig(value, 6), "∞" if sigma is not None and math.isinf(sigma) else "—"
     exp_s = math.floor(math.log10(sigma))
-    decimals = 1 - exp_s                        # keep 2 significant digits of σ
+    decimals = 1 - exp_s  # keep 2 significant digits of σ
     ref = max(abs(value), sigma)
     if decimals <= 10 and ref < FIXED_LIMIT and (ref >= 1e-3 or exp_s >= -4):
         d = max(decimals, 0)
-        v = round(value, decimals) + 0.0       # + 0.0 turns a rounded -0.0 into 0.0
+        v = round(value, decimals) + 0.0  # + 0.0 turns a rounded -0.0 into 0.0
         s = round(sigma, decimals)
         return f"{v:.{d}f}", f"{s:.{d}f}"
     # shared power of ten, chosen from the larger of |value| and σ
     exp = math.floor(math.log10(ref)) if ref > 0 else exp_s
-    p10 = 10.0 ** exp
+    p10 = 10.0**exp
     d = max(exp - exp_s + 1, 0)
     return f"{value / p10:.{d}f}e{exp:+d}", f"{sigma / p10:.{d}f}e{exp:+d}"
 
 
-def estimate(value: float, sigma: float | None, unit: str, *, shown: str | None = None,
-             with_unit: bool = True) -> str:
+def estimate(value: float, sigma: float | None, unit: str, *, shown: str | None = None, with_unit: bool = True) -> str:
     """``value ± σ unit`` in the display unit chosen from σ, σ-derived digits.
 
     ``with_unit=False`` leaves the unit out (a table that has a unit column)."""
@@ -206,8 +209,7 @@ def value_text(value: float, sigma: float | None, unit: str, shown: str) -> str:
     return f"{round(v, d) + 0.0:.{max(d, 0)}f}"
 
 
-def quantity(value: float, unit: str, *, digits: int = 3, shown: str | None = None,
-             with_unit: bool = True) -> str:
+def quantity(value: float, unit: str, *, digits: int = 3, shown: str | None = None, with_unit: bool = True) -> str:
     """A number with no σ in display units (chosen from its own size unless ``shown``),
     ``digits`` significant digits."""
     shown = shown or display_unit(unit, value)
@@ -256,7 +258,8 @@ def tick_labels(ticks: list[float]) -> list[str]:
     """Labels of :func:`nice_ticks` values with the fewest decimals that tell them apart."""
     for d in range(0, 7):
         labels = [f"{t:.{d}f}" for t in ticks]
-        if len(set(labels)) == len(labels) and all(abs(float(lab) - t) < 1e-9 * max(1.0, abs(t))
-                                                   for lab, t in zip(labels, ticks)):
+        if len(set(labels)) == len(labels) and all(
+            abs(float(lab) - t) < 1e-9 * max(1.0, abs(t)) for lab, t in zip(labels, ticks)
+        ):
             return [lab if lab != "-0" else "0" for lab in labels]
     return [f"{t:g}" for t in ticks]

@@ -97,8 +97,9 @@ def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
 
 
 @contextlib.contextmanager
-def atomic_open(path: str | os.PathLike, mode: str = "w", *, encoding: str | None = "utf-8",
-                newline: str | None = None) -> Iterator[IO]:
+def atomic_open(
+    path: str | os.PathLike, mode: str = "w", *, encoding: str | None = "utf-8", newline: str | None = None
+) -> Iterator[IO]:
     """``open(path, mode)`` written atomically (:func:`atomic_path`); ``mode`` "w" or "wb"."""
     if mode not in ("w", "wb"):
         raise ValueError(f"atomic_open writes a new file ('w' or 'wb'), not {mode!r}")
@@ -111,8 +112,14 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", *, encoding: str | Non
                 yield fh
 
 
-def write_atomic(path: str | os.PathLike, data: str | bytes, *, encoding: str = "utf-8",
-                 newline: str | None = None, parents: bool = False) -> Path:
+def write_atomic(
+    path: str | os.PathLike,
+    data: str | bytes,
+    *,
+    encoding: str = "utf-8",
+    newline: str | None = None,
+    parents: bool = False,
+) -> Path:
     """Write ``data`` to ``path`` atomically (:func:`atomic_path`); ``parents``: create the folder."""
     path = Path(path)
     if parents:
@@ -159,7 +166,7 @@ def atomic_directory(out: str | os.PathLike, *, mode: int = 0o755) -> Iterator[P
         fsync_path(stage, directory=True)
         if not out.exists():
             os.replace(stage, out)
-        elif _exchange(stage, out):         # stage now holds the old directory
+        elif _exchange(stage, out):  # stage now holds the old directory
             shutil.rmtree(stage, ignore_errors=True)
         else:
             old = Path(tempfile.mkdtemp(prefix=f".{out.name}.old.", suffix=".tmp", dir=out.parent))

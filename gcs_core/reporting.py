@@ -37,25 +37,27 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     out: dict[str, Any] = {"mission": analysis.mission.spec.name}
     if command:
         out["command"] = command
-    out.update({
-        "method": analysis.config.method,
-        "status": res.status if res else "not run",
-        "sensors": _sensor_rows(analysis, gof) if res is not None else {},
-        "state": _state_rows(analysis) if res is not None else [],
-        "candidates": [c.as_report() for c in analysis.candidates],
-        "steps": [s.as_report() for s in analysis.steps if s.action != "fit"],
-        "effects_in_state": analysis.effects_in_state(),
-        "physics": analysis.config.physics.as_dict(),
-        "physics_needed": [physics_row(p) for p in analysis.physics_needed()] if res is not None else [],
-        "unobservable": list(res.unobservable) if res else [],
-        "aliases": [al.as_report() for al in analysis.aliases()],
-        "unobservable_at_prior": analysis.null_at_prior() if res else [],
-        "goodness_of_fit": gof.as_report() if gof is not None else None,
-        "verdict": gof.verdict if gof is not None else "not run",
-        "warnings": list(analysis.warnings),
-        "stop_reason": analysis.stop_reason,
-        "config_digest": analysis.config.digest(),
-    })
+    out.update(
+        {
+            "method": analysis.config.method,
+            "status": res.status if res else "not run",
+            "sensors": _sensor_rows(analysis, gof) if res is not None else {},
+            "state": _state_rows(analysis) if res is not None else [],
+            "candidates": [c.as_report() for c in analysis.candidates],
+            "steps": [s.as_report() for s in analysis.steps if s.action != "fit"],
+            "effects_in_state": analysis.effects_in_state(),
+            "physics": analysis.config.physics.as_dict(),
+            "physics_needed": [physics_row(p) for p in analysis.physics_needed()] if res is not None else [],
+            "unobservable": list(res.unobservable) if res else [],
+            "aliases": [al.as_report() for al in analysis.aliases()],
+            "unobservable_at_prior": analysis.null_at_prior() if res else [],
+            "goodness_of_fit": gof.as_report() if gof is not None else None,
+            "verdict": gof.verdict if gof is not None else "not run",
+            "warnings": list(analysis.warnings),
+            "stop_reason": analysis.stop_reason,
+            "config_digest": analysis.config.digest(),
+        }
+    )
     if res is not None:
         out["remaining"] = remaining_summary(analysis)
     return out
@@ -68,11 +70,15 @@ def _sensor_rows(analysis, gof) -> dict[str, dict[str, Any]]:
     for name, r in analysis.result.residuals.items():
         comp = np.atleast_1d(np.asarray(r.rms, dtype=float))
         held = analysis.holdout_rms.get(name, float("nan"))
-        rows[name] = {"n": r.n, "rms": float(np.sqrt(np.mean(comp ** 2))) if comp.size else float("nan"),
-                      "rms_normalized": round(r.rms_normalized, 4),
-                      "edited": int(np.count_nonzero(r.edited)),
-                      "holdout_rms_normalized": round(held, 4) if math.isfinite(held) else None,
-                      "unit": r.unit, "components": list(r.components)}
+        rows[name] = {
+            "n": r.n,
+            "rms": float(np.sqrt(np.mean(comp**2))) if comp.size else float("nan"),
+            "rms_normalized": round(r.rms_normalized, 4),
+            "edited": int(np.count_nonzero(r.edited)),
+            "holdout_rms_normalized": round(held, 4) if math.isfinite(held) else None,
+            "unit": r.unit,
+            "components": list(r.components),
+        }
         rows[name].update(gof.sensor_report(name) if gof is not None else {})
         rows[name]["rms_components"] = {c: float(v) for c, v in zip(r.components, comp)}
     return rows
@@ -92,8 +98,7 @@ def _state_rows(analysis) -> list[dict[str, Any]]:
     for e in res.state:
         if e.role == HELD:
             continue
-        row = {"name": e.name, "estimate": e.value, "sigma": sig.get(e.name, e.sigma0),
-               "unit": e.unit, "role": e.role}
+        row = {"name": e.name, "estimate": e.value, "sigma": sig.get(e.name, e.sigma0), "unit": e.unit, "role": e.role}
         if e.role == SOLVE_FOR:
             row["determined"] = e.name not in loose
             if e.name in loose:
@@ -111,17 +116,27 @@ def physics_why(p) -> str:
     """Why an always-on physics option is or is not shown needed (a
     :class:`~gcs_core.diagnosis.physics.PhysicsNeed`), in one sentence."""
     seen = ", ".join(f"{k} ({100 * v:.0f}%)" for k, v in p.sensors.items() if v >= 0.05)
-    return (f"switching it off would add Δχ² = {p.delta_chi2_if_removed:.4g} on 1 dof"
-            + (f", seen in {seen}" if seen else "")
-            + ("; the data need it." if p.needed else
-               f"; below the {p.critical_chi2:.1f} that α = {p.alpha:g} needs: "
-               "these data cannot show it, but it is real physics."))
+    return (
+        f"switching it off would add Δχ² = {p.delta_chi2_if_removed:.4g} on 1 dof"
+        + (f", seen in {seen}" if seen else "")
+        + (
+            "; the data need it."
+            if p.needed
+            else f"; below the {p.critical_chi2:.1f} that α = {p.alpha:g} needs: "
+            "these data cannot show it, but it is real physics."
+        )
+    )
 
 
 def physics_row(p) -> dict[str, Any]:
     """The report row of a :class:`~gcs_core.diagnosis.physics.PhysicsNeed`."""
-    return {"id": p.id, "delta_chi2_if_removed": round(p.delta_chi2_if_removed, 3), "needed": p.needed,
-            "why": physics_why(p), "physics": p.explanation}
+    return {
+        "id": p.id,
+        "delta_chi2_if_removed": round(p.delta_chi2_if_removed, 3),
+        "needed": p.needed,
+        "why": physics_why(p),
+        "physics": p.explanation,
+    }
 
 
 #: χ²/n within this many standard deviations (√(2/n)) of 1 is "consistent with the noise"
@@ -154,11 +169,14 @@ def remaining_summary(analysis) -> dict[str, dict[str, Any]]:
         estimated = _noise_estimated(spec, name)
         held = analysis.holdout_rms.get(name, float("nan"))
         out[name] = {
-            "rms": float(np.sqrt(np.mean(comp ** 2))) if comp.size else float("nan"),
+            "rms": float(np.sqrt(np.mean(comp**2))) if comp.size else float("nan"),
             "rms_normalized": float(r.rms_normalized),
             "holdout_rms_normalized": float(held),
-            "noise": noise, "unit": r.unit, "noise_estimated": estimated,
-            "chi2_per_measurement": ratio, "consistency_bound": bound,
+            "noise": noise,
+            "unit": r.unit,
+            "noise_estimated": estimated,
+            "chi2_per_measurement": ratio,
+            "consistency_bound": bound,
             "consistent_with_noise": bool(abs(ratio - 1.0) <= bound),
         }
     return out
@@ -168,6 +186,7 @@ def _noise_estimated(spec, name: str) -> bool:
     """True when mission.toml marks the sensor's noise as estimated from the data (the
     converters' one marker, :func:`gcs_core.filtr.noise.noise_estimated`)."""
     from gcs_core.filtr.noise import noise_estimated
+
     try:
         text = (spec.root / "mission.toml").read_text(encoding="utf-8")
     except OSError:
@@ -204,10 +223,22 @@ def icd_report_problems(rep: Mapping[str, Any]) -> list[str]:
         for k in ("rms", "rms_normalized"):
             if k not in s or not _is_num(s[k], none_ok=True):
                 out.append(f"sensors.{name}.{k}: must be a number")
-    for key, fields in (("state", {"name": str, "estimate": float, "sigma": float, "unit": str}),
-                        ("candidates", {"id": str, "sensor": str, "effect": str, "delta_chi2": float,
-                                        "dof": int, "p_value": float, "identifiable": bool}),
-                        ("steps", {"rms_normalized_before": dict, "rms_normalized_after": dict})):
+    for key, fields in (
+        ("state", {"name": str, "estimate": float, "sigma": float, "unit": str}),
+        (
+            "candidates",
+            {
+                "id": str,
+                "sensor": str,
+                "effect": str,
+                "delta_chi2": float,
+                "dof": int,
+                "p_value": float,
+                "identifiable": bool,
+            },
+        ),
+        ("steps", {"rms_normalized_before": dict, "rms_normalized_after": dict}),
+    ):
         rows = rep.get(key)
         if not isinstance(rows, list):
             out.append(f"{key}: must be a list")
@@ -218,9 +249,13 @@ def icd_report_problems(rep: Mapping[str, Any]) -> list[str]:
                 continue
             for f, typ in fields.items():
                 v = row.get(f)
-                ok = (f in row and (_is_num(v, none_ok=f in ("sigma", "p_value")) if typ is float
-                                    else isinstance(v, int) and not isinstance(v, bool) if typ is int
-                                    else isinstance(v, typ)))
+                ok = f in row and (
+                    _is_num(v, none_ok=f in ("sigma", "p_value"))
+                    if typ is float
+                    else isinstance(v, int) and not isinstance(v, bool)
+                    if typ is int
+                    else isinstance(v, typ)
+                )
                 if not ok:
                     out.append(f"{key}[{i}].{f}: must be {typ.__name__}")
             if key == "steps" and not isinstance(row.get("added", row.get("removed")), str):

@@ -14,7 +14,8 @@ from dataclasses import replace
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics, holdout as held_out
+from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
+from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.physics import PhysicsNeed
@@ -58,14 +59,14 @@ class Analysis:
         self.candidates: list[Candidate] = []
         self.steps: list[Step] = []
         self.holdout_rms: dict[str, float] = {}
-        self.holdout_chi2: dict[str, goodness.ChiSquare] = {}   # sensor (and "all sensors") -> test
+        self.holdout_chi2: dict[str, goodness.ChiSquare] = {}  # sensor (and "all sensors") -> test
         self.warnings: list[str] = []
         self.stop_reason = ""
         self.problem: Problem = self._build()
-        self._goodness: tuple | None = None             # (result it was formed for, GoodnessOfFit)
-        self._null_at_prior: tuple | None = None        # (problem, combinations)
-        self._physics_needed: tuple | None = None      # (result it was scored on, rows)
-        self._aliases: tuple | None = None              # (result it was formed for, aliases)
+        self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
+        self._null_at_prior: tuple | None = None  # (problem, combinations)
+        self._physics_needed: tuple | None = None  # (result it was scored on, rows)
+        self._aliases: tuple | None = None  # (result it was formed for, aliases)
 
     # ------------------------------------------------------------------ set-up
     @property
@@ -74,8 +75,12 @@ class Analysis:
 
     def _state_options(self) -> StateOptions:
         ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in self.config.state.elements.items()}
-        return StateOptions(effects=self.config.state.effects, exclude=self.config.state.exclude, overrides=ov,
-                            attitude_sigma=self.config.state.attitude_sigma_deg * DEG)
+        return StateOptions(
+            effects=self.config.state.effects,
+            exclude=self.config.state.exclude,
+            overrides=ov,
+            attitude_sigma=self.config.state.attitude_sigma_deg * DEG,
+        )
 
     def _build(self) -> Problem:
         """The state definition and prepared sensors of the current config."""
@@ -88,8 +93,7 @@ class Analysis:
         if off:
             mission = _without_sensors(mission, off)
         gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
-        return build_problem(mission, physics=self.physics, options=self._state_options(),
-                             use_gyro=not gyro_off)
+        return build_problem(mission, physics=self.physics, options=self._state_options(), use_gyro=not gyro_off)
 
     def catalogue(self) -> list[Effect]:
         return mission_catalogue(self.problem, self.physics)
@@ -99,7 +103,7 @@ class Analysis:
         for e in self.catalogue():
             if e.physics:
                 on, _ = PHYSICS_EFFECTS[e.effect]
-                if getattr(self.physics, e.effect) == on:      # a config may omit a key: its default
+                if getattr(self.physics, e.effect) == on:  # a config may omit a key: its default
                     out.append(e.id)
             elif all(self.problem.state[n].role == SOLVE_FOR for n in e.elements):
                 out.append(e.id)
@@ -119,17 +123,20 @@ class Analysis:
 
     # ------------------------------------------------------------------ fitting
     def batch_options(self) -> BatchOptions:
-        return BatchOptions(max_iterations=self.config.filter.max_iterations,
-                            edit_k=self.config.filter.edit_k or None,
-                            edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()})
+        return BatchOptions(
+            max_iterations=self.config.filter.max_iterations,
+            edit_k=self.config.filter.edit_k or None,
+            edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()},
+        )
 
     def holdout_masks(self) -> dict[str, np.ndarray]:
         """Held-out frames per sensor (True = held out): 5-min blocks spread over the span
         by the golden-ratio rotation (:mod:`gcs_core.diagnosis.holdout`)."""
         return held_out.holdout_masks(self.problem.sensors, self.config.diagnosis.holdout_fraction)
 
-    def fit(self, *, holdout: bool = True, initial: Mapping[str, float] | None = None,
-            previous: FitResult | None = None) -> FitResult:
+    def fit(
+        self, *, holdout: bool = True, initial: Mapping[str, float] | None = None, previous: FitResult | None = None
+    ) -> FitResult:
         """Fit the current state; with ``holdout`` also score the held-out span.
 
         ``initial`` warm-starts the iterations (e.g. from the previous step's solution);
@@ -145,12 +152,13 @@ class Analysis:
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
             # the whole-span training fit starts from the full fit's solution and knots
-            warm = {"start": res} if getattr(res, "dynamics", None) is not None else \
-                {"initial": res.state.values()}
+            warm = {"start": res} if getattr(res, "dynamics", None) is not None else {"initial": res.state.values()}
             res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
-            self.holdout_rms = (smoothed_holdout_rms(self.problem, res_train, masks)
-                                if isinstance(res_train, SmoothedResult) and res_train.dynamics is not None
-                                else static_holdout_rms(self.problem, res_train, masks))
+            self.holdout_rms = (
+                smoothed_holdout_rms(self.problem, res_train, masks)
+                if isinstance(res_train, SmoothedResult) and res_train.dynamics is not None
+                else static_holdout_rms(self.problem, res_train, masks)
+            )
             self.holdout_chi2 = goodness.holdout_tests(self.problem, res_train, masks)
         else:
             self.holdout_chi2 = {}
@@ -173,24 +181,29 @@ class Analysis:
         """
         if self.config.method != "batch" or self.problem.gyro_name is None or self.result is None:
             return []
-        assert isinstance(self.result, BatchResult)        # method "batch": fit() ran fit_problem
+        assert isinstance(self.result, BatchResult)  # method "batch": fit() ran fit_problem
         cost = batch_wander_cost(self.problem, self.result)
         if cost is None or cost["worst_bias_sigma"] < 0.5:
             return []
         worst = ", ".join(f"{k} ×{v:.2f}" for k, v in cost["sigma_ratio"][:4])
-        return [f"batch method: the gyro noise (not modelled by the batch) makes its σ too small "
-                f"(σ with the process noise / batch σ: {worst}); the expected error of those "
-                f"elements from the wander reaches {cost['worst_bias_sigma']:.1f} batch σ, and the "
-                f"wander leaves Δχ² = {cost['delta_chi2']:.1f} in the residuals. Use method = "
-                "\"whole_span\" (the default) for honest σ and p-values."]
+        return [
+            f"batch method: the gyro noise (not modelled by the batch) makes its σ too small "
+            f"(σ with the process noise / batch σ: {worst}); the expected error of those "
+            f"elements from the wander reaches {cost['worst_bias_sigma']:.1f} batch σ, and the "
+            f"wander leaves Δχ² = {cost['delta_chi2']:.1f} in the residuals. Use method = "
+            '"whole_span" (the default) for honest σ and p-values.'
+        ]
 
     def filter_options(self) -> FilterOptions:
-        return FilterOptions(edit_k=self.config.filter.edit_k or None,
-                             edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()})
+        return FilterOptions(
+            edit_k=self.config.filter.edit_k or None,
+            edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()},
+        )
 
     def make_filter(self):
         """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""
         from gcs_core.filtr.stepping import Filtr
+
         return Filtr(self.problem, options=self.filter_options(), block_seconds=self.config.filter.block_seconds)
 
     def _kalman_fit(self, progress=None, cancel=None) -> FitResult:
@@ -202,9 +215,13 @@ class Analysis:
 
     def rank(self) -> list[Candidate]:
         res = self.result if self.result is not None else self.fit()
-        self.candidates = rank_candidates(self.problem, res, self.candidate_effects(),
-                                          alpha=self.config.diagnosis.significance,
-                                          smoothed=self.config.method == "kalman")
+        self.candidates = rank_candidates(
+            self.problem,
+            res,
+            self.candidate_effects(),
+            alpha=self.config.diagnosis.significance,
+            smoothed=self.config.method == "kalman",
+        )
         return self.candidates
 
     def physics_needed(self) -> list[PhysicsNeed]:
@@ -216,9 +233,18 @@ class Analysis:
             return self._physics_needed[1]
         on_ids = set(self.effects_in_state())
         phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
-        out = physics.physics_needed(self.problem, self.result, phys, alpha=self.config.diagnosis.significance,
-                                     smoothed=self.config.method == "kalman") if phys else []
-        self._physics_needed = (self.result, out)         # one score pass per fit
+        out = (
+            physics.physics_needed(
+                self.problem,
+                self.result,
+                phys,
+                alpha=self.config.diagnosis.significance,
+                smoothed=self.config.method == "kalman",
+            )
+            if phys
+            else []
+        )
+        self._physics_needed = (self.result, out)  # one score pass per fit
         return out
 
     def rms(self) -> dict[str, float]:
@@ -229,6 +255,7 @@ class Analysis:
         cat = {e.id: e for e in self.catalogue()}
         if effect_id not in cat:
             import difflib
+
             close = difflib.get_close_matches(effect_id, list(cat), n=1, cutoff=0.75)
             hint = f"; did you mean '{close[0]}'?" if close else ""
             raise ConfigError(f"unknown effect '{effect_id}'{hint} (see `gcs effects`)", key="state.effects")
@@ -259,8 +286,7 @@ class Analysis:
         e = {x.id: x for x in self.catalogue()}.get(effect_id)
         if e is not None:
             est = {n: res.state[n].value for n in e.elements if n in res.state}
-        step = Step(action, effect_id, before, self.rms(), dict(self.holdout_rms),
-                    chi_before - res.chi2, res.chi2, est)
+        step = Step(action, effect_id, before, self.rms(), dict(self.holdout_rms), chi_before - res.chi2, res.chi2, est)
         self.steps.append(step)
         return step
 
@@ -294,8 +320,9 @@ class Analysis:
         if res is None:
             return None
         if self._goodness is None or self._goodness[0] is not res:
-            g = goodness.goodness_of_fit(self.problem, res, holdout=self.holdout_chi2,
-                                         alpha=self.config.diagnosis.significance)
+            g = goodness.goodness_of_fit(
+                self.problem, res, holdout=self.holdout_chi2, alpha=self.config.diagnosis.significance
+            )
             self._goodness = (res, g)
         return self._goodness[1]
 
@@ -313,8 +340,9 @@ class Analysis:
         (:func:`gcs_core.diagnosis.determination.null_at_prior`), once per state."""
         if self._null_at_prior is None or self._null_at_prior[0] is not self.problem:
             try:
-                combos = determination.null_at_prior(self.problem, self.problem.state.solve_for,
-                                                     self.batch_options().rank_tol * 1e3)
+                combos = determination.null_at_prior(
+                    self.problem, self.problem.state.solve_for, self.batch_options().rank_tol * 1e3
+                )
             except (np.linalg.LinAlgError, ValueError, FloatingPointError) as exc:
                 log.info("no linearization at the a priori: %s", exc)
                 combos = []

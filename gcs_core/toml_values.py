@@ -27,14 +27,20 @@ class LocatedError(Protocol):
     """An error class that takes the message and ``file``, ``line``, ``column``
     (like :class:`~gcs_core.errors.InputError` and :class:`~gcs_core.errors.ConfigError`)."""
 
-    def __call__(self, message: str, *, file: str | os.PathLike | None = ...,
-                 line: int | None = ..., column: int | str | None = ...) -> GcsError: ...
+    def __call__(
+        self,
+        message: str,
+        *,
+        file: str | os.PathLike | None = ...,
+        line: int | None = ...,
+        column: int | str | None = ...,
+    ) -> GcsError: ...
 
 
 def show(value: Any) -> str:
     """``repr(value)``, cut to :data:`SHOWN` characters (with ``...``)."""
     text = repr(value)
-    return text if len(text) <= SHOWN else text[:SHOWN - 3] + "..."
+    return text if len(text) <= SHOWN else text[: SHOWN - 3] + "..."
 
 
 def quote(name: str) -> str:
@@ -64,9 +70,13 @@ def decode(raw: bytes, path, error: LocatedError) -> str:
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as err:
-        line = raw[:err.start].count(b"\n") + 1
-        raise error(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path, line=line,
-                    column=err.start - (raw.rfind(b"\n", 0, err.start) + 1) + 1) from None
+        line = raw[: err.start].count(b"\n") + 1
+        raise error(
+            f"not UTF-8 text (byte 0x{raw[err.start]:02x})",
+            file=path,
+            line=line,
+            column=err.start - (raw.rfind(b"\n", 0, err.start) + 1) + 1,
+        ) from None
 
 
 def loads(text: str, path, error: LocatedError) -> dict:
@@ -78,12 +88,16 @@ def loads(text: str, path, error: LocatedError) -> dict:
         msg = str(err).splitlines()[0] if str(err) else "invalid TOML"
         m = re.search(r"\s*\(at line (\d+), column (\d+)\)\s*$", msg)
         if m:
-            raise error(f"TOML syntax error: {msg[:m.start()]}", file=path,
-                        line=int(m.group(1)), column=int(m.group(2))) from None
+            raise error(
+                f"TOML syntax error: {msg[: m.start()]}", file=path, line=int(m.group(1)), column=int(m.group(2))
+            ) from None
         m = re.search(r"\s*\(at end of document\)\s*$", msg)
         if m:
-            raise error(f"TOML syntax error at the end of the file: {msg[:m.start()]}", file=path,
-                        line=max(1, text.count("\n") + (not text.endswith("\n")))) from None
+            raise error(
+                f"TOML syntax error at the end of the file: {msg[: m.start()]}",
+                file=path,
+                line=max(1, text.count("\n") + (not text.endswith("\n"))),
+            ) from None
         raise error(f"TOML syntax error: {msg}", file=path) from None
     except RecursionError:
         raise error("TOML nesting too deep", file=path) from None

@@ -16,19 +16,29 @@ ARCSEC = DEG / 3600.0
 one_arcsecond = ARCSEC
 one_degree = DEG
 
-R_EARTH_KM = 6378.137            # ICD §5 horizon: spherical Earth radius [km]
-MU_EARTH = 398600.4418           # km^3/s^2, WGS-84
-OMEGA_EARTH = 7.292115e-5        # rad/s
-AU_KM = 149597870.7              # IAU 2012
-C_KM_S = 299792.458              # speed of light [km/s]
+R_EARTH_KM = 6378.137  # ICD §5 horizon: spherical Earth radius [km]
+MU_EARTH = 398600.4418  # km^3/s^2, WGS-84
+OMEGA_EARTH = 7.292115e-5  # rad/s
+AU_KM = 149597870.7  # IAU 2012
+C_KM_S = 299792.458  # speed of light [km/s]
 SECONDS_PER_DAY = 86400.0
 
 UNIT_SCALE = {
     # display unit -> multiply internal value by this to display it
-    "rad": 1.0, "deg": 1.0 / DEG, "arcsec": 1.0 / ARCSEC,
-    "rad/s": 1.0, "deg/h": 3600.0 / DEG, "arcsec/s": 1.0 / ARCSEC,
-    "nT": 1.0, "1": 1.0, "s": 1.0, "km": 1.0, "counts": 1.0,
-    "1/count": 1.0, "rad/count": 1.0, "nT/aux": 1.0,
+    "rad": 1.0,
+    "deg": 1.0 / DEG,
+    "arcsec": 1.0 / ARCSEC,
+    "rad/s": 1.0,
+    "deg/h": 3600.0 / DEG,
+    "arcsec/s": 1.0 / ARCSEC,
+    "nT": 1.0,
+    "1": 1.0,
+    "s": 1.0,
+    "km": 1.0,
+    "counts": 1.0,
+    "1/count": 1.0,
+    "rad/count": 1.0,
+    "nT/aux": 1.0,
 }
 
 

@@ -27,11 +27,13 @@ def shared_example():
     """``shared_example(name)``: the path of the independent simulator's mission ``name``
     (``sunpoint-nominal``, ``spinner-nominal``, ...); the test is skipped when the shared
     missions are not beside this checkout."""
+
     def find(name: str = "sunpoint-nominal") -> Path:
         path = SHARED_EXAMPLES / name
         if not path.is_dir():
             pytest.skip(f"the shared example mission {name!r} is not beside this checkout")
         return path
+
     return find
 
 

@@ -69,14 +69,12 @@ def converter(name: str):
     """The converter module of format ``name`` (InputError naming the known formats)."""
     path = CONVERTERS.get(name)
     if path is None:
-        raise InputError(f"unknown format {name!r}; known: {', '.join(sorted(CONVERTERS))}",
-                         key="format")
+        raise InputError(f"unknown format {name!r}; known: {', '.join(sorted(CONVERTERS))}", key="format")
     try:
         return importlib.import_module(path)
     except ModuleNotFoundError as err:
         if err.name == path:
-            raise InputError(f"the {name!r} converter is not installed ({path})",
-                             key="format") from None
+            raise InputError(f"the {name!r} converter is not installed ({path})", key="format") from None
         raise
 
 
@@ -93,6 +91,5 @@ def convert(fmt: str, source, out, **options) -> ConversionReport:
             if options[key] is None or options[key] is False:
                 del options[key]
             else:
-                raise InputError(f"option '{key}' does not apply to the {fmt!r} converter",
-                                 key=key)
+                raise InputError(f"option '{key}' does not apply to the {fmt!r} converter", key=key)
     return func(Path(source), Path(out), **options)

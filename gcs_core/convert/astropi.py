@@ -58,8 +58,7 @@ SENSOR = "MAG"
 TIME_COLUMN = "Date/Time"
 FIELD_COLUMNS = ("MagX", "MagY", "MagZ")
 #: source column -> aux channel name (written when the source has the column)
-AUX_COLUMNS = {"Temperature": "dtemp_c", "Humidity": "dhumidity_pct",
-               "Pressure": "dpressure_hpa", "C": "light_clear"}
+AUX_COLUMNS = {"Temperature": "dtemp_c", "Humidity": "dhumidity_pct", "Pressure": "dpressure_hpa", "C": "light_clear"}
 #: channels written as the deviation from their median over the file: a contamination
 #: ``k (T − T_med)`` is then not 99.99 % a bias (T varies by 0.3 °C about 33.7 °C), so the
 #: diagnosis can tell the two apart; light has a physical zero (dark) and stays as read
@@ -75,15 +74,18 @@ def _times(table) -> tuple[datetime, np.ndarray]:
         try:
             stamps.append(datetime.strptime(text.strip(), _TIME_FORMAT).replace(tzinfo=UTC))
         except ValueError:
-            raise table.error(k, TIME_COLUMN, f"{text.strip()!r} is not a UTC time "
-                              "'YYYY-MM-DD HH:MM:SS'") from None
+            raise table.error(k, TIME_COLUMN, f"{text.strip()!r} is not a UTC time 'YYYY-MM-DD HH:MM:SS'") from None
     epoch = stamps[0]
     t = np.array([(s - epoch).total_seconds() for s in stamps])
     bad = np.flatnonzero(np.diff(t) <= 0.0)
     if bad.size:
         k = int(bad[0]) + 1
-        raise table.error(k, TIME_COLUMN, f"time {stamps[k]:%Y-%m-%d %H:%M:%S} does not follow "
-                          f"{stamps[k - 1]:%Y-%m-%d %H:%M:%S} (line {table.lines[k - 1]})")
+        raise table.error(
+            k,
+            TIME_COLUMN,
+            f"time {stamps[k]:%Y-%m-%d %H:%M:%S} does not follow "
+            f"{stamps[k - 1]:%Y-%m-%d %H:%M:%S} (line {table.lines[k - 1]})",
+        )
     return epoch, t
 
 
@@ -111,8 +113,7 @@ def _lvlh_field(tle_file: Path, epoch: datetime, t: np.ndarray) -> np.ndarray:
     return np.einsum("nij,nj->ni", reference_dcm("earth_pointing", r, v), B_I)
 
 
-def _mission_toml(name, epoch, noise_nT, sigma_axes, n_transient, align_deg, bias_nT,
-                  rigid_rms_nT) -> str:
+def _mission_toml(name, epoch, noise_nT, sigma_axes, n_transient, align_deg, bias_nT, rigid_rms_nT) -> str:
     a = ", ".join(f"{x:.3f}" for x in align_deg)
     b = ", ".join(f"{x:.1f}" for x in bias_nT)
     s = ", ".join(f"{x:.1f}" for x in sigma_axes)
@@ -144,8 +145,9 @@ noise = {noise_nT:.1f}                      # nT
 """
 
 
-def _provenance(source, digest, tle, rows, n_transient, sigma_axes, noise, align, bias,
-                rigid_rms, aux_names, epoch, medians) -> str:
+def _provenance(
+    source, digest, tle, rows, n_transient, sigma_axes, noise, align, bias, rigid_rms, aux_names, epoch, medians
+) -> str:
     return f"""# Provenance
 
 Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
@@ -158,7 +160,7 @@ Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
   row kept. The first {n_transient} rows are the unit's start-up transient (the field settling
   from zero, then more than 3σ off the steady field extrapolated back; `leading_transient` in
   gcs_core/convert/common.py) and carry `flag = 1`: kept in the file, not used.
-- Auxiliary channels → `aux.csv`: {', '.join(aux_names) or 'none'}; `dtemp_c`,
+- Auxiliary channels → `aux.csv`: {", ".join(aux_names) or "none"}; `dtemp_c`,
   `dhumidity_pct`, `dpressure_hpa` are `Temperature` [°C], `Humidity` [%], `Pressure` [hPa]
   minus their median over the file ({medians}), so that a contamination by them is not
   almost all a bias; `light_clear` is the `C` (clear) light channel as read.
@@ -168,11 +170,11 @@ Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
 
 ## Estimated from the data (not a data book)
 
-- White noise per axis {', '.join(f'{x:.1f}' for x in sigma_axes)} nT (second differences of
+- White noise per axis {", ".join(f"{x:.1f}" for x in sigma_axes)} nT (second differences of
   consecutive samples, 5σ-clipped, / √6); `noise = {noise:.1f}` nT is their RMS. The file
   writes 0.1 µT steps: quantization alone is 29 nT.
-- Mounting `alignment_deg = [{', '.join(f'{x:.3f}' for x in align)}]` and bias
-  `[{', '.join(f'{x:.0f}' for x in bias)}]` nT: the rotation and offset that best map IGRF along
+- Mounting `alignment_deg = [{", ".join(f"{x:.3f}" for x in align)}]` and bias
+  `[{", ".join(f"{x:.0f}" for x in bias)}]` nT: the rotation and offset that best map IGRF along
   the TLE orbit in LVLH onto the measurements (orthogonal Procrustes); {rigid_rms:.0f} nT RMS left.
 
 ## Licence
@@ -182,8 +184,9 @@ derived from them and is distributed under the same licence, with that attributi
 """
 
 
-def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite: bool = False,
-            name: str | None = None) -> ConversionReport:
+def convert(
+    source: Path, out: Path, *, tle: str | Path | None = None, overwrite: bool = False, name: str | None = None
+) -> ConversionReport:
     """Convert an Astro Pi CSV and the station's TLE into the mission directory ``out``.
 
     Parameters
@@ -198,8 +201,7 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
 
     source, out = Path(source), Path(out)
     if tle is None:
-        raise InputError("the Astro Pi converter needs the station's two-line elements "
-                         "(--tle FILE)", key="tle")
+        raise InputError("the Astro Pi converter needs the station's two-line elements (--tle FILE)", key="tle")
     tle = Path(tle)
     read_tle(tle)
     table = read_named_csv(source, (TIME_COLUMN, *FIELD_COLUMNS))
@@ -217,7 +219,7 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
     sigma = white_noise(t, B)
     n_tr = leading_transient(B, sigma, t=t)
     sigma = white_noise(t[n_tr:], B[n_tr:])
-    noise = float(np.sqrt(np.mean(sigma ** 2)))
+    noise = float(np.sqrt(np.mean(sigma**2)))
     flag = np.zeros(t.size, dtype=int)
     flag[:n_tr] = 1
 
@@ -230,18 +232,29 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
     name = name or out.name
     with staged_directory(out, overwrite=overwrite) as stage:
         (stage / "telemetry").mkdir()
-        write_csv(stage / "telemetry" / f"{SENSOR}.csv", ("t", "bx", "by", "bz", "flag"),
-                  (t, *B.T, flag), ("%.3f", "%.1f", "%.1f", "%.1f", "%d"),
-                  comments=("Astro Pi Mark II magnetometer on the ISS, nT (source µT x 1000); "
-                            "flag 1 = start-up transient, kept, not used",
-                            "Data: Raspberry Pi Foundation, CC BY-SA 4.0 (LICENCE.md)"))
+        write_csv(
+            stage / "telemetry" / f"{SENSOR}.csv",
+            ("t", "bx", "by", "bz", "flag"),
+            (t, *B.T, flag),
+            ("%.3f", "%.1f", "%.1f", "%.1f", "%d"),
+            comments=(
+                "Astro Pi Mark II magnetometer on the ISS, nT (source µT x 1000); "
+                "flag 1 = start-up transient, kept, not used",
+                "Data: Raspberry Pi Foundation, CC BY-SA 4.0 (LICENCE.md)",
+            ),
+        )
         files = ["mission.toml", "orbit.tle", f"telemetry/{SENSOR}.csv"]
         if aux:
-            write_csv(stage / "aux.csv", ("t", *aux), (t, *aux.values()),
-                      ("%.3f",) + ("%.6g",) * len(aux),
-                      comments=("Astro Pi channels beside the magnetometer (PROVENANCE.md); "
-                                "d* = deviation from the median: "
-                                + ", ".join(f"{c} {m:g}" for c, m in medians.items()),))
+            write_csv(
+                stage / "aux.csv",
+                ("t", *aux),
+                (t, *aux.values()),
+                ("%.3f",) + ("%.6g",) * len(aux),
+                comments=(
+                    "Astro Pi channels beside the magnetometer (PROVENANCE.md); "
+                    "d* = deviation from the median: " + ", ".join(f"{c} {m:g}" for c, m in medians.items()),
+                ),
+            )
             files.append("aux.csv")
         shutil.copyfile(tle, stage / "orbit.tle")
         text = _mission_toml(name, epoch, noise, sigma, n_tr, align, bias, rigid_rms)
@@ -253,16 +266,39 @@ def convert(source: Path, out: Path, *, tle: str | Path | None = None, overwrite
                 shutil.copyfile(source.parent / extra, stage / extra)
                 files.append(extra)
         (stage / "PROVENANCE.md").write_text(
-            _provenance(source, sha256(source), tle, len(table), n_tr, sigma, noise, align,
-                        bias, rigid_rms, list(aux), epoch,
-                        ", ".join(f"{c} {m:g}" for c, m in medians.items())), encoding="utf-8")
+            _provenance(
+                source,
+                sha256(source),
+                tle,
+                len(table),
+                n_tr,
+                sigma,
+                noise,
+                align,
+                bias,
+                rigid_rms,
+                list(aux),
+                epoch,
+                ", ".join(f"{c} {m:g}" for c, m in medians.items()),
+            ),
+            encoding="utf-8",
+        )
         files.append("PROVENANCE.md")
-    notes = (f"MagX..Z µT -> bx..bz nT; epoch {epoch:%Y-%m-%dT%H:%M:%SZ} (first row)",
-             f"start-up transient: first {n_tr} samples flagged (flag = 1), kept",
-             f"noise estimated from the data: {noise:.1f} nT (per axis "
-             + ", ".join(f"{x:.1f}" for x in sigma) + ")",
-             "mounting estimated against IGRF in LVLH: alignment_deg ["
-             + ", ".join(f"{x:.2f}" for x in align) + f"], {rigid_rms:.0f} nT RMS left")
-    return ConversionReport(format="astropi", source=source, out=out, rows=len(table),
-                            samples={SENSOR: int(t.size), "aux": int(t.size) if aux else 0},
-                            flagged={SENSOR: n_tr}, files=tuple(files), notes=notes)
+    notes = (
+        f"MagX..Z µT -> bx..bz nT; epoch {epoch:%Y-%m-%dT%H:%M:%SZ} (first row)",
+        f"start-up transient: first {n_tr} samples flagged (flag = 1), kept",
+        f"noise estimated from the data: {noise:.1f} nT (per axis " + ", ".join(f"{x:.1f}" for x in sigma) + ")",
+        "mounting estimated against IGRF in LVLH: alignment_deg ["
+        + ", ".join(f"{x:.2f}" for x in align)
+        + f"], {rigid_rms:.0f} nT RMS left",
+    )
+    return ConversionReport(
+        format="astropi",
+        source=source,
+        out=out,
+        rows=len(table),
+        samples={SENSOR: int(t.size), "aux": int(t.size) if aux else 0},
+        flagged={SENSOR: n_tr},
+        files=tuple(files),
+        notes=notes,
+    )

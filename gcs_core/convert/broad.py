@@ -54,8 +54,14 @@ from gcs_core.errors import InputError
 from gcs_core.filtr import noise as noise_mod
 
 #: the datasets a BROAD trial must hold: name -> (columns, unit)
-DATASETS = {"imu_gyr": (3, "rad/s"), "imu_acc": (3, "m/s²"), "imu_mag": (3, "µT"),
-            "opt_quat": (4, "1"), "opt_pos": (3, "m"), "movement": (0, "bool")}
+DATASETS = {
+    "imu_gyr": (3, "rad/s"),
+    "imu_acc": (3, "m/s²"),
+    "imu_mag": (3, "µT"),
+    "opt_quat": (4, "1"),
+    "opt_pos": (3, "m"),
+    "movement": (0, "bool"),
+}
 UT_TO_NT = 1000.0
 #: the start-up window searched for a transient [s], and the robust z-score that flags it
 TRANSIENT_WINDOW_S = 2.0
@@ -65,10 +71,12 @@ TRANSIENT_Z = 8.0
 LAB_POSITION_KM = (0.0, 0.0, 6365.0)
 #: the recording date is not published; the epoch only labels the times
 EPOCH = "2021-01-01T00:00:00Z"
-CITATION = ("D. Laidig, M. Caruso, A. Cereatti, T. Seel, \"BROAD - A Benchmark for Robust "
-            "Inertial Orientation Estimation\", Data 6(7):1-20, 2021, doi:10.3390/data6070072; "
-            "github.com/dlaidig/broad, folder data_hdf5. Licence: CC BY 4.0 "
-            "(https://creativecommons.org/licenses/by/4.0/)")
+CITATION = (
+    'D. Laidig, M. Caruso, A. Cereatti, T. Seel, "BROAD - A Benchmark for Robust '
+    'Inertial Orientation Estimation", Data 6(7):1-20, 2021, doi:10.3390/data6070072; '
+    "github.com/dlaidig/broad, folder data_hdf5. Licence: CC BY 4.0 "
+    "(https://creativecommons.org/licenses/by/4.0/)"
+)
 SENSORS = {"gyro": "GYR", "magnetometer": "MAG", "attitude_reference": "OPT"}
 
 
@@ -85,18 +93,25 @@ def _read(source: Path) -> tuple[dict[str, np.ndarray], float, str]:
         data = {}
         for name, (cols, unit) in DATASETS.items():
             if name not in f:
-                raise InputError(f"not a BROAD trial: dataset '{name}' [{unit}] is missing "
-                                 f"(found: {', '.join(sorted(f.keys())) or 'none'})", file=source,
-                                 key=name)
+                raise InputError(
+                    f"not a BROAD trial: dataset '{name}' [{unit}] is missing "
+                    f"(found: {', '.join(sorted(f.keys())) or 'none'})",
+                    file=source,
+                    key=name,
+                )
             a = np.asarray(f[name][()])
             shape = (a.shape[0],) if cols == 0 else (a.shape[0], cols)
             if a.ndim != len(shape) or a.shape != shape:
-                raise InputError(f"dataset '{name}' has shape {a.shape}, expected "
-                                 f"(N{', ' + str(cols) if cols else ''})", file=source, key=name)
+                raise InputError(
+                    f"dataset '{name}' has shape {a.shape}, expected (N{', ' + str(cols) if cols else ''})",
+                    file=source,
+                    key=name,
+                )
             data[name] = a
         if "sampling_rate" not in f.attrs:
-            raise InputError("not a BROAD trial: attribute 'sampling_rate' [Hz] is missing",
-                             file=source, key="sampling_rate")
+            raise InputError(
+                "not a BROAD trial: attribute 'sampling_rate' [Hz] is missing", file=source, key="sampling_rate"
+            )
         rate = float(np.asarray(f.attrs["sampling_rate"]))
         info = f.attrs.get("info", "")
         info = info.decode() if isinstance(info, bytes) else str(info)
@@ -104,20 +119,21 @@ def _read(source: Path) -> tuple[dict[str, np.ndarray], float, str]:
     if len(set(n.values())) != 1:
         raise InputError(f"datasets of different lengths: {n}", file=source)
     if not (np.isfinite(rate) and rate > 0):
-        raise InputError(f"sampling_rate {rate!r} must be a positive number [Hz]", file=source,
-                         key="sampling_rate")
+        raise InputError(f"sampling_rate {rate!r} must be a positive number [Hz]", file=source, key="sampling_rate")
     for name in ("imu_gyr", "imu_mag", "imu_acc"):
         bad = np.flatnonzero(~np.isfinite(data[name]).all(axis=1))
         if bad.size:
-            raise InputError(f"dataset '{name}' holds a non-finite value at sample {bad[0]}",
-                             file=source, key=name)
+            raise InputError(f"dataset '{name}' holds a non-finite value at sample {bad[0]}", file=source, key=name)
     q = data["opt_quat"]
     tracked = np.isfinite(q).all(axis=1)
     norm = np.linalg.norm(q[tracked], axis=1)
     if norm.size and np.max(np.abs(norm - 1.0)) > 1e-3:
         k = int(np.flatnonzero(tracked)[np.argmax(np.abs(norm - 1.0))])
-        raise InputError(f"dataset 'opt_quat' is not a unit quaternion at sample {k} "
-                         f"(norm {np.linalg.norm(q[k]):.6g})", file=source, key="opt_quat")
+        raise InputError(
+            f"dataset 'opt_quat' is not a unit quaternion at sample {k} (norm {np.linalg.norm(q[k]):.6g})",
+            file=source,
+            key="opt_quat",
+        )
     return data, rate, info
 
 
@@ -135,8 +151,10 @@ def _transients(t: np.ndarray, y: np.ndarray, rest: np.ndarray, what: str) -> li
         return []
     # the leading run: samples up to the last flagged one in the window
     last = int(bad[-1])
-    return [f"{what}: samples 0..{last} (t = {t[0]:.3f} to {t[last]:.3f} s) lie up to "
-            f"{z.max():.0f} robust σ from the rest level that follows; kept, flagged"]
+    return [
+        f"{what}: samples 0..{last} (t = {t[0]:.3f} to {t[last]:.3f} s) lie up to "
+        f"{z.max():.0f} robust σ from the rest level that follows; kept, flagged"
+    ]
 
 
 def _rest(moving: np.ndarray) -> np.ndarray:
@@ -150,20 +168,21 @@ def _rest(moving: np.ndarray) -> np.ndarray:
     if runs.size:
         lo, hi = runs[int(np.argmax(runs[:, 1] - runs[:, 0]))]
         q = (hi - lo) // 4
-        out[lo + q:hi - q] = True
+        out[lo + q : hi - q] = True
     return out
 
 
-def _floor(line: np.ndarray, spread: np.ndarray, tiny: float, what: str, unit: str,
-           warnings: list[str]) -> np.ndarray:
+def _floor(line: np.ndarray, spread: np.ndarray, tiny: float, what: str, unit: str, warnings: list[str]) -> np.ndarray:
     """``line`` where it is a positive number; elsewhere the per-sample spread, else ``tiny``."""
     bad = ~(np.isfinite(line) & (line > 0))
     if not bad.any():
         return line
     out = np.where(bad, np.where(np.isfinite(spread) & (spread > 0), spread, tiny), line)
-    warnings.append(f"{what}: no noise measurable at rest on {int(bad.sum())} axis(es); "
-                    f"written {np.array2string(out, precision=4)} {unit} from the per-sample "
-                    "spread (or a floor): check it")
+    warnings.append(
+        f"{what}: no noise measurable at rest on {int(bad.sum())} axis(es); "
+        f"written {np.array2string(out, precision=4)} {unit} from the per-sample "
+        "spread (or a floor): check it"
+    )
     return out
 
 
@@ -180,8 +199,9 @@ def _rms(v) -> float:
     return float(np.sqrt(np.mean(v * v)))
 
 
-def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
-            name: str | None = None, **_ignored) -> ConversionReport:
+def convert(
+    source: Path, out: Path, *, span: tuple[float, float] | None = None, name: str | None = None, **_ignored
+) -> ConversionReport:
     """Convert one BROAD trial file into the mission directory ``out`` (module docstring).
 
     Parameters
@@ -210,31 +230,34 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
             raise InputError(f"span end {hi:g} s must be after its start {lo:g} s", key="span")
         keep = (t >= lo) & (t <= hi)
         if keep.sum() < 100:
-            raise InputError(f"span [{lo:g}, {hi:g}] s holds {int(keep.sum())} samples of "
-                             f"{t[-1]:.1f} s; at least 100 needed", key="span")
-        warnings.append(f"extract: samples of t = {lo:g} to {hi:g} s only "
-                        f"({int(keep.sum())} of {n_all})")
+            raise InputError(
+                f"span [{lo:g}, {hi:g}] s holds {int(keep.sum())} samples of {t[-1]:.1f} s; at least 100 needed",
+                key="span",
+            )
+        warnings.append(f"extract: samples of t = {lo:g} to {hi:g} s only ({int(keep.sum())} of {n_all})")
     d = {k: v[keep] for k, v in data.items()}
     t = t[keep]
     moving = d["movement"].astype(bool)
     rest0 = _rest(moving)
     gyr, mag_nT, acc = d["imu_gyr"], d["imu_mag"] * UT_TO_NT, d["imu_acc"]
     q = d["opt_quat"]
-    q_gcs = np.column_stack([q[:, 1:4], q[:, 0]])          # (w,x,y,z) -> (x,y,z,w), same C_BI
+    q_gcs = np.column_stack([q[:, 1:4], q[:, 0]])  # (w,x,y,z) -> (x,y,z,w), same C_BI
     tracked = np.isfinite(q_gcs).all(axis=1)
     if not tracked.any():
-        raise InputError("dataset 'opt_quat' holds no tracked sample (all NaN)", file=source,
-                         key="opt_quat")
+        raise InputError("dataset 'opt_quat' holds no tracked sample (all NaN)", file=source, key="opt_quat")
     for label, y in (("gyro", gyr), ("magnetometer", mag_nT), ("accelerometer", acc)):
         transients += _transients(t, y, rest0, label)
     lead = int(np.argmax(tracked))
     if lead:
-        transients.append(f"optical reference: untracked for its first {lead} samples "
-                          f"(t = {t[0]:.3f} to {t[lead - 1]:.3f} s); written as nan")
+        transients.append(
+            f"optical reference: untracked for its first {lead} samples "
+            f"(t = {t[0]:.3f} to {t[lead - 1]:.3f} s); written as nan"
+        )
     untracked = int((~tracked).sum())
     if untracked:
-        warnings.append(f"optical reference: {untracked} untracked samples written as nan "
-                        "(the import drops and counts them)")
+        warnings.append(
+            f"optical reference: {untracked} untracked samples written as nan (the import drops and counts them)"
+        )
 
     # noise from the data (gcs_core.filtr.noise)
     dt = 1.0 / rate
@@ -242,79 +265,110 @@ def convert(source: Path, out: Path, *, span: tuple[float, float] | None = None,
     s_mag = noise_mod.white_noise(t, mag_nT)
     s_opt = noise_mod.white_noise(t[tracked], q_gcs[tracked], quaternion=True)
     if rest0.sum() < 64:
-        raise InputError(f"only {int(rest0.sum())} samples at rest: too few to measure the noise",
-                         file=source, key="movement")
+        raise InputError(
+            f"only {int(rest0.sum())} samples at rest: too few to measure the noise", file=source, key="movement"
+        )
     # the white-noise lines of the rest (consecutive samples of the unit are correlated:
     # the per-sample spread s_* understates the noise slow parameters see)
     g_curves = noise_mod.allan_deviation(t[rest0], gyr[rest0])
     g_terms = [noise_mod.gyro_terms(c) for c in g_curves]
     arw = _rms([g.arw for g in g_terms])
     rrw = _rms([g.rrw for g in g_terms])
-    m_line = np.array([noise_mod.white_level(c, dt)[0]
-                       for c in noise_mod.allan_deviation(t[rest0], mag_nT[rest0])])
+    m_line = np.array([noise_mod.white_level(c, dt)[0] for c in noise_mod.allan_deviation(t[rest0], mag_nT[rest0])])
     opt_rest = rest0 & tracked
     if opt_rest.sum() < 64:
-        raise InputError(f"only {int(opt_rest.sum())} tracked optical samples at rest: too few to "
-                         "measure the noise", file=source, key="opt_quat")
-    o_line = np.array([noise_mod.white_level(c, dt)[0]
-                       for c in noise_mod.allan_deviation(t[opt_rest], q_gcs[opt_rest], quaternion=True)])
+        raise InputError(
+            f"only {int(opt_rest.sum())} tracked optical samples at rest: too few to measure the noise",
+            file=source,
+            key="opt_quat",
+        )
+    o_line = np.array(
+        [
+            noise_mod.white_level(c, dt)[0]
+            for c in noise_mod.allan_deviation(t[opt_rest], q_gcs[opt_rest], quaternion=True)
+        ]
+    )
     # a channel constant at rest (or quantized coarser than its noise) shows no noise there:
     # its per-sample spread over the whole span, else a floor, stands in (and is reported)
     m_line = _floor(m_line, s_mag, 1e-3, "magnetometer", "nT", warnings)
     o_line = _floor(o_line, s_opt, 1e-9, "optical reference", "rad", warnings)
     if not arw > 0:
-        arw = float(_floor(np.array([0.0]), np.array([_rms(s_gyr)]), 1e-9, "gyro", "rad/s",
-                           warnings)[0]) * np.sqrt(dt)
+        arw = float(_floor(np.array([0.0]), np.array([_rms(s_gyr)]), 1e-9, "gyro", "rad/s", warnings)[0]) * np.sqrt(dt)
     bias0 = gyr[rest0].mean(axis=0)
-    notes.append(f"noise estimated from the telemetry: per-sample spread (second differences) "
-                 f"gyro {np.array2string(s_gyr, precision=4)} rad/s, magnetometer "
-                 f"{np.array2string(s_mag, precision=1)} nT, optical "
-                 f"{np.array2string(s_opt, precision=7)} rad; white-noise lines at rest "
-                 f"(Allan deviation): gyro ARW {arw:.4g} rad/s^0.5, magnetometer "
-                 f"{np.array2string(m_line, precision=1)} nT, optical "
-                 f"{np.array2string(o_line, precision=7)} rad per sample")
+    notes.append(
+        f"noise estimated from the telemetry: per-sample spread (second differences) "
+        f"gyro {np.array2string(s_gyr, precision=4)} rad/s, magnetometer "
+        f"{np.array2string(s_mag, precision=1)} nT, optical "
+        f"{np.array2string(s_opt, precision=7)} rad; white-noise lines at rest "
+        f"(Allan deviation): gyro ARW {arw:.4g} rad/s^0.5, magnetometer "
+        f"{np.array2string(m_line, precision=1)} nT, optical "
+        f"{np.array2string(o_line, precision=7)} rad per sample"
+    )
     notes.append(f"gyro data-book bias = mean over the rest ({int(rest0.sum())} samples)")
 
-    with staged_directory(out) as tmp:   # refused above unless empty
+    with staged_directory(out) as tmp:  # refused above unless empty
         (tmp / "telemetry").mkdir()
         (tmp / "extra").mkdir()
         rows = {}
-        rows["telemetry/GYR.csv"] = _write_csv(tmp / "telemetry/GYR.csv", "t,wx,wy,wz",
-                                               [t, *gyr.T], ["%.6f"] + ["%.9g"] * 3)
-        rows["telemetry/MAG.csv"] = _write_csv(tmp / "telemetry/MAG.csv", "t,bx,by,bz",
-                                               [t, *mag_nT.T], ["%.6f"] + ["%.4f"] * 3)
-        rows["telemetry/OPT.csv"] = _write_csv(tmp / "telemetry/OPT.csv", "t,q1,q2,q3,q4",
-                                               [t, *q_gcs.T], ["%.6f"] + ["%.10f"] * 4)
-        rows["extra/acc.csv"] = _write_csv(tmp / "extra/acc.csv", "t,ax,ay,az",
-                                           [t, *acc.T], ["%.6f"] + ["%.6g"] * 3)
-        rows["extra/opt_pos.csv"] = _write_csv(tmp / "extra/opt_pos.csv", "t,x,y,z",
-                                               [t, *d["opt_pos"].T], ["%.6f"] + ["%.6g"] * 3)
+        rows["telemetry/GYR.csv"] = _write_csv(
+            tmp / "telemetry/GYR.csv", "t,wx,wy,wz", [t, *gyr.T], ["%.6f"] + ["%.9g"] * 3
+        )
+        rows["telemetry/MAG.csv"] = _write_csv(
+            tmp / "telemetry/MAG.csv", "t,bx,by,bz", [t, *mag_nT.T], ["%.6f"] + ["%.4f"] * 3
+        )
+        rows["telemetry/OPT.csv"] = _write_csv(
+            tmp / "telemetry/OPT.csv", "t,q1,q2,q3,q4", [t, *q_gcs.T], ["%.6f"] + ["%.10f"] * 4
+        )
+        rows["extra/acc.csv"] = _write_csv(tmp / "extra/acc.csv", "t,ax,ay,az", [t, *acc.T], ["%.6f"] + ["%.6g"] * 3)
+        rows["extra/opt_pos.csv"] = _write_csv(
+            tmp / "extra/opt_pos.csv", "t,x,y,z", [t, *d["opt_pos"].T], ["%.6f"] + ["%.6g"] * 3
+        )
         pos = d["opt_pos"] - np.nanmean(data["opt_pos"], axis=0)
         placed = np.isfinite(pos).all(axis=1)
-        rows["aux.csv"] = _write_csv(tmp / "aux.csv", "t,pos_x,pos_y,pos_z", [t[placed], *pos[placed].T],
-                                     ["%.6f"] + ["%.6f"] * 3)
-        rows["extra/movement.csv"] = _write_csv(tmp / "extra/movement.csv", "t,movement",
-                                                [t, moving.astype(float)], ["%.6f", "%d"])
+        rows["aux.csv"] = _write_csv(
+            tmp / "aux.csv", "t,pos_x,pos_y,pos_z", [t[placed], *pos[placed].T], ["%.6f"] + ["%.6f"] * 3
+        )
+        rows["extra/movement.csv"] = _write_csv(
+            tmp / "extra/movement.csv", "t,movement", [t, moving.astype(float)], ["%.6f", "%d"]
+        )
         mname = name or f"broad-{source.stem}"
-        toml = _mission_toml(mname, source, bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s_gyr,
-                             rest0.sum())
+        toml = _mission_toml(mname, source, bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s_gyr, rest0.sum())
         (tmp / "mission.toml").write_text(toml, encoding="utf-8")
-        (tmp / "SOURCE.md").write_text(_source_md(source, info, rate, n_all, span, keep, transients,
-                                                  warnings), encoding="utf-8")
+        (tmp / "SOURCE.md").write_text(
+            _source_md(source, info, rate, n_all, span, keep, transients, warnings), encoding="utf-8"
+        )
         lic = source.parent / "LICENSE"
         if lic.is_file():
             shutil.copyfile(lic, tmp / "LICENSE")
         else:
             warnings.append(f"no LICENSE beside {source.name}: the mission states CC BY 4.0 in SOURCE.md")
         report = ConversionReport(
-            format="broad", source=source, out=out, rows=int(max(rows.values(), default=0)),
-            samples=dict(rows), files=tuple(sorted(rows)) + ("mission.toml", "SOURCE.md"),
+            format="broad",
+            source=source,
+            out=out,
+            rows=int(max(rows.values(), default=0)),
+            samples=dict(rows),
+            files=tuple(sorted(rows)) + ("mission.toml", "SOURCE.md"),
             notes=tuple(f"transient (kept): {x}" for x in transients)
-            + tuple(f"warning: {x}" for x in warnings) + tuple(notes))
-        (tmp / "conversion.json").write_text(json.dumps(
-            {"source": str(source), "format": "broad", "rows": rows, "transients": transients,
-             "warnings": warnings, "notes": notes, "citation": CITATION}, indent=2) + "\n",
-            encoding="utf-8")
+            + tuple(f"warning: {x}" for x in warnings)
+            + tuple(notes),
+        )
+        (tmp / "conversion.json").write_text(
+            json.dumps(
+                {
+                    "source": str(source),
+                    "format": "broad",
+                    "rows": rows,
+                    "transients": transients,
+                    "warnings": warnings,
+                    "notes": notes,
+                    "citation": CITATION,
+                },
+                indent=2,
+            )
+            + "\n",
+            encoding="utf-8",
+        )
     return report
 
 
@@ -362,16 +416,22 @@ noise = {_rms(o_line):.6g}   # rad, {noise_mod.ESTIMATED_MARK}: white-noise line
 
 
 def _source_md(source, info, rate, n_all, span, keep, transients, warnings) -> str:
-    lines = [f"# {source.name}", "",
-             "Converted by `gcs convert broad` (gcs_core/convert/broad.py) from a trial of BROAD,",
-             "the Berlin Robust Orientation Estimation Assessment Dataset.", "",
-             f"Source: {CITATION}.", "",
-             "Licence: Creative Commons Attribution 4.0 International (LICENSE). This mission is",
-             "derived from the data: the units were converted (magnetometer µT to nT), the optical",
-             "quaternion was reordered to scalar-last (x, y, z, w), and times were formed as",
-             f"sample index / {rate:.6f} Hz. Nothing else was changed; every sample of the file is",
-             "kept" + (" within the span below." if span else "."), "",
-             f"Samples in the file: {n_all}; written: {int(keep.sum())}."]
+    lines = [
+        f"# {source.name}",
+        "",
+        "Converted by `gcs convert broad` (gcs_core/convert/broad.py) from a trial of BROAD,",
+        "the Berlin Robust Orientation Estimation Assessment Dataset.",
+        "",
+        f"Source: {CITATION}.",
+        "",
+        "Licence: Creative Commons Attribution 4.0 International (LICENSE). This mission is",
+        "derived from the data: the units were converted (magnetometer µT to nT), the optical",
+        "quaternion was reordered to scalar-last (x, y, z, w), and times were formed as",
+        f"sample index / {rate:.6f} Hz. Nothing else was changed; every sample of the file is",
+        "kept" + (" within the span below." if span else "."),
+        "",
+        f"Samples in the file: {n_all}; written: {int(keep.sum())}.",
+    ]
     if span:
         lines.append(f"Span kept: t = {span[0]:g} to {span[1]:g} s from the file's first sample.")
     lines += ["", "Flagged (kept):"] + [f"- {t}" for t in transients or ["no start-up transient found"]]

@@ -16,8 +16,7 @@ import numpy as np
 from gcs_core.errors import InputError
 from gcs_core.fileperm import atomic_directory
 
-__all__ = ["NamedCsv", "read_named_csv", "write_csv", "staged_directory", "sha256",
-           "leading_transient"]
+__all__ = ["NamedCsv", "read_named_csv", "write_csv", "staged_directory", "sha256", "leading_transient"]
 
 
 class NamedCsv:
@@ -39,9 +38,9 @@ class NamedCsv:
         try:
             return self.header.index(name)
         except ValueError:
-            raise InputError(f"missing column '{name}' (the file has: "
-                             f"{', '.join(self.header)})", file=self.path, line=1,
-                             column=name) from None
+            raise InputError(
+                f"missing column '{name}' (the file has: {', '.join(self.header)})", file=self.path, line=1, column=name
+            ) from None
 
     def text(self, name: str) -> list[str]:
         """The raw fields of column ``name``."""
@@ -61,8 +60,12 @@ class NamedCsv:
                 value = math.nan
             if not math.isfinite(value):
                 col = sum(len(f) + 1 for f in row[:j]) + 1
-                raise InputError(f"column '{name}': {field.strip()!r} is not a number",
-                                 file=self.path, line=self.lines[k], column=col)
+                raise InputError(
+                    f"column '{name}': {field.strip()!r} is not a number",
+                    file=self.path,
+                    line=self.lines[k],
+                    column=col,
+                )
             out[k] = value
         return out
 
@@ -70,8 +73,7 @@ class NamedCsv:
         """An InputError at row ``k``'s line, at column ``name``."""
         j = self.index(name)
         col = sum(len(f) + 1 for f in self.rows[k][:j]) + 1
-        return InputError(f"column '{name}': {message}", file=self.path, line=self.lines[k],
-                          column=col)
+        return InputError(f"column '{name}': {message}", file=self.path, line=self.lines[k], column=col)
 
 
 def read_named_csv(path: Path, required: Sequence[str]) -> NamedCsv:
@@ -89,8 +91,9 @@ def read_named_csv(path: Path, required: Sequence[str]) -> NamedCsv:
                     header = [h.strip() for h in row]
                     continue
                 if len(row) != len(header):
-                    raise InputError(f"{len(row)} fields where the header has {len(header)}",
-                                     file=path, line=reader.line_num)
+                    raise InputError(
+                        f"{len(row)} fields where the header has {len(header)}", file=path, line=reader.line_num
+                    )
                 rows.append(row)
                 lines.append(reader.line_num)
     except OSError as err:
@@ -109,8 +112,13 @@ def read_named_csv(path: Path, required: Sequence[str]) -> NamedCsv:
     return table
 
 
-def write_csv(path: Path, header: Sequence[str], columns: Sequence[np.ndarray],
-              formats: Sequence[str], comments: Sequence[str] = ()) -> None:
+def write_csv(
+    path: Path,
+    header: Sequence[str],
+    columns: Sequence[np.ndarray],
+    formats: Sequence[str],
+    comments: Sequence[str] = (),
+) -> None:
     """Write an ICD CSV file (``# comment`` lines, a header, one row per sample)."""
     n = len(columns[0])
     with open(path, "w", encoding="utf-8", newline="\n") as fh:
@@ -135,9 +143,8 @@ def staged_directory(out: Path, *, overwrite: bool = False) -> Iterator[Path]:
     if out.exists() and not out.is_dir():
         raise InputError("the output exists and is not a directory", file=out)
     if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise InputError("the output directory is not empty (give --force to replace it)",
-                         file=out)
-    with atomic_directory(out, mode=0o755) as stage:   # a mission directory is not private
+        raise InputError("the output directory is not empty (give --force to replace it)", file=out)
+    with atomic_directory(out, mode=0o755) as stage:  # a mission directory is not private
         yield stage
 
 
@@ -149,8 +156,9 @@ def sha256(path: Path) -> str:
     return h.hexdigest()
 
 
-def leading_transient(y: np.ndarray, sigma: np.ndarray, *, t: np.ndarray | None = None,
-                      window: int = 12, k: float = 3.0) -> int:
+def leading_transient(
+    y: np.ndarray, sigma: np.ndarray, *, t: np.ndarray | None = None, window: int = 12, k: float = 3.0
+) -> int:
     """Number of leading samples of a start-up transient (a settle, e.g. from zero).
 
     Two passes. (1) The settle is steep at first: it lasts at least until the first
@@ -167,14 +175,14 @@ def leading_transient(y: np.ndarray, sigma: np.ndarray, *, t: np.ndarray | None 
     d = y[2:] - 2.0 * y[1:-1] + y[:-2]
     z = np.max(np.abs(d) / (math.sqrt(6.0) * sigma), axis=1)
     quiet = z <= k
-    s = next((i for i in range(len(z) - window + 1) if np.all(quiet[i:i + window])), None)
+    s = next((i for i in range(len(z) - window + 1) if np.all(quiet[i : i + window])), None)
     if s is None:
         return 0
     ref = slice(s + window, s + 4 * window)
     if t[ref].size < 3 * window:
         return s
     tc = t[ref] - t[s]
-    coef = np.polynomial.polynomial.polyfit(tc, y[ref], 2)            # (3, m)
+    coef = np.polynomial.polynomial.polyfit(tc, y[ref], 2)  # (3, m)
     e = s
     while e < ref.start:
         fit = np.polynomial.polynomial.polyval(t[e] - t[s], coef)

@@ -77,13 +77,22 @@ class Alias:
         return text + (f"; {self.reason}" if self.reason else "")
 
     def as_report(self) -> dict:
-        return {"elements": list(self.elements), "weights": [round(w, 4) for w in self.weights],
-                "information": float(self.information), "exact": self.exact, "reason": self.reason,
-                "text": self.describe()}
+        return {
+            "elements": list(self.elements),
+            "weights": [round(w, 4) for w in self.weights],
+            "information": float(self.information),
+            "exact": self.exact,
+            "reason": self.reason,
+            "text": self.describe(),
+        }
 
 
-def weak_directions(information: np.ndarray, sigma0: Sequence[float], names: Sequence[str],
-                    reasons: Mapping[frozenset, str] | None = None) -> list[Alias]:
+def weak_directions(
+    information: np.ndarray,
+    sigma0: Sequence[float],
+    names: Sequence[str],
+    reasons: Mapping[frozenset, str] | None = None,
+) -> list[Alias]:
     """The directions the data leave to the a priori (module docstring), weakest first.
 
     ``information`` (n, n) is the data information over ``names``; ``sigma0`` (n,) the
@@ -127,8 +136,7 @@ def weak_directions(information: np.ndarray, sigma0: Sequence[float], names: Seq
     return [a for a in out if sum(abs(w) >= COMBINATION_WEIGHT for w in a.weights) >= 2]
 
 
-def set_by_prior(aliases: Sequence[Alias], sigma: Mapping[str, float],
-                 sigma0: Mapping[str, float]) -> dict[str, str]:
+def set_by_prior(aliases: Sequence[Alias], sigma: Mapping[str, float], sigma0: Mapping[str, float]) -> dict[str, str]:
     """Element -> note, for the members of ``aliases`` the a priori sets (module docstring)."""
     out: dict[str, str] = {}
     for a in aliases:
@@ -140,9 +148,11 @@ def set_by_prior(aliases: Sequence[Alias], sigma: Mapping[str, float],
                 continue
             others = [n for n in a.elements if n != name]
             with_ = f" with {', '.join(others)}" if others else ""
-            out[name] = (f"set by its a priori: the data do not separate it{with_} "
-                         f"({'exact' if a.exact else f'{a.information:.2g} of the a-priori information'} "
-                         f"along {a.combination()}, in a-priori σ)" + (f"; {a.reason}" if a.reason else ""))
+            out[name] = (
+                f"set by its a priori: the data do not separate it{with_} "
+                f"({'exact' if a.exact else f'{a.information:.2g} of the a-priori information'} "
+                f"along {a.combination()}, in a-priori σ)" + (f"; {a.reason}" if a.reason else "")
+            )
     return out
 
 
@@ -153,7 +163,7 @@ def problem_aliases(problem, result) -> list[Alias]:
     names = list(result.solve_for)
     info = getattr(result, "information", None)
     if not names or info is None or not np.any(info):
-        return []                       # a filter/smoother result carries no data information
+        return []  # a filter/smoother result carries no data information
     state = problem.state
     reasons: dict[frozenset, str] = {}
     for sd in problem.sensors:
@@ -164,12 +174,15 @@ def problem_aliases(problem, result) -> list[Alias]:
                 reasons[els] = text
     sun_span = _sun_angle_span(problem)
     if sun_span is not None:
-        timing = frozenset(n for n in names if n.endswith(".d_t") or n == "att.ra"
-                           or n.endswith(".tilt") or n.endswith(".eps_S"))
-        text = (f"the Sun angle β moved by only {np.degrees(sun_span):.2g}° over the span, so the "
-                "in-track time error Δt, the spin axis's right ascension and the Sun sensor's tilt "
-                "ε_S (ΔΦ_S = asin(cot β tan ε_S), Eq 4-12d) all shift the horizon timing by "
-                "near-constant phases")
+        timing = frozenset(
+            n for n in names if n.endswith(".d_t") or n == "att.ra" or n.endswith(".tilt") or n.endswith(".eps_S")
+        )
+        text = (
+            f"the Sun angle β moved by only {np.degrees(sun_span):.2g}° over the span, so the "
+            "in-track time error Δt, the spin axis's right ascension and the Sun sensor's tilt "
+            "ε_S (ΔΦ_S = asin(cot β tan ε_S), Eq 4-12d) all shift the horizon timing by "
+            "near-constant phases"
+        )
         for n in timing:
             reasons.setdefault(frozenset([n]), text)
     return weak_directions(result.information, [state[n].sigma0 for n in names], names, reasons)
@@ -177,6 +190,7 @@ def problem_aliases(problem, result) -> list[Alias]:
 
 def _sun_angle_span(problem) -> float | None:
     """Range of the measured Sun angle β of a spinner's plane-field Sun sensors [rad]."""
-    spans = [float(np.ptp(sd.y[:, 0])) for sd in problem.sensors
-             if sd.model.type_name == "plane_field_sun" and sd.n > 1]
+    spans = [
+        float(np.ptp(sd.y[:, 0])) for sd in problem.sensors if sd.model.type_name == "plane_field_sun" and sd.n > 1
+    ]
     return max(spans) if spans else None

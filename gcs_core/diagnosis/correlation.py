@@ -98,8 +98,7 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
     sensors = tuple(result.residuals) if sensors is None else tuple(sensors)
     for name in sensors:
         if name not in result.residuals:
-            raise InputError(f"no residuals of sensor '{name}' (known: {', '.join(result.residuals)})",
-                             key="sensor")
+            raise InputError(f"no residuals of sensor '{name}' (known: {', '.join(result.residuals)})", key="sensor")
     state = result.state
     values = state.values()
     columns = [n for n in result.solve_for if state[n].kind != "attitude"]
@@ -109,31 +108,34 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
         res = result.residuals[name]
         bins[name] = np.floor((np.asarray(res.t, float) - t0) / block_s).astype(np.int64)
         used[name] = np.asarray(res.used, bool)
-        r_w[name] = np.where(used[name][:, None], np.asarray(res.residual, float), 0.0) \
-            / np.asarray(res.sigma, float)
+        r_w[name] = np.where(used[name][:, None], np.asarray(res.residual, float), 0.0) / np.asarray(res.sigma, float)
     n_bins = max(int(b.max()) for b in bins.values()) + 1
     k = len(columns)
     A = np.zeros((k, k))
     G = np.zeros((n_bins, k))
     touched = np.zeros(k, bool)
-    for blk in iter_blocks(problem, values, columns, weighted=True, sensors=list(sensors),
-                           exclude={n: ~used[n] for n in sensors}):
+    for blk in iter_blocks(
+        problem, values, columns, weighted=True, sensors=list(sensors), exclude={n: ~used[n] for n in sensors}
+    ):
         if blk.H is None or not blk.cols.size:
             continue
-        H, c = blk.H, blk.cols                             # (n, m, k_s): R^-1/2 H, unused rows 0
+        H, c = blk.H, blk.cols  # (n, m, k_s): R^-1/2 H, unused rows 0
         Hf = H.reshape(-1, c.size)
         A[np.ix_(c, c)] += Hf.T @ Hf
-        sc = np.einsum("nmk,nm->nk", H, r_w[blk.name][blk.lo:blk.hi])
-        np.add.at(G, (bins[blk.name][blk.lo:blk.hi][:, None], c[None, :]), sc)
+        sc = np.einsum("nmk,nm->nk", H, r_w[blk.name][blk.lo : blk.hi])
+        np.add.at(G, (bins[blk.name][blk.lo : blk.hi][:, None], c[None, :]), sc)
         touched[c] = True
     names = [n for n, hit in zip(columns, touched) if hit]
     idx = np.flatnonzero(touched)
     n_blocks = int(np.unique(np.concatenate([bins[n][used[n]] for n in sensors])).size)
     if n_blocks < MIN_BLOCKS:
-        raise InputError(f"{n_blocks} windows of {block_s:g} s hold used frames; at least "
-                         f"{MIN_BLOCKS} are needed for a σ scale", key="block_s")
-    A = A[np.ix_(idx, idx)] + np.diag([1.0 / state[n].sigma0 ** 2 if np.isfinite(state[n].sigma0)
-                                       and state[n].sigma0 > 0 else 0.0 for n in names])
+        raise InputError(
+            f"{n_blocks} windows of {block_s:g} s hold used frames; at least {MIN_BLOCKS} are needed for a σ scale",
+            key="block_s",
+        )
+    A = A[np.ix_(idx, idx)] + np.diag(
+        [1.0 / state[n].sigma0 ** 2 if np.isfinite(state[n].sigma0) and state[n].sigma0 > 0 else 0.0 for n in names]
+    )
     G = G[:, idx]
     Ainv = np.linalg.pinv(A)
     honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)

@@ -60,12 +60,13 @@ def amplitude_p_value(z: float, sigma_k: float, sigma_k0: float, k: float) -> fl
     ``2 Φ̄(|z|) + (L/π) e^{−z²/2}``, capped at 1. Without data information on ``k``
     (``sigma_k ≥ sigma_k0``) the frequency was not searched and ``L = 0``."""
     z = abs(float(z))
-    tail = math.erfc(z / math.sqrt(2.0))                      # 2 Φ̄(|z|)
-    info = (1.0 / sigma_k ** 2 if sigma_k > 0 else math.inf) - \
-        (1.0 / sigma_k0 ** 2 if math.isfinite(sigma_k0) and sigma_k0 > 0 else 0.0)
+    tail = math.erfc(z / math.sqrt(2.0))  # 2 Φ̄(|z|)
+    info = (1.0 / sigma_k**2 if sigma_k > 0 else math.inf) - (
+        1.0 / sigma_k0**2 if math.isfinite(sigma_k0) and sigma_k0 > 0 else 0.0
+    )
     if not (info > 0 and z > 0):
         return min(1.0, tail)
-    root_l2 = math.sqrt(info) / z                             # sqrt(λ₂) = 1/(z σ_k,data)
+    root_l2 = math.sqrt(info) / z  # sqrt(λ₂) = 1/(z σ_k,data)
     span = math.sqrt(2.0 * math.pi) * sigma_k0 if math.isfinite(sigma_k0) and sigma_k0 > 0 else 2.0 * abs(k)
     L = span * root_l2
     return min(1.0, tail + L / math.pi * math.exp(-0.5 * z * z))
@@ -94,8 +95,12 @@ def not_determined(problem, values: Mapping[str, float], sigma: Mapping[str, flo
                     s = float(sigma.get(ea, state[ea].sigma0))
                     if not s > 0:
                         break
-                    p = amplitude_p_value(v / s, float(sigma.get(el, state[el].sigma0)), float(state[el].sigma0),
-                                          float(values.get(el, state[el].value)))
+                    p = amplitude_p_value(
+                        v / s,
+                        float(sigma.get(el, state[el].sigma0)),
+                        float(state[el].sigma0),
+                        float(values.get(el, state[el].value)),
+                    )
                     if p < AMPLITUDE_ALPHA:
                         break
                     parts.append(f"{ea} = {v:.3g} ± {s:.2g} (p {p:.2g} over the frequencies searched)")
@@ -105,9 +110,12 @@ def not_determined(problem, values: Mapping[str, float], sigma: Mapping[str, flo
                     parts.append(f"{ea} held at 0")
             else:
                 if parts:
-                    out[el] = ("not determined by the data: seen only through "
-                               + ", ".join(parts) + ", consistent with 0; its σ mirrors the a priori "
-                               "and the noise in that amplitude")
+                    out[el] = (
+                        "not determined by the data: seen only through "
+                        + ", ".join(parts)
+                        + ", consistent with 0; its σ mirrors the a priori "
+                        "and the noise in that amplitude"
+                    )
     return out
 
 
@@ -139,7 +147,7 @@ def prior_shares(names, P, sigma0) -> dict[str, float]:
     for i, name in enumerate(names):
         s0 = float(sigma0[i])
         if math.isfinite(s0) and s0 > 0 and math.isfinite(P[i, i]):
-            out[name] = float(P[i, i]) / s0 ** 2
+            out[name] = float(P[i, i]) / s0**2
     return out
 
 
@@ -154,8 +162,10 @@ def set_by_prior(problem, names, P) -> dict[str, str]:
     for name, share in prior_shares(names, P, sigma0).items():
         if share > PRIOR_SHARE:
             ratio = math.sqrt(share)
-            out[name] = (f"set by the a priori: posterior σ is {100 * ratio:.0f} % of the a-priori σ; "
-                         f"the data give {100 * max(0.0, 1 - share):.0f} % of what is known about it")
+            out[name] = (
+                f"set by the a priori: posterior σ is {100 * ratio:.0f} % of the a-priori σ; "
+                f"the data give {100 * max(0.0, 1 - share):.0f} % of what is known about it"
+            )
     return out
 
 

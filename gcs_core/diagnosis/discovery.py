@@ -42,11 +42,15 @@ class Step:
     estimates: Mapping[str, float] = field(default_factory=dict)
 
     def as_report(self) -> dict:
-        return {"action": self.action, "added" if self.action != "remove" else "removed": self.effect,
-                "rms_normalized_before": rounded(self.rms_before),
-                "rms_normalized_after": rounded(self.rms_after),
-                "holdout_rms_normalized_after": rounded(self.holdout_after),
-                "delta_chi2": round(self.delta_chi2, 3), "estimates": dict(self.estimates)}
+        return {
+            "action": self.action,
+            "added" if self.action != "remove" else "removed": self.effect,
+            "rms_normalized_before": rounded(self.rms_before),
+            "rms_normalized_after": rounded(self.rms_after),
+            "holdout_rms_normalized_after": rounded(self.holdout_after),
+            "delta_chi2": round(self.delta_chi2, 3),
+            "estimates": dict(self.estimates),
+        }
 
 
 def rounded(d: Mapping[str, float]) -> dict:
@@ -70,13 +74,19 @@ def discover(analysis, *, max_steps: int = 10, progress: Callable[[str], None] |
         ok = [c for c in cands if c.identifiable and c.p_adjusted < alpha]
         if not ok:
             best = cands[0] if cands else None
-            reason = ("no candidate is significant at family-wise α = " f"{alpha:g}" +
-                      (f" (best: {best.id}, {p_text(best.p_adjusted, 'p adj')}"
-                       + ("" if best.identifiable else ", not identifiable") + ")" if best else ""))
+            reason = f"no candidate is significant at family-wise α = {alpha:g}" + (
+                f" (best: {best.id}, {p_text(best.p_adjusted, 'p adj')}"
+                + ("" if best.identifiable else ", not identifiable")
+                + ")"
+                if best
+                else ""
+            )
             break
         top = policy.parsimonious(ok[0], cands, analysis.result, analysis.problem.state, alpha)
-        say(f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
-            f"{p_text(top.p_adjusted, 'p adj')})")
+        say(
+            f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
+            f"{p_text(top.p_adjusted, 'p adj')})"
+        )
         analysis.add_effect(top.id)
     else:
         reason = f"stopped after {max_steps} steps"

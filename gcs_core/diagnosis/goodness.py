@@ -70,8 +70,15 @@ from scipy import linalg, stats
 from gcs_core.filtr.smoothing_uses import smoothed_frames
 from gcs_core.problem.linearization import iter_blocks
 
-__all__ = ["ChiSquare", "GoodnessOfFit", "goodness_of_fit", "sensor_leverage", "holdout_tests",
-           "effective_parameters", "FAMILY_ALPHA"]
+__all__ = [
+    "ChiSquare",
+    "GoodnessOfFit",
+    "goodness_of_fit",
+    "sensor_leverage",
+    "holdout_tests",
+    "effective_parameters",
+    "FAMILY_ALPHA",
+]
 
 #: default family-wise level of the verdict (the session passes its ``significance``)
 FAMILY_ALPHA = 1e-3
@@ -114,9 +121,14 @@ class ChiSquare:
         return self.chi2 / self.dof if self.dof > 0 else float("nan")
 
     def as_report(self) -> dict:
-        return {"chi2": round(float(self.chi2), 3), "n": int(self.n), "dof": round(float(self.dof), 2),
-                "chi2_per_dof": _r(self.reduced, 5), "p_value": _p(self.p_value),
-                "p_lower": _p(self.p_lower)}
+        return {
+            "chi2": round(float(self.chi2), 3),
+            "n": int(self.n),
+            "dof": round(float(self.dof), 2),
+            "chi2_per_dof": _r(self.reduced, 5),
+            "p_value": _p(self.p_value),
+            "p_lower": _p(self.p_lower),
+        }
 
 
 @dataclass(frozen=True)
@@ -181,15 +193,20 @@ class GoodnessOfFit:
             low = self.below_noise()
             text = f"consistent with noise: {head}"
             if low:
-                text += ("; residuals below the noise in " + ", ".join(f"{t.label} ({s})" for s, t in low)
-                         + ": the data-book σ may be too large")
+                text += (
+                    "; residuals below the noise in "
+                    + ", ".join(f"{t.label} ({s})" for s, t in low)
+                    + ": the data-book σ may be too large"
+                )
             return text
         sensors = [(s, t) for s, t in bad if t.label != ALL]
         s, t = (sensors or bad)[0]
         where = t.label + ("" if s == "fitted" else " on the held-out span")
-        return (f"model inadequate: residuals exceed the noise, p {_fmt_p(t.p_value)}, worst sensor "
-                f"{where} (χ²/dof {t.reduced:.3f} on {t.dof:.0f} dof); whole fit {head}; "
-                f"family-wise α = {self.alpha:g} over {len(self.tests)} tests")
+        return (
+            f"model inadequate: residuals exceed the noise, p {_fmt_p(t.p_value)}, worst sensor "
+            f"{where} (χ²/dof {t.reduced:.3f} on {t.dof:.0f} dof); whole fit {head}; "
+            f"family-wise α = {self.alpha:g} over {len(self.tests)} tests"
+        )
 
     def sensor_report(self, name: str) -> dict:
         """A sensor's χ² fields for the ICD §7 ``sensors`` entry: ``chi2``, ``dof``,
@@ -205,17 +222,25 @@ class GoodnessOfFit:
 
     def as_report(self) -> dict:
         worst = self.worst()
-        out = {"verdict": self.verdict, "adequate": self.adequate, "alpha": self.alpha,
-               "tests": len(self.tests), "per_test_level": self.level,
-               "effective_parameters": round(float(self.effective_parameters), 3),
-               "effective_parameters_from": self.effective_from,
-               **self.fit.as_report(),
-               "worst_sensor": None if worst is None else {"sensor": worst[1].label, "span": worst[0],
-                                                            "p_value": _p(worst[1].p_value)},
-               "sensors": {k: v.as_report() for k, v in self.sensors.items()}}
+        out = {
+            "verdict": self.verdict,
+            "adequate": self.adequate,
+            "alpha": self.alpha,
+            "tests": len(self.tests),
+            "per_test_level": self.level,
+            "effective_parameters": round(float(self.effective_parameters), 3),
+            "effective_parameters_from": self.effective_from,
+            **self.fit.as_report(),
+            "worst_sensor": None
+            if worst is None
+            else {"sensor": worst[1].label, "span": worst[0], "p_value": _p(worst[1].p_value)},
+            "sensors": {k: v.as_report() for k, v in self.sensors.items()},
+        }
         if self.holdout is not None:
-            out["holdout"] = {**self.holdout.as_report(),
-                              "sensors": {k: v.as_report() for k, v in self.holdout_sensors.items()}}
+            out["holdout"] = {
+                **self.holdout.as_report(),
+                "sensors": {k: v.as_report() for k, v in self.holdout_sensors.items()},
+            }
         return out
 
 
@@ -256,8 +281,9 @@ def sensor_leverage(problem, result) -> dict[str, float]:
     P = np.asarray(result.P)
     edited = {k: np.asarray(r.edited, bool) for k, r in result.residuals.items()}
     A = {sd.name: np.zeros((n, n)) for sd in problem.sensors}
-    for blk in iter_blocks(problem, result.state.values(), names, exclude=edited, weighted=True,
-                           augmented=True, gram=True):
+    for blk in iter_blocks(
+        problem, result.state.values(), names, exclude=edited, weighted=True, augmented=True, gram=True
+    ):
         if not np.any(blk.used):
             continue
         c = blk.cols
@@ -302,12 +328,16 @@ def _smoothed_holdout(problem, train, masks) -> dict[str, ChiSquare]:
     acc: dict[str, list] = {}
     for name, r, sigma, var in _smoothed_frames(problem, train, masks):
         a = acc.setdefault(name, [0.0, 0])
-        a[0] += float(np.sum(r ** 2 / (sigma[None, :] ** 2 + var)))
+        a[0] += float(np.sum(r**2 / (sigma[None, :] ** 2 + var)))
         a[1] += r.size
     out = {k: ChiSquare(k, v[0], v[1], float(v[1])) for k, v in acc.items() if v[1]}
     if out:
-        out[ALL] = ChiSquare(ALL, sum(t.chi2 for t in out.values()), sum(t.n for t in out.values()),
-                             float(sum(t.n for t in out.values())))
+        out[ALL] = ChiSquare(
+            ALL,
+            sum(t.chi2 for t in out.values()),
+            sum(t.n for t in out.values()),
+            float(sum(t.n for t in out.values())),
+        )
     return out
 
 
@@ -328,8 +358,16 @@ def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, 
         return _smoothed_holdout(problem, train, sel)
     exclude = {sd.name: ~sel.get(sd.name, np.zeros(sd.n, bool)) for sd in problem.sensors}
     acc: dict[str, list] = {}
-    for blk in iter_blocks(problem, train.state.values(), names, sensors=list(sel), exclude=exclude,
-                           weighted=True, augmented=True, gram=True):
+    for blk in iter_blocks(
+        problem,
+        train.state.values(),
+        names,
+        sensors=list(sel),
+        exclude=exclude,
+        weighted=True,
+        augmented=True,
+        gram=True,
+    ):
         nu = int(np.count_nonzero(blk.used))
         if not nu:
             continue
@@ -375,10 +413,16 @@ def _woodbury_chi2(L: np.ndarray, A_h: np.ndarray, g: np.ndarray, c: float) -> f
 
 
 # ------------------------------------------------------------------------- the verdict
-def goodness_of_fit(problem, result, *, holdout: Mapping[str, ChiSquare] | None = None,
-                    alpha: float = FAMILY_ALPHA, effective_parameters: float | None = None,
-                    leverage: Mapping[str, float] | None = None,
-                    sensors: Sequence[str] | None = None) -> GoodnessOfFit:
+def goodness_of_fit(
+    problem,
+    result,
+    *,
+    holdout: Mapping[str, ChiSquare] | None = None,
+    alpha: float = FAMILY_ALPHA,
+    effective_parameters: float | None = None,
+    leverage: Mapping[str, float] | None = None,
+    sensors: Sequence[str] | None = None,
+) -> GoodnessOfFit:
     """The χ² tests of a fit and their verdict (module docstring).
 
     ``result`` is any estimator's :class:`~gcs_core.filtr.results.FitResult`. The effective

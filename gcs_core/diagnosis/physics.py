@@ -55,9 +55,8 @@ def physics_needed(problem, result, effects, *, alpha: float, smoothed: bool = F
     for c in rank_candidates(problem, result, effects, alpha=alpha, smoothed=smoothed):
         sig = c.sigma.get(c.id, float("inf"))
         c_hat = c.estimate.get(c.id, 0.0)
-        cost = (1.0 - 2.0 * c_hat) / sig ** 2 if np.isfinite(sig) and sig > 0 else 0.0
+        cost = (1.0 - 2.0 * c_hat) / sig**2 if np.isfinite(sig) and sig > 0 else 0.0
         shares = dict(sorted(c.sensors.items(), key=lambda kv: -kv[1]))
-        out.append(PhysicsNeed(c.id, float(cost), bool(cost > crit), crit, alpha, shares,
-                               c.effect.explanation))
+        out.append(PhysicsNeed(c.id, float(cost), bool(cost > crit), crit, alpha, shares, c.effect.explanation))
     out.sort(key=lambda d: -round(d.delta_chi2_if_removed, 3))
     return out

@@ -22,15 +22,15 @@ def parsimonious(top: Candidate, cands: list[Candidate], result, state, alpha: f
     with the same signature (the WGS-84 flattening over a fitted κ); the report names
     the aliases either way."""
     n = max(2, sum(r.n * len(r.components) for r in result.residuals.values()))
-    group = [top] + [c for c in cands if c.id in {a for a, _ in top.aliases_candidates}
-                     and c.p_adjusted < alpha and c.dof > 0]
+    group = [top] + [
+        c for c in cands if c.id in {a for a, _ in top.aliases_candidates} and c.p_adjusted < alpha and c.dof > 0
+    ]
     bic = {c.id: c.delta_chi2 - c.dof * math.log(n) for c in group}
     best = max(bic.values())
     close = [c for c in group if bic[c.id] >= best - BIC_TIE]
 
     def seed_effect(c: Candidate) -> bool:
-        return bool(c.effect.elements) and all(state[nm].seed for nm in c.effect.elements
-                                               if nm in state)
+        return bool(c.effect.elements) and all(state[nm].seed for nm in c.effect.elements if nm in state)
 
     # then known physics (no new parameter) over a free one: WGS-84 over a fitted κ
     return max(close, key=lambda c: (seed_effect(c), c.effect.physics, bic[c.id]))

@@ -47,11 +47,11 @@ from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
 from gcs_core.filtr.knots import KnotSystem
+from gcs_core.filtr.knots import chained_attitude as kn_chain
 from gcs_core.filtr.results import FitResult
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, window_geometry
 from gcs_core.problem.prepare import geometry_variants
-from gcs_core.filtr.knots import chained_attitude as kn_chain
 
 #: canonical correlation above which two candidates are called indistinguishable
 ALIAS_TOL = 0.98
@@ -99,13 +99,21 @@ class Candidate:
         return self.effect.id
 
     def as_report(self) -> dict:
-        return {"id": self.id, "sensor": self.effect.sensor or "model", "effect": self.effect.effect,
-                "delta_chi2": round(self.delta_chi2, 3), "dof": self.dof, "p_value": self.p_value,
-                "p_adjusted": self.p_adjusted, "identifiable": self.identifiable,
-                "absorbed_by_state": round(self.absorbed, 4),
-                "aliases": list(self.aliases_state) + [a for a, _ in self.aliases_candidates],
-                "estimate": dict(self.estimate), "sigma": dict(self.sigma),
-                "explanation": self.explanation}
+        return {
+            "id": self.id,
+            "sensor": self.effect.sensor or "model",
+            "effect": self.effect.effect,
+            "delta_chi2": round(self.delta_chi2, 3),
+            "dof": self.dof,
+            "p_value": self.p_value,
+            "p_adjusted": self.p_adjusted,
+            "identifiable": self.identifiable,
+            "absorbed_by_state": round(self.absorbed, 4),
+            "aliases": list(self.aliases_state) + [a for a, _ in self.aliases_candidates],
+            "estimate": dict(self.estimate),
+            "sigma": dict(self.sigma),
+            "explanation": self.explanation,
+        }
 
 
 @lru_cache(maxsize=64)
@@ -142,15 +150,22 @@ def _physics_block(problem: Problem, blk, values, phys_ids: Sequence[str]) -> li
         g1 = window_geometry(geom_alt, blk.lo, blk.hi, sd.n)
         g1 = replace(g1, C_BI=blk.geom.C_BI, omega_B=blk.geom.omega_B, spin_axis_I=blk.geom.spin_axis_I)
         y1 = sd.model.predict(g1, problem.params_of(sd.name, values)).y
-        d = sd.model.residual(y1, blk.y_pred, g1)        # wrapped where the observable wraps
+        d = sd.model.residual(y1, blk.y_pred, g1)  # wrapped where the observable wraps
         out.append((j, np.where(np.isfinite(d), d, 0.0)))
     return out
 
 
-def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effect], *,
-                    alpha: float = 0.001, edited: Mapping[str, np.ndarray] | None = None,
-                    exclude_frames: Mapping[str, np.ndarray] | None = None,
-                    chunk: int | None = None, smoothed: bool = False) -> list[Candidate]:
+def rank_candidates(
+    problem: Problem,
+    result: FitResult,
+    effects: Sequence[Effect],
+    *,
+    alpha: float = 0.001,
+    edited: Mapping[str, np.ndarray] | None = None,
+    exclude_frames: Mapping[str, np.ndarray] | None = None,
+    chunk: int | None = None,
+    smoothed: bool = False,
+) -> list[Candidate]:
     """Score every candidate effect (module docstring); most significant first.
 
     ``effects`` are the candidates (effects not in the state); physics effects must be
@@ -191,7 +206,7 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
     A = np.zeros((K, K))
     g = np.zeros(K)
     per_sensor_g: dict[str, np.ndarray] = {}
-    work: dict = {}                     # chunk buffers, reused from chunk to chunk
+    work: dict = {}  # chunk buffers, reused from chunk to chunk
     # a whole-span fit with gyro process noise: linearize at its corrected attitude and
     # take out what its knot corrections absorb (smoothing_batch, knots)
     dyn = getattr(result, "dynamics", None)
@@ -204,7 +219,7 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
             continue
         sd = blk.sensor
         H, c = blk.H, blk.cols
-        assert H is not None                            # rows stored (not gram-only blocks)
+        assert H is not None  # rows stored (not gram-only blocks)
         extra = _physics_block(problem, blk, values, phys_ids) if phys_ids else []
         if extra:
             w = blk.used[:, None] / sd.sigma[None, :]
@@ -213,17 +228,24 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
         Hm = H.reshape(-1, c.size)
         rw = blk.weighted_residual()
         if smoothed and sd.name in result.residuals:
-            rr = result.residuals[sd.name].residual[blk.lo:blk.hi]
+            rr = result.residuals[sd.name].residual[blk.lo : blk.hi]
             rw = (np.where(blk.used[:, None], np.nan_to_num(rr), 0.0) / sd.sigma).reshape(-1)
         A[np.ix_(c, c)] += Hm.T @ Hm
         gs = Hm.T @ rw
         D = getattr(blk.pred, "d_att", None)
         if knots is not None and D is not None and blk.geom.C_BI is not None:
-            assert dyn is not None                   # the knot system is built from it
-            t_blk = sd.t[blk.lo:blk.hi]
+            assert dyn is not None  # the knot system is built from it
+            t_blk = sd.t[blk.lo : blk.hi]
             C = np.ascontiguousarray(kn_chain(blk.geom.C_BI, dyn.grid, dyn.z, dyn.R, t_blk))
-            knots.add_rows(D, C, blk.used[:, None] / sd.sigma[None, :], t_blk,
-                           np.ascontiguousarray(Hm), np.ascontiguousarray(rw), c)
+            knots.add_rows(
+                D,
+                C,
+                blk.used[:, None] / sd.sigma[None, :],
+                t_blk,
+                np.ascontiguousarray(Hm),
+                np.ascontiguousarray(rw),
+                c,
+            )
         if knots is not None:
             knots.passed(sd, blk.hi)
         g[c] += gs
@@ -235,8 +257,9 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
     Axc = A[:n, n:]
     # the state's gradient at the solution is ~0 (converged); include it for honesty:
     # the score of c given x re-optimized is g_c − A_cx N⁻¹ g_x'
-    gx = g[:n] + prior * (np.array([state[nm].value for nm in x_names]) -
-                          np.array([result.state[nm].value for nm in x_names]))
+    gx = g[:n] + prior * (
+        np.array([state[nm].value for nm in x_names]) - np.array([result.state[nm].value for nm in x_names])
+    )
     A_c, g_c = A[n:, n:], g[n:]
     if knots is not None:
         # the knots eliminated from [x c] together: what they absorb is projected out
@@ -248,7 +271,7 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
         gx, g_c = g_red[:n], g_red[n:]
     B = np.linalg.solve(Nxx, np.column_stack([Axc, gx]))
     Bc, bx = B[:, :-1], B[:, -1]
-    S_all = A_c - Axc.T @ Bc                         # conditional information, all candidates
+    S_all = A_c - Axc.T @ Bc  # conditional information, all candidates
     g_all = g_c - Axc.T @ bx
     idx_of: dict[str, list[int]] = {}
     for e in sensor_effects:
@@ -288,7 +311,7 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
     # data: each candidate's information is pseudo-inverted once, a bound on every pair's
     # ρ² comes from one product, and only pairs that may pass ALIAS_TOL are computed.
     pinvs = [_pinv(S_all[np.ix_(idx_of[e.id], idx_of[e.id])]) for e in effects]
-    may_alias = _alias_bound(S_all, [idx_of[e.id] for e in effects], pinvs) >= ALIAS_TOL ** 2 - 1e-3
+    may_alias = _alias_bound(S_all, [idx_of[e.id] for e in effects], pinvs) >= ALIAS_TOL**2 - 1e-3
     out = []
     for ia, item in enumerate(raw):
         e, dchi, dof, est, sigma, mdb, absorbed, aliases, shares = item
@@ -305,9 +328,23 @@ def rank_candidates(problem: Problem, result: FitResult, effects: Sequence[Effec
         stronger = [a for a in cand_alias if (a[2] - a[3] * log_n) > (dchi - dof * log_n) + 1e-9]
         identifiable = dof > 0 and absorbed < ABSORB_TOL and not stronger
         tot = sum(shares.values()) or 1.0
-        out.append(Candidate(e, dchi, dof, p, min(1.0, p * m), {k: v for k, v in est_items(e, est, result)},
-                             sigma, mdb, absorbed, aliases, tuple((a[0], a[1]) for a in cand_alias),
-                             identifiable, {k: v / tot for k, v in shares.items()}))
+        out.append(
+            Candidate(
+                e,
+                dchi,
+                dof,
+                p,
+                min(1.0, p * m),
+                {k: v for k, v in est_items(e, est, result)},
+                sigma,
+                mdb,
+                absorbed,
+                aliases,
+                tuple((a[0], a[1]) for a in cand_alias),
+                identifiable,
+                {k: v / tot for k, v in shares.items()},
+            )
+        )
     out.sort(key=lambda c: (c.p_value, -c.delta_chi2))
     return [replace(c, explanation=explain(c, alpha)) for c in out]
 
@@ -332,7 +369,7 @@ def _score(S: np.ndarray, Acc: np.ndarray, gc: np.ndarray):
         return 0.0, 0, np.zeros(k), np.full(k, np.inf), 1.0
     gs = gc / sc
     proj = V[:, keep].T @ gs
-    dchi = float(np.sum(proj ** 2 / w[keep]))
+    dchi = float(np.sum(proj**2 / w[keep]))
     step = (V[:, keep] @ (proj / w[keep])) / sc
     cov = (V[:, keep] / w[keep]) @ V[:, keep].T / np.outer(sc, sc)
     sig = np.sqrt(np.clip(np.diag(cov), 0, None))
@@ -352,8 +389,7 @@ def _pinv(S: np.ndarray) -> np.ndarray | None:
         return None
 
 
-def _alias_bound(S_all: np.ndarray, ixs: Sequence[Sequence[int]],
-                 pinvs: Sequence[np.ndarray | None]) -> np.ndarray:
+def _alias_bound(S_all: np.ndarray, ixs: Sequence[Sequence[int]], pinvs: Sequence[np.ndarray | None]) -> np.ndarray:
     """(E, E) upper bounds of every candidate pair's squared canonical correlation.
 
     ``M_ab = S_aa⁺ S_ab S_bb⁺ S_ba`` is similar to a positive semi-definite matrix, so its
@@ -363,11 +399,11 @@ def _alias_bound(S_all: np.ndarray, ixs: Sequence[Sequence[int]],
     for; a failed pseudo-inverse (None) gives 0 (no alias, as in :func:`_canonical_corr`).
     """
     flat = np.array([i for ix in ixs for i in ix], dtype=int)
-    member = np.zeros((flat.size, len(ixs)))          # stacked row -> its candidate
+    member = np.zeros((flat.size, len(ixs)))  # stacked row -> its candidate
     blocks = []
     r = 0
     for j, (ix, L) in enumerate(zip(ixs, pinvs)):
-        member[r:r + len(ix), j] = 1.0
+        member[r : r + len(ix), j] = 1.0
         r += len(ix)
         rows = np.asarray(ix, dtype=int)
         blocks.append(L @ S_all[np.ix_(rows, flat)] if L is not None else np.zeros((len(ix), flat.size)))
@@ -375,8 +411,9 @@ def _alias_bound(S_all: np.ndarray, ixs: Sequence[Sequence[int]],
     return member.T @ (P * P.T) @ member
 
 
-def _canonical_corr(S_all: np.ndarray, ia: Sequence[int], ib: Sequence[int],
-                    La: np.ndarray | None = None, Lb: np.ndarray | None = None) -> float:
+def _canonical_corr(
+    S_all: np.ndarray, ia: Sequence[int], ib: Sequence[int], La: np.ndarray | None = None, Lb: np.ndarray | None = None
+) -> float:
     """Largest canonical correlation of candidates ``ia`` and ``ib`` given the state:
     ``ρ² = λ_max(S_aa⁺ S_ab S_bb⁺ S_ba)``. ``La``, ``Lb``: the pseudo-inverses
     :func:`_pinv` of ``S_aa``, ``S_bb`` if already computed."""
@@ -393,9 +430,11 @@ def _canonical_corr(S_all: np.ndarray, ia: Sequence[int], ib: Sequence[int],
 
 
 #: The one ranking and significance rule, said wherever candidates are shown.
-RULE = ("Candidates are ranked by p, the chance of a Δχ² this large on its dof if the effect were absent "
-        "(equal p: the larger Δχ² first); p adj = min(1, m·p) over the m candidates tried (Bonferroni), and a "
-        "candidate is significant when p adj < α, the family-wise level.")
+RULE = (
+    "Candidates are ranked by p, the chance of a Δχ² this large on its dof if the effect were absent "
+    "(equal p: the larger Δχ² first); p adj = min(1, m·p) over the m candidates tried (Bonferroni), and a "
+    "candidate is significant when p adj < α, the family-wise level."
+)
 
 
 def _p_text(p: float, name: str = "p") -> str:
@@ -405,22 +444,31 @@ def _p_text(p: float, name: str = "p") -> str:
 
 def explain(c: Candidate, alpha: float) -> str:
     """One paragraph: the signature seen, its strength, and the physical cause."""
-    seen = ", ".join(f"{s} ({100 * v:.0f}%)" for s, v in sorted(c.sensors.items(), key=lambda kv: -kv[1])
-                     if v > 0.05) or "no sensor"
-    head = (f"{c.id}: adding it would remove Δχ² = {c.delta_chi2:.1f} on {c.dof} degree"
-            f"{'s' if c.dof != 1 else ''} of freedom ({_p_text(c.p_value)}; corrected for the "
-            f"candidates tried, {_p_text(c.p_adjusted, 'p adj')}, "
-            f"{'significant' if c.p_adjusted < alpha else 'not significant'} at family-wise "
-            f"α = {alpha:g}); the signature is seen in {seen}.")
+    seen = (
+        ", ".join(f"{s} ({100 * v:.0f}%)" for s, v in sorted(c.sensors.items(), key=lambda kv: -kv[1]) if v > 0.05)
+        or "no sensor"
+    )
+    head = (
+        f"{c.id}: adding it would remove Δχ² = {c.delta_chi2:.1f} on {c.dof} degree"
+        f"{'s' if c.dof != 1 else ''} of freedom ({_p_text(c.p_value)}; corrected for the "
+        f"candidates tried, {_p_text(c.p_adjusted, 'p adj')}, "
+        f"{'significant' if c.p_adjusted < alpha else 'not significant'} at family-wise "
+        f"α = {alpha:g}); the signature is seen in {seen}."
+    )
     if not c.identifiable:
         if c.absorbed >= ABSORB_TOL:
-            head += (" It cannot be told apart from elements already estimated"
-                     + (f" ({', '.join(c.aliases_state)})" if c.aliases_state else "")
-                     + ": the data carry no separate information on it.")
+            head += (
+                " It cannot be told apart from elements already estimated"
+                + (f" ({', '.join(c.aliases_state)})" if c.aliases_state else "")
+                + ": the data carry no separate information on it."
+            )
         elif c.aliases_candidates:
-            head += (" It is indistinguishable from " + ", ".join(a for a, _ in c.aliases_candidates)
-                     + " with these data.")
+            head += (
+                " It is indistinguishable from " + ", ".join(a for a, _ in c.aliases_candidates) + " with these data."
+            )
     elif c.absorbed > 0.5 and c.aliases_state:
-        head += (f" {100 * c.absorbed:.0f}% of its signature could be absorbed by "
-                 f"{', '.join(c.aliases_state)}, but enough remains to identify it.")
+        head += (
+            f" {100 * c.absorbed:.0f}% of its signature could be absorbed by "
+            f"{', '.join(c.aliases_state)}, but enough remains to identify it."
+        )
     return head + " " + c.effect.explanation

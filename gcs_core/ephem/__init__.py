@@ -15,7 +15,18 @@ from gcs_core.ephem.sun import earth_occults, in_shadow, sun_position_km, sunlit
 from gcs_core.ephem.timescale import decimal_year, gmst_rad, julian_date, parse_epoch
 
 __all__ = [
-    "EPHEMERIS_COLUMNS", "Ephemeris", "GeomagField", "KeplerOrbit", "TleOrbit",
-    "build_ephemeris", "earth_occults", "in_shadow", "sun_position_km", "sunlit_fraction",
-    "decimal_year", "gmst_rad", "julian_date", "parse_epoch",
+    "EPHEMERIS_COLUMNS",
+    "Ephemeris",
+    "GeomagField",
+    "KeplerOrbit",
+    "TleOrbit",
+    "build_ephemeris",
+    "earth_occults",
+    "in_shadow",
+    "sun_position_km",
+    "sunlit_fraction",
+    "decimal_year",
+    "gmst_rad",
+    "julian_date",
+    "parse_epoch",
 ]

@@ -36,8 +36,13 @@ import numpy as np
 
 from gcs_core import units
 
-__all__ = ["aberrate", "apparent_star_direction", "sun_from_spacecraft",
-           "apparent_sun_from_spacecraft", "angle_between"]
+__all__ = [
+    "aberrate",
+    "apparent_star_direction",
+    "sun_from_spacecraft",
+    "apparent_sun_from_spacecraft",
+    "angle_between",
+]
 
 
 def _unit(v):
@@ -68,11 +73,10 @@ def aberrate(u_I, v_obs_km_s, *, first_order: bool = False) -> np.ndarray:
     b2 = np.sum(beta * beta, axis=-1, keepdims=True)
     gamma = 1.0 / np.sqrt(1.0 - b2)
     up = (u / gamma + beta + (gamma / (1.0 + gamma)) * ub * beta) / (1.0 + ub)
-    return _unit(up)   # exact formula is already unit; normalize against round-off
+    return _unit(up)  # exact formula is already unit; normalize against round-off
 
 
-def apparent_star_direction(u_catalog_I, v_earth_km_s, v_sc_km_s, *,
-                            first_order: bool = False) -> np.ndarray:
+def apparent_star_direction(u_catalog_I, v_earth_km_s, v_sc_km_s, *, first_order: bool = False) -> np.ndarray:
     """Stellar aberration: a catalog direction as seen from the spacecraft.
 
     The observer's velocity is the Earth's heliocentric velocity plus the spacecraft's
@@ -88,8 +92,7 @@ def sun_from_spacecraft(sun_I_km, r_I_km) -> np.ndarray:
     return _unit(np.asarray(sun_I_km, dtype=float) - np.asarray(r_I_km, dtype=float))
 
 
-def apparent_sun_from_spacecraft(sun_I_km, r_I_km, v_I_km_s, *,
-                                 first_order: bool = False) -> np.ndarray:
+def apparent_sun_from_spacecraft(sun_I_km, r_I_km, v_I_km_s, *, first_order: bool = False) -> np.ndarray:
     """Apparent Sun direction at the spacecraft: parallax, then orbital aberration.
 
     ``sun_I_km`` is the *apparent geocentric* Sun of the ephemeris (annual aberration

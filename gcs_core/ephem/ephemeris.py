@@ -66,8 +66,7 @@ class Ephemeris:
     margin_s : float.
     """
 
-    def __init__(self, t, r_I_km, v_I_km_s, sun_I_km, *, source: str | Path = "ephemeris",
-                 margin_s: float = 0.0):
+    def __init__(self, t, r_I_km, v_I_km_s, sun_I_km, *, source: str | Path = "ephemeris", margin_s: float = 0.0):
         self.source = str(source)
         self.margin_s = max(0.0, float(margin_s))
         t = np.array(t, dtype=float)
@@ -76,13 +75,13 @@ class Ephemeris:
             raise InputError("an ephemeris needs at least two rows", file=self.source)
         if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0.0):
             bad = int(np.argmax(~(np.diff(t) > 0.0))) + 1 if t.size > 1 else 0
-            raise InputError(f"ephemeris times must be finite and strictly increasing "
-                             f"(row {bad + 1})", file=self.source, column="t")
+            raise InputError(
+                f"ephemeris times must be finite and strictly increasing (row {bad + 1})", file=self.source, column="t"
+            )
         for name, a in list(arrays.items()):
             a = np.array(a, dtype=float)
             if a.shape != (t.size, 3):
-                raise InputError(f"{name} has shape {a.shape}, expected ({t.size}, 3)",
-                                 file=self.source)
+                raise InputError(f"{name} has shape {a.shape}, expected ({t.size}, 3)", file=self.source)
             if not np.all(np.isfinite(a)):
                 raise InputError(f"{name} holds non-finite values", file=self.source)
             a.setflags(write=False)
@@ -102,15 +101,20 @@ class Ephemeris:
         extrapolated by at most ``margin_s`` past either end."""
         for name in EPHEMERIS_COLUMNS:
             if name not in table.columns:
-                raise InputError("missing column of the ephemeris (ICD §4 needs "
-                                 + ", ".join(EPHEMERIS_COLUMNS) + ")",
-                                 file=table.path, column=name)
+                raise InputError(
+                    "missing column of the ephemeris (ICD §4 needs " + ", ".join(EPHEMERIS_COLUMNS) + ")",
+                    file=table.path,
+                    column=name,
+                )
         cols = table.columns
-        return cls(np.asarray(table.t, dtype=float),
-                   np.column_stack([cols["rx"], cols["ry"], cols["rz"]]),
-                   np.column_stack([cols["vx"], cols["vy"], cols["vz"]]),
-                   np.column_stack([cols["sx"], cols["sy"], cols["sz"]]),
-                   source=table.path, margin_s=margin_s)
+        return cls(
+            np.asarray(table.t, dtype=float),
+            np.column_stack([cols["rx"], cols["ry"], cols["rz"]]),
+            np.column_stack([cols["vx"], cols["vy"], cols["vz"]]),
+            np.column_stack([cols["sx"], cols["sy"], cols["sz"]]),
+            source=table.path,
+            margin_s=margin_s,
+        )
 
     # ------------------------------------------------------------------ coverage
     @property
@@ -139,8 +143,7 @@ class Ephemeris:
         if t.size == 0:
             return
         if np.any(~np.isfinite(t)):
-            raise InputError(f"{what}: non-finite time requested from the ephemeris",
-                             file=self.source)
+            raise InputError(f"{what}: non-finite time requested from the ephemeris", file=self.source)
         lo, hi = float(np.min(t)), float(np.max(t))
         slack = _EDGE_SLACK_S + self.margin_s
         if lo < self.t_start - slack or hi > self.t_end + slack:
@@ -150,9 +153,11 @@ class Ephemeris:
             if hi > self.t_end + slack:
                 gaps.append(f"{self.t_end:.3f} s to {hi:.3f} s")
             ext = f" (extrapolated by at most {self.margin_s:g} s)" if self.margin_s else ""
-            raise InputError(f"{what} need ephemeris over {lo:.3f}..{hi:.3f} s but it covers "
-                             f"{self.t_start:.3f}..{self.t_end:.3f} s{ext}; uncovered: "
-                             + " and ".join(gaps), file=self.source)
+            raise InputError(
+                f"{what} need ephemeris over {lo:.3f}..{hi:.3f} s but it covers "
+                f"{self.t_start:.3f}..{self.t_end:.3f} s{ext}; uncovered: " + " and ".join(gaps),
+                file=self.source,
+            )
 
     # ------------------------------------------------------------------ interpolation
     def _locate(self, t):
@@ -225,5 +230,4 @@ class Ephemeris:
         return int(self.t.size)
 
     def __repr__(self) -> str:
-        return (f"Ephemeris({self.source!r}, {self.t.size} rows, "
-                f"{self.t_start:.3f}..{self.t_end:.3f} s)")
+        return f"Ephemeris({self.source!r}, {self.t.size} rows, {self.t_start:.3f}..{self.t_end:.3f} s)"

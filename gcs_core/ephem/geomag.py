@@ -52,15 +52,14 @@ import numpy as np
 from gcs_core.ephem import timescale
 from gcs_core.errors import InputError
 
-__all__ = ["GeomagField", "IGRF_REFERENCE_RADIUS_KM", "load_igrf_coefficients",
-           "spherical_harmonic_field"]
+__all__ = ["GeomagField", "IGRF_REFERENCE_RADIUS_KM", "load_igrf_coefficients", "spherical_harmonic_field"]
 
 log = logging.getLogger(__name__)
 
 #: IGRF magnetic reference radius [km].
 IGRF_REFERENCE_RADIUS_KM = 6371.2
-_CHUNK = 20000                  # points per evaluation chunk (bounded memory)
-_POLE_SIN = 1e-10               # |sin θ| floor: moves a point ≤ 1 mm off a pole
+_CHUNK = 20000  # points per evaluation chunk (bounded memory)
+_POLE_SIN = 1e-10  # |sin θ| floor: moves a point ≤ 1 mm off a pole
 
 
 @functools.lru_cache(maxsize=4)
@@ -75,8 +74,7 @@ def load_igrf_coefficients(generation: int = 14):
     """
     name = {13: "IGRF13.shc", 14: "IGRF14.shc"}.get(int(generation))
     if name is None:
-        raise InputError(f"IGRF generation {generation} is not available (use 13 or 14)",
-                         key="igrf_generation")
+        raise InputError(f"IGRF generation {generation} is not available (use 13 or 14)", key="igrf_generation")
     text = resources.files("ppigrf").joinpath(name).read_text()
     rows = [ln.split() for ln in text.splitlines() if ln.strip() and not ln.startswith("#")]
     n_max = int(rows[0][1])
@@ -95,9 +93,20 @@ def load_igrf_coefficients(generation: int = 14):
     return years, g, h
 
 
-def spherical_harmonic_field(r_km, theta, phi, g, h, *, max_degree: int,
-                             min_degree: int = 1, gdot=None, hdot=None, dt_yr=None,
-                             a_km: float = IGRF_REFERENCE_RADIUS_KM):
+def spherical_harmonic_field(
+    r_km,
+    theta,
+    phi,
+    g,
+    h,
+    *,
+    max_degree: int,
+    min_degree: int = 1,
+    gdot=None,
+    hdot=None,
+    dt_yr=None,
+    a_km: float = IGRF_REFERENCE_RADIUS_KM,
+):
     """Internal-source field ``(B_r, B_θ, B_φ)`` [nT] at geocentric points (module docstring).
 
     Parameters
@@ -131,10 +140,10 @@ def spherical_harmonic_field(r_km, theta, phi, g, h, *, max_degree: int,
     P_prev: list[np.ndarray] = []
     dP_prev2: list[np.ndarray] = []
     dP_prev: list[np.ndarray] = []
-    Pnn, dPnn = np.ones_like(r), np.zeros_like(r)        # P_0^0 and its derivative
-    rn = ratio ** 2                                      # (a/r)^(n+2) at n = 0
+    Pnn, dPnn = np.ones_like(r), np.zeros_like(r)  # P_0^0 and its derivative
+    rn = ratio**2  # (a/r)^(n+2) at n = 0
     for n in range(0, N + 1):
-        P: list[np.ndarray] = [Pnn] * (n + 1)       # every entry is set below
+        P: list[np.ndarray] = [Pnn] * (n + 1)  # every entry is set below
         dP: list[np.ndarray] = [dPnn] * (n + 1)
         if n == 0:
             P[0], dP[0] = Pnn, dPnn
@@ -192,19 +201,16 @@ class GeomagField:
     valid_from, valid_to : decimal years the table covers.
     """
 
-    def __init__(self, epoch, *, model: str = "igrf", max_degree: int = 13,
-                 generation: int = 14):
+    def __init__(self, epoch, *, model: str = "igrf", max_degree: int = 13, generation: int = 14):
         self.epoch: datetime = timescale.parse_epoch(epoch)
         if model not in ("igrf", "dipole"):
-            raise InputError(f"unknown geomagnetic model '{model}' (use 'igrf' or 'dipole')",
-                             key="geomag.model")
+            raise InputError(f"unknown geomagnetic model '{model}' (use 'igrf' or 'dipole')", key="geomag.model")
         self.model = model
         years, g, h = load_igrf_coefficients(generation)
         self.generation = int(generation)
         top = g.shape[1] - 1
         if not 1 <= int(max_degree) <= top:
-            raise InputError(f"max_degree must be 1..{top}, got {max_degree}",
-                             key="geomag.max_degree")
+            raise InputError(f"max_degree must be 1..{top}, got {max_degree}", key="geomag.max_degree")
         self.max_degree = 1 if model == "dipole" else int(max_degree)
         self.years, self.g, self.h = years, g, h
         self.valid_from, self.valid_to = float(years[0]), float(years[-1])
@@ -219,7 +225,9 @@ class GeomagField:
             raise InputError(
                 f"IGRF-{self.generation} covers {self.valid_from:.1f}–{self.valid_to:.1f}; "
                 f"the requested times fall in {lo:.4f}–{hi:.4f} (decimal years). "
-                f"Check the mission epoch.", key="mission.epoch")
+                f"Check the mission epoch.",
+                key="mission.epoch",
+            )
 
     def coefficients_at(self, year):
         """Gauss coefficients ``(g, h)`` at decimal year(s), ``(…, 14, 14)`` [nT]."""
@@ -249,13 +257,20 @@ class GeomagField:
             for kk in np.unique(k):
                 sel = k == kk
                 Br[sel], Bt[sel], Bp[sel] = spherical_harmonic_field(
-                    r[sel], theta[sel], phi[sel], self.g[kk], self.h[kk],
-                    max_degree=self.max_degree, gdot=self._gdot[kk], hdot=self._hdot[kk],
-                    dt_yr=yr[sel] - self.years[kk])
+                    r[sel],
+                    theta[sel],
+                    phi[sel],
+                    self.g[kk],
+                    self.h[kk],
+                    max_degree=self.max_degree,
+                    gdot=self._gdot[kk],
+                    hdot=self._hdot[kk],
+                    dt_yr=yr[sel] - self.years[kk],
+                )
             ct, st = np.cos(theta), np.sin(theta)
             cp, sp = np.cos(phi), np.sin(phi)
             # B = B_r r_hat + B_θ θ_hat + B_φ φ_hat
-            Bh = Br * st + Bt * ct                     # component along (cos φ, sin φ, 0)
+            Bh = Br * st + Bt * ct  # component along (cos φ, sin φ, 0)
             out[sl, 0] = Bh * cp - Bp * sp
             out[sl, 1] = Bh * sp + Bp * cp
             out[sl, 2] = Br * ct - Bt * st
@@ -276,12 +291,10 @@ class GeomagField:
         gmst = timescale.gmst_rad(self.epoch, t)
         c, s = np.cos(gmst), np.sin(gmst)
         # r_E = T3(gmst) r_I: x_E = c x + s y, y_E = -s x + c y
-        r_E = np.column_stack([c * r_I[:, 0] + s * r_I[:, 1],
-                               -s * r_I[:, 0] + c * r_I[:, 1], r_I[:, 2]])
+        r_E = np.column_stack([c * r_I[:, 0] + s * r_I[:, 1], -s * r_I[:, 0] + c * r_I[:, 1], r_I[:, 2]])
         B_E = self.field_E(year, r_E)
         # B_I = T3(gmst)^T B_E
-        return np.column_stack([c * B_E[:, 0] - s * B_E[:, 1],
-                                s * B_E[:, 0] + c * B_E[:, 1], B_E[:, 2]])
+        return np.column_stack([c * B_E[:, 0] - s * B_E[:, 1], s * B_E[:, 0] + c * B_E[:, 1], B_E[:, 2]])
 
     def field_magnitude(self, t, r_I_km) -> np.ndarray:
         """``|B|`` [nT] at mission times ``t`` and GCI positions (N,)."""

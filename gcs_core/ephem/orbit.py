@@ -81,9 +81,21 @@ class KeplerOrbit:
     mu, r_earth_km, j2_value : constants (WGS-84 μ, equatorial radius, EGM-96 J2).
     """
 
-    def __init__(self, a_km, e, i_deg, raan_deg, argp_deg, mean_anom_deg, epoch, j2=True, *,
-                 mu: float = units.MU_EARTH, r_earth_km: float = units.R_EARTH_KM,
-                 j2_value: float = J2_EARTH):
+    def __init__(
+        self,
+        a_km,
+        e,
+        i_deg,
+        raan_deg,
+        argp_deg,
+        mean_anom_deg,
+        epoch,
+        j2=True,
+        *,
+        mu: float = units.MU_EARTH,
+        r_earth_km: float = units.R_EARTH_KM,
+        j2_value: float = J2_EARTH,
+    ):
         if not a_km > 0.0:
             raise InputError(f"semi-major axis must be positive, got {a_km}", key="orbit.a_km")
         if not 0.0 <= e < 1.0:
@@ -95,13 +107,13 @@ class KeplerOrbit:
         self.M0 = np.radians(mean_anom_deg)
         self.epoch: datetime = timescale.parse_epoch(epoch)
         self.mu = float(mu)
-        self.n = np.sqrt(self.mu / self.a_km ** 3)
-        p = self.a_km * (1.0 - self.e ** 2)
+        self.n = np.sqrt(self.mu / self.a_km**3)
+        p = self.a_km * (1.0 - self.e**2)
         k = 1.5 * j2_value * (r_earth_km / p) ** 2 if j2 else 0.0
         si2 = np.sin(self.i) ** 2
         self.raan_dot = -k * self.n * np.cos(self.i)
         self.argp_dot = k * self.n * (2.0 - 2.5 * si2)
-        self.M_dot = self.n * (1.0 + k * np.sqrt(1.0 - self.e ** 2) * (1.0 - 1.5 * si2))
+        self.M_dot = self.n * (1.0 + k * np.sqrt(1.0 - self.e**2) * (1.0 - 1.5 * si2))
 
     @property
     def period_s(self) -> float:
@@ -132,11 +144,9 @@ class KeplerOrbit:
         r = x_p[:, None] * P + y_p[:, None] * Q
         v2 = vx_p[:, None] * P + vy_p[:, None] * Q
         # exact derivative with the secular drift: v = v2 Mdot/n + Ωdot z x r + ωdot h x r
-        h_hat = np.stack([sO * si * np.ones_like(cw), -cO * si * np.ones_like(cw),
-                          np.full_like(cw, ci)], -1)
+        h_hat = np.stack([sO * si * np.ones_like(cw), -cO * si * np.ones_like(cw), np.full_like(cw, ci)], -1)
         z_hat = np.array([0.0, 0.0, 1.0])
-        v = (v2 * (self.M_dot / self.n) + self.raan_dot * np.cross(z_hat, r)
-             + self.argp_dot * np.cross(h_hat, r))
+        v = v2 * (self.M_dot / self.n) + self.raan_dot * np.cross(z_hat, r) + self.argp_dot * np.cross(h_hat, r)
         return r, v
 
 
@@ -152,13 +162,13 @@ class TleOrbit:
 
     def __init__(self, line1: str, line2: str, epoch):
         from sgp4.api import Satrec
+
         try:
             self._sat = Satrec.twoline2rv(line1.strip(), line2.strip())
         except Exception as exc:  # noqa: BLE001 — whatever sgp4 raises, in its own wording, becomes one line
             raise InputError(f"cannot read the two-line elements: {exc}", key="orbit.tle") from None
         if self._sat.error != 0:
-            raise InputError(f"SGP4 rejects the two-line elements (error {self._sat.error})",
-                             key="orbit.tle")
+            raise InputError(f"SGP4 rejects the two-line elements (error {self._sat.error})", key="orbit.tle")
         self.epoch: datetime = timescale.parse_epoch(epoch)
         self.line1, self.line2 = line1, line2
 
@@ -170,19 +180,22 @@ class TleOrbit:
     def state(self, t) -> tuple[np.ndarray, np.ndarray]:
         """Position [km] and velocity [km/s] in TEME (= GCI) at ``t`` seconds since ``epoch``."""
         from sgp4.api import SGP4_ERRORS
+
         t = np.atleast_1d(np.asarray(t, dtype=float))
         jd, fr = timescale.julian_date_parts(self.epoch, t)
         err, r, v = self._sat.sgp4_array(np.ascontiguousarray(jd), np.ascontiguousarray(fr))
         if np.any(err != 0):
             i = int(np.argmax(err != 0))
-            raise InputError(f"SGP4 fails at t = {t[i]:.3f} s: "
-                             f"{SGP4_ERRORS.get(int(err[i]), 'error ' + str(int(err[i])))}",
-                             key="orbit.tle")
+            raise InputError(
+                f"SGP4 fails at t = {t[i]:.3f} s: {SGP4_ERRORS.get(int(err[i]), 'error ' + str(int(err[i])))}",
+                key="orbit.tle",
+            )
         return np.asarray(r, dtype=float), np.asarray(v, dtype=float)
 
 
-def build_ephemeris(orbit, epoch, t_start: float, t_end: float, step: float = 30.0,
-                    *, source: str | None = None) -> Ephemeris:
+def build_ephemeris(
+    orbit, epoch, t_start: float, t_end: float, step: float = 30.0, *, source: str | None = None
+) -> Ephemeris:
     """Tabulate ``orbit`` and the analytic Sun at ``step`` seconds over ``[t_start, t_end]``.
 
     Parameters
@@ -199,8 +212,7 @@ def build_ephemeris(orbit, epoch, t_start: float, t_end: float, step: float = 30
     :class:`Ephemeris` whose Sun is :func:`gcs_core.ephem.sun.sun_position_km`.
     """
     if not step > 0.0 or not t_end > t_start:
-        raise InputError(f"need t_end > t_start and step > 0 (got {t_start}, {t_end}, {step})",
-                         key="ephemeris.step")
+        raise InputError(f"need t_end > t_start and step > 0 (got {t_start}, {t_end}, {step})", key="ephemeris.step")
     epoch = timescale.parse_epoch(epoch)
     n = int(np.ceil((t_end - t_start) / step - 1e-9))
     t = t_start + step * np.arange(n + 1)

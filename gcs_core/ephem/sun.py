@@ -38,8 +38,15 @@ import numpy as np
 from gcs_core import units
 from gcs_core.ephem.timescale import julian_date
 
-__all__ = ["SUN_RADIUS_KM", "sun_position_km", "sun_position_at", "in_shadow",
-           "sunlit_fraction", "earth_occults", "earth_angular_radius"]
+__all__ = [
+    "SUN_RADIUS_KM",
+    "sun_position_km",
+    "sun_position_at",
+    "in_shadow",
+    "sunlit_fraction",
+    "earth_occults",
+    "earth_angular_radius",
+]
 
 #: Solar radius [km] (IAU 2015 nominal).
 SUN_RADIUS_KM = 695700.0
@@ -65,8 +72,7 @@ def sun_position_km(jd) -> np.ndarray:
     r_au = 1.000140612 - 0.016708617 * np.cos(M) - 0.000139589 * np.cos(2.0 * M)
     eps = (23.439291 - 0.0130042 * T) * deg
     r = r_au * units.AU_KM
-    return np.stack([r * np.cos(lam), r * np.cos(eps) * np.sin(lam),
-                     r * np.sin(eps) * np.sin(lam)], axis=-1)
+    return np.stack([r * np.cos(lam), r * np.cos(eps) * np.sin(lam), r * np.sin(eps) * np.sin(lam)], axis=-1)
 
 
 def sun_position_at(epoch, t) -> np.ndarray:
@@ -84,8 +90,7 @@ def earth_angular_radius(r_I_km, *, radius_km: float = units.R_EARTH_KM) -> np.n
     return np.arcsin(np.clip(radius_km / _norm(r), -1.0, 1.0))
 
 
-def in_shadow(r_I_km, sun_I_km, *, model: str = "conical",
-              radius_km: float = units.R_EARTH_KM) -> np.ndarray:
+def in_shadow(r_I_km, sun_I_km, *, model: str = "conical", radius_km: float = units.R_EARTH_KM) -> np.ndarray:
     """True where the spacecraft is in the Earth's shadow.
 
     ``"cylindrical"``: behind the Earth (``r·ŝ < 0``) and within ``R`` of the Earth–Sun
@@ -137,23 +142,25 @@ def sunlit_fraction(r_I_km, sun_I_km, *, radius_km: float = units.R_EARTH_KM) ->
     c = np.arccos(np.clip(cosc, -1.0, 1.0))
     a, b, c = np.broadcast_arrays(a, b, c)
     frac = np.ones_like(c)
-    full = c <= b - a              # Sun entirely behind the Earth disk
+    full = c <= b - a  # Sun entirely behind the Earth disk
     frac[full] = 0.0
-    annular = c <= a - b           # Earth disk smaller than and inside the Sun disk
+    annular = c <= a - b  # Earth disk smaller than and inside the Sun disk
     frac[annular] = 1.0 - (b[annular] / a[annular]) ** 2
     part = (c < a + b) & ~full & ~annular
     if np.any(part):
         ap, bp, cp = a[part], b[part], c[part]
-        x = (cp ** 2 + ap ** 2 - bp ** 2) / (2.0 * cp)
-        y = np.sqrt(np.clip(ap ** 2 - x ** 2, 0.0, None))
-        area = (ap ** 2 * np.arccos(np.clip(x / ap, -1.0, 1.0))
-                + bp ** 2 * np.arccos(np.clip((cp - x) / bp, -1.0, 1.0)) - cp * y)
-        frac[part] = 1.0 - area / (np.pi * ap ** 2)
+        x = (cp**2 + ap**2 - bp**2) / (2.0 * cp)
+        y = np.sqrt(np.clip(ap**2 - x**2, 0.0, None))
+        area = (
+            ap**2 * np.arccos(np.clip(x / ap, -1.0, 1.0))
+            + bp**2 * np.arccos(np.clip((cp - x) / bp, -1.0, 1.0))
+            - cp * y
+        )
+        frac[part] = 1.0 - area / (np.pi * ap**2)
     return np.clip(frac, 0.0, 1.0)
 
 
-def earth_occults(r_I_km, los_I, margin_rad: float = 0.0, *,
-                  radius_km: float = units.R_EARTH_KM) -> np.ndarray:
+def earth_occults(r_I_km, los_I, margin_rad: float = 0.0, *, radius_km: float = units.R_EARTH_KM) -> np.ndarray:
     """True where the line of sight ``los`` from the spacecraft hits the Earth disk + margin.
 
     The Earth, a sphere of ``radius_km`` (raise it to include the atmosphere), subtends

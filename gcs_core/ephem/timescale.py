@@ -35,8 +35,17 @@ import numpy as np
 from gcs_core.errors import InputError
 
 __all__ = [
-    "J2000", "JD_J2000", "parse_epoch", "parse_utc", "seconds_since_j2000", "days_since_j2000",
-    "julian_date", "julian_date_parts", "julian_centuries", "gmst_rad", "decimal_year",
+    "J2000",
+    "JD_J2000",
+    "parse_epoch",
+    "parse_utc",
+    "seconds_since_j2000",
+    "days_since_j2000",
+    "julian_date",
+    "julian_date_parts",
+    "julian_centuries",
+    "gmst_rad",
+    "decimal_year",
 ]
 
 #: J2000.0 as a UTC instant (the UT1=UTC convention of ICD §2 makes it the GMST origin).
@@ -49,7 +58,8 @@ _SECONDS_PER_DAY = 86400.0
 _ISO_UTC = re.compile(
     r"(\d{4})-(\d{2})-(\d{2})"
     r"(?:[Tt ](\d{2}):(\d{2})(?::(\d{2})(?:\.(\d{1,12}))?)?)?"
-    r"\s*(Z|z|UTC|[+-]\d{2}:?\d{2})?")
+    r"\s*(Z|z|UTC|[+-]\d{2}:?\d{2})?"
+)
 
 
 def parse_utc(text: str) -> datetime:
@@ -61,13 +71,12 @@ def parse_utc(text: str) -> datetime:
     """
     m = _ISO_UTC.fullmatch(text.strip())
     if not m:
-        raise ValueError(f"not an ISO-8601 UTC time: {text!r} (e.g. \"2024-03-20T06:00:00Z\")")
+        raise ValueError(f'not an ISO-8601 UTC time: {text!r} (e.g. "2024-03-20T06:00:00Z")')
     y, mo, d, hh, mm, ss, frac, zone = m.groups()
     if ss == "60":
         raise ValueError(f"leap second in {text!r}: choose an epoch off the leap second")
     try:
-        dt = datetime(int(y), int(mo), int(d), int(hh or 0), int(mm or 0), int(ss or 0),
-                      tzinfo=UTC)
+        dt = datetime(int(y), int(mo), int(d), int(hh or 0), int(mm or 0), int(ss or 0), tzinfo=UTC)
     except ValueError as err:
         raise ValueError(f"not a valid date-time: {text!r} ({err})") from None
     try:
@@ -110,8 +119,7 @@ def parse_epoch(text, *, key: str | None = None) -> datetime:
         dt = text
     else:
         if not isinstance(text, str):
-            raise InputError(f"epoch must be an ISO-8601 UTC text like "
-                             f"'2024-03-20T06:00:00Z', got {text!r}", key=key)
+            raise InputError(f"epoch must be an ISO-8601 UTC text like '2024-03-20T06:00:00Z', got {text!r}", key=key)
         try:
             return parse_utc(text)
         except ValueError as exc:
@@ -119,6 +127,7 @@ def parse_epoch(text, *, key: str | None = None) -> datetime:
     if dt.tzinfo is None:
         dt = dt.replace(tzinfo=UTC)
     return dt.astimezone(UTC)
+
 
 def _epoch_seconds_since_j2000(epoch: datetime) -> float:
     """Exact seconds from J2000.0 to ``epoch`` (integer arithmetic, then one float)."""
@@ -184,8 +193,7 @@ def gmst_rad(epoch, t) -> np.ndarray:
     """
     s = seconds_since_j2000(epoch, t)
     T = s / (_SECONDS_PER_DAY * _DAYS_PER_CENTURY)
-    sec = (np.mod(s, _SECONDS_PER_DAY) + 67310.54841
-           + T * (8640184.812866 + T * (0.093104 - 6.2e-6 * T)))
+    sec = np.mod(s, _SECONDS_PER_DAY) + 67310.54841 + T * (8640184.812866 + T * (0.093104 - 6.2e-6 * T))
     return np.mod(sec, _SECONDS_PER_DAY) * (2.0 * np.pi / _SECONDS_PER_DAY)
 
 
@@ -200,10 +208,13 @@ def decimal_year(epoch, t) -> np.ndarray:
     if t.size == 0:
         return np.zeros_like(t)
     t0 = _epoch_seconds_since_j2000(epoch)
-    years = range(epoch.year + int(np.floor(np.min(t) / (366 * 86400.0))) - 1,
-                  epoch.year + int(np.ceil(np.max(t) / (365 * 86400.0))) + 2)
-    starts = np.array([_epoch_seconds_since_j2000(datetime(y, 1, 1, tzinfo=UTC))
-                       for y in years]) - t0   # mission seconds at each Jan 1
+    years = range(
+        epoch.year + int(np.floor(np.min(t) / (366 * 86400.0))) - 1,
+        epoch.year + int(np.ceil(np.max(t) / (365 * 86400.0))) + 2,
+    )
+    starts = (
+        np.array([_epoch_seconds_since_j2000(datetime(y, 1, 1, tzinfo=UTC)) for y in years]) - t0
+    )  # mission seconds at each Jan 1
     k = np.clip(np.searchsorted(starts, t, side="right") - 1, 0, len(starts) - 2)
     frac = (t - starts[k]) / (starts[k + 1] - starts[k])
     return years[0] + k + frac

@@ -80,30 +80,32 @@ def read_tle(path: str | os.PathLike) -> tuple[str, str]:
     one = [(i, ln) for i, ln in rows if ln.startswith("1 ")]
     two = [(i, ln) for i, ln in rows if ln.startswith("2 ")]
     if len(one) != 1 or len(two) != 1:
-        raise InputError("expected one element set: a line starting '1 ' and one starting "
-                         f"'2 ' (found {len(one)} and {len(two)})", file=path)
+        raise InputError(
+            f"expected one element set: a line starting '1 ' and one starting '2 ' (found {len(one)} and {len(two)})",
+            file=path,
+        )
     for i, ln in (one[0], two[0]):
         if len(ln) < 69:
-            raise InputError(f"an element line has 69 characters, this one {len(ln)}",
-                             file=path, line=i)
+            raise InputError(f"an element line has 69 characters, this one {len(ln)}", file=path, line=i)
         if not _checksum_ok(ln):
-            raise InputError("checksum (column 69) does not match the line", file=path,
-                             line=i, column=69)
+            raise InputError("checksum (column 69) does not match the line", file=path, line=i, column=69)
     if one[0][1][2:7] != two[0][1][2:7]:
-        raise InputError(f"lines 1 and 2 are of different satellites ({one[0][1][2:7]} and "
-                         f"{two[0][1][2:7]})", file=path, line=two[0][0], column=3)
+        raise InputError(
+            f"lines 1 and 2 are of different satellites ({one[0][1][2:7]} and {two[0][1][2:7]})",
+            file=path,
+            line=two[0][0],
+            column=3,
+        )
     return one[0][1], two[0][1]
 
 
-def tle_states(orbit: TleOrbit, epoch, t, frame: str = "teme"
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def tle_states(orbit: TleOrbit, epoch, t, frame: str = "teme") -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Position [km], velocity [km/s] and analytic Sun [km] in the ``frame`` chosen, (N, 3) each.
 
     ``t`` are mission seconds since ``epoch``; ``orbit`` is evaluated at the same instants.
     """
     if frame not in teme.ORBIT_FRAMES:
-        raise InputError(f"orbit frame must be one of {', '.join(teme.ORBIT_FRAMES)}, not "
-                         f"{frame!r}", key="orbit.frame")
+        raise InputError(f"orbit frame must be one of {', '.join(teme.ORBIT_FRAMES)}, not {frame!r}", key="orbit.frame")
     t = np.atleast_1d(np.asarray(t, dtype=float))
     shift = (timescale.parse_epoch(epoch) - orbit.epoch).total_seconds()
     r, v = orbit.state(t + shift)

@@ -77,8 +77,9 @@ def _gauss_newton(fun, x0: np.ndarray, max_iter: int = 20, tol: float = 1e-10):
     return x, np.linalg.inv(J.T @ J), r, it
 
 
-def magnetometer_bias_from_magnitude(problem: Problem, sensor: str,
-                                     values: Mapping[str, float] | None = None) -> IndependentResult:
+def magnetometer_bias_from_magnitude(
+    problem: Problem, sensor: str, values: Mapping[str, float] | None = None
+) -> IndependentResult:
     """§2.1.2: TAM bias from |B_measured − b| against |B_reference| (module docstring)."""
     sd = problem.sensor(sensor)
     if sd.model.type_name != "magnetometer":
@@ -100,7 +101,7 @@ def magnetometer_bias_from_magnitude(problem: Problem, sensor: str,
 
     x, P, r, it = _gauss_newton(fun, np.zeros(3))
     names = tuple(problem.param_map[sensor][f"bias_{a}"] for a in "xyz")
-    return IndependentResult(names, x, P, float(np.sqrt(np.mean(r ** 2))), int(r.size), it)
+    return IndependentResult(names, x, P, float(np.sqrt(np.mean(r**2))), int(r.size), it)
 
 
 def _unit_from_hv(h, v, s_h, s_v):
@@ -109,9 +110,9 @@ def _unit_from_hv(h, v, s_h, s_v):
     return np.column_stack([ca * np.cos(b), ca * np.sin(b), np.sin(a)])
 
 
-def star_tracker_scales_from_separations(problem: Problem, sensor: str, *,
-                                         values: Mapping[str, float] | None = None,
-                                         max_gap_s: float = 30.0) -> IndependentResult:
+def star_tracker_scales_from_separations(
+    problem: Problem, sensor: str, *, values: Mapping[str, float] | None = None, max_gap_s: float = 30.0
+) -> IndependentResult:
     """§2.2.2: S_H, S_V from angular separations of successive stars (module docstring).
 
     Pairs are consecutive frames of the tracker no more than ``max_gap_s`` apart that see
@@ -133,8 +134,12 @@ def star_tracker_scales_from_separations(problem: Problem, sensor: str, *,
     i = np.arange(sd.n - 1)
     j = i + 1
     sep_cat = np.arccos(np.clip(np.sum(star[i] * star[j], axis=1), -1.0, 1.0))
-    keep = (sd.t[j] - sd.t[i] <= max_gap_s) & (sep_cat > 1e-4) & np.all(np.isfinite(sd.y[i]), 1) \
+    keep = (
+        (sd.t[j] - sd.t[i] <= max_gap_s)
+        & (sep_cat > 1e-4)
+        & np.all(np.isfinite(sd.y[i]), 1)
         & np.all(np.isfinite(sd.y[j]), 1)
+    )
     i, j, sep_cat = i[keep], j[keep], sep_cat[keep]
     if i.size < 3:
         raise EstimationError(f"{sensor}: too few star pairs for scale factors from separations")
@@ -152,11 +157,12 @@ def star_tracker_scales_from_separations(problem: Problem, sensor: str, *,
 
     def fun(x):
         r = (sep(x) - sep_cat) / sigma_theta
-        J = np.column_stack([(sep(x + d) - sep(x - d)) / (2 * eps) / sigma_theta
-                             for d in (np.array([eps, 0.0]), np.array([0.0, eps]))])
+        J = np.column_stack(
+            [(sep(x + d) - sep(x - d)) / (2 * eps) / sigma_theta for d in (np.array([eps, 0.0]), np.array([0.0, eps]))]
+        )
         return r, J
 
     x0 = np.array([params["scale_h"], params["scale_v"]])
     x, P, r, it = _gauss_newton(fun, x0)
     names = (problem.param_map[sensor]["scale_h"], problem.param_map[sensor]["scale_v"])
-    return IndependentResult(names, x, P, float(np.sqrt(np.mean(r ** 2))), int(r.size), it)
+    return IndependentResult(names, x, P, float(np.sqrt(np.mean(r**2))), int(r.size), it)

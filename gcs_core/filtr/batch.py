@@ -99,10 +99,18 @@ class BatchOptions:
         return k or None
 
 
-def normal_equations(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
-                     edited: Mapping[str, np.ndarray] | None = None, *, jacobian: bool = True,
-                     store: Residuals | None = None, chunk: int | None = None,
-                     work: dict | None = None, second_order: np.ndarray | None = None):
+def normal_equations(
+    problem: Problem,
+    values: Mapping[str, float],
+    columns: Sequence[str],
+    edited: Mapping[str, np.ndarray] | None = None,
+    *,
+    jacobian: bool = True,
+    store: Residuals | None = None,
+    chunk: int | None = None,
+    work: dict | None = None,
+    second_order: np.ndarray | None = None,
+):
     """One streaming pass: ``A = Σ Hᵀ R⁻¹ H``, ``b = Σ Hᵀ R⁻¹ r``, ``χ²`` and the number of
     used measurements, over used frames (valid and not ``edited``), chunk by chunk.
 
@@ -118,14 +126,24 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
     b = np.zeros(n)
     chi2 = 0.0
     m_used = 0
-    for blk in iter_blocks(problem, values, columns if jacobian else (), exclude=edited or {},
-                           weighted=True, jacobian=jacobian, chunk=chunk, work=work, augmented=True,
-                           second_order=second_order is not None, gram=True):
+    for blk in iter_blocks(
+        problem,
+        values,
+        columns if jacobian else (),
+        exclude=edited or {},
+        weighted=True,
+        jacobian=jacobian,
+        chunk=chunk,
+        work=work,
+        augmented=True,
+        second_order=second_order is not None,
+        gram=True,
+    ):
         if store is not None:
             if blk.name in store.y_pred:
-                store.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
-            store.r[blk.name][blk.lo:blk.hi] = blk.r
-            store.valid[blk.name][blk.lo:blk.hi] = blk.valid
+                store.y_pred[blk.name][blk.lo : blk.hi] = blk.y_pred
+            store.r[blk.name][blk.lo : blk.hi] = blk.r
+            store.valid[blk.name][blk.lo : blk.hi] = blk.valid
         nu = int(np.count_nonzero(blk.used))
         if not nu:
             continue
@@ -138,7 +156,7 @@ def normal_equations(problem: Problem, values: Mapping[str, float], columns: Seq
         # Hᵀ R⁻¹ H, Hᵀ R⁻¹ r and rᵀ R⁻¹ r
         c = blk.cols
         k = c.size
-        if blk.curv and second_order is not None:               # curvature is formed only when asked
+        if blk.curv and second_order is not None:  # curvature is formed only when asked
             curvature.add_block(second_order, c, blk.curv)
         G = blk.gram()
         chi2 += float(G[k, k])
@@ -186,12 +204,16 @@ def _solve_normal(N: np.ndarray, rhs: np.ndarray):
     x = linalg.cho_solve((c, low), rhs / d, check_finite=False) / d
     Pinv = linalg.cho_solve((c, low), np.eye(N.shape[0]), check_finite=False)
     P = Pinv / np.outer(d, d)
-    return x, 0.5 * (P + P.T)                       # symmetrize: round-off only
+    return x, 0.5 * (P + P.T)  # symmetrize: round-off only
 
 
-def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
-              edited: Mapping[str, np.ndarray] | None = None,
-              initial: Mapping[str, float] | None = None) -> BatchResult:
+def batch_fit(
+    problem: Problem,
+    options: BatchOptions | None = None,
+    *,
+    edited: Mapping[str, np.ndarray] | None = None,
+    initial: Mapping[str, float] | None = None,
+) -> BatchResult:
     """Iterated batch least squares with a priori and k-σ editing (module docstring).
 
     ``edited`` pre-flags frames (e.g. a held-out span); ``initial`` starts the iteration
@@ -215,31 +237,38 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         x = np.array([float(initial.get(nm, x_bar[j])) for j, nm in enumerate(names)])
     history: list[float] = []
     status, message = "max_iterations", ""
-    change = 0.0                        # the cost's fall in the last accepted iteration
+    change = 0.0  # the cost's fall in the last accepted iteration
     suspect_all: set[str] = set()
     it_total = 0
     counts = [0]
     buffers = Residuals().ensure(problem)
-    work: dict = {}                     # chunk buffers, reused by every pass
-    stored: list[tuple | None] = [None]   # (x, edits, A, χ², m) of the pass the buffers hold
+    work: dict = {}  # chunk buffers, reused by every pass
+    stored: list[tuple | None] = [None]  # (x, edits, A, χ², m) of the pass the buffers hold
 
     def evaluate(x_eval, with_jacobian=True):
         for j, nm in enumerate(names):
             values[nm] = x_eval[j]
         # the Newton terms of the models' parameter pairs (used near the noise floor)
         K_ = np.zeros((n, n)) if with_jacobian else None
-        A_, b_, chi2_, m_ = normal_equations(problem, values, names, edits, jacobian=with_jacobian,
-                                             store=buffers if with_jacobian else None, work=work,
-                                             second_order=K_)
+        A_, b_, chi2_, m_ = normal_equations(
+            problem,
+            values,
+            names,
+            edits,
+            jacobian=with_jacobian,
+            store=buffers if with_jacobian else None,
+            work=work,
+            second_order=K_,
+        )
         if with_jacobian:
             stored[0] = (x_eval.copy(), edits, A_, chi2_, m_)
         counts[0] = m_
         d_ = x_bar - x_eval
-        cost_ = chi2_ + float(np.sum(prior_info * d_ ** 2))
+        cost_ = chi2_ + float(np.sum(prior_info * d_**2))
         return A_, b_, cost_, d_, K_
 
     edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
-    groups = local_refine.own_nonlinear(problem, names)   # a sensor's own non-linear elements
+    groups = local_refine.own_nonlinear(problem, names)  # a sensor's own non-linear elements
     for edit_pass in range(opts.edit_passes if edits_on else 1):
         A, b, cost, dx_prior, K = evaluate(x)
         lam_state = 0.0
@@ -253,11 +282,14 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                 step, P = _solve_normal(Nmat, b + prior_info * dx_prior)
             except np.linalg.LinAlgError:
                 combos = name_combinations(A, names, opts.rank_tol)
-                raise UnobservableError("the normal matrix is singular: the data cannot separate "
-                                        + "; ".join(combos or ["(unidentified)"]), combos) from None
+                raise UnobservableError(
+                    "the normal matrix is singular: the data cannot separate "
+                    + "; ".join(combos or ["(unidentified)"]),
+                    combos,
+                ) from None
             sig = np.sqrt(np.diag(P))
             N_newton = None if K is None else curvature.newton_matrix(Nmat, K, cost, counts[0])
-            if N_newton is not None:        # near the noise floor: the Newton step (curvature.py)
+            if N_newton is not None:  # near the noise floor: the Newton step (curvature.py)
                 Nmat = N_newton
                 step = _solve_normal(Nmat, b + prior_info * dx_prior)[0]
             if it and np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)):
@@ -282,10 +314,15 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
                 # a step expected to land near the noise floor (the Gauss–Newton prediction
                 # cost − rhsᵀ step) that moves a sensor's own non-linear elements: minimize
                 # over those first (local_refine)
-                if attempt == 0 and groups and curvature.near_floor(cost - float(rhs @ step), counts[0]) \
-                        and local_refine.worth(step, sig, names, groups):
-                    x_try = local_refine.refine_local(problem, values, names, x_try, x_bar, prior_info,
-                                                      edits, groups, opts.tol_step_sigma)
+                if (
+                    attempt == 0
+                    and groups
+                    and curvature.near_floor(cost - float(rhs @ step), counts[0])
+                    and local_refine.worth(step, sig, names, groups)
+                ):
+                    x_try = local_refine.refine_local(
+                        problem, values, names, x_try, x_bar, prior_info, edits, groups, opts.tol_step_sigma
+                    )
                 trial = evaluate(x_try, with_jacobian=attempt == 0)
                 cost_t = trial[2]
                 if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
@@ -294,8 +331,9 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
             else:
                 # the cost is finite and never rose (steps are accepted only when they lower
                 # it): a stall, reported with its numbers (stopping.py)
-                status, message = stopping.stalled(it_total - 1, cost, change, float(rhs @ step),
-                                                   "no damped step lowers the cost")
+                status, message = stopping.stalled(
+                    it_total - 1, cost, change, float(rhs @ step), "no damped step lowers the cost"
+                )
                 break
             frac = 1.0 if lam == 0 else 0.0
             lam_state = lam / 10.0 if lam > 1e-4 else 0.0
@@ -324,20 +362,32 @@ def batch_fit(problem: Problem, options: BatchOptions | None = None, *,
         suspect_all |= suspect
         if not changed:
             break
-        log.info("editing pass %d: %d frames flagged", edit_pass + 1,
-                 sum(int(v.sum()) for v in edits.values()))
+        log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in edits.values()))
 
     for j, nm in enumerate(names):
         values[nm] = x[j]
     message += suspect_note(suspect_all, opts)
     final = stored[0] if not cons and _stored_at(stored[0], x, edits) else None
-    return _solution(problem, opts, values, x, prior_info, edits, buffers, work, final,
-                     tuple(history), it_total, status, message)
+    return _solution(
+        problem, opts, values, x, prior_info, edits, buffers, work, final, tuple(history), it_total, status, message
+    )
 
 
-def _solution(problem: Problem, opts: BatchOptions, values: dict, x: np.ndarray, prior_info: np.ndarray,
-              edits: Mapping[str, np.ndarray], buffers: Residuals, work: dict, final, history: tuple,
-              iterations: int, status: str, message: str) -> BatchResult:
+def _solution(
+    problem: Problem,
+    opts: BatchOptions,
+    values: dict,
+    x: np.ndarray,
+    prior_info: np.ndarray,
+    edits: Mapping[str, np.ndarray],
+    buffers: Residuals,
+    work: dict,
+    final,
+    history: tuple,
+    iterations: int,
+    status: str,
+    message: str,
+) -> BatchResult:
     """The :class:`BatchResult` at the converged ``x`` (Eq 3-2): the normal equations there
     with the consider columns, the noise-only covariance ``P = (A + P₀⁻¹)⁻¹``, each consider
     element's contribution ``S σ_c² Sᵀ`` with ``S = −P A_sc``, the combinations the data
@@ -349,8 +399,7 @@ def _solution(problem: Problem, opts: BatchOptions, values: dict, x: np.ndarray,
     cons = tuple(state.consider)
     n = len(names)
     if final is None:
-        A_all, _, chi2, m_used = normal_equations(problem, values, names + cons, edits, store=buffers,
-                                                  work=work)
+        A_all, _, chi2, m_used = normal_equations(problem, values, names + cons, edits, store=buffers, work=work)
     else:
         A_all, chi2, m_used = final[2:]
     A = A_all[:n, :n]
@@ -367,12 +416,29 @@ def _solution(problem: Problem, opts: BatchOptions, values: dict, x: np.ndarray,
     unobs = tuple(name_combinations(A, names, opts.rank_tol * 1e3))
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, buffers, edits)
-    return BatchResult(new_state, names, cons, x, P, P_cons, residuals, chi2, m_used - n,
-                       history, iterations, status, message, A, unobs, budget)
+    return BatchResult(
+        new_state,
+        names,
+        cons,
+        x,
+        P,
+        P_cons,
+        residuals,
+        chi2,
+        m_used - n,
+        history,
+        iterations,
+        status,
+        message,
+        A,
+        unobs,
+        budget,
+    )
 
 
-def edit_frames(problem: Problem, buffers, preflag: Mapping[str, np.ndarray], opts: BatchOptions,
-                previous: Mapping[str, np.ndarray]):
+def edit_frames(
+    problem: Problem, buffers, preflag: Mapping[str, np.ndarray], opts: BatchOptions, previous: Mapping[str, np.ndarray]
+):
     """k-σ editing of every sensor's residuals by the robust rule (:func:`robust_outliers`),
     on top of the frames flagged before the fit (``preflag``).
 
@@ -402,9 +468,11 @@ def suspect_note(suspect, opts: BatchOptions) -> str:
     """What a fit's message adds for the sensors :func:`edit_frames` left unedited ('' for none)."""
     if not suspect:
         return ""
-    return ("; not edited (more than "
-            f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
-            "is suspect): " + ", ".join(sorted(suspect)))
+    return (
+        "; not edited (more than "
+        f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
+        "is suspect): " + ", ".join(sorted(suspect))
+    )
 
 
 def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarray:
@@ -438,5 +506,3 @@ def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarr
 
 def _stored_at(stored, x, edits) -> bool:
     return stored is not None and stored[1] is edits and np.array_equal(stored[0], x)
-
-

@@ -62,8 +62,7 @@ from scipy.linalg import lapack
 from gcs_core.compiled import COMPILED
 from gcs_core.filtr import kalman_kernels
 
-__all__ = ["LinearBlock", "BlockSolution", "solve_block", "referred_transitions",
-           "group_partition", "ENGINE"]
+__all__ = ["LinearBlock", "BlockSolution", "solve_block", "referred_transitions", "group_partition", "ENGINE"]
 
 #: engine of :func:`solve_block`: "compiled" (numba kernel) when numba imports, else "numpy".
 ENGINE = "compiled" if COMPILED else "numpy"
@@ -149,10 +148,16 @@ def group_partition(row_epoch: np.ndarray, n_epochs: int, group_rows: int) -> np
     return np.concatenate([[0], cut, [n_epochs]]).astype(int)
 
 
-def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *,
-                edit_k: float | None | np.ndarray = 5.0,
-                group_rows: int = 48, keep_epochs: bool = False,
-                engine: str | None = None) -> BlockSolution:
+def solve_block(
+    y0: np.ndarray,
+    P0: np.ndarray,
+    blk: LinearBlock,
+    *,
+    edit_k: float | None | np.ndarray = 5.0,
+    group_rows: int = 48,
+    keep_epochs: bool = False,
+    engine: str | None = None,
+) -> BlockSolution:
     """Filter one block (Eq 3-3, 3-4) frame by frame, with k-σ innovation gating.
 
     Parameters
@@ -192,12 +197,20 @@ def solve_block(y0: np.ndarray, P0: np.ndarray, blk: LinearBlock, *,
     frame_b = np.searchsorted(blk.frame_epoch, bounds)
     y, P = np.array(y0, float), np.array(P0, float)
     zero_d = np.zeros((d, d))
-    dPi = np.diff(blk.Pi, axis=0, prepend=zero_d[None])     # ΔΠ_k, noise entering at epoch k
+    dPi = np.diff(blk.Pi, axis=0, prepend=zero_d[None])  # ΔΠ_k, noise entering at epoch k
     for g in range(bounds.size - 1):
         e0, e1 = bounds[g], bounds[g + 1]
         base = blk.Pi[e0 - 1] if e0 > 0 else zero_d
-        grp = _Group(blk, e0, e1, slice(row_b[g], row_b[g + 1]), slice(frame_b[g], frame_b[g + 1]),
-                     frame_of_row, blk.Pi[e0:e1] - base, dPi[e0:e1])
+        grp = _Group(
+            blk,
+            e0,
+            e1,
+            slice(row_b[g], row_b[g + 1]),
+            slice(frame_b[g], frame_b[g + 1]),
+            frame_of_row,
+            blk.Pi[e0:e1] - base,
+            dPi[e0:e1],
+        )
         y, P = grp.run(y, P, gates, raw, gated, y_ep, P_ep)
     nu, S, nis, knorm = raw.finish(blk, gated)
     return BlockSolution(y, P, nu, S, nis, knorm, gated, y_ep, P_ep)
@@ -238,16 +251,16 @@ class _Raw:
     def finish(self, blk: LinearBlock, gated: np.ndarray):
         F, mx = self.F, self.mx
         L, Li, e, W = self._assemble()
-        pad = np.arange(mx)[None, :] >= blk.frame_m[:, None]             # (F, mx)
+        pad = np.arange(mx)[None, :] >= blk.frame_m[:, None]  # (F, mx)
         rows = np.minimum(blk.frame_start[:, None] + np.arange(mx), max(blk.sigma.size - 1, 0))
         sig = np.where(pad, 1.0, blk.sigma[rows]) if F else np.ones((0, mx))
-        nu = (L @ e[:, :, None])[:, :, 0] * sig                          # ν_f = L_ff e_f
+        nu = (L @ e[:, :, None])[:, :, 0] * sig  # ν_f = L_ff e_f
         S = L @ np.swapaxes(L, 1, 2) * sig[:, :, None] * sig[:, None, :]  # S_f = L_ff L_ffᵀ
-        nis = np.sum(e ** 2, axis=1)                                     # NIS = νᵀ S⁻¹ ν = |e_f|²
+        nis = np.sum(e**2, axis=1)  # NIS = νᵀ S⁻¹ ν = |e_f|²
         # K_f = W_f (L⁻¹)_ff in telemetry units (÷σ), rows of δθ, b in current-time coordinates
         K = W @ Li / sig[:, None, :]
         if blk.d and blk.Psi_d is not None:
-            K[:, :blk.d] = blk.Psi_d[blk.frame_epoch] @ K
+            K[:, : blk.d] = blk.Psi_d[blk.frame_epoch] @ K
         knorm = np.sqrt(np.einsum("fij,fij->f", K, K))
         knorm[gated] = np.nan
         nu[pad] = np.nan
@@ -260,7 +273,7 @@ class _Pattern:
 
     def __init__(self, rep: np.ndarray, m: np.ndarray, Ge: int):
         M = rep.size
-        self.lower = rep[:, None] >= rep[None, :]           # S_rs = A_r B_s holds for k_r ≥ k_s
+        self.lower = rep[:, None] >= rep[None, :]  # S_rs = A_r B_s holds for k_r ≥ k_s
         self.same = rep[:, None] == rep[None, :]
         self.after = (rep[:, None] >= np.arange(Ge)[None, :]).astype(float)  # row at/after epoch j
         self.last = np.searchsorted(rep, np.arange(Ge), side="right") - 1
@@ -291,19 +304,18 @@ def _pattern(rep, m, Ge) -> _Pattern:
 class _Group:
     """One lifted group of consecutive epochs (module docstring)."""
 
-    def __init__(self, blk: LinearBlock, e0, e1, rows: slice, frames: slice, frame_of_row, Pig,
-                 dPi):
+    def __init__(self, blk: LinearBlock, e0, e1, rows: slice, frames: slice, frame_of_row, Pig, dPi):
         self.blk, self.e0, self.e1, self.f0 = blk, e0, e1, frames.start
         self.A, self.r, self.rep = blk.A[rows], blk.r[rows], blk.row_epoch[rows] - e0
         self.rframe = frame_of_row[rows] - frames.start
         self.Hth = blk.Hth[rows] if blk.Hth is not None and blk.sig_e2 > 0 else None
         self.m = blk.frame_m[frames]
-        self.Pig = Pig                                      # (Ge, d, d) noise since group start
-        self.dPi = dPi                                      # (Ge, d, d) noise entering per epoch
+        self.Pig = Pig  # (Ge, d, d) noise since group start
+        self.dPi = dPi  # (Ge, d, d) noise entering per epoch
         self.d = blk.d
 
     def run(self, y0, P0, edit_k, raw: _Raw, gated, y_ep, P_ep):
-        local = np.arange(self.m.size)                       # frames taking part
+        local = np.arange(self.m.size)  # frames taking part
         rows: slice | np.ndarray = slice(None)
         Ge = self.e1 - self.e0
         while local.size:
@@ -312,18 +324,18 @@ class _Group:
             first = self._gather(sol, pat, local, raw, edit_k)
             if first is None:
                 break
-            gated[self.f0 + first] = True                   # earliest gated frame: skip it, redo
+            gated[self.f0 + first] = True  # earliest gated frame: skip it, redo
             local = local[local != first]
             rows = np.isin(self.rframe, local)
-        if not local.size:                                  # no rows left: propagate only
+        if not local.size:  # no rows left: propagate only
             P_end = P0.copy()
-            P_end[:self.d, :self.d] += self.Pig[-1]
+            P_end[: self.d, : self.d] += self.Pig[-1]
             if y_ep is not None:
-                y_ep[self.e0:self.e1] = y0
-                P_ep[self.e0:self.e1] = P0
-                P_ep[self.e0:self.e1, :self.d, :self.d] += self.Pig
+                y_ep[self.e0 : self.e1] = y0
+                P_ep[self.e0 : self.e1] = P0
+                P_ep[self.e0 : self.e1, : self.d, : self.d] += self.Pig
             return y0.copy(), P_end
-        y_end = y0 + sol["W"] @ sol["e"]                    # x = x⁻ + K (z − H x⁻), all rows
+        y_end = y0 + sol["W"] @ sol["e"]  # x = x⁻ + K (z − H x⁻), all rows
         P_end = _group_end_covariance(P0, sol, self.dPi, self.d, pat)
         if y_ep is not None:
             self._epochs(y0, P0, sol, pat, y_ep, P_ep)
@@ -354,8 +366,7 @@ class _Group:
         e = Li @ (self.r[rows] - A @ y0)
         # W = B L⁻ᵀ = cov(y, e)
         W = B @ Li.T
-        return {"A": A, "L": L, "Li": Li, "e": e, "W": W, "Hth": Hth, "Z": Z,
-                "sig_e2": self.blk.sig_e2}
+        return {"A": A, "L": L, "Li": Li, "e": e, "W": W, "Hth": Hth, "Z": Z, "sig_e2": self.blk.sig_e2}
 
     def _gather(self, sol, pat: _Pattern, local, raw: _Raw, edit_k):
         """Keep each frame's blocks of L, L⁻¹, e, W; return the first gated frame or None."""
@@ -366,9 +377,9 @@ class _Group:
             fr = self.f0 + local[sel]
             # |ν_i|/sqrt(S_ii) ≤ sqrt(NIS_f) (Cauchy–Schwarz): test components only if needed
             k_f = edit_k[fr]
-            if np.any(np.einsum("fi,fi->f", ef, ef) > k_f ** 2):
-                nu_w = (Lff @ ef[:, :, None])[:, :, 0]      # ν_f = L_ff e_f (whitened rows)
-                z = np.abs(nu_w) / np.sqrt(np.sum(Lff * Lff, axis=2))   # |ν_i| / sqrt(S_ii)
+            if np.any(np.einsum("fi,fi->f", ef, ef) > k_f**2):
+                nu_w = (Lff @ ef[:, :, None])[:, :, 0]  # ν_f = L_ff e_f (whitened rows)
+                z = np.abs(nu_w) / np.sqrt(np.sum(Lff * Lff, axis=2))  # |ν_i| / sqrt(S_ii)
                 bad = np.nonzero(np.max(z, axis=1) > k_f)[0]
                 if bad.size and (first is None or local[sel[bad[0]]] < first):
                     first = int(local[sel[bad[0]]])
@@ -379,15 +390,15 @@ class _Group:
         """Posterior at every epoch of the group (rows up to that epoch)."""
         W, e = sol["W"], sol["e"]
         last, has = pat.last, pat.has
-        ycum = np.cumsum(W * e[None, :], axis=1)            # Σ_{s≤r} K_s ν_s
-        ys = y_ep[self.e0:self.e1]
+        ycum = np.cumsum(W * e[None, :], axis=1)  # Σ_{s≤r} K_s ν_s
+        ys = y_ep[self.e0 : self.e1]
         ys[:] = y0
         ys[has] += ycum[:, last[has]].T
         WW = np.cumsum(W.T[:, :, None] * W.T[:, None, :], axis=0)
         Pk = np.broadcast_to(P0, (self.e1 - self.e0,) + P0.shape).copy()
-        Pk[:, :self.d, :self.d] += self.Pig                 # P0 + Π_k
-        Pk[has] -= WW[last[has]]                            # − cov(y, e_{≤k}) cov(y, e_{≤k})ᵀ
-        P_ep[self.e0:self.e1] = 0.5 * (Pk + np.swapaxes(Pk, 1, 2))
+        Pk[:, : self.d, : self.d] += self.Pig  # P0 + Π_k
+        Pk[has] -= WW[last[has]]  # − cov(y, e_{≤k}) cov(y, e_{≤k})ᵀ
+        P_ep[self.e0 : self.e1] = 0.5 * (Pk + np.swapaxes(Pk, 1, 2))
 
 
 def _group_end_covariance(P0, sol, dPi, d, pat: _Pattern):
@@ -409,7 +420,7 @@ def _group_end_covariance(P0, sol, dPi, d, pat: _Pattern):
     # K = W L⁻¹ = B S⁻¹  (the group gain, n × M)
     K = sol["W"] @ sol["Li"]
     IKA = -(K @ A)
-    IKA[range(n), range(n)] += 1.0                           # I − K A
+    IKA[range(n), range(n)] += 1.0  # I − K A
     # P = (I − K A) P0 (I − K A)ᵀ + K R Kᵀ   (R = I for whitened rows)
     P = IKA @ P0 @ IKA.T + K @ K.T
     if sol["Hth"] is not None:
@@ -421,7 +432,7 @@ def _group_end_covariance(P0, sol, dPi, d, pat: _Pattern):
         # Σ_{s: k_s ≥ j} K_s A_s,d = K Z_j, Z_j the rows of A_d at or after epoch j
         T = (K @ sol["Z"]).reshape(n, Ge, d).transpose(1, 0, 2)
         np.negative(T, out=T)
-        T[:, :d, :] += np.eye(d)                              # T_j = E_d − Σ K_s A_s,d
+        T[:, :d, :] += np.eye(d)  # T_j = E_d − Σ K_s A_s,d
         TQ = (T @ dPi).transpose(1, 0, 2).reshape(n, -1)
         # + Σ_j T_j ΔΠ_j T_jᵀ
         P += TQ @ T.transpose(1, 0, 2).reshape(n, -1).T

@@ -54,7 +54,7 @@ def _cholesky(S, m, L):
         s = S[j, j]
         for k in range(j):
             s -= L[j, k] * L[j, k]
-        if not s > 0.0:                                 # also catches NaN
+        if not s > 0.0:  # also catches NaN
             return False
         L[j, j] = np.sqrt(s)
         for i in range(j + 1, m):
@@ -66,8 +66,9 @@ def _cholesky(S, m, L):
 
 
 @_jit
-def _frame(f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, ep, edit_k,
-           Bt, Kt, AN, Nm, Sw, L, v, e, nu, S, nis, knorm, gated):
+def _frame(
+    f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, ep, edit_k, Bt, Kt, AN, Nm, Sw, L, v, e, nu, S, nis, knorm, gated
+):
     """Update with frame ``f`` (rows ``Af[:m]``, whitened); False if S is not PD."""
     # Bt = A P⁻  (m, N), i.e. (P⁻ Aᵀ)ᵀ
     for a in range(m):
@@ -99,12 +100,12 @@ def _frame(f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, ep, edit_k,
         t = v[a]
         for b in range(a):
             t -= L[a, b] * e[b]
-        e[a] = t / L[a, a]                              # e = L⁻¹ ν
+        e[a] = t / L[a, a]  # e = L⁻¹ ν
         q += e[a] * e[a]
         nu[f, a] = v[a] * sigma[s0 + a]
         for b in range(m):
             S[f, a, b] = Sw[a, b] * sigma[s0 + a] * sigma[s0 + b]
-        if abs(v[a]) / np.sqrt(Sw[a, a]) > edit_k:     # k-σ gate on every component
+        if abs(v[a]) / np.sqrt(Sw[a, a]) > edit_k:  # k-σ gate on every component
             bad = True
     nis[f] = q
     if bad:
@@ -186,8 +187,29 @@ def _frame(f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, ep, edit_k,
 
 
 @_jit
-def filter_frames(y, P, A, r, sigma, Hth, sig_e2, dPi, Psi_d, frame_start, frame_m, frame_epoch,
-                  edit_k, keep, nu, S, nis, knorm, gated, y_ep, P_ep):
+def filter_frames(
+    y,
+    P,
+    A,
+    r,
+    sigma,
+    Hth,
+    sig_e2,
+    dPi,
+    Psi_d,
+    frame_start,
+    frame_m,
+    frame_epoch,
+    edit_k,
+    keep,
+    nu,
+    S,
+    nis,
+    knorm,
+    gated,
+    y_ep,
+    P_ep,
+):
     """Filter one block frame by frame (module docstring); returns −1, or the first frame
     whose innovation covariance is not positive definite.
 
@@ -240,8 +262,34 @@ def filter_frames(y, P, A, r, sigma, Hth, sig_e2, dPi, Psi_d, frame_start, frame
                     Af[a, j] = A[s0 + a, j]
                 for j in range(na):
                     Af[a, n + j] = Hth[s0 + a, j]
-            if not _frame(f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, k, edit_k[f],
-                          Bt, Kt, AN, Nm, Sw, L, v, e, nu, S, nis, knorm, gated):
+            if not _frame(
+                f,
+                Pa,
+                ya,
+                Af,
+                m,
+                n,
+                N,
+                r,
+                sigma,
+                s0,
+                Psi_d,
+                k,
+                edit_k[f],
+                Bt,
+                Kt,
+                AN,
+                Nm,
+                Sw,
+                L,
+                v,
+                e,
+                nu,
+                S,
+                nis,
+                knorm,
+                gated,
+            ):
                 return f
             f += 1
         if keep:
@@ -271,25 +319,41 @@ def run_block(y0, P0, blk, edit_k, keep_epochs: bool):
     Pi = f64(blk.Pi)
     d = Pi.shape[1]
     mx = int(blk.frame_m.max()) if F else 1
-    dPi = np.diff(Pi, axis=0, prepend=np.zeros((1, d, d)))    # ΔΠ_k, noise entering at epoch k
+    dPi = np.diff(Pi, axis=0, prepend=np.zeros((1, d, d)))  # ΔΠ_k, noise entering at epoch k
     readout = blk.Hth is not None and blk.sig_e2 > 0
     Hth = f64(blk.Hth) if readout else np.zeros((0, N_READOUT))
     Psi_d = f64(blk.Psi_d) if blk.Psi_d is not None and d else np.zeros((G, 0, n))
     y = np.array(y0, dtype=np.float64)
     P = np.array(P0, dtype=np.float64, order="C")
-    nu = np.full((F, mx), np.nan)                             # padding stays NaN
+    nu = np.full((F, mx), np.nan)  # padding stays NaN
     S = np.full((F, mx, mx), np.nan)
     nis, knorm = np.empty(F), np.empty(F)
     gated = np.zeros(F, dtype=np.bool_)
     y_ep = np.empty((G if keep_epochs else 0, n))
     P_ep = np.empty((G if keep_epochs else 0, n, n))
-    bad = filter_frames(y, P, A, f64(blk.r), f64(blk.sigma), Hth, float(blk.sig_e2 if readout else 0.0),
-                        dPi, Psi_d, i64(blk.frame_start), i64(blk.frame_m), i64(blk.frame_epoch),
-                        np.ascontiguousarray(np.broadcast_to(np.inf if edit_k is None else
-                                                             np.asarray(edit_k, np.float64), (F,))),
-                        bool(keep_epochs),
-                        nu, S, nis, knorm, gated, y_ep, P_ep)
+    bad = filter_frames(
+        y,
+        P,
+        A,
+        f64(blk.r),
+        f64(blk.sigma),
+        Hth,
+        float(blk.sig_e2 if readout else 0.0),
+        dPi,
+        Psi_d,
+        i64(blk.frame_start),
+        i64(blk.frame_m),
+        i64(blk.frame_epoch),
+        np.ascontiguousarray(np.broadcast_to(np.inf if edit_k is None else np.asarray(edit_k, np.float64), (F,))),
+        bool(keep_epochs),
+        nu,
+        S,
+        nis,
+        knorm,
+        gated,
+        y_ep,
+        P_ep,
+    )
     if bad >= 0:
         raise np.linalg.LinAlgError(f"innovation covariance of frame {bad} not positive definite")
-    return (y, P, nu, S, nis, knorm, gated, y_ep if keep_epochs else None,
-            P_ep if keep_epochs else None)
+    return (y, P, nu, S, nis, knorm, gated, y_ep if keep_epochs else None, P_ep if keep_epochs else None)

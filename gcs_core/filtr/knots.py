@@ -93,8 +93,15 @@ class KnotGrid:
         return 0.5 * (self.tau[:-1] + self.tau[1:])
 
 
-def make_grid(t0: float, t1: float, spacing: float, sigma_v: float, sigma_u: float,
-              refine: int = START_REFINE, min_step: float = 0.0) -> KnotGrid:
+def make_grid(
+    t0: float,
+    t1: float,
+    spacing: float,
+    sigma_v: float,
+    sigma_u: float,
+    refine: int = START_REFINE,
+    min_step: float = 0.0,
+) -> KnotGrid:
     """Knots from ``t0`` to past ``t1`` at (about) ``spacing`` seconds, equally spaced,
     except near ``t0``: the first interval cut at ``Δ/2, Δ/4, … Δ/2^refine`` from ``t0``,
     the next two halved (a graded mesh).
@@ -115,18 +122,19 @@ def make_grid(t0: float, t1: float, spacing: float, sigma_v: float, sigma_u: flo
     span = max(float(t1 - t0), 1e-9)
     n = max(1, int(np.ceil(span / max(spacing, 1e-9))))
     tau = t0 + np.arange(n + 1) * (span / n)
-    tau[-1] = t1 + 1e-6 * (span / n)            # the last knot closes the span
+    tau[-1] = t1 + 1e-6 * (span / n)  # the last knot closes the span
     h = tau[1] - tau[0]
-    cuts = [h / 2.0 ** k for k in range(refine, 0, -1) if h / 2.0 ** k >= min_step]
-    if h / 2.0 >= min_step:                  # and the next two intervals halved
+    cuts = [h / 2.0**k for k in range(refine, 0, -1) if h / 2.0**k >= min_step]
+    if h / 2.0 >= min_step:  # and the next two intervals halved
         cuts += [h * (j + 0.5) for j in range(1, min(3, n))]
     if cuts:
         tau = np.sort(np.concatenate([tau, t0 + np.array(cuts)]))
     return KnotGrid(tau, float(sigma_v), float(sigma_u))
 
 
-def knot_spacing(sigma_v: float, info_rate: float, *, dt_min: float = 1.0, dt_max: float = 300.0,
-                 eps: float = SPACING_EPS) -> float:
+def knot_spacing(
+    sigma_v: float, info_rate: float, *, dt_min: float = 1.0, dt_max: float = 300.0, eps: float = SPACING_EPS
+) -> float:
     """Knot spacing Δ that makes the wander not modelled inside an interval negligible
     against what the data determine over it.
 
@@ -138,7 +146,7 @@ def knot_spacing(sigma_v: float, info_rate: float, *, dt_min: float = 1.0, dt_ma
     """
     if sigma_v <= 0 or info_rate <= 0:
         return dt_max
-    return float(np.clip(np.sqrt(2.0 * eps / (sigma_v ** 2 * info_rate)), dt_min, dt_max))
+    return float(np.clip(np.sqrt(2.0 * eps / (sigma_v**2 * info_rate)), dt_min, dt_max))
 
 
 def transitions(grid: KnotGrid, R: np.ndarray):
@@ -156,15 +164,21 @@ def transitions(grid: KnotGrid, R: np.ndarray):
     if d == 6:
         Phi[:, 3:, 3:] = eye
         Phi[:, :3, 3:] = -dt[:, None, None] * R
-    Q = farrenkopf_q(dt, GyroNoise(grid.sigma_v, grid.sigma_u), eye, -R if d == 6 else eye,
-                     range(3) if d == 6 else ())
+    Q = farrenkopf_q(dt, GyroNoise(grid.sigma_v, grid.sigma_u), eye, -R if d == 6 else eye, range(3) if d == 6 else ())
     s = 1.0 / np.sqrt(np.einsum("kii->ki", Q))
     W = np.linalg.inv(Q * s[:, :, None] * s[:, None, :]) * s[:, :, None] * s[:, None, :]
     return Phi, 0.5 * (W + np.swapaxes(W, 1, 2))
 
 
-def knot_rows(D: np.ndarray, C: np.ndarray, t: np.ndarray, j: np.ndarray, grid: KnotGrid,
-              R: np.ndarray, w: np.ndarray | None = None) -> np.ndarray:
+def knot_rows(
+    D: np.ndarray,
+    C: np.ndarray,
+    t: np.ndarray,
+    j: np.ndarray,
+    grid: KnotGrid,
+    R: np.ndarray,
+    w: np.ndarray | None = None,
+) -> np.ndarray:
     """(N, m, d) partials of the measurements with respect to their knot's ``z_j``:
     ``∂y/∂α = D C`` and ``∂y/∂β = D C Γ_j(t)`` (module docstring), rows scaled by ``w``.
 
@@ -204,8 +218,8 @@ def left_jacobian(v: np.ndarray) -> np.ndarray:
     K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = v[:, 2], -v[:, 1], v[:, 0]
     small = th < 1e-4
     safe = np.where(small, 1.0, th)
-    a = np.where(small, 0.5 - th ** 2 / 24.0, (1.0 - np.cos(safe)) / safe ** 2)
-    b = np.where(small, 1.0 / 6.0 - th ** 2 / 120.0, (safe - np.sin(safe)) / safe ** 3)
+    a = np.where(small, 0.5 - th**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
+    b = np.where(small, 1.0 / 6.0 - th**2 / 120.0, (safe - np.sin(safe)) / safe**3)
     return np.eye(3) + a * K + b * (K @ K)
 
 
@@ -247,8 +261,9 @@ class KnotSystem:
     full ``Dk`` (K, d, d), ``Bk`` (K, d, p+1) are kept until :meth:`eliminate`.
     """
 
-    def __init__(self, grid: KnotGrid, p: int, R: np.ndarray, z: np.ndarray, *,
-                 stream: bool = False, keep: bool = True):
+    def __init__(
+        self, grid: KnotGrid, p: int, R: np.ndarray, z: np.ndarray, *, stream: bool = False, keep: bool = True
+    ):
         self.grid, self.p, self.R, self.z = grid, p, R, z
         self.stream, self.keep = stream, keep
         d, K = grid.d, grid.K
@@ -256,11 +271,11 @@ class KnotSystem:
         e = z[1:] - np.einsum("nab,nb->na", self.Phi, z[:-1])
         self._We = np.einsum("nab,nb->na", self.W, e)
         self._prior = float(np.einsum("na,na->", e, self._We))
-        self.base = 0                                  # first knot not yet eliminated
+        self.base = 0  # first knot not yet eliminated
         cap = K if not stream else min(K, 64)
         self.Dk = np.zeros((cap, d, d))
         self.Bk = np.zeros((cap, d, p + 1))
-        self.Msub = np.zeros((p + 1, p + 1))           # Σ B̂ᵀ S⁻¹ B̂ over eliminated knots
+        self.Msub = np.zeros((p + 1, p + 1))  # Σ B̂ᵀ S⁻¹ B̂ over eliminated knots
         self._carry = (np.zeros((d, d)), np.zeros((d, p + 1)), np.zeros((d, d)))
         if keep:
             self._fac = (np.zeros((K, d, d)), np.zeros((K, d, p + 1)), np.zeros((K, d, d)))
@@ -279,7 +294,7 @@ class KnotSystem:
             for name in ("Dk", "Bk"):
                 old = getattr(self, name)
                 new = np.zeros((cap,) + old.shape[1:])
-                new[:old.shape[0]] = old
+                new[: old.shape[0]] = old
                 setattr(self, name, new)
         return knot - self.base
 
@@ -296,16 +311,35 @@ class KnotSystem:
         knot = self._local(self.grid.index(t).astype(np.int64))
         R = self.R if self.R.shape[0] else np.eye(3)[None]
         # the fused kernel reads the knot times through the held buffer's offset
-        _accumulate_fused(np.nan_to_num(D), C, w, t, knot, self.grid.tau[self.base:], R[self.base:]
-                          if self.base < R.shape[0] else R[-1:], Hm, rw, D.shape[1],
-                          np.asarray(cols, np.int64), self.Dk, self.Bk)
+        _accumulate_fused(
+            np.nan_to_num(D),
+            C,
+            w,
+            t,
+            knot,
+            self.grid.tau[self.base :],
+            R[self.base :] if self.base < R.shape[0] else R[-1:],
+            Hm,
+            rw,
+            D.shape[1],
+            np.asarray(cols, np.int64),
+            self.Dk,
+            self.Bk,
+        )
 
     def add(self, U, H, rw, t, cols) -> None:
         """Add one block's weighted rows: U (N, m, d), H (N, m, k) over static ``cols``,
         rw (N, m) the weighted residuals; t (N,) frame times."""
         knot = self._local(self.grid.index(t).astype(np.int64))
-        args = (np.ascontiguousarray(U), np.ascontiguousarray(H), np.ascontiguousarray(rw), knot,
-                np.asarray(cols, np.int64), self.Dk, self.Bk)
+        args = (
+            np.ascontiguousarray(U),
+            np.ascontiguousarray(H),
+            np.ascontiguousarray(rw),
+            knot,
+            np.asarray(cols, np.int64),
+            self.Dk,
+            self.Bk,
+        )
         (_accumulate if COMPILED else _accumulate_numpy)(*args)
 
     def track(self, sensors) -> None:
@@ -339,17 +373,31 @@ class KnotSystem:
         if j1 <= self.base:
             return
         n = j1 - self.base
-        self._local(np.array([j1 - 1]))                # knots without data are held too
+        self._local(np.array([j1 - 1]))  # knots without data are held too
         j = np.arange(self.base, j1)
         Baug = self.Bk[:n].copy()
         gz = Baug[:, :, -1]
         lo = j >= 1
-        gz[lo] -= self._We[j[lo] - 1]                  # −∂/∂z_{j} of ½ e_{j−1}ᵀ W e_{j−1}
+        gz[lo] -= self._We[j[lo] - 1]  # −∂/∂z_{j} of ½ e_{j−1}ᵀ W e_{j−1}
         hi = j <= K - 2
         gz[hi] += np.einsum("nba,nb->na", self.Phi[j[hi]], self._We[j[hi]])
         Sc, Bc, Oc = self._carry
-        _forward_range(self.Dk[:n], Baug, self.Phi, self.W, self.Msub, self.base, K, Sc, Bc, Oc,
-                       self._fac[0], self._fac[1], self._fac[2], self.keep)
+        _forward_range(
+            self.Dk[:n],
+            Baug,
+            self.Phi,
+            self.W,
+            self.Msub,
+            self.base,
+            K,
+            Sc,
+            Bc,
+            Oc,
+            self._fac[0],
+            self._fac[1],
+            self._fac[2],
+            self.keep,
+        )
         # the held buffer moves past the eliminated knots
         rest = self.Dk.shape[0] - n
         self.Dk[:rest] = self.Dk[n:].copy()
@@ -368,7 +416,7 @@ class KnotSystem:
         if self.base < self.grid.K:
             self.flush(np.inf)
         p = self.p
-        self.knot_gain = float(self.Msub[p, p])        # Σ ĝ_jᵀ S_j⁻¹ ĝ_j: the knots' part of gᵀN⁻¹g
+        self.knot_gain = float(self.Msub[p, p])  # Σ ĝ_jᵀ S_j⁻¹ ĝ_j: the knots' part of gᵀN⁻¹g
         N_red = N - self.Msub[:p, :p]
         N_red = 0.5 * (N_red + N_red.T)
         return N_red, g - self.Msub[:p, p], (self._fac if self.keep else None)
@@ -407,7 +455,7 @@ def _forward_range(Dk, Baug, Phi, W, Msub, j0, K, Sc, Bc, Oc, Sinv, Bh, O, keep)
             S = S + PtW @ Phi[j]
             Oj = -PtW
         if j > 1:
-            T = Sc @ Oc                                 # coupling (j−1, j)
+            T = Sc @ Oc  # coupling (j−1, j)
             S = S - np.ascontiguousarray(Oc.T) @ T
             B = B - np.ascontiguousarray(T.T) @ Bc
         S = 0.5 * (S + S.T)

@@ -63,8 +63,9 @@ def own_nonlinear(problem: Problem, names: Sequence[str]) -> dict[str, list[str]
             continue
         pm = problem.param_map[sd.name]
         local = {a for pair in pairs for a in pair}
-        els = sorted({pm[a] for a in local if a in pm and pm[a] in solve and users.get(pm[a]) == 1
-                      and pm[a] not in att})
+        els = sorted(
+            {pm[a] for a in local if a in pm and pm[a] in solve and users.get(pm[a]) == 1 and pm[a] not in att}
+        )
         if els:
             out[sd.name] = els
     return out
@@ -78,9 +79,17 @@ def worth(step: np.ndarray, sigma: np.ndarray, names: Sequence[str], groups: Map
     return bool(np.any(np.abs(step[sel]) > WORTH_SIGMA * sigma[sel]))
 
 
-def refine_local(problem: Problem, values: dict, names: Sequence[str], x: np.ndarray, x_bar: np.ndarray,
-                 prior_info: np.ndarray, edits: Mapping[str, np.ndarray], groups: Mapping[str, list[str]],
-                 tol_step_sigma: float) -> np.ndarray:
+def refine_local(
+    problem: Problem,
+    values: dict,
+    names: Sequence[str],
+    x: np.ndarray,
+    x_bar: np.ndarray,
+    prior_info: np.ndarray,
+    edits: Mapping[str, np.ndarray],
+    groups: Mapping[str, list[str]],
+    tol_step_sigma: float,
+) -> np.ndarray:
     """``x`` with each group's elements (:func:`own_nonlinear`) at the minimum of the cost
     with every other element held (module docstring). ``values`` (every state element) is
     a work dict, left at the returned state."""
@@ -138,7 +147,7 @@ def _held_chunks(problem: Problem, sd, values, edits) -> list:
         if not np.any(blk.used):
             continue
         idx = None if np.all(blk.used) else np.flatnonzero(blk.used)
-        y = sd.y[blk.lo:blk.hi]
+        y = sd.y[blk.lo : blk.hi]
         chunks.append((y if idx is None else y[idx], sd.model.held(blk.geom, params, rows=idx)))
         frames += y.shape[0] if idx is None else idx.size
         if frames > MAX_HELD_FRAMES:
@@ -162,8 +171,7 @@ def _held_normal(sd, chunks, params, par):
         rc = [np.ascontiguousarray(r[:, c]) for c in range(r.shape[1])]
         for c in range(r.shape[1]):
             w = 1.0 / sd.sigma[c]
-            qs = [(q, hp.d_par[local][1]) for local, q in par
-                  if local in hp.d_par and hp.d_par[local][0] == c]
+            qs = [(q, hp.d_par[local][1]) for local, q in par if local in hp.d_par and hp.d_par[local][0] == c]
             rows = np.empty((len(qs) + 1, nrow))
             for i, (_, v) in enumerate(qs):
                 rows[i] = v

@@ -61,7 +61,7 @@ def step_quaternions(omega: np.ndarray, dt: np.ndarray) -> np.ndarray:
     phi = omega * np.asarray(dt, float)[:, None]
     ang = np.linalg.norm(phi, axis=-1)
     small = ang < 1e-12
-    k = np.where(small, 0.5 - ang ** 2 / 48.0, np.sin(0.5 * ang) / np.where(small, 1.0, ang))
+    k = np.where(small, 0.5 - ang**2 / 48.0, np.sin(0.5 * ang) / np.where(small, 1.0, ang))
     return np.column_stack([phi * k[:, None], np.cos(0.5 * ang)])
 
 
@@ -102,7 +102,7 @@ class GyroSegment:
         self.noise, self.Wy, self.Wb, self.axes = noise, Wy, Wb, tuple(axes)
         self.nb = len(self.axes)
         steps = cumulative_rotations(quat_to_dcm(step_quaternions(self.omega, self.dt)))
-        self.C = np.concatenate([C0[None], steps @ C0])                 # (K+1, 3, 3)
+        self.C = np.concatenate([C0[None], steps @ C0])  # (K+1, 3, 3)
         # E_k = Σ_{j≤k} C_jᵀ W_j Δ_j
         incr = np.swapaxes(self.C[1:], 1, 2) @ self.Wg * self.dt[:, None, None]
         self.E = np.concatenate([np.zeros((1, 3, self.Wg.shape[2])), np.cumsum(incr, axis=0)])
@@ -134,9 +134,13 @@ class GyroSegment:
         s = t - self.knots[k - 1]
         if K == 0:
             N = t.size
-            return (np.broadcast_to(self.C0, (N, 3, 3)), np.zeros((N, 3)),
-                    np.broadcast_to(np.eye(3), (N, 3, 3)), np.zeros((N, 3, self.Wg.shape[2])),
-                    np.zeros((N, 3 + self.nb, 3 + self.nb)))
+            return (
+                np.broadcast_to(self.C0, (N, 3, 3)),
+                np.zeros((N, 3)),
+                np.broadcast_to(np.eye(3), (N, 3, 3)),
+                np.zeros((N, 3, self.Wg.shape[2])),
+                np.zeros((N, 3 + self.nb, 3 + self.nb)),
+            )
         w = self.omega[k - 1]
         C = quat_to_dcm(step_quaternions(w, s)) @ self.C[k - 1]
         E = self.E[k - 1] + np.swapaxes(C, 1, 2) @ self.Wg[k - 1] * s[:, None, None]
@@ -183,7 +187,7 @@ class Layout:
 def attitude_gyro_noise(problem: Problem, scale: float = 1.0) -> GyroNoise:
     """σ_v, σ_u, σ_e of the gyro carrying the attitude (:func:`gcs_core.models.gyro_noise.gyro_noise`
     at the median sample interval of its rows), times ``scale``."""
-    assert problem.gyro_name is not None                  # called for a gyro-carried attitude
+    assert problem.gyro_name is not None  # called for a gyro-carried attitude
     spec = problem.builder.spec.sensor(problem.gyro_name)
     dt = float(np.median(problem.gyro_attitude.dt))
     return gyro_noise(spec, dt).scaled(scale)
@@ -193,12 +197,12 @@ def make_layout(problem: Problem, noise: GyroNoise | None) -> Layout:
     """The filter state of ``problem`` (see :class:`Layout`)."""
     solve = list(problem.state.solve_for)
     if problem.gyro_name is None:
-        return Layout(tuple(solve), tuple(solve), 0, 0, np.zeros(0, int), np.zeros(0, int),
-                      np.zeros(0, int))
+        return Layout(tuple(solve), tuple(solve), 0, 0, np.zeros(0, int), np.zeros(0, int), np.zeros(0, int))
     missing = [n for n in RPY if n not in solve]
     if missing:
-        raise EstimationError("the Kalman filter estimates the attitude with the gyros: make "
-                              + ", ".join(missing) + " solve-for")
+        raise EstimationError(
+            "the Kalman filter estimates the attitude with the gyros: make " + ", ".join(missing) + " solve-for"
+        )
     pnames = list(problem.gyro_attitude.param_names)
     bias = [f"{problem.gyro_name}.bias_{a}" for a in "xyz"]
     dyn = [b for b in bias if b in solve] if noise is not None and noise.sigma_u > 0 else []
@@ -209,8 +213,7 @@ def make_layout(problem: Problem, noise: GyroNoise | None) -> Layout:
     cols = np.array([elements.index(n) for n in gyro], int)
     d = 3 + len(dyn)
     gs = np.array([c - d for c in cols if c >= d], int)
-    return Layout(columns, elements, d, len(dyn), cols,
-                  np.array([pnames.index(n) for n in gyro], int), gs)
+    return Layout(columns, elements, d, len(dyn), cols, np.array([pnames.index(n) for n in gyro], int), gs)
 
 
 #: gyro parameters in the order of ``GyroAttitude.param_names`` that :func:`gyro_rates` knows.
@@ -232,26 +235,26 @@ def gyro_rates(att, values: Mapping[str, float], k0: int, k1: int):
     G = g_matrix(p)
     Ginv = np.linalg.inv(G)
     M, dM = model_common.alignment_matrix(p)
-    if names != _KNOWN_GYRO[:len(names)]:
+    if names != _KNOWN_GYRO[: len(names)]:
         omega, W = att._rates(values)
         return omega[k0:k1], W[k0:k1], M.T @ Ginv, -M.T
     b = np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
     bdot = np.array([p[n] for n in BIAS_RATE_NAMES])
-    tau = att.knots[k0 + 1:k1 + 1] - 0.5 * (att.knots[0] + att.knots[-1])
+    tau = att.knots[k0 + 1 : k1 + 1] - 0.5 * (att.knots[0] + att.knots[-1])
     y = att.y[k0:k1]
-    Gy = y @ Ginv.T                                           # G⁻¹ y
+    Gy = y @ Ginv.T  # G⁻¹ y
     u = Gy - b - tau[:, None] * bdot
-    omega = u @ M                                             # Mᵀ (G⁻¹ y − b − ḃ τ)
+    omega = u @ M  # Mᵀ (G⁻¹ y − b − ḃ τ)
     MtGinv = M.T @ Ginv
     W = np.empty((y.shape[0], 3, len(_KNOWN_GYRO)))
     for a in range(3):
         for c in range(3):
-            W[:, :, 3 * a + c] = -MtGinv[:, a][None, :] * Gy[:, c:c + 1]   # ∂ω/∂G_ac
+            W[:, :, 3 * a + c] = -MtGinv[:, a][None, :] * Gy[:, c : c + 1]  # ∂ω/∂G_ac
     W[:, :, 9:12] = -M.T[None, :, :]
     for k in range(3):
         W[:, :, 12 + k] = u @ dM[k]
     W[:, :, 15:18] = -M.T[None, :, :] * tau[:, None, None]
-    return omega, W[:, :, :len(names)], MtGinv, -M.T
+    return omega, W[:, :, : len(names)], MtGinv, -M.T
 
 
 class SegmentAttitude(ProviderDefaults):
@@ -280,10 +283,12 @@ def sensor_window(sd: SensorData, lo: int, hi: int) -> SensorData:
         return a[sl] if isinstance(a, np.ndarray) and a.ndim >= 1 and a.shape[0] == n else a
 
     g = sd.geom
-    fields = {f: cut(getattr(g, f)) for f in ("t", "C_BI", "spin_axis_I", "r_I", "v_I", "sun_I",
-                                              "B_I", "star_I", "omega_B")}
-    geom = replace(g, aux={k: cut(v) for k, v in g.aux.items()},
-                   extra={k: cut(v) for k, v in g.extra.items()}, **fields)
+    fields = {
+        f: cut(getattr(g, f)) for f in ("t", "C_BI", "spin_axis_I", "r_I", "v_I", "sun_I", "B_I", "star_I", "omega_B")
+    }
+    geom = replace(
+        g, aux={k: cut(v) for k, v in g.aux.items()}, extra={k: cut(v) for k, v in g.extra.items()}, **fields
+    )
     return replace(sd, t=sd.t[sl], y=sd.y[sl], geom=geom, lines=sd.lines[sl])
 
 
@@ -316,9 +321,17 @@ def block_epochs(problem: Problem, t_a: float, t_b: float, first: bool):
     return np.unique(np.concatenate(times)), windows
 
 
-def assemble(problem: Problem, layout: Layout, values: Mapping[str, float], seg: GyroSegment | None,
-             t_a: float, t_b: float, first: bool, pre_edited: Mapping[str, np.ndarray],
-             sig_e2: float = 0.0) -> tuple[LinearBlock, BlockFrames]:
+def assemble(
+    problem: Problem,
+    layout: Layout,
+    values: Mapping[str, float],
+    seg: GyroSegment | None,
+    t_a: float,
+    t_b: float,
+    first: bool,
+    pre_edited: Mapping[str, np.ndarray],
+    sig_e2: float = 0.0,
+) -> tuple[LinearBlock, BlockFrames]:
     """Linearize every sensor's frames in ``(t_a, t_b]`` (``[t_a, t_b]`` if ``first``) at the
     nominal and stack them as rows of a :class:`LinearBlock` in block-start coordinates."""
     epochs, windows = block_epochs(problem, t_a, t_b, first)
@@ -329,14 +342,13 @@ def assemble(problem: Problem, layout: Layout, values: Mapping[str, float], seg:
     if seg is not None:
         _, _, CC0, CE, Pi = seg.at(epochs)
         Psi_d = np.zeros((epochs.size, layout.d, layout.n))
-        Psi_d[:, :3, :3] = CC0                                # x_θ = C C_0ᵀ y_θ + C E y_g
+        Psi_d[:, :3, :3] = CC0  # x_θ = C C_0ᵀ y_θ + C E y_g
         Psi_d[:, :3, layout.gyro_cols] = CE
-        Psi_d[:, 3:, 3:layout.d] = np.eye(layout.nb)
+        Psi_d[:, 3:, 3 : layout.d] = np.eye(layout.nb)
     else:
         Pi, Psi_d = np.zeros((epochs.size, 0, 0)), None
     n = layout.n
-    parts: dict[str, list] = {"A": [], "r": [], "s": [], "h": [], "ep": [], "m": [], "sens": [],
-                              "idx": []}
+    parts: dict[str, list] = {"A": [], "r": [], "s": [], "h": [], "ep": [], "m": [], "sens": [], "idx": []}
     info = []
     for j, (sd, lin, (lo, hi)) in enumerate(zip(sub, lins, windows)):
         ep = np.searchsorted(epochs, sd.t)
@@ -348,11 +360,11 @@ def assemble(problem: Problem, layout: Layout, values: Mapping[str, float], seg:
         k = np.nonzero(used)[0]
         if k.size == 0:
             continue
-        assert lin.H is not None                              # linearize() stores the rows
+        assert lin.H is not None  # linearize() stores the rows
         H = lin.H[k]
         mj = H.shape[1]
         A = H if Psi_d is None else H + H[:, :, :3] @ (Psi_d[ep[k], :3, :] - np.eye(3, n))  # A = H Ψ
-        w = 1.0 / lin.sigma                                   # whiten: R = I
+        w = 1.0 / lin.sigma  # whiten: R = I
         parts["A"].append((A * w[None, :, None]).reshape(-1, n))
         parts["r"].append((lin.r[k] * w).reshape(-1))
         parts["s"].append(np.tile(lin.sigma, k.size))
@@ -364,19 +376,38 @@ def assemble(problem: Problem, layout: Layout, values: Mapping[str, float], seg:
         parts["idx"].append(lo + k)
     if not parts["ep"]:
         z = np.zeros(0, int)
-        blk = LinearBlock(t=epochs, Pi=Pi, Psi_d=Psi_d, A=np.zeros((0, n)), r=np.zeros(0),
-                          sigma=np.zeros(0), row_epoch=z, frame_start=z, frame_m=z, frame_epoch=z)
+        blk = LinearBlock(
+            t=epochs,
+            Pi=Pi,
+            Psi_d=Psi_d,
+            A=np.zeros((0, n)),
+            r=np.zeros(0),
+            sigma=np.zeros(0),
+            row_epoch=z,
+            frame_start=z,
+            frame_m=z,
+            frame_epoch=z,
+        )
         return blk, BlockFrames(epochs, tuple(info), z, z)
     cat = {k: np.concatenate(v) for k, v in parts.items() if v}
     fe, fs, m = cat["ep"], cat["sens"], cat["m"]
-    order = np.lexsort((fs, fe))                              # frames by epoch, then sensor
-    start_in = np.cumsum(m) - m                               # row start before reordering
+    order = np.lexsort((fs, fe))  # frames by epoch, then sensor
+    start_in = np.cumsum(m) - m  # row start before reordering
     m = m[order]
     start = np.cumsum(m) - m
     rows = np.repeat(start_in[order] - start, m) + np.arange(int(m.sum()))
-    blk = LinearBlock(t=epochs, Pi=Pi, Psi_d=Psi_d, A=cat["A"][rows], r=cat["r"][rows],
-                      sigma=cat["s"][rows], row_epoch=np.repeat(fe[order], m), frame_start=start,
-                      frame_m=m, frame_epoch=fe[order],
-                      Hth=cat["h"][rows] if "h" in cat else None,
-                      sig_e2=sig_e2 if "h" in cat else 0.0)
+    blk = LinearBlock(
+        t=epochs,
+        Pi=Pi,
+        Psi_d=Psi_d,
+        A=cat["A"][rows],
+        r=cat["r"][rows],
+        sigma=cat["s"][rows],
+        row_epoch=np.repeat(fe[order], m),
+        frame_start=start,
+        frame_m=m,
+        frame_epoch=fe[order],
+        Hth=cat["h"][rows] if "h" in cat else None,
+        sig_e2=sig_e2 if "h" in cat else 0.0,
+    )
     return blk, BlockFrames(epochs, tuple(info), fs[order], cat["idx"][order])

@@ -192,8 +192,7 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
     d, ok = _increments(t, y, quaternion)
     dd = np.diff(d, axis=0)[ok[1:] & ok[:-1]]
     if dd.shape[0] < 10:
-        raise InputError(f"only {dd.shape[0]} runs of three consecutive samples: too few to "
-                         "measure the noise")
+        raise InputError(f"only {dd.shape[0]} runs of three consecutive samples: too few to measure the noise")
     return _clipped_std(dd) / np.sqrt(6.0)
 
 
@@ -210,8 +209,11 @@ def white_level(curve: AllanCurve, dt: float) -> tuple[float, float, bool]:
     slope = curve.slope()
     half = max(1, (curve.tau.size + 1) // 2)
     i = int(np.argmin(np.abs(slope[:half] + 0.5)))
-    return (float(curve.adev[i] * np.sqrt(curve.tau[i] / dt)), float(curve.tau[i]),
-            bool(abs(slope[i] + 0.5) > SLOPE_TOLERANCE))
+    return (
+        float(curve.adev[i] * np.sqrt(curve.tau[i] / dt)),
+        float(curve.tau[i]),
+        bool(abs(slope[i] + 0.5) > SLOPE_TOLERANCE),
+    )
 
 
 def small_angles(q: np.ndarray) -> np.ndarray:
@@ -250,7 +252,7 @@ def allan_deviation(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -
     n = rate.shape[0]
     if n < 2 * MIN_CLUSTERS:
         raise InputError(f"{n} consecutive samples: too few for an Allan deviation")
-    theta = np.vstack([np.zeros((1, rate.shape[1])), np.cumsum(rate, axis=0) * dt])   # (n+1, m)
+    theta = np.vstack([np.zeros((1, rate.shape[1])), np.cumsum(rate, axis=0) * dt])  # (n+1, m)
     ms = []
     m = 1
     while n // m >= 2 * MIN_CLUSTERS:
@@ -262,7 +264,7 @@ def allan_deviation(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -
         taus, adevs, counts = [], [], []
         for m in ms:
             tau = m * dt
-            d2 = th[2 * m:] - 2.0 * th[m:-m] + th[:-2 * m]
+            d2 = th[2 * m :] - 2.0 * th[m:-m] + th[: -2 * m]
             taus.append(tau)
             adevs.append(np.sqrt(np.mean(d2 * d2) / (2.0 * tau * tau)))
             counts.append(d2.size)
@@ -274,18 +276,22 @@ def gyro_terms(curve: AllanCurve) -> GyroTerms:
     """N, K and B of a gyro axis read off its Allan curve (module docstring)."""
     tau, adev = curve.tau, curve.adev
     slope = curve.slope()
-    n_line = adev * np.sqrt(tau)                     # N if the −1/2 slope held at τ
-    k_line = adev * np.sqrt(3.0 / tau)               # K if the +1/2 slope held at τ
+    n_line = adev * np.sqrt(tau)  # N if the −1/2 slope held at τ
+    k_line = adev * np.sqrt(3.0 / tau)  # K if the +1/2 slope held at τ
     half = max(1, (tau.size + 1) // 2)
-    i = int(np.argmin(np.abs(slope[:half] + 0.5)))   # on the −1/2 slope, short τ
+    i = int(np.argmin(np.abs(slope[:half] + 0.5)))  # on the −1/2 slope, short τ
     j = int(np.argmin(k_line))
     b = int(np.argmin(adev))
-    return GyroTerms(arw=float(n_line[i]), arw_tau=float(tau[i]),
-                     arw_bound=bool(abs(slope[i] + 0.5) > SLOPE_TOLERANCE),
-                     rrw=float(k_line[j]), rrw_tau=float(tau[j]),
-                     rrw_bound=bool(abs(slope[j] - 0.5) > SLOPE_TOLERANCE),
-                     bias_instability=float(adev[b] / BIAS_INSTABILITY_FACTOR),
-                     bias_tau=float(tau[b]))
+    return GyroTerms(
+        arw=float(n_line[i]),
+        arw_tau=float(tau[i]),
+        arw_bound=bool(abs(slope[i] + 0.5) > SLOPE_TOLERANCE),
+        rrw=float(k_line[j]),
+        rrw_tau=float(tau[j]),
+        rrw_bound=bool(abs(slope[j] - 0.5) > SLOPE_TOLERANCE),
+        bias_instability=float(adev[b] / BIAS_INSTABILITY_FACTOR),
+        bias_tau=float(tau[b]),
+    )
 
 
 @dataclass(frozen=True)
@@ -328,8 +334,16 @@ NOISE_COLUMNS = {
 }
 
 
-def sensor_noise(name: str, stype: str, t: np.ndarray, table_columns, *, stated: float | None = None,
-                 start: float | None = None, end: float | None = None) -> SensorNoise | None:
+def sensor_noise(
+    name: str,
+    stype: str,
+    t: np.ndarray,
+    table_columns,
+    *,
+    stated: float | None = None,
+    start: float | None = None,
+    end: float | None = None,
+) -> SensorNoise | None:
     """The noise one sensor's telemetry shows, over ``[start, end]`` (all by default).
 
     ``table_columns`` maps column name -> (N,) array. Returns None for a type whose
@@ -354,8 +368,7 @@ def sensor_noise(name: str, stype: str, t: np.ndarray, table_columns, *, stated:
     gyro = tuple(gyro_terms(c) for c in curves) if stype == "gyro" else ()
     dt = sample_interval(t)
     line = np.array([white_level(c, dt)[0] for c in curves])
-    return SensorNoise(name, stype, comps, unit, dt, int(t.size),
-                       white, line, curves, gyro, stated)
+    return SensorNoise(name, stype, comps, unit, dt, int(t.size), white, line, curves, gyro, stated)
 
 
 def mission_noise(mission, *, start: float | None = None, end: float | None = None) -> list[SensorNoise]:
@@ -368,7 +381,7 @@ def mission_noise(mission, *, start: float | None = None, end: float | None = No
         stated = s.noise
         if s.type == "gyro" and s.get("arw") is not None:
             dt = sample_interval(tab.t)
-            stated = float(s.get("arw")) / np.sqrt(dt)      # per-sample σ of the ARW
+            stated = float(s.get("arw")) / np.sqrt(dt)  # per-sample σ of the ARW
         res = sensor_noise(s.name, s.type, tab.t, tab.columns, stated=stated, start=start, end=end)
         if res is not None:
             out.append(res)
@@ -385,32 +398,43 @@ def noise_lines(results: list[SensorNoise]) -> list[str]:
     out: list[str] = []
     for r in results:
         stated = "none" if r.stated is None else _fmt(r.stated)
-        rms = float(np.sqrt(np.mean(r.white ** 2)))
+        rms = float(np.sqrt(np.mean(r.white**2)))
         white_unit = r.unit
         out.append(f"{r.name} ({r.type}), {r.n} samples every {r.dt:.6g} s")
-        lr = float(np.sqrt(np.mean(r.line ** 2)))
-        out.append(f"  per-sample spread [{white_unit}] (second differences): "
-                   + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.white))
-                   + f"  (RMS {_fmt(rms)}; data book {stated}"
-                   + (f", ratio {rms / r.stated:.3f})" if r.stated else ")"))
-        note = ("above the spread: consecutive samples are correlated, or the values move "
-                "(over a still span, this is the noise slow parameters see)"
-                if rms < 0.7 * lr else "agrees with the spread: white")
-        out.append(f"  white-noise line as per-sample σ [{white_unit}]: "
-                   + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.line))
-                   + f"  (RMS {_fmt(lr)}"
-                   + (f", ratio to the data book {lr / r.stated:.3f}" if r.stated else "") + f"; {note})")
+        lr = float(np.sqrt(np.mean(r.line**2)))
+        out.append(
+            f"  per-sample spread [{white_unit}] (second differences): "
+            + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.white))
+            + f"  (RMS {_fmt(rms)}; data book {stated}"
+            + (f", ratio {rms / r.stated:.3f})" if r.stated else ")")
+        )
+        note = (
+            "above the spread: consecutive samples are correlated, or the values move "
+            "(over a still span, this is the noise slow parameters see)"
+            if rms < 0.7 * lr
+            else "agrees with the spread: white"
+        )
+        out.append(
+            f"  white-noise line as per-sample σ [{white_unit}]: "
+            + "  ".join(f"{c} {_fmt(w)}" for c, w in zip(r.components, r.line))
+            + f"  (RMS {_fmt(lr)}"
+            + (f", ratio to the data book {lr / r.stated:.3f}" if r.stated else "")
+            + f"; {note})"
+        )
         out.append(f"  Allan deviation [{r.unit}] (overlapping, IEEE 952 Annex C):")
         out.append("    " + f"{'tau [s]':>10}" + "".join(f"{c:>12}" for c in r.components))
         for k in range(r.curves[0].tau.size):
-            out.append("    " + f"{r.curves[0].tau[k]:>10.4g}"
-                       + "".join(f"{_fmt(c.adev[k]):>12}" for c in r.curves))
+            out.append("    " + f"{r.curves[0].tau[k]:>10.4g}" + "".join(f"{_fmt(c.adev[k]):>12}" for c in r.curves))
         for c, g in zip(r.components, r.gyro):
-            out.append(f"  {c}: ARW N = {_fmt(g.arw)} rad/s^0.5 (at {g.arw_tau:.3g} s"
-                       + (", upper bound: no -1/2 slope" if g.arw_bound else "") + ")"
-                       + f"; RRW K = {_fmt(g.rrw)} rad/s^1.5 (at {g.rrw_tau:.3g} s"
-                       + (", upper bound: no +1/2 slope" if g.rrw_bound else "") + ")"
-                       + f"; bias instability B = {_fmt(g.bias_instability)} rad/s (min at {g.bias_tau:.3g} s)")
+            out.append(
+                f"  {c}: ARW N = {_fmt(g.arw)} rad/s^0.5 (at {g.arw_tau:.3g} s"
+                + (", upper bound: no -1/2 slope" if g.arw_bound else "")
+                + ")"
+                + f"; RRW K = {_fmt(g.rrw)} rad/s^1.5 (at {g.rrw_tau:.3g} s"
+                + (", upper bound: no +1/2 slope" if g.rrw_bound else "")
+                + ")"
+                + f"; bias instability B = {_fmt(g.bias_instability)} rad/s (min at {g.bias_tau:.3g} s)"
+            )
     return out
 
 

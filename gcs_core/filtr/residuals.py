@@ -33,10 +33,10 @@ def accumulate(lins: Sequence[Linearization], edited: Mapping[str, np.ndarray], 
         if not np.any(used):
             continue
         # R^-1/2 with unused frames weighted zero (cheaper than copying the used rows)
-        w = used[:, None] / lin.sigma[None, :]                # (N, m)
-        rw = (lin.r * w).reshape(-1)                          # R^-1/2 r
+        w = used[:, None] / lin.sigma[None, :]  # (N, m)
+        rw = (lin.r * w).reshape(-1)  # R^-1/2 r
         if n:
-            Hw = (lin.H * w[:, :, None]).reshape(-1, n)       # R^-1/2 H
+            Hw = (lin.H * w[:, :, None]).reshape(-1, n)  # R^-1/2 H
             A += Hw.T @ Hw
             b += Hw.T @ rw
         chi2 += float(rw @ rw)
@@ -65,8 +65,7 @@ class Residuals:
         return self
 
 
-def residuals_from(problem: Problem, buffers: Residuals,
-                   edits: Mapping[str, np.ndarray]) -> dict[str, SensorResiduals]:
+def residuals_from(problem: Problem, buffers: Residuals, edits: Mapping[str, np.ndarray]) -> dict[str, SensorResiduals]:
     """:class:`SensorResiduals` from the buffers of a pass (taken over, not copied)."""
     out = {}
     for sd in problem.sensors:
@@ -74,9 +73,20 @@ def residuals_from(problem: Problem, buffers: Residuals,
         ed = edits.get(sd.name, np.zeros(valid.shape, bool)) & valid
         r = buffers.r[sd.name]
         r[~valid] = np.nan
-        out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t, sd.y,
-                                       buffers.y_pred.get(sd.name), r, None, sd.sigma, valid & ~ed,
-                                       valid, ed)
+        out[sd.name] = SensorResiduals(
+            sd.name,
+            tuple(sd.model.components),
+            sd.model.unit,
+            sd.t,
+            sd.y,
+            buffers.y_pred.get(sd.name),
+            r,
+            None,
+            sd.sigma,
+            valid & ~ed,
+            valid,
+            ed,
+        )
     return out
 
 
@@ -88,14 +98,27 @@ def _zero_invalid(lin: Linearization) -> Linearization:
     return Linearization(lin.name, lin.y_pred, r, H, lin.valid, lin.sigma)
 
 
-def make_residuals(problem: Problem, lins: Sequence[Linearization],
-                   edits: Mapping[str, np.ndarray]) -> dict[str, SensorResiduals]:
+def make_residuals(
+    problem: Problem, lins: Sequence[Linearization], edits: Mapping[str, np.ndarray]
+) -> dict[str, SensorResiduals]:
     out = {}
     for lin in lins:
         sd = problem.sensor(lin.name)
         ed = edits.get(lin.name, np.zeros(lin.valid.shape, bool)) & lin.valid
         used = lin.valid & ~ed
         r = np.where(lin.valid[:, None], lin.r, np.nan)
-        out[lin.name] = SensorResiduals(lin.name, tuple(sd.model.components), sd.model.unit, sd.t, sd.y,
-                                        lin.y_pred, r, r / lin.sigma, lin.sigma, used, lin.valid, ed)
+        out[lin.name] = SensorResiduals(
+            lin.name,
+            tuple(sd.model.components),
+            sd.model.unit,
+            sd.t,
+            sd.y,
+            lin.y_pred,
+            r,
+            r / lin.sigma,
+            lin.sigma,
+            used,
+            lin.valid,
+            ed,
+        )
     return out

@@ -81,7 +81,6 @@ class FitResult(Protocol):
     def consider_budget(self) -> Mapping[str, np.ndarray]: ...
 
 
-
 @dataclass(frozen=True)
 class SmoothedTrajectory:
     """Smoothed attitude (and gyro biases) at every epoch of the filter.
@@ -153,12 +152,12 @@ class SensorResiduals:
     @property
     def rms(self) -> np.ndarray:
         r = self.residual[self.used]
-        return np.sqrt(np.mean(r ** 2, axis=0)) if r.size else np.full(self.residual.shape[1], np.nan)
+        return np.sqrt(np.mean(r**2, axis=0)) if r.size else np.full(self.residual.shape[1], np.nan)
 
     @property
     def rms_normalized(self) -> float:
         r = self.normalized[self.used]
-        return float(np.sqrt(np.mean(r ** 2))) if r.size else float("nan")
+        return float(np.sqrt(np.mean(r**2))) if r.size else float("nan")
 
     @property
     def chi2(self) -> float:

@@ -59,10 +59,19 @@ class EpochStore:
     limit_bytes : records larger than this go to a temporary memory-mapped file.
     """
 
-    def __init__(self, n_epochs: int, d: int, ns: int, ngs: int, nb: int, *,
-                 limit_bytes: float = 256e6):
-        shapes = {"t": (), "q": (4,), "bnom": (nb,), "c": (d,), "B": (d, ns), "Pc": (d, d),
-                  "Phi": (d, d), "Phis": (d, ngs), "u": (d,), "Q": (d, d)}
+    def __init__(self, n_epochs: int, d: int, ns: int, ngs: int, nb: int, *, limit_bytes: float = 256e6):
+        shapes = {
+            "t": (),
+            "q": (4,),
+            "bnom": (nb,),
+            "c": (d,),
+            "B": (d, ns),
+            "Pc": (d, d),
+            "Phi": (d, d),
+            "Phis": (d, ngs),
+            "u": (d,),
+            "Q": (d, d),
+        }
         self.fields, off = {}, 0
         for name, shp in shapes.items():
             size = int(np.prod(shp)) if shp else 1
@@ -86,11 +95,12 @@ class EpochStore:
 
     def _slab(self, k0: int, k1: int, mode: Literal["r", "r+"]) -> np.ndarray:
         if self._file is None:
-            assert self.data is not None                         # in memory when not spilled
+            assert self.data is not None  # in memory when not spilled
             return self.data[k0:k1]
         # map only the rows in use: the process keeps no pages of the file once unmapped
-        return np.memmap(self._file, dtype=np.float64, mode=mode, offset=k0 * self.width * 8,
-                         shape=(k1 - k0, self.width))
+        return np.memmap(
+            self._file, dtype=np.float64, mode=mode, offset=k0 * self.width * 8, shape=(k1 - k0, self.width)
+        )
 
     def write(self, k0: int, **arrays) -> None:
         """Write records of epochs ``k0..k0+G−1``; each array has leading dimension G."""
@@ -98,14 +108,15 @@ class EpochStore:
         slab = self._slab(k0, k0 + G, "r+")
         for name, a in arrays.items():
             off, size, _ = self.fields[name]
-            slab[:, off:off + size] = np.asarray(a, float).reshape(G, size)
-        del slab                    # unmapped: the pages stay in the OS cache, not in our RSS
+            slab[:, off : off + size] = np.asarray(a, float).reshape(G, size)
+        del slab  # unmapped: the pages stay in the OS cache, not in our RSS
 
     def read(self, k0: int, k1: int) -> dict[str, np.ndarray]:
         """Records of epochs ``k0..k1−1`` as arrays ``(k1−k0, *shape)`` (copies)."""
         slab = np.array(self._slab(k0, k1, "r"))
-        return {name: slab[:, off:off + size].reshape((k1 - k0,) + shp)
-                for name, (off, size, shp) in self.fields.items()}
+        return {
+            name: slab[:, off : off + size].reshape((k1 - k0,) + shp) for name, (off, size, shp) in self.fields.items()
+        }
 
     def close(self) -> None:
         if self._file is not None:
@@ -130,8 +141,15 @@ class SmoothedStates:
     Gamma0: np.ndarray
 
 
-def rts_smooth(store: EpochStore, s_star: np.ndarray, P_ss: np.ndarray, gs_pos: np.ndarray, *,
-               n: int | None = None, chunk: int = 8192) -> SmoothedStates:
+def rts_smooth(
+    store: EpochStore,
+    s_star: np.ndarray,
+    P_ss: np.ndarray,
+    gs_pos: np.ndarray,
+    *,
+    n: int | None = None,
+    chunk: int = 8192,
+) -> SmoothedStates:
     """RTS over the dynamic states conditioned on ``s = s*`` (module docstring); the first
     ``n`` epochs of the store (all by default)."""
     N = store.n if n is None else int(n)
@@ -149,7 +167,7 @@ def rts_smooth(store: EpochStore, s_star: np.ndarray, P_ss: np.ndarray, gs_pos: 
         k0 = max(0, k1 - chunk)
         rec = store.read(k0, k1 + 1)
         B, Pf = rec["B"][:-1], rec["Pc"][:-1]
-        xf = rec["c"][:-1] + B @ s_star                        # d_k | s*
+        xf = rec["c"][:-1] + B @ s_star  # d_k | s*
         Phi, Q = rec["Phi"][1:], rec["Q"][1:]
         # d⁻_{k+1} = Φ d_k + Φ_s s + u,   P⁻ = Φ P Φᵀ + Q
         xp = (Phi @ xf[:, :, None])[:, :, 0] + rec["Phis"][1:] @ s_gs + rec["u"][1:]
@@ -157,7 +175,7 @@ def rts_smooth(store: EpochStore, s_star: np.ndarray, P_ss: np.ndarray, gs_pos: 
         Pp = 0.5 * (Pp + np.swapaxes(Pp, 1, 2))
         # G = P Φᵀ (P⁻)⁻¹ = ((P⁻)⁻¹ Φ P)ᵀ   (solve, not invert)
         G = np.swapaxes(_solve(Pp, Phi @ Pf), 1, 2)
-        Gp = Phi @ B                                            # Γ⁻_{k+1} = Φ B_k + Φ_s
+        Gp = Phi @ B  # Γ⁻_{k+1} = Φ B_k + Φ_s
         Gp[:, :, gs_pos] += rec["Phis"][1:]
         n_c = k1 - k0
         X, PS, GS = np.empty((n_c, d)), np.empty((n_c, d, d)), np.empty((n_c, d, ns))
@@ -177,20 +195,19 @@ def rts_smooth(store: EpochStore, s_star: np.ndarray, P_ss: np.ndarray, gs_pos: 
 
 def _total(x_out, sd_out, k0, X, PS, GS, P_ss):
     """Store means and 1-sigma including the static uncertainty ``Γ P_ss Γᵀ``."""
-    x_out[k0:k0 + X.shape[0]] = X
+    x_out[k0 : k0 + X.shape[0]] = X
     var = np.einsum("kii->ki", PS) + np.einsum("kij,jl,kil->ki", GS, P_ss, GS)
-    sd_out[k0:k0 + X.shape[0]] = np.sqrt(np.maximum(var, 0.0))
+    sd_out[k0 : k0 + X.shape[0]] = np.sqrt(np.maximum(var, 0.0))
 
 
 def _solve(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     try:
         return np.linalg.solve(A, B)
-    except np.linalg.LinAlgError:                      # a singular prediction: least squares
+    except np.linalg.LinAlgError:  # a singular prediction: least squares
         return np.linalg.pinv(A) @ B
 
 
-def trajectory(store: EpochStore, sm: SmoothedStates, nb: int,
-               bias_names: tuple[str, ...] = ()) -> SmoothedTrajectory:
+def trajectory(store: EpochStore, sm: SmoothedStates, nb: int, bias_names: tuple[str, ...] = ()) -> SmoothedTrajectory:
     """Smoothed quaternions ``q = q(δθ) ⊗ q_nominal`` (``C = exp(−[δθ×]) C_nom``) and biases."""
     N = sm.x.shape[0]
     t, q = np.empty(N), np.empty((N, 4))
@@ -202,14 +219,20 @@ def trajectory(store: EpochStore, sm: SmoothedStates, nb: int,
         dq = step_quaternions(sm.x[k0:k1, :3], np.ones(k1 - k0))
         q[k0:k1] = quat_normalize(quat_multiply(dq, rec["q"]))
         if bias is not None:
-            bias[k0:k1] = rec["bnom"] + sm.x[k0:k1, 3:3 + nb]
-    return SmoothedTrajectory(t, q, sm.sigma[:, :3], bias, sm.sigma[:, 3:3 + nb] if nb else None,
-                              tuple(bias_names))
+            bias[k0:k1] = rec["bnom"] + sm.x[k0:k1, 3 : 3 + nb]
+    return SmoothedTrajectory(t, q, sm.sigma[:, :3], bias, sm.sigma[:, 3 : 3 + nb] if nb else None, tuple(bias_names))
 
 
-def smoothed_residuals(problem, traj: SmoothedTrajectory, frame_epoch: Mapping[str, np.ndarray],
-                       values: Mapping[str, float], omega_at, edited: Mapping[str, np.ndarray],
-                       *, chunk: int = 65536) -> dict[str, SensorResiduals]:
+def smoothed_residuals(
+    problem,
+    traj: SmoothedTrajectory,
+    frame_epoch: Mapping[str, np.ndarray],
+    values: Mapping[str, float],
+    omega_at,
+    edited: Mapping[str, np.ndarray],
+    *,
+    chunk: int = 65536,
+) -> dict[str, SensorResiduals]:
     """Post-fit residuals of every sensor at the smoothed attitude and final parameters.
 
     Parameters
@@ -222,10 +245,10 @@ def smoothed_residuals(problem, traj: SmoothedTrajectory, frame_epoch: Mapping[s
     out = {}
     for sd in problem.sensors:
         ep = frame_epoch[sd.name]
-        reached = (ep >= 0) & (ep < traj.t.size)               # frames the filter processed
+        reached = (ep >= 0) & (ep < traj.t.size)  # frames the filter processed
         y_pred = np.full(sd.y.shape, np.nan)
         valid = np.zeros(sd.n, bool)
-        for lo in range(0, sd.n, chunk):                       # bounded memory on long spans
+        for lo in range(0, sd.n, chunk):  # bounded memory on long spans
             hi = min(sd.n, lo + chunk)
             part = sensor_window(sd, lo, hi)
             k = np.where(reached[lo:hi], ep[lo:hi], 0)
@@ -237,9 +260,20 @@ def smoothed_residuals(problem, traj: SmoothedTrajectory, frame_epoch: Mapping[s
         valid &= np.all(np.isfinite(r), axis=1) & reached
         ed = np.asarray(edited.get(sd.name, np.zeros(sd.n, bool)), bool) & valid
         r = np.where(valid[:, None], r, np.nan)
-        out[sd.name] = SensorResiduals(sd.name, tuple(sd.model.components), sd.model.unit, sd.t,
-                                       sd.y, y_pred, r, r / sd.sigma, sd.sigma, valid & ~ed, valid,
-                                       ed)
+        out[sd.name] = SensorResiduals(
+            sd.name,
+            tuple(sd.model.components),
+            sd.model.unit,
+            sd.t,
+            sd.y,
+            y_pred,
+            r,
+            r / sd.sigma,
+            sd.sigma,
+            valid & ~ed,
+            valid,
+            ed,
+        )
     return out
 
 
@@ -258,27 +292,37 @@ def block_records(lay, blk, sol, seg, nom: Mapping[str, float], C_a: np.ndarray,
     Psi_d, ye, Pe = blk.Psi_d, sol.y_epoch, sol.P_epoch
     s_nom = np.array([nom[e] for e in lay.elements[d:]])
     xd = (Psi_d @ ye[:, :, None])[:, :, 0]
-    Pxd = Psi_d @ Pe                                            # Ψ_d P
+    Pxd = Psi_d @ Pe  # Ψ_d P
     Pdd, Pds, Pss = Pxd @ np.swapaxes(Psi_d, 1, 2), Pxd[:, :, d:], Pe[:, d:, d:]
-    B = np.swapaxes(np.linalg.solve(Pss, np.swapaxes(Pds, 1, 2)), 1, 2)   # P_ds P_ss⁻¹
-    Pc = Pdd - B @ np.swapaxes(Pds, 1, 2)                       # P_dd − B P_sd
+    B = np.swapaxes(np.linalg.solve(Pss, np.swapaxes(Pds, 1, 2)), 1, 2)  # P_ds P_ss⁻¹
+    Pc = Pdd - B @ np.swapaxes(Pds, 1, 2)  # P_dd − B P_sd
     c = xd - (B @ (s_nom + ye[:, d:])[:, :, None])[:, :, 0]
     Psi_dd, Psi_gs = Psi_d[:, :, :d], Psi_d[:, :, d + lay.gs_pos]
     Phi = np.broadcast_to(np.eye(d), (G, d, d)).copy()
     Phis = np.zeros((G, d, lay.gs_pos.size))
     u, Q = np.zeros((G, d)), np.zeros((G, d, d))
     if G > 1:
-        Phi[1:] = Psi_dd[1:] @ np.linalg.inv(Psi_dd[:-1])       # Ψ_k Ψ_{k−1}⁻¹
+        Phi[1:] = Psi_dd[1:] @ np.linalg.inv(Psi_dd[:-1])  # Ψ_k Ψ_{k−1}⁻¹
         Phis[1:] = Psi_gs[1:] - Phi[1:] @ Psi_gs[:-1]
-        u[1:] = -Phis[1:] @ s_nom[lay.gs_pos]                   # static terms in absolute values
+        u[1:] = -Phis[1:] @ s_nom[lay.gs_pos]  # static terms in absolute values
         Q[1:] = Psi_dd[1:] @ np.diff(blk.Pi, axis=0) @ np.swapaxes(Psi_dd[1:], 1, 2)
     bnom = np.array([nom[e] for e in lay.elements[3:d]])
-    if prev_nom is not None:                                    # the reset at the boundary
+    if prev_nom is not None:  # the reset at the boundary
         C_old, b_old = prev_nom
         u[0, :3] = dcm_to_rotvec(C_old @ C_a.T)
         u[0, 3:] = b_old - bnom
-    recs = dict(t=blk.t, q=quat_from_dcm(seg.at(blk.t)[0]), bnom=np.broadcast_to(bnom, (G, lay.nb)),
-                c=c, B=B, Pc=0.5 * (Pc + np.swapaxes(Pc, 1, 2)), Phi=Phi, Phis=Phis, u=u, Q=Q)
+    recs = dict(
+        t=blk.t,
+        q=quat_from_dcm(seg.at(blk.t)[0]),
+        bnom=np.broadcast_to(bnom, (G, lay.nb)),
+        c=c,
+        B=B,
+        Pc=0.5 * (Pc + np.swapaxes(Pc, 1, 2)),
+        Phi=Phi,
+        Phis=Phis,
+        u=u,
+        Q=Q,
+    )
     return recs, (seg.C[-1], bnom)
 
 

@@ -45,18 +45,18 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import knots as kn
+from gcs_core.filtr import stopping
 from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations, suspect_note
 from gcs_core.filtr.knot_kernels import correct_attitude
 from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.filtr.residuals import Residuals, residuals_from
 from gcs_core.filtr.results import BatchResult, FitResult
-from gcs_core.filtr import stopping
-from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
-from gcs_core.problem.gyro_attitude import GyroAttitude
-from gcs_core.problem.linearization import iter_blocks
-from gcs_core.problem.build import Problem
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.models.gyro_noise import GyroNoise
+from gcs_core.problem.attitude import RPY, AttitudeEval, FrameAttitude
+from gcs_core.problem.build import Problem
+from gcs_core.problem.gyro_attitude import GyroAttitude
+from gcs_core.problem.linearization import iter_blocks
 
 log = logging.getLogger(__name__)
 
@@ -97,7 +97,7 @@ class Dynamics:
     def covariance(self):
         """(Σ_j (K, d, d), Cov(z_j, x) (K, d, n)) at the solution (computed once)."""
         if self._cov is None and self.factors is not None:
-            assert self.P is not None                       # set with the factors
+            assert self.P is not None  # set with the factors
             self._cov = kn.KnotSystem.covariance(self.factors, self.P)
         return self._cov
 
@@ -127,8 +127,15 @@ class CorrectedAttitude:
             return C
         if COMPILED:
             out = np.empty_like(C)
-            correct_attitude(np.ascontiguousarray(C), t, self.grid.index(t).astype(np.int64), self.grid.tau,
-                                self.z, self.R if self.R.shape[0] else np.eye(3)[None], out)
+            correct_attitude(
+                np.ascontiguousarray(C),
+                t,
+                self.grid.index(t).astype(np.int64),
+                self.grid.tau,
+                self.z,
+                self.R if self.R.shape[0] else np.eye(3)[None],
+                out,
+            )
             return out
         a = kn.alpha_at(self.grid, self.z, self.R, t)
         return rotvec_to_dcm(np.einsum("nab,nb->na", C, a)) @ C
@@ -138,8 +145,9 @@ class CorrectedAttitude:
         fr = self.base.frames(values, t, partials=partials)
         # the statics' partials stay the gyro-carried attitude's (C_chain, exact: a body-frame
         # perturbation ε of C_gyro moves C = C_gyro exp(−[α×]) by the same ε)
-        return FrameAttitude(self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro,
-                             C_chain=fr.C_BI)
+        return FrameAttitude(
+            self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro, C_chain=fr.C_BI
+        )
 
     def evaluate(self, values, t) -> AttitudeEval:
         t = np.atleast_1d(np.asarray(t, float))
@@ -181,8 +189,9 @@ def process_noise(problem: Problem) -> GyroNoise | None:
     return noise if noise.process else None
 
 
-def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, names, *,
-               spacing: float | None = None) -> kn.KnotGrid:
+def make_knots(
+    problem: Problem, noise: GyroNoise, information: np.ndarray, names, *, spacing: float | None = None
+) -> kn.KnotGrid:
     """Knots over the span of the gyro knots, spaced by :func:`knots.knot_spacing` from the
     information per second the data give the attitude (the batch's roll/pitch/yaw block)."""
     att = problem.gyro_attitude
@@ -194,8 +203,9 @@ def make_knots(problem: Problem, noise: GyroNoise, information: np.ndarray, name
     if spacing is None:
         ix = [names.index(nm) for nm in RPY if nm in names]
         rate = float(np.linalg.eigvalsh(information[np.ix_(ix, ix)])[-1]) / max(t1 - t0, 1.0) if ix else 0.0
-        spacing = kn.knot_spacing(noise.sigma_v if noise.sigma_v > 0 else noise.sigma_u * 1e3, rate,
-                                  dt_min=max(dt, 1e-3))
+        spacing = kn.knot_spacing(
+            noise.sigma_v if noise.sigma_v > 0 else noise.sigma_u * 1e3, rate, dt_min=max(dt, 1e-3)
+        )
     return kn.make_grid(t0, t1, spacing, noise.sigma_v, noise.sigma_u, min_step=max(dt, 1e-3))
 
 
@@ -204,12 +214,12 @@ class Passes:
 
     def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info):
         self.problem, self.names, self.grid = problem, tuple(names), grid
-        self.base = problem.gyro_attitude          # the whole-span problem is gyro-carried
+        self.base = problem.gyro_attitude  # the whole-span problem is gyro-carried
         self.x_bar, self.prior_info = x_bar, prior_info
         self.values = problem.state.values()
         self.work: dict = {}
         self.buffers = Residuals().ensure(problem)
-        self.stream, self.keep = True, True        # knots eliminated as the data pass them
+        self.stream, self.keep = True, True  # knots eliminated as the data pass them
         # the knots' drift-bias axes R_j (knots.py), taken from the trajectory where the fit
         # starts and then held: the cost is a function of (x, z) alone, and the Jacobian
         # (which has no ∂R/∂x) is its exact one. Re-taken at every x, R moved with steps of
@@ -227,19 +237,26 @@ class Passes:
         if self.R_fixed is None:
             self.R_fixed = mid_rotations(self.base, self.values, self.grid.mid_times())
         R = self.R_fixed
-        sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream,
-                             keep=self.keep)
+        sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream, keep=self.keep)
         sysk.track(self.problem.sensors)
         prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R))
         n = len(cols) if jacobian else 0
         A, b = np.zeros((n, n)), np.zeros(n)
         chi2, m_used = 0.0, 0
-        for blk in iter_blocks(prob, self.values, cols if jacobian else (), exclude=edits, weighted=True,
-                               jacobian=jacobian, work=self.work, augmented=True):
+        for blk in iter_blocks(
+            prob,
+            self.values,
+            cols if jacobian else (),
+            exclude=edits,
+            weighted=True,
+            jacobian=jacobian,
+            work=self.work,
+            augmented=True,
+        ):
             if blk.name in self.buffers.y_pred:
-                self.buffers.y_pred[blk.name][blk.lo:blk.hi] = blk.y_pred
-            self.buffers.r[blk.name][blk.lo:blk.hi] = blk.r
-            self.buffers.valid[blk.name][blk.lo:blk.hi] = blk.valid
+                self.buffers.y_pred[blk.name][blk.lo : blk.hi] = blk.y_pred
+            self.buffers.r[blk.name][blk.lo : blk.hi] = blk.r
+            self.buffers.valid[blk.name][blk.lo : blk.hi] = blk.valid
             nu = int(np.count_nonzero(blk.used))
             if not nu:
                 sysk.passed(blk.sensor, blk.hi)
@@ -270,26 +287,30 @@ class Passes:
         D = getattr(blk.pred, "d_att", None)
         if D is None or blk.geom.C_BI is None:
             return
-        t = sd.t[blk.lo:blk.hi]
+        t = sd.t[blk.lo : blk.hi]
         w = blk.used[:, None] / sd.sigma[None, :]
         C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
         if blk.Hr is not None:
             sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
         else:
-            sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(),
-                          np.zeros(0, np.int64))
+            sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(), np.zeros(0, np.int64))
 
     def cost(self, x, chi2, sysk) -> float:
         d = self.x_bar - x
         return chi2 + float(np.sum(self.prior_info * d * d)) + sysk.prior_cost()
 
 
-def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
-                   edited: Mapping[str, np.ndarray] | None = None,
-                   initial: Mapping[str, float] | None = None,
-                   noise: GyroNoise | None = None, spacing: float | None = None,
-                   start: BatchResult | _Restart | None = None,
-                   previous: FitResult | None = None) -> BatchResult:
+def whole_span_fit(
+    problem: Problem,
+    options: BatchOptions | None = None,
+    *,
+    edited: Mapping[str, np.ndarray] | None = None,
+    initial: Mapping[str, float] | None = None,
+    noise: GyroNoise | None = None,
+    spacing: float | None = None,
+    start: BatchResult | _Restart | None = None,
+    previous: FitResult | None = None,
+) -> BatchResult:
     """The whole-span fit with gyro process noise (module docstring).
 
     ``noise`` overrides the data book's gyro noise (None: the book's); ``spacing`` the
@@ -304,15 +325,21 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     opts = options or BatchOptions()
     noise = noise if noise is not None else process_noise(problem)
     prev_dyn: Dynamics | None = getattr(previous, "dynamics", None)
-    if previous is not None and start is None and prev_dyn is not None \
-            and noise is not None and not edited and spacing is None \
-            and (prev_dyn.grid.sigma_v, prev_dyn.grid.sigma_u) == (noise.sigma_v, noise.sigma_u):
+    if (
+        previous is not None
+        and start is None
+        and prev_dyn is not None
+        and noise is not None
+        and not edited
+        and spacing is None
+        and (prev_dyn.grid.sigma_v, prev_dyn.grid.sigma_u) == (noise.sigma_v, noise.sigma_u)
+    ):
         start = _restart(problem, previous, prev_dyn)
-    batch: BatchResult | _Restart = start if start is not None else \
-        batch_fit(problem, opts, edited=edited, initial=initial)
-    if noise is None or not noise.process \
-            or not isinstance(problem.attitude, GyroAttitude):
-        assert isinstance(batch, BatchResult)        # a restart is made only with process noise
+    batch: BatchResult | _Restart = (
+        start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
+    )
+    if noise is None or not noise.process or not isinstance(problem.attitude, GyroAttitude):
+        assert isinstance(batch, BatchResult)  # a restart is made only with process noise
         return batch
     state = problem.state
     names = tuple(batch.solve_for)
@@ -322,21 +349,24 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     s0 = np.array([state[nm].sigma0 for nm in names])
     prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     warm = getattr(batch, "dynamics", None)
-    if warm is not None and spacing is None and warm.grid.sigma_v == noise.sigma_v \
-            and warm.grid.sigma_u == noise.sigma_u:
-        grid, z = warm.grid, warm.z.copy()           # a whole-span start: its knots too
+    if (
+        warm is not None
+        and spacing is None
+        and warm.grid.sigma_v == noise.sigma_v
+        and warm.grid.sigma_u == noise.sigma_u
+    ):
+        grid, z = warm.grid, warm.z.copy()  # a whole-span start: its knots too
     else:
-        assert batch.information is not None         # no knots to reuse: a batch result, with its information
+        assert batch.information is not None  # no knots to reuse: a batch result, with its information
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
         warm = None
     passes = Passes(problem, names, grid, x_bar, prior_info)
     if warm is not None and warm.R is not None and warm.R.shape[0] == grid.K - 1:
-        passes.R_fixed = warm.R                      # ... and their drift-bias axes
+        passes.R_fixed = warm.R  # ... and their drift-bias axes
     x = np.array(batch.x, float)
     preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
-    edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool))
-             for nm, r in batch.residuals.items()}
+    edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool)) for nm, r in batch.residuals.items()}
     # what the end needs of the start; its residuals (a week: 32 MB) are not kept alive
     restarted = isinstance(batch, _Restart)
     start_x, start_iterations = np.array(batch.x, float), (0 if restarted else batch.iterations)
@@ -346,8 +376,8 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     history: list[float] = []
     it_total = 0
     status, message = "max_iterations", ""
-    change = 0.0                        # the cost's fall in the last accepted iteration
-    lin = None                          # (A, b, χ², m, system, R) at (x, z) with the edits
+    change = 0.0  # the cost's fall in the last accepted iteration
+    lin = None  # (A, b, χ², m, system, R) at (x, z) with the edits
     for edit_pass in range(opts.edit_passes if edits_on else 1):
         if lin is None:
             lin = passes.run(x, z, edits)
@@ -363,13 +393,21 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                 dx, P = _solve_normal(N_red, g_red)
             except np.linalg.LinAlgError:
                 combos = name_combinations(N_red - np.diag(prior_info), names, opts.rank_tol)
-                raise UnobservableError("the normal matrix is singular: the data cannot separate "
-                                        + "; ".join(combos or ["(unidentified)"]), combos) from None
+                raise UnobservableError(
+                    "the normal matrix is singular: the data cannot separate "
+                    + "; ".join(combos or ["(unidentified)"]),
+                    combos,
+                ) from None
             dz = kn.KnotSystem.back_substitute(fac, dx)
             gain = float(g_red @ dx) + sysk.knot_gain
             sig = np.sqrt(np.diag(P))
-            log.debug("whole-span iteration %d: cost %.6g, max |dx|/σ %.2e, predicted gain %.3g",
-                      it, cost, float(np.max(np.abs(dx) / np.maximum(sig, 1e-300))), gain)
+            log.debug(
+                "whole-span iteration %d: cost %.6g, max |dx|/σ %.2e, predicted gain %.3g",
+                it,
+                cost,
+                float(np.max(np.abs(dx) / np.maximum(sig, 1e-300))),
+                gain,
+            )
             # converged: the next Gauss–Newton step is negligible, below tol_step_sigma of
             # every σ, or lowering the cost by less than GAIN_TOL (its Mahalanobis length is
             # then below sqrt(GAIN_TOL) ≈ 0.03 σ); the solution is this point, whose
@@ -396,12 +434,18 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
                 if gain <= NOISE_GAIN * cost + GAIN_TOL:
                     # the step the linearization promises is below what the first-order
                     # knot partials resolve at this cost: the minimum, to their accuracy
-                    status, message = "converged", (f"converged after {it} iterations (no shorter "
-                                                    f"step lowers the cost; predicted gain {gain:.3g})")
+                    status, message = (
+                        "converged",
+                        (
+                            f"converged after {it} iterations (no shorter "
+                            f"step lowers the cost; predicted gain {gain:.3g})"
+                        ),
+                    )
                 else:
                     # the cost is finite and never rose: a stall, not a divergence
-                    status, message = stopping.stalled(it_total - 1, cost, change, gain,
-                                                       "no shortened step lowers the cost")
+                    status, message = stopping.stalled(
+                        it_total - 1, cost, change, gain, "no shortened step lowers the cost"
+                    )
                 break
             change = cost - cost_t
             x, z = x_try, z_try
@@ -449,8 +493,10 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     info = N_red - np.diag(prior_info)
     unobs = tuple(name_combinations(info, names, opts.rank_tol * 1e3))
     chi2_proc = sysk.prior_cost()
-    message = (f"whole-span fit with gyro process noise ({grid.K} knots every "
-               f"{float(np.median(np.diff(grid.tau))):.3g} s): {message}")
+    message = (
+        f"whole-span fit with gyro process noise ({grid.K} knots every "
+        f"{float(np.median(np.diff(grid.tau))):.3g} s): {message}"
+    )
     message += suspect_note(suspect_all, opts)
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, passes.buffers, edits)
@@ -458,10 +504,27 @@ def whole_span_fit(problem: Problem, options: BatchOptions | None = None, *,
     sig = np.sqrt(np.diag(P))
     if not np.isfinite(chi2 + chi2_proc):
         status, message = stopping.diverged(it_total)
-    return SmoothedResult(new_state, names, cons, x, P, P_cons, residuals, chi2 + chi2_proc, m_used - n,
-                          tuple(history), it_total + start_iterations, status, message,
-                          info, unobs, budget, dynamics=dyn, chi2_process=chi2_proc,
-                          batch_delta_sigma=None if restarted else (start_x - x) / sig)
+    return SmoothedResult(
+        new_state,
+        names,
+        cons,
+        x,
+        P,
+        P_cons,
+        residuals,
+        chi2 + chi2_proc,
+        m_used - n,
+        tuple(history),
+        it_total + start_iterations,
+        status,
+        message,
+        info,
+        unobs,
+        budget,
+        dynamics=dyn,
+        chi2_process=chi2_proc,
+        batch_delta_sigma=None if restarted else (start_x - x) / sig,
+    )
 
 
 @dataclass(frozen=True)
@@ -475,7 +538,7 @@ class _Restart:
     residuals: Mapping
     dynamics: Dynamics
     iterations: int = 0
-    information: np.ndarray | None = None        # never read: a restart carries its knots
+    information: np.ndarray | None = None  # never read: a restart carries its knots
 
 
 def _restart(problem: Problem, previous: FitResult, dyn: Dynamics) -> _Restart:

@@ -22,8 +22,7 @@ from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, linearize
 
 
-def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | None = None,
-                  cols=None) -> np.ndarray:
+def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | None = None, cols=None) -> np.ndarray:
     """Variance added to predictions by the knot corrections' uncertainty.
 
     U (N, m, d) rows of ``∂y/∂z_j`` (:func:`knots.knot_rows`, unweighted); HJ (N, m, k)
@@ -56,7 +55,7 @@ def static_holdout_rms(problem: Problem, res, masks: Mapping[str, np.ndarray]) -
         H = lin.H[sel]
         var_pred = np.einsum("kmn,np,kmp->km", H, res.P, H, optimize=True)
         z = r.residual[sel] / np.sqrt(lin.sigma[None, :] ** 2 + var_pred)
-        out[name] = float(np.sqrt(np.mean(z ** 2)))
+        out[name] = float(np.sqrt(np.mean(z**2)))
     return out
 
 
@@ -65,13 +64,13 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
     valid frames of a whole-span fit, chunk by chunk: the variance
     ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of the static elements and the knots."""
     dyn = res.dynamics
-    assert dyn is not None                      # a whole-span fit with knots (callers check)
+    assert dyn is not None  # a whole-span fit with knots (callers check)
     names = tuple(res.solve_for)
     for blk in iter_blocks(dyn.problem(problem), res.state.values(), names, weighted=False):
         m = select.get(blk.name)
         if m is None:
             continue
-        sel = m[blk.lo:blk.hi] & blk.valid
+        sel = m[blk.lo : blk.hi] & blk.valid
         if not np.any(sel):
             continue
         sd = blk.sensor
@@ -80,7 +79,7 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
         var = np.einsum("nmk,kl,nml->nm", H, res.P[np.ix_(c, c)], H, optimize=True)
         D = getattr(blk.pred, "d_att", None)
         if D is not None and blk.geom.C_BI is not None:
-            t = sd.t[blk.lo:blk.hi][sel]
+            t = sd.t[blk.lo : blk.hi][sel]
             j = dyn.grid.index(t)
             C = kn.chained_attitude(blk.geom.C_BI[sel], dyn.grid, dyn.z, dyn.R, t)
             U = kn.knot_rows(np.nan_to_num(D[sel]), C, t, j, dyn.grid, dyn.R)
@@ -88,8 +87,7 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
         yield blk.name, blk.r[sel], sd.sigma, np.clip(var, 0, None)
 
 
-def smoothed_holdout_rms(problem: Problem, res: SmoothedResult,
-                         masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+def smoothed_holdout_rms(problem: Problem, res: SmoothedResult, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
     """Normalized RMS of the held-out frames of a whole-span fit trained without them.
 
     Each residual (at the smoothed attitude, whose knots cross the held-out span on the
@@ -101,7 +99,7 @@ def smoothed_holdout_rms(problem: Problem, res: SmoothedResult,
     for name, r, sigma, var in smoothed_frames(problem, res, masks):
         zz = r / np.sqrt(sigma[None, :] ** 2 + var)
         acc = sums.setdefault(name, [0.0, 0])
-        acc[0] += float(np.sum(zz ** 2))
+        acc[0] += float(np.sum(zz**2))
         acc[1] += zz.size
     return {k: float(np.sqrt(v[0] / v[1])) for k, v in sums.items() if v[1]}
 
@@ -137,10 +135,12 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     ratio = np.sqrt(np.diag(P_q) / pb)
     extra = np.sqrt(np.clip(np.diag(P_q) - pb, 0, None) / pb)
     order = np.argsort(-ratio)
-    return {"sigma_ratio": [(names[i], float(ratio[i])) for i in order],
-            "bias_sigma": {names[i]: float(extra[i]) for i in order},
-            "worst_bias_sigma": float(extra.max()) if extra.size else 0.0,
-            "delta_chi2": float(g_red @ dx) + sysk.knot_gain}
+    return {
+        "sigma_ratio": [(names[i], float(ratio[i])) for i in order],
+        "bias_sigma": {names[i]: float(extra[i]) for i in order},
+        "worst_bias_sigma": float(extra.max()) if extra.size else 0.0,
+        "delta_chi2": float(g_red @ dx) + sysk.knot_gain,
+    }
 
 
 def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarray) -> np.ndarray:
@@ -148,16 +148,25 @@ def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarr
     ``δθ = C [I | Γ_j(t)] z_j`` with ``J`` (N, 3, n) the static partials over ``dyn.names``."""
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     j = dyn.grid.index(t)
-    U = kn.knot_rows(eye, kn.chained_attitude(C, dyn.grid, dyn.z, dyn.R, t), t, j, dyn.grid,
-                     dyn.R)                                    # (N, 3, d): ∂δθ/∂z_j
+    U = kn.knot_rows(
+        eye, kn.chained_attitude(C, dyn.grid, dyn.z, dyn.R, t), t, j, dyn.grid, dyn.R
+    )  # (N, 3, d): ∂δθ/∂z_j
     Sig, X = dyn.covariance()
     S = np.einsum("nia,nab,njb->nij", U, Sig[j], U, optimize=True)
     cross = np.einsum("nia,nak,njk->nij", U, X[j], J, optimize=True)
     return S + cross + np.swapaxes(cross, 1, 2)
 
 
-def predicted_covariance(problem: Problem, values: Mapping[str, float], names, cons, exclude,
-                         information: np.ndarray, sigma0: np.ndarray, sigma_c: np.ndarray):
+def predicted_covariance(
+    problem: Problem,
+    values: Mapping[str, float],
+    names,
+    cons,
+    exclude,
+    information: np.ndarray,
+    sigma0: np.ndarray,
+    sigma_c: np.ndarray,
+):
     """Covariance of the whole-span fit at ``values`` without data (the predictor).
 
     One linearization with the knots at zero, eliminated: ``P = N_red⁻¹`` over ``names``,

@@ -62,8 +62,7 @@ class Filtr:
     block_seconds : length of a block [s]; each block is re-linearized at its start.
     """
 
-    def __init__(self, problem: Problem, *, options: FilterOptions | None = None,
-                 block_seconds: float = 600.0):
+    def __init__(self, problem: Problem, *, options: FilterOptions | None = None, block_seconds: float = 600.0):
         if block_seconds <= 0:
             raise EstimationError("block_seconds must be positive")
         self.options = options or FilterOptions()
@@ -81,9 +80,8 @@ class Filtr:
         self._windows = self._make_windows()
         store = getattr(self, "_store", None)
         if store is not None:
-            store.close()                                       # a new problem: new records
-        counts = [block_epochs(problem, ta, tb, b == 0)[0].size
-                  for b, (ta, tb, _, _) in enumerate(self._windows)]
+            store.close()  # a new problem: new records
+        counts = [block_epochs(problem, ta, tb, b == 0)[0].size for b, (ta, tb, _, _) in enumerate(self._windows)]
         self._offsets = np.concatenate([[0], np.cumsum(counts)]).astype(int)
         self._store: EpochStore | None = None
         self._prior()
@@ -113,15 +111,14 @@ class Filtr:
         self._vals0 = st.values()
         sig = np.array([st[e].sigma0 for e in lay.elements], float)
         if np.any(~np.isfinite(sig)):
-            log.warning("elements without prior information get a diffuse sigma of %g",
-                        self.options.diffuse_sigma)
+            log.warning("elements without prior information get a diffuse sigma of %g", self.options.diffuse_sigma)
             sig = np.where(np.isfinite(sig), sig, self.options.diffuse_sigma)
-        P = np.diag(sig ** 2)
+        P = np.diag(sig**2)
         self._C0: np.ndarray | None = None
         if self._gyro:
             att = self.problem.gyro_attitude
             rpy = [self._vals0[n] for n in RPY]
-            J0 = rpy_error_jacobian(*rpy)                      # δθ = J0 δ(roll, pitch, yaw)
+            J0 = rpy_error_jacobian(*rpy)  # δθ = J0 δ(roll, pitch, yaw)
             P[:3, :3] = J0 @ P[:3, :3] @ J0.T
             self._C0 = euler123_to_dcm(*rpy) @ att.ref.reference(att.t_ref)[0]
         self._P0 = P
@@ -132,7 +129,7 @@ class Filtr:
         self.blocks: list[BlockReport] = []
         self._pass = 0
         self._done = False
-        self._ref: dict | None = None                           # the last pass's smoothed nominal
+        self._ref: dict | None = None  # the last pass's smoothed nominal
         self._prev: tuple[np.ndarray, np.ndarray] | None = None
         self._status = ""
         self._smooth: tuple[SmoothedStates, SmoothedTrajectory, np.ndarray] | None = None
@@ -200,8 +197,9 @@ class Filtr:
             self._end_pass()
         return report
 
-    def run(self, progress: Callable[[BlockReport], None] | None = None,
-            cancel: Callable[[], bool] | None = None) -> FilterResult:
+    def run(
+        self, progress: Callable[[BlockReport], None] | None = None, cancel: Callable[[], bool] | None = None
+    ) -> FilterResult:
         """Step to the end (every pass), smooth, and return the :class:`FilterResult`.
 
         ``progress(report)`` is called after each block; when ``cancel()`` returns True
@@ -225,29 +223,41 @@ class Filtr:
         self._diag = {}
         for sd in self.problem.sensors:
             m = sd.y.shape[1]
-            self._diag[sd.name] = {"innovation": np.full((sd.n, m), np.nan),
-                                   "S": np.full((sd.n, m, m), np.nan), "nis": np.full(sd.n, np.nan),
-                                   "k_norm": np.full(sd.n, np.nan), "gated": np.zeros(sd.n, bool),
-                                   "used": np.zeros(sd.n, bool), "valid": np.zeros(sd.n, bool),
-                                   "epoch": np.full(sd.n, -1, int)}
+            self._diag[sd.name] = {
+                "innovation": np.full((sd.n, m), np.nan),
+                "S": np.full((sd.n, m, m), np.nan),
+                "nis": np.full(sd.n, np.nan),
+                "k_norm": np.full(sd.n, np.nan),
+                "gated": np.zeros(sd.n, bool),
+                "used": np.zeros(sd.n, bool),
+                "valid": np.zeros(sd.n, bool),
+                "epoch": np.full(sd.n, -1, int),
+            }
         if self._gyro and self._store is None:
             lay = self._layout
-            self._store = EpochStore(int(self._offsets[-1]), lay.d, lay.ns, lay.gs_pos.size, lay.nb,
-                                     limit_bytes=self.options.memory_limit_mb * 1e6)
+            self._store = EpochStore(
+                int(self._offsets[-1]),
+                lay.d,
+                lay.ns,
+                lay.gs_pos.size,
+                lay.nb,
+                limit_bytes=self.options.memory_limit_mb * 1e6,
+            )
 
     def _end_pass(self) -> None:
         lay = self._layout
         if self._gyro:
-            assert self._store is not None and self._C0 is not None       # set up for the gyro
-            s_star = np.array([self._vals[e] for e in lay.elements[lay.d:]])
-            sm = rts_smooth(self._store, s_star, self._P[lay.d:, lay.d:], lay.gs_pos)
-            traj = trajectory(self._store, sm, lay.nb, lay.elements[3:lay.d])
+            assert self._store is not None and self._C0 is not None  # set up for the gyro
+            s_star = np.array([self._vals[e] for e in lay.elements[lay.d :]])
+            sm = rts_smooth(self._store, s_star, self._P[lay.d :, lay.d :], lay.gs_pos)
+            traj = trajectory(self._store, sm, lay.nb, lay.elements[3 : lay.d])
             self._smooth = (sm, traj, s_star)
             starts = self._offsets[:-1]
             ref = {"C": traj.C_BI(starts), "bias": None if traj.bias is None else traj.bias[starts]}
-            cur = np.concatenate([dcm_to_rotvec(traj.C_BI(0) @ self._C0.T),
-                                  traj.bias[0] if traj.bias is not None else [], s_star])
-            sig = np.concatenate([sm.sigma[0], np.sqrt(np.diag(self._P))[lay.d:]])
+            cur = np.concatenate(
+                [dcm_to_rotvec(traj.C_BI(0) @ self._C0.T), traj.bias[0] if traj.bias is not None else [], s_star]
+            )
+            sig = np.concatenate([sm.sigma[0], np.sqrt(np.diag(self._P))[lay.d :]])
         else:
             ref = {}
             cur = np.array([self._vals[e] for e in lay.elements])
@@ -256,8 +266,7 @@ class Filtr:
         converged = False
         if self._prev is not None:
             step = np.abs(cur - self._prev[0]) / np.maximum(sig, 1e-300)
-            converged = bool(np.max(step) < self.options.pass_tol_sigma
-                             and np.array_equal(gated, self._prev[1]))
+            converged = bool(np.max(step) < self.options.pass_tol_sigma and np.array_equal(gated, self._prev[1]))
         self._prev = (cur, gated)
         ref["values"] = dict(self._vals)
         if converged:
@@ -300,11 +309,11 @@ class Filtr:
             sol = solve_block(y0, self._P, blk, edit_k=self._gates(frames), group_rows=o.group_rows)
             n_it = self._block_iterations()
             if it == n_it - 1 or np.max(np.abs(sol.y[att]), initial=0.0) <= o.relinearize_rad:
-                break                                           # near the nominal (or no more)
-            for j, e in enumerate(lay.elements):                # re-linearize at the update
+                break  # near the nominal (or no more)
+            for j, e in enumerate(lay.elements):  # re-linearize at the update
                 nom[e] += sol.y[j]
         for j, e in enumerate(lay.elements):
-            self._vals[e] = nom[e] + sol.y[j]                   # x = x_nominal + y
+            self._vals[e] = nom[e] + sol.y[j]  # x = x_nominal + y
         self._P = sol.P
         return frames, sol, None
 
@@ -312,41 +321,38 @@ class Filtr:
         t_a, t_b, k_a, k_b = self._windows[b]
         lay, att, o = self._layout, self.problem.gyro_attitude, self.options
         store, noise, C = self._store, self._noise, self._C
-        assert store is not None and noise is not None and C is not None   # set up for the gyro
+        assert store is not None and noise is not None and C is not None  # set up for the gyro
         nom = dict(self._vals)
-        if self._ref is None:                                   # EKF: linearize at the estimate
+        if self._ref is None:  # EKF: linearize at the estimate
             C_a = C
-        else:                                                   # iterated: at the smoothed one
+        else:  # iterated: at the smoothed one
             C_a = self._ref["C"][b]
-            nom.update({e: self._ref["values"][e] for e in lay.elements[lay.d:]})
+            nom.update({e: self._ref["values"][e] for e in lay.elements[lay.d :]})
             if lay.nb:
-                nom.update(dict(zip(lay.elements[3:lay.d], self._ref["bias"][b])))
-        axes = ["xyz".index(e[-1]) for e in lay.elements[3:lay.d]]
+                nom.update(dict(zip(lay.elements[3 : lay.d], self._ref["bias"][b])))
+        axes = ["xyz".index(e[-1]) for e in lay.elements[3 : lay.d]]
         for it in range(self._block_iterations()):
             y0 = np.zeros(lay.n)
-            y0[:3] = dcm_to_rotvec(C @ C_a.T)                   # C = exp(−[δθ×]) C_a
+            y0[:3] = dcm_to_rotvec(C @ C_a.T)  # C = exp(−[δθ×]) C_a
             y0[3:] = [self._vals[e] - nom[e] for e in lay.elements[3:]]
             omega, W, Wy, Wb = gyro_rates(att, nom, k_a, k_b)
-            seg = GyroSegment(att.knots[k_a:k_b + 1], omega, W[:, :, lay.gyro_w], C_a, noise,
-                              Wy, Wb, axes)
-            blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0,
-                                   self._pre_edited(), noise.sigma_e ** 2)
-            sol = solve_block(y0, self._P, blk, edit_k=self._gates(frames), group_rows=o.group_rows,
-                              keep_epochs=True)
+            seg = GyroSegment(att.knots[k_a : k_b + 1], omega, W[:, :, lay.gyro_w], C_a, noise, Wy, Wb, axes)
+            blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0, self._pre_edited(), noise.sigma_e**2)
+            sol = solve_block(y0, self._P, blk, edit_k=self._gates(frames), group_rows=o.group_rows, keep_epochs=True)
             # y is referred to the block start: its δθ estimates the start's attitude error,
             # which must be small for the linearization at the nominal to hold
             if it == self._block_iterations() - 1 or np.max(np.abs(sol.y[:3])) <= o.relinearize_rad:
                 break
-            C_a = rotvec_to_dcm(sol.y[:3]) @ C_a                # re-linearize at the update
+            C_a = rotvec_to_dcm(sol.y[:3]) @ C_a  # re-linearize at the update
             for j, e in enumerate(lay.elements[3:], start=3):
                 nom[e] += sol.y[j]
-        assert blk.Psi_d is not None                            # a gyro block carries its transitions
+        assert blk.Psi_d is not None  # a gyro block carries its transitions
         Psi = np.eye(lay.n)
-        Psi[:lay.d] = blk.Psi_d[-1]
-        x = Psi @ sol.y                                         # x = Ψ(t_b) y
+        Psi[: lay.d] = blk.Psi_d[-1]
+        x = Psi @ sol.y  # x = Ψ(t_b) y
         P = Psi @ sol.P @ Psi.T
-        self._P = 0.5 * (P + P.T)                               # symmetrize: round-off only
-        self._C = rotvec_to_dcm(x[:3]) @ seg.C[-1]              # reset: nominal ⊕ δθ
+        self._P = 0.5 * (P + P.T)  # symmetrize: round-off only
+        self._C = rotvec_to_dcm(x[:3]) @ seg.C[-1]  # reset: nominal ⊕ δθ
         for j, e in enumerate(lay.elements[3:], start=3):
             self._vals[e] = nom[e] + x[j]
         recs, self._prev_nom = block_records(lay, blk, sol, seg, nom, C_a, self._prev_nom)
@@ -387,31 +393,65 @@ class Filtr:
             dg["gated"][fi] = sol.gated[sel]
             dg["used"][fi] = ~sol.gated[sel]
             sd = self.problem.sensor(name)
-            fd[name] = FrameDiagnostics(name, sd.t[idx], idx, *(dg[k][idx] for k in (
-                "innovation", "S", "nis", "k_norm", "gated", "used", "valid")))
+            fd[name] = FrameDiagnostics(
+                name,
+                sd.t[idx],
+                idx,
+                *(dg[k][idx] for k in ("innovation", "S", "nis", "k_norm", "gated", "used", "valid")),
+            )
             used = dg["used"][idx]
             nis = float(np.sum(dg["nis"][idx][used]))
             dof = int(used.sum()) * m
             zn = dg["innovation"][idx][used] / np.sqrt(np.einsum("fii->fi", dg["S"][idx][used]))
-            per[name] = InnovationStats(name, idx.size, int(valid.sum()), int(used.sum()),
-                                        int(dg["gated"][idx].sum()), nis, dof, _pvalue(nis, dof),
-                                        float(np.sqrt(np.mean(zn ** 2))) if zn.size else np.nan)
+            per[name] = InnovationStats(
+                name,
+                idx.size,
+                int(valid.sum()),
+                int(used.sum()),
+                int(dg["gated"][idx].sum()),
+                nis,
+                dof,
+                _pvalue(nis, dof),
+                float(np.sqrt(np.mean(zn**2))) if zn.size else np.nan,
+            )
             tot_nis, tot_dof = tot_nis + nis, tot_dof + dof
             n_used += int(used.sum())
             n_gated += int(dg["gated"][idx].sum())
             n_invalid += int((~valid).sum())
         x, s = self._element_state(t_b)
-        return BlockReport(b, self.n_blocks, self._pass, t_a, t_b, tuple(self.problem.state.solve_for),
-                           prior_x, prior_s, x, s, q, per, tot_nis, tot_dof, _pvalue(tot_nis, tot_dof),
-                           n_used, n_gated, n_invalid, fd)
+        return BlockReport(
+            b,
+            self.n_blocks,
+            self._pass,
+            t_a,
+            t_b,
+            tuple(self.problem.state.solve_for),
+            prior_x,
+            prior_s,
+            x,
+            s,
+            q,
+            per,
+            tot_nis,
+            tot_dof,
+            _pvalue(tot_nis, tot_dof),
+            n_used,
+            n_gated,
+            n_invalid,
+            fd,
+        )
 
     def frame_diagnostics(self) -> dict[str, FrameDiagnostics]:
         """Per-frame diagnostics of the current pass, whole span, every sensor."""
         out = {}
         for sd in self.problem.sensors:
             dg = self._diag[sd.name]
-            out[sd.name] = FrameDiagnostics(sd.name, sd.t, np.arange(sd.n), *(dg[k] for k in (
-                "innovation", "S", "nis", "k_norm", "gated", "used", "valid")))
+            out[sd.name] = FrameDiagnostics(
+                sd.name,
+                sd.t,
+                np.arange(sd.n),
+                *(dg[k] for k in ("innovation", "S", "nis", "k_norm", "gated", "used", "valid")),
+            )
         return out
 
     def result(self, cancelled: bool = False) -> FilterResult:
@@ -420,27 +460,27 @@ class Filtr:
             raise EstimationError("the filter has not finished: call run() (or step() to the end)")
         lay, prob = self._layout, self.problem
         diag = self.frame_diagnostics()
-        edited = {n: f.gated | np.asarray(self._pre_edited().get(n, np.zeros(f.t.size, bool)), bool)
-                  for n, f in diag.items()}
+        edited = {
+            n: f.gated | np.asarray(self._pre_edited().get(n, np.zeros(f.t.size, bool)), bool) for n, f in diag.items()
+        }
         x, P, traj = np.array([self._vals[e] for e in lay.elements]), self._P, None
         if self._gyro:
-            assert self._store is not None                      # set up for the gyro
+            assert self._store is not None  # set up for the gyro
             sm: SmoothedStates | None
             if self._done or (self._block == 0 and self._smooth is not None):
-                assert self._smooth is not None                 # every finished pass smooths
-                sm, traj, s_star = self._smooth                 # the last completed pass
+                assert self._smooth is not None  # every finished pass smooths
+                sm, traj, s_star = self._smooth  # the last completed pass
             else:
                 n_ep = int(self._offsets[self._block])
-                s_star = x[lay.d:]
-                sm = rts_smooth(self._store, s_star, P[lay.d:, lay.d:], lay.gs_pos, n=n_ep) \
-                    if n_ep else None
-                traj = trajectory(self._store, sm, lay.nb, lay.elements[3:lay.d]) if sm is not None else None
+                s_star = x[lay.d :]
+                sm = rts_smooth(self._store, s_star, P[lay.d :, lay.d :], lay.gs_pos, n=n_ep) if n_ep else None
+                traj = trajectory(self._store, sm, lay.nb, lay.elements[3 : lay.d]) if sm is not None else None
             if traj is not None and sm is not None:
                 att = prob.gyro_attitude
                 rpy = att.ref.rpy_from_dcm(traj.C_BI(0), att.t_ref)
                 x = np.concatenate([rpy, traj.bias[0] if traj.bias is not None else [], s_star])
-                Pss = P[lay.d:, lay.d:]
-                cross = sm.Gamma0 @ Pss                         # cov(d_0, s) = Γ_0 P_ss
+                Pss = P[lay.d :, lay.d :]
+                cross = sm.Gamma0 @ Pss  # cov(d_0, s) = Γ_0 P_ss
                 P = np.block([[sm.P0, cross], [cross.T, Pss]])
                 T = np.eye(lay.n)
                 T[:3, :3] = np.linalg.inv(rpy_error_jacobian(*rpy))
@@ -459,21 +499,35 @@ class Filtr:
         msg = _passes_text(self._pass + 1, status)
         if prob.state.consider:
             msg += "; consider elements held at their values: " + ", ".join(prob.state.consider)
-        return FilterResult(prob.state.with_values(values), tuple(prob.state.solve_for), x[perm],
-                            0.5 * (P + P.T)[np.ix_(perm, perm)], residuals, traj, diag,
-                            tuple(self.blocks), self._pass + 1, status, msg, nis, dof,
-                            _pvalue(nis, dof))
+        return FilterResult(
+            prob.state.with_values(values),
+            tuple(prob.state.solve_for),
+            x[perm],
+            0.5 * (P + P.T)[np.ix_(perm, perm)],
+            residuals,
+            traj,
+            diag,
+            tuple(self.blocks),
+            self._pass + 1,
+            status,
+            msg,
+            nis,
+            dof,
+            _pvalue(nis, dof),
+        )
+
 
 def _pvalue(nis: float, dof: int) -> float:
-    return float(special.chdtrc(dof, nis)) if dof > 0 else float("nan")   # P(χ²_dof ≥ nis)
+    return float(special.chdtrc(dof, nis)) if dof > 0 else float("nan")  # P(χ²_dof ≥ nis)
 
 
 def _passes_text(n: int, status: str) -> str:
     """The run's status in words: the iterated smoother's passes are a refinement, and
     ending at the pass limit is normal, not a failure."""
     passes = f"{n} pass{'es' if n != 1 else ''}"
-    return {"converged": f"converged after {passes}",
-            "max_passes": f"{passes} done, as configured (max_passes): each relinearizes about the smoothed "
-                          "estimate",
-            "single_pass": "one pass (filter and smoother)",
-            "cancelled": f"cancelled during pass {n}"}.get(status, f"{passes}, {status}")
+    return {
+        "converged": f"converged after {passes}",
+        "max_passes": f"{passes} done, as configured (max_passes): each relinearizes about the smoothed estimate",
+        "single_pass": "one pass (filter and smoother)",
+        "cancelled": f"cancelled during pass {n}",
+    }.get(status, f"{passes}, {status}")

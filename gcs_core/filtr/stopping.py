@@ -44,18 +44,23 @@ def stalled(iterations: int, cost: float, last_change: float, gain: float, why: 
     the linearization still predicts, ``why`` what stopped it."""
     if not math.isfinite(cost):
         return diverged(iterations)
-    return STALLED, (f"stalled after {iterations} iterations at a relative cost change of "
-                     f"{relative(last_change, cost):.1e}: {why} (the linearization still predicts "
-                     f"{gain:.3g}, {relative(gain, cost):.1e} of the cost)")
+    return STALLED, (
+        f"stalled after {iterations} iterations at a relative cost change of "
+        f"{relative(last_change, cost):.1e}: {why} (the linearization still predicts "
+        f"{gain:.3g}, {relative(gain, cost):.1e} of the cost)"
+    )
 
 
 def iteration_limit(iterations: int, cost: float, last_change: float) -> tuple[str, str]:
     """(status, message) of a fit stopped by its iteration limit."""
-    return ITERATION_LIMIT, (f"iteration limit: stopped after {iterations} iterations with the cost "
-                             f"still falling by {relative(last_change, cost):.1e} of itself per iteration")
+    return ITERATION_LIMIT, (
+        f"iteration limit: stopped after {iterations} iterations with the cost "
+        f"still falling by {relative(last_change, cost):.1e} of itself per iteration"
+    )
 
 
 def diverged(iterations: int) -> tuple[str, str]:
     """(status, message) of a fit whose cost is not finite."""
-    return DIVERGED, (f"diverged after {iterations} iterations: the cost is not finite (the model "
-                      "cannot describe these data)")
+    return DIVERGED, (
+        f"diverged after {iterations} iterations: the cost is not finite (the model cannot describe these data)"
+    )

@@ -30,8 +30,15 @@ import numpy as np
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_to_dcm
 
-__all__ = ["REFERENCE_MODES", "reference_dcm", "spin_axis", "spin_axis_partials",
-           "ra_dec_from_vector", "earth_pointing_rate", "attitude_from_rpy"]
+__all__ = [
+    "REFERENCE_MODES",
+    "reference_dcm",
+    "spin_axis",
+    "spin_axis_partials",
+    "ra_dec_from_vector",
+    "earth_pointing_rate",
+    "attitude_from_rpy",
+]
 
 #: Attitude modes that have a reference frame (ICD §2, §3).
 REFERENCE_MODES = ("inertial", "earth_pointing", "sun_pointing")
@@ -63,31 +70,33 @@ def reference_dcm(mode: str, r_I=None, v_I=None, sun_I=None) -> np.ndarray:
     without vectors).
     """
     if mode == "inertial":
-        n = next((np.atleast_2d(np.asarray(a)).shape[0] for a in (r_I, v_I, sun_I)
-                  if a is not None), 1)
+        n = next((np.atleast_2d(np.asarray(a)).shape[0] for a in (r_I, v_I, sun_I) if a is not None), 1)
         return np.broadcast_to(np.eye(3), (n, 3, 3)).copy()
     if mode == "earth_pointing":
         if r_I is None or v_I is None:
             raise ValueError("earth_pointing needs r_I and v_I")
         r, v = _as_vectors(r_I, "r_I"), _as_vectors(v_I, "v_I")
-        z = -_unit(r)                                   # z_R = -r/|r|
-        y = -_unit(np.cross(r, v))                      # y_R = -(r x v)/|r x v|
-        x = np.cross(y, z)                              # x_R = y_R x z_R
+        z = -_unit(r)  # z_R = -r/|r|
+        y = -_unit(np.cross(r, v))  # y_R = -(r x v)/|r x v|
+        x = np.cross(y, z)  # x_R = y_R x z_R
         return np.stack([x, y, z], axis=-2)
     if mode == "sun_pointing":
         if sun_I is None:
             raise ValueError("sun_pointing needs sun_I")
         s = _as_vectors(sun_I, "sun_I")
-        x = _unit(s)                                    # x_R = s/|s|
-        y = _unit(np.cross(np.array([0.0, 0.0, 1.0]), x))   # y_R = z_GCI x x_R / |.|
-        z = np.cross(x, y)                              # z_R = x_R x y_R
+        x = _unit(s)  # x_R = s/|s|
+        y = _unit(np.cross(np.array([0.0, 0.0, 1.0]), x))  # y_R = z_GCI x x_R / |.|
+        z = np.cross(x, y)  # z_R = x_R x y_R
         return np.stack([x, y, z], axis=-2)
     if mode == "spinning":
-        raise InputError("a spinning mission has no reference frame: its attitude is the "
-                         "spin axis (use spin_axis)", key="mission.attitude_mode")
-    raise InputError(f"unknown attitude mode '{mode}' (use one of "
-                     + ", ".join(REFERENCE_MODES + ("spinning",)) + ")",
-                     key="mission.attitude_mode")
+        raise InputError(
+            "a spinning mission has no reference frame: its attitude is the spin axis (use spin_axis)",
+            key="mission.attitude_mode",
+        )
+    raise InputError(
+        f"unknown attitude mode '{mode}' (use one of " + ", ".join(REFERENCE_MODES + ("spinning",)) + ")",
+        key="mission.attitude_mode",
+    )
 
 
 def spin_axis(ra, dec) -> np.ndarray:
@@ -140,7 +149,7 @@ def earth_pointing_rate(r_I, v_I, *, frame: str = "I") -> np.ndarray:
     r, v = _as_vectors(r_I, "r_I"), _as_vectors(v_I, "v_I")
     A = reference_dcm("earth_pointing", r, v)
     x, y = A[:, 0, :], A[:, 1, :]
-    rate = np.sum(v * x, axis=-1) / np.linalg.norm(r, axis=-1)     # (v . x_R)/|r|
+    rate = np.sum(v * x, axis=-1) / np.linalg.norm(r, axis=-1)  # (v . x_R)/|r|
     if frame == "I":
         return -rate[:, None] * y
     if frame == "R":
@@ -170,5 +179,5 @@ def attitude_from_rpy(mode: str, roll, pitch, yaw, A=None) -> np.ndarray:
             raise ValueError(f"mode '{mode}' needs the reference matrix A")
         return np.asarray(B)
     if mode not in REFERENCE_MODES:
-        reference_dcm(mode)          # raises the same clear message
+        reference_dcm(mode)  # raises the same clear message
     return np.asarray(B) @ np.asarray(A, dtype=float)

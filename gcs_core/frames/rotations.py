@@ -18,9 +18,23 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = [
-    "T1", "T2", "T3", "skew", "euler123_to_dcm", "dcm_to_euler123", "euler123_partials",
-    "quat_to_dcm", "quat_from_dcm", "quat_multiply", "quat_conjugate", "quat_normalize",
-    "quat_to_euler123", "small_rotation", "rotvec_to_dcm", "dcm_to_rotvec", "orthonormalize",
+    "T1",
+    "T2",
+    "T3",
+    "skew",
+    "euler123_to_dcm",
+    "dcm_to_euler123",
+    "euler123_partials",
+    "quat_to_dcm",
+    "quat_from_dcm",
+    "quat_multiply",
+    "quat_conjugate",
+    "quat_normalize",
+    "quat_to_euler123",
+    "small_rotation",
+    "rotvec_to_dcm",
+    "dcm_to_rotvec",
+    "orthonormalize",
 ]
 
 
@@ -55,8 +69,7 @@ def skew(v):
     v = np.asarray(v, dtype=float)
     x, y, z = v[..., 0], v[..., 1], v[..., 2]
     zero = np.zeros_like(x)
-    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1),
-                     np.stack([-y, x, zero], -1)], -2)
+    return np.stack([np.stack([zero, -z, y], -1), np.stack([z, zero, -x], -1), np.stack([-y, x, zero], -1)], -2)
 
 
 def euler123_to_dcm(roll, pitch, yaw):
@@ -79,8 +92,7 @@ def dcm_to_euler123(B):
     pitch = np.arctan2(B[..., 2, 0], cos_t)
     singular = cos_t < 1e-12
     roll = np.where(singular, 0.0, np.arctan2(-B[..., 2, 1], B[..., 2, 2]))
-    yaw = np.where(singular, np.arctan2(B[..., 0, 1], B[..., 1, 1]),
-                   np.arctan2(-B[..., 1, 0], B[..., 0, 0]))
+    yaw = np.where(singular, np.arctan2(B[..., 0, 1], B[..., 1, 1]), np.arctan2(-B[..., 1, 0], B[..., 0, 0]))
     return roll, pitch, yaw
 
 
@@ -115,7 +127,7 @@ def quat_to_dcm(q):
     e, q4 = q[..., :3], q[..., 3]
     ee = np.einsum("...i,...j->...ij", e, e)
     eye = np.broadcast_to(np.eye(3), ee.shape)
-    s = (q4 ** 2 - np.sum(e * e, axis=-1))[..., None, None]
+    s = (q4**2 - np.sum(e * e, axis=-1))[..., None, None]
     return s * eye + 2.0 * ee - 2.0 * q4[..., None, None] * skew(e)
 
 
@@ -159,12 +171,15 @@ def quat_multiply(qp, q):
     b1, b2, b3, b4 = np.moveaxis(q, -1, 0)
     # Eq 4-10b: q'' = [[q4', q3', -q2', q1'], [-q3', q4', q1', q2'],
     #                  [q2', -q1', q4', q3'], [-q1', -q2', -q3', q4']] q
-    return np.stack([
-        a4 * b1 + a3 * b2 - a2 * b3 + a1 * b4,
-        -a3 * b1 + a4 * b2 + a1 * b3 + a2 * b4,
-        a2 * b1 - a1 * b2 + a4 * b3 + a3 * b4,
-        -a1 * b1 - a2 * b2 - a3 * b3 + a4 * b4,
-    ], -1)
+    return np.stack(
+        [
+            a4 * b1 + a3 * b2 - a2 * b3 + a1 * b4,
+            -a3 * b1 + a4 * b2 + a1 * b3 + a2 * b4,
+            a2 * b1 - a1 * b2 + a4 * b3 + a3 * b4,
+            -a1 * b1 - a2 * b2 - a3 * b3 + a4 * b4,
+        ],
+        -1,
+    )
 
 
 def quat_conjugate(q):
@@ -189,8 +204,8 @@ def rotvec_to_dcm(phi):
     K = skew(phi)
     small = ang < 1e-8
     safe = np.where(small, 1.0, ang)
-    a = np.where(small, 1.0 - ang ** 2 / 6.0, np.sin(safe) / safe)
-    b = np.where(small, 0.5 - ang ** 2 / 24.0, (1.0 - np.cos(safe)) / safe ** 2)
+    a = np.where(small, 1.0 - ang**2 / 6.0, np.sin(safe) / safe)
+    b = np.where(small, 0.5 - ang**2 / 24.0, (1.0 - np.cos(safe)) / safe**2)
     eye = np.broadcast_to(np.eye(3), K.shape)
     return eye - a * K + b * (K @ K)
 

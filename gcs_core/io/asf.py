@@ -94,8 +94,9 @@ def _check(t, q, sigma) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return t, q, sigma
 
 
-def append_solution(path: str | os.PathLike, *, t, q, sigma, source: str,
-                    provenance: Mapping[str, Any] | None = None) -> int:
+def append_solution(
+    path: str | os.PathLike, *, t, q, sigma, source: str, provenance: Mapping[str, Any] | None = None
+) -> int:
     """Append an attitude history to the ASF (created if absent); return its number.
 
     Parameters
@@ -118,18 +119,22 @@ def append_solution(path: str | os.PathLike, *, t, q, sigma, source: str,
     except (TypeError, ValueError) as err:
         raise ValueError(f"provenance must be JSON-serializable ({err})") from None
     scds_version = prov.get("scds_version")
-    attrs = {"source": source, "created_utc": str(prov["created_utc"]),
-             "gcs_version": str(prov["gcs_version"]), "note": str(prov.get("note", "")),
-             "n": np.int64(t.size), "t0": float(t[0]) if t.size else np.nan,
-             "t1": float(t[-1]) if t.size else np.nan,
-             "scds_version": np.int64(scds_version) if isinstance(scds_version, int) else -1,
-             "provenance": prov_json}
+    attrs = {
+        "source": source,
+        "created_utc": str(prov["created_utc"]),
+        "gcs_version": str(prov["gcs_version"]),
+        "note": str(prov.get("note", "")),
+        "n": np.int64(t.size),
+        "t0": float(t[0]) if t.size else np.nan,
+        "t1": float(t[-1]) if t.size else np.nan,
+        "scds_version": np.int64(scds_version) if isinstance(scds_version, int) else -1,
+        "provenance": prov_json,
+    }
 
     def build(g: h5py.Group, number: int) -> None:
         g.attrs.update({"solution": np.int64(number), **attrs})
         h5store.write_array(g, "t", t, attrs={"unit": "s"})
-        h5store.write_array(g, "q", q, attrs={"convention": "q1, q2, q3, q4 (scalar last), "
-                                                            "GCI to body"})
+        h5store.write_array(g, "q", q, attrs={"convention": "q1, q2, q3, q4 (scalar last), GCI to body"})
         h5store.write_array(g, "sigma_rad", sigma, attrs={"unit": "rad"})
 
     return h5store.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
@@ -146,11 +151,17 @@ def list_solutions(path: str | os.PathLike) -> list[AsfSummary]:
         for name in _names(f):
             g = f[COLLECTION][name]
             a = g.attrs
-            out.append(AsfSummary(solution=int(a["solution"]),
-                                  source=h5store.attr_str(g, "source", ""),
-                                  created_utc=h5store.attr_str(g, "created_utc", ""),
-                                  note=h5store.attr_str(g, "note", ""), n=int(a["n"]),
-                                  t0=float(a["t0"]), t1=float(a["t1"])))
+            out.append(
+                AsfSummary(
+                    solution=int(a["solution"]),
+                    source=h5store.attr_str(g, "source", ""),
+                    created_utc=h5store.attr_str(g, "created_utc", ""),
+                    note=h5store.attr_str(g, "note", ""),
+                    n=int(a["n"]),
+                    t0=float(a["t0"]),
+                    t1=float(a["t1"]),
+                )
+            )
         return out
 
 
@@ -163,14 +174,18 @@ def read_solution(path: str | os.PathLike, n: int | None = None) -> AsfSolution:
             raise DataFileError("holds no attitude solutions", file=path)
         name = available[-1] if n is None else f"{int(n):05d}"
         if name not in available:
-            raise DataFileError(f"has no attitude solution {n} (solutions "
-                                f"{int(available[0])} to {int(available[-1])})", file=path)
+            raise DataFileError(
+                f"has no attitude solution {n} (solutions {int(available[0])} to {int(available[-1])})", file=path
+            )
         g = f[COLLECTION][name]
         t, q, sigma = g["t"][()], g["q"][()], g["sigma_rad"][()]
         if q.shape != (t.size, 4) or sigma.shape != (t.size, 3):
-            raise DataFileError(f"solution {int(name)} has arrays of inconsistent shapes",
-                                file=path)
-        return AsfSolution(solution=int(g.attrs["solution"]),
-                           source=h5store.attr_str(g, "source", ""), t=t, q=q,
-                           sigma_rad=sigma,
-                           provenance=json.loads(h5store.attr_str(g, "provenance", "{}")))
+            raise DataFileError(f"solution {int(name)} has arrays of inconsistent shapes", file=path)
+        return AsfSolution(
+            solution=int(g.attrs["solution"]),
+            source=h5store.attr_str(g, "source", ""),
+            t=t,
+            q=q,
+            sigma_rad=sigma,
+            provenance=json.loads(h5store.attr_str(g, "provenance", "{}")),
+        )

@@ -36,8 +36,7 @@ from gcs_core.io.types import Table
 log = logging.getLogger(__name__)
 
 #: what a number may look like (decimal, optional exponent, nan/inf); ASCII only.
-_NUMBER = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)",
-                     re.IGNORECASE)
+_NUMBER = re.compile(r"[+-]?(?:(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?|inf|infinity|nan)", re.IGNORECASE)
 _NAN_WORDS = frozenset({"", "nan", "+nan", "-nan"})
 #: numpy's complaint about an empty (or blank) field.
 _EMPTY_FIELD_ERR = re.compile(r"could not convert string '\s*' to")
@@ -59,45 +58,52 @@ def _decode(raw: bytes, path: Path) -> str:
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as err:
-        before = raw[:err.start]
+        before = raw[: err.start]
         line = before.count(b"\n") + 1
         line_start = before.rfind(b"\n") + 1
-        column = raw[line_start:err.start].count(b",") + 1
-        raise InputError(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path,
-                         line=line, column=column) from None
+        column = raw[line_start : err.start].count(b",") + 1
+        raise InputError(f"not UTF-8 text (byte 0x{raw[err.start]:02x})", file=path, line=line, column=column) from None
     return text[1:] if text.startswith("\ufeff") else text
 
 
-def _parse_header(line: str, lineno: int, path: Path, required: tuple[str, ...],
-                  what: str) -> list[str]:
+def _parse_header(line: str, lineno: int, path: Path, required: tuple[str, ...], what: str) -> list[str]:
     names = [n.strip() for n in line.split(",")]
     if all(_NUMBER.fullmatch(n) for n in names):
-        raise InputError("no header line: the first line holds numbers, not column names "
-                         f"(ICD §1; {what} needs {', '.join(required)})", file=path,
-                         line=lineno, column=1)
+        raise InputError(
+            "no header line: the first line holds numbers, not column names "
+            f"(ICD §1; {what} needs {', '.join(required)})",
+            file=path,
+            line=lineno,
+            column=1,
+        )
     seen: dict[str, int] = {}
     for k, name in enumerate(names, start=1):
         if not name:
-            raise InputError(f"empty column name in the header (column {k})", file=path,
-                             line=lineno, column=k)
+            raise InputError(f"empty column name in the header (column {k})", file=path, line=lineno, column=k)
         if name in seen:
-            raise InputError(f"column name '{name}' appears twice in the header (columns "
-                             f"{seen[name]} and {k})", file=path, line=lineno, column=k)
+            raise InputError(
+                f"column name '{name}' appears twice in the header (columns {seen[name]} and {k})",
+                file=path,
+                line=lineno,
+                column=k,
+            )
         seen[name] = k
     for name in required:
         if name not in seen:
-            raise InputError(f"missing required column '{name}' ({what} needs "
-                             f"{', '.join(required)})", file=path, line=lineno, column=name)
+            raise InputError(
+                f"missing required column '{name}' ({what} needs {', '.join(required)})",
+                file=path,
+                line=lineno,
+                column=name,
+            )
     return names
 
 
 def _field_error(path: Path, lineno: int, k: int, names: list[str], message: str) -> InputError:
-    return InputError(f"{message} in column {k + 1} '{names[k]}'", file=path, line=lineno,
-                      column=k + 1)
+    return InputError(f"{message} in column {k + 1} '{names[k]}'", file=path, line=lineno, column=k + 1)
 
 
-def _parse_slowly(rows: list[str], linenos: list[int], names: list[str],
-                  path: Path) -> np.ndarray:
+def _parse_slowly(rows: list[str], linenos: list[int], names: list[str], path: Path) -> np.ndarray:
     """Line-by-line parse, raising at the first bad field (file order)."""
     ncol = len(names)
     out = np.empty((len(rows), ncol))
@@ -105,12 +111,16 @@ def _parse_slowly(rows: list[str], linenos: list[int], names: list[str],
         fields = row.split(",")
         if len(fields) < ncol:
             k = len(fields)
-            raise InputError(f"{len(fields)} fields where the header has {ncol}: missing "
-                             f"column {k + 1} '{names[k]}'", file=path, line=lineno,
-                             column=k + 1)
+            raise InputError(
+                f"{len(fields)} fields where the header has {ncol}: missing column {k + 1} '{names[k]}'",
+                file=path,
+                line=lineno,
+                column=k + 1,
+            )
         if len(fields) > ncol:
-            raise InputError(f"{len(fields)} fields where the header has {ncol} columns",
-                             file=path, line=lineno, column=ncol + 1)
+            raise InputError(
+                f"{len(fields)} fields where the header has {ncol} columns", file=path, line=lineno, column=ncol + 1
+            )
         for k, field in enumerate(fields):
             s = field.strip()
             if s.lower() in _NAN_WORDS:
@@ -125,8 +135,7 @@ def _parse_slowly(rows: list[str], linenos: list[int], names: list[str],
     return out
 
 
-def _parse_bulk(rows: list[str], linenos: list[int], names: list[str],
-                path: Path) -> np.ndarray:
+def _parse_bulk(rows: list[str], linenos: list[int], names: list[str], path: Path) -> np.ndarray:
     """numpy's C reader; on refusal, the slow pass names the place."""
     ncol = len(names)
     if not rows:
@@ -156,7 +165,7 @@ def _header(text: str, path: Path, required: tuple[str, ...], what: str):
     """The header line, found without splitting the file: ``(names, header_at, eol)``, the
     0-based index of the header line and the offset of the newline that ends it."""
     pos, header_at, n = 0, 0, len(text)
-    while pos < n:                                   # the first non-comment, non-blank line
+    while pos < n:  # the first non-comment, non-blank line
         eol = text.find("\n", pos)
         eol = n if eol < 0 else eol
         stripped = text[pos:eol].strip()
@@ -164,17 +173,16 @@ def _header(text: str, path: Path, required: tuple[str, ...], what: str):
             names = _parse_header(text[pos:eol].rstrip("\r"), header_at + 1, path, required, what)
             return names, header_at, eol
         pos, header_at = eol + 1, header_at + 1
-    raise InputError(f"empty file: no header line ({what} needs "
-                     f"{', '.join(required)})", file=path)
+    raise InputError(f"empty file: no header line ({what} needs {', '.join(required)})", file=path)
 
 
 def _split_lines(text: str, header_at: int, eol: int):
     """Data rows after the header and their 1-based line numbers (comments and blank
     lines skipped)."""
-    body = text[eol + 1:].split("\n")
+    body = text[eol + 1 :].split("\n")
     while body and not body[-1].strip():
         body.pop()  # trailing newline(s)
-    first = header_at + 2                            # line number of the first body line
+    first = header_at + 2  # line number of the first body line
     joined = "\n".join(body)
     if "#" not in joined and not _BLANK_LINE.search("\n" + joined):  # the usual case: no skips
         return body, list(range(first, first + len(body)))
@@ -188,8 +196,7 @@ def _split_lines(text: str, header_at: int, eol: int):
     return rows, linenos
 
 
-def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",),
-               what: str = "telemetry") -> Table:
+def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",), what: str = "telemetry") -> Table:
     """Read one CSV file of the mission directory (ICD §1).
 
     Parameters
@@ -219,7 +226,7 @@ def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",),
         raise InputError(f"cannot read {what} file ({err.strerror})", file=path) from None
     text = _decode(raw, path)
     if "\x00" in text:
-        lineno = text[:text.index("\x00")].count("\n") + 1
+        lineno = text[: text.index("\x00")].count("\n") + 1
         raise InputError("NUL byte in a text file (binary data?)", file=path, line=lineno)
     del raw
     names, header_at, eol = _header(text, path, required, what)
@@ -253,14 +260,25 @@ def _read_plain(path: Path, text: str, names: list[str], header_at: int, eol: in
     body_start = eol + 1
     # comments, blank lines, empty fields (NaN) and a lone CR (a line break to the C
     # reader, not to the ICD) take the general path
-    if (text.find("#", body_start, end) >= 0
-            or text.count("\r", body_start, end) != text.count("\r\n", body_start, end)
-            or _BLANK_LINE.search(text, eol, end) or _EMPTY_FIELD_FAST.search(text, body_start, end)):
+    if (
+        text.find("#", body_start, end) >= 0
+        or text.count("\r", body_start, end) != text.count("\r\n", body_start, end)
+        or _BLANK_LINE.search(text, eol, end)
+        or _EMPTY_FIELD_FAST.search(text, body_start, end)
+    ):
         return None
     rows = text.count("\n", body_start, end) + 1
     try:
-        data = np.loadtxt(path, delimiter=",", comments=None, skiprows=header_at + 1, max_rows=rows,
-                          dtype=np.float64, ndmin=2, encoding="utf-8")
+        data = np.loadtxt(
+            path,
+            delimiter=",",
+            comments=None,
+            skiprows=header_at + 1,
+            max_rows=rows,
+            dtype=np.float64,
+            ndmin=2,
+            encoding="utf-8",
+        )
     except (ValueError, OSError):
         return None
     if data.shape != (rows, len(names)):
@@ -288,15 +306,24 @@ def _finish(path: Path, names: list[str], data: np.ndarray, lines: np.ndarray) -
     first_conflict = conflict[0] if conflict.size else None
     if first_back is not None and (first_conflict is None or first_back <= first_conflict):
         i = first_back + 1
-        raise InputError(f"time {t[i]:.9g} is earlier than {t[i - 1]:.9g} on line "
-                         f"{lines[i - 1]}: rows must be sorted by time in column {kt + 1} 't'",
-                         file=path, line=int(lines[i]), column=kt + 1)
+        raise InputError(
+            f"time {t[i]:.9g} is earlier than {t[i - 1]:.9g} on line "
+            f"{lines[i - 1]}: rows must be sorted by time in column {kt + 1} 't'",
+            file=path,
+            line=int(lines[i]),
+            column=kt + 1,
+        )
     if first_conflict is not None:
         i = first_conflict + 1
         diff = int(np.flatnonzero(data[i] != data[i - 1])[0])
-        raise InputError(f"two different rows with the same time t = {t[i]:.9g} (lines "
-                         f"{lines[i - 1]} and {lines[i]} differ in column {diff + 1} "
-                         f"'{names[diff]}')", file=path, line=int(lines[i]), column=diff + 1)
+        raise InputError(
+            f"two different rows with the same time t = {t[i]:.9g} (lines "
+            f"{lines[i - 1]} and {lines[i]} differ in column {diff + 1} "
+            f"'{names[diff]}')",
+            file=path,
+            line=int(lines[i]),
+            column=diff + 1,
+        )
     dropped_dup = int(same.size)
     if dropped_dup:
         keep = np.ones(len(t), dtype=bool)
@@ -306,12 +333,14 @@ def _finish(path: Path, names: list[str], data: np.ndarray, lines: np.ndarray) -
     # as long as any one of them is held
     columns = {name: np.array(data[:, k]) for k, name in enumerate(names)}
     del data
-    return Table(path=path, t=columns["t"], columns=columns, lines=lines,
-                 dropped_nan=dropped_nan, dropped_duplicates=dropped_dup)
+    return Table(
+        path=path, t=columns["t"], columns=columns, lines=lines, dropped_nan=dropped_nan, dropped_duplicates=dropped_dup
+    )
 
 
-def write_table(path: str | os.PathLike, columns: Mapping[str, np.ndarray], *,
-                comments: Iterable[str] = (), fmt: str = "%.17g") -> Path:
+def write_table(
+    path: str | os.PathLike, columns: Mapping[str, np.ndarray], *, comments: Iterable[str] = (), fmt: str = "%.17g"
+) -> Path:
     """Write a CSV file readable by :func:`read_table`, atomically.
 
     Parameters

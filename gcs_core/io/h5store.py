@@ -3,10 +3,11 @@
 Guarantees every GCS data set gets:
 
 * **Atomic writes.** A file is written to a temporary file in the same directory,
-  closed, given its header, ``fsync``-ed, renamed over the destination with ``os.replace`` and the directory
-  ``fsync``-ed (:func:`gcs_core.fileperm.atomic_path`): a crash or a kill at any moment leaves either the old file or the new
-  one, never a mixture. Appending (SCDS versions, ASF solutions) copies the existing
-  groups into the new file, so earlier groups are carried over byte for byte.
+  closed, given its header, ``fsync``-ed, renamed over the destination with ``os.replace``
+  and the directory ``fsync``-ed (:func:`gcs_core.fileperm.atomic_path`): a crash or a kill
+  at any moment leaves either the old file or the new one, never a mixture. Appending
+  (SCDS versions, ASF solutions) copies the existing groups into the new file, so earlier
+  groups are carried over byte for byte.
 * **Locking between GCS processes.** ``fcntl.flock`` on a sidecar ``<file>.lock``:
   writers hold it exclusively, readers shared. A process that cannot get it within
   :data:`LOCK_WAIT_S` gets :class:`~gcs_core.errors.DataFileError` "... is in use by
@@ -73,6 +74,7 @@ def gcs_version() -> str:
     """Version string of the installed GCS package ("unknown" when not installed)."""
     try:
         from importlib.metadata import PackageNotFoundError, version
+
         return version("gcs")
     except PackageNotFoundError:  # not installed (source checkout)
         return "0+unknown"
@@ -83,6 +85,7 @@ def utc_now() -> str:
 
 
 # --- locking --------------------------------------------------------------------------
+
 
 class _Held:
     __slots__ = ("fd", "exclusive", "count")
@@ -120,14 +123,12 @@ def _flock(fd: int, exclusive: bool, path: Path, wait: float) -> None:
             if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                 raise DataFileError(f"cannot lock ({err.strerror})", file=path) from None
         if time.monotonic() >= deadline:
-            raise DataFileError(f"is in use by another GCS process (pid {_holder_pid(fd)})",
-                                file=path)
+            raise DataFileError(f"is in use by another GCS process (pid {_holder_pid(fd)})", file=path)
         time.sleep(_POLL_S)
 
 
 @contextmanager
-def locked(path: str | os.PathLike, *, exclusive: bool, wait: float | None = None
-           ) -> Iterator[None]:
+def locked(path: str | os.PathLike, *, exclusive: bool, wait: float | None = None) -> Iterator[None]:
     """Hold the GCS lock of ``path`` (exclusive for writers, shared for readers).
 
     Re-entrant within one process: an inner request reuses the outer lock, upgrading
@@ -161,8 +162,7 @@ def locked(path: str | os.PathLike, *, exclusive: bool, wait: float | None = Non
             log.debug("%s: no lock file (%s); reading unlocked", path, err.strerror)
             yield
             return
-        raise DataFileError(f"cannot create the lock file {lpath.name} ({err.strerror})",
-                            file=path) from None
+        raise DataFileError(f"cannot create the lock file {lpath.name} ({err.strerror})", file=path) from None
     try:
         _flock(fd, exclusive, path, wait)
         if exclusive or os.fstat(fd).st_size == 0:
@@ -182,6 +182,7 @@ def locked(path: str | os.PathLike, *, exclusive: bool, wait: float | None = Non
 
 
 # --- opening --------------------------------------------------------------------------
+
 
 def _one_line(err: BaseException) -> str:
     lines = str(err).strip().splitlines()
@@ -211,8 +212,7 @@ def corrupt(path: str | os.PathLike, err: BaseException, where: str = "") -> Dat
     text = _one_line(err)
     place = f" at {where}" if where else ""
     if "filter" in text or "checksum" in text:
-        return DataFileError(f"fails its checksum{place}: the file is corrupt ({text})",
-                             file=path)
+        return DataFileError(f"fails its checksum{place}: the file is corrupt ({text})", file=path)
     return DataFileError(f"is corrupt or not laid out as expected{place} ({text})", file=path)
 
 
@@ -231,8 +231,10 @@ def _write_header(path: Path, fmt: str, version: int) -> None:
     """Fill the user block of a closed file with the GCS header (see module docstring)."""
     with open(path, "r+b") as fh:
         digest, length = _file_digest(fh, USERBLOCK)
-        text = (f"{GCS_MAGIC.decode()} {HEADER_VERSION}\nformat {fmt}\nversion {version}\n"
-                f"length {length}\nsha256 {digest}\n").encode("ascii")
+        text = (
+            f"{GCS_MAGIC.decode()} {HEADER_VERSION}\nformat {fmt}\nversion {version}\n"
+            f"length {length}\nsha256 {digest}\n"
+        ).encode("ascii")
         fh.seek(0)
         fh.write(text.ljust(USERBLOCK, b"\0"))
 
@@ -251,8 +253,7 @@ def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
             if size == 0:
                 raise DataFileError("is empty (0 bytes), not an HDF5 file", file=path)
             if head.startswith(HDF5_SIGNATURE):
-                raise DataFileError(f"is an HDF5 file but not a GCS {fmt} file (no GCS header "
-                                    "block)", file=path)
+                raise DataFileError(f"is an HDF5 file but not a GCS {fmt} file (no GCS header block)", file=path)
             if not head.startswith(GCS_MAGIC):
                 fh.seek(USERBLOCK)
                 if fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
@@ -270,24 +271,27 @@ def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
             if found != fmt:
                 raise DataFileError(f"is a GCS {found} file, not {fmt}", file=path)
             if version > max_version:
-                raise DataFileError(f"was written by a newer GCS ({fmt} format version "
-                                    f"{version}; this GCS reads up to {max_version})", file=path)
+                raise DataFileError(
+                    f"was written by a newer GCS ({fmt} format version {version}; this GCS reads up to {max_version})",
+                    file=path,
+                )
             if size < length:
                 raise DataFileError(f"is truncated ({size} of {length} bytes)", file=path)
             if size > length:
-                raise DataFileError(f"has {size - length} bytes after its end ({length} bytes): "
-                                    "the file is damaged", file=path)
+                raise DataFileError(
+                    f"has {size - length} bytes after its end ({length} bytes): the file is damaged", file=path
+                )
             actual, _ = _file_digest(fh, USERBLOCK)
     except OSError as err:
         raise DataFileError(f"cannot be read ({err.strerror})", file=path) from None
     if actual != digest:
-        raise DataFileError("fails its checksum (SHA-256 of the whole file): the file is "
-                            "damaged", file=path)
+        raise DataFileError("fails its checksum (SHA-256 of the whole file): the file is damaged", file=path)
 
 
 @contextmanager
-def open_read(path: str | os.PathLike, fmt: str, *, max_version: int,
-              lock: bool = True, check: bool = True) -> Iterator[h5py.File]:
+def open_read(
+    path: str | os.PathLike, fmt: str, *, max_version: int, lock: bool = True, check: bool = True
+) -> Iterator[h5py.File]:
     """Open a GCS HDF5 file for reading, checked, under a shared lock.
 
     Parameters
@@ -325,8 +329,9 @@ def open_read(path: str | os.PathLike, fmt: str, *, max_version: int,
             if isinstance(found, bytes):
                 found = found.decode("utf-8", "replace")
             if found is None:
-                raise DataFileError(f"is an HDF5 file but not a GCS {fmt} file (no "
-                                    f"'{FORMAT_ATTR}' attribute)", file=path)
+                raise DataFileError(
+                    f"is an HDF5 file but not a GCS {fmt} file (no '{FORMAT_ATTR}' attribute)", file=path
+                )
             if found != fmt:
                 raise DataFileError(f"is a GCS {found} file, not {fmt}", file=path)
             try:
@@ -334,8 +339,10 @@ def open_read(path: str | os.PathLike, fmt: str, *, max_version: int,
             except (TypeError, ValueError):
                 raise DataFileError(f"has no valid '{VERSION_ATTR}' attribute", file=path) from None
             if version > max_version:
-                raise DataFileError(f"was written by a newer GCS ({fmt} format version "
-                                    f"{version}; this GCS reads up to {max_version})", file=path)
+                raise DataFileError(
+                    f"was written by a newer GCS ({fmt} format version {version}; this GCS reads up to {max_version})",
+                    file=path,
+                )
             try:
                 yield f
             except DataFileError:
@@ -381,10 +388,10 @@ def verify(path: str | os.PathLike, fmt: str, *, max_version: int) -> int:
 
 # --- writing --------------------------------------------------------------------------
 
+
 def _remove_stale_temps(path: Path) -> None:
     """Temporary files left by a killed writer (we hold the exclusive lock)."""
-    for stale in glob.glob(os.path.join(glob.escape(str(path.parent)),
-                                        f".{glob.escape(path.name)}.*.tmp")):
+    for stale in glob.glob(os.path.join(glob.escape(str(path.parent)), f".{glob.escape(path.name)}.*.tmp")):
         try:
             os.unlink(stale)
         except OSError:
@@ -407,8 +414,7 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int) -> Iterator[h
         _remove_stale_temps(path)
         try:
             with atomic_path(path) as tmp:
-                with h5py.File(tmp, "w", libver=LIBVER, locking=False,
-                               userblock_size=USERBLOCK) as f:
+                with h5py.File(tmp, "w", libver=LIBVER, locking=False, userblock_size=USERBLOCK) as f:
                     f.attrs[FORMAT_ATTR] = fmt
                     f.attrs[VERSION_ATTR] = np.int64(version)
                     f.attrs[CREATED_ATTR] = utc_now()
@@ -419,8 +425,15 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int) -> Iterator[h
             raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
 
 
-def append_group(path: str | os.PathLike, fmt: str, version: int, collection: str,
-                 build: Callable[[h5py.Group, int], None], *, max_version: int) -> int:
+def append_group(
+    path: str | os.PathLike,
+    fmt: str,
+    version: int,
+    collection: str,
+    build: Callable[[h5py.Group, int], None],
+    *,
+    max_version: int,
+) -> int:
     """Append one numbered group ``/<collection>/NNNNN`` to an append-only file.
 
     The existing file (if any) is first checked (:func:`check_file`: header and
@@ -436,8 +449,9 @@ def append_group(path: str | os.PathLike, fmt: str, version: int, collection: st
             try:  # the whole-file SHA-256 covers every byte, every earlier group
                 check_file(path, fmt, max_version=max_version)
             except DataFileError as err:
-                raise DataFileError(f"{err.message}; refusing to append to it (the earlier "
-                                    "versions would be at risk)", file=path) from None
+                raise DataFileError(
+                    f"{err.message}; refusing to append to it (the earlier versions would be at risk)", file=path
+                ) from None
         with atomic_create(path, fmt, version) as dst:
             if path.exists():
                 with open_read(path, fmt, max_version=max_version) as src:
@@ -458,8 +472,7 @@ def write_array(group: h5py.Group, name: str, data, *, attrs: dict | None = None
     """A chunked, fletcher32-checksummed dataset (strings stored as UTF-8 bytes)."""
     a = np.asarray(data)
     if a.dtype.kind in "UO":
-        a = np.array([str(s).encode("utf-8") for s in a.reshape(-1)],
-                     dtype=bytes).reshape(a.shape)
+        a = np.array([str(s).encode("utf-8") for s in a.reshape(-1)], dtype=bytes).reshape(a.shape)
         if a.dtype.itemsize == 0:
             a = a.astype("S1")
     if a.ndim == 0:

@@ -54,9 +54,24 @@ TELEMETRY_COLUMNS: dict[str, tuple[str, ...]] = {
 }
 #: units of the telemetry columns (ICD §5); extra columns have no stated unit.
 COLUMN_UNITS: dict[str, str] = {
-    "t": "s", "bx": "nT", "by": "nT", "bz": "nT", "wx": "rad/s", "wy": "rad/s", "wz": "rad/s",
-    "h": "rad", "v": "rad", "ra": "deg", "dec": "deg", "mag": "mag", "n_alpha": "counts",
-    "n_beta": "counts", "beta": "rad", "spin_rate": "rad/s", "dt_in": "s", "dt_out": "s",
+    "t": "s",
+    "bx": "nT",
+    "by": "nT",
+    "bz": "nT",
+    "wx": "rad/s",
+    "wy": "rad/s",
+    "wz": "rad/s",
+    "h": "rad",
+    "v": "rad",
+    "ra": "deg",
+    "dec": "deg",
+    "mag": "mag",
+    "n_alpha": "counts",
+    "n_beta": "counts",
+    "beta": "rad",
+    "spin_rate": "rad/s",
+    "dt_in": "s",
+    "dt_out": "s",
 }
 EPHEMERIS_COLUMNS = ("t", "rx", "ry", "rz", "vx", "vy", "vz", "sx", "sy", "sz")
 ONBOARD_COLUMNS = ("t", "q1", "q2", "q3", "q4")
@@ -64,15 +79,15 @@ ONBOARD_COLUMNS = ("t", "q1", "q2", "q3", "q4")
 #: an optional telemetry column: a non-zero value marks a sample kept in the file but
 #: not used (a start-up transient, say), counted in the import report
 FLAG_COLUMN = "flag"
-MAX_EPHEMERIS_STEP_S = 60.0          # ICD §4: a cadence of 60 s or finer
-MAX_FIELD_COMPONENT_NT = 1e6         # the geomagnetic field is < 7e4 nT
-R_MIN_KM = 6378.0                    # below the Earth's surface
-R_MAX_KM = 1e6                       # beyond the Moon's orbit (km given as m?)
-SUN_DISTANCE_AU = (0.9, 1.1)         # the geocentric Sun is 0.983 to 1.017 AU away
+MAX_EPHEMERIS_STEP_S = 60.0  # ICD §4: a cadence of 60 s or finer
+MAX_FIELD_COMPONENT_NT = 1e6  # the geomagnetic field is < 7e4 nT
+R_MIN_KM = 6378.0  # below the Earth's surface
+R_MAX_KM = 1e6  # beyond the Moon's orbit (km given as m?)
+SUN_DISTANCE_AU = (0.9, 1.1)  # the geocentric Sun is 0.983 to 1.017 AU away
 AU_KM = 149597870.7
 QUATERNION_NORM_TOL = 1e-3
-MAX_RATE_RAD_S = 1.0                 # deg/s given as rad/s otherwise
-MAX_RATE_GROUND_RAD_S = 40.0         # a unit moved by hand: MEMS full scale is 35 rad/s
+MAX_RATE_RAD_S = 1.0  # deg/s given as rad/s otherwise
+MAX_RATE_GROUND_RAD_S = 40.0  # a unit moved by hand: MEMS full scale is 35 rad/s
 #: a ground mission's ephemeris rows are this far outside the telemetry span [s]
 GROUND_MARGIN_S = 1.0
 FAR_FUTURE_S = 10 * 365.25 * 86400.0  # ten years
@@ -139,19 +154,33 @@ class ImportReport:
 
     def lines(self) -> list[str]:
         """Human summary, one line per file then the unknown keys and repairs."""
-        out = [f"{f.what}: {f.rows} rows kept, {f.dropped_nan} dropped (empty/NaN), "
-               f"{f.dropped_duplicates} duplicates dropped ({f.file})" for f in self.files]
+        out = [
+            f"{f.what}: {f.rows} rows kept, {f.dropped_nan} dropped (empty/NaN), "
+            f"{f.dropped_duplicates} duplicates dropped ({f.file})"
+            for f in self.files
+        ]
         out += [f"unknown key kept but not used: {k}" for k in self.unknown_keys]
         out += [f"repair: {r}" for r in self.repairs]
         out += [f"warning: {w}" for w in self.warnings]
         return out
 
     def to_dict(self) -> dict:
-        return {"files": [{"file": str(f.file), "what": f.what, "rows": f.rows,
-                           "dropped_nan": f.dropped_nan,
-                           "dropped_duplicates": f.dropped_duplicates} for f in self.files],
-                "unknown_keys": list(self.unknown_keys), "repairs": list(self.repairs),
-                "warnings": list(self.warnings), "trimmed_rows": dict(self.trimmed)}
+        return {
+            "files": [
+                {
+                    "file": str(f.file),
+                    "what": f.what,
+                    "rows": f.rows,
+                    "dropped_nan": f.dropped_nan,
+                    "dropped_duplicates": f.dropped_duplicates,
+                }
+                for f in self.files
+            ],
+            "unknown_keys": list(self.unknown_keys),
+            "repairs": list(self.repairs),
+            "warnings": list(self.warnings),
+            "trimmed_rows": dict(self.trimmed),
+        }
 
 
 @dataclass(frozen=True)
@@ -191,14 +220,19 @@ class ImportedMission:
 
 # --- checks ---------------------------------------------------------------------------
 
+
 def _col(table: Table, name: str) -> int:
     """1-based column number of ``name`` in the file."""
     return list(table.columns).index(name) + 1
 
 
 def _refuse(table: Table, row: int, name: str, message: str) -> InputError:
-    return InputError(f"{message} in column {_col(table, name)} '{name}'", file=table.path,
-                      line=int(table.lines[row]), column=_col(table, name))
+    return InputError(
+        f"{message} in column {_col(table, name)} '{name}'",
+        file=table.path,
+        line=int(table.lines[row]),
+        column=_col(table, name),
+    )
 
 
 def _first(mask: np.ndarray) -> int | None:
@@ -210,21 +244,23 @@ def _check_times(table: Table, spec: MissionSpec) -> None:
     i = _first(np.abs(table.t) > FAR_FUTURE_S)
     if i is not None:
         when = "after" if table.t[i] > 0 else "before"
-        raise _refuse(table, i, "t", f"time t = {table.t[i]:.6g} s is more than 10 years "
-                      f"{when} the epoch {spec.epoch:%Y-%m-%dT%H:%M:%SZ} (times in the far "
-                      "future: seconds since the epoch expected)")
+        raise _refuse(
+            table,
+            i,
+            "t",
+            f"time t = {table.t[i]:.6g} s is more than 10 years "
+            f"{when} the epoch {spec.epoch:%Y-%m-%dT%H:%M:%SZ} (times in the far "
+            "future: seconds since the epoch expected)",
+        )
 
 
 def _check_not_empty(table: Table, what: str, minimum: int = 1) -> None:
     if len(table) < minimum:
-        dropped = (f" after dropping {table.dropped_nan} rows with empty/NaN fields"
-                   if table.dropped_nan else "")
-        raise InputError(f"{what} has {len(table)} data rows{dropped}; at least {minimum} "
-                         "needed", file=table.path)
+        dropped = f" after dropping {table.dropped_nan} rows with empty/NaN fields" if table.dropped_nan else ""
+        raise InputError(f"{what} has {len(table)} data rows{dropped}; at least {minimum} needed", file=table.path)
 
 
-def _check_vector_norm(table: Table, names: tuple[str, ...], lo: float, hi: float,
-                       message: str) -> None:
+def _check_vector_norm(table: Table, names: tuple[str, ...], lo: float, hi: float, message: str) -> None:
     v = table.stack(names)
     with np.errstate(over="ignore"):  # |v| of 1e300 overflows to inf: out of range anyway
         norm = np.sqrt(np.sum(v * v, axis=1))
@@ -240,23 +276,27 @@ def _check_sensor(table: Table, stype: str, ground: bool = False) -> None:
         for name in ("bx", "by", "bz"):
             i = _first(np.abs(c[name]) > MAX_FIELD_COMPONENT_NT)
             if i is not None:
-                raise _refuse(table, i, name, f"magnetic field component {c[name][i]:.6g} nT "
-                              f"exceeds {MAX_FIELD_COMPONENT_NT:g} nT (telemetry in nT?)")
+                raise _refuse(
+                    table,
+                    i,
+                    name,
+                    f"magnetic field component {c[name][i]:.6g} nT "
+                    f"exceeds {MAX_FIELD_COMPONENT_NT:g} nT (telemetry in nT?)",
+                )
     elif stype == "gyro":
         top = MAX_RATE_GROUND_RAD_S if ground else MAX_RATE_RAD_S
-        _check_vector_norm(table, ("wx", "wy", "wz"), 0.0, top,
-                           f"|omega| = {{norm:.6g}} rad/s exceeds {top:g} rad/s (rates in rad/s?)")
+        _check_vector_norm(
+            table, ("wx", "wy", "wz"), 0.0, top, f"|omega| = {{norm:.6g}} rad/s exceeds {top:g} rad/s (rates in rad/s?)"
+        )
     elif stype == "attitude_reference":
         _check_onboard(table)
     elif stype == "star_tracker":
         i = _first((c["ra"] < 0.0) | (c["ra"] > 360.0))
         if i is not None:
-            raise _refuse(table, i, "ra", f"star right ascension {c['ra'][i]:.6g} deg is "
-                          "outside [0, 360] deg")
+            raise _refuse(table, i, "ra", f"star right ascension {c['ra'][i]:.6g} deg is outside [0, 360] deg")
         i = _first(np.abs(c["dec"]) > 90.0)
         if i is not None:
-            raise _refuse(table, i, "dec", f"star declination {c['dec'][i]:.6g} deg is "
-                          "outside [-90, 90] deg")
+            raise _refuse(table, i, "dec", f"star declination {c['dec'][i]:.6g} deg is outside [-90, 90] deg")
     elif stype == "horizon":
         i = _first(c["spin_rate"] == 0.0)
         if i is not None:
@@ -268,21 +308,35 @@ def _check_ephemeris(table: Table) -> None:
     dt = np.diff(table.t)
     i = _first(dt > MAX_EPHEMERIS_STEP_S * (1 + 1e-9))
     if i is not None:
-        raise _refuse(table, i + 1, "t", f"ephemeris rows {dt[i]:.6g} s apart (lines "
-                      f"{table.lines[i]} and {table.lines[i + 1]}); ICD §4 needs a cadence "
-                      f"of {MAX_EPHEMERIS_STEP_S:g} s or finer")
-    _check_vector_norm(table, ("rx", "ry", "rz"), R_MIN_KM, R_MAX_KM,
-                       "|r| = {norm:.6g} km is outside [6378, 1e6] km (position in km?)")
+        raise _refuse(
+            table,
+            i + 1,
+            "t",
+            f"ephemeris rows {dt[i]:.6g} s apart (lines "
+            f"{table.lines[i]} and {table.lines[i + 1]}); ICD §4 needs a cadence "
+            f"of {MAX_EPHEMERIS_STEP_S:g} s or finer",
+        )
+    _check_vector_norm(
+        table, ("rx", "ry", "rz"), R_MIN_KM, R_MAX_KM, "|r| = {norm:.6g} km is outside [6378, 1e6] km (position in km?)"
+    )
     lo, hi = SUN_DISTANCE_AU
-    _check_vector_norm(table, ("sx", "sy", "sz"), lo * AU_KM, hi * AU_KM,
-                       "|s| = {norm:.6g} km is not a geocentric Sun distance "
-                       f"({lo:g} to {hi:g} AU; Sun position in km?)")
+    _check_vector_norm(
+        table,
+        ("sx", "sy", "sz"),
+        lo * AU_KM,
+        hi * AU_KM,
+        f"|s| = {{norm:.6g}} km is not a geocentric Sun distance ({lo:g} to {hi:g} AU; Sun position in km?)",
+    )
 
 
 def _check_onboard(table: Table) -> None:
-    _check_vector_norm(table, ("q1", "q2", "q3", "q4"), 1.0 - QUATERNION_NORM_TOL,
-                       1.0 + QUATERNION_NORM_TOL,
-                       "quaternion norm {norm:.6g} is not 1 (within 1e-3)")
+    _check_vector_norm(
+        table,
+        ("q1", "q2", "q3", "q4"),
+        1.0 - QUATERNION_NORM_TOL,
+        1.0 + QUATERNION_NORM_TOL,
+        "quaternion norm {norm:.6g} is not 1 (within 1e-3)",
+    )
 
 
 def ephemeris_margin(telemetry: Mapping[str, Table], types: Mapping[str, str]) -> float:
@@ -322,17 +376,23 @@ def _check_covered(table: Table, eph: Table, sensor: str, margin: float) -> None
     if not np.any(out):
         return
     i = _first(out)
-    assert i is not None                                  # some row is out
+    assert i is not None  # some row is out
     lo, hi = float(np.min(t[out])), float(np.max(t[out]))
     spans = [f"t = {a:.6g} to {b:.6g} s" for a, b, on in ((lo, e0, lo < e0), (e1, hi, hi > e1)) if on]
     uncovered = " and ".join(spans)
-    raise _refuse(table, i, "t", f"{int(np.count_nonzero(out))} rows of {sensor} (t = {lo:.6g} to "
-                  f"{hi:.6g} s) lie more than {margin:.3g} s (the models' extrapolation margin) outside "
-                  f"the ephemeris {eph.path}, which covers t = {e0:.6g} to {e1:.6g} s: {uncovered} is not covered")
+    raise _refuse(
+        table,
+        i,
+        "t",
+        f"{int(np.count_nonzero(out))} rows of {sensor} (t = {lo:.6g} to "
+        f"{hi:.6g} s) lie more than {margin:.3g} s (the models' extrapolation margin) outside "
+        f"the ephemeris {eph.path}, which covers t = {e0:.6g} to {e1:.6g} s: {uncovered} is not covered",
+    )
 
 
-def _fit_to_ephemeris(telemetry: dict, types: Mapping[str, str], eph: Table, margin: float,
-                      root: Path, repairs: list, warnings: list) -> dict[str, int]:
+def _fit_to_ephemeris(
+    telemetry: dict, types: Mapping[str, str], eph: Table, margin: float, root: Path, repairs: list, warnings: list
+) -> dict[str, int]:
     """Trim the rows that would need the orbit more than ``margin`` past the ephemeris with
     their time tags moved by :data:`TIME_TAG_BOUND_S`, and say (one line) how far the rest
     extrapolate it. Returns sensor -> rows trimmed."""
@@ -345,10 +405,16 @@ def _fit_to_ephemeris(telemetry: dict, types: Mapping[str, str], eph: Table, mar
         keep = (early - TIME_TAG_BOUND_S >= e0 - margin) & (late + TIME_TAG_BOUND_S <= e1 + margin)
         if not np.all(keep):
             trimmed[name] = int(np.count_nonzero(~keep))
-            telemetry[name] = replace(table, t=table.t[keep], lines=np.asarray(table.lines)[keep],
-                                      columns={k: np.asarray(v)[keep] for k, v in table.columns.items()})
-            repairs.append(f"{_rel(table.path, root)}: trimmed {trimmed[name]} rows that would need the "
-                           f"orbit more than {margin:.3g} s past the ephemeris's ends")
+            telemetry[name] = replace(
+                table,
+                t=table.t[keep],
+                lines=np.asarray(table.lines)[keep],
+                columns={k: np.asarray(v)[keep] for k, v in table.columns.items()},
+            )
+            repairs.append(
+                f"{_rel(table.path, root)}: trimmed {trimmed[name]} rows that would need the "
+                f"orbit more than {margin:.3g} s past the ephemeris's ends"
+            )
             early, late = early[keep], late[keep]
         if early.size and (early.min() < e0 or late.max() > e1):
             before = max(before, e0 - float(early.min()))
@@ -361,8 +427,9 @@ def _fit_to_ephemeris(telemetry: dict, types: Mapping[str, str], eph: Table, mar
         if after > 0:
             ends.append(f"{after:.3g} s past its last row (t = {e1:.6g} s)")
         by = " and ".join(ends)
-        warnings.append(f"ephemeris {Path(eph.path).name} extrapolated (cubic Hermite) by up to {by} "
-                        f"for {', '.join(users)}")
+        warnings.append(
+            f"ephemeris {Path(eph.path).name} extrapolated (cubic Hermite) by up to {by} for {', '.join(users)}"
+        )
     return trimmed
 
 
@@ -380,21 +447,31 @@ def _drop_flagged(table: Table) -> tuple[Table, int]:
         return table, 0
     keep = flag == 0.0
     cols = {k: np.ascontiguousarray(v[keep]) for k, v in table.columns.items()}
-    return Table(path=table.path, t=cols["t"], columns=cols, lines=table.lines[keep],
-                 dropped_nan=table.dropped_nan,
-                 dropped_duplicates=table.dropped_duplicates), int(np.count_nonzero(~keep))
+    return Table(
+        path=table.path,
+        t=cols["t"],
+        columns=cols,
+        lines=table.lines[keep],
+        dropped_nan=table.dropped_nan,
+        dropped_duplicates=table.dropped_duplicates,
+    ), int(np.count_nonzero(~keep))
 
 
 def _tle_ephemeris(spec: MissionSpec, tables) -> Table:
     """The ephemeris propagated from ``[orbit] tle`` over every table's span (ephem/tle.py)."""
     spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
-    if spec.orbit_tle is None:          # a ground mission whose every sensor was left out (no rows)
+    if spec.orbit_tle is None:  # a ground mission whose every sensor was left out (no rows)
         raise InputError("no sensor has any telemetry rows", file=spec.root / "mission.toml")
     if not spans:
         raise InputError("no telemetry rows to propagate the orbit over", file=spec.orbit_tle)
-    return tle_ephemeris_table(spec.orbit_tle, spec.epoch, min(a for a, _ in spans),
-                               max(b for _, b in spans), frame=spec.orbit_frame,
-                               step_s=spec.orbit_step_s)
+    return tle_ephemeris_table(
+        spec.orbit_tle,
+        spec.epoch,
+        min(a for a, _ in spans),
+        max(b for _, b in spans),
+        frame=spec.orbit_frame,
+        step_s=spec.orbit_step_s,
+    )
 
 
 def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
@@ -420,10 +497,11 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
         table = read_table(path, required=required, what=what)
         table, flagged = _drop_flagged(table) if what.startswith("telemetry") else (table, 0)
         if flagged:
-            repairs.append(f"{_rel(path, spec.root)}: {flagged} rows flagged (column "
-                           f"'{FLAG_COLUMN}' ≠ 0) kept in the file, not used")
-        counts.append(FileCount(path, what, len(table), table.dropped_nan,
-                                table.dropped_duplicates))
+            repairs.append(
+                f"{_rel(path, spec.root)}: {flagged} rows flagged (column "
+                f"'{FLAG_COLUMN}' ≠ 0) kept in the file, not used"
+            )
+        counts.append(FileCount(path, what, len(table), table.dropped_nan, table.dropped_duplicates))
         rel = _rel(path, spec.root)
         if table.dropped_nan:
             repairs.append(f"{rel}: dropped {table.dropped_nan} rows with an empty or NaN field")
@@ -471,10 +549,14 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
         trimmed = _fit_to_ephemeris(telemetry, types, eph, margin, spec.root, repairs, warnings)
     for name, table in telemetry.items():
         if trimmed.get(name) and len(table) == 0:
-            raise InputError(f"telemetry of {name}: every row needs the orbit past the ephemeris "
-                             f"(t = {float(eph.t[0]):.6g} to {float(eph.t[-1]):.6g} s)", file=table.path)
+            raise InputError(
+                f"telemetry of {name}: every row needs the orbit past the ephemeris "
+                f"(t = {float(eph.t[0]):.6g} to {float(eph.t[-1]):.6g} s)",
+                file=table.path,
+            )
     if empty:
         from dataclasses import replace as _replace
+
         spec = _replace(spec, sensors=tuple(x for x in spec.sensors if x.name not in empty))
         if not spec.sensors:
             raise InputError("no sensor has any telemetry rows", file=spec.root / "mission.toml")
@@ -484,10 +566,22 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
         log.info("%s", r)
     for w in warnings:
         log.warning("%s", w)
-    report = ImportReport(files=tuple(counts), unknown_keys=tuple(unknown),
-                          repairs=tuple(repairs), warnings=tuple(warnings), trimmed=trimmed)
-    return ImportedMission(spec=spec, ephemeris_table=eph, telemetry=telemetry, aux=aux,
-                           onboard=onboard, report=report, ephemeris_margin_s=margin)
+    report = ImportReport(
+        files=tuple(counts),
+        unknown_keys=tuple(unknown),
+        repairs=tuple(repairs),
+        warnings=tuple(warnings),
+        trimmed=trimmed,
+    )
+    return ImportedMission(
+        spec=spec,
+        ephemeris_table=eph,
+        telemetry=telemetry,
+        aux=aux,
+        onboard=onboard,
+        report=report,
+        ephemeris_margin_s=margin,
+    )
 
 
 def ground_ephemeris(spec: MissionSpec, telemetry: Mapping[str, Table]) -> Table:
@@ -505,12 +599,11 @@ def ground_ephemeris(spec: MissionSpec, telemetry: Mapping[str, Table]) -> Table
     t = np.linspace(t0, t1, n)
     cols = {"t": t}
     pos = spec.ground_position_km
-    assert pos is not None                                # called for a ground mission
+    assert pos is not None  # called for a ground mission
     for k, name in enumerate(("rx", "ry", "rz")):
         cols[name] = np.full(n, float(pos[k]))
     for name in ("vx", "vy", "vz", "sy", "sz"):
         cols[name] = np.zeros(n)
     cols["sx"] = np.full(n, AU_KM)
     cols = {k: cols[k] for k in EPHEMERIS_COLUMNS}
-    return Table(path=spec.root / "mission.toml", t=t, columns=cols,
-                 lines=np.zeros(n, dtype=np.int64))
+    return Table(path=spec.root / "mission.toml", t=t, columns=cols, lines=np.zeros(n, dtype=np.int64))

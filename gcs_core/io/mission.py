@@ -47,6 +47,7 @@ _NAME = re.compile(r"[A-Za-z][A-Za-z0-9_\-]{0,63}")
 
 # --- ranges -------------------------------------------------------------------------
 
+
 def _positive(v: float) -> str | None:
     return None if v > 0 else "must be > 0"
 
@@ -55,13 +56,13 @@ def _nonnegative(v: float) -> str | None:
     return None if v >= 0 else "must be >= 0"
 
 
-def _within(lo: float, hi: float, *, open_lo: bool = False, open_hi: bool = False
-            ) -> Callable[[float], str | None]:
+def _within(lo: float, hi: float, *, open_lo: bool = False, open_hi: bool = False) -> Callable[[float], str | None]:
     interval = f"{'(' if open_lo else '['}{lo:g}, {hi:g}{')' if open_hi else ']'}"
 
     def check(v: float) -> str | None:
         ok = (v > lo if open_lo else v >= lo) and (v < hi if open_hi else v <= hi)
         return None if ok else f"must be in {interval}"
+
     return check
 
 
@@ -139,8 +140,7 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
         # the biases Δγ, Δρ, ΔΦ, ε_S, ε_H, Δt are state elements, nominally zero (ICD §5),
         # not data-book keys; ε_S is the tilt_deg of the plane-field sensor named here
         "sun_sensor": BookKey(-1, "", required=False, default=None),
-        "observable": BookKey(-1, "", required=False, default="in_out",
-                              choices=HORIZON_OBSERVABLES),
+        "observable": BookKey(-1, "", required=False, default="in_out", choices=HORIZON_OBSERVABLES),
     },
     # an attitude quaternion measured by another instrument (docs/ground.md)
     "attitude_reference": {
@@ -152,12 +152,12 @@ COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
 
+
 def _book_value(ctx: Ctx, spec: BookKey, value: Any, key: str, index: int, tkey: str) -> Any:
     if spec.size == -1:
         text = string(ctx, value, key, "sensor", index, tkey)
         if spec.choices and text not in spec.choices:
-            raise ctx.error(f"must be one of {', '.join(spec.choices)}, not {text!r}", key,
-                            "sensor", index, tkey)
+            raise ctx.error(f"must be one of {', '.join(spec.choices)}, not {text!r}", key, "sensor", index, tkey)
         return text
     vals: tuple[float, ...]
     if spec.size == 0:
@@ -185,6 +185,7 @@ def _plain(value: Any) -> Any:
 
 # --- tables ---------------------------------------------------------------------------
 
+
 def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> SensorSpec:
     base = f"sensor[{index}]"
     if not isinstance(raw, dict):
@@ -192,61 +193,110 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
     for key in ("name", "type", "telemetry"):
         if key not in raw:
             who = repr(raw["name"]) if isinstance(raw.get("name"), str) else "without a name"
-            raise ctx.error(f"missing key '{key}' in [[sensor]] number {index} (sensor {who})",
-                            f"{base}.{key}", "sensor", index)
+            raise ctx.error(
+                f"missing key '{key}' in [[sensor]] number {index} (sensor {who})", f"{base}.{key}", "sensor", index
+            )
     name = string(ctx, raw.get("name"), f"{base}.name", "sensor", index, "name")
     if not _NAME.fullmatch(name):
-        raise ctx.error(f"sensor name {name!r} must start with a letter and hold only "
-                        "letters, digits, '_' and '-' (at most 64)", f"{base}.name", "sensor",
-                        index, "name")
+        raise ctx.error(
+            f"sensor name {name!r} must start with a letter and hold only letters, digits, '_' and '-' (at most 64)",
+            f"{base}.name",
+            "sensor",
+            index,
+            "name",
+        )
     if name.lower() in RESERVED_NAMES:
-        raise ctx.error(f"sensor name {name!r} is reserved (state elements "
-                        f"{', '.join(n + '.*' for n in RESERVED_NAMES)})", f"{base}.name",
-                        "sensor", index, "name")
+        raise ctx.error(
+            f"sensor name {name!r} is reserved (state elements {', '.join(n + '.*' for n in RESERVED_NAMES)})",
+            f"{base}.name",
+            "sensor",
+            index,
+            "name",
+        )
     stype = string(ctx, raw.get("type"), f"{base}.type", "sensor", index, "type")
     if stype not in SENSOR_TYPES:
-        raise ctx.error(f"unknown sensor type {stype!r} for sensor {name!r}; known types: "
-                        f"{', '.join(SENSOR_TYPES)}", f"{base}.type", "sensor", index, "type")
+        raise ctx.error(
+            f"unknown sensor type {stype!r} for sensor {name!r}; known types: {', '.join(SENSOR_TYPES)}",
+            f"{base}.type",
+            "sensor",
+            index,
+            "type",
+        )
     if stype in SPINNER_TYPES and mode != "spinning":
-        raise ctx.error(f"sensor type {stype!r} needs attitude_mode = \"spinning\", not "
-                        f"{mode!r}", f"{base}.type", "sensor", index, "type")
-    telemetry = existing_file(ctx, root, raw.get("telemetry"), f"{base}.telemetry", "sensor",
-                               f"telemetry (sensor {name!r})", index, "telemetry")
+        raise ctx.error(
+            f'sensor type {stype!r} needs attitude_mode = "spinning", not {mode!r}',
+            f"{base}.type",
+            "sensor",
+            index,
+            "type",
+        )
+    telemetry = existing_file(
+        ctx,
+        root,
+        raw.get("telemetry"),
+        f"{base}.telemetry",
+        "sensor",
+        f"telemetry (sensor {name!r})",
+        index,
+        "telemetry",
+    )
     alignment: tuple[float, float, float] | None = None
     if "alignment_deg" in raw:
         if stype in SPINNER_TYPES:
-            raise ctx.error(f"a {stype} sensor of a spinning mission is placed by its own keys, "
-                            "not by alignment_deg (ICD §2)", f"{base}.alignment_deg", "sensor",
-                            index, "alignment_deg")
-        a1, a2, a3 = numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor",
-                             index, "alignment_deg")
+            raise ctx.error(
+                f"a {stype} sensor of a spinning mission is placed by its own keys, not by alignment_deg (ICD §2)",
+                f"{base}.alignment_deg",
+                "sensor",
+                index,
+                "alignment_deg",
+            )
+        a1, a2, a3 = numbers(ctx, raw["alignment_deg"], 3, f"{base}.alignment_deg", "sensor", index, "alignment_deg")
         alignment = (a1, a2, a3)
         for i, a in enumerate(alignment):
             if abs(a) > 360.0:
-                raise ctx.error(f"must be in [-360, 360], not {a:g} [deg]",
-                                f"{base}.alignment_deg[{i}]", "sensor", index, "alignment_deg")
+                raise ctx.error(
+                    f"must be in [-360, 360], not {a:g} [deg]",
+                    f"{base}.alignment_deg[{i}]",
+                    "sensor",
+                    index,
+                    "alignment_deg",
+                )
     elif mode != "spinning":
-        raise ctx.error(f"missing key 'alignment_deg' for sensor {name!r} (a {mode} mission "
-                        "places every sensor by alignment_deg = [a1, a2, a3], ICD §2)",
-                        f"{base}.alignment_deg", "sensor", index)
+        raise ctx.error(
+            f"missing key 'alignment_deg' for sensor {name!r} (a {mode} mission "
+            "places every sensor by alignment_deg = [a1, a2, a3], ICD §2)",
+            f"{base}.alignment_deg",
+            "sensor",
+            index,
+        )
     book: dict[str, Any] = {}
     known = BOOK_KEYS[stype]
     for key, spec in known.items():
         if key in raw:
             book[key] = _book_value(ctx, spec, raw[key], f"{base}.{key}", index, key)
         elif spec.required:
-            raise ctx.error(f"missing key '{key}' for {stype} sensor {name!r} "
-                            f"[{spec.unit}] (ICD §5)", f"{base}.{key}", "sensor", index)
+            raise ctx.error(
+                f"missing key '{key}' for {stype} sensor {name!r} [{spec.unit}] (ICD §5)",
+                f"{base}.{key}",
+                "sensor",
+                index,
+            )
         else:
             book[key] = spec.default
     unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known)
     for k in unknown:
         book[k] = _plain(raw[k])
-        log.warning("%s: unknown key '%s.%s' (sensor %r, type %s) kept but not used",
-                    ctx.file, base, k, name, stype)
+        log.warning("%s: unknown key '%s.%s' (sensor %r, type %s) kept but not used", ctx.file, base, k, name, stype)
     noise = book.pop("noise") if "noise" in known else None
-    return SensorSpec(name=name, type=stype, telemetry=telemetry, alignment_deg=alignment,
-                      noise=noise, book=book, unknown_keys=unknown)
+    return SensorSpec(
+        name=name,
+        type=stype,
+        telemetry=telemetry,
+        alignment_deg=alignment,
+        noise=noise,
+        book=book,
+        unknown_keys=unknown,
+    )
 
 
 def _check_links(ctx: Ctx, sensors: list[SensorSpec]) -> None:
@@ -258,9 +308,13 @@ def _check_links(ctx: Ctx, sensors: list[SensorSpec]) -> None:
         other = by_name.get(ref)
         if other is None or other.type != "plane_field_sun":
             found = f"a {other.type} sensor" if other else "no such sensor"
-            raise ctx.error(f"sun_sensor {ref!r} must name a plane_field_sun sensor of this "
-                            f"mission ({found})", f"sensor[{index}].sun_sensor", "sensor",
-                            index, "sun_sensor")
+            raise ctx.error(
+                f"sun_sensor {ref!r} must name a plane_field_sun sensor of this mission ({found})",
+                f"sensor[{index}].sun_sensor",
+                "sensor",
+                index,
+                "sun_sensor",
+            )
 
 
 def _load_toml(path: Path) -> tuple[dict, str]:
@@ -297,16 +351,18 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     else:
         raise InputError("mission directory not found", file=given)
     if not path.is_file():
-        raise InputError(f"{MISSION_FILE} not found: a mission directory holds "
-                         f"{MISSION_FILE}, ephemeris.csv and telemetry/ (ICD §1)", file=path)
+        raise InputError(
+            f"{MISSION_FILE} not found: a mission directory holds "
+            f"{MISSION_FILE}, ephemeris.csv and telemetry/ (ICD §1)",
+            file=path,
+        )
     doc, text = _load_toml(path)
     ctx = Ctx(path, Locator(text))
     unknown: list[str] = [k for k in doc if k not in _TOP_TABLES]
 
     m = doc.get("mission")
     if not isinstance(m, dict):
-        raise ctx.error("missing [mission] table (name, epoch, attitude_mode)", "mission",
-                        "mission")
+        raise ctx.error("missing [mission] table (name, epoch, attitude_mode)", "mission", "mission")
     for key in ("name", "epoch", "attitude_mode"):
         if key not in m:
             raise ctx.error(f"missing key '{key}' in [mission]", f"mission.{key}", "mission")
@@ -314,32 +370,40 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     epoch_raw = m["epoch"]
     if isinstance(epoch_raw, datetime):
         try:
-            epoch = (epoch_raw.replace(tzinfo=UTC) if epoch_raw.tzinfo is None
-                     else epoch_raw.astimezone(UTC))
+            epoch = epoch_raw.replace(tzinfo=UTC) if epoch_raw.tzinfo is None else epoch_raw.astimezone(UTC)
         except OverflowError:
-            raise ctx.error("date-time out of range", "mission.epoch", "mission", 1,
-                            "epoch") from None
+            raise ctx.error("date-time out of range", "mission.epoch", "mission", 1, "epoch") from None
     elif isinstance(epoch_raw, str):
         try:
             epoch = parse_utc(epoch_raw)
         except ValueError as err:
             raise ctx.error(str(err), "mission.epoch", "mission", 1, "epoch") from None
     else:
-        raise ctx.error(f"must be an ISO-8601 UTC string, not {show(epoch_raw)}",
-                        "mission.epoch", "mission", 1, "epoch")
-    mode = string(ctx, m["attitude_mode"], "mission.attitude_mode", "mission", 1,
-                   "attitude_mode")
+        raise ctx.error(
+            f"must be an ISO-8601 UTC string, not {show(epoch_raw)}", "mission.epoch", "mission", 1, "epoch"
+        )
+    mode = string(ctx, m["attitude_mode"], "mission.attitude_mode", "mission", 1, "attitude_mode")
     if mode not in ATTITUDE_MODES:
-        raise ctx.error(f"attitude_mode must be one of {', '.join(ATTITUDE_MODES)}, not "
-                        f"{mode!r}", "mission.attitude_mode", "mission", 1, "attitude_mode")
+        raise ctx.error(
+            f"attitude_mode must be one of {', '.join(ATTITUDE_MODES)}, not {mode!r}",
+            "mission.attitude_mode",
+            "mission",
+            1,
+            "attitude_mode",
+        )
     spin_guess = None
     if "spin_axis_guess_deg" in m:
-        ra, dec = numbers(ctx, m["spin_axis_guess_deg"], 2, "mission.spin_axis_guess_deg",
-                           "mission", 1, "spin_axis_guess_deg")
+        ra, dec = numbers(
+            ctx, m["spin_axis_guess_deg"], 2, "mission.spin_axis_guess_deg", "mission", 1, "spin_axis_guess_deg"
+        )
         if not (0.0 <= ra <= 360.0 and -90.0 <= dec <= 90.0):
-            raise ctx.error(f"[RA, Dec] must have RA in [0, 360] and Dec in [-90, 90], not "
-                            f"[{ra:g}, {dec:g}]", "mission.spin_axis_guess_deg", "mission", 1,
-                            "spin_axis_guess_deg")
+            raise ctx.error(
+                f"[RA, Dec] must have RA in [0, 360] and Dec in [-90, 90], not [{ra:g}, {dec:g}]",
+                "mission.spin_axis_guess_deg",
+                "mission",
+                1,
+                "spin_axis_guess_deg",
+            )
         spin_guess = (ra, dec)
     unknown += [f"mission.{k}" for k in m if k not in _MISSION_KEYS]
 
@@ -356,31 +420,48 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
 
     raw_sensors = doc.get("sensor")
     if raw_sensors is None:
-        raise ctx.error("no [[sensor]] tables: the mission has no sensors to calibrate",
-                        "sensor", "sensor")
+        raise ctx.error("no [[sensor]] tables: the mission has no sensors to calibrate", "sensor", "sensor")
     if not isinstance(raw_sensors, list):
-        raise ctx.error("sensors must be [[sensor]] tables (an array of tables)", "sensor",
-                        "sensor")
+        raise ctx.error("sensors must be [[sensor]] tables (an array of tables)", "sensor", "sensor")
     sensors: list[SensorSpec] = []
     seen: dict[str, int] = {}
     for index, raw in enumerate(raw_sensors, start=1):
         s = _read_sensor(ctx, root, raw, index, mode)
         if s.name in seen:
-            raise ctx.error(f"sensor name {s.name!r} is used twice (sensor[{seen[s.name]}] "
-                            f"and sensor[{index}]); names must be unique",
-                            f"sensor[{index}].name", "sensor", index, "name")
+            raise ctx.error(
+                f"sensor name {s.name!r} is used twice (sensor[{seen[s.name]}] "
+                f"and sensor[{index}]); names must be unique",
+                f"sensor[{index}].name",
+                "sensor",
+                index,
+                "name",
+            )
         seen[s.name] = index
         sensors.append(s)
     _check_links(ctx, sensors)
     if ground is not None:
         for index, s in enumerate(sensors, start=1):
             if s.type in SUN_TYPES:
-                raise ctx.error(f"a ground mission has no Sun: sensor {s.name!r} of type "
-                                f"{s.type} cannot be used (docs/ground.md)",
-                                f"sensor[{index}].type", "sensor", index, "type")
+                raise ctx.error(
+                    f"a ground mission has no Sun: sensor {s.name!r} of type {s.type} cannot be used (docs/ground.md)",
+                    f"sensor[{index}].type",
+                    "sensor",
+                    index,
+                    "type",
+                )
     for k in unknown:
         log.warning("%s: unknown key '%s' kept but not used", path, k)
-    return MissionSpec(root=root, name=name, epoch=epoch, attitude_mode=mode,
-                       ephemeris_file=ephemeris, sensors=tuple(sensors),
-                       spin_axis_guess_deg=spin_guess, aux_file=aux, onboard_file=onboard,
-                       unknown_keys=tuple(unknown), ground_position_km=ground, **orbit)
+    return MissionSpec(
+        root=root,
+        name=name,
+        epoch=epoch,
+        attitude_mode=mode,
+        ephemeris_file=ephemeris,
+        sensors=tuple(sensors),
+        spin_axis_guess_deg=spin_guess,
+        aux_file=aux,
+        onboard_file=onboard,
+        unknown_keys=tuple(unknown),
+        ground_position_km=ground,
+        **orbit,
+    )

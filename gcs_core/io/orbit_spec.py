@@ -21,45 +21,43 @@ ORBIT_KEYS = ("tle", "frame", "step_s")
 ORBIT_FRAMES = ("teme", "j2000")
 
 
-def read_orbit_table(ctx: Ctx, root: Path, t: Any, unknown: list[str]
-                     ) -> tuple[Path, str, float]:
+def read_orbit_table(ctx: Ctx, root: Path, t: Any, unknown: list[str]) -> tuple[Path, str, float]:
     """``[orbit]``: ``tle`` (file), optional ``frame`` and ``step_s`` (gcs_core.ephem.tle)."""
     if not isinstance(t, dict):
         raise ctx.error("[orbit] must be a table with a 'tle' key", "orbit", "orbit")
     if "tle" not in t:
-        raise ctx.error("missing key 'tle' in [orbit] (the two-line element file)",
-                        "orbit.tle", "orbit")
-    tle = existing_file(ctx, root, t["tle"], "orbit.tle", "orbit", "two-line element",
-                         tkey="tle")
+        raise ctx.error("missing key 'tle' in [orbit] (the two-line element file)", "orbit.tle", "orbit")
+    tle = existing_file(ctx, root, t["tle"], "orbit.tle", "orbit", "two-line element", tkey="tle")
     frame = string(ctx, t.get("frame", "teme"), "orbit.frame", "orbit", 1, "frame")
     if frame not in ORBIT_FRAMES:
-        raise ctx.error(f"must be one of {', '.join(ORBIT_FRAMES)}, not {frame!r}",
-                        "orbit.frame", "orbit", 1, "frame")
+        raise ctx.error(f"must be one of {', '.join(ORBIT_FRAMES)}, not {frame!r}", "orbit.frame", "orbit", 1, "frame")
     step = 10.0
     if "step_s" in t:
         step = number(ctx, t["step_s"], "orbit.step_s", "orbit", 1, "step_s")
         if not 0.0 < step <= 60.0:
-            raise ctx.error(f"must be in (0, 60] s (ICD §4), not {step:g}", "orbit.step_s",
-                            "orbit", 1, "step_s")
+            raise ctx.error(f"must be in (0, 60] s (ICD §4), not {step:g}", "orbit.step_s", "orbit", 1, "step_s")
     unknown += [f"orbit.{k}" for k in t if k not in ORBIT_KEYS]
     return tle, frame, step
 
 
-def ephemeris_or_orbit(ctx: Ctx, root: Path, doc: dict, unknown: list[str]
-                       ) -> tuple[Path | None, dict[str, Any]]:
+def ephemeris_or_orbit(ctx: Ctx, root: Path, doc: dict, unknown: list[str]) -> tuple[Path | None, dict[str, Any]]:
     """``[ephemeris] file`` or ``[orbit]`` (one of them): the ephemeris path (None for an
     orbit) and the MissionSpec fields of the orbit (empty for an ephemeris file)."""
     e = doc.get("ephemeris")
     if "orbit" in doc:
         if e is not None:
-            raise ctx.error("give either [ephemeris] (a file) or [orbit] (two-line elements), "
-                            "not both", "orbit", "orbit")
+            raise ctx.error(
+                "give either [ephemeris] (a file) or [orbit] (two-line elements), not both", "orbit", "orbit"
+            )
         tle, frame, step = read_orbit_table(ctx, root, doc["orbit"], unknown)
         return None, {"orbit_tle": tle, "orbit_frame": frame, "orbit_step_s": step}
     if not isinstance(e, dict) or "file" not in e:
-        raise ctx.error("missing [ephemeris] table with its 'file' key (ICD §3), or an "
-                        "[orbit] table with 'tle', or 'ground_position_km' for a ground mission",
-                        "ephemeris.file", "ephemeris")
+        raise ctx.error(
+            "missing [ephemeris] table with its 'file' key (ICD §3), or an "
+            "[orbit] table with 'tle', or 'ground_position_km' for a ground mission",
+            "ephemeris.file",
+            "ephemeris",
+        )
     return optional_file(ctx, root, doc, "ephemeris", unknown), {}
 
 
@@ -67,16 +65,24 @@ def ground_position(ctx: Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[f
     """``[ephemeris] ground_position_km = [x, y, z]``: a laboratory on the ground
     (docs/ground.md). The reference frame is the laboratory's own (it stands where GCI
     stands in flight), so the mission must be ``inertial``."""
-    pos = numbers(ctx, e["ground_position_km"], 3, "ephemeris.ground_position_km",
-                   "ephemeris", 1, "ground_position_km")
+    pos = numbers(ctx, e["ground_position_km"], 3, "ephemeris.ground_position_km", "ephemeris", 1, "ground_position_km")
     norm = math.sqrt(sum(v * v for v in pos))
     if not 6300.0 <= norm <= 6400.0:
-        raise ctx.error(f"|position| = {norm:.6g} km is not on the Earth's surface "
-                        "(6300 to 6400 km; position in km?)", "ephemeris.ground_position_km",
-                        "ephemeris", 1, "ground_position_km")
+        raise ctx.error(
+            f"|position| = {norm:.6g} km is not on the Earth's surface (6300 to 6400 km; position in km?)",
+            "ephemeris.ground_position_km",
+            "ephemeris",
+            1,
+            "ground_position_km",
+        )
     if mode != "inertial":
-        raise ctx.error(f"a ground mission (ground_position_km) needs attitude_mode = "
-                        f"\"inertial\" (the laboratory frame), not {mode!r}",
-                        "mission.attitude_mode", "mission", 1, "attitude_mode")
+        raise ctx.error(
+            f"a ground mission (ground_position_km) needs attitude_mode = "
+            f'"inertial" (the laboratory frame), not {mode!r}',
+            "mission.attitude_mode",
+            "mission",
+            1,
+            "attitude_mode",
+        )
     unknown += [f"ephemeris.{k}" for k in e if k != "ground_position_km"]
     return pos[0], pos[1], pos[2]

@@ -96,8 +96,7 @@ def _check_inputs(sensor_params, covariance, element_names):
             raise ValueError(f"{name}: expected (value, sigma, unit), got {entry!r}") from None
         value, sigma = float(value), float(sigma)
         if not math.isfinite(value) or not (sigma >= 0):
-            raise ValueError(f"{name}: value must be finite and sigma >= 0 "
-                             f"(got {value}, {sigma})")
+            raise ValueError(f"{name}: value must be finite and sigma >= 0 (got {value}, {sigma})")
         names.append(name)
         values.append(value)
         sigmas.append(sigma)
@@ -109,8 +108,7 @@ def _check_inputs(sensor_params, covariance, element_names):
     if covariance is not None:
         cov = np.asarray(covariance, dtype=np.float64)
         if cov.shape != (len(elements), len(elements)):
-            raise ValueError(f"covariance has shape {cov.shape}, element_names has "
-                             f"{len(elements)} names")
+            raise ValueError(f"covariance has shape {cov.shape}, element_names has {len(elements)} names")
         if not np.all(np.isfinite(cov)):
             raise ValueError("covariance holds non-finite values")
     elif elements:
@@ -118,10 +116,14 @@ def _check_inputs(sensor_params, covariance, element_names):
     return names, np.array(values), np.array(sigmas), units, elements, cov
 
 
-def append_version(path: str | os.PathLike, *,
-                   sensor_params: Mapping[str, tuple[float, float, str]],
-                   covariance: np.ndarray | None, element_names: Sequence[str],
-                   provenance: Mapping[str, Any]) -> int:
+def append_version(
+    path: str | os.PathLike,
+    *,
+    sensor_params: Mapping[str, tuple[float, float, str]],
+    covariance: np.ndarray | None,
+    element_names: Sequence[str],
+    provenance: Mapping[str, Any],
+) -> int:
     """Append a calibration version to the SCDS (created if absent); return its number.
 
     Parameters
@@ -141,27 +143,31 @@ def append_version(path: str | os.PathLike, *,
     DataFileError if the existing file is locked, unreadable or fails a checksum (it is
     then left untouched); ValueError for malformed arguments.
     """
-    names, values, sigmas, units, elements, cov = _check_inputs(sensor_params, covariance,
-                                                                element_names)
+    names, values, sigmas, units, elements, cov = _check_inputs(sensor_params, covariance, element_names)
     prov = dict(provenance or {})
     prov.setdefault("created_utc", h5store.utc_now())
     prov.setdefault("gcs_version", h5store.gcs_version())
     try:
         prov_json = json.dumps(prov, sort_keys=True, allow_nan=False)
     except (TypeError, ValueError) as err:
-        raise ValueError(f"provenance must be JSON-serializable with finite numbers ({err})"
-                         ) from None
+        raise ValueError(f"provenance must be JSON-serializable with finite numbers ({err})") from None
 
     try:
         span = (float(prov.get("data_t0", math.nan)), float(prov.get("data_t1", math.nan)))
     except (TypeError, ValueError):
         raise ValueError("provenance data_t0/data_t1 must be numbers (s since epoch)") from None
-    attrs = {"created_utc": str(prov["created_utc"]), "gcs_version": str(prov["gcs_version"]),
-             "note": str(prov.get("note", "")), "config_hash": str(prov.get("config_hash", "")),
-             "data_t0": span[0], "data_t1": span[1],
-             "models": json.dumps(prov.get("models", []), default=str),
-             "provenance": prov_json, "n_params": np.int64(len(names)),
-             "has_covariance": bool(cov is not None)}
+    attrs = {
+        "created_utc": str(prov["created_utc"]),
+        "gcs_version": str(prov["gcs_version"]),
+        "note": str(prov.get("note", "")),
+        "config_hash": str(prov.get("config_hash", "")),
+        "data_t0": span[0],
+        "data_t1": span[1],
+        "models": json.dumps(prov.get("models", []), default=str),
+        "provenance": prov_json,
+        "n_params": np.int64(len(names)),
+        "has_covariance": bool(cov is not None),
+    }
 
     def build(g: h5py.Group, number: int) -> None:
         g.attrs.update({"version": np.int64(number), **attrs})
@@ -182,13 +188,16 @@ def _version_names(f: h5py.File) -> list[str]:
 
 def _summary(g: h5py.Group) -> VersionSummary:
     a = g.attrs
-    return VersionSummary(version=int(a["version"]),
-                          created_utc=h5store.attr_str(g, "created_utc", ""),
-                          gcs_version=h5store.attr_str(g, "gcs_version", ""),
-                          note=h5store.attr_str(g, "note", ""),
-                          config_hash=h5store.attr_str(g, "config_hash", ""),
-                          data_t0=float(a["data_t0"]), data_t1=float(a["data_t1"]),
-                          n_params=int(a["n_params"]))
+    return VersionSummary(
+        version=int(a["version"]),
+        created_utc=h5store.attr_str(g, "created_utc", ""),
+        gcs_version=h5store.attr_str(g, "gcs_version", ""),
+        note=h5store.attr_str(g, "note", ""),
+        config_hash=h5store.attr_str(g, "config_hash", ""),
+        data_t0=float(a["data_t0"]),
+        data_t1=float(a["data_t1"]),
+        n_params=int(a["n_params"]),
+    )
 
 
 def list_versions(path: str | os.PathLike) -> list[VersionSummary]:
@@ -206,25 +215,25 @@ def read_version(path: str | os.PathLike, n: int | None = None) -> ScdsVersion:
             raise DataFileError("holds no calibration versions", file=path)
         name = available[-1] if n is None else f"{int(n):05d}"
         if name not in available:
-            raise DataFileError(f"has no calibration version {n} (versions "
-                                f"{int(available[0])} to {int(available[-1])})", file=path)
+            raise DataFileError(
+                f"has no calibration version {n} (versions {int(available[0])} to {int(available[-1])})", file=path
+            )
         g = f[COLLECTION][name]
         names = h5store.read_strings(g["param_names"])
         units = h5store.read_strings(g["unit"])
         values, sigmas = g["value"][()], g["sigma"][()]
         if not (len(names) == len(units) == values.size == sigmas.size):
-            raise DataFileError(f"version {int(name)} has parameter arrays of unequal length",
-                                file=path)
+            raise DataFileError(f"version {int(name)} has parameter arrays of unequal length", file=path)
         params = {nm: (float(v), float(s), u) for nm, v, s, u in zip(names, values, sigmas, units)}
         elements = tuple(h5store.read_strings(g["element_names"]))
         cov = g["covariance"][()] if "covariance" in g else None
         prov = json.loads(h5store.attr_str(g, "provenance", "{}"))
-        return ScdsVersion(version=int(g.attrs["version"]), params=params,
-                           element_names=elements, covariance=cov, provenance=prov)
+        return ScdsVersion(
+            version=int(g.attrs["version"]), params=params, element_names=elements, covariance=cov, provenance=prov
+        )
 
 
-def diff_versions(path: str | os.PathLike, a: int, b: int
-                  ) -> list[tuple[str, float, float, float, float]]:
+def diff_versions(path: str | os.PathLike, a: int, b: int) -> list[tuple[str, float, float, float, float]]:
     """What changed from version ``a`` to version ``b``.
 
     Returns one ``(element, value_a, value_b, delta, delta_in_sigma)`` per parameter

@@ -46,8 +46,8 @@ from gcs_core.io.importer import COLUMN_UNITS, ImportedMission
 
 FORMAT = "SDF"
 VERSION = 1
-FILE_TYPE_DATA = 1      # headers + data
-FILE_TYPE_HEADERS = 2   # headers only
+FILE_TYPE_DATA = 1  # headers + data
+FILE_TYPE_HEADERS = 2  # headers only
 OBSERVATION, TRANSITION = "observation", "transition"
 BLOCK_IDS = {OBSERVATION: 1, TRANSITION: 2}
 #: sensor types whose data are state transitions (everything else observes).
@@ -164,6 +164,7 @@ class SdfContents:
 
 # --- writing --------------------------------------------------------------------------
 
+
 def _epoch_text(epoch: datetime) -> str:
     text = epoch.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S")
     if epoch.microsecond:
@@ -185,8 +186,13 @@ def _hold(aux_t: np.ndarray, aux_values: np.ndarray, t: np.ndarray) -> np.ndarra
     return out
 
 
-def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
-              block_seconds: float = 600.0, headers_only: bool = False) -> Path:
+def write_sdf(
+    path: str | os.PathLike,
+    imported_mission: ImportedMission,
+    *,
+    block_seconds: float = 600.0,
+    headers_only: bool = False,
+) -> Path:
     """Write the Standard Data File of an imported mission (seed Table 3-2), atomically.
 
     Parameters
@@ -197,34 +203,35 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
     block_seconds : width of the block windows [s], > 0.
     headers_only : write file type 2 (times and counts only) for the predictor.
     """
-    if not (isinstance(block_seconds, (int, float)) and math.isfinite(block_seconds)
-            and block_seconds > 0):
+    if not (isinstance(block_seconds, (int, float)) and math.isfinite(block_seconds) and block_seconds > 0):
         raise ValueError(f"block_seconds must be a positive number, not {block_seconds!r}")
     path = Path(path)
     m = imported_mission
     spec = m.spec
     names = [s.name for s in spec.sensors if s.name in m.telemetry]
     index_of = {n: i for i, n in enumerate(names)}
-    kinds = {s.name: TRANSITION if s.type in TRANSITION_TYPES else OBSERVATION
-             for s in spec.sensors}
+    kinds = {s.name: TRANSITION if s.type in TRANSITION_TYPES else OBSERVATION for s in spec.sensors}
     tables = {n: m.telemetry[n] for n in names}
     nonempty = [tables[n].t for n in names if len(tables[n])]
-    t_start = math.floor(min(float(t[0]) for t in nonempty) / block_seconds) * block_seconds \
-        if nonempty else 0.0
-    window_of = {n: np.floor((tables[n].t - t_start) / block_seconds).astype(np.int64)
-                 for n in names}
+    t_start = math.floor(min(float(t[0]) for t in nonempty) / block_seconds) * block_seconds if nonempty else 0.0
+    window_of = {n: np.floor((tables[n].t - t_start) / block_seconds).astype(np.int64) for n in names}
     windows = sorted(set().union(*(np.unique(w).tolist() for w in window_of.values())))
     aux = m.aux
     aux_columns = tuple(c for c in aux.columns if c != "t") if aux is not None else ()
     aux_values = aux.stack(aux_columns) if aux is not None else None
 
     with h5store.atomic_create(path, FORMAT, VERSION) as f:
-        f.attrs.update({
-            "file_type": np.int64(FILE_TYPE_HEADERS if headers_only else FILE_TYPE_DATA),
-            "mission": spec.name, "epoch": _epoch_text(spec.epoch),
-            "attitude_mode": spec.attitude_mode, "source_dir": str(spec.root),
-            "block_seconds": float(block_seconds), "sensor_names": _json(names),
-        })
+        f.attrs.update(
+            {
+                "file_type": np.int64(FILE_TYPE_HEADERS if headers_only else FILE_TYPE_DATA),
+                "mission": spec.name,
+                "epoch": _epoch_text(spec.epoch),
+                "attitude_mode": spec.attitude_mode,
+                "source_dir": str(spec.root),
+                "block_seconds": float(block_seconds),
+                "sensor_names": _json(names),
+            }
+        )
         frames_t: list[np.ndarray] = []
         frames_block: list[np.ndarray] = []
         frames_points: list[np.ndarray] = []
@@ -241,19 +248,24 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
                 frame_t = np.unique(np.concatenate(list(times.values())))
                 points = np.zeros((frame_t.size, len(names)), dtype=np.int32)
                 g = blocks.create_group(f"{n_blocks:05d}")
-                g.attrs.update({"kind": kind, "block_id": np.int64(BLOCK_IDS[kind]),
-                                "t0": float(t0), "t1": float(t0 + block_seconds),
-                                "n_frames": np.int64(frame_t.size),
-                                "frame_start": np.int64(sum(a.size for a in frames_t)),
-                                "sensors": _json(list(members))})
+                g.attrs.update(
+                    {
+                        "kind": kind,
+                        "block_id": np.int64(BLOCK_IDS[kind]),
+                        "t0": float(t0),
+                        "t1": float(t0 + block_seconds),
+                        "n_frames": np.int64(frame_t.size),
+                        "frame_start": np.int64(sum(a.size for a in frames_t)),
+                        "sensors": _json(list(members)),
+                    }
+                )
                 for n, sel in members.items():
                     t = times[n]
                     frame = np.searchsorted(frame_t, t).astype(np.int32)
                     points[frame, index_of[n]] += 1
                     sg = g.create_group(n)
                     cols = tuple(c for c in tables[n].columns if c != "t")
-                    sg.attrs.update({"n": np.int64(t.size), "columns": _json(cols),
-                                     "aux_columns": _json(aux_columns)})
+                    sg.attrs.update({"n": np.int64(t.size), "columns": _json(cols), "aux_columns": _json(aux_columns)})
                     h5store.write_array(sg, "t", t, attrs={"unit": "s"})
                     h5store.write_array(sg, "frame", frame)
                     if not headers_only:
@@ -266,7 +278,7 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
                 n_blocks += 1
         f.attrs["n_blocks"] = np.int64(n_blocks)
         fr = f.create_group("frames")
-        cat = (lambda xs, shape, dt: np.concatenate(xs) if xs else np.zeros(shape, dt))
+        cat = lambda xs, shape, dt: np.concatenate(xs) if xs else np.zeros(shape, dt)
         points_all = cat(frames_points, (0, len(names)), np.int32)
         h5store.write_array(fr, "t", cat(frames_t, (0,), np.float64), attrs={"unit": "s"})
         h5store.write_array(fr, "block", cat(frames_block, (0,), np.int32))
@@ -278,25 +290,28 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
             if s.name not in tables:
                 continue
             g = sg.create_group(s.name)
-            g.attrs.update({
-                "type": s.type, "kind": kinds[s.name], "telemetry": str(s.telemetry),
-                "alignment_deg": _json(list(s.alignment_deg) if s.alignment_deg else None),
-                "noise": _json(s.noise), "book": _json(dict(s.book)),
-                "unknown_keys": _json(list(s.unknown_keys)),
-                "columns": _json([c for c in tables[s.name].columns if c != "t"]),
-                "units": _json([COLUMN_UNITS.get(c, "") for c in tables[s.name].columns
-                                if c != "t"]),
-                "n_samples": np.int64(len(tables[s.name])),
-                "dropped_nan": np.int64(tables[s.name].dropped_nan),
-                "dropped_duplicates": np.int64(tables[s.name].dropped_duplicates),
-            })
+            g.attrs.update(
+                {
+                    "type": s.type,
+                    "kind": kinds[s.name],
+                    "telemetry": str(s.telemetry),
+                    "alignment_deg": _json(list(s.alignment_deg) if s.alignment_deg else None),
+                    "noise": _json(s.noise),
+                    "book": _json(dict(s.book)),
+                    "unknown_keys": _json(list(s.unknown_keys)),
+                    "columns": _json([c for c in tables[s.name].columns if c != "t"]),
+                    "units": _json([COLUMN_UNITS.get(c, "") for c in tables[s.name].columns if c != "t"]),
+                    "n_samples": np.int64(len(tables[s.name])),
+                    "dropped_nan": np.int64(tables[s.name].dropped_nan),
+                    "dropped_duplicates": np.int64(tables[s.name].dropped_duplicates),
+                }
+            )
         eph = m.ephemeris_table
         eg = f.create_group("ephemeris")
         eg.attrs["source"] = str(eph.path)
         h5store.write_array(eg, "t", eph.t, attrs={"unit": "s"})
         h5store.write_array(eg, "r_I_km", eph.stack(("rx", "ry", "rz")), attrs={"unit": "km"})
-        h5store.write_array(eg, "v_I_km_s", eph.stack(("vx", "vy", "vz")),
-                            attrs={"unit": "km/s"})
+        h5store.write_array(eg, "v_I_km_s", eph.stack(("vx", "vy", "vz")), attrs={"unit": "km/s"})
         h5store.write_array(eg, "sun_I_km", eph.stack(("sx", "sy", "sz")), attrs={"unit": "km"})
         if aux is not None:
             ag = f.create_group("aux")
@@ -307,12 +322,17 @@ def write_sdf(path: str | os.PathLike, imported_mission: ImportedMission, *,
             og = f.create_group("onboard")
             og.attrs["source"] = str(m.onboard.path)
             h5store.write_array(og, "t", m.onboard.t, attrs={"unit": "s"})
-            h5store.write_array(og, "q", m.onboard.stack(("q1", "q2", "q3", "q4")),
-                                attrs={"convention": "q1, q2, q3, q4 (scalar last), GCI to body"})
+            h5store.write_array(
+                og,
+                "q",
+                m.onboard.stack(("q1", "q2", "q3", "q4")),
+                attrs={"convention": "q1, q2, q3, q4 (scalar last), GCI to body"},
+            )
     return path
 
 
 # --- reading --------------------------------------------------------------------------
+
 
 def _loads(text: Any) -> Any:
     if isinstance(text, bytes):
@@ -331,14 +351,25 @@ def _read_block(f: h5py.File, name: str, file_type: int) -> SdfBlock:
         aux_cols = tuple(_loads(sg.attrs.get("aux_columns", "[]")))
         data = sg["data"][()] if file_type == FILE_TYPE_DATA else None
         aux = sg["aux"][()] if (file_type == FILE_TYPE_DATA and "aux" in sg) else None
-        sensors[sname] = SdfSensorData(t=sg["t"][()], frame=sg["frame"][()], data=data,
-                                       columns=cols, aux=aux,
-                                       aux_columns=aux_cols if aux is not None else ())
+        sensors[sname] = SdfSensorData(
+            t=sg["t"][()],
+            frame=sg["frame"][()],
+            data=data,
+            columns=cols,
+            aux=aux,
+            aux_columns=aux_cols if aux is not None else (),
+        )
     fr = f["frames"]
-    return SdfBlock(index=int(name), kind=h5store.attr_str(g, "kind", ""),
-                    block_id=int(a["block_id"]), t0=float(a["t0"]), t1=float(a["t1"]),
-                    frame_t=fr["t"][start:start + n_frames],
-                    n_points=fr["n_points"][start:start + n_frames], sensors=sensors)
+    return SdfBlock(
+        index=int(name),
+        kind=h5store.attr_str(g, "kind", ""),
+        block_id=int(a["block_id"]),
+        t0=float(a["t0"]),
+        t1=float(a["t1"]),
+        frame_t=fr["t"][start : start + n_frames],
+        n_points=fr["n_points"][start : start + n_frames],
+        sensors=sensors,
+    )
 
 
 def _header(f: h5py.File, path: Path) -> dict:
@@ -347,13 +378,17 @@ def _header(f: h5py.File, path: Path) -> dict:
     if file_type not in (FILE_TYPE_DATA, FILE_TYPE_HEADERS):
         raise DataFileError(f"unknown SDF file type {file_type}", file=path)
     try:
-        epoch = parse_utc(h5store.attr_str(f, "epoch", ""))      # missing: "bad epoch", one line
+        epoch = parse_utc(h5store.attr_str(f, "epoch", ""))  # missing: "bad epoch", one line
     except ValueError as err:
         raise DataFileError(f"bad epoch attribute ({err})", file=path) from None
-    return {"file_type": file_type, "mission": h5store.attr_str(f, "mission"), "epoch": epoch,
-            "attitude_mode": h5store.attr_str(f, "attitude_mode"),
-            "source_dir": h5store.attr_str(f, "source_dir"),
-            "block_seconds": float(a["block_seconds"])}
+    return {
+        "file_type": file_type,
+        "mission": h5store.attr_str(f, "mission"),
+        "epoch": epoch,
+        "attitude_mode": h5store.attr_str(f, "attitude_mode"),
+        "source_dir": h5store.attr_str(f, "source_dir"),
+        "block_seconds": float(a["block_seconds"]),
+    }
 
 
 def _read_sensors(f: h5py.File) -> dict[str, SdfSensor]:
@@ -361,14 +396,18 @@ def _read_sensors(f: h5py.File) -> dict[str, SdfSensor]:
     for name in _loads(f.attrs["sensor_names"]):
         a = f["sensors"][name].attrs
         align = _loads(a["alignment_deg"])
-        out[name] = SdfSensor(name=name, type=h5store.attr_str(f["sensors"][name], "type", ""),
-                              kind=h5store.attr_str(f["sensors"][name], "kind", ""),
-                              telemetry=h5store.attr_str(f["sensors"][name], "telemetry", ""),
-                              alignment_deg=tuple(align) if align is not None else None,
-                              noise=_loads(a["noise"]), book=_loads(a["book"]),
-                              columns=tuple(_loads(a["columns"])),
-                              n_samples=int(a["n_samples"]),
-                              units=tuple(_loads(a.get("units", "[]"))))
+        out[name] = SdfSensor(
+            name=name,
+            type=h5store.attr_str(f["sensors"][name], "type", ""),
+            kind=h5store.attr_str(f["sensors"][name], "kind", ""),
+            telemetry=h5store.attr_str(f["sensors"][name], "telemetry", ""),
+            alignment_deg=tuple(align) if align is not None else None,
+            noise=_loads(a["noise"]),
+            book=_loads(a["book"]),
+            columns=tuple(_loads(a["columns"])),
+            n_samples=int(a["n_samples"]),
+            units=tuple(_loads(a.get("units", "[]"))),
+        )
     return out
 
 
@@ -379,8 +418,7 @@ def read_sdf(path: str | os.PathLike) -> SdfContents:
         head = _header(f, path)
         blocks = tuple(_read_block(f, name, head["file_type"]) for name in sorted(f["blocks"]))
         if len(blocks) != int(f.attrs["n_blocks"]):
-            raise DataFileError(f"holds {len(blocks)} blocks but its header says "
-                                f"{int(f.attrs['n_blocks'])}", file=path)
+            raise DataFileError(f"holds {len(blocks)} blocks but its header says {int(f.attrs['n_blocks'])}", file=path)
         fr = f["frames"]
         eg = f["ephemeris"]
         ephemeris = {k: eg[k][()] for k in ("t", "r_I_km", "v_I_km_s", "sun_I_km")}
@@ -392,10 +430,19 @@ def read_sdf(path: str | os.PathLike) -> SdfContents:
         onboard = None
         if "onboard" in f:
             onboard = {"t": f["onboard"]["t"][()], "q": f["onboard"]["q"][()]}
-        return SdfContents(path=path, sensors=_read_sensors(f), frames_t=fr["t"][()],
-                           frames_block=fr["block"][()], frames_n_points=fr["n_points"][()],
-                           blocks=blocks, ephemeris=ephemeris, aux=aux, onboard=onboard,
-                           attrs={k: v for k, v in f.attrs.items()}, **head)
+        return SdfContents(
+            path=path,
+            sensors=_read_sensors(f),
+            frames_t=fr["t"][()],
+            frames_block=fr["block"][()],
+            frames_n_points=fr["n_points"][()],
+            blocks=blocks,
+            ephemeris=ephemeris,
+            aux=aux,
+            onboard=onboard,
+            attrs={k: v for k, v in f.attrs.items()},
+            **head,
+        )
 
 
 def iter_blocks(path: str | os.PathLike) -> Iterator[SdfBlock]:

@@ -24,22 +24,32 @@ from gcs_core.io.types import Table
 log = logging.getLogger(__name__)
 
 
-def tle_ephemeris_table(tle_file: str | os.PathLike, epoch, t_start: float, t_end: float, *,
-                        frame: str = "teme", step_s: float = DEFAULT_STEP_S,
-                        margin_s: float = MARGIN_S) -> Table:
+def tle_ephemeris_table(
+    tle_file: str | os.PathLike,
+    epoch,
+    t_start: float,
+    t_end: float,
+    *,
+    frame: str = "teme",
+    step_s: float = DEFAULT_STEP_S,
+    margin_s: float = MARGIN_S,
+) -> Table:
     """An ephemeris table (ICD §4 columns) propagated from a TLE over ``[t_start, t_end]``
     widened by ``margin_s``, every ``step_s`` seconds (the last row on the end exactly)."""
     if not 0.0 < step_s <= 60.0:
-        raise InputError(f"step_s must be in (0, 60] s (ICD §4), not {step_s:g}",
-                         key="orbit.step_s")
+        raise InputError(f"step_s must be in (0, 60] s (ICD §4), not {step_s:g}", key="orbit.step_s")
     line1, line2 = read_tle(tle_file)
     orbit = TleOrbit(line1, line2, epoch)
     lo, hi = float(t_start) - margin_s, float(t_end) + margin_s
     jd_lo, jd_hi = timescale.julian_date(epoch, np.array([lo, hi]))
     far = max(abs(jd_lo - orbit.tle_epoch_jd), abs(jd_hi - orbit.tle_epoch_jd))
     if far > STALE_DAYS:
-        log.warning("%s: the data reach %.1f days from the elements' epoch; SGP4's error grows "
-                    "by 1-3 km a day in low orbit (use elements of the data's days)", tle_file, far)
+        log.warning(
+            "%s: the data reach %.1f days from the elements' epoch; SGP4's error grows "
+            "by 1-3 km a day in low orbit (use elements of the data's days)",
+            tle_file,
+            far,
+        )
     n = max(int(np.ceil((hi - lo) / step_s - 1e-9)), 1)
     t = lo + step_s * np.arange(n + 1)
     t[-1] = hi
@@ -49,5 +59,4 @@ def tle_ephemeris_table(tle_file: str | os.PathLike, epoch, t_start: float, t_en
         raise InputError(err.message, file=tle_file, key=err.key) from None
     cols = dict(zip(EPHEMERIS_COLUMNS, [t, *r.T, *v.T, *sun.T]))
     cols = {k: np.ascontiguousarray(c, dtype=float) for k, c in cols.items()}
-    return Table(path=Path(tle_file), t=cols["t"], columns=cols,
-                 lines=np.zeros(t.size, dtype=int))
+    return Table(path=Path(tle_file), t=cols["t"], columns=cols, lines=np.zeros(t.size, dtype=int))

@@ -57,13 +57,12 @@ class Ctx:
     file: Path
     where: Locator
 
-    def error(self, message: str, key: str, table: str = "", index: int = 1,
-              tkey: str | None = None) -> InputError:
-        return InputError(message, file=self.file, line=self.where.line(table, tkey, index),
-                          key=key)
+    def error(self, message: str, key: str, table: str = "", index: int = 1, tkey: str | None = None) -> InputError:
+        return InputError(message, file=self.file, line=self.where.line(table, tkey, index), key=key)
 
 
 # --- values ---------------------------------------------------------------------------
+
 
 def number(ctx: Ctx, value: Any, key: str, table: str, index: int, tkey: str) -> float:
     complaint = number_complaint(value)
@@ -72,24 +71,21 @@ def number(ctx: Ctx, value: Any, key: str, table: str, index: int, tkey: str) ->
     return float(value)
 
 
-def numbers(ctx: Ctx, value: Any, size: int, key: str, table: str, index: int,
-             tkey: str) -> tuple[float, ...]:
+def numbers(ctx: Ctx, value: Any, size: int, key: str, table: str, index: int, tkey: str) -> tuple[float, ...]:
     if not isinstance(value, list) or len(value) != size:
-        raise ctx.error(f"must be a list of {size} numbers, not {show(value)}", key, table,
-                        index, tkey)
+        raise ctx.error(f"must be a list of {size} numbers, not {show(value)}", key, table, index, tkey)
     return tuple(number(ctx, v, f"{key}[{i}]", table, index, tkey) for i, v in enumerate(value))
 
 
-def string(ctx: Ctx, value: Any, key: str, table: str, index: int = 1,
-            tkey: str | None = None) -> str:
+def string(ctx: Ctx, value: Any, key: str, table: str, index: int = 1, tkey: str | None = None) -> str:
     if not isinstance(value, str) or not value.strip():
-        raise ctx.error(f"must be a non-empty string, not {show(value)}", key, table, index,
-                        tkey)
+        raise ctx.error(f"must be a non-empty string, not {show(value)}", key, table, index, tkey)
     return value.strip()
 
 
-def existing_file(ctx: Ctx, root: Path, value: Any, key: str, table: str, what: str,
-                   index: int = 1, tkey: str = "file") -> Path:
+def existing_file(
+    ctx: Ctx, root: Path, value: Any, key: str, table: str, what: str, index: int = 1, tkey: str = "file"
+) -> Path:
     rel = string(ctx, value, key, table, index, tkey)
     if "\x00" in rel:
         raise ctx.error("file name holds a NUL character", key, table, index, tkey)
@@ -97,14 +93,11 @@ def existing_file(ctx: Ctx, root: Path, value: Any, key: str, table: str, what: 
     try:
         is_file, is_dir = path.is_file(), path.is_dir()
     except (OSError, ValueError) as err:
-        raise ctx.error(f"{what} file {rel!r} cannot be looked up ({err})", key, table, index,
-                        tkey) from None
+        raise ctx.error(f"{what} file {rel!r} cannot be looked up ({err})", key, table, index, tkey) from None
     if is_dir:
-        raise ctx.error(f"{what} file {rel!r} is a directory, not a file", key, table, index,
-                        tkey)
+        raise ctx.error(f"{what} file {rel!r} is a directory, not a file", key, table, index, tkey)
     if not is_file:
-        raise ctx.error(f"{what} file {rel!r} not found (looked for {path})", key, table, index,
-                        tkey)
+        raise ctx.error(f"{what} file {rel!r} not found (looked for {path})", key, table, index, tkey)
     return path
 
 

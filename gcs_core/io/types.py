@@ -16,8 +16,16 @@ from typing import Any
 import numpy as np
 
 ATTITUDE_MODES = ("inertial", "earth_pointing", "sun_pointing", "spinning")
-SENSOR_TYPES = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun",
-                "plane_field_sun", "horizon", "attitude_reference")
+SENSOR_TYPES = (
+    "magnetometer",
+    "gyro",
+    "star_tracker",
+    "fine_sun",
+    "coarse_sun",
+    "plane_field_sun",
+    "horizon",
+    "attitude_reference",
+)
 
 
 @dataclass(frozen=True)
@@ -84,7 +92,7 @@ class MissionSpec:
 
     root: Path
     name: str
-    epoch: datetime                      # UTC, timezone-aware
+    epoch: datetime  # UTC, timezone-aware
     attitude_mode: str
     ephemeris_file: Path | None
     sensors: tuple[SensorSpec, ...]

@@ -19,20 +19,39 @@ from gcs_core.models.magnetometer import MagnetometerModel
 from gcs_core.models.plane_field_sun import PlaneFieldSunModel
 from gcs_core.models.star_tracker import StarTrackerModel
 
-__all__ = ["MODEL_TYPES", "make_model", "ObservationModel", "MagnetometerModel", "GyroModel",
-           "StarTrackerModel", "FineSunModel", "CoarseSunModel", "PlaneFieldSunModel", "HorizonModel",
-           "AttitudeReferenceModel"]
+__all__ = [
+    "MODEL_TYPES",
+    "make_model",
+    "ObservationModel",
+    "MagnetometerModel",
+    "GyroModel",
+    "StarTrackerModel",
+    "FineSunModel",
+    "CoarseSunModel",
+    "PlaneFieldSunModel",
+    "HorizonModel",
+    "AttitudeReferenceModel",
+]
 
 #: ICD §5 type key -> model class.
 MODEL_TYPES: dict[str, type[ObservationModel]] = {
     cls.type_name: cls
-    for cls in (MagnetometerModel, GyroModel, StarTrackerModel, FineSunModel, CoarseSunModel,
-                PlaneFieldSunModel, HorizonModel, AttitudeReferenceModel)
+    for cls in (
+        MagnetometerModel,
+        GyroModel,
+        StarTrackerModel,
+        FineSunModel,
+        CoarseSunModel,
+        PlaneFieldSunModel,
+        HorizonModel,
+        AttitudeReferenceModel,
+    )
 }
 
 
-def make_model(sensor: SensorSpec, *, aux_channels: tuple[str, ...] = (),
-               constant_field: bool = False) -> ObservationModel:
+def make_model(
+    sensor: SensorSpec, *, aux_channels: tuple[str, ...] = (), constant_field: bool = False
+) -> ObservationModel:
     """The observation model of ``sensor``; ``aux_channels`` feed the magnetometer's
     contamination parameters (ignored by the other types); ``constant_field`` gives a
     magnetometer the unknown constant reference field ``field.B_x/y/z`` (physics
@@ -42,8 +61,10 @@ def make_model(sensor: SensorSpec, *, aux_channels: tuple[str, ...] = (),
     """
     cls = MODEL_TYPES.get(sensor.type)
     if cls is None:
-        raise InputError(f"sensor '{sensor.name}' has unknown type '{sensor.type}' "
-                         f"(known: {', '.join(MODEL_TYPES)})", key=f"{sensor.name}.type")
+        raise InputError(
+            f"sensor '{sensor.name}' has unknown type '{sensor.type}' (known: {', '.join(MODEL_TYPES)})",
+            key=f"{sensor.name}.type",
+        )
     if constant_field and cls is MagnetometerModel:
         return cls(sensor, aux_channels=tuple(aux_channels), constant_field=True)
     return cls(sensor, aux_channels=tuple(aux_channels))

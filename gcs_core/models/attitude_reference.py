@@ -80,8 +80,17 @@ class AttitudeReferenceModel(ObservationModel):
 
     def _parameters(self) -> tuple[ParamSpec, ...]:
         specs = list(common.alignment_specs(self.sensor, seed=True, sigma=0.01))
-        specs.append(ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
-                               description="time-tag offset: the attitude sample is of time t + Δt"))
+        specs.append(
+            ParamSpec(
+                "time_offset",
+                "s",
+                0.0,
+                0.1,
+                seed=False,
+                effect="time_offset",
+                description="time-tag offset: the attitude sample is of time t + Δt",
+            )
+        )
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:
@@ -110,7 +119,7 @@ class AttitudeReferenceModel(ObservationModel):
         if geom.omega_B is not None:
             omega = np.broadcast_to(np.asarray(geom.omega_B, dtype=float), (n, 3))
         if omega is not None and dt != 0.0:
-            MR = M @ rotvec_to_dcm(omega * dt)                   # M R(Δt), (N, 3, 3)
+            MR = M @ rotvec_to_dcm(omega * dt)  # M R(Δt), (N, 3, 3)
         else:
             MR = np.broadcast_to(M, (n, 3, 3))
         y = dcm_to_rotvec(MR @ C)

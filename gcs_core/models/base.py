@@ -213,8 +213,9 @@ class ObservationModel:
         """Predicted measurements and all partials at the frames of ``geom``."""
         raise NotImplementedError
 
-    def held(self, geom: Geometry, params: Mapping[str, float], rows: np.ndarray | None = None
-             ) -> Callable[[Mapping[str, float]], HeldPrediction] | None:
+    def held(
+        self, geom: Geometry, params: Mapping[str, float], rows: np.ndarray | None = None
+    ) -> Callable[[Mapping[str, float]], HeldPrediction] | None:
         """A fast evaluation in the :attr:`nonlinear_pairs` parameters with everything else
         held (the attitude, the ephemeris and the other parameters at ``params``): a
         function ``(params, wanted=None) -> HeldPrediction`` at the frames ``rows`` of
@@ -229,5 +230,4 @@ class ObservationModel:
         return np.asarray(y_meas) - np.asarray(y_pred)
 
     def describe(self) -> dict[str, Any]:
-        return {"name": self.name, "type": self.type_name, "components": self.components,
-                "unit": self.unit}
+        return {"name": self.name, "type": self.type_name, "components": self.components, "unit": self.unit}

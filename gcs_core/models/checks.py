@@ -111,8 +111,10 @@ class CheckReport:
         lines = [f"{self.model} ({self.scheme}, {self.n_valid}/{self.n_frames} valid frames)"]
         for e in self.elements:
             flag = "ok " if e.ok else "BAD"
-            lines.append(f"  {flag} {e.name:<22} err {e.max_abs_error:.3e}  tol {e.tolerance:.3e}  "
-                         f"|d| {e.max_abs_partial:.3e}  rel {e.relative_error:.2e}  h {e.step:.2e}")
+            lines.append(
+                f"  {flag} {e.name:<22} err {e.max_abs_error:.3e}  tol {e.tolerance:.3e}  "
+                f"|d| {e.max_abs_partial:.3e}  rel {e.relative_error:.2e}  h {e.step:.2e}"
+            )
         return "\n".join(lines)
 
 
@@ -155,9 +157,16 @@ def _attitude_perturbations(model: ObservationModel, geom: Geometry, rel_step: f
     return h, make
 
 
-def check_partials(model: ObservationModel, geom: Geometry, params: Mapping[str, float] | None = None, *,
-                   rel_step: float | None = None, scheme: str = "central", rtol: float | None = None,
-                   atol_by_param: Mapping[str, float] | None = None) -> CheckReport:
+def check_partials(
+    model: ObservationModel,
+    geom: Geometry,
+    params: Mapping[str, float] | None = None,
+    *,
+    rel_step: float | None = None,
+    scheme: str = "central",
+    rtol: float | None = None,
+    atol_by_param: Mapping[str, float] | None = None,
+) -> CheckReport:
     """Compare the analytic partials of ``model.predict(geom, params)`` with finite differences.
 
     Parameters
@@ -204,32 +213,45 @@ def check_partials(model: ObservationModel, geom: Geometry, params: Mapping[str,
     elements = []
     steps = {p.name: rel_step * max(abs(values[p.name]), abs(p.sigma)) for p in specs}
     for p in specs:
+
         def run(sign, _name=p.name, _x=values[p.name], _h=steps[p.name]):
             return model.predict(geom, {**values, _name: _x + sign * _h})
+
         elements.append(compare(p.name, steps[p.name], np.asarray(base.d_par[p.name]), run))
 
-    for a, b in base.d2_par:                     # second partials: differences of ∂y/∂a in b
+    for a, b in base.d2_par:  # second partials: differences of ∂y/∂a in b
+
         def run2(sign, _a=a, _b=b):
             pr = model.predict(geom, {**values, _b: values[_b] + sign * steps[_b]})
             return dataclasses.replace(pr, y=np.asarray(pr.d_par[_a]))
+
         c, v = common.component_values(base.d2_par[(a, b)], geom.n)
         analytic = np.zeros_like(base.y)
         analytic[:, c] = v
-        elements.append(compare(f"d2:{a},{b}", steps[b], analytic, run2,
-                                base_y=np.asarray(base.d_par[a]), sub=np.subtract))
+        elements.append(
+            compare(f"d2:{a},{b}", steps[b], analytic, run2, base_y=np.asarray(base.d_par[a]), sub=np.subtract)
+        )
 
     h_att, make = _attitude_perturbations(model, geom, rel_step)
     for k, name in enumerate(ATTITUDE_NAMES):
+
         def run_att(sign, _k=k):
             return model.predict(make(_k, sign), values)
+
         elements.append(compare(name, h_att, np.asarray(base.d_att)[..., k], run_att))
 
-    return CheckReport(model=f"{model.type_name}:{model.name}", scheme=scheme, n_frames=geom.n,
-                       n_valid=int(np.count_nonzero(base.valid)), elements=tuple(elements))
+    return CheckReport(
+        model=f"{model.type_name}:{model.name}",
+        scheme=scheme,
+        n_frames=geom.n,
+        n_valid=int(np.count_nonzero(base.valid)),
+        elements=tuple(elements),
+    )
 
 
-def assert_partials_match(model: ObservationModel, geom: Geometry, params: Mapping[str, float] | None = None,
-                          **kwargs) -> CheckReport:
+def assert_partials_match(
+    model: ObservationModel, geom: Geometry, params: Mapping[str, float] | None = None, **kwargs
+) -> CheckReport:
     """:func:`check_partials`, raising ``AssertionError`` with the report if any element fails."""
     report = check_partials(model, geom, params, **kwargs)
     if not report.passed:

@@ -54,14 +54,41 @@ class CoarseSunModel(ObservationModel):
         bias = common.book_vector(self.sensor, "bias", 2, default=(0.0, 0.0))
         specs = []
         for i, (axis, _, kname, _b) in enumerate(AXES):
-            specs.append(ParamSpec(kname, "rad/count", float(scale[i]), 0.05 * abs(scale[i]), seed=True,
-                                   effect="scale", description=f"{axis} scale factor (Eq 4-16)"))
+            specs.append(
+                ParamSpec(
+                    kname,
+                    "rad/count",
+                    float(scale[i]),
+                    0.05 * abs(scale[i]),
+                    seed=True,
+                    effect="scale",
+                    description=f"{axis} scale factor (Eq 4-16)",
+                )
+            )
         for i, (axis, _, _k, bname) in enumerate(AXES):
-            specs.append(ParamSpec(bname, "rad", float(bias[i]), 1.0 * units.DEG, seed=True,
-                                   effect="bias", description=f"{axis} angle bias (Eq 4-16)"))
+            specs.append(
+                ParamSpec(
+                    bname,
+                    "rad",
+                    float(bias[i]),
+                    1.0 * units.DEG,
+                    seed=True,
+                    effect="bias",
+                    description=f"{axis} angle bias (Eq 4-16)",
+                )
+            )
         specs += common.alignment_specs(self.sensor, seed=False, sigma=0.02)
-        specs.append(ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
-                               description="time-tag offset: the sample is of time t + Δt"))
+        specs.append(
+            ParamSpec(
+                "time_offset",
+                "s",
+                0.0,
+                0.1,
+                seed=False,
+                effect="time_offset",
+                description="time-tag offset: the sample is of time t + Δt",
+            )
+        )
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:
@@ -76,7 +103,7 @@ class CoarseSunModel(ObservationModel):
         n = geom.n
         M, dM = common.alignment_matrix(p)
         y = np.zeros((n, 2))
-        J = np.zeros((n, 2, 3))                        # ∂n/∂S_S
+        J = np.zeros((n, 2, 3))  # ∂n/∂S_S
         d_par: dict[str, common.PartialSource] = {}
         with np.errstate(all="ignore"):
             bv = common.body_vector(geom, geom.sun_I, p["time_offset"])
@@ -92,7 +119,7 @@ class CoarseSunModel(ObservationModel):
                 den = K * (S[:, 0] ** 2 + S[:, comp] ** 2)
                 J[:, row, 0] = -S[:, comp] / den
                 J[:, row, comp] = S[:, 0] / den
-            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(n, 2, 3))     # J M ∂S_B/∂δθ
+            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(n, 2, 3))  # J M ∂S_B/∂δθ
             # formed when read (common.Partials): usually held
             for k, name in enumerate(common.ALIGN_NAMES):
                 d_par[name] = lambda k=k: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T)

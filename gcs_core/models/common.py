@@ -108,16 +108,17 @@ def book_vector(sensor: SensorSpec, key: str, size: int, default=None) -> np.nda
     value = sensor.get(key, None)
     if value is None:
         if default is None:
-            raise InputError(f"sensor '{sensor.name}' of type '{sensor.type}' needs data-book key "
-                             f"'{key}' ({size} values)", key=book_key(sensor, key))
+            raise InputError(
+                f"sensor '{sensor.name}' of type '{sensor.type}' needs data-book key '{key}' ({size} values)",
+                key=book_key(sensor, key),
+            )
         value = default
     try:
         arr = np.asarray(value, dtype=float).reshape(-1)
     except (TypeError, ValueError):
         raise InputError(f"'{key}' must be a list of {size} numbers", key=book_key(sensor, key)) from None
     if arr.shape[0] != size or not np.all(np.isfinite(arr)):
-        raise InputError(f"'{key}' must be a list of {size} finite numbers, got {value!r}",
-                         key=book_key(sensor, key))
+        raise InputError(f"'{key}' must be a list of {size} finite numbers, got {value!r}", key=book_key(sensor, key))
     return arr
 
 
@@ -186,9 +187,17 @@ def alignment_specs(sensor: SensorSpec, *, seed: bool, sigma: float) -> tuple[Pa
     """``align_1..3`` [rad], nominal from ``alignment_deg`` (ICD §2), effect ``alignment``."""
     a_deg = (0.0, 0.0, 0.0) if sensor.alignment_deg is None else sensor.alignment_deg
     return tuple(
-        ParamSpec(name, "rad", float(a_deg[i]) * units.DEG, sigma, seed=seed, effect="alignment",
-                  description=f"alignment angle a{i + 1} of M = T3(a3) T2(a2) T1(a1)")
-        for i, name in enumerate(ALIGN_NAMES))
+        ParamSpec(
+            name,
+            "rad",
+            float(a_deg[i]) * units.DEG,
+            sigma,
+            seed=seed,
+            effect="alignment",
+            description=f"alignment angle a{i + 1} of M = T3(a3) T2(a2) T1(a1)",
+        )
+        for i, name in enumerate(ALIGN_NAMES)
+    )
 
 
 def alignment_matrix(p: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
@@ -212,7 +221,7 @@ def _alignment(a1: float, a2: float, a3: float) -> tuple[np.ndarray, np.ndarray]
 # Body vector with a time-tag offset
 # --------------------------------------------------------------------------------------
 #: an (N, 3) rate of a reference vector, or a function giving it when it is needed
-RateSource = np.ndarray | Callable[..., np.ndarray | None] | None   # a function: called with no arguments
+RateSource = np.ndarray | Callable[..., np.ndarray | None] | None  # a function: called with no arguments
 
 
 class BodyVector:
@@ -227,8 +236,15 @@ class BodyVector:
         partial needs it, and that effect is usually held).
     """
 
-    def __init__(self, v_B: np.ndarray, u_B: np.ndarray, R: np.ndarray | None,
-                 omega: np.ndarray | None, C: np.ndarray, vdot_I: RateSource):
+    def __init__(
+        self,
+        v_B: np.ndarray,
+        u_B: np.ndarray,
+        R: np.ndarray | None,
+        omega: np.ndarray | None,
+        C: np.ndarray,
+        vdot_I: RateSource,
+    ):
         self.v_B = v_B
         self._u, self._R = u_B, R
         self._omega, self._C, self._vdot = omega, C, vdot_I
@@ -250,7 +266,7 @@ class BodyVector:
             return A @ self.d_att
         u = self._u
         if A.ndim == 2:
-            L = np.stack([(A @ _skew(e[None])[0]).reshape(-1) for e in np.eye(3)])   # (3, 3m)
+            L = np.stack([(A @ _skew(e[None])[0]).reshape(-1) for e in np.eye(3)])  # (3, 3m)
             return (u @ L).reshape(u.shape[0], A.shape[0], 3)
         out = np.empty((u.shape[0], A.shape[-2], 3))
         if COMPILED:
@@ -300,15 +316,15 @@ def body_vector(geom: Geometry, v_I: np.ndarray, dt: float, vdot_I: RateSource =
         vdot_I = _rate(vdot_I)
         if vdot_I is not None:
             w_I = v_I + dt * vdot_I
-    u_B = rotate(C, w_I)                                       # C (v_I + Δt v̇_I)
+    u_B = rotate(C, w_I)  # C (v_I + Δt v̇_I)
     omega = None
     if geom.omega_B is not None:
         omega = np.broadcast_to(np.asarray(geom.omega_B, dtype=float), u_B.shape)
     if omega is None or dt == 0.0:
         return BodyVector(u_B, u_B, None, omega, C, vdot_I)
-    R = rotvec_to_dcm(omega * dt)                              # exp(−[ω Δt ×])
+    R = rotvec_to_dcm(omega * dt)  # exp(−[ω Δt ×])
     v_B = rotate(R, u_B)
-    return BodyVector(v_B, u_B, R, omega, C, vdot_I)           # ∂v_B/∂δθ = R [u_B ×]
+    return BodyVector(v_B, u_B, R, omega, C, vdot_I)  # ∂v_B/∂δθ = R [u_B ×]
 
 
 def _skew(v: np.ndarray) -> np.ndarray:
@@ -345,7 +361,7 @@ def fov_square_ok(S_S: np.ndarray, fov: float | None) -> np.ndarray:
 
 
 #: a partial as given by a model: an array broadcastable to (N, m), or a function giving it
-PartialSource = np.ndarray | Callable[..., np.ndarray]   # a function: called with no arguments
+PartialSource = np.ndarray | Callable[..., np.ndarray]  # a function: called with no arguments
 
 
 class Partials(Mapping):
@@ -357,8 +373,7 @@ class Partials(Mapping):
     invalid frames ``bad`` (N,), copied with those rows set to NaN.
     """
 
-    def __init__(self, entries: Mapping[str, PartialSource], shape: tuple[int, int],
-                 bad: np.ndarray | None = None):
+    def __init__(self, entries: Mapping[str, PartialSource], shape: tuple[int, int], bad: np.ndarray | None = None):
         self._entries = dict(entries)
         self._shape = tuple(shape)
         self._bad = bad
@@ -395,9 +410,14 @@ def column(n: int, m: int, i: int, value) -> np.ndarray:
     return out
 
 
-def finish(y: np.ndarray, d_att: np.ndarray, d_par: Mapping[str, PartialSource], valid: np.ndarray,
-           specs: tuple[ParamSpec, ...], d2_par: Mapping[tuple[str, str], tuple[int, Any]] | None = None
-           ) -> Prediction:
+def finish(
+    y: np.ndarray,
+    d_att: np.ndarray,
+    d_par: Mapping[str, PartialSource],
+    valid: np.ndarray,
+    specs: tuple[ParamSpec, ...],
+    d2_par: Mapping[tuple[str, str], tuple[int, Any]] | None = None,
+) -> Prediction:
     """Check that every parameter has a partial, NaN-out invalid frames, build the Prediction
     (partials given as functions are formed when read, :class:`Partials`); ``d2_par`` the
     optional second partials (:attr:`Prediction.d2_par`), kept as given."""
@@ -405,21 +425,25 @@ def finish(y: np.ndarray, d_att: np.ndarray, d_par: Mapping[str, PartialSource],
     if missing:  # a bug in the model, not bad input
         raise RuntimeError(f"model gives no partials for {missing}")
     valid = np.array(valid, dtype=bool)
-    for c in range(y.shape[1]):          # column by column: a reduction over axis 1 is slow
+    for c in range(y.shape[1]):  # column by column: a reduction over axis 1 is slow
         valid &= np.isfinite(y[:, c])
     bad = ~valid
     entries = {p.name: d_par[p.name] for p in specs}
     if not bad.any():
         # nothing to NaN out: the model's own arrays are the prediction (no copies)
         y = np.asarray(y, dtype=float)
-        return Prediction(y=y, d_att=np.asarray(d_att, dtype=float), d_par=Partials(entries, y.shape),
-                          valid=valid, d2_par=dict(d2_par or {}))
+        return Prediction(
+            y=y,
+            d_att=np.asarray(d_att, dtype=float),
+            d_par=Partials(entries, y.shape),
+            valid=valid,
+            d2_par=dict(d2_par or {}),
+        )
     y = np.array(y, dtype=float)
     d_att = np.array(d_att, dtype=float)
     y[bad] = np.nan
     d_att[bad] = np.nan
-    return Prediction(y=y, d_att=d_att, d_par=Partials(entries, y.shape, bad), valid=valid,
-                      d2_par=dict(d2_par or {}))
+    return Prediction(y=y, d_att=d_att, d_par=Partials(entries, y.shape, bad), valid=valid, d2_par=dict(d2_par or {}))
 
 
 def component_values(entry, n: int) -> tuple[int, np.ndarray]:

@@ -57,17 +57,18 @@ from gcs_core.models import common
 from gcs_core.models.base import Geometry, HeldPrediction, ObservationModel, ParamSpec, Prediction
 
 #: (axis, data-book key, parameter names A1, A2, A3, k, harmonic, tangent component)
-AXES = (("alpha", "coeff_alpha", ("A1", "A2", "A3", "k_alpha"), "A4h", 1),
-        ("beta", "coeff_beta", ("B1", "B2", "B3", "k_beta"), "B4h", 2))
+AXES = (
+    ("alpha", "coeff_alpha", ("A1", "A2", "A3", "k_alpha"), "A4h", 1),
+    ("beta", "coeff_beta", ("B1", "B2", "B3", "k_beta"), "B4h", 2),
+)
 
 
 def eight_coefficients(c1: float, c2: float, c3: float, k: float) -> tuple[float, ...]:
     """Eq 4-25: ``(A1..A8)`` of the series Eq 4-24 from the four parameters of Eq 4-23."""
-    return (c1, c2, c3, k * c2, k * c1, k * c3 ** 2 / 2.0, 2.0 * k * c2, 2.0 * k * c1)
+    return (c1, c2, c3, k * c2, k * c1, k * c3**2 / 2.0, 2.0 * k * c2, 2.0 * k * c1)
 
 
-def tan_from_counts(n, c1: float, c2: float, c3: float, k: float, *, harmonic: float = 0.0,
-                    iterations: int = 50):
+def tan_from_counts(n, c1: float, c2: float, c3: float, k: float, *, harmonic: float = 0.0, iterations: int = 50):
     """Invert Eq 4-23: ``tan α`` with ``tan α = c1 + c2 n + c3 sin(k tan α) + h sin(2k tan α)``.
 
     Newton iteration started from the Eq 4-24 series (converges in a few steps for a
@@ -76,7 +77,7 @@ def tan_from_counts(n, c1: float, c2: float, c3: float, k: float, *, harmonic: f
     n = np.asarray(n, dtype=float)
     u = c1 + c2 * n
     a = eight_coefficients(c1, c2, c3, k)
-    x = u + a[2] * np.sin(a[3] * n + a[4]) + a[5] * np.sin(a[6] * n + a[7])   # Eq 4-24
+    x = u + a[2] * np.sin(a[3] * n + a[4]) + a[5] * np.sin(a[6] * n + a[7])  # Eq 4-24
     for _ in range(iterations):
         g = x - u - c3 * np.sin(k * x) - harmonic * np.sin(2.0 * k * x)
         dg = 1.0 - c3 * k * np.cos(k * x) - 2.0 * harmonic * k * np.cos(2.0 * k * x)
@@ -97,9 +98,11 @@ class FineSunModel(ObservationModel):
     attitude_kind = "three_axis"
     book_keys = ("coeff_alpha", "coeff_beta", "fov_deg")
     seen_through = {"k_alpha": ("A3", "A4h"), "k_beta": ("B3", "B4h")}
-    nonlinear_pairs = tuple((a, b) for _, _, (c1, c2, c3, k), h, _ in AXES
-                            for a, b in ((c1, c2), (c2, c2), (c2, c3), (c3, k), (c2, k), (k, k), (c2, h),
-                                         (h, k)))
+    nonlinear_pairs = tuple(
+        (a, b)
+        for _, _, (c1, c2, c3, k), h, _ in AXES
+        for a, b in ((c1, c2), (c2, c2), (c2, c3), (c3, k), (c2, k), (k, k), (c2, h), (h, k))
+    )
 
     def parameters(self) -> tuple[ParamSpec, ...]:
         return common.cached_parameters(self, self._parameters)
@@ -109,21 +112,49 @@ class FineSunModel(ObservationModel):
         for axis, key, names, _, _ in AXES:
             c = common.book_vector(self.sensor, key, 4)
             if c[1] == 0.0:
-                raise InputError(f"'{key}' second coefficient (counts-to-tangent slope) must not be 0",
-                                 key=common.book_key(self.sensor, key))
+                raise InputError(
+                    f"'{key}' second coefficient (counts-to-tangent slope) must not be 0",
+                    key=common.book_key(self.sensor, key),
+                )
             sig = (1e-3, 0.01 * abs(c[1]), 1e-3, max(0.1 * abs(c[3]), 1.0))
             units_ = ("1", "1/count", "1", "1")
             what = ("offset", "slope per count", "sine amplitude", "sine frequency")
             for i in range(4):
-                specs.append(ParamSpec(names[i], units_[i], float(c[i]), sig[i], seed=True,
-                                       effect="transfer_function",
-                                       description=f"{axis} transfer function {what[i]} (Eq 4-23)"))
+                specs.append(
+                    ParamSpec(
+                        names[i],
+                        units_[i],
+                        float(c[i]),
+                        sig[i],
+                        seed=True,
+                        effect="transfer_function",
+                        description=f"{axis} transfer function {what[i]} (Eq 4-23)",
+                    )
+                )
         specs += common.alignment_specs(self.sensor, seed=False, sigma=0.01)
         for axis, _, _, harm, _ in AXES:
-            specs.append(ParamSpec(harm, "1", 0.0, 1e-3, seed=False, effect="harmonic",
-                                   description=f"{axis} transfer function second harmonic sin(2k tan)"))
-        specs.append(ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
-                               description="time-tag offset: the sample is of time t + Δt"))
+            specs.append(
+                ParamSpec(
+                    harm,
+                    "1",
+                    0.0,
+                    1e-3,
+                    seed=False,
+                    effect="harmonic",
+                    description=f"{axis} transfer function second harmonic sin(2k tan)",
+                )
+            )
+        specs.append(
+            ParamSpec(
+                "time_offset",
+                "s",
+                0.0,
+                0.1,
+                seed=False,
+                effect="time_offset",
+                description="time-tag offset: the sample is of time t + Δt",
+            )
+        )
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:
@@ -156,16 +187,16 @@ class FineSunModel(ObservationModel):
         n = geom.n
         M, dM = common.alignment_matrix(p)
         d_par: dict[str, common.PartialSource] = {}
-        d2: dict[tuple[str, str], tuple[int, Any]] = {}   # (a, b) -> (component, ∂²y_c/∂a∂b)
+        d2: dict[tuple[str, str], tuple[int, Any]] = {}  # (a, b) -> (component, ∂²y_c/∂a∂b)
         y = np.empty((n, 2))
-        J = np.zeros((n, 2, 3))                     # ∂n/∂S_S
+        J = np.zeros((n, 2, 3))  # ∂n/∂S_S
         with np.errstate(all="ignore"):
             bv = common.body_vector(geom, geom.sun_I, p["time_offset"])
             S = bv.v_B @ M.T
             for row, (_, _, names, harm, comp) in enumerate(AXES):
                 c1, c2, c3, k = (p[nm] for nm in names)
                 h = p[harm]
-                x = S[:, comp] / S[:, 0]                                  # tan α or tan β
+                x = S[:, comp] / S[:, 0]  # tan α or tan β
                 kx = k * x
                 s1, co1 = np.sin(kx), np.cos(kx)
                 if h != 0.0:
@@ -186,7 +217,7 @@ class FineSunModel(ObservationModel):
                 _second_partials(d2, n, row, names, harm, x, kx, cnt, c2, c3, h, s1, co1)
                 J[:, row, 0] = -dn_dx * S[:, comp] / S[:, 0] ** 2
                 J[:, row, comp] = dn_dx / S[:, 0]
-            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(n, 2, 3))     # J M ∂S_B/∂δθ
+            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(n, 2, 3))  # J M ∂S_B/∂δθ
             for k_, name in enumerate(common.ALIGN_NAMES):
                 d_par[name] = lambda k_=k_: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k_].T)
             d_par["time_offset"] = lambda: np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
@@ -229,13 +260,14 @@ class _HeldTransfer:
         return HeldPrediction(y, d_par, d2)
 
 
-def _second_partials(d2: dict, n: int, row: int, names, harm: str, x, kx, cnt, c2: float, c3: float,
-                     h: float, s1, co1) -> None:
+def _second_partials(
+    d2: dict, n: int, row: int, names, harm: str, x, kx, cnt, c2: float, c3: float, h: float, s1, co1
+) -> None:
     """Register the second partials of one axis (module docstring, ``Prediction.d2_par``)
     as ``(row, function)`` entries formed when read: ``x`` = tan, ``kx`` = k tan, ``cnt``
     = n, ``s1``, ``co1`` = sin, cos of ``kx`` (N,)."""
     a1, a2, a3, k = names
-    inv, inv2 = 1.0 / c2, 1.0 / c2 ** 2
+    inv, inv2 = 1.0 / c2, 1.0 / c2**2
     d2[(a1, a2)] = (row, inv2)
     d2[(a2, a2)] = (row, lambda: (2.0 * inv2) * cnt)
     d2[(a2, a3)] = (row, lambda: inv2 * s1)

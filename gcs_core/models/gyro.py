@@ -70,9 +70,9 @@ def corrected_rate(y, params: Mapping[str, float], M=None) -> np.ndarray:
     y = np.asarray(y, dtype=float)
     G = np.eye(3) + np.array([params.get(n, 0.0) for n in G_NAMES], dtype=float).reshape(3, 3)
     b = np.array([params.get(f"bias_{ax}", 0.0) for ax in AXES])
-    w_S = np.linalg.solve(G, y.reshape(-1, 3).T).T - b          # G⁻¹ y − b
+    w_S = np.linalg.solve(G, y.reshape(-1, 3).T).T - b  # G⁻¹ y − b
     if M is not None:
-        w_S = w_S @ np.asarray(M, dtype=float)                   # Mᵀ (·), row form
+        w_S = w_S @ np.asarray(M, dtype=float)  # Mᵀ (·), row form
     return w_S.reshape(y.shape)
 
 
@@ -91,7 +91,7 @@ def rate_from_quaternions(q_prev, q_next, dt) -> np.ndarray:
     s = np.linalg.norm(e, axis=-1)
     theta = 2.0 * np.arctan2(s, q4)
     small = s < 1e-12
-    factor = np.where(small, 2.0, theta / np.where(small, 1.0, s))   # θ/sin(θ/2) → 2 as θ → 0
+    factor = np.where(small, 2.0, theta / np.where(small, 1.0, s))  # θ/sin(θ/2) → 2 as θ → 0
     return e * (factor / np.asarray(dt, dtype=float))[..., None]
 
 
@@ -128,24 +128,51 @@ class GyroModel(ObservationModel):
 
     def parameters(self) -> tuple[ParamSpec, ...]:
         bias = common.book_vector(self.sensor, "bias", 3, default=(0.0, 0.0, 0.0))
-        specs = [ParamSpec(n, "1", 0.0, 1e-3, seed=True, effect="scale_misalignment",
-                           description=f"deviation of G_{n[2:]} from identity (Eq 4-32)")
-                 for n in G_NAMES]
-        specs += [ParamSpec(f"bias_{ax}", "rad/s", float(bias[i]), 1e-5, seed=True, effect="bias",
-                            description=f"drift-rate bias about sensor {ax} (Eq 4-32)")
-                  for i, ax in enumerate(AXES)]
+        specs = [
+            ParamSpec(
+                n,
+                "1",
+                0.0,
+                1e-3,
+                seed=True,
+                effect="scale_misalignment",
+                description=f"deviation of G_{n[2:]} from identity (Eq 4-32)",
+            )
+            for n in G_NAMES
+        ]
+        specs += [
+            ParamSpec(
+                f"bias_{ax}",
+                "rad/s",
+                float(bias[i]),
+                1e-5,
+                seed=True,
+                effect="bias",
+                description=f"drift-rate bias about sensor {ax} (Eq 4-32)",
+            )
+            for i, ax in enumerate(AXES)
+        ]
         specs += common.alignment_specs(self.sensor, seed=False, sigma=1e-3)
-        specs += [ParamSpec(f"bias_rate_{ax}", "rad/s2", 0.0, 1e-9, seed=False, effect="bias_instability",
-                            description=f"bias instability: drift of the {ax} bias per second over the "
-                                        "span (used by the gyro-propagated attitude)")
-                  for ax in AXES]
+        specs += [
+            ParamSpec(
+                f"bias_rate_{ax}",
+                "rad/s2",
+                0.0,
+                1e-9,
+                seed=False,
+                effect="bias_instability",
+                description=f"bias instability: drift of the {ax} bias per second over the "
+                "span (used by the gyro-propagated attitude)",
+            )
+            for ax in AXES
+        ]
         return tuple(specs)
 
     def sigma(self, dt: float = 1.0) -> np.ndarray:
         """(3,) 1-sigma of a rate averaged over ``dt`` [s] (module docstring; the noise is
         :func:`~gcs_core.models.gyro_noise.gyro_noise`, with its rule for missing keys)."""
         g = gyro_noise(self.sensor, dt)
-        var = g.sigma_v ** 2 / dt + 2.0 * g.sigma_e ** 2 / dt ** 2 + g.sigma_u ** 2 * dt / 3.0
+        var = g.sigma_v**2 / dt + 2.0 * g.sigma_e**2 / dt**2 + g.sigma_u**2 * dt / 3.0
         return np.full(3, np.sqrt(var))
 
     def predict(self, geom: Geometry, params: Mapping[str, float]) -> Prediction:
@@ -155,21 +182,22 @@ class GyroModel(ObservationModel):
         if geom.omega_B is None:
             raise ValueError("gyro observation model needs omega_B in the geometry")
         n = geom.n
-        omega = common.frames_of(geom.omega_B, n) if np.ndim(geom.omega_B) == 1 else \
-            np.asarray(geom.omega_B, dtype=float)
+        omega = (
+            common.frames_of(geom.omega_B, n) if np.ndim(geom.omega_B) == 1 else np.asarray(geom.omega_B, dtype=float)
+        )
         G = g_matrix(p)
         M, dM = common.alignment_matrix(p)
         b = np.array([p[f"bias_{ax}"] for ax in AXES])
         bdot = np.array([p[f"bias_rate_{ax}"] for ax in AXES])
         t = np.asarray(geom.t, dtype=float)
-        tau = t - 0.5 * (t.min() + t.max()) if n else t              # about the middle of the span
-        u = omega @ M.T + b + tau[:, None] * bdot                    # M ω + b(t)
+        tau = t - 0.5 * (t.min() + t.max()) if n else t  # about the middle of the span
+        u = omega @ M.T + b + tau[:, None] * bdot  # M ω + b(t)
         y = u @ G.T
         d_par: dict[str, np.ndarray] = {}
         for idx, name in enumerate(G_NAMES):
             i, k = divmod(idx, 3)
             d = np.zeros((n, 3))
-            d[:, i] = u[:, k]                                        # δ_ij (Mω + b)_k
+            d[:, i] = u[:, k]  # δ_ij (Mω + b)_k
             d_par[name] = d
         for j, ax in enumerate(AXES):
             d_par[f"bias_{ax}"] = np.broadcast_to(G[:, j], (n, 3))

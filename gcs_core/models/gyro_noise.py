@@ -76,16 +76,14 @@ def gyro_noise(sensor, dt: float = 1.0) -> GyroNoise:
     arw = common.book_scalar(sensor, "arw")
     if arw is None:
         if sensor.noise is None:
-            raise InputError(f"gyro '{sensor.name}' needs 'arw' (or 'noise')",
-                             key=common.book_key(sensor, "arw"))
+            raise InputError(f"gyro '{sensor.name}' needs 'arw' (or 'noise')", key=common.book_key(sensor, "arw"))
         arw = float(sensor.noise) * np.sqrt(float(dt))
     rrw = common.book_scalar(sensor, "rrw", 0.0) or 0.0
     ele = common.book_scalar(sensor, "electronic", 0.0) or 0.0
     return GyroNoise(float(arw), float(rrw), float(ele))
 
 
-def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray,
-                 axes=()) -> np.ndarray:
+def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarray, axes=()) -> np.ndarray:
     """Process noise of gyro steps (Eq 3-4's ``Q``, the Eq 4-38 noise matrix; Farrenkopf 1978).
 
     Over a step ``Δt`` the attitude error gathers the rate noise and the integral of the
@@ -107,10 +105,10 @@ def farrenkopf_q(dt: np.ndarray, noise: GyroNoise, Wy: np.ndarray, Wb: np.ndarra
     axes = list(axes)
     nb = len(axes)
     Q = np.zeros((dt.shape[0], 3 + nb, 3 + nb))
-    v2, u2 = noise.sigma_v ** 2, noise.sigma_u ** 2
-    Q[:, :3, :3] = v2 * dt * (Wy @ np.swapaxes(Wy, -1, -2)) + u2 * dt ** 3 / 3.0 * (Wb @ np.swapaxes(Wb, -1, -2))
+    v2, u2 = noise.sigma_v**2, noise.sigma_u**2
+    Q[:, :3, :3] = v2 * dt * (Wy @ np.swapaxes(Wy, -1, -2)) + u2 * dt**3 / 3.0 * (Wb @ np.swapaxes(Wb, -1, -2))
     if nb:
-        Q[:, :3, 3:] = u2 * dt ** 2 / 2.0 * Wb[..., axes]
+        Q[:, :3, 3:] = u2 * dt**2 / 2.0 * Wb[..., axes]
         Q[:, 3:, :3] = np.swapaxes(Q[:, :3, 3:], 1, 2)
         Q[:, 3:, 3:] = u2 * dt * np.eye(nb)
     return Q

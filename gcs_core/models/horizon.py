@@ -69,13 +69,13 @@ from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
 
 TWO_PI = 2.0 * np.pi
-FLATTENING = 1.0 / 298.257223563          # WGS-84 (NIMA TR8350.2, 3rd ed., 2000, Table 3.1)
-SUN_RATE_STEP_S = 1.0                     # central-difference step for Ŝ̇ [s]
+FLATTENING = 1.0 / 298.257223563  # WGS-84 (NIMA TR8350.2, 3rd ed., 2000, Table 3.1)
+SUN_RATE_STEP_S = 1.0  # central-difference step for Ŝ̇ [s]
 MAX_ITERATIONS = 30
 TOLERANCE_S = 1e-12
 OBSERVABLES = ("in_out", "width_midscan")
 SEED_NAMES = ("d_gamma", "d_rho", "d_phi", "eps_S", "eps_H", "d_t")
-K_TANGENTS = 11                           # Â(3), r(3), Ŝ(3), γ', ρ'
+K_TANGENTS = 11  # Â(3), r(3), Ŝ(3), γ', ρ'
 #: passes from the spherical horizon to the tangent point's (module docstring)
 TANGENT_PASSES = 2
 # tangents carried through the horizon radius, X = (Â, r, Ŝ, γ', Δρ, Δh_H, κ)
@@ -101,13 +101,13 @@ def crossing_direction(A, r, S, gamma_p, rho_p, sign):
     rn = np.linalg.norm(r, axis=1)
     E = -r / rn[:, None]
     c = np.einsum("ni,ni->n", A, E)
-    s = np.sqrt(1.0 - c ** 2)
+    s = np.sqrt(1.0 - c**2)
     m = np.cross(A, E) / s[:, None]
     nv = (A - c[:, None] * E) / s[:, None]
     cr, sr = np.cos(rho_p) * np.ones(n), np.sin(rho_p) * np.ones(n)
     cL = (np.cos(gamma_p) - cr * c) / (sr * s)
     ok = (np.abs(cL) < 1.0) & (s > 0.0)
-    w = m * (sign * np.sqrt(1.0 - cL ** 2))[:, None] + nv * cL[:, None]
+    w = m * (sign * np.sqrt(1.0 - cL**2))[:, None] + nv * cL[:, None]
     H = cr[:, None] * E + sr[:, None] * w
     Y = np.einsum("ni,ni->n", A, np.cross(S, H))
     X = np.einsum("ni,ni->n", S, H) - np.einsum("ni,ni->n", S, A) * np.einsum("ni,ni->n", H, A)
@@ -146,15 +146,17 @@ def crossing_phase(A, r, S, gamma_p, rho_p, sign):
     # η: nadir angle of the spin axis
     c = np.einsum("ni,ni->n", A, E)
     dc = _vdot(E, dA) + _vdot(A, dE)
-    s = np.sqrt(1.0 - c ** 2)
+    s = np.sqrt(1.0 - c**2)
     ds = -c[:, None] * dc / s[:, None]
     # M̂ = Â×Ê/sin η,  N̂ = Ê×M̂ = (Â − cos η Ê)/sin η
     m = np.cross(A, E) / s[:, None]
-    dm = (np.cross(dA, E[:, None, :]) + np.cross(A[:, None, :], dE)) / s[:, None, None] \
-        - m[:, None, :] * (ds / s[:, None])[:, :, None]
+    dm = (np.cross(dA, E[:, None, :]) + np.cross(A[:, None, :], dE)) / s[:, None, None] - m[:, None, :] * (
+        ds / s[:, None]
+    )[:, :, None]
     nv = (A - c[:, None] * E) / s[:, None]
-    dn = (dA - dc[:, :, None] * E[:, None, :] - c[:, None, None] * dE) / s[:, None, None] \
-        - nv[:, None, :] * (ds / s[:, None])[:, :, None]
+    dn = (dA - dc[:, :, None] * E[:, None, :] - c[:, None, None] * dE) / s[:, None, None] - nv[:, None, :] * (
+        ds / s[:, None]
+    )[:, :, None]
     # Λ: azimuth of the crossing about Ê
     cg, sg = np.cos(gamma_p) * np.ones(n), np.sin(gamma_p) * np.ones(n)
     cr, sr = np.cos(rho_p) * np.ones(n), np.sin(rho_p) * np.ones(n)
@@ -165,15 +167,23 @@ def crossing_phase(A, r, S, gamma_p, rho_p, sign):
     cL = num / den
     dcL = (dnum - cL[:, None] * dden) / den[:, None]
     ok = (np.abs(cL) < 1.0) & (s > 0.0)
-    sL = sign * np.sqrt(1.0 - cL ** 2)
+    sL = sign * np.sqrt(1.0 - cL**2)
     dsL = -cL[:, None] * dcL / sL[:, None]
     # Ĥ = cos ρ' Ê + sin ρ' (M̂ sin Λ + N̂ cos Λ)
     w = m * sL[:, None] + nv * cL[:, None]
-    dw = dm * sL[:, None, None] + m[:, None, :] * dsL[:, :, None] \
-        + dn * cL[:, None, None] + nv[:, None, :] * dcL[:, :, None]
+    dw = (
+        dm * sL[:, None, None]
+        + m[:, None, :] * dsL[:, :, None]
+        + dn * cL[:, None, None]
+        + nv[:, None, :] * dcL[:, :, None]
+    )
     H = cr[:, None] * E + sr[:, None] * w
-    dH = -(sr[:, None] * dr)[:, :, None] * E[:, None, :] + cr[:, None, None] * dE \
-        + (cr[:, None] * dr)[:, :, None] * w[:, None, :] + sr[:, None, None] * dw
+    dH = (
+        -(sr[:, None] * dr)[:, :, None] * E[:, None, :]
+        + cr[:, None, None] * dE
+        + (cr[:, None] * dr)[:, :, None] * w[:, None, :]
+        + sr[:, None, None] * dw
+    )
     # Φ = atan2(Y, X)
     SxH = np.cross(S, H)
     Y = np.einsum("ni,ni->n", A, SxH)
@@ -181,10 +191,14 @@ def crossing_phase(A, r, S, gamma_p, rho_p, sign):
     sa = np.einsum("ni,ni->n", S, A)
     ha = np.einsum("ni,ni->n", H, A)
     X = np.einsum("ni,ni->n", S, H) - sa * ha
-    dX = _vdot(H, dS) + _vdot(S, dH) - (_vdot(A, dS) + _vdot(S, dA)) * ha[:, None] \
+    dX = (
+        _vdot(H, dS)
+        + _vdot(S, dH)
+        - (_vdot(A, dS) + _vdot(S, dA)) * ha[:, None]
         - sa[:, None] * (_vdot(A, dH) + _vdot(H, dA))
+    )
     phi = np.arctan2(Y, X)
-    dphi = (X[:, None] * dY - Y[:, None] * dX) / (X ** 2 + Y ** 2)[:, None]
+    dphi = (X[:, None] * dY - Y[:, None] * dX) / (X**2 + Y**2)[:, None]
     return phi, dphi, ok, w, dw
 
 
@@ -201,7 +215,7 @@ def _lift(d, drho_p):
 def _limb_angle(R, dR, rn, rhat):
     """``ρ = asin(R/|r|)`` (N,) and its tangents over X (N, 13), from R (N,) and dR (N, 13)."""
     x = R / rn
-    c = np.sqrt(1.0 - x ** 2)
+    c = np.sqrt(1.0 - x**2)
     d = dR / (rn * c)[:, None]
     d[:, IX_R] -= (x / (rn * c))[:, None] * rhat
     return np.arcsin(x), d
@@ -214,11 +228,12 @@ def _ellipsoid_radius(s, ds, a, b, da, db):
     Returns R (N,) and its tangents over X (N, 13) from ds (N, 13) and da, db (13,).
     """
     e = (a / b) ** 2 - 1.0
-    de = 2.0 * a / b ** 2 * da - 2.0 * a ** 2 / b ** 3 * db
-    u = 1.0 + e * s ** 2
+    de = 2.0 * a / b**2 * da - 2.0 * a**2 / b**3 * db
+    u = 1.0 + e * s**2
     R = a / np.sqrt(u)
-    dR = (1.0 / np.sqrt(u))[:, None] * da[None, :] \
-        - (0.5 * a * u ** -1.5)[:, None] * ((s ** 2)[:, None] * de[None, :] + (2.0 * e * s)[:, None] * ds)
+    dR = (1.0 / np.sqrt(u))[:, None] * da[None, :] - (0.5 * a * u**-1.5)[:, None] * (
+        (s**2)[:, None] * de[None, :] + (2.0 * e * s)[:, None] * ds
+    )
     return R, dR
 
 
@@ -232,15 +247,18 @@ class HorizonModel(ObservationModel):
     attitude_kind = "spinning"
     book_keys = ("gamma_deg", "phi_h_deg", "horizon_height_km", "sun_sensor", "observable")
     #: parameters the data see only in one combination (:mod:`gcs_core.diagnosis.aliases`)
-    aliases = {("d_phi", "eps_H"): "only ΔΦ − asin(cot γ' tan ε_H) enters the timing (Eq 4-12a, e): "
-                                   "a constant azimuth either way, so one of the two is set by its a priori"}
+    aliases = {
+        ("d_phi", "eps_H"): "only ΔΦ − asin(cot γ' tan ε_H) enters the timing (Eq 4-12a, e): "
+        "a constant azimuth either way, so one of the two is set by its a priori"
+    }
 
     def __init__(self, sensor: SensorSpec, *, aux_channels: tuple[str, ...] = ()):
         super().__init__(sensor, aux_channels=aux_channels)
         obs = sensor.get("observable", "in_out")
         if obs not in OBSERVABLES:
-            raise InputError(f"'observable' must be one of {OBSERVABLES}, got {obs!r}",
-                             key=common.book_key(sensor, "observable"))
+            raise InputError(
+                f"'observable' must be one of {OBSERVABLES}, got {obs!r}", key=common.book_key(sensor, "observable")
+            )
         self.observable = obs
         if obs == "width_midscan":
             self.components = ("width", "midscan")
@@ -253,30 +271,65 @@ class HorizonModel(ObservationModel):
     def _required(self, key: str) -> float:
         value = common.book_scalar(self.sensor, key)
         if value is None:
-            raise InputError(f"horizon sensor '{self.name}' needs data-book key '{key}'",
-                             key=common.book_key(self.sensor, key))
+            raise InputError(
+                f"horizon sensor '{self.name}' needs data-book key '{key}'", key=common.book_key(self.sensor, key)
+            )
         return value
 
     def parameters(self) -> tuple[ParamSpec, ...]:
         deg = units.DEG
         tilt_element = None if self.sun_sensor is None else f"{self.sun_sensor}.tilt"
         return (
-            ParamSpec("d_gamma", "rad", 0.0, 0.5 * deg, effect="d_gamma",
-                      description="scanner mounting (cone) angle bias Δγ (Eq 4-12c)"),
-            ParamSpec("d_rho", "rad", 0.0, 0.5 * deg, effect="d_rho",
-                      description="Earth angular radius bias Δρ (Eq 4-12c)"),
-            ParamSpec("d_phi", "rad", 0.0, 0.5 * deg, effect="d_phi",
-                      description="azimuth bias ΔΦ: mounting error or electronic delay (Eq 4-12a)"),
-            ParamSpec("eps_S", "rad", 0.0, 0.5 * deg, effect="tilt", element=tilt_element,
-                      description="Sun sensor plane tilt ε_S (Eq 4-12d)"),
-            ParamSpec("eps_H", "rad", 0.0, 0.5 * deg, effect="eps_H",
-                      description="horizon sensor plane tilt ε_H (Eq 4-12e)"),
-            ParamSpec("d_t", "s", 0.0, 1.0, effect="d_t",
-                      description="orbit in-track time error Δt (Eq 4-13)"),
-            ParamSpec("horizon_height", "km", 0.0, 5.0, seed=False, effect="horizon_height",
-                      description="horizon (CO2 layer) height error Δh_H"),
-            ParamSpec("oblateness", "1", 0.0, 1.0, seed=False, effect="oblateness",
-                      description="flattening beyond the physics' in units of WGS-84 f (κ)"),
+            ParamSpec(
+                "d_gamma",
+                "rad",
+                0.0,
+                0.5 * deg,
+                effect="d_gamma",
+                description="scanner mounting (cone) angle bias Δγ (Eq 4-12c)",
+            ),
+            ParamSpec(
+                "d_rho", "rad", 0.0, 0.5 * deg, effect="d_rho", description="Earth angular radius bias Δρ (Eq 4-12c)"
+            ),
+            ParamSpec(
+                "d_phi",
+                "rad",
+                0.0,
+                0.5 * deg,
+                effect="d_phi",
+                description="azimuth bias ΔΦ: mounting error or electronic delay (Eq 4-12a)",
+            ),
+            ParamSpec(
+                "eps_S",
+                "rad",
+                0.0,
+                0.5 * deg,
+                effect="tilt",
+                element=tilt_element,
+                description="Sun sensor plane tilt ε_S (Eq 4-12d)",
+            ),
+            ParamSpec(
+                "eps_H", "rad", 0.0, 0.5 * deg, effect="eps_H", description="horizon sensor plane tilt ε_H (Eq 4-12e)"
+            ),
+            ParamSpec("d_t", "s", 0.0, 1.0, effect="d_t", description="orbit in-track time error Δt (Eq 4-13)"),
+            ParamSpec(
+                "horizon_height",
+                "km",
+                0.0,
+                5.0,
+                seed=False,
+                effect="horizon_height",
+                description="horizon (CO2 layer) height error Δh_H",
+            ),
+            ParamSpec(
+                "oblateness",
+                "1",
+                0.0,
+                1.0,
+                seed=False,
+                effect="oblateness",
+                description="flattening beyond the physics' in units of WGS-84 f (κ)",
+            ),
         )
 
     def sigma(self) -> np.ndarray:
@@ -341,10 +394,9 @@ class HorizonModel(ObservationModel):
                 _, ok_k, w = crossing_direction(A, r, S, gamma_p, rho_p, sign)
             ok &= ok_k
             cr, sr = np.cos(rho), np.sin(rho)
-            s_lat = sr * rhat[:, 2] + cr * w[:, 2]          # sin φ_T, T̂ = sin ρ r̂ + cos ρ ŵ
+            s_lat = sr * rhat[:, 2] + cr * w[:, 2]  # sin φ_T, T̂ = sin ρ r̂ + cos ρ ŵ
             if want_partials:
-                ds_lat = (cr * rhat[:, 2] - sr * w[:, 2])[:, None] * drho \
-                    + cr[:, None] * _lift(dw[:, :, 2], drho_p)
+                ds_lat = (cr * rhat[:, 2] - sr * w[:, 2])[:, None] * drho + cr[:, None] * _lift(dw[:, :, 2], drho_p)
                 ds_lat[:, IX_R] += sr[:, None] * drhat_z
             else:
                 ds_lat = np.zeros((n, NX))
@@ -357,7 +409,7 @@ class HorizonModel(ObservationModel):
             phi, ok_k, _ = crossing_direction(A, r, S, gamma_p, rho_p, sign)
         ok &= ok_k
         cb = np.einsum("ni,ni->n", A, S)
-        sb = np.sqrt(1.0 - cb ** 2)
+        sb = np.sqrt(1.0 - cb**2)
         tS, tH = np.tan(p["eps_S"]), np.tan(p["eps_H"])
         qS = cb / sb * tS
         qH = tH / np.tan(gamma_p)
@@ -366,12 +418,14 @@ class HorizonModel(ObservationModel):
         if not want_partials:
             return psi, ok
         dphi_x = _lift(dphi, drho_p)
-        rS, rH = np.sqrt(1.0 - qS ** 2), np.sqrt(1.0 - qH ** 2)
-        dS_dcb = tS / (sb ** 3 * rS)                           # ∂ΔΦ_S/∂(Â·Ŝ)
-        dH_dgamma = -tH / (np.sin(gamma_p) ** 2 * rH)          # ∂ΔΦ_H/∂γ'
-        d = {"A": dphi_x[:, IX_A] - dS_dcb[:, None] * S,
-             "r": dphi_x[:, IX_R],
-             "S": dphi_x[:, IX_S] - dS_dcb[:, None] * A}
+        rS, rH = np.sqrt(1.0 - qS**2), np.sqrt(1.0 - qH**2)
+        dS_dcb = tS / (sb**3 * rS)  # ∂ΔΦ_S/∂(Â·Ŝ)
+        dH_dgamma = -tH / (np.sin(gamma_p) ** 2 * rH)  # ∂ΔΦ_H/∂γ'
+        d = {
+            "A": dphi_x[:, IX_A] - dS_dcb[:, None] * S,
+            "r": dphi_x[:, IX_R],
+            "S": dphi_x[:, IX_S] - dS_dcb[:, None] * A,
+        }
         h = SUN_RATE_STEP_S
         S_dot = (np.asarray(eph(t_eph + h)[2], dtype=float) - np.asarray(eph(t_eph - h)[2], dtype=float)) / (2 * h)
         d["tau"] = np.einsum("ni,ni->n", d["r"], v) + np.einsum("ni,ni->n", d["S"], S_dot)
@@ -396,11 +450,11 @@ class HorizonModel(ObservationModel):
             psi, _ = self._psi(p, A, t + dt + p["d_t"], eph, sign, False, f_geo)
             step = wrap_period(psi - omega * dt, TWO_PI) / omega
             dt = dt + step
-            if not np.any(np.abs(step) > TOLERANCE_S):       # NaN steps (no crossing) are ignored
+            if not np.any(np.abs(step) > TOLERANCE_S):  # NaN steps (no crossing) are ignored
                 break
         psi, d, ok = self._psi(p, A, t + dt + p["d_t"], eph, sign, True, f_geo)
         y = np.mod(psi, TWO_PI) / omega
-        den = omega - d["tau"]                                  # ω (1 − f_dt)
+        den = omega - d["tau"]  # ω (1 − f_dt)
         d_att = np.einsum("ni,nij->nj", d["A"], P) / den[:, None]
         d_par = {name: d[name] / den for name in (p_.name for p_ in self.parameters())}
         ok &= np.isfinite(y) & (den > 0.0)
@@ -413,8 +467,7 @@ class HorizonModel(ObservationModel):
         if geom.ephemeris is None:
             raise ValueError("horizon model needs the ephemeris callable in the geometry")
         if "spin_rate" not in geom.extra:
-            raise InputError(f"horizon sensor '{self.name}' needs the 'spin_rate' telemetry column",
-                             column="spin_rate")
+            raise InputError(f"horizon sensor '{self.name}' needs the 'spin_rate' telemetry column", column="spin_rate")
         omega = np.asarray(geom.extra["spin_rate"], dtype=float) * np.ones(geom.n)
         with np.errstate(all="ignore"):
             A, P = common.spin_axis_unit(geom)
@@ -426,8 +479,7 @@ class HorizonModel(ObservationModel):
                 width = np.mod(y_out - y_in, period)
                 y = np.column_stack([width, np.mod(y_in + 0.5 * width, period)])
                 d_att = np.stack([a_out - a_in, 0.5 * (a_in + a_out)], axis=1)
-                d_par = {k: np.column_stack([p_out[k] - p_in[k], 0.5 * (p_in[k] + p_out[k])])
-                         for k in p_in}
+                d_par = {k: np.column_stack([p_out[k] - p_in[k], 0.5 * (p_in[k] + p_out[k])]) for k in p_in}
             else:
                 y = np.column_stack([y_in, y_out])
                 d_att = np.stack([a_in, a_out], axis=1)

@@ -71,9 +71,13 @@ FIELD_SIGMA_NT = 1e5
 #: aux channels holding the sensor's position in the reference frame [m] (the gradient's lever)
 POSITION_CHANNELS = ("pos_x", "pos_y", "pos_z")
 #: (name, ∂G/∂G_ab) of the five free elements of a symmetric trace-free gradient
-GRADIENT = (("xx", ((1, 0, 0), (0, 0, 0), (0, 0, -1))), ("xy", ((0, 1, 0), (1, 0, 0), (0, 0, 0))),
-            ("xz", ((0, 0, 1), (0, 0, 0), (1, 0, 0))), ("yy", ((0, 0, 0), (0, 1, 0), (0, 0, -1))),
-            ("yz", ((0, 0, 0), (0, 0, 1), (0, 1, 0))))
+GRADIENT = (
+    ("xx", ((1, 0, 0), (0, 0, 0), (0, 0, -1))),
+    ("xy", ((0, 1, 0), (1, 0, 0), (0, 0, 0))),
+    ("xz", ((0, 0, 1), (0, 0, 0), (1, 0, 0))),
+    ("yy", ((0, 0, 0), (0, 1, 0), (0, 0, -1))),
+    ("yz", ((0, 0, 0), (0, 0, 1), (0, 1, 0))),
+)
 #: a-priori 1-sigma of each gradient element [nT/m] (a few µT/m within a metre of a steel
 #: bench; 1e5 nT/m leaves the data to decide)
 GRADIENT_SIGMA_NT_PER_M = 1e5
@@ -107,34 +111,95 @@ class MagnetometerModel(ObservationModel):
 
     def _parameters(self) -> tuple[ParamSpec, ...]:
         bias = common.book_vector(self.sensor, "bias", 3, default=(0.0, 0.0, 0.0))
-        specs = [ParamSpec(f"bias_{ax}", "nT", float(bias[i]), 200.0, seed=True, effect="bias",
-                           description=f"magnetometer bias along sensor {ax} (Eq 4-27)")
-                 for i, ax in enumerate(AXES)]
+        specs = [
+            ParamSpec(
+                f"bias_{ax}",
+                "nT",
+                float(bias[i]),
+                200.0,
+                seed=True,
+                effect="bias",
+                description=f"magnetometer bias along sensor {ax} (Eq 4-27)",
+            )
+            for i, ax in enumerate(AXES)
+        ]
         specs += common.alignment_specs(self.sensor, seed=False, sigma=0.02)
-        specs += [ParamSpec(f"scale_{ax}", "1", 0.0, 0.01, seed=False, effect="scale",
-                            description=f"scale-factor error of sensor {ax} (diagonal of D)")
-                  for ax in AXES]
-        specs += [ParamSpec(name, "1", 0.0, 0.01, seed=False, effect="nonorthogonality",
-                            description=f"non-orthogonality D_{name[-2:]} = D_{name[-1:]}{name[-2]}")
-                  for name, _, _ in NONORTH]
+        specs += [
+            ParamSpec(
+                f"scale_{ax}",
+                "1",
+                0.0,
+                0.01,
+                seed=False,
+                effect="scale",
+                description=f"scale-factor error of sensor {ax} (diagonal of D)",
+            )
+            for ax in AXES
+        ]
+        specs += [
+            ParamSpec(
+                name,
+                "1",
+                0.0,
+                0.01,
+                seed=False,
+                effect="nonorthogonality",
+                description=f"non-orthogonality D_{name[-2:]} = D_{name[-1:]}{name[-2]}",
+            )
+            for name, _, _ in NONORTH
+        ]
         for ch in self.contamination_channels:
-            specs += [ParamSpec(f"contam_{ch}_{ax}", "nT/aux", 0.0, 10.0, seed=False,
-                                effect=f"contamination_{ch}",
-                                description=f"field along sensor {ax} per unit of aux channel '{ch}'")
-                      for ax in AXES]
-        specs.append(ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
-                               description="time-tag offset: the sample is of time t + Δt"))
+            specs += [
+                ParamSpec(
+                    f"contam_{ch}_{ax}",
+                    "nT/aux",
+                    0.0,
+                    10.0,
+                    seed=False,
+                    effect=f"contamination_{ch}",
+                    description=f"field along sensor {ax} per unit of aux channel '{ch}'",
+                )
+                for ax in AXES
+            ]
+        specs.append(
+            ParamSpec(
+                "time_offset",
+                "s",
+                0.0,
+                0.1,
+                seed=False,
+                effect="time_offset",
+                description="time-tag offset: the sample is of time t + Δt",
+            )
+        )
         if self.constant_field:
-            specs += [ParamSpec(f"field_{ax}", "nT", 0.0, FIELD_SIGMA_NT, seed=True, effect="field",
-                                description=f"constant reference field along reference {ax} "
-                                            "(field_model = constant)", element=f"field.B_{ax}")
-                      for ax in AXES]
+            specs += [
+                ParamSpec(
+                    f"field_{ax}",
+                    "nT",
+                    0.0,
+                    FIELD_SIGMA_NT,
+                    seed=True,
+                    effect="field",
+                    description=f"constant reference field along reference {ax} (field_model = constant)",
+                    element=f"field.B_{ax}",
+                )
+                for ax in AXES
+            ]
         if self.gradient:
-            specs += [ParamSpec(f"gradient_{ab}", "nT/m", 0.0, GRADIENT_SIGMA_NT_PER_M, seed=False,
-                                effect="field_gradient", element=f"field.G_{ab}",
-                                description=f"field gradient ∂B_{ab[0]}/∂{ab[1]} of the reference frame "
-                                            "(symmetric, trace-free)")
-                      for ab, _ in GRADIENT]
+            specs += [
+                ParamSpec(
+                    f"gradient_{ab}",
+                    "nT/m",
+                    0.0,
+                    GRADIENT_SIGMA_NT_PER_M,
+                    seed=False,
+                    effect="field_gradient",
+                    element=f"field.G_{ab}",
+                    description=f"field gradient ∂B_{ab[0]}/∂{ab[1]} of the reference frame (symmetric, trace-free)",
+                )
+                for ab, _ in GRADIENT
+            ]
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:
@@ -171,8 +236,7 @@ class MagnetometerModel(ObservationModel):
             rate = None
             if self.gradient:
                 pos = np.column_stack([np.asarray(geom.aux[c], dtype=float) for c in POSITION_CHANNELS])
-                G = sum((p[f"gradient_{ab}"] * np.asarray(dG, dtype=float) for ab, dG in GRADIENT),
-                        np.zeros((3, 3)))
+                G = sum((p[f"gradient_{ab}"] * np.asarray(dG, dtype=float) for ab, dG in GRADIENT), np.zeros((3, 3)))
                 B_I = B_I + pos @ G.T
         if B_I is None:
             raise ValueError("magnetometer model needs B_I in the geometry")
@@ -185,22 +249,25 @@ class MagnetometerModel(ObservationModel):
         unit = np.eye(3)
         for ch in self.aux_channels:
             if ch not in geom.aux:
-                raise InputError(f"auxiliary channel '{ch}' is not in the aux data",
-                                 key=common.book_key(self.sensor, "aux"))
+                raise InputError(
+                    f"auxiliary channel '{ch}' is not in the aux data", key=common.book_key(self.sensor, "aux")
+                )
         with np.errstate(all="ignore"):
             bv = common.body_vector(geom, B_I, p["time_offset"], rate)
-            w = bv.v_B @ M.T                                   # M B_B (N, 3)
+            w = bv.v_B @ M.T  # M B_B (N, 3)
             y = w @ ID.T
             y += np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
             d_par: dict[str, common.PartialSource] = {}
             for i, ax in enumerate(AXES):
-                d_par[f"bias_{ax}"] = np.broadcast_to(unit[i], (n, 3))          # e_i
+                d_par[f"bias_{ax}"] = np.broadcast_to(unit[i], (n, 3))  # e_i
                 d_par[f"scale_{ax}"] = lambda i=i: common.column(n, 3, i, w[:, i])
             for name, i, j in NONORTH:
+
                 def nonorth(i=i, j=j):
                     s_ = common.column(n, 3, i, w[:, j])
                     s_[:, j] = w[:, i]
                     return s_
+
                 d_par[name] = nonorth
             for k, name in enumerate(common.ALIGN_NAMES):
                 d_par[name] = lambda k=k: bv.v_B @ (ID @ dM[k]).T
@@ -210,16 +277,18 @@ class MagnetometerModel(ObservationModel):
                     y += np.asarray(geom.aux[ch], dtype=float)[:, None] * k_ch
                 for i, ax in enumerate(AXES):
                     d_par[f"contam_{ch}_{ax}"] = lambda ch=ch, i=i: common.column(
-                        n, 3, i, np.asarray(geom.aux[ch], dtype=float))
+                        n, 3, i, np.asarray(geom.aux[ch], dtype=float)
+                    )
             d_par["time_offset"] = lambda: bv.d_dt @ IDM.T
             if self.constant_field:
                 C = np.asarray(geom.C_BI, dtype=float)
                 RC = C if bv._R is None else bv._R @ C
                 for k, ax in enumerate(AXES):
-                    d_par[f"field_{ax}"] = lambda k=k: RC[:, :, k] @ IDM.T      # (I+D) M R C e_k
+                    d_par[f"field_{ax}"] = lambda k=k: RC[:, :, k] @ IDM.T  # (I+D) M R C e_k
                 for ab, dG_ab in GRADIENT if self.gradient else ():
                     dG = np.asarray(dG_ab, dtype=float)
-                    d_par[f"gradient_{ab}"] = lambda dG=dG: np.einsum(
-                        "nij,nj->ni", RC, pos @ dG.T) @ IDM.T                 # (I+D) M R C ∂G p
+                    d_par[f"gradient_{ab}"] = lambda dG=dG: (
+                        np.einsum("nij,nj->ni", RC, pos @ dG.T) @ IDM.T
+                    )  # (I+D) M R C ∂G p
             d_att = bv.left(IDM)
         return common.finish(y, d_att, d_par, np.ones(n, dtype=bool), specs)

@@ -44,10 +44,26 @@ class PlaneFieldSunModel(ObservationModel):
     def parameters(self) -> tuple[ParamSpec, ...]:
         tilt = common.book_scalar(self.sensor, "tilt_deg", 0.0) * units.DEG
         bias = common.book_scalar(self.sensor, "bias", 0.0)
-        return (ParamSpec("tilt", "rad", tilt, 0.5 * units.DEG, seed=True, effect="tilt",
-                          description="Sun sensor field-plane tilt ε_S (Eq 4-14)"),
-                ParamSpec("bias", "rad", bias, 0.5 * units.DEG, seed=True, effect="bias",
-                          description="Sun angle bias Δβ (Eq 4-14)"))
+        return (
+            ParamSpec(
+                "tilt",
+                "rad",
+                tilt,
+                0.5 * units.DEG,
+                seed=True,
+                effect="tilt",
+                description="Sun sensor field-plane tilt ε_S (Eq 4-14)",
+            ),
+            ParamSpec(
+                "bias",
+                "rad",
+                bias,
+                0.5 * units.DEG,
+                seed=True,
+                effect="bias",
+                description="Sun angle bias Δβ (Eq 4-14)",
+            ),
+        )
 
     def sigma(self) -> np.ndarray:
         return np.full(1, common.noise_value(self.sensor))
@@ -65,9 +81,8 @@ class PlaneFieldSunModel(ObservationModel):
             c = np.einsum("ni,ni->n", A, S)
             u = c / np.cos(eps)
             valid = np.abs(u) < 1.0
-            dbeta_du = -1.0 / np.sqrt(1.0 - u ** 2)
+            dbeta_du = -1.0 / np.sqrt(1.0 - u**2)
             y = (np.arccos(np.clip(u, -1.0, 1.0)) + bias)[:, None]
             d_att = (dbeta_du / np.cos(eps))[:, None, None] * np.einsum("nij,nj->ni", P, S)[:, None, :]
-            d_par = {"tilt": (dbeta_du * c * np.sin(eps) / np.cos(eps) ** 2)[:, None],
-                     "bias": np.ones((geom.n, 1))}
+            d_par = {"tilt": (dbeta_du * c * np.sin(eps) / np.cos(eps) ** 2)[:, None], "bias": np.ones((geom.n, 1))}
         return common.finish(y, d_att, d_par, valid, specs)

@@ -48,12 +48,35 @@ class StarTrackerModel(ObservationModel):
     def _parameters(self) -> tuple[ParamSpec, ...]:
         scale = common.book_vector(self.sensor, "scale", 2, default=(1.0, 1.0))
         specs = list(common.alignment_specs(self.sensor, seed=True, sigma=0.01))
-        specs += [ParamSpec("scale_h", "1", float(scale[0]), 1e-3, seed=True, effect="scale",
-                            description="scale factor S_H of the h axis (Eq 4-29a)"),
-                  ParamSpec("scale_v", "1", float(scale[1]), 1e-3, seed=True, effect="scale",
-                            description="scale factor S_V of the v axis (Eq 4-29b)"),
-                  ParamSpec("time_offset", "s", 0.0, 0.1, seed=False, effect="time_offset",
-                            description="time-tag offset: the sample is of time t + Δt")]
+        specs += [
+            ParamSpec(
+                "scale_h",
+                "1",
+                float(scale[0]),
+                1e-3,
+                seed=True,
+                effect="scale",
+                description="scale factor S_H of the h axis (Eq 4-29a)",
+            ),
+            ParamSpec(
+                "scale_v",
+                "1",
+                float(scale[1]),
+                1e-3,
+                seed=True,
+                effect="scale",
+                description="scale factor S_V of the v axis (Eq 4-29b)",
+            ),
+            ParamSpec(
+                "time_offset",
+                "s",
+                0.0,
+                0.1,
+                seed=False,
+                effect="time_offset",
+                description="time-tag offset: the sample is of time t + Δt",
+            ),
+        ]
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:
@@ -72,7 +95,7 @@ class StarTrackerModel(ObservationModel):
         S_H, S_V = p["scale_h"], p["scale_v"]
         with np.errstate(all="ignore"):
             bv = common.body_vector(geom, geom.star_I, p["time_offset"])
-            F = bv.v_B @ M.T                                       # F_S (N, 3)
+            F = bv.v_B @ M.T  # F_S (N, 3)
             asin_z = np.arcsin(np.clip(F[:, 2], -1.0, 1.0))
             atan_yx = np.arctan2(F[:, 1], F[:, 0])
             y = np.column_stack([asin_z / S_H, atan_yx / S_V])
@@ -82,13 +105,15 @@ class StarTrackerModel(ObservationModel):
             rho2 = F[:, 0] ** 2 + F[:, 1] ** 2
             J[:, 1, 0] = -F[:, 1] / (S_V * rho2)
             J[:, 1, 1] = F[:, 0] / (S_V * rho2)
-            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(-1, 2, 3))    # J M ∂F_B/∂δθ
+            d_att = bv.left((J.reshape(-1, 3) @ M).reshape(-1, 2, 3))  # J M ∂F_B/∂δθ
             # parameter partials, formed when read (common.Partials)
-            d_par: dict[str, common.PartialSource] = {name: (lambda k=k: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T))
-                     for k, name in enumerate(common.ALIGN_NAMES)}
+            d_par: dict[str, common.PartialSource] = {
+                name: (lambda k=k: np.einsum("nij,nj->ni", J, bv.v_B @ dM[k].T))
+                for k, name in enumerate(common.ALIGN_NAMES)
+            }
             n = geom.n
-            d_par["scale_h"] = lambda: common.column(n, 2, 0, -asin_z / S_H ** 2)
-            d_par["scale_v"] = lambda: common.column(n, 2, 1, -atan_yx / S_V ** 2)
+            d_par["scale_h"] = lambda: common.column(n, 2, 0, -asin_z / S_H**2)
+            d_par["scale_v"] = lambda: common.column(n, 2, 1, -atan_yx / S_V**2)
             d_par["time_offset"] = lambda: np.einsum("nij,nj->ni", J, bv.d_dt @ M.T)
             valid = common.fov_square_ok(F, common.fov_rad(self.sensor))
         return common.finish(y, d_att, d_par, valid, specs)

@@ -57,8 +57,7 @@ def weighted_rows(lin, t: np.ndarray, use: np.ndarray | None = None) -> tuple[np
     return np.asarray(t)[mask], X
 
 
-def binned_information(rows: Sequence[tuple[np.ndarray, np.ndarray]], times: np.ndarray,
-                       k: int) -> np.ndarray:
+def binned_information(rows: Sequence[tuple[np.ndarray, np.ndarray]], times: np.ndarray, k: int) -> np.ndarray:
     """(T, k, k) cumulative ``Σ_{t_f ≤ τ_j} Xᵀ X`` at the output times ``τ_j``.
 
     ``rows`` holds ``(t, X)`` pairs of :func:`weighted_rows`; frames after the last
@@ -69,7 +68,7 @@ def binned_information(rows: Sequence[tuple[np.ndarray, np.ndarray]], times: np.
     for t, X in rows:
         if t.size == 0:
             continue
-        b = np.searchsorted(times, t, side="left")       # first τ_j ≥ t
+        b = np.searchsorted(times, t, side="left")  # first τ_j ≥ t
         order = np.argsort(b, kind="stable")
         b, X = b[order], X[order]
         bins, first = np.unique(b, return_index=True)
@@ -98,7 +97,7 @@ def _equilibrated_inverse(N: np.ndarray) -> np.ndarray:
     if np.min(np.diagonal(L, axis1=-2, axis2=-1)) < np.sqrt(NULL_TOL):
         raise np.linalg.LinAlgError("ill-conditioned")
     P = np.linalg.solve(Ns, np.broadcast_to(np.eye(N.shape[-1]), Ns.shape)) / dd
-    return 0.5 * (P + np.swapaxes(P, -1, -2))          # symmetrize: round-off only
+    return 0.5 * (P + np.swapaxes(P, -1, -2))  # symmetrize: round-off only
 
 
 def covariance(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -139,8 +138,9 @@ def covariance(N: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return P, unobs
 
 
-def static_history(A_cum: np.ndarray, n: int, prior_info: np.ndarray, sigma_c: np.ndarray,
-                   attitude_J: np.ndarray | None = None) -> dict:
+def static_history(
+    A_cum: np.ndarray, n: int, prior_info: np.ndarray, sigma_c: np.ndarray, attitude_J: np.ndarray | None = None
+) -> dict:
     """σ history of static states (Eq 3-2) with the consider budget at each output time.
 
     Parameters
@@ -158,10 +158,10 @@ def static_history(A_cum: np.ndarray, n: int, prior_info: np.ndarray, sigma_c: n
     """
     T = A_cum.shape[0]
     N = A_cum[:, :n, :n] + np.diag(prior_info)[None]
-    try:                                                # all output times at once
+    try:  # all output times at once
         P = _equilibrated_inverse(N)
         unobs = np.zeros((T, n), dtype=bool)
-    except np.linalg.LinAlgError:                       # some time lacks information
+    except np.linalg.LinAlgError:  # some time lacks information
         parts = [covariance(N[j]) for j in range(T)]
         P = np.stack([p for p, _ in parts])
         unobs = np.stack([u for _, u in parts])
@@ -177,8 +177,15 @@ def static_history(A_cum: np.ndarray, n: int, prior_info: np.ndarray, sigma_c: n
         v = np.einsum("tia,tab,tib->ti", attitude_J, Ptot, attitude_J)
         touches = np.einsum("tia,ta->ti", np.abs(attitude_J), unobs.astype(float)) > 0
         att = np.where(touches, np.inf, np.sqrt(np.clip(v, 0.0, None)))
-    return {"sigma": sig, "sigma_noise": sig_noise, "attitude_sigma": att, "P": P[-1],
-            "P_consider": Ptot[-1], "budget": np.abs(Sc[-1]).T, "unobservable": unobs[-1]}
+    return {
+        "sigma": sig,
+        "sigma_noise": sig_noise,
+        "attitude_sigma": att,
+        "P": P[-1],
+        "P_consider": Ptot[-1],
+        "budget": np.abs(Sc[-1]).T,
+        "unobservable": unobs[-1],
+    }
 
 
 def prior_information(sigma0: np.ndarray) -> np.ndarray:
@@ -188,8 +195,7 @@ def prior_information(sigma0: np.ndarray) -> np.ndarray:
         return np.where(np.isfinite(s) & (s > 0), 1.0 / np.where(s > 0, s, 1.0) ** 2, 0.0)
 
 
-def final_information(rows: Sequence[tuple[np.ndarray, np.ndarray]], k: int,
-                      t_end: float) -> np.ndarray:
+def final_information(rows: Sequence[tuple[np.ndarray, np.ndarray]], k: int, t_end: float) -> np.ndarray:
     """(k, k) ``Σ Xᵀ X`` over all frames up to ``t_end``."""
     A = np.zeros((k, k))
     for t, X in rows:

@@ -62,10 +62,18 @@ from gcs_core.problem.linearization import linearize
 BIG_SIGMA = 1e6
 
 
-def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequence[str],
-                   consider: Sequence[str], sigma0: np.ndarray, sigma_c: np.ndarray,
-                   times: np.ndarray, *, masks: Mapping[str, np.ndarray] | None = None,
-                   noise: GyroNoise | None = None) -> dict:
+def kalman_history(
+    problem: Problem,
+    values: Mapping[str, float],
+    names: Sequence[str],
+    consider: Sequence[str],
+    sigma0: np.ndarray,
+    sigma_c: np.ndarray,
+    times: np.ndarray,
+    *,
+    masks: Mapping[str, np.ndarray] | None = None,
+    noise: GyroNoise | None = None,
+) -> dict:
     """σ history of the covariance-only filter (module docstring).
 
     Parameters
@@ -98,7 +106,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
 
     # every frame row at its event, as (row-block per frame) lists
     frame_ev, frame_X = [], []
-    for (t, X) in rows:
+    for t, X in rows:
         keep = t >= t_ref
         frame_ev.append(np.searchsorted(events, t[keep]))
         frame_X.append(X[keep].reshape(-1, X.shape[1], k_all))
@@ -110,9 +118,9 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     # attitude transition pieces at the events
     ae = att.evaluate(values, events)
     C = ae.C_BI
-    assert C is not None                                           # a three-axis attitude
+    assert C is not None  # a three-axis attitude
     pnames = list(ae.names[3:])
-    F = np.einsum("eji,ejp->eip", C, ae.J[:, :, 3:])              # E(t) = Cᵀ ∂δθ/∂p
+    F = np.einsum("eji,ejp->eip", C, ae.J[:, :, 3:])  # E(t) = Cᵀ ∂δθ/∂p
     sf = [(j, 3 + others.index(p)) for j, p in enumerate(pnames) if p in others]
     cf = [(j, list(consider).index(p)) for j, p in enumerate(pnames) if p in consider]
     gyro = att.gyro
@@ -123,8 +131,8 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
     q_idx = [0, 1, 2] + [3 + others.index(bias_names[a]) for a in axes]
     p_gyro = {k: values.get(f"{gyro}.{k}", 0.0) for k in G_NAMES + common.ALIGN_NAMES}
     M, _ = common.alignment_matrix(p_gyro)
-    Wy, Wb = M.T @ np.linalg.inv(g_matrix(p_gyro)), -M.T          # ∂ω/∂y, ∂ω/∂b (Eq 4-32 inverted)
-    sig_e2 = noise.sigma_e ** 2
+    Wy, Wb = M.T @ np.linalg.inv(g_matrix(p_gyro)), -M.T  # ∂ω/∂y, ∂ω/∂b (Eq 4-32 inverted)
+    sig_e2 = noise.sigma_e**2
 
     # output-time mapping δθ -> δ(roll, pitch, yaw)
     A_out = problem.gyro_attitude.ref.reference(np.maximum(times, t_ref))
@@ -150,7 +158,7 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
 
     def record(j):
         Tm = np.eye(n)
-        Tm[:3, :3] = np.linalg.solve(Jr[j], np.eye(3))            # δrpy = Jr⁻¹ δθ
+        Tm[:3, :3] = np.linalg.solve(Jr[j], np.eye(3))  # δrpy = Jr⁻¹ δθ
         Pz = Tm @ P @ Tm.T
         Sc = (Tm @ S) * sc[None, :]
         Ptot = Pz + Sc @ Sc.T
@@ -168,8 +176,8 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
             # propagation, Eq 3-4: P⁻ = Φ P Φᵀ + Q (only the δθ rows of Φ differ from I)
             dt = events[k] - events[k - 1]
             L = np.zeros((3, n))
-            L[:, :3] = C[k] @ C[k - 1].T                           # Φ_θθ = C_b C_aᵀ
-            G = C[k] @ (F[k] - F[k - 1])                           # Φ_θp = C_b (E_b − E_a)
+            L[:, :3] = C[k] @ C[k - 1].T  # Φ_θθ = C_b C_aᵀ
+            G = C[k] @ (F[k] - F[k - 1])  # Φ_θp = C_b (E_b − E_a)
             for jp, jz in sf:
                 L[:, jz] += G[:, jp]
             top = L @ P
@@ -186,16 +194,21 @@ def kalman_history(problem: Problem, values: Mapping[str, float], names: Sequenc
             Y = np.concatenate([all_X[i] for i in order[i0:i1]], axis=0)
             Hx, Hc = Y[:, :n], Y[:, n:]
             PHt = P @ Hx.T
-            R = np.eye(Y.shape[0])                                 # whitened rows
-            if sig_e2 > 0:                                         # + σ_e² H_θ H_θᵀ (read-out)
+            R = np.eye(Y.shape[0])  # whitened rows
+            if sig_e2 > 0:  # + σ_e² H_θ H_θᵀ (read-out)
                 R += sig_e2 * (Hx[:, :3] @ Hx[:, :3].T)
-            Sinn = Hx @ PHt + R                                    # S = H P Hᵀ + R
-            K = np.linalg.solve(Sinn, PHt.T).T                     # K = P Hᵀ S⁻¹ (S symmetric)
+            Sinn = Hx @ PHt + R  # S = H P Hᵀ + R
+            K = np.linalg.solve(Sinn, PHt.T).T  # K = P Hᵀ S⁻¹ (S symmetric)
             IKH = eye_n - K @ Hx
-            P = IKH @ P @ IKH.T + K @ R @ K.T                      # Joseph form
+            P = IKH @ P @ IKH.T + K @ R @ K.T  # Joseph form
             P = 0.5 * (P + P.T)
             S = S - K @ (Hx @ S + Hc)
         for jo in out_at.get(k, ()):
             record(jo)
-    return {**out, "P": last["P"], "P_consider": last["P_consider"], "budget": last["budget"],
-            "unobservable": np.zeros(n, dtype=bool)}
+    return {
+        **out,
+        "P": last["P"],
+        "P_consider": last["P_consider"],
+        "budget": last["budget"],
+        "unobservable": np.zeros(n, dtype=bool),
+    }

@@ -82,7 +82,7 @@ class PlanAttitude:
         """(N, 3, 3) nominal ``C_BI`` (Eq 4-6)."""
         t = np.atleast_1d(np.asarray(t, dtype=float))
         a = self.rpy(t)
-        assert self.reference is not None                  # a three-axis plan (not spinning)
+        assert self.reference is not None  # a three-axis plan (not spinning)
         return euler123_to_dcm(a[:, 0], a[:, 1], a[:, 2]) @ self.reference.reference(t)
 
     def mean_rates(self, knots) -> np.ndarray:
@@ -115,7 +115,7 @@ def available(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude) -> np.nd
     sunlit = sunlit_fraction(r, s) >= FULL_SUN
     if sensor.type in ("plane_field_sun", "horizon"):
         return sunlit
-    M_C = _alignment(sensor)[None] @ nominal.dcm(t)                   # GCI -> sensor
+    M_C = _alignment(sensor)[None] @ nominal.dcm(t)  # GCI -> sensor
     if sensor.type in ("fine_sun", "coarse_sun"):
         S = np.einsum("nij,nj->ni", M_C, sun_hat)
         ok = S[:, 0] > 0.0
@@ -124,7 +124,7 @@ def available(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude) -> np.nd
             ok &= (np.abs(np.arctan2(S[:, 1], S[:, 0])) <= fov) & (np.abs(np.arctan2(S[:, 2], S[:, 0])) <= fov)
         return ok & sunlit
     if sensor.type == "star_tracker":
-        bore = M_C[:, 0, :]                                            # sensor +x in GCI
+        bore = M_C[:, 0, :]  # sensor +x in GCI
         earth_margin = _book_deg(sensor, "earth_exclusion_deg", EARTH_EXCLUSION_DEG)
         sun_margin = _book_deg(sensor, "sun_exclusion_deg", SUN_EXCLUSION_DEG)
         near_sun = np.einsum("ni,ni->n", bore, sun_hat) > np.cos(sun_margin)

@@ -85,18 +85,15 @@ class DataPlan:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.start) and math.isfinite(self.end) and self.end > self.start):
-            raise InputError(f"the plan needs end > start (got {self.start}, {self.end})",
-                             key="prediction.end")
+            raise InputError(f"the plan needs end > start (got {self.start}, {self.end})", key="prediction.end")
         if not self.step > 0:
             raise InputError(f"must be > 0, got {self.step}", key="prediction.step")
         for g in self.gaps:
             if len(g) != 2 or not g[0] < g[1]:
-                raise InputError(f"a gap must be [t0, t1] with t0 < t1, got {g!r}",
-                                 key="prediction.gaps")
+                raise InputError(f"a gap must be [t0, t1] with t0 < t1, got {g!r}", key="prediction.gaps")
         for i, m in enumerate(self.maneuvers):
             if m.axis not in AXES:
-                raise InputError(f"axis must be one of {', '.join(AXES)}",
-                                 key=f"prediction.maneuvers[{i}].axis")
+                raise InputError(f"axis must be one of {', '.join(AXES)}", key=f"prediction.maneuvers[{i}].axis")
             if not m.duration > 0:
                 raise InputError("duration must be > 0", key=f"prediction.maneuvers[{i}].duration")
         for name, c in self.cadence.items():
@@ -106,19 +103,16 @@ class DataPlan:
             raise InputError(f"stars must be one of {', '.join(STAR_MODELS)}", key="prediction.stars")
         if self.catalog is not None:
             if self.stars != "catalog":
-                raise InputError(f"a catalog goes with stars = \"catalog\", not {self.stars!r}",
-                                 key="prediction.catalog")
+                raise InputError(f'a catalog goes with stars = "catalog", not {self.stars!r}', key="prediction.catalog")
             if not str(self.catalog).strip():
                 raise InputError("must be the star catalog file, not an empty name", key="prediction.catalog")
             object.__setattr__(self, "catalog", Path(self.catalog))
         if self.frames not in FRAME_SOURCES:
-            raise InputError(f"frames must be one of {', '.join(FRAME_SOURCES)}",
-                             key="prediction.frames")
+            raise InputError(f"frames must be one of {', '.join(FRAME_SOURCES)}", key="prediction.frames")
 
     # ------------------------------------------------------------------ construction
     @classmethod
-    def from_config(cls, cfg: AnalysisConfig, *, span: tuple[float, float] | None = None,
-                    **overrides) -> DataPlan:
+    def from_config(cls, cfg: AnalysisConfig, *, span: tuple[float, float] | None = None, **overrides) -> DataPlan:
         """The plan of an analysis config's ``[prediction]`` table.
 
         ``span`` supplies start/end where the config leaves them out (e.g. the
@@ -128,13 +122,20 @@ class DataPlan:
         start, end = cfg.prediction.start, cfg.prediction.end
         if start is None or end is None:
             if span is None:
-                raise InputError("the plan needs prediction.start and prediction.end (no telemetry "
-                                 "span to default to)", file=cfg.path, key="prediction.start")
+                raise InputError(
+                    "the plan needs prediction.start and prediction.end (no telemetry span to default to)",
+                    file=cfg.path,
+                    key="prediction.start",
+                )
             start = span[0] if start is None else start
             end = span[1] if end is None else end
-        kw: dict[str, Any] = dict(start=float(start), end=float(end),
-                                  step=cfg.prediction.step, gaps=tuple(cfg.prediction.gaps),
-                                  maneuvers=tuple(cfg.prediction.maneuvers))
+        kw: dict[str, Any] = dict(
+            start=float(start),
+            end=float(end),
+            step=cfg.prediction.step,
+            gaps=tuple(cfg.prediction.gaps),
+            maneuvers=tuple(cfg.prediction.maneuvers),
+        )
         stars = cfg.prediction.stars or ("catalog" if cfg.prediction.catalog is not None else None)
         if stars is not None:
             kw["stars"] = stars
@@ -142,7 +143,7 @@ class DataPlan:
             kw["catalog"] = Path(cfg.prediction.catalog)
         kw.update(overrides)
         if kw.get("stars", "sky") != "catalog" and "catalog" not in overrides and "stars" in overrides:
-            kw.pop("catalog", None)         # an override to another star model drops the file
+            kw.pop("catalog", None)  # an override to another star model drops the file
         try:
             return cls(**kw)
         except InputError as err:
@@ -188,6 +189,5 @@ class DataPlan:
         for m in self.maneuvers:
             k = AXES.index(m.axis)
             rate = m.rate_deg_s * DEG
-            out[:, k] += rate * (np.clip(t - m.start, 0.0, m.duration)
-                                 - np.clip(self.start - m.start, 0.0, m.duration))
+            out[:, k] += rate * (np.clip(t - m.start, 0.0, m.duration) - np.clip(self.start - m.start, 0.0, m.duration))
         return out

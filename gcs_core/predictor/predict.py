@@ -136,29 +136,52 @@ class PredictionResult:
         """JSON-ready summary: final σ, budget, availability, frames (internal units;
         an infinite σ becomes None)."""
         num = lambda x: float(x) if np.isfinite(x) else None
-        return {"method": self.method,
-                "plan": None if self.plan is None else {
-                    "start": self.plan.start, "end": self.plan.end, "step": self.plan.step,
-                    "gaps": [list(g) for g in self.plan.gaps], "frames": self.plan.frames,
-                    "stars": self.plan.stars,
-                    "catalog": None if self.plan.catalog is None else str(self.plan.catalog),
-                    "maneuvers": [{"start": m.start, "duration": m.duration, "axis": m.axis,
-                                   "rate_deg_s": m.rate_deg_s} for m in self.plan.maneuvers]},
-                "state": [{"name": r["name"], "unit": r["unit"], "sigma": num(r["sigma"]),
-                           "noise_only": num(r["noise_only"]),
-                           "consider": {c: num(v) for c, v in r["consider"].items()}}
-                          for r in self.budget_rows()],
-                "attitude_sigma_rad": [num(x) for x in self.attitude_sigma[-1]],
-                "availability": {k: float(v) for k, v in self.availability.items()},
-                "frames": dict(self.frames), "unobservable": list(self.unobservable),
-                "undetermined": list(self.undetermined)}
+        return {
+            "method": self.method,
+            "plan": None
+            if self.plan is None
+            else {
+                "start": self.plan.start,
+                "end": self.plan.end,
+                "step": self.plan.step,
+                "gaps": [list(g) for g in self.plan.gaps],
+                "frames": self.plan.frames,
+                "stars": self.plan.stars,
+                "catalog": None if self.plan.catalog is None else str(self.plan.catalog),
+                "maneuvers": [
+                    {"start": m.start, "duration": m.duration, "axis": m.axis, "rate_deg_s": m.rate_deg_s}
+                    for m in self.plan.maneuvers
+                ],
+            },
+            "state": [
+                {
+                    "name": r["name"],
+                    "unit": r["unit"],
+                    "sigma": num(r["sigma"]),
+                    "noise_only": num(r["noise_only"]),
+                    "consider": {c: num(v) for c, v in r["consider"].items()},
+                }
+                for r in self.budget_rows()
+            ],
+            "attitude_sigma_rad": [num(x) for x in self.attitude_sigma[-1]],
+            "availability": {k: float(v) for k, v in self.availability.items()},
+            "frames": dict(self.frames),
+            "unobservable": list(self.unobservable),
+            "undetermined": list(self.undetermined),
+        }
 
     def budget_rows(self) -> list[dict[str, Any]]:
         """One row per solve-for element: total, noise-only and each consider contribution."""
-        return [{"name": n, "unit": u, "sigma": float(self.sigma[-1, i]),
-                 "noise_only": float(self.noise_only[i]),
-                 "consider": {c: float(v[i]) for c, v in self.budget.items()}}
-                for i, (n, u) in enumerate(zip(self.names, self.units))]
+        return [
+            {
+                "name": n,
+                "unit": u,
+                "sigma": float(self.sigma[-1, i]),
+                "noise_only": float(self.noise_only[i]),
+                "consider": {c: float(v[i]) for c, v in self.budget.items()},
+            }
+            for i, (n, u) in enumerate(zip(self.names, self.units))
+        ]
 
 
 # ----------------------------------------------------------------------------------------
@@ -167,17 +190,23 @@ def state_options(cfg: AnalysisConfig | None) -> StateOptions:
     if cfg is None:
         return StateOptions()
     ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in cfg.state.elements.items()}
-    return StateOptions(effects=cfg.state.effects, exclude=cfg.state.exclude, overrides=ov,
-                        attitude_sigma=cfg.state.attitude_sigma_deg * DEG)
+    return StateOptions(
+        effects=cfg.state.effects,
+        exclude=cfg.state.exclude,
+        overrides=ov,
+        attitude_sigma=cfg.state.attitude_sigma_deg * DEG,
+    )
 
 
 def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
     if method is None:
-        method = "information" if cfg is None else {"kalman": "kalman", "whole_span": "whole_span"}.get(
-            cfg.method, "information")
+        method = (
+            "information"
+            if cfg is None
+            else {"kalman": "kalman", "whole_span": "whole_span"}.get(cfg.method, "information")
+        )
     if method not in METHODS:
-        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}",
-                         key="prediction.method")
+        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}", key="prediction.method")
     return method
 
 
@@ -195,8 +224,11 @@ def _mission_parts(source, mission, cfg):
         if m.ephemeris_file is not None and m.ephemeris_file.is_file():
             eph_table = read_table(m.ephemeris_file, required=EPHEMERIS_COLUMNS, what="ephemeris")
         return m, {}, eph_table, None, None
-    raise InputError(f"cannot predict from a {type(m).__name__}: give an AnalysisConfig, an Analysis, "
-                     "an ImportedMission, a MissionSpec or a Problem", key="prediction")
+    raise InputError(
+        f"cannot predict from a {type(m).__name__}: give an AnalysisConfig, an Analysis, "
+        "an ImportedMission, a MissionSpec or a Problem",
+        key="prediction",
+    )
 
 
 def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float):
@@ -209,14 +241,23 @@ def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float)
     tle = getattr(spec, "orbit_tle", None)
     if orbit is None and tle is not None:
         # the mission's [orbit] tle propagated over the plan (gcs_core.ephem.tle)
-        return Ephemeris.from_table(tle_ephemeris_table(
-            tle, spec.epoch, plan.start, plan.end, frame=spec.orbit_frame,
-            step_s=spec.orbit_step_s, margin_s=EPHEMERIS_MARGIN_S))
+        return Ephemeris.from_table(
+            tle_ephemeris_table(
+                tle,
+                spec.epoch,
+                plan.start,
+                plan.end,
+                frame=spec.orbit_frame,
+                step_s=spec.orbit_step_s,
+                margin_s=EPHEMERIS_MARGIN_S,
+            )
+        )
     if orbit is None:
-        raise InputError("no ephemeris for the plan: give the mission's ephemeris.csv or an orbit "
-                         "(KeplerOrbit / TleOrbit)", key="prediction.orbit")
-    return build_ephemeris(orbit, spec.epoch, plan.start - EPHEMERIS_MARGIN_S,
-                           plan.end + EPHEMERIS_MARGIN_S, step)
+        raise InputError(
+            "no ephemeris for the plan: give the mission's ephemeris.csv or an orbit (KeplerOrbit / TleOrbit)",
+            key="prediction.orbit",
+        )
+    return build_ephemeris(orbit, spec.epoch, plan.start - EPHEMERIS_MARGIN_S, plan.end + EPHEMERIS_MARGIN_S, step)
 
 
 def _telemetry_span(telemetry) -> tuple[float, float] | None:
@@ -226,8 +267,15 @@ def _telemetry_span(telemetry) -> tuple[float, float] | None:
     return min(float(t.t[0]) for t in tabs), max(float(t.t[-1]) for t in tabs)
 
 
-def predict(source, *, plan: DataPlan | None = None, mission=None, orbit=None,
-            method: str | None = None, ephemeris_step: float = 30.0) -> PredictionResult:
+def predict(
+    source,
+    *,
+    plan: DataPlan | None = None,
+    mission=None,
+    orbit=None,
+    method: str | None = None,
+    ephemeris_step: float = 30.0,
+) -> PredictionResult:
     """Predict the σ of every solve-for element over a data plan (module docstring).
 
     Parameters
@@ -278,12 +326,22 @@ def predict(source, *, plan: DataPlan | None = None, mission=None, orbit=None,
     gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
     if off:
         from dataclasses import replace
+
         spec = replace(spec, sensors=tuple(s for s in spec.sensors if s.name not in off))
         telemetry = {k: v for k, v in telemetry.items() if k not in off}
     eph = _ephemeris(spec, eph_table, plan, orbit, ephemeris_step)
     physics = cfg.physics if cfg is not None else PhysicsOptions()
-    planned = plan_problem(spec, eph, plan, telemetry=telemetry, aux=aux, onboard=onboard,
-                           physics=physics, options=state_options(cfg), use_gyro=not gyro_off)
+    planned = plan_problem(
+        spec,
+        eph,
+        plan,
+        telemetry=telemetry,
+        aux=aux,
+        onboard=onboard,
+        physics=physics,
+        options=state_options(cfg),
+        use_gyro=not gyro_off,
+    )
     return _run(planned, plan, _method(method, cfg))
 
 
@@ -295,8 +353,9 @@ def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> Pr
             raise InputError("the problem has no frames", key="prediction")
         plan = DataPlan(min(float(x[0]) for x in t), max(float(x[-1]) for x in t))
     cadence = {sd.name: median_step(sd.t) or 1.0 for sd in problem.sensors}
-    planned = PlannedProblem(problem, problem.state.values(), None, cadence,
-                             {k: int(plan.grid(c).size) for k, c in cadence.items()})
+    planned = PlannedProblem(
+        problem, problem.state.values(), None, cadence, {k: int(plan.grid(c).size) for k, c in cadence.items()}
+    )
     return _run(planned, plan, method)
 
 
@@ -318,37 +377,47 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
     rows = [info.weighted_rows(lin, sd.t, masks[sd.name]) for lin, sd in zip(lins, problem.sensors)]
     frames = {sd.name: int(t.size) for (t, _), sd in zip(rows, problem.sensors)}
     A_final = info.final_information(rows, n + len(cons), plan.end)[:n, :n]
-    use_kalman = (method == "kalman" and isinstance(problem.attitude, GyroAttitude)
-                  and tuple(names[:3]) == RPY)
+    use_kalman = method == "kalman" and isinstance(problem.attitude, GyroAttitude) and tuple(names[:3]) == RPY
     if method == "kalman" and not use_kalman:
         log.info("no gyro carries a solved-for attitude: the prediction uses Eq 3-2")
     if use_kalman:
         hist = kalman_history(problem, values, names, cons, sigma0, sigma_c, times, masks=masks)
     else:
         A_cum = info.binned_information(rows, times, n + len(cons))
-        hist = info.static_history(A_cum, n, info.prior_information(sigma0), sigma_c,
-                                   _attitude_partials(problem, values, names, times))
+        hist = info.static_history(
+            A_cum, n, info.prior_information(sigma0), sigma_c, _attitude_partials(problem, values, names, times)
+        )
     if method == "whole_span" and not use_kalman:
-        final = predicted_covariance(problem, values, names, cons,
-                                     {k: ~np.asarray(v, bool) for k, v in masks.items()},
-                                     A_final, sigma0, sigma_c)
-        if final is not None:               # the end of the plan: the whole-span covariance
+        final = predicted_covariance(
+            problem, values, names, cons, {k: ~np.asarray(v, bool) for k, v in masks.items()}, A_final, sigma0, sigma_c
+        )
+        if final is not None:  # the end of the plan: the whole-span covariance
             P, P_cons, budget = final
             hist["P"], hist["P_consider"], hist["budget"] = P, P_cons, budget
             hist["sigma_noise"][-1] = np.sqrt(np.diag(P))
             hist["sigma"][-1] = np.sqrt(np.diag(P_cons))
     slots = planned.slots
-    availability = {k: (frames.get(k, 0) / slots[k] if slots.get(k) else 0.0)
-                    for k in slots if k in frames}
+    availability = {k: (frames.get(k, 0) / slots[k] if slots.get(k) else 0.0) for k in slots if k in frames}
     unobs = tuple(name_combinations(A_final, names, 1e-7))
     return PredictionResult(
-        times=times, names=names, units=tuple(state[nm].unit for nm in names),
-        sigma=hist["sigma"], sigma_noise=hist["sigma_noise"], attitude_sigma=hist["attitude_sigma"],
-        P=hist["P"], P_consider=hist["P_consider"], consider=cons,
+        times=times,
+        names=names,
+        units=tuple(state[nm].unit for nm in names),
+        sigma=hist["sigma"],
+        sigma_noise=hist["sigma_noise"],
+        attitude_sigma=hist["attitude_sigma"],
+        P=hist["P"],
+        P_consider=hist["P_consider"],
+        consider=cons,
         budget={c: hist["budget"][j] for j, c in enumerate(cons)},
-        noise_only=hist["sigma_noise"][-1].copy(), availability=availability, frames=frames,
-        method="kalman" if use_kalman else "information", plan=plan, unobservable=unobs,
-        prior=sigma0.copy())
+        noise_only=hist["sigma_noise"][-1].copy(),
+        availability=availability,
+        frames=frames,
+        method="kalman" if use_kalman else "information",
+        plan=plan,
+        unobservable=unobs,
+        prior=sigma0.copy(),
+    )
 
 
 def _attitude_partials(problem: Problem, values, names, times) -> np.ndarray:

@@ -65,7 +65,7 @@ SAME_STAR_DEG = 1e-7
 _GOLDEN = 0.6180339887498949
 #: the plastic number's powers: R2 low-discrepancy sequence in the unit square
 _PLASTIC = 1.324717957244746
-_R2 = (1.0 / _PLASTIC, 1.0 / _PLASTIC ** 2)
+_R2 = (1.0 / _PLASTIC, 1.0 / _PLASTIC**2)
 
 
 def unit_vectors(ra_deg, dec_deg) -> np.ndarray:
@@ -125,20 +125,22 @@ def _read_catalog(path_s: str, mtime_ns: int, size: int) -> Catalog:
     # the reader's own steps (a catalog has no time column, which read_table requires)
     text = csvio._decode(raw, path)
     if "\x00" in text:
-        raise InputError("NUL byte in a text file (binary data?)", file=path,
-                         line=text[:text.index("\x00")].count("\n") + 1)
+        raise InputError(
+            "NUL byte in a text file (binary data?)", file=path, line=text[: text.index("\x00")].count("\n") + 1
+        )
     names, header_at, eol = csvio._header(text, path, CATALOG_COLUMNS, what)
     rows, linenos = csvio._split_lines(text, header_at, eol)
     data = csvio._parse_bulk(rows, linenos, names, path)
     if data.shape[0] == 0:
-        raise InputError(f"no stars: the {what} has a header but no rows", file=path,
-                         line=header_at + 1)
+        raise InputError(f"no stars: the {what} has a header but no rows", file=path, line=header_at + 1)
     cols = {c: data[:, names.index(c)] for c in CATALOG_COLUMNS}
-    checks = (("ra", np.isnan(cols["ra"]), "empty or nan value (a catalog star needs ra, dec and mag)"),
-              ("dec", np.isnan(cols["dec"]), "empty or nan value (a catalog star needs ra, dec and mag)"),
-              ("mag", np.isnan(cols["mag"]), "empty or nan value (a catalog star needs ra, dec and mag)"),
-              ("ra", (cols["ra"] < 0.0) | (cols["ra"] > 360.0), "right ascension outside [0, 360] deg"),
-              ("dec", np.abs(cols["dec"]) > 90.0, "declination outside [-90, 90] deg"))
+    checks = (
+        ("ra", np.isnan(cols["ra"]), "empty or nan value (a catalog star needs ra, dec and mag)"),
+        ("dec", np.isnan(cols["dec"]), "empty or nan value (a catalog star needs ra, dec and mag)"),
+        ("mag", np.isnan(cols["mag"]), "empty or nan value (a catalog star needs ra, dec and mag)"),
+        ("ra", (cols["ra"] < 0.0) | (cols["ra"] > 360.0), "right ascension outside [0, 360] deg"),
+        ("dec", np.abs(cols["dec"]) > 90.0, "declination outside [-90, 90] deg"),
+    )
     bad = [(int(np.flatnonzero(m)[0]), c, msg) for c, m, msg in checks if np.any(m)]
     if bad:
         i, c, msg = min(bad, key=lambda b: (b[0], names.index(b[1])))
@@ -187,8 +189,7 @@ def default_sky() -> SyntheticSky:
     return SyntheticSky()
 
 
-def catalog_stars(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude,
-                  catalog) -> tuple[np.ndarray, np.ndarray]:
+def catalog_stars(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude, catalog) -> tuple[np.ndarray, np.ndarray]:
     """Stars of a catalog seen by a tracker along the nominal attitude: ``(ok, F_I)``.
 
     ``catalog``: any object with ``u_I`` (n, 3), ``mag`` (n,) and a k-d ``tree`` over
@@ -204,7 +205,7 @@ def catalog_stars(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude,
     mag_limit = common.book_scalar(sensor, "mag_limit", None)
     M_C = _alignment(sensor)[None] @ nominal.dcm(t)
     bore = M_C[:, 0, :]
-    radius = 2.0 * np.sin(0.5 * fov * np.sqrt(2.0) * 1.01)      # chord to the field's corner
+    radius = 2.0 * np.sin(0.5 * fov * np.sqrt(2.0) * 1.01)  # chord to the field's corner
     cand = catalog.tree.query_ball_point(bore, radius)
     u = np.mod(0.5 + np.arange(1, t.size + 1) * _GOLDEN, 1.0)
     F = np.full((t.size, 3), np.nan)
@@ -214,8 +215,11 @@ def catalog_stars(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude,
             continue
         idx = np.asarray(idx)
         FS = catalog.u_I[idx] @ M_C[k].T
-        inside = (FS[:, 0] > 0) & (np.abs(np.arcsin(np.clip(FS[:, 2], -1, 1))) <= fov) & \
-            (np.abs(np.arctan2(FS[:, 1], FS[:, 0])) <= fov)
+        inside = (
+            (FS[:, 0] > 0)
+            & (np.abs(np.arcsin(np.clip(FS[:, 2], -1, 1))) <= fov)
+            & (np.abs(np.arctan2(FS[:, 1], FS[:, 0])) <= fov)
+        )
         if mag_limit is not None:
             inside &= catalog.mag[idx] <= mag_limit
         if not np.any(inside):

@@ -86,8 +86,7 @@ def ephemeris_table(eph: Ephemeris) -> Table:
     """An ephemeris.csv :class:`Table` (ICD §4 columns) holding ``eph``'s rows."""
     cols = dict(zip(EPHEMERIS_COLUMNS, [eph.t, *eph.r_I_km.T, *eph.v_I_km_s.T, *eph.sun_I_km.T]))
     cols = {k: np.array(v, dtype=float) for k, v in cols.items()}
-    return Table(path=Path(eph.source), t=cols["t"], columns=cols,
-                 lines=np.arange(2, eph.t.size + 2))
+    return Table(path=Path(eph.source), t=cols["t"], columns=cols, lines=np.arange(2, eph.t.size + 2))
 
 
 def median_step(t) -> float | None:
@@ -107,13 +106,14 @@ def spin_rate_of(spec: MissionSpec, telemetry: Mapping[str, Table], plan: DataPl
         rpm = s.get("spin_rate_rpm")
         if rpm is not None:
             return float(rpm) * 2.0 * np.pi / 60.0
-    raise InputError("a spinning mission's plan needs the spin rate: give DataPlan.spin_rate, "
-                     "horizon telemetry, or the data-book key spin_rate_rpm",
-                     key="prediction.spin_rate")
+    raise InputError(
+        "a spinning mission's plan needs the spin rate: give DataPlan.spin_rate, "
+        "horizon telemetry, or the data-book key spin_rate_rpm",
+        key="prediction.spin_rate",
+    )
 
 
-def cadence_of(sensor: SensorSpec, table: Table | None, plan: DataPlan,
-               spin_rate: float | None = None) -> float:
+def cadence_of(sensor: SensorSpec, table: Table | None, plan: DataPlan, spin_rate: float | None = None) -> float:
     """Frame spacing [s] (plan > telemetry > ``cadence`` book key > default; spinners: a spin)."""
     if sensor.name in plan.cadence:
         return float(plan.cadence[sensor.name])
@@ -135,17 +135,21 @@ def cadence_of(sensor: SensorSpec, table: Table | None, plan: DataPlan,
 def _table(name: str, t: np.ndarray, columns: Mapping[str, np.ndarray]) -> Table:
     cols = {"t": np.asarray(t, dtype=float)}
     cols.update({k: np.asarray(v, dtype=float) for k, v in columns.items()})
-    return Table(path=Path(f"<plan {name}>"), t=cols["t"], columns=cols,
-                 lines=np.arange(1, t.size + 1))
+    return Table(path=Path(f"<plan {name}>"), t=cols["t"], columns=cols, lines=np.arange(1, t.size + 1))
 
 
 def _subset(table: Table, mask: np.ndarray) -> Table:
-    return replace(table, t=table.t[mask], columns={k: np.asarray(v)[mask] for k, v in table.columns.items()},
-                   lines=np.asarray(table.lines)[mask])
+    return replace(
+        table,
+        t=table.t[mask],
+        columns={k: np.asarray(v)[mask] for k, v in table.columns.items()},
+        lines=np.asarray(table.lines)[mask],
+    )
 
 
-def _synthetic_table(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude,
-                     spin_rate: float | None, stars_I: np.ndarray | None = None) -> Table:
+def _synthetic_table(
+    sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude, spin_rate: float | None, stars_I: np.ndarray | None = None
+) -> Table:
     """Placeholder telemetry at ``t`` (module docstring, step 2); ``stars_I`` (N, 3) the
     identified stars of a tracker (default: spread evenly over its field)."""
     n = t.size
@@ -154,8 +158,7 @@ def _synthetic_table(sensor: SensorSpec, t: np.ndarray, nominal: PlanAttitude,
         if stars_I is None:
             stars_I = synthetic_stars(sensor, t, nominal)
         ra, dec = ra_dec_from_vector(stars_I)
-        return _table(sensor.name, t, {"h": zero, "v": zero, "ra": ra / DEG, "dec": dec / DEG,
-                                       "mag": np.full(n, 4.0)})
+        return _table(sensor.name, t, {"h": zero, "v": zero, "ra": ra / DEG, "dec": dec / DEG, "mag": np.full(n, 4.0)})
     if sensor.type == "horizon":
         return _table(sensor.name, t, {"spin_rate": np.full(n, spin_rate), "dt_in": zero, "dt_out": zero})
     return _table(sensor.name, t, {c: zero for c in TELEMETRY_COLUMNS[sensor.type][1:]})
@@ -165,8 +168,7 @@ def _gyro_table(sensor: SensorSpec, plan: DataPlan, cadence: float, nominal: Pla
     """Gyro rows at ``start + k·cadence`` (k ≥ 1) reading the nominal rates (Eq 4-32, 4-33)."""
     rows = plan.grid(cadence, first=plan.start + cadence)
     if rows.size == 0:
-        raise InputError(f"the plan span is shorter than one gyro interval ({cadence} s)",
-                         key="prediction.end")
+        raise InputError(f"the plan span is shorter than one gyro interval ({cadence} s)", key="prediction.end")
     omega = nominal.mean_rates(np.concatenate([[plan.start], rows]))
     model = make_model(sensor)
     y = model.predict(Geometry(t=rows, omega_B=omega), {}).y
@@ -185,19 +187,25 @@ def star_catalog(spec: MissionSpec, plan: DataPlan, telemetry: Mapping[str, Tabl
     if plan.stars == "sky":
         return default_sky()
     if plan.stars == "telemetry":
-        cat = telemetry_catalog(telemetry[s.name] for s in spec.sensors
-                                if s.type == "star_tracker" and s.name in telemetry)
+        cat = telemetry_catalog(
+            telemetry[s.name] for s in spec.sensors if s.type == "star_tracker" and s.name in telemetry
+        )
         if cat is None:
-            raise InputError('stars = "telemetry" needs star-tracker telemetry with identified stars '
-                             '(none in this mission): give a catalog instead', key="prediction.stars")
+            raise InputError(
+                'stars = "telemetry" needs star-tracker telemetry with identified stars '
+                "(none in this mission): give a catalog instead",
+                key="prediction.stars",
+            )
         return cat
     path = plan.catalog
     root = Path(spec.root) if spec.root is not None else None
     if path is None:
         if root is None or not (root / STAR_CATALOG_FILE).is_file():
-            raise InputError(f'stars = "catalog" needs a star catalog: give prediction.catalog (CSV ra, '
-                             f'dec, mag) or put {STAR_CATALOG_FILE} in the mission directory',
-                             key="prediction.catalog")
+            raise InputError(
+                f'stars = "catalog" needs a star catalog: give prediction.catalog (CSV ra, '
+                f"dec, mag) or put {STAR_CATALOG_FILE} in the mission directory",
+                key="prediction.catalog",
+            )
         path = root / STAR_CATALOG_FILE
     elif not path.is_absolute() and root is not None:
         path = root / path
@@ -218,10 +226,18 @@ def _rpy0(spec: MissionSpec, plan: DataPlan, eph: Ephemeris, onboard: Table | No
     return np.zeros(3)
 
 
-def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
-                 telemetry: Mapping[str, Table] | None = None, aux: Table | None = None,
-                 onboard: Table | None = None, physics: PhysicsOptions | None = None,
-                 options: StateOptions | None = None, use_gyro: bool = True) -> PlannedProblem:
+def plan_problem(
+    spec: MissionSpec,
+    eph: Ephemeris,
+    plan: DataPlan,
+    *,
+    telemetry: Mapping[str, Table] | None = None,
+    aux: Table | None = None,
+    onboard: Table | None = None,
+    physics: PhysicsOptions | None = None,
+    options: StateOptions | None = None,
+    use_gyro: bool = True,
+) -> PlannedProblem:
     """Headers-only Problem of ``spec`` for ``plan`` (module docstring).
 
     Parameters
@@ -243,10 +259,12 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
     spin_rate = spin_rate_of(spec, telemetry, plan) if spinning else None
     if spinning:
         if spec.spin_axis_guess_deg is None:
-            raise InputError("a spinning mission needs spin_axis_guess_deg = [RA, Dec] (the nominal axis)",
-                             file=spec.root / "mission.toml", key="mission.spin_axis_guess_deg")
-        nominal = PlanAttitude("spinning", eph, plan,
-                                  spin_axis_I=nominal_spin_axis(*spec.spin_axis_guess_deg))
+            raise InputError(
+                "a spinning mission needs spin_axis_guess_deg = [RA, Dec] (the nominal axis)",
+                file=spec.root / "mission.toml",
+                key="mission.spin_axis_guess_deg",
+            )
+        nominal = PlanAttitude("spinning", eph, plan, spin_axis_I=nominal_spin_axis(*spec.spin_axis_guess_deg))
     else:
         nominal = PlanAttitude(spec.attitude_mode, eph, plan, _rpy0(spec, plan, eph, onboard))
     gyros = [s for s in spec.sensors if s.type == "gyro"]
@@ -294,8 +312,9 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
             table = _synthetic_table(s, np.array([0.5 * (plan.start + plan.end)]), nominal, spin_rate)
         tables[s.name] = table
 
-    mission = ImportedMission(spec=spec, ephemeris_table=ephemeris_table(eph), telemetry=tables,
-                              aux=aux, onboard=onboard if from_tm else None)
+    mission = ImportedMission(
+        spec=spec, ephemeris_table=ephemeris_table(eph), telemetry=tables, aux=aux, onboard=onboard if from_tm else None
+    )
     problem = build_problem(mission, physics=physics, options=options, use_gyro=gyro is not None)
     if not from_tm:
         if spinning:
@@ -304,8 +323,7 @@ def plan_problem(spec: MissionSpec, eph: Ephemeris, plan: DataPlan, *,
             rpy_start = nominal.rpy(np.array([plan.start]))[0]
             nominal_values = dict(zip(RPY, map(float, rpy_start)))
             if not isinstance(problem.attitude, GyroAttitude):
-                problem.attitude = ManeuverAttitude(ReferenceAttitude(spec.attitude_mode, eph),
-                                                    plan.maneuver_offsets)
+                problem.attitude = ManeuverAttitude(ReferenceAttitude(spec.attitude_mode, eph), plan.maneuver_offsets)
         problem = problem.with_state(problem.state.with_values(nominal_values))
     problem.sensors = [sd for sd in problem.sensors if sd.name not in empty]
     values = problem.state.values()

@@ -132,8 +132,7 @@ class FrameAttitude:
             self._J = self._gyro_chain(eye, self.C_chain, np.arange(len(self.names)))
         return self._J
 
-    def chain(self, D: np.ndarray, sel, out: np.ndarray | None = None, *,
-              w: np.ndarray | None = None) -> np.ndarray:
+    def chain(self, D: np.ndarray, sel, out: np.ndarray | None = None, *, w: np.ndarray | None = None) -> np.ndarray:
         """``(w D) @ J[:, :, sel]``, (N, m, len(sel)); ``sel`` ascending positions in ``names``.
 
         ``out`` (N, m, len(sel)) may be a view into a larger array (written in place).
@@ -151,12 +150,12 @@ class FrameAttitude:
             D = D * w[:, :, None]
         if self._gyro is None or self._J is not None:
             J = self.J
-            if J.ndim == 3 and J.strides[0] == 0:                 # one matrix for every frame
+            if J.ndim == 3 and J.strides[0] == 0:  # one matrix for every frame
                 out[...] = (D.reshape(-1, 3) @ J[0][:, sel]).reshape(n, m, -1)
             else:
                 o = 0
                 for a, b in _runs(sel):
-                    np.matmul(D, J[:, :, a:b], out=out[:, :, o:o + b - a])
+                    np.matmul(D, J[:, :, a:b], out=out[:, :, o : o + b - a])
                     o += b - a
             return out
         return self._gyro_chain(D, D @ self.C_chain, sel, out)
@@ -166,8 +165,9 @@ class FrameAttitude:
         """True when :meth:`fill_rows` can run (gyro-carried, factored, numba)."""
         return self._gyro is not None and self._J is None and COMPILED
 
-    def fill_rows(self, D: np.ndarray, sel, out: np.ndarray, *, w: np.ndarray | None = None,
-                  P: np.ndarray | None = None, pcol=()) -> bool:
+    def fill_rows(
+        self, D: np.ndarray, sel, out: np.ndarray, *, w: np.ndarray | None = None, P: np.ndarray | None = None, pcol=()
+    ) -> bool:
         """Whole rows in one compiled pass, when this attitude can (gyro-carried, numba):
         ``(w D) J[:, :, sel]`` into ``out[..., :len(sel)]`` and the prepared columns
         ``P`` (q, N, m) into ``out[..., pcol]`` (added where ``pcol`` < len(sel)); a row of
@@ -184,16 +184,28 @@ class FrameAttitude:
         rs, ps = sel[sel < 3], sel[sel >= 3] - 3
         if P is None:
             P = np.empty((0, n, m))
-        kernels.chain_rows(D, np.ones((n, m)) if w is None else w, self.C_chain, E, jidx, Ma, rs, ps,
-                           P, np.asarray(pcol, dtype=np.int64), out)
+        kernels.chain_rows(
+            D,
+            np.ones((n, m)) if w is None else w,
+            self.C_chain,
+            E,
+            jidx,
+            Ma,
+            rs,
+            ps,
+            P,
+            np.asarray(pcol, dtype=np.int64),
+            out,
+        )
         if gen is not None and ps.size:
             g, Wg, sg = gen
             Dg = D[g] if w is None else D[g] * w[g][:, :, None]
-            out[g, :, rs.size:rs.size + ps.size] += (Dg @ Wg[:, :, ps]) * sg[:, None, None]
+            out[g, :, rs.size : rs.size + ps.size] += (Dg @ Wg[:, :, ps]) * sg[:, None, None]
         return True
 
-    def fill_gram(self, D: np.ndarray, sel, G: np.ndarray, buf: np.ndarray, *, w: np.ndarray,
-                  P: np.ndarray, pcol) -> bool:
+    def fill_gram(
+        self, D: np.ndarray, sel, G: np.ndarray, buf: np.ndarray, *, w: np.ndarray, P: np.ndarray, pcol
+    ) -> bool:
         """``G += Σ rowᵀ row`` over the rows :meth:`fill_rows` would write, without writing
         them (:func:`~gcs_core.problem.kernels.chain_gram`; ``G`` (K, K) gets its lower
         triangle, ``buf`` (T, K) is the tile; the ``D W s`` term of frames between knots is
@@ -214,8 +226,24 @@ class FrameAttitude:
             Wg, sg = np.ascontiguousarray(Wg, dtype=float), np.ascontiguousarray(sg, dtype=float)
         else:
             Wg, sg = np.zeros((1, 3, 1)), np.zeros(1)
-        kernels.chain_gram(D, w, self.C_chain, E, jidx, Ma, rs, ps, P, np.asarray(pcol, dtype=np.int64), gidx,
-                           Wg, sg, G, buf, kernels.DSYRK)
+        kernels.chain_gram(
+            D,
+            w,
+            self.C_chain,
+            E,
+            jidx,
+            Ma,
+            rs,
+            ps,
+            P,
+            np.asarray(pcol, dtype=np.int64),
+            gidx,
+            Wg,
+            sg,
+            G,
+            buf,
+            kernels.DSYRK,
+        )
         return True
 
     def _gyro_chain(self, D, DC, sel, out=None):
@@ -227,10 +255,10 @@ class FrameAttitude:
             out = np.empty((n, m, sel.size))
         rs = sel[sel < 3]
         if rs.size:
-            out[:, :, :rs.size] = (DC.reshape(-1, 3) @ Ma[:, rs]).reshape(n, m, -1)
+            out[:, :, : rs.size] = (DC.reshape(-1, 3) @ Ma[:, rs]).reshape(n, m, -1)
         o = rs.size
         for a, b in _runs(sel[sel >= 3] - 3):
-            part = out[:, :, o:o + b - a]
+            part = out[:, :, o : o + b - a]
             np.matmul(DC, E[j, :, a:b], out=part)
             if gen is not None:
                 g, Wg, sg = gen
@@ -267,9 +295,19 @@ def rpy_error_jacobian(roll, pitch, yaw) -> np.ndarray:
 
 
 def rpy_specs(roll=0.0, pitch=0.0, yaw=0.0, sigma=1.0 * DEG) -> tuple[ParamSpec, ...]:
-    return tuple(ParamSpec(n.split(".")[1], "rad", float(v), sigma, seed=True, effect="attitude",
-                           description=f"{n.split('.')[1]} angle, Eq 4-4", element=n)
-                 for n, v in zip(RPY, (roll, pitch, yaw)))
+    return tuple(
+        ParamSpec(
+            n.split(".")[1],
+            "rad",
+            float(v),
+            sigma,
+            seed=True,
+            effect="attitude",
+            description=f"{n.split('.')[1]} angle, Eq 4-4",
+            element=n,
+        )
+        for n, v in zip(RPY, (roll, pitch, yaw))
+    )
 
 
 @runtime_checkable
@@ -382,7 +420,7 @@ class ReferenceAttitude(ProviderDefaults):
         if self.mode == "earth_pointing":
             r, v = self.ephemeris.state(t)
             A = reference_dcm(self.mode, r, v)
-            omega = earth_pointing_rate(r, v, frame="R") @ B.T           # ω_B = B ω_R
+            omega = earth_pointing_rate(r, v, frame="R") @ B.T  # ω_B = B ω_R
         else:
             A = self.reference(t)
         C = B @ A
@@ -416,7 +454,7 @@ def rpy_error_jacobians(rpy: np.ndarray) -> np.ndarray:
     """
     rpy = np.atleast_2d(np.asarray(rpy, dtype=float))
     B = euler123_to_dcm(rpy[:, 0], rpy[:, 1], rpy[:, 2])
-    dB = euler123_partials(rpy[:, 0], rpy[:, 1], rpy[:, 2])            # (N, 3, 3, 3)
+    dB = euler123_partials(rpy[:, 0], rpy[:, 1], rpy[:, 2])  # (N, 3, 3, 3)
     BT = np.swapaxes(B, -1, -2)
     return np.stack([_vee(-(dB[:, i] @ BT)) for i in range(3)], -1)
 
@@ -471,5 +509,4 @@ class BodyErrorAttitude(ProviderDefaults):
     def evaluate(self, values: Mapping[str, float], t) -> AttitudeEval:
         att = self.base.evaluate(self.base_values, t)
         n = att.C_BI.shape[0]
-        return AttitudeEval(att.C_BI, None, ERR, np.broadcast_to(np.eye(3), (n, 3, 3)),
-                            omega_B=att.omega_B)
+        return AttitudeEval(att.C_BI, None, ERR, np.broadcast_to(np.eye(3), (n, 3, 3)), omega_B=att.omega_B)

@@ -125,9 +125,19 @@ def _effect_id(sensor: str | None, effect: str) -> str:
 
 def _element_from_spec(sensor: str | None, spec: ParamSpec, role: str, kind: str = "sensor") -> Element:
     name = spec.element or f"{sensor}.{spec.name}"
-    return Element(name=name, unit=spec.unit, role=role, value=spec.nominal, sigma0=spec.sigma,
-                   sensor=sensor, param=spec.name, effect=spec.effect, seed=spec.seed, kind=kind,
-                   description=spec.description)
+    return Element(
+        name=name,
+        unit=spec.unit,
+        role=role,
+        value=spec.nominal,
+        sigma0=spec.sigma,
+        sensor=sensor,
+        param=spec.name,
+        effect=spec.effect,
+        seed=spec.seed,
+        kind=kind,
+        description=spec.description,
+    )
 
 
 def default_role(sensor_type: str, spec: ParamSpec, sensor=None) -> str:
@@ -165,8 +175,7 @@ def unseen_at_prior(model) -> set[str]:
     if not seen:
         return set()
     nominal = {p.name: p.nominal for p in model.parameters()}
-    return {name for name, amps in seen.items()
-            if all(nominal.get(a, 0.0) == 0.0 for a in amps)}
+    return {name for name, amps in seen.items() if all(nominal.get(a, 0.0) == 0.0 for a in amps)}
 
 
 def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
@@ -180,16 +189,22 @@ def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
     if mode == "spinning":
         guess = spec.spin_axis_guess_deg
         if guess is None:
-            raise InputError("a spinning mission needs spin_axis_guess_deg = [RA, Dec]",
-                             file=spec.root / "mission.toml", key="mission.spin_axis_guess_deg")
+            raise InputError(
+                "a spinning mission needs spin_axis_guess_deg = [RA, Dec]",
+                file=spec.root / "mission.toml",
+                key="mission.spin_axis_guess_deg",
+            )
         return {"att.ra": guess[0] * DEG, "att.dec": guess[1] * DEG}
     ob = mission.onboard
     alignment = np.eye(3)
     if ob is None or not len(ob):
         # no onboard attitude: the first attitude reference sensor (its instrument frame
         # taken through its data-book alignment, C = Mᵀ C_SI)
-        refs = [s for s in spec.sensors if s.type == "attitude_reference"
-                and s.name in mission.telemetry and len(mission.telemetry[s.name])]
+        refs = [
+            s
+            for s in spec.sensors
+            if s.type == "attitude_reference" and s.name in mission.telemetry and len(mission.telemetry[s.name])
+        ]
         if refs:
             ob = mission.telemetry[refs[0].name]
             a = [v * DEG for v in (refs[0].alignment_deg or (0.0, 0.0, 0.0))]
@@ -203,9 +218,14 @@ def initial_attitude(mission, attitude, mode: str) -> dict[str, float]:
     return {n: 0.0 for n in RPY}
 
 
-def build_problem(mission, *, physics: PhysicsOptions | None = None,
-                  options: StateOptions | None = None, use_gyro: bool = True,
-                  chunk_frames: int = CHUNK_FRAMES) -> Problem:
+def build_problem(
+    mission,
+    *,
+    physics: PhysicsOptions | None = None,
+    options: StateOptions | None = None,
+    use_gyro: bool = True,
+    chunk_frames: int = CHUNK_FRAMES,
+) -> Problem:
     """SODL + SIDP: the state vector and prepared sensors of an imported mission.
 
     The problem keeps what estimation needs (prepared sensors, the gyro rates, the
@@ -228,8 +248,7 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
         g = gyros[0]
         tab = mission.telemetry[g.name]
         gyro_name = g.name
-        attitude = GyroAttitude(mode, eph, g.name, tab.t, tab.stack(("wx", "wy", "wz")),
-                                block_knots=chunk_frames)
+        attitude = GyroAttitude(mode, eph, g.name, tab.t, tab.stack(("wx", "wy", "wz")), block_knots=chunk_frames)
     else:
         attitude = ReferenceAttitude(mode, eph)
 
@@ -243,8 +262,12 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
             if not np.all(m):
                 sd = _subset(sd, m)
                 tab = tables[sd.name]
-                tables[sd.name] = replace(tab, t=tab.t[m], lines=np.asarray(tab.lines)[m],
-                                          columns={k: np.asarray(v)[m] for k, v in tab.columns.items()})
+                tables[sd.name] = replace(
+                    tab,
+                    t=tab.t[m],
+                    lines=np.asarray(tab.lines)[m],
+                    columns={k: np.asarray(v)[m] for k, v in tab.columns.items()},
+                )
             kept.append(sd)
         sensors = kept
 
@@ -252,10 +275,21 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     elements: list[Element] = []
     if mode == "spinning":
         for n in RADEC:
-            elements.append(Element(n, "rad", SOLVE_FOR, att0[n], options.attitude_sigma, None,
-                                    n.split(".")[1], "attitude", True, "attitude",
-                                    "spin-axis " + ("right ascension" if n.endswith("ra") else "declination")
-                                    + ", Eq 4-2"))
+            elements.append(
+                Element(
+                    n,
+                    "rad",
+                    SOLVE_FOR,
+                    att0[n],
+                    options.attitude_sigma,
+                    None,
+                    n.split(".")[1],
+                    "attitude",
+                    True,
+                    "attitude",
+                    "spin-axis " + ("right ascension" if n.endswith("ra") else "declination") + ", Eq 4-2",
+                )
+            )
     else:
         roll, pitch, yaw = (att0[n] for n in RPY)
         for spec_ in rpy_specs(roll, pitch, yaw, sigma=options.attitude_sigma):
@@ -288,9 +322,17 @@ def build_problem(mission, *, physics: PhysicsOptions | None = None,
     elements = _link_sun_sensor_tilt(spec, elements, param_map)
     state = StateVector(tuple(elements))
     state = apply_state_options(state, options)
-    return Problem(state=state, attitude=attitude, sensors=sensors, param_map=param_map,
-                   builder=builder, tables=tables, mode=mode, gyro_name=gyro_name,
-                   chunk_frames=max(1, int(chunk_frames)))
+    return Problem(
+        state=state,
+        attitude=attitude,
+        sensors=sensors,
+        param_map=param_map,
+        builder=builder,
+        tables=tables,
+        mode=mode,
+        gyro_name=gyro_name,
+        chunk_frames=max(1, int(chunk_frames)),
+    )
 
 
 def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> list[Element]:
@@ -325,10 +367,11 @@ def apply_state_options(state: StateVector, options: StateOptions) -> StateVecto
     state = state.with_roles(roles)
     for name, ov in options.overrides.items():
         if name not in state:
-            raise ConfigError(f"no state element named '{name}'{_did_you_mean(name, [e.name for e in state])}",
-                              key=f'state.elements."{name}"')
-        changes = {k: v for k, v in (("role", ov.role), ("value", ov.value), ("sigma0", ov.sigma))
-                   if v is not None}
+            raise ConfigError(
+                f"no state element named '{name}'{_did_you_mean(name, [e.name for e in state])}",
+                key=f'state.elements."{name}"',
+            )
+        changes = {k: v for k, v in (("role", ov.role), ("value", ov.value), ("sigma0", ov.sigma)) if v is not None}
         state = state.replace_element(name, **changes)
     return state
 
@@ -338,8 +381,11 @@ def _effect_elements(state: StateVector, effect_id: str) -> list[str]:
     names = [e.name for e in state if (e.sensor or "model") == sensor and e.effect == effect]
     if not names:
         known = sorted({f"{e.sensor or 'model'}.{e.effect}" for e in state if e.effect})
-        raise ConfigError(f"no effect '{effect_id}' in the state definition{_did_you_mean(effect_id, known)} "
-                          "(see `gcs effects` for the catalogue)", key="state.effects")
+        raise ConfigError(
+            f"no effect '{effect_id}' in the state definition{_did_you_mean(effect_id, known)} "
+            "(see `gcs effects` for the catalogue)",
+            key="state.effects",
+        )
     return names
 
 
@@ -360,12 +406,17 @@ def _subset(sd: SensorData, mask: np.ndarray) -> SensorData:
         return a[mask] if a.ndim >= 1 and a.shape[0] == n else a
 
     aux = g.aux.subset(mask) if isinstance(g.aux, HeldChannels) else {k: cut(v) for k, v in g.aux.items()}
-    geom = replace(g, t=g.t[mask], r_I=cut(g.r_I) if g.r_I is not None else None,
-                   v_I=cut(g.v_I) if g.v_I is not None else None,
-                   sun_I=cut(g.sun_I) if g.sun_I is not None else None,
-                   B_I=cut(g.B_I) if g.B_I is not None else None,
-                   star_I=cut(g.star_I) if g.star_I is not None else None,
-                   aux=aux, extra={k: cut(v) for k, v in g.extra.items()})
+    geom = replace(
+        g,
+        t=g.t[mask],
+        r_I=cut(g.r_I) if g.r_I is not None else None,
+        v_I=cut(g.v_I) if g.v_I is not None else None,
+        sun_I=cut(g.sun_I) if g.sun_I is not None else None,
+        B_I=cut(g.B_I) if g.B_I is not None else None,
+        star_I=cut(g.star_I) if g.star_I is not None else None,
+        aux=aux,
+        extra={k: cut(v) for k, v in g.extra.items()},
+    )
     return replace(sd, t=sd.t[mask], y=sd.y[mask], geom=geom, lines=sd.lines[mask])
 
 
@@ -374,5 +425,9 @@ def _slim_table(tab, sd: SensorData, sensor_type: str):
     star catalogue positions, the horizon spin rate; the rest lives in SensorData (whose
     times and line numbers the slim table shares)."""
     keep = {"star_tracker": ("ra", "dec"), "horizon": ("spin_rate",)}.get(sensor_type, ())
-    return replace(tab, t=sd.t, lines=sd.lines,
-                   columns={k: (sd.t if k == "t" else v) for k, v in tab.columns.items() if k in keep or k == "t"})
+    return replace(
+        tab,
+        t=sd.t,
+        lines=sd.lines,
+        columns={k: (sd.t if k == "t" else v) for k, v in tab.columns.items() if k in keep or k == "t"},
+    )

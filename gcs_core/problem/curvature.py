@@ -35,8 +35,9 @@ from gcs_core.models import common
 NEAR_NOISE_CHI2_PER_MEASUREMENT = 2.0
 
 
-def block_curvature(d2_par, par, r: np.ndarray, used: np.ndarray, sigma: np.ndarray
-                    ) -> tuple[tuple[int, int, float], ...]:
+def block_curvature(
+    d2_par, par, r: np.ndarray, used: np.ndarray, sigma: np.ndarray
+) -> tuple[tuple[int, int, float], ...]:
     """``((i, j, K_ij), ...)`` of one block: ``K_ij = −Σ (r_c/σ_c²) ∂²h_c/∂a∂b`` over used
     frames, for the pairs of ``d2_par`` (``(a, b)`` -> ``(component c, values)``,
     ``Prediction.d2_par``) whose two parameters are both columns of the block (``par``:

@@ -79,11 +79,11 @@ def _scan_products(q, group: int = 8) -> np.ndarray:
     nb = -(-n // group)
     Q = np.empty((nb * group, 4))
     Q[:n] = q
-    Q[n:] = (0.0, 0.0, 0.0, 1.0)                       # identity steps pad the last group
+    Q[n:] = (0.0, 0.0, 0.0, 1.0)  # identity steps pad the last group
     Q = Q.reshape(nb, group, 4)
     for j in range(1, group):
         Q[:, j] = quat_multiply(Q[:, j], Q[:, j - 1])
-    before = _scan_products(np.ascontiguousarray(Q[:-1, -1]), group)   # product of groups < b
+    before = _scan_products(np.ascontiguousarray(Q[:-1, -1]), group)  # product of groups < b
     Q[1:] = quat_multiply(Q[1:], before[:, None, :])
     return Q.reshape(-1, 4)[:n]
 
@@ -99,7 +99,7 @@ def _step_quaternions(omega, dt):
     ang = np.sqrt(np.einsum("ij,ij->i", phi, phi))
     half = 0.5 * ang
     small = ang < 1e-12
-    k = np.where(small, 0.5 - ang ** 2 / 48.0, np.sin(half) / np.where(small, 1.0, ang))
+    k = np.where(small, 0.5 - ang**2 / 48.0, np.sin(half) / np.where(small, 1.0, ang))
     out = np.empty((phi.shape[0], 4))
     np.multiply(phi, k[:, None], out=out[:, :3])
     out[:, 3] = np.cos(half)
@@ -123,7 +123,7 @@ class _GyroConsts:
         rpy = [values[n] for n in RPY]
         self.C0 = euler123_to_dcm(*rpy) @ att.ref.reference(att.t_ref)[0]
         self.J0 = rpy_error_jacobian(*rpy)
-        self.Ma = self.C0.T @ self.J0                  # C(t) Ma = ∂δθ(t)/∂(φ, θ, ψ)
+        self.Ma = self.C0.T @ self.J0  # C(t) Ma = ∂δθ(t)/∂(φ, θ, ψ)
         self.q0 = quat_from_dcm(self.C0)
         self.t_mid = 0.5 * (att.knots[0] + att.knots[-1])
 
@@ -148,10 +148,10 @@ def _rate_partials(c: _GyroConsts, Gy, u, tau) -> np.ndarray:
     for a in range(3):
         for col in range(3):
             # ∂(G⁻¹)/∂G_ac = −G⁻¹ E_ac G⁻¹  ->  ∂ω = −Mᵀ G⁻¹ e_a (G⁻¹ y)_c
-            W[:, :, 3 * a + col] = -c.MtGinv[:, a][None, :] * Gy[:, col:col + 1]
+            W[:, :, 3 * a + col] = -c.MtGinv[:, a][None, :] * Gy[:, col : col + 1]
     W[:, :, 9:12] = -c.M.T[None, :, :]
     for k in range(3):
-        W[:, :, 12 + k] = u @ c.dM[k]                            # (∂M/∂a_k)ᵀ u
+        W[:, :, 12 + k] = u @ c.dM[k]  # (∂M/∂a_k)ᵀ u
     W[:, :, 15:18] = -c.M.T[None, :, :] * tau[:, None, None]
     return W
 
@@ -195,8 +195,8 @@ class _Where:
         if not t.size or b[0] != b[-1] or not np.all(b == b[0]):
             return self
         self.b = int(b[0])
-        i = k - 1 - self.b * att._block_knots                    # row within the block
-        on_knot = att.knots[k] == t                              # frame on knot k: C_k, E_k
+        i = k - 1 - self.b * att._block_knots  # row within the block
+        on_knot = att.knots[k] == t  # frame on knot k: C_k, E_k
         if np.all(on_knot):
             self.j = _progression(i + 1)
             self.w = _progression(i)
@@ -232,14 +232,13 @@ class GyroAttitude:
 
     kind = "three_axis"
 
-    def __init__(self, mode: str, ephemeris, gyro_name: str, t_gyro, y_gyro, *,
-                 block_knots: int = BLOCK_KNOTS):
+    def __init__(self, mode: str, ephemeris, gyro_name: str, t_gyro, y_gyro, *, block_knots: int = BLOCK_KNOTS):
         self.ref = ReferenceAttitude(mode, ephemeris)
         self.gyro = gyro_name
         t_gyro = np.asarray(t_gyro, float)
         dt = np.diff(t_gyro)
         first = float(np.median(dt)) if dt.size else 1.0
-        self.knots = np.concatenate([[t_gyro[0] - first], t_gyro])     # τ_0 .. τ_K
+        self.knots = np.concatenate([[t_gyro[0] - first], t_gyro])  # τ_0 .. τ_K
         self.y = np.asarray(y_gyro, float)
         self.t_ref = float(self.knots[0])
         self._block_knots = max(1, int(block_knots))
@@ -249,7 +248,7 @@ class GyroAttitude:
         self._blocks: dict[int, _Block] = {}
         self._spare: np.ndarray | None = None
         self._where: dict = {}
-        self._getter = operator.itemgetter(*self.names)          # the state key: this provider's values
+        self._getter = operator.itemgetter(*self.names)  # the state key: this provider's values
 
     @property
     def dt(self) -> np.ndarray:
@@ -273,12 +272,14 @@ class GyroAttitude:
     def block_edges(self) -> np.ndarray:
         """Times ``τ_{bL}`` that end blocks (b = 1 .. n_blocks−1): a chunk of frames never
         straddles one."""
-        return self.knots[self._block_knots:self.y.shape[0]:self._block_knots]
+        return self.knots[self._block_knots : self.y.shape[0] : self._block_knots]
 
     @property
     def param_names(self) -> tuple[str, ...]:
-        return tuple(f"{self.gyro}.{n}" for n in G_NAMES + ("bias_x", "bias_y", "bias_z")
-                     + model_common.ALIGN_NAMES + BIAS_RATE_NAMES)
+        return tuple(
+            f"{self.gyro}.{n}"
+            for n in G_NAMES + ("bias_x", "bias_y", "bias_z") + model_common.ALIGN_NAMES + BIAS_RATE_NAMES
+        )
 
     @property
     def names(self) -> tuple[str, ...]:
@@ -299,7 +300,7 @@ class GyroAttitude:
             self._checkpoints = [(c.q0, c.C0, np.zeros((3, len(self.param_names))))]
             self._drop_blocks()
             return c
-        assert self._consts is not None                  # a key is only kept with its constants
+        assert self._consts is not None  # a key is only kept with its constants
         return self._consts
 
     def clear_cache(self) -> None:
@@ -322,15 +323,15 @@ class GyroAttitude:
 
     def _rate_terms(self, c: _GyroConsts, r0: int, r1: int):
         """``ω``, ``G⁻¹ y``, ``u = G⁻¹ y − b(t)`` (n, 3) and ``τ = t − t_mid`` (n,) of rows r0..r1−1."""
-        tau = self.knots[r0 + 1:r1 + 1] - c.t_mid
+        tau = self.knots[r0 + 1 : r1 + 1] - c.t_mid
         if COMPILED:
             n = r1 - r0
             Gy, u, omega = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
             kernels.rates(self.y[r0:r1], c.Ginv, c.b, c.bdot, c.M, tau, Gy, u, omega)
             return omega, Gy, u, tau
-        Gy = self.y[r0:r1] @ c.Ginv.T                            # G⁻¹ y
-        u = Gy - c.b - tau[:, None] * c.bdot                     # G⁻¹ y − b(t)   (n, 3)
-        return u @ c.M, Gy, u, tau                               # ω = Mᵀ u
+        Gy = self.y[r0:r1] @ c.Ginv.T  # G⁻¹ y
+        u = Gy - c.b - tau[:, None] * c.bdot  # G⁻¹ y − b(t)   (n, 3)
+        return u @ c.M, Gy, u, tau  # ω = Mᵀ u
 
     def _compute_block(self, b: int, with_E: bool) -> _Block:
         """Block ``b`` from its checkpoint (which must exist); records the next checkpoint.
@@ -346,13 +347,13 @@ class GyroAttitude:
         each; the numpy form below composes the steps by a blocked scan.
         """
         c = self._consts
-        assert c is not None                              # _block() computed the state first
+        assert c is not None  # _block() computed the state first
         L = self._block_knots
         r0, r1 = b * L, min(self.y.shape[0], (b + 1) * L)
         n = r1 - r0
         q_s, C_s, E_s = self._checkpoints[b]
         omega, Gy, u, tau = self._rate_terms(c, r0, r1)
-        dt = self.knots[r0 + 1:r1 + 1] - self.knots[r0:r1]
+        dt = self.knots[r0 + 1 : r1 + 1] - self.knots[r0:r1]
         C = np.empty((n + 1, 3, 3))
         C[0] = C_s
         if COMPILED:
@@ -367,16 +368,16 @@ class GyroAttitude:
             E = self._spare_E(n + 1)
             kernels.gyro_sums(C, c.MtGinv, c.M, c.dM, Gy, u, tau, dt, E_s, E)
         elif with_E:
-            Ct = np.ascontiguousarray(np.swapaxes(C[1:], 1, 2))          # C_jᵀ (n, 3, 3)
+            Ct = np.ascontiguousarray(np.swapaxes(C[1:], 1, 2))  # C_jᵀ (n, 3, 3)
             E = self._spare_E(n + 1)
             E[0] = E_s
-            incr = E[1:]                               # increments, summed in place below
-            V = (Ct.reshape(-1, 3) @ c.MtGinv).reshape(n, 9, 1)       # C_jᵀ Mᵀ G⁻¹
+            incr = E[1:]  # increments, summed in place below
+            V = (Ct.reshape(-1, 3) @ c.MtGinv).reshape(n, 9, 1)  # C_jᵀ Mᵀ G⁻¹
             g = (-Gy * dt[:, None]).reshape(n, 1, 3)
-            incr[:, :, :9] = np.matmul(V, g).reshape(n, 3, 9)         # columns 3a + c
-            Nb = (Ct.reshape(-1, 3) @ (-c.M.T)).reshape(n, 3, 3)      # −C_jᵀ Mᵀ
+            incr[:, :, :9] = np.matmul(V, g).reshape(n, 3, 9)  # columns 3a + c
+            Nb = (Ct.reshape(-1, 3) @ (-c.M.T)).reshape(n, 3, 3)  # −C_jᵀ Mᵀ
             np.multiply(Nb, dt[:, None, None], out=incr[:, :, 9:12])
-            Z = np.stack([u @ c.dM[k] for k in range(3)], -1)           # (∂M/∂a_k)ᵀ u  (n, 3, 3)
+            Z = np.stack([u @ c.dM[k] for k in range(3)], -1)  # (∂M/∂a_k)ᵀ u  (n, 3, 3)
             np.multiply(Ct @ Z, dt[:, None, None], out=incr[:, :, 12:15])
             np.multiply(incr[:, :, 9:12], tau[:, None, None], out=incr[:, :, 15:18])
             np.cumsum(incr, axis=0, out=incr)
@@ -395,8 +396,7 @@ class GyroAttitude:
             E = old.E
             old.E = None
             # references: the local name and the call argument (E: and its pointer to the base)
-            if E is not None and E.base is not None and sys.getrefcount(E) == 2 \
-                    and sys.getrefcount(E.base) == 2:
+            if E is not None and E.base is not None and sys.getrefcount(E) == 2 and sys.getrefcount(E.base) == 2:
                 self._spare = E.base
             del E
         self._blocks = {}
@@ -408,7 +408,7 @@ class GyroAttitude:
         self._spare = None
         if buf is None or buf.size < rows * 54:
             buf = np.empty(max(rows, min(self._block_knots, self.y.shape[0]) + 1) * 54)
-        return buf[:rows * 54].reshape(rows, 3, 18)
+        return buf[: rows * 54].reshape(rows, 3, 18)
 
     def _block(self, values, b: int, with_E: bool = True) -> _Block:
         self._state(values)
@@ -419,7 +419,7 @@ class GyroAttitude:
         j = min(b, len(self._checkpoints) - 1)
         while with_E and self._checkpoints[j][2] is None:
             j -= 1
-        self._drop_blocks()                               # one block held at a time
+        self._drop_blocks()  # one block held at a time
         for jj in range(j, b + 1):
             blk = self._compute_block(jj, with_E)
             if jj < b and blk.E is not None:
@@ -449,7 +449,7 @@ class GyroAttitude:
                 return hit[1]
         where = _Where.of(self, t)
         if key is not None:
-            if len(self._where) >= 1024:                 # bounded: a long span's chunks
+            if len(self._where) >= 1024:  # bounded: a long span's chunks
                 self._where.clear()
             # a weak reference: the entry neither keeps the array alive nor outlives it
             self._where[key] = (weakref.ref(base), where)
@@ -457,9 +457,9 @@ class GyroAttitude:
 
     def _frames_in_block(self, blk: _Block, t, where: _Where) -> FrameAttitude:
         c = self._consts
-        assert c is not None                              # blk came from _block(), after _state()
+        assert c is not None  # blk came from _block(), after _state()
         j, g = where.j, where.g
-        if g is None:                                            # every frame on a knot
+        if g is None:  # every frame on a knot
             w = blk.omega[where.w]
             return FrameAttitude(blk.C[j], None, w, self.names, gyro=(c.Ma, (blk.E, j), None))
         C = blk.C[j].copy() if isinstance(j, slice) else blk.C[j]
@@ -500,8 +500,9 @@ class GyroAttitude:
         n, P = t.size, len(self.names)
         if n == 0 or np.all(b == b[0]):
             if n == 0:
-                return AttitudeEval(np.zeros((0, 3, 3)), None, self.names, np.zeros((0, 3, P)),
-                                    omega_B=np.zeros((0, 3)))
+                return AttitudeEval(
+                    np.zeros((0, 3, 3)), None, self.names, np.zeros((0, 3, P)), omega_B=np.zeros((0, 3))
+                )
             ev = self._frames_in_block(self._block(values, int(b[0])), t, _Where.of(self, t)).as_eval()
             return AttitudeEval(np.array(ev.C_BI), None, ev.names, ev.J, omega_B=np.array(ev.omega_B))
         C, J, w = np.empty((n, 3, 3)), np.empty((n, 3, P)), np.empty((n, 3))

@@ -59,7 +59,7 @@ def _blas_syrk():
         from numba.extending import get_cython_function_address
 
         addr = get_cython_function_address("scipy.linalg.cython_blas", "dsyrk")
-    except Exception:                     # noqa: BLE001 — any failure: the unfused path
+    except Exception:  # noqa: BLE001 — any failure: the unfused path
         return None
     return ctypes.CFUNCTYPE(None, *([ctypes.c_void_p] * 10))(addr)
 
@@ -74,7 +74,7 @@ GRAM_TILE_ROWS = 128
 def rates(y, Ginv, b, bdot, M, tau, Gy, u, omega):
     """Eq 4-32 inverted, row by row, into ``Gy``, ``u``, ``omega`` (n, 3)::
 
-        G⁻¹ y,   u = G⁻¹ y − b − ḃ τ,   ω = Mᵀ u
+    G⁻¹ y,   u = G⁻¹ y − b − ḃ τ,   ω = Mᵀ u
     """
     for k in range(y.shape[0]):
         for c in range(3):
@@ -131,7 +131,7 @@ def gyro_sums(C, MtGinv, M, dM, Gy, u, tau, dt, E_s, E):
     E_s : (3, 18) the checkpoint; E : (n+1, 3, 18) output. Columns follow
     ``GyroAttitude.param_names``: G_ac at 3a + c, bias 9..11, align 12..14, bias rate 15..17.
     """
-    s = np.empty(54)                                        # the running sum, E_j flattened
+    s = np.empty(54)  # the running sum, E_j flattened
     s[:] = E_s.ravel()
     E[0] = E_s
     Ef = E.reshape(E.shape[0], 54)
@@ -140,15 +140,15 @@ def gyro_sums(C, MtGinv, M, dM, Gy, u, tau, dt, E_s, E):
         Cj = C[j + 1]
         d = dt[j]
         g0, g1, g2 = Gy[j, 0] * d, Gy[j, 1] * d, Gy[j, 2] * d
-        for k in range(3):                                  # z[k] = (∂M/∂a_k)ᵀ u
+        for k in range(3):  # z[k] = (∂M/∂a_k)ᵀ u
             for l in range(3):
                 z[k, l] = dM[k, 0, l] * u[j, 0] + dM[k, 1, l] * u[j, 1] + dM[k, 2, l] * u[j, 2]
-        for b in range(3):                                  # row b of C_jᵀ ∂ω/∂p Δ_j
+        for b in range(3):  # row b of C_jᵀ ∂ω/∂p Δ_j
             c0, c1, c2 = Cj[0, b], Cj[1, b], Cj[2, b]
             base = 18 * b
             for a in range(3):
-                V = c0 * MtGinv[0, a] + c1 * MtGinv[1, a] + c2 * MtGinv[2, a]      # (Cᵀ Mᵀ G⁻¹)_ba
-                N = c0 * M[a, 0] + c1 * M[a, 1] + c2 * M[a, 2]                     # (Cᵀ Mᵀ)_ba
+                V = c0 * MtGinv[0, a] + c1 * MtGinv[1, a] + c2 * MtGinv[2, a]  # (Cᵀ Mᵀ G⁻¹)_ba
+                N = c0 * M[a, 0] + c1 * M[a, 1] + c2 * M[a, 2]  # (Cᵀ Mᵀ)_ba
                 s[base + 3 * a] -= V * g0
                 s[base + 3 * a + 1] -= V * g1
                 s[base + 3 * a + 2] -= V * g2
@@ -195,7 +195,7 @@ def chain_rows(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, out):
                 row[:] = 0.0
                 continue
             d0, d1, d2 = D[i, r, 0] * wr, D[i, r, 1] * wr, D[i, r, 2] * wr
-            x0 = d0 * C[i, 0, 0] + d1 * C[i, 1, 0] + d2 * C[i, 2, 0]          # x = w D C
+            x0 = d0 * C[i, 0, 0] + d1 * C[i, 1, 0] + d2 * C[i, 2, 0]  # x = w D C
             x1 = d0 * C[i, 0, 1] + d1 * C[i, 1, 1] + d2 * C[i, 2, 1]
             x2 = d0 * C[i, 0, 2] + d1 * C[i, 1, 2] + d2 * C[i, 2, 2]
             for o in range(ka):
@@ -225,8 +225,8 @@ def chain_gram(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, gidx, Wg, sg, G, buf, 
     nr = rsel.shape[0]
     npp = psel.shape[0]
     ka = nr + npp
-    uplo = np.array([85], np.uint8)                # "U"
-    trans = np.array([78], np.uint8)               # "N"
+    uplo = np.array([85], np.uint8)  # "U"
+    trans = np.array([78], np.uint8)  # "N"
     kk = np.array([K], np.int32)
     nn = np.array([0], np.int32)
     one = np.array([1.0])
@@ -243,7 +243,7 @@ def chain_gram(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, gidx, Wg, sg, G, buf, 
         for r in range(m):
             wr = w[i, r]
             if wr == 0.0:
-                continue                           # a zero row adds nothing
+                continue  # a zero row adds nothing
             row = buf[cnt]
             d0, d1, d2 = D[i, r, 0] * wr, D[i, r, 1] * wr, D[i, r, 2] * wr
             x0 = d0 * C[i, 0, 0] + d1 * C[i, 1, 0] + d2 * C[i, 2, 0]
@@ -265,6 +265,16 @@ def chain_gram(D, w, C, E, jidx, Ma, rsel, psel, P, pcol, gidx, Wg, sg, G, buf, 
             cnt += 1
         if cnt + m > T or (i == D.shape[0] - 1 and cnt > 0):
             nn[0] = cnt
-            syrk(uplo.ctypes, trans.ctypes, kk.ctypes, nn.ctypes, one.ctypes, buf.ctypes, kk.ctypes,
-                 one.ctypes, G.ctypes, kk.ctypes)
+            syrk(
+                uplo.ctypes,
+                trans.ctypes,
+                kk.ctypes,
+                nn.ctypes,
+                one.ctypes,
+                buf.ctypes,
+                kk.ctypes,
+                one.ctypes,
+                G.ctypes,
+                kk.ctypes,
+            )
             cnt = 0

@@ -9,7 +9,6 @@ through here, so memory is bounded by the chunk, not the span. It builds on
 :mod:`gcs_core.problem.build` (the state definition).
 """
 
-
 from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import dataclass, replace
 
@@ -113,17 +112,30 @@ def sensor_geometry(problem: Problem, sd: SensorData, values: Mapping[str, float
 
 def window_geometry(g, lo: int, hi: int, n: int):
     """Frames ``lo..hi−1`` of an N-frame geometry (views; the aux channels stay lazy)."""
+
     def cut(a):
         return a[lo:hi] if isinstance(a, np.ndarray) and a.ndim >= 1 and a.shape[0] == n else a
 
     aux = g.aux.window(lo, hi) if isinstance(g.aux, HeldChannels) else {k: cut(v) for k, v in g.aux.items()}
-    return replace(g, t=g.t[lo:hi], C_BI=cut(g.C_BI), spin_axis_I=cut(g.spin_axis_I), r_I=cut(g.r_I),
-                   v_I=cut(g.v_I), sun_I=cut(g.sun_I), B_I=cut(g.B_I), star_I=cut(g.star_I),
-                   omega_B=cut(g.omega_B), aux=aux, extra={k: cut(v) for k, v in g.extra.items()})
+    return replace(
+        g,
+        t=g.t[lo:hi],
+        C_BI=cut(g.C_BI),
+        spin_axis_I=cut(g.spin_axis_I),
+        r_I=cut(g.r_I),
+        v_I=cut(g.v_I),
+        sun_I=cut(g.sun_I),
+        B_I=cut(g.B_I),
+        star_I=cut(g.star_I),
+        omega_B=cut(g.omega_B),
+        aux=aux,
+        extra={k: cut(v) for k, v in g.extra.items()},
+    )
 
 
-def chunk_windows(problem: Problem, sensors: Sequence[SensorData], chunk: int | None = None
-                  ) -> list[list[tuple[int, int]]]:
+def chunk_windows(
+    problem: Problem, sensors: Sequence[SensorData], chunk: int | None = None
+) -> list[list[tuple[int, int]]]:
     """Time windows of at most ``chunk`` frames of any sensor: per window, each sensor's
     frame range ``(lo, hi)``. Windows end on the gyro-carried attitude's block edges, so
     that a window needs one block of its propagation."""
@@ -139,8 +151,7 @@ def chunk_windows(problem: Problem, sensors: Sequence[SensorData], chunk: int | 
         if e < edges.size:
             cand.append(edges[e])
         edge = min(cand) if cand else np.inf
-        hi = [int(np.searchsorted(sd.t, edge, side="right")) if np.isfinite(edge) else sd.n
-              for sd in sensors]
+        hi = [int(np.searchsorted(sd.t, edge, side="right")) if np.isfinite(edge) else sd.n for sd in sensors]
         if any(h > p for h, p in zip(hi, pos)):
             out.append(list(zip(pos, hi)))
         pos, cur = hi, edge
@@ -165,12 +176,22 @@ def _sensor_columns(problem: Problem, sd: SensorData, att_names, col_index):
     return np.array(att_sel, int), par, np.array(cols, int)
 
 
-def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence[str] = (), *,
-                exclude: Mapping[str, np.ndarray] | None = None, weighted: bool = False,
-                sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None,
-                chunk: int | None = None, jacobian: bool = True,
-                work: dict | None = None, augmented: bool = False,
-                second_order: bool = False, gram: bool = False) -> Iterator[Block]:
+def iter_blocks(
+    problem: Problem,
+    values: Mapping[str, float],
+    columns: Sequence[str] = (),
+    *,
+    exclude: Mapping[str, np.ndarray] | None = None,
+    weighted: bool = False,
+    sensors: Sequence[str] | None = None,
+    geoms: Mapping[str, object] | None = None,
+    chunk: int | None = None,
+    jacobian: bool = True,
+    work: dict | None = None,
+    augmented: bool = False,
+    second_order: bool = False,
+    gram: bool = False,
+) -> Iterator[Block]:
     """Residuals and partials of every (or the named) sensor at ``values``, chunk by chunk.
 
     Windows of time (:func:`chunk_windows`) are visited in order; in each, the attitude is
@@ -225,16 +246,31 @@ def iter_blocks(problem: Problem, values: Mapping[str, float], columns: Sequence
             pred = sd.model.predict(geom, problem.params_of(sd.name, values))
             r = sd.model.residual(sd.y[lo:hi], pred.y, geom=geom)
             valid = np.array(pred.valid, bool)
-            for c in range(r.shape[1]):       # column by column: a reduction over axis 1 is slow
+            for c in range(r.shape[1]):  # column by column: a reduction over axis 1 is slow
                 valid &= np.isfinite(r[:, c])
-            used = valid if exclude is None or sd.name not in exclude else \
-                valid & ~np.asarray(exclude[sd.name][lo:hi], bool)
+            used = (
+                valid
+                if exclude is None or sd.name not in exclude
+                else valid & ~np.asarray(exclude[sd.name][lo:hi], bool)
+            )
             curv = block_curvature(pred.d2_par, par, r, used, sd.sigma) if second_order and jacobian else ()
             H = Hr = G = None
             if jacobian and cols.size:
-                H, Hr, G = _block_partials(sd, pred, fr, r, used, att_sel, par, cols.size, work,
-                                           weighted=weighted, augmented=augmented, gram=gram)
-            del fr                        # the attitude's block buffers may be reused
+                H, Hr, G = _block_partials(
+                    sd,
+                    pred,
+                    fr,
+                    r,
+                    used,
+                    att_sel,
+                    par,
+                    cols.size,
+                    work,
+                    weighted=weighted,
+                    augmented=augmented,
+                    gram=gram,
+                )
+            del fr  # the attitude's block buffers may be reused
             yield Block(sd, lo, hi, geom, pred.y, r, valid, used, cols, H, Hr, curv, pred, G)
 
 
@@ -246,10 +282,11 @@ def _check_form(*, weighted: bool, augmented: bool, gram: bool) -> None:
         raise ValueError("iter_blocks: gram (Hrᵀ Hr) needs augmented=True")
 
 
-def _block_partials(sd, pred, fr, r, used, att_sel, par, k: int, work, *, weighted: bool, augmented: bool,
-                    gram: bool) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
+def _block_partials(
+    sd, pred, fr, r, used, att_sel, par, k: int, work, *, weighted: bool, augmented: bool, gram: bool
+) -> tuple[np.ndarray | None, np.ndarray | None, np.ndarray | None]:
     """(H, Hr, G) of one block in the form :func:`iter_blocks` was asked for (its table)."""
-    w = (used[:, None] * (1.0 / sd.sigma)[None, :]) if weighted else None    # R^-1/2
+    w = (used[:, None] * (1.0 / sd.sigma)[None, :]) if weighted else None  # R^-1/2
     aug = int(augmented)
     m = len(sd.sigma)
     n = len(used)
@@ -257,12 +294,14 @@ def _block_partials(sd, pred, fr, r, used, att_sel, par, k: int, work, *, weight
     P = _buffer(work, (sd.name, "P"), (len(par) + aug, n, m)) if getattr(fr, "can_fill_rows", False) else None
     G = np.zeros((k + 1, k + 1)) if gram and P is not None else None
     tile = _buffer(work, (sd.name, "tile"), (max(GRAM_TILE_ROWS, m), k + 1)) if G is not None else None
-    if _block_jacobian(pred, fr, att_sel, par, k, w, buf, r if aug else None, P,
-                       gram=None if G is None else (G, tile)) is None:
-        assert G is not None            # None comes back only when the rows went into G
-        return None, None, np.tril(G) + np.tril(G, -1).T      # chain_gram fills the lower triangle
+    if (
+        _block_jacobian(pred, fr, att_sel, par, k, w, buf, r if aug else None, P, gram=None if G is None else (G, tile))
+        is None
+    ):
+        assert G is not None  # None comes back only when the rows went into G
+        return None, None, np.tril(G) + np.tril(G, -1).T  # chain_gram fills the lower triangle
     if weighted and not np.all(used):
-        buf[~used] = 0.0              # NaN partials/residuals of unused frames
+        buf[~used] = 0.0  # NaN partials/residuals of unused frames
     return (buf[:, :, :k] if aug else buf), (buf.reshape(-1, k + 1) if aug else None), None
 
 
@@ -277,8 +316,9 @@ def _buffer(work: dict | None, key, shape) -> np.ndarray:
     return buf[:size].reshape(shape)
 
 
-def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None,
-                    P: np.ndarray | None = None, gram=None) -> np.ndarray | None:
+def _block_jacobian(
+    pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None, P: np.ndarray | None = None, gram=None
+) -> np.ndarray | None:
     """(n, m, k) partials of one block, into the first k columns of ``H`` (n, m, ≥ k):
     ``∂y/∂δθ · ∂δθ/∂x`` in the attitude columns, the model's own partials in the
     parameter columns; rows scaled by ``w`` (n, m) if given. With ``r`` (weighted
@@ -300,7 +340,7 @@ def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None,
                 np.multiply(pred.d_par[local], w, out=P[q])
         pcol = [j for _, j in par]
         if r is not None:
-            np.multiply(r, w, out=P[len(par)])                            # R^-1/2 r
+            np.multiply(r, w, out=P[len(par)])  # R^-1/2 r
             pcol.append(k)
         if gram is not None and fr.fill_gram(D, att_sel, gram[0], gram[1], w=w, P=P, pcol=pcol):
             return None
@@ -317,13 +357,18 @@ def _block_jacobian(pred, fr, att_sel, par, k: int, w, H: np.ndarray, r=None,
         else:
             np.multiply(d, w, out=H[:, :, j])
     if r is not None:
-        np.multiply(r, w, out=H[:, :, k])                                 # R^-1/2 r
+        np.multiply(r, w, out=H[:, :, k])  # R^-1/2 r
     return H
 
 
-def linearize(problem: Problem, values: Mapping[str, float], columns: Sequence[str],
-              *, sensors: Sequence[str] | None = None, geoms: Mapping[str, object] | None = None
-              ) -> list[Linearization]:
+def linearize(
+    problem: Problem,
+    values: Mapping[str, float],
+    columns: Sequence[str],
+    *,
+    sensors: Sequence[str] | None = None,
+    geoms: Mapping[str, object] | None = None,
+) -> list[Linearization]:
     """Residuals and partials of every (or the named) sensor at ``values``, whole span.
 
     The (N, m, k) arrays of this form grow with the span; the estimators stream
@@ -334,14 +379,17 @@ def linearize(problem: Problem, values: Mapping[str, float], columns: Sequence[s
     out = {}
     for sd in sds:
         m = len(sd.sigma)
-        out[sd.name] = (np.full((sd.n, m), np.nan), np.full((sd.n, m), np.nan), np.zeros(sd.n, bool),
-                        np.zeros((sd.n, m, k)))
+        out[sd.name] = (
+            np.full((sd.n, m), np.nan),
+            np.full((sd.n, m), np.nan),
+            np.zeros(sd.n, bool),
+            np.zeros((sd.n, m, k)),
+        )
     for blk in iter_blocks(problem, values, columns, sensors=sensors, geoms=geoms):
         y_pred, r, valid, H = out[blk.name]
-        y_pred[blk.lo:blk.hi] = blk.y_pred
-        r[blk.lo:blk.hi] = blk.r
-        valid[blk.lo:blk.hi] = blk.valid
+        y_pred[blk.lo : blk.hi] = blk.y_pred
+        r[blk.lo : blk.hi] = blk.r
+        valid[blk.lo : blk.hi] = blk.valid
         if blk.H is not None:
-            H[blk.lo:blk.hi, :, blk.cols] = blk.H
-    return [Linearization(sd.name, *out[sd.name][:2], out[sd.name][3], out[sd.name][2], sd.sigma)
-            for sd in sds]
+            H[blk.lo : blk.hi, :, blk.cols] = blk.H
+    return [Linearization(sd.name, *out[sd.name][:2], out[sd.name][3], out[sd.name][2], sd.sigma) for sd in sds]

@@ -70,9 +70,16 @@ class PhysicsOptions:
 CHUNK_FRAMES = 50_000
 
 #: physics effects of the catalogue: option name -> (value when on: the default, value when off)
-PHYSICS_EFFECTS = {name: (getattr(PhysicsOptions(), name), off) for name, off in
-                   {"stellar_aberration": False, "solar_aberration": False, "sun_parallax": False,
-                    "earth_oblateness": False, "field_model": "dipole"}.items()}
+PHYSICS_EFFECTS = {
+    name: (getattr(PhysicsOptions(), name), off)
+    for name, off in {
+        "stellar_aberration": False,
+        "solar_aberration": False,
+        "sun_parallax": False,
+        "earth_oblateness": False,
+        "field_model": "dipole",
+    }.items()
+}
 
 
 @dataclass(frozen=True)
@@ -127,8 +134,7 @@ class HeldChannels(Mapping):
     chunked linearization reads chunk by chunk without ever holding a whole channel.
     """
 
-    def __init__(self, aux: Table | None, t: np.ndarray, *, keep: bool = True,
-                 names: tuple[str, ...] | None = None):
+    def __init__(self, aux: Table | None, t: np.ndarray, *, keep: bool = True, names: tuple[str, ...] | None = None):
         self._aux = aux
         self._t = t
         if names is None:
@@ -141,9 +147,9 @@ class HeldChannels(Mapping):
     def _index(self) -> np.ndarray:
         idx, aux = self._idx, self._aux
         if idx is None:
-            assert aux is not None                  # channels are named only with aux data
+            assert aux is not None  # channels are named only with aux data
             idx = np.clip(np.searchsorted(aux.t, self._t, side="right") - 1, 0, len(aux) - 1)
-            if not self._keep:                  # a chunk's mapping: every channel reads it
+            if not self._keep:  # a chunk's mapping: every channel reads it
                 self._idx = idx
         return idx
 
@@ -152,7 +158,7 @@ class HeldChannels(Mapping):
             raise KeyError(name)
         out = self._done.get(name)
         if out is None:
-            assert self._aux is not None            # channels are named only with aux data
+            assert self._aux is not None  # channels are named only with aux data
             out = np.asarray(self._aux.columns[name])[self._index()]
             if self._keep:
                 self._done[name] = out
@@ -168,7 +174,7 @@ class HeldChannels(Mapping):
         return len(self._names)
 
     def window(self, lo: int, hi: int) -> HeldChannels:
-        w = HeldChannels(self._aux, self._t[lo:hi], keep=False, names=self._names)   # not listed again
+        w = HeldChannels(self._aux, self._t[lo:hi], keep=False, names=self._names)  # not listed again
         w._done = {k: v[lo:hi] for k, v in self._done.items()}
         return w
 
@@ -179,8 +185,7 @@ class HeldChannels(Mapping):
 class GeometryBuilder:
     """Computes reference vectors for any times, with the mission's physics options."""
 
-    def __init__(self, spec: MissionSpec, ephemeris: Ephemeris, physics: PhysicsOptions,
-                 aux: Table | None = None):
+    def __init__(self, spec: MissionSpec, ephemeris: Ephemeris, physics: PhysicsOptions, aux: Table | None = None):
         self.spec = spec
         self.ephemeris = ephemeris
         self.physics = physics
@@ -215,10 +220,12 @@ class GeometryBuilder:
             t = np.atleast_1d(np.asarray(t, dtype=float))
             r, v = self.ephemeris.state(t)
             return r, v, self.sun(t, r, v, physics)
+
         return at
 
-    def geometry(self, sensor_type: str, t: np.ndarray, table: Table | None = None,
-                 physics: PhysicsOptions | None = None) -> Geometry:
+    def geometry(
+        self, sensor_type: str, t: np.ndarray, table: Table | None = None, physics: PhysicsOptions | None = None
+    ) -> Geometry:
         """Attitude-free :class:`Geometry` for a sensor type at times ``t``.
 
         Computed in chunks of :data:`CHUNK_FRAMES` frames into the output arrays, so the
@@ -238,7 +245,7 @@ class GeometryBuilder:
         if sun:
             kw["sun_I"] = np.empty((n, 3))
         if mag and ph.field_model == "constant":
-            mag = False                         # the field is a state element (module docstring)
+            mag = False  # the field is a state element (module docstring)
             kw["B_I"], extra["B_I_dot"] = np.zeros((n, 3)), np.zeros((n, 3))
         if mag:
             fld = self.field(ph.field_model)
@@ -268,8 +275,9 @@ class GeometryBuilder:
         return Geometry(**kw)
 
 
-def prepare_sensors(spec: MissionSpec, telemetry: Mapping[str, Table], builder: GeometryBuilder,
-                    *, include_gyro: bool = False) -> list[SensorData]:
+def prepare_sensors(
+    spec: MissionSpec, telemetry: Mapping[str, Table], builder: GeometryBuilder, *, include_gyro: bool = False
+) -> list[SensorData]:
     """One :class:`SensorData` per sensor in mission order (gyros only if asked)."""
     channels = aux_channel_names(builder.aux)
     out = []
@@ -277,19 +285,31 @@ def prepare_sensors(spec: MissionSpec, telemetry: Mapping[str, Table], builder: 
         if s.type == "gyro" and not include_gyro:
             continue
         table = telemetry[s.name]
-        model = make_model(s, aux_channels=channels if s.type == "magnetometer" else (),
-                           constant_field=builder.physics.field_model == "constant")
+        model = make_model(
+            s,
+            aux_channels=channels if s.type == "magnetometer" else (),
+            constant_field=builder.physics.field_model == "constant",
+        )
         t, y = model.measurements(table)
         geom = builder.geometry(s.type, t, table)
-        out.append(SensorData(s.name, model, np.asarray(t, float), np.asarray(y, float),
-                              np.asarray(model.sigma(), float), geom, _line_numbers(table.lines)))
+        out.append(
+            SensorData(
+                s.name,
+                model,
+                np.asarray(t, float),
+                np.asarray(y, float),
+                np.asarray(model.sigma(), float),
+                geom,
+                _line_numbers(table.lines),
+            )
+        )
     return out
 
 
 def _line_numbers(lines) -> np.ndarray:
     """File line numbers as int32 when they fit (half the memory of the reader's int64)."""
     lines = np.asarray(lines)
-    if lines.size and lines.dtype != np.int32 and 0 <= lines.min() and lines.max() < 2 ** 31:
+    if lines.size and lines.dtype != np.int32 and 0 <= lines.min() and lines.max() < 2**31:
         return lines.astype(np.int32)
     return lines
 
@@ -310,12 +330,12 @@ def geometry_variants(sd: SensorData, builder: GeometryBuilder, table: Table) ->
         "horizon": ("earth_oblateness",),
     }.get(sd.model.type_name, ())
     if builder.physics.field_model == "constant":
-        relevant = tuple(o for o in relevant if o != "field_model")   # no model to truncate
+        relevant = tuple(o for o in relevant if o != "field_model")  # no model to truncate
     out = {}
     for opt in relevant:
         on, off = PHYSICS_EFFECTS[opt]
         current = getattr(builder.physics, opt)
-        flipped: Any = off if current == on else on         # a bool or a model name, as the field
+        flipped: Any = off if current == on else on  # a bool or a model name, as the field
         ph = replace(builder.physics, **{opt: flipped})
         out[f"model.{opt}"] = builder.geometry(sd.model.type_name, sd.t, table, ph)
     return out

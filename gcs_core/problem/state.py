@@ -62,8 +62,9 @@ class Element:
 
     def __post_init__(self) -> None:
         if self.role not in ROLES:
-            raise ConfigError(f"role must be one of {', '.join(ROLES)}, not '{self.role}'",
-                              key=f"state.{self.name}.role")
+            raise ConfigError(
+                f"role must be one of {', '.join(ROLES)}, not '{self.role}'", key=f"state.{self.name}.role"
+            )
 
 
 @dataclass(frozen=True)
@@ -150,8 +151,18 @@ class StateVector:
 
     def table(self) -> list[dict]:
         """Rows for reports and screens."""
-        return [{"name": e.name, "unit": e.unit, "role": e.role, "value": e.value,
-                 "sigma0": e.sigma0, "effect": e.effect, "seed": e.seed} for e in self.elements]
+        return [
+            {
+                "name": e.name,
+                "unit": e.unit,
+                "role": e.role,
+                "value": e.value,
+                "sigma0": e.sigma0,
+                "effect": e.effect,
+                "seed": e.seed,
+            }
+            for e in self.elements
+        ]
 
 
 def prior_covariance(state: StateVector, names: Sequence[str]) -> np.ndarray:

@@ -22,19 +22,33 @@ Typical use::
 """
 
 from gcs_core.sim.config import (
-                                 AuxConfig,
-                                 HiddenEffect,
-                                 MissionConfig,
-                                 OnboardConfig,
-                                 OrbitElements,
-                                 SensorConfig,
-                                 Slew,
-                                 SpinProfile,
-                                 ThreeAxisProfile,
+    AuxConfig,
+    HiddenEffect,
+    MissionConfig,
+    OnboardConfig,
+    OrbitElements,
+    SensorConfig,
+    Slew,
+    SpinProfile,
+    ThreeAxisProfile,
 )
 from gcs_core.sim.scenarios import EFFECTS, list_effects, nominal_threeaxis, spinner_nominal, with_effect
 from gcs_core.sim.writer import write_mission
 
-__all__ = ["AuxConfig", "HiddenEffect", "MissionConfig", "OnboardConfig", "OrbitElements", "SensorConfig",
-           "Slew", "SpinProfile", "ThreeAxisProfile", "EFFECTS", "list_effects", "nominal_threeaxis",
-           "spinner_nominal", "with_effect", "write_mission"]
+__all__ = [
+    "AuxConfig",
+    "HiddenEffect",
+    "MissionConfig",
+    "OnboardConfig",
+    "OrbitElements",
+    "SensorConfig",
+    "Slew",
+    "SpinProfile",
+    "ThreeAxisProfile",
+    "EFFECTS",
+    "list_effects",
+    "nominal_threeaxis",
+    "spinner_nominal",
+    "with_effect",
+    "write_mission",
+]

@@ -28,8 +28,18 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-__all__ = ["rot1", "rot2", "rot3", "rpy_to_dcm", "dcm_to_rpy", "quat_to_dcm", "dcm_to_quat",
-           "dcm_to_rotvec", "rotvec_to_dcm", "unit"]
+__all__ = [
+    "rot1",
+    "rot2",
+    "rot3",
+    "rpy_to_dcm",
+    "dcm_to_rpy",
+    "quat_to_dcm",
+    "dcm_to_quat",
+    "dcm_to_rotvec",
+    "rotvec_to_dcm",
+    "unit",
+]
 
 
 def _stack3(rows):
@@ -80,11 +90,13 @@ def quat_to_dcm(q):
     q = np.asarray(q, dtype=float)
     q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     q1, q2, q3, q4 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    return _stack3([
-        (q1 * q1 - q2 * q2 - q3 * q3 + q4 * q4, 2 * (q1 * q2 + q3 * q4), 2 * (q1 * q3 - q2 * q4)),
-        (2 * (q1 * q2 - q3 * q4), -q1 * q1 + q2 * q2 - q3 * q3 + q4 * q4, 2 * (q2 * q3 + q1 * q4)),
-        (2 * (q1 * q3 + q2 * q4), 2 * (q2 * q3 - q1 * q4), -q1 * q1 - q2 * q2 + q3 * q3 + q4 * q4),
-    ])
+    return _stack3(
+        [
+            (q1 * q1 - q2 * q2 - q3 * q3 + q4 * q4, 2 * (q1 * q2 + q3 * q4), 2 * (q1 * q3 - q2 * q4)),
+            (2 * (q1 * q2 - q3 * q4), -q1 * q1 + q2 * q2 - q3 * q3 + q4 * q4, 2 * (q2 * q3 + q1 * q4)),
+            (2 * (q1 * q3 + q2 * q4), 2 * (q2 * q3 - q1 * q4), -q1 * q1 - q2 * q2 + q3 * q3 + q4 * q4),
+        ]
+    )
 
 
 def dcm_to_quat(C):

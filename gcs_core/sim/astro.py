@@ -50,8 +50,17 @@ R_SUN_KM = 695700.0
 C_KM_S = 299792.458
 J2000_JD = 2451545.0
 
-__all__ = ["parse_epoch", "epoch_jd", "gmst_rad", "sun_position_km", "earth_velocity_km_s",
-           "sun_eclipsed", "AU_KM", "R_EARTH_KM", "C_KM_S"]
+__all__ = [
+    "parse_epoch",
+    "epoch_jd",
+    "gmst_rad",
+    "sun_position_km",
+    "earth_velocity_km_s",
+    "sun_eclipsed",
+    "AU_KM",
+    "R_EARTH_KM",
+    "C_KM_S",
+]
 
 
 def parse_epoch(text: str) -> datetime:
@@ -81,7 +90,7 @@ def gmst_rad(jd0: float, t) -> np.ndarray:
     T = d / 36525.0
     # Split the day fraction out so the big linear term does not eat precision:
     # 876600 h * T = 86400 s * d exactly (one sidereal turn per solar day term).
-    secs = 67310.54841 + 8640184.812866 * T + 0.093104 * T ** 2 - 6.2e-6 * T ** 3
+    secs = 67310.54841 + 8640184.812866 * T + 0.093104 * T**2 - 6.2e-6 * T**3
     secs = secs + 86400.0 * np.mod(d, 1.0)
     return np.mod(secs, 86400.0) * (2.0 * np.pi / 86400.0)
 
@@ -95,8 +104,7 @@ def sun_position_km(jd0: float, t) -> np.ndarray:
     lam = (L + 1.915 * np.sin(g) + 0.020 * np.sin(2 * g)) * rad
     eps = (23.439 - 0.0000004 * n) * rad
     R = (1.00014 - 0.01671 * np.cos(g) - 0.00014 * np.cos(2 * g)) * AU_KM
-    return np.stack([R * np.cos(lam), R * np.cos(eps) * np.sin(lam),
-                     R * np.sin(eps) * np.sin(lam)], axis=-1)
+    return np.stack([R * np.cos(lam), R * np.cos(eps) * np.sin(lam), R * np.sin(eps) * np.sin(lam)], axis=-1)
 
 
 def earth_velocity_km_s(jd0: float, t) -> np.ndarray:

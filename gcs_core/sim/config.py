@@ -28,15 +28,25 @@ import numpy as np
 
 THREE_AXIS_MODES = ("inertial", "earth_pointing", "sun_pointing")
 ATTITUDE_MODES = THREE_AXIS_MODES + ("spinning",)
-SENSOR_TYPES = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun",
-                "plane_field_sun", "horizon")
+SENSOR_TYPES = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun", "plane_field_sun", "horizon")
 #: physics present in real data; a switch turned off gives data without it.
-REAL_PHYSICS = {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True,
-                "earth_oblateness": True}
+REAL_PHYSICS = {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True, "earth_oblateness": True}
 
-__all__ = ["OrbitElements", "Slew", "ThreeAxisProfile", "SpinProfile", "AuxConfig",
-           "OnboardConfig", "SensorConfig", "HiddenEffect", "MissionConfig",
-           "THREE_AXIS_MODES", "ATTITUDE_MODES", "SENSOR_TYPES", "REAL_PHYSICS"]
+__all__ = [
+    "OrbitElements",
+    "Slew",
+    "ThreeAxisProfile",
+    "SpinProfile",
+    "AuxConfig",
+    "OnboardConfig",
+    "SensorConfig",
+    "HiddenEffect",
+    "MissionConfig",
+    "THREE_AXIS_MODES",
+    "ATTITUDE_MODES",
+    "SENSOR_TYPES",
+    "REAL_PHYSICS",
+]
 
 
 @dataclass

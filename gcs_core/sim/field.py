@@ -45,7 +45,7 @@ def igrf_gci(epoch, jd0: float, t, r_I_km, *, max_degree: int = 13) -> np.ndarra
     xE = cg * r_I[:, 0] + sg * r_I[:, 1]
     yE = -sg * r_I[:, 0] + cg * r_I[:, 1]
     zE = r_I[:, 2]
-    rn = np.sqrt(xE ** 2 + yE ** 2 + zE ** 2)
+    rn = np.sqrt(xE**2 + yE**2 + zE**2)
     th = np.arccos(np.clip(zE / rn, -1.0, 1.0))
     ph = np.arctan2(yE, xE)
     # IGRF coefficients are linear in time between their 5-year epochs, so the field at a
@@ -57,10 +57,10 @@ def igrf_gci(epoch, jd0: float, t, r_I_km, *, max_degree: int = 13) -> np.ndarra
     for d in np.unique(day):
         idx = np.flatnonzero(day == d)
         dates = [(epoch + timedelta(days=float(d + k))).replace(tzinfo=None) for k in (0, 1)]
-        for lo in range(0, idx.size, _BATCH):          # ppigrf holds (N, 195) arrays: keep N small
-            sl = idx[lo:lo + _BATCH]
+        for lo in range(0, idx.size, _BATCH):  # ppigrf holds (N, 195) arrays: keep N small
+            sl = idx[lo : lo + _BATCH]
             out = ppigrf.igrf_gc(rn[sl], np.degrees(th[sl]), np.degrees(ph[sl]), dates, max_degree=max_degree)
-            both = np.stack(out, -1)                    # (2 dates, n, 3 components)
+            both = np.stack(out, -1)  # (2 dates, n, 3 components)
             B_sph[sl] = (1.0 - frac[sl]) * both[0] + frac[sl] * both[1]
     Br, Bt, Bp = B_sph[:, 0], B_sph[:, 1], B_sph[:, 2]
     st, ct, sp, cp = np.sin(th), np.cos(th), np.sin(ph), np.cos(ph)

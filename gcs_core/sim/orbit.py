@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import numpy as np
 
-MU_EARTH = 398600.4418     # km^3/s^2
+MU_EARTH = 398600.4418  # km^3/s^2
 J2 = 1.08262668e-3
 R_EQ_KM = 6378.137
 
@@ -36,7 +36,7 @@ __all__ = ["propagate", "secular_rates", "period_s"]
 
 def secular_rates(a_km: float, e: float, i_rad: float) -> tuple[float, float, float]:
     """``(dΩ/dt, dω/dt, dM/dt)`` [rad/s] for mean elements ``a, e, i``."""
-    n = np.sqrt(MU_EARTH / a_km ** 3)
+    n = np.sqrt(MU_EARTH / a_km**3)
     p = a_km * (1.0 - e * e)
     k = J2 * (R_EQ_KM / p) ** 2
     ci = np.cos(i_rad)
@@ -48,7 +48,7 @@ def secular_rates(a_km: float, e: float, i_rad: float) -> tuple[float, float, fl
 
 def period_s(a_km: float) -> float:
     """Keplerian period ``2π sqrt(a³/μ)`` [s]."""
-    return float(2.0 * np.pi * np.sqrt(a_km ** 3 / MU_EARTH))
+    return float(2.0 * np.pi * np.sqrt(a_km**3 / MU_EARTH))
 
 
 def _rz(a):
@@ -76,7 +76,7 @@ def propagate(elements, t) -> tuple[np.ndarray, np.ndarray]:
     argp = np.radians(elements.argp_deg) + argp_dot * t
     M = np.mod(np.radians(elements.mean_anomaly_deg) + m_dot * t, 2 * np.pi)
     E = M + e * np.sin(M)
-    for _ in range(30):                      # Newton on Kepler's equation E − e sin E = M
+    for _ in range(30):  # Newton on Kepler's equation E − e sin E = M
         dE = (E - e * np.sin(E) - M) / (1.0 - e * np.cos(E))
         E = E - dE
         if np.max(np.abs(dE)) < 1e-14:
@@ -84,14 +84,13 @@ def propagate(elements, t) -> tuple[np.ndarray, np.ndarray]:
     cE, sE = np.cos(E), np.sin(E)
     b = np.sqrt(1.0 - e * e)
     zero = np.zeros_like(E)
-    p = a * np.stack([cE - e, b * sE, zero], -1)                      # perifocal position
+    p = a * np.stack([cE - e, b * sE, zero], -1)  # perifocal position
     dp_dM = a * np.stack([-sE, b * cE, zero], -1) / (1.0 - e * cE)[:, None]
     R_w = _rz(argp)
     R_O = _rz(raan)
     R_i = _rx(inc)
     p_w = np.einsum("nij,nj->ni", R_w, p)
-    inner = argp_dot * np.stack([-p_w[:, 1], p_w[:, 0], zero], -1) \
-        + np.einsum("nij,nj->ni", R_w, dp_dM) * m_dot
+    inner = argp_dot * np.stack([-p_w[:, 1], p_w[:, 0], zero], -1) + np.einsum("nij,nj->ni", R_w, dp_dM) * m_dot
     q = p_w @ R_i.T
     r = np.einsum("nij,nj->ni", R_O, q)
     v = np.einsum("nij,nj->ni", R_O, inner @ R_i.T)

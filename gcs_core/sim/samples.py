@@ -57,18 +57,29 @@ def _rippled_fss(cfg: MissionConfig) -> MissionConfig:
 
 SAMPLES: dict[str, Callable[[], MissionConfig]] = {
     "nominal-sunpoint": lambda: _sun(101, "nominal-sunpoint"),
-    "hidden-tam-contamination": lambda: with_effect(_sun(102, "hidden-tam-contamination"),
-                                                    "TAM1.contamination_mtb_x", 0.5),
-    "hidden-fhst-boresight": lambda: with_effect(_sun(103, "hidden-fhst-boresight"), "FHST1.alignment",
-                                                 math.radians(0.1), axis=(1.0, 0.0, 0.0),
-                                                 description="FHST1 rotated 0.1 deg about its boresight"),
-    "hidden-fss-harmonic": lambda: with_effect(_rippled_fss(_sun(104, "hidden-fss-harmonic", sweep_deg=3.0)),
-                                               "FSS1.harmonic", 5e-5),
-    "hidden-gyro-scale": lambda: with_effect(_sun(105, "hidden-gyro-scale"), "IRU.scale_misalignment", 1e-3,
-                                             pattern=np.diag([1.0, -0.7, 0.5]),
-                                             description="IRU scale factors 1 + 1e-3 (1, -0.7, 0.5): G diagonal"),
-    "spinner-hidden-horizon": lambda: with_effect(spinner_nominal(106, name="spinner-hidden-horizon"),
-                                                  "HS1.d_gamma", math.radians(0.25)),
+    "hidden-tam-contamination": lambda: with_effect(
+        _sun(102, "hidden-tam-contamination"), "TAM1.contamination_mtb_x", 0.5
+    ),
+    "hidden-fhst-boresight": lambda: with_effect(
+        _sun(103, "hidden-fhst-boresight"),
+        "FHST1.alignment",
+        math.radians(0.1),
+        axis=(1.0, 0.0, 0.0),
+        description="FHST1 rotated 0.1 deg about its boresight",
+    ),
+    "hidden-fss-harmonic": lambda: with_effect(
+        _rippled_fss(_sun(104, "hidden-fss-harmonic", sweep_deg=3.0)), "FSS1.harmonic", 5e-5
+    ),
+    "hidden-gyro-scale": lambda: with_effect(
+        _sun(105, "hidden-gyro-scale"),
+        "IRU.scale_misalignment",
+        1e-3,
+        pattern=np.diag([1.0, -0.7, 0.5]),
+        description="IRU scale factors 1 + 1e-3 (1, -0.7, 0.5): G diagonal",
+    ),
+    "spinner-hidden-horizon": lambda: with_effect(
+        spinner_nominal(106, name="spinner-hidden-horizon"), "HS1.d_gamma", math.radians(0.25)
+    ),
 }
 
 

@@ -40,54 +40,100 @@ from gcs_core.sim.config import (
 )
 from gcs_core.sim.truth import World
 
-__all__ = ["nominal_threeaxis", "spinner_nominal", "spinner_two_scanners", "sun_synchronous_inclination_deg",
-           "with_effect", "EFFECTS", "list_effects"]
+__all__ = [
+    "nominal_threeaxis",
+    "spinner_nominal",
+    "spinner_two_scanners",
+    "sun_synchronous_inclination_deg",
+    "with_effect",
+    "EFFECTS",
+    "list_effects",
+]
 
 ARCSEC = np.pi / 180.0 / 3600.0
 
 
 # --- sensor builders -----------------------------------------------------------------------
 def tam(name="TAM1", cadence_s=1.0, alignment_deg=(0.0, 0.0, 0.0)) -> SensorConfig:
-    return SensorConfig(name, "magnetometer", cadence_s,
-                        {"alignment_deg": list(map(float, alignment_deg)), "noise": 25.0, "bias": [0.0, 0.0, 0.0]})
+    return SensorConfig(
+        name,
+        "magnetometer",
+        cadence_s,
+        {"alignment_deg": list(map(float, alignment_deg)), "noise": 25.0, "bias": [0.0, 0.0, 0.0]},
+    )
 
 
 def iru(name="IRU", cadence_s=1.0) -> SensorConfig:
-    return SensorConfig(name, "gyro", cadence_s,
-                        {"alignment_deg": [0.0, 0.0, 0.0], "arw": 3.162278e-07, "rrw": 3.162278e-10,
-                         "bias": [0.0, 0.0, 0.0]})
+    return SensorConfig(
+        name,
+        "gyro",
+        cadence_s,
+        {"alignment_deg": [0.0, 0.0, 0.0], "arw": 3.162278e-07, "rrw": 3.162278e-10, "bias": [0.0, 0.0, 0.0]},
+    )
 
 
 def fhst(name, alignment_deg, cadence_s=10.0) -> SensorConfig:
-    return SensorConfig(name, "star_tracker", cadence_s,
-                        {"alignment_deg": list(map(float, alignment_deg)), "fov_deg": 4.0,
-                         "noise": 3.878509e-05, "scale": [1.0, 1.0]},
-                        {"sun_exclusion_deg": 30.0, "earth_exclusion_deg": 10.0})
+    return SensorConfig(
+        name,
+        "star_tracker",
+        cadence_s,
+        {"alignment_deg": list(map(float, alignment_deg)), "fov_deg": 4.0, "noise": 3.878509e-05, "scale": [1.0, 1.0]},
+        {"sun_exclusion_deg": 30.0, "earth_exclusion_deg": 10.0},
+    )
 
 
 def fss(name="FSS1", alignment_deg=(0.0, 0.0, 0.0), cadence_s=1.0) -> SensorConfig:
-    return SensorConfig(name, "fine_sun", cadence_s,
-                        {"alignment_deg": list(map(float, alignment_deg)), "fov_deg": 32.0, "noise": 0.577,
-                         "coeff_alpha": [0.0, 7.6e-05, 0.0, 50.0], "coeff_beta": [0.0, 7.6e-05, 0.0, 50.0]})
+    return SensorConfig(
+        name,
+        "fine_sun",
+        cadence_s,
+        {
+            "alignment_deg": list(map(float, alignment_deg)),
+            "fov_deg": 32.0,
+            "noise": 0.577,
+            "coeff_alpha": [0.0, 7.6e-05, 0.0, 50.0],
+            "coeff_beta": [0.0, 7.6e-05, 0.0, 50.0],
+        },
+    )
 
 
 def css(name="CSS1", alignment_deg=(0.0, 0.0, 0.0), cadence_s=1.0) -> SensorConfig:
     k = float(np.radians(0.25))
-    return SensorConfig(name, "coarse_sun", cadence_s,
-                        {"alignment_deg": list(map(float, alignment_deg)), "fov_deg": 60.0, "noise": 0.577,
-                         "scale": [k, k], "bias": [0.0, 0.0]})
+    return SensorConfig(
+        name,
+        "coarse_sun",
+        cadence_s,
+        {
+            "alignment_deg": list(map(float, alignment_deg)),
+            "fov_deg": 60.0,
+            "noise": 0.577,
+            "scale": [k, k],
+            "bias": [0.0, 0.0],
+        },
+    )
 
 
 def default_slews(duration_s: float) -> list[Slew]:
     """Roll out and back (~24°), a pitch and a yaw step (~5.6°), at 22/45/60/75 % of the span."""
     D = duration_s
-    return [Slew(0.22 * D, 600.0, "roll", 0.04), Slew(0.45 * D, 300.0, "pitch", 0.02),
-            Slew(0.60 * D, 300.0, "yaw", -0.02), Slew(0.75 * D, 600.0, "roll", -0.04)]
+    return [
+        Slew(0.22 * D, 600.0, "roll", 0.04),
+        Slew(0.45 * D, 300.0, "pitch", 0.02),
+        Slew(0.60 * D, 300.0, "yaw", -0.02),
+        Slew(0.75 * D, 600.0, "roll", -0.04),
+    ]
 
 
-def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: float = 7200.0, *,
-                      name: str | None = None, epoch: str = "2024-05-14T04:00:00Z",
-                      orbit: OrbitElements | None = None, sweep_deg: float = 0.0) -> MissionConfig:
+def nominal_threeaxis(
+    mode: str = "sun_pointing",
+    seed: int = 1,
+    duration_s: float = 7200.0,
+    *,
+    name: str | None = None,
+    epoch: str = "2024-05-14T04:00:00Z",
+    orbit: OrbitElements | None = None,
+    sweep_deg: float = 0.0,
+) -> MissionConfig:
     """A three-axis mission with TAM1, IRU, FHST1, FHST2, FSS1, CSS1 (no hidden effect).
 
     ``sweep_deg`` > 0 adds a slow pitch and yaw sinusoid of that amplitude (periods 2300 s and
@@ -96,19 +142,24 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
     if mode not in ("inertial", "earth_pointing", "sun_pointing"):
         raise InputError(f"unknown three-axis mode '{mode}'", key="mode")
     p = ThreeAxisProfile(slews=default_slews(duration_s))
-    cfg = MissionConfig(name=name or f"nominal-{mode.replace('_', '')}", epoch=epoch, attitude_mode=mode,
-                        duration_s=float(duration_s), orbit=orbit or OrbitElements(),
-                        attitude=p,
-                        aux=AuxConfig(cadence_s=1.0 if duration_s <= 86400 else 10.0),
-                        onboard=OnboardConfig(error_deg=(0.03, -0.04, 0.0)), seed=int(seed))
+    cfg = MissionConfig(
+        name=name or f"nominal-{mode.replace('_', '')}",
+        epoch=epoch,
+        attitude_mode=mode,
+        duration_s=float(duration_s),
+        orbit=orbit or OrbitElements(),
+        attitude=p,
+        aux=AuxConfig(cadence_s=1.0 if duration_s <= 86400 else 10.0),
+        onboard=OnboardConfig(error_deg=(0.03, -0.04, 0.0)),
+        seed=int(seed),
+    )
     if sweep_deg > 0:
         p.wobble_amp_deg = (p.wobble_amp_deg[0], float(sweep_deg), float(sweep_deg))
         p.wobble_period_s = (p.wobble_period_s[0], 2300.0, 1700.0)
     sun_align, fhst1 = (0.0, 0.0, 0.0), (0.0, 0.0, 90.0)
     if mode == "inertial":
         # Point body x at the Sun at the epoch (the Sun-pointing frame frozen at t = 0).
-        probe = MissionConfig(name="probe", epoch=epoch, attitude_mode="sun_pointing", duration_s=1.0,
-                              orbit=cfg.orbit)
+        probe = MissionConfig(name="probe", epoch=epoch, attitude_mode="sun_pointing", duration_s=1.0, orbit=cfg.orbit)
         A0 = World(probe).reference(np.array([0.0]))[0]
         r0, p0, y0 = (float(np.degrees(x)) for x in dcm_to_rpy(A0))
         p.rpy0_deg = (r0, p0, y0)
@@ -120,24 +171,38 @@ def nominal_threeaxis(mode: str = "sun_pointing", seed: int = 1, duration_s: flo
         s = unit(w.sun(np.array([0.0])))
         beta = float(np.arcsin(np.clip(np.dot(unit(np.cross(r, v))[0], s[0]), -1, 1)))
         sun_align = (float(np.degrees(-beta)), 90.0, 0.0)
-        fhst1 = (-30.0, 0.0, 90.0) if beta > 0 else (30.0, 0.0, -90.0)     # 30° above the horizon
-    cfg.sensors = [tam(), iru(), fhst("FHST1", fhst1), fhst("FHST2", (30.0, 75.0, 0.0)),
-                   fss(alignment_deg=sun_align), css(alignment_deg=sun_align)]
+        fhst1 = (-30.0, 0.0, 90.0) if beta > 0 else (30.0, 0.0, -90.0)  # 30° above the horizon
+    cfg.sensors = [
+        tam(),
+        iru(),
+        fhst("FHST1", fhst1),
+        fhst("FHST2", (30.0, 75.0, 0.0)),
+        fss(alignment_deg=sun_align),
+        css(alignment_deg=sun_align),
+    ]
     return cfg
 
 
-def spinner_nominal(seed: int = 1, duration_s: float = 10800.0, *, name: str = "spinner-nominal",
-                    epoch: str = "2024-09-02T10:00:00Z") -> MissionConfig:
+def spinner_nominal(
+    seed: int = 1, duration_s: float = 10800.0, *, name: str = "spinner-nominal", epoch: str = "2024-09-02T10:00:00Z"
+) -> MissionConfig:
     """A 10 rpm spinner: PSS1 (plane-field Sun sensor) and HS1 (horizon scanner), one row per spin."""
-    pss = SensorConfig("PSS1", "plane_field_sun", 0.0,
-                       {"tilt_deg": 0.0, "bias": 0.0, "noise": float(np.radians(0.05))})
-    hs = SensorConfig("HS1", "horizon", 0.0,
-                      {"gamma_deg": 80.0, "phi_h_deg": 40.0, "horizon_height_km": 40.0, "noise": 0.0015})
-    return MissionConfig(name=name, epoch=epoch, attitude_mode="spinning", duration_s=float(duration_s),
-                         orbit=OrbitElements(a_km=7078.137, e=0.001, i_deg=28.5, raan_deg=35.0,
-                                             argp_deg=60.0, mean_anomaly_deg=10.0),
-                         attitude=SpinProfile(ra_deg=320.0, dec_deg=50.0, rate_rpm=10.0, phase0_deg=17.0),
-                         sensors=[pss, hs], aux=None, onboard=None, seed=int(seed))
+    pss = SensorConfig("PSS1", "plane_field_sun", 0.0, {"tilt_deg": 0.0, "bias": 0.0, "noise": float(np.radians(0.05))})
+    hs = SensorConfig(
+        "HS1", "horizon", 0.0, {"gamma_deg": 80.0, "phi_h_deg": 40.0, "horizon_height_km": 40.0, "noise": 0.0015}
+    )
+    return MissionConfig(
+        name=name,
+        epoch=epoch,
+        attitude_mode="spinning",
+        duration_s=float(duration_s),
+        orbit=OrbitElements(a_km=7078.137, e=0.001, i_deg=28.5, raan_deg=35.0, argp_deg=60.0, mean_anomaly_deg=10.0),
+        attitude=SpinProfile(ra_deg=320.0, dec_deg=50.0, rate_rpm=10.0, phase0_deg=17.0),
+        sensors=[pss, hs],
+        aux=None,
+        onboard=None,
+        seed=int(seed),
+    )
 
 
 #: Earth's J2 and GM, for the Sun-synchronous inclination (Vallado 2013, Table D-2 / D-3)
@@ -149,13 +214,20 @@ _SSO_NODE_RATE = 2.0 * np.pi / (365.2421897 * 86400.0)
 def sun_synchronous_inclination_deg(a_km: float, e: float = 0.0) -> float:
     """Inclination whose secular J2 nodal drift follows the mean Sun:
     ``cos i = −Ω̇ 2 a^{7/2} (1 − e²)² / (3 J2 R_E² √μ)`` (Vallado 2013, Eq 11-14)."""
-    c = -_SSO_NODE_RATE * 2.0 * a_km ** 3.5 * (1 - e * e) ** 2 / (3.0 * _J2 * R_EARTH_KM ** 2 * np.sqrt(_MU_KM3_S2))
+    c = -_SSO_NODE_RATE * 2.0 * a_km**3.5 * (1 - e * e) ** 2 / (3.0 * _J2 * R_EARTH_KM**2 * np.sqrt(_MU_KM3_S2))
     return float(np.degrees(np.arccos(c)))
 
 
-def spinner_two_scanners(seed: int = 1, *, inclination_deg: float | str = 28.5, duration_s: float = 10800.0,
-                         altitude_km: float = 700.0, axis_tilt_deg: float = 30.0,
-                         name: str | None = None, epoch: str = "2024-09-02T10:00:00Z") -> MissionConfig:
+def spinner_two_scanners(
+    seed: int = 1,
+    *,
+    inclination_deg: float | str = 28.5,
+    duration_s: float = 10800.0,
+    altitude_km: float = 700.0,
+    axis_tilt_deg: float = 30.0,
+    name: str | None = None,
+    epoch: str = "2024-09-02T10:00:00Z",
+) -> MissionConfig:
     """A 10 rpm spinner at any inclination (``"sso"``: Sun-synchronous at that altitude):
     PSS1 (plane-field Sun sensor) and two horizon scanners on the cones the real missions
     use, HS1 at γ = 60° and HS2 at γ = 110°. The spin axis is the orbit normal at the epoch
@@ -173,17 +245,23 @@ def spinner_two_scanners(seed: int = 1, *, inclination_deg: float | str = 28.5, 
     tilt = np.radians(axis_tilt_deg)
     A = np.cos(tilt) * normal + np.sin(tilt) * side
     ra, dec = float(np.degrees(np.arctan2(A[1], A[0])) % 360.0), float(np.degrees(np.arcsin(A[2])))
-    pss = SensorConfig("PSS1", "plane_field_sun", 0.0,
-                       {"tilt_deg": 0.0, "bias": 0.0, "noise": float(np.radians(0.05))})
-    hs = [SensorConfig(n, "horizon", 0.0, {"gamma_deg": g, "phi_h_deg": p, "horizon_height_km": 40.0,
-                                           "noise": 0.0015})
-          for n, g, p in (("HS1", 60.0, 35.0), ("HS2", 110.0, 215.0))]
-    return MissionConfig(name=name or f"spinner-{label}-s{seed}", epoch=epoch, attitude_mode="spinning",
-                         duration_s=float(duration_s),
-                         orbit=OrbitElements(a_km=a_km, e=0.001, i_deg=inc, raan_deg=raan,
-                                             argp_deg=60.0, mean_anomaly_deg=10.0),
-                         attitude=SpinProfile(ra_deg=ra, dec_deg=dec, rate_rpm=10.0, phase0_deg=17.0),
-                         sensors=[pss, *hs], aux=None, onboard=None, seed=int(seed))
+    pss = SensorConfig("PSS1", "plane_field_sun", 0.0, {"tilt_deg": 0.0, "bias": 0.0, "noise": float(np.radians(0.05))})
+    hs = [
+        SensorConfig(n, "horizon", 0.0, {"gamma_deg": g, "phi_h_deg": p, "horizon_height_km": 40.0, "noise": 0.0015})
+        for n, g, p in (("HS1", 60.0, 35.0), ("HS2", 110.0, 215.0))
+    ]
+    return MissionConfig(
+        name=name or f"spinner-{label}-s{seed}",
+        epoch=epoch,
+        attitude_mode="spinning",
+        duration_s=float(duration_s),
+        orbit=OrbitElements(a_km=a_km, e=0.001, i_deg=inc, raan_deg=raan, argp_deg=60.0, mean_anomaly_deg=10.0),
+        attitude=SpinProfile(ra_deg=ra, dec_deg=dec, rate_rpm=10.0, phase0_deg=17.0),
+        sensors=[pss, *hs],
+        aux=None,
+        onboard=None,
+        seed=int(seed),
+    )
 
 
 # --- hidden effects ------------------------------------------------------------------------
@@ -194,7 +272,7 @@ class EffectSpec:
     types: tuple[str, ...]
     unit: str
     description: str
-    apply: Callable[[SensorConfig, float, dict], None] | None   # None: set on the mission (d_t)
+    apply: Callable[[SensorConfig, float, dict], None] | None  # None: set on the mission (d_t)
 
 
 def _pattern(n, axis):
@@ -242,6 +320,7 @@ def _contamination(channel):
         c = dict(s.true.get("contamination", {}))
         c[channel] = (m * _pattern(3, kw.get("axis", (0.8, -0.5, 0.33)))).tolist()
         s.true["contamination"] = c
+
     return apply
 
 
@@ -249,6 +328,7 @@ def _set(key, base_key=None, convert=lambda m: m):
     def apply(s, m, kw):
         base = float(s.book.get(base_key, 0.0)) if base_key else 0.0
         s.true[key] = base + convert(m)
+
     return apply
 
 
@@ -266,52 +346,94 @@ def _tilt(s: SensorConfig, m: float, kw: dict) -> None:
 _VEC3 = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun")
 #: Sensor effects by catalogue name (``gcs effects``): the id is ``<SENSOR>.<name>``.
 EFFECTS: dict[str, EffectSpec] = {
-    "bias": EffectSpec(("magnetometer", "gyro", "coarse_sun", "plane_field_sun"), "nT | rad/s | rad",
-                       "bias added to the book value, direction (0.6, -0.48, 0.64) unless axis= "
-                       "(CSS: (b_α, b_β) ∝ (0.6, -0.48); plane-field: Δβ)", _bias),
-    "alignment": EffectSpec(_VEC3, "rad", "sensor frame rotated, M_true = exp(-[δx]) M_book, δ = m·axis "
-                            "(default axis (0.36, 0.48, 0.8); axis=(1, 0, 0) turns an optical sensor about "
-                            "its boresight)", _alignment),
-    "scale": EffectSpec(("magnetometer", "star_tracker", "coarse_sun"), "1",
-                        "gains 1 + m·(1, -0.7, 0.5) (TAM response diagonal), S_H, S_V or K_α, K_β "
-                        "times 1 + m·(1, -0.7)", _scale),
-    "nonorthogonality": EffectSpec(("magnetometer",), "1",
-                                   "symmetric off-diagonal TAM response m·[[0,1,-.6],[1,0,.8],[-.6,.8,0]]",
-                                   _nonorth),
-    "bias_instability": EffectSpec(("gyro",), "rad/s^2", "linear gyro bias drift ḃ = m·(0.6, -0.48, 0.64)",
-                                   lambda s, m, kw: s.true.__setitem__(
-                                       "bias_rate", [0.6 * float(m), -0.48 * float(m), 0.64 * float(m)])),
-    "scale_misalignment": EffectSpec(("gyro",), "1", "G = I + m·P, P = [[1,.6,-.4],[-.3,-.7,.5],[.8,.2,.5]] "
-                                     "unless pattern= (Eq 4-32)", _gyro_g),
-    "contamination_mtb_x": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_x",
-                                      _contamination("mtb_x")),
-    "contamination_mtb_y": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_y",
-                                      _contamination("mtb_y")),
-    "contamination_mtb_z": EffectSpec(("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_z",
-                                      _contamination("mtb_z")),
-    "time_offset": EffectSpec(_VEC3 + ("plane_field_sun", "horizon"), "s",
-                              "a row stamped t is measured at t + m", _set("time_offset_s")),
-    "transfer_function": EffectSpec(("fine_sun",), "1 (tan)",
-                                    "FSS A1 += m, A3 += m, B1 -= 0.6 m, B3 += 0.8 m (Eq 4-23)", _transfer),
-    "harmonic": EffectSpec(("fine_sun",), "1 (tan)", "FSS second harmonic H sin(2k tan) of the transfer "
-                           "function, H_α = m, H_β = -0.8 m", lambda s, m, kw: s.true.__setitem__(
-                               "harmonic", [float(m), -0.8 * float(m)])),
-    "misidentification": EffectSpec(("star_tracker",), "1 (fraction)",
-                                    "fraction of rows reporting a wrong catalog star",
-                                    lambda s, m, kw: s.true.__setitem__("misid_fraction", float(m))),
-    "tilt": EffectSpec(("plane_field_sun",), "rad", "plane-field sensor tilt ε_S (tilt_deg += m), shared "
-                       "by the horizon timing (Eq 4-12d, 4-14)", _tilt),
+    "bias": EffectSpec(
+        ("magnetometer", "gyro", "coarse_sun", "plane_field_sun"),
+        "nT | rad/s | rad",
+        "bias added to the book value, direction (0.6, -0.48, 0.64) unless axis= "
+        "(CSS: (b_α, b_β) ∝ (0.6, -0.48); plane-field: Δβ)",
+        _bias,
+    ),
+    "alignment": EffectSpec(
+        _VEC3,
+        "rad",
+        "sensor frame rotated, M_true = exp(-[δx]) M_book, δ = m·axis "
+        "(default axis (0.36, 0.48, 0.8); axis=(1, 0, 0) turns an optical sensor about "
+        "its boresight)",
+        _alignment,
+    ),
+    "scale": EffectSpec(
+        ("magnetometer", "star_tracker", "coarse_sun"),
+        "1",
+        "gains 1 + m·(1, -0.7, 0.5) (TAM response diagonal), S_H, S_V or K_α, K_β times 1 + m·(1, -0.7)",
+        _scale,
+    ),
+    "nonorthogonality": EffectSpec(
+        ("magnetometer",), "1", "symmetric off-diagonal TAM response m·[[0,1,-.6],[1,0,.8],[-.6,.8,0]]", _nonorth
+    ),
+    "bias_instability": EffectSpec(
+        ("gyro",),
+        "rad/s^2",
+        "linear gyro bias drift ḃ = m·(0.6, -0.48, 0.64)",
+        lambda s, m, kw: s.true.__setitem__("bias_rate", [0.6 * float(m), -0.48 * float(m), 0.64 * float(m)]),
+    ),
+    "scale_misalignment": EffectSpec(
+        ("gyro",), "1", "G = I + m·P, P = [[1,.6,-.4],[-.3,-.7,.5],[.8,.2,.5]] unless pattern= (Eq 4-32)", _gyro_g
+    ),
+    "contamination_mtb_x": EffectSpec(
+        ("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_x", _contamination("mtb_x")
+    ),
+    "contamination_mtb_y": EffectSpec(
+        ("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_y", _contamination("mtb_y")
+    ),
+    "contamination_mtb_z": EffectSpec(
+        ("magnetometer",), "nT/(A m^2)", "TAM reads m·(0.8,-0.5,0.33)/|.|·mtb_z", _contamination("mtb_z")
+    ),
+    "time_offset": EffectSpec(
+        _VEC3 + ("plane_field_sun", "horizon"), "s", "a row stamped t is measured at t + m", _set("time_offset_s")
+    ),
+    "transfer_function": EffectSpec(
+        ("fine_sun",), "1 (tan)", "FSS A1 += m, A3 += m, B1 -= 0.6 m, B3 += 0.8 m (Eq 4-23)", _transfer
+    ),
+    "harmonic": EffectSpec(
+        ("fine_sun",),
+        "1 (tan)",
+        "FSS second harmonic H sin(2k tan) of the transfer function, H_α = m, H_β = -0.8 m",
+        lambda s, m, kw: s.true.__setitem__("harmonic", [float(m), -0.8 * float(m)]),
+    ),
+    "misidentification": EffectSpec(
+        ("star_tracker",),
+        "1 (fraction)",
+        "fraction of rows reporting a wrong catalog star",
+        lambda s, m, kw: s.true.__setitem__("misid_fraction", float(m)),
+    ),
+    "tilt": EffectSpec(
+        ("plane_field_sun",),
+        "rad",
+        "plane-field sensor tilt ε_S (tilt_deg += m), shared by the horizon timing (Eq 4-12d, 4-14)",
+        _tilt,
+    ),
     "d_gamma": EffectSpec(("horizon",), "rad", "scanner cone half-angle bias Δγ", _set("d_gamma")),
     "d_phi": EffectSpec(("horizon",), "rad", "scanner azimuth bias ΔΦ", _set("d_phi")),
     "d_rho": EffectSpec(("horizon",), "rad", "Earth angular radius bias Δρ", _set("d_rho")),
     "eps_H": EffectSpec(("horizon",), "rad", "horizon sensor plane tilt ε_H (Eq 4-12e)", _set("eps_H")),
-    "horizon_height": EffectSpec(("horizon",), "km", "true horizon height = book + m",
-                                 _set("horizon_height_km", "horizon_height_km")),
-    "oblateness": EffectSpec(("horizon",), "1 (x WGS-84 f)", "the Earth this scanner sees is flattened "
-                             "by m/298.257 more than the physics' (WGS-84, or none with "
-                             "model.earth_oblateness off)", _set("flattening_excess")),
-    "d_t": EffectSpec(("horizon",), "s", "in-track time error of the ephemeris: row t holds the orbit "
-                      "at t - m (Eq 4-13; affects every sensor of the mission)", None),
+    "horizon_height": EffectSpec(
+        ("horizon",), "km", "true horizon height = book + m", _set("horizon_height_km", "horizon_height_km")
+    ),
+    "oblateness": EffectSpec(
+        ("horizon",),
+        "1 (x WGS-84 f)",
+        "the Earth this scanner sees is flattened "
+        "by m/298.257 more than the physics' (WGS-84, or none with "
+        "model.earth_oblateness off)",
+        _set("flattening_excess"),
+    ),
+    "d_t": EffectSpec(
+        ("horizon",),
+        "s",
+        "in-track time error of the ephemeris: row t holds the orbit "
+        "at t - m (Eq 4-13; affects every sensor of the mission)",
+        None,
+    ),
 }
 #: Mission-wide physics switches, id ``model.<name>``: on in every scenario (real data);
 #: with_effect(..., "model.X", 0) gives data without it, 1 records it as an expected discovery.
@@ -319,8 +441,11 @@ MODEL_EFFECTS = {
     "stellar_aberration": ("1 (on)", "star directions aberrated by (v_earth + v_sc)/c, up to 26 arcsec"),
     "solar_aberration": ("1 (on)", "Sun direction aberrated by the spacecraft velocity v_sc/c, up to 5 arcsec"),
     "sun_parallax": ("1 (on)", "Sun seen from the spacecraft (s - r) instead of the Earth's centre, ~9 arcsec"),
-    "earth_oblateness": ("1 (on)", "horizon on the WGS-84 ellipsoid (f = 1/298.257) under the CO2 layer, "
-                         "crossed exactly at each scan's tangent point"),
+    "earth_oblateness": (
+        "1 (on)",
+        "horizon on the WGS-84 ellipsoid (f = 1/298.257) under the CO2 layer, "
+        "crossed exactly at each scan's tangent point",
+    ),
 }
 
 
@@ -331,8 +456,16 @@ def list_effects() -> list[tuple[str, tuple[str, ...], str, str]]:
     return out
 
 
-def with_effect(base: MissionConfig, effect_id: str, magnitude: float, *, name: str | None = None,
-                axis=None, pattern=None, description: str | None = None) -> MissionConfig:
+def with_effect(
+    base: MissionConfig,
+    effect_id: str,
+    magnitude: float,
+    *,
+    name: str | None = None,
+    axis=None,
+    pattern=None,
+    description: str | None = None,
+) -> MissionConfig:
     """Copy of ``base`` with one hidden effect ``<SENSOR>.<effect>`` (or ``model.<effect>``).
 
     ``magnitude`` is in the unit of :data:`EFFECTS` (see :func:`list_effects`); ``axis``

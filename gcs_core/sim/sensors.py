@@ -57,7 +57,7 @@ def _alignment(sensor: SensorConfig) -> np.ndarray:
 
 def count_sigma(noise: float) -> float:
     """Gaussian part of a total ``noise`` [counts] that also contains integer rounding."""
-    return float(np.sqrt(max(noise ** 2 - 1.0 / 12.0, 0.0)))
+    return float(np.sqrt(max(noise**2 - 1.0 / 12.0, 0.0)))
 
 
 def sun_unit_from_sc(r_I, v_I, s_I, *, parallax: bool = True, aberration: bool = True) -> np.ndarray:
@@ -83,8 +83,9 @@ class MagnetometerSim:
         self.bias = np.asarray(sensor.value("bias", (0.0, 0.0, 0.0)), dtype=float)
         self.noise = float(sensor.value("noise"))
         self.tau = float(sensor.value("time_offset_s", 0.0))
-        self.contamination = {ch: np.asarray(k, dtype=float)
-                              for ch, k in dict(sensor.value("contamination", {}) or {}).items()}
+        self.contamination = {
+            ch: np.asarray(k, dtype=float) for ch, k in dict(sensor.value("contamination", {}) or {}).items()
+        }
         self.quantum = float(sensor.value("quantum", 0.0) or 0.0)
 
     def run(self, t_rows: np.ndarray) -> dict[str, np.ndarray]:

@@ -101,8 +101,13 @@ class SunSightings:
         w = self.world
         r, v = w.orbit(t)
         ph = w.cfg.physics
-        return sun_unit_from_sc(r, v, w.sun(t), parallax=bool(ph.get("sun_parallax", True)),
-                                aberration=bool(ph.get("solar_aberration", True)))
+        return sun_unit_from_sc(
+            r,
+            v,
+            w.sun(t),
+            parallax=bool(ph.get("sun_parallax", True)),
+            aberration=bool(ph.get("solar_aberration", True)),
+        )
 
     def sun_B(self, t):
         return np.einsum("nij,nj->ni", self.world.attitude(t), self.sun_I(t))
@@ -113,7 +118,7 @@ class SunSightings:
         psi_I = np.arctan2(S[:, 1], S[:, 0])
         beta = np.arccos(np.clip(S[:, 2], -1, 1))
         x = np.clip(np.tan(self.eps) / np.tan(np.clip(beta, 1e-6, np.pi - 1e-6)), -1, 1)
-        return psi_I + np.arcsin(x)        # body azimuth of the Sun = −asin(tan ε cot β)
+        return psi_I + np.arcsin(x)  # body azimuth of the Sun = −asin(tan ε cot β)
 
     def between(self, t0: float, t1: float, t_max: float) -> np.ndarray:
         """Sun-sighting times in ``[t0, min(t1, t_max))``, sorted (cached for the last call)."""
@@ -128,7 +133,7 @@ class SunSightings:
             k = np.arange(np.floor(ph0 / (2 * np.pi)) - 1, np.ceil(ph1 / (2 * np.pi)) + 2)
             w0 = float(w.spin_rate(np.array([t0]))[0])
             t = t0 + (2 * np.pi * k - ph0) / w0
-            for _ in range(4):                    # Newton on φ(t) − target(t) ≡ 0 (mod 2π)
+            for _ in range(4):  # Newton on φ(t) − target(t) ≡ 0 (mod 2π)
                 g = w.spin_phase(t) - self._psi_target(t)
                 t = t - np.angle(np.exp(1j * g)) / w.spin_rate(t)
             t = np.unique(np.round(t, 6))
@@ -142,8 +147,12 @@ class SunSightings:
             S_B = self.sun_B(t)
             beta = np.arccos(np.clip(S_B[:, 2], -1, 1))
             r, _ = w.orbit(t)
-            keep = (S_B[:, 0] > 0) & (beta > self.beta_lim[0]) & (beta < self.beta_lim[1]) \
+            keep = (
+                (S_B[:, 0] > 0)
+                & (beta > self.beta_lim[0])
+                & (beta < self.beta_lim[1])
                 & ~astro.sun_eclipsed(r, w.sun(t))
+            )
             out = t[keep]
         self._cache = ((t0, t1, t_max), out)
         return out
@@ -174,7 +183,7 @@ class HorizonSim:
 
     columns = ("t", "spin_rate", "dt_in", "dt_out")
     formats = ("%.9f", "%.12e", "%.9f", "%.9f")
-    grid = 240          # samples per spin when looking for crossings (1.5 deg)
+    grid = 240  # samples per spin when looking for crossings (1.5 deg)
 
     def __init__(self, sensor: SensorConfig, world, rng: np.random.Generator, sightings: SunSightings):
         self.s, self.world, self.rng, self.sightings = sensor, world, rng, sightings
@@ -189,7 +198,7 @@ class HorizonSim:
         f = WGS84_F if bool(world.cfg.physics.get("earth_oblateness", True)) else 0.0
         f += float(sensor.value("flattening_excess", 0.0)) * WGS84_F
         self.axes = np.array([astro.R_EARTH_KM + h, astro.R_EARTH_KM + h, astro.R_EARTH_KM * (1 - f) + h])
-        self._M = 1.0 / self.axes ** 2
+        self._M = 1.0 / self.axes**2
         self.d_rho = float(sensor.value("d_rho", 0.0))
         self.noise = float(sensor.value("noise"))
         self.tau = float(sensor.value("time_offset_s", 0.0))
@@ -212,24 +221,24 @@ class HorizonSim:
         d = self.los_I(t)
         rn = np.linalg.norm(r, axis=-1)
         e1 = r / rn[:, None]
-        c = -np.einsum("ij,ij->i", d, e1)                    # cos ∠(d, Ê)
+        c = -np.einsum("ij,ij->i", d, e1)  # cos ∠(d, Ê)
         e2 = d + c[:, None] * e1
         e2 /= np.maximum(np.linalg.norm(e2, axis=-1), 1e-300)[:, None]
         M = self._M
         m11 = np.einsum("ij,j,ij->i", e1, M, e1)
         m12 = np.einsum("ij,j,ij->i", e1, M, e2)
         m22 = np.einsum("ij,j,ij->i", e2, M, e2)
-        det = m11 * m22 - m12 ** 2
-        K = m11 * rn ** 2 - 1.0
-        rho_t = np.arctan((m12 - np.sqrt(det * np.maximum(K, 0.0))) / (m22 - rn ** 2 * det))
+        det = m11 * m22 - m12**2
+        K = m11 * rn**2 - 1.0
+        rho_t = np.arctan((m12 - np.sqrt(det * np.maximum(K, 0.0))) / (m22 - rn**2 * det))
         g = np.arccos(np.clip(c, -1, 1)) - rho_t - self.d_rho
         return g.reshape(shape)
 
     def run_span(self, t0: float, t1: float, t_max: float) -> dict[str, np.ndarray]:
         ts = self.sightings.between(t0, t1, t_max)
         out_t, out_w, out_in, out_out = [], [], [], []
-        for lo in range(0, ts.size, 400):                     # bounded memory
-            tb = ts[lo:lo + 400]
+        for lo in range(0, ts.size, 400):  # bounded memory
+            tb = ts[lo : lo + 400]
             P = 2 * np.pi / self.world.spin_rate(tb)
             frac = np.arange(self.grid + 1) / self.grid
             T = tb[:, None] + P[:, None] * frac[None, :]

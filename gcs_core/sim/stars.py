@@ -67,11 +67,18 @@ class StarTrackerSim:
     columns = ("t", "h", "v", "ra", "dec", "mag")
     formats = ("%.12g",) * 6
 
-    def __init__(self, sensor: SensorConfig, world, catalog: StarCatalog, rng: np.random.Generator,
-                 *, stellar_aberration: bool = False):
+    def __init__(
+        self,
+        sensor: SensorConfig,
+        world,
+        catalog: StarCatalog,
+        rng: np.random.Generator,
+        *,
+        stellar_aberration: bool = False,
+    ):
         self.s, self.world, self.cat = sensor, world, catalog
         # Star choice and noise use separate streams: the files do not depend on the chunking.
-        self.rng, self.rng_pick = (np.random.default_rng(x) for x in rng.integers(2 ** 62, size=2))
+        self.rng, self.rng_pick = (np.random.default_rng(x) for x in rng.integers(2**62, size=2))
         a = np.radians(np.asarray(sensor.value("alignment_deg"), dtype=float))
         self.M = rpy_to_dcm(a[0], a[1], a[2])
         self.scale = np.asarray(sensor.value("scale", (1.0, 1.0)), dtype=float)
@@ -99,7 +106,7 @@ class StarTrackerSim:
         self.n_occulted += int(np.sum(~ok))
         if self.aberration:
             beta = (astro.earth_velocity_km_s(w.jd0, tt) + v) / astro.C_KM_S
-        radius = 2.0 * np.sin(0.5 * self.fov * np.sqrt(2.0) * 1.01)   # chord of the FOV corner
+        radius = 2.0 * np.sin(0.5 * self.fov * np.sqrt(2.0) * 1.01)  # chord of the FOV corner
         cand = self.cat.tree.query_ball_point(bore_I, radius)
         rows = []
         for k in np.flatnonzero(ok):
@@ -133,5 +140,11 @@ class StarTrackerSim:
         star = np.array([x[3] for x in rows], dtype=int)
         e = self.rng.standard_normal((h.size, 2)) * self.noise
         h, vv = h + e[:, 0], vv + e[:, 1]
-        return {"t": t_out, "h": h, "v": vv, "ra": self.cat.ra_deg[star],
-                "dec": self.cat.dec_deg[star], "mag": self.cat.mag[star]}
+        return {
+            "t": t_out,
+            "h": h,
+            "v": vv,
+            "ra": self.cat.ra_deg[star],
+            "dec": self.cat.dec_deg[star],
+            "mag": self.cat.mag[star],
+        }

@@ -64,8 +64,7 @@ def slew_angle(tau, duration: float, ramp: float) -> np.ndarray:
         return x / 2.0 - (R / (2 * np.pi)) * np.sin(np.pi * x / R)
 
     total = duration - R
-    return np.where(tau <= R, up(tau),
-                    np.where(tau <= duration - R, R / 2.0 + (tau - R), total - up(duration - tau)))
+    return np.where(tau <= R, up(tau), np.where(tau <= duration - R, R / 2.0 + (tau - R), total - up(duration - tau)))
 
 
 class World:
@@ -126,8 +125,10 @@ class World:
         p = self.cfg.attitude
         assert isinstance(p, ThreeAxisProfile)
         t = np.atleast_1d(np.asarray(t, dtype=float))
-        out = np.radians(np.asarray(p.rpy0_deg, dtype=float))[None, :] \
+        out = (
+            np.radians(np.asarray(p.rpy0_deg, dtype=float))[None, :]
             + np.radians(np.asarray(p.drift_deg_s, dtype=float))[None, :] * t[:, None]
+        )
         amp = np.radians(np.asarray(p.wobble_amp_deg, dtype=float))
         per = np.asarray(p.wobble_period_s, dtype=float)
         ph = np.asarray(p.wobble_phase_rad, dtype=float)
@@ -183,7 +184,7 @@ class GyroSim:
         self.s, self.world = sensor, world
         # Separate streams for noise, bias walk and electronic noise: the files do not depend
         # on how the span is chunked.
-        self.rng, self.rng_walk, self.rng_e = (np.random.default_rng(x) for x in rng.integers(2 ** 62, size=3))
+        self.rng, self.rng_walk, self.rng_e = (np.random.default_rng(x) for x in rng.integers(2**62, size=3))
         a = np.radians(np.asarray(sensor.value("alignment_deg", (0.0, 0.0, 0.0)), dtype=float))
         self.M = rpy_to_dcm(a[0], a[1], a[2])
         self.G = np.asarray(sensor.value("G", np.eye(3)), dtype=float)
@@ -207,24 +208,25 @@ class GyroSim:
         steps = self.rng_walk.standard_normal((n, 3)) * self.rrw * np.sqrt(dt)
         b_end = self.bias + np.cumsum(steps, axis=0)
         b_start = np.vstack([self.bias[None, :], b_end[:-1]])
-        sig = np.sqrt(self.arw ** 2 / dt + self.rrw ** 2 * dt / 12.0)
+        sig = np.sqrt(self.arw**2 / dt + self.rrw**2 * dt / 12.0)
         noise = self.rng.standard_normal((n, 3)) * sig
         if self.sig_e > 0:
             e = self.rng_e.standard_normal((n, 3)) * self.sig_e
             e_prev = np.vstack([self.e_prev[None, :], e[:-1]])
             noise = noise + (e - e_prev) / dt
             self.e_prev = e[-1]
-        drift = self.bias_rate[None, :] * (t_rows - 0.5 * dt)[:, None]   # its interval mean
+        drift = self.bias_rate[None, :] * (t_rows - 0.5 * dt)[:, None]  # its interval mean
         y = (w_avg @ self.M.T + 0.5 * (b_start + b_end) + drift) @ self.G.T + noise
         self.bias = b_end[-1].copy()
-        every = max(1, int(round(60.0 / dt)))              # the true bias once a minute
+        every = max(1, int(round(60.0 / dt)))  # the true bias once a minute
         for k in range(every - 1, n, every):
             self.bias_log.append((float(t_rows[k]), (b_end[k] + self.bias_rate * t_rows[k]).tolist()))
         return {"t": t_rows, "wx": y[:, 0], "wy": y[:, 1], "wz": y[:, 2]}
 
 
-def onboard_quaternions(world: World, t: np.ndarray, error_deg, noise_arcsec: float,
-                        rng: np.random.Generator) -> np.ndarray:
+def onboard_quaternions(
+    world: World, t: np.ndarray, error_deg, noise_arcsec: float, rng: np.random.Generator
+) -> np.ndarray:
     """Onboard body-from-GCI quaternions (q4 ≥ 0) at times ``t``, (N, 4)."""
     C = world.attitude(t)
     n = rng.standard_normal((t.size, 3)) * np.radians(noise_arcsec / 3600.0)

@@ -74,13 +74,15 @@ def validate(cfg: MissionConfig) -> None:
             raise InputError(f"duplicate sensor name '{s.name}'", key=f"sensor[{i}].name")
         names.add(s.name)
         if (s.type in _SPINNER_TYPES) != cfg.spinning:
-            raise InputError(f"sensor type '{s.type}' does not fit attitude mode '{cfg.attitude_mode}'",
-                             key=f"sensor[{i}].type")
+            raise InputError(
+                f"sensor type '{s.type}' does not fit attitude mode '{cfg.attitude_mode}'", key=f"sensor[{i}].type"
+            )
         if s.type not in _SPINNER_TYPES and not s.cadence_s > 0:
             raise InputError("cadence_s must be positive", key=f"sensor[{i}].cadence_s")
     if cfg.spinning and sum(s.type == "plane_field_sun" for s in cfg.sensors) != 1:
-        raise InputError("a spinning mission needs exactly one plane_field_sun sensor (it times the horizon)",
-                         key="sensor")
+        raise InputError(
+            "a spinning mission needs exactly one plane_field_sun sensor (it times the horizon)", key="sensor"
+        )
 
 
 def time_grid(cadence: float, start: float, t0: float, t1: float, *, last: bool) -> np.ndarray:
@@ -136,9 +138,13 @@ def _toml_value(v) -> str:
 
 def mission_toml(cfg: MissionConfig) -> str:
     """Text of mission.toml (ICD §3) with the data-book values."""
-    out = ["# Mission description: sensor inventory and data-book values.", "[mission]",
-           f"name = {_toml_value(cfg.name)}", f"epoch = {_toml_value(cfg.epoch)}",
-           f"attitude_mode = {_toml_value(cfg.attitude_mode)}"]
+    out = [
+        "# Mission description: sensor inventory and data-book values.",
+        "[mission]",
+        f"name = {_toml_value(cfg.name)}",
+        f"epoch = {_toml_value(cfg.epoch)}",
+        f"attitude_mode = {_toml_value(cfg.attitude_mode)}",
+    ]
     if cfg.spinning:
         sp = cfg.attitude
         assert isinstance(sp, SpinProfile)
@@ -150,8 +156,13 @@ def mission_toml(cfg: MissionConfig) -> str:
     if cfg.onboard is not None and not cfg.spinning:
         out += ["", "[onboard_attitude]", 'file = "onboard_attitude.csv"']
     for s in cfg.sensors:
-        out += ["", "[[sensor]]", f"name = {_toml_value(s.name)}", f"type = {_toml_value(s.type)}",
-                f"telemetry = {_toml_value('telemetry/' + s.name + '.csv')}"]
+        out += [
+            "",
+            "[[sensor]]",
+            f"name = {_toml_value(s.name)}",
+            f"type = {_toml_value(s.type)}",
+            f"telemetry = {_toml_value('telemetry/' + s.name + '.csv')}",
+        ]
         out += [f"{k} = {_toml_value(v)}" for k, v in s.book.items()]
     return "\n".join(out) + "\n"
 
@@ -159,10 +170,11 @@ def mission_toml(cfg: MissionConfig) -> str:
 def write_catalog(catalog: StarCatalog, path: Path, seed: int) -> None:
     """``star_catalog.csv``: one row ``ra, dec, mag`` per star (telemetry's number format)."""
     with open(path, "w", newline="\n") as fh:
-        fh.write(f"# star catalog of the simulation (catalog_seed {seed}): J2000 ra, dec [deg], "
-                 "visual magnitude\nra,dec,mag\n")
-        np.savetxt(fh, np.column_stack([catalog.ra_deg, catalog.dec_deg, catalog.mag]),
-                   fmt="%.12g", delimiter=",")
+        fh.write(
+            f"# star catalog of the simulation (catalog_seed {seed}): J2000 ra, dec [deg], "
+            "visual magnitude\nra,dec,mag\n"
+        )
+        np.savetxt(fh, np.column_stack([catalog.ra_deg, catalog.dec_deg, catalog.mag]), fmt="%.12g", delimiter=",")
 
 
 # --- generation ----------------------------------------------------------------------------
@@ -179,8 +191,7 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
             files["aux"] = _Csv(root / "aux.csv", AuxSchedule.columns, AuxSchedule.formats)
         onboard_rng = _rng(cfg.seed, "onboard")
         if cfg.onboard is not None and not cfg.spinning:
-            files["onboard"] = _Csv(root / "onboard_attitude.csv", ("t", "q1", "q2", "q3", "q4"),
-                                    ["%.12f"] * 5)
+            files["onboard"] = _Csv(root / "onboard_attitude.csv", ("t", "q1", "q2", "q3", "q4"), ["%.12f"] * 5)
         catalog = StarCatalog(cfg.catalog_seed) if any(s.type == "star_tracker" for s in cfg.sensors) else None
         if catalog is not None:
             write_catalog(catalog, root / STAR_CATALOG_FILE, cfg.catalog_seed)
@@ -192,18 +203,18 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
             t_max = D - 2.0 * 2 * np.pi / float(world.spin_rate(np.array([0.0]))[0]) - 1.0
         sims = {}
         for s in cfg.sensors:
-            sims[s.name] = make_sensor_sim(s, world, _rng(cfg.seed, s.name), catalog=catalog, aux=aux,
-                                           sightings=sightings)
-            files[s.name] = _Csv(root / "telemetry" / f"{s.name}.csv", sims[s.name].columns,
-                                 sims[s.name].formats)
+            sims[s.name] = make_sensor_sim(
+                s, world, _rng(cfg.seed, s.name), catalog=catalog, aux=aux, sightings=sightings
+            )
+            files[s.name] = _Csv(root / "telemetry" / f"{s.name}.csv", sims[s.name].columns, sims[s.name].formats)
         n_chunks = int(np.ceil(D / cfg.chunk_s))
         for c in range(n_chunks):
             t0, t1 = c * cfg.chunk_s, min((c + 1) * cfg.chunk_s, D)
             last = c == n_chunks - 1
             te = time_grid(cfg.ephemeris_cadence_s, 0.0, t0, t1, last=last)
             if last and (te.size == 0 or te[-1] < D - 1e-9):
-                te = np.append(te, D)                 # the span always ends on a row
-            r, v = world.orbit(te - cfg.ephemeris_time_error_s)      # Δt = 0 unless hidden
+                te = np.append(te, D)  # the span always ends on a row
+            r, v = world.orbit(te - cfg.ephemeris_time_error_s)  # Δt = 0 unless hidden
             sun = world.sun(te)
             files["ephemeris"].append(dict(zip(_EPH_COLS, [te, *r.T, *v.T, *sun.T])))
             if aux is not None and cfg.aux is not None:
@@ -227,8 +238,9 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
     for name, f in files.items():
         record["rows"][name] = f.rows
     for name, sim in sims.items():
-        counters = {k: getattr(sim, k) for k in ("n_eclipsed", "n_occulted", "n_misidentified", "n_missed")
-                    if hasattr(sim, k)}
+        counters = {
+            k: getattr(sim, k) for k in ("n_eclipsed", "n_occulted", "n_misidentified", "n_missed") if hasattr(sim, k)
+        }
         if counters:
             record["counters"][name] = counters
         if hasattr(sim, "bias_log"):
@@ -242,20 +254,39 @@ def _truth(cfg: MissionConfig, record: dict) -> dict:
     for s in cfg.sensors:
         true = dict(s.book)
         true.update(s.true)
-        sensors[s.name] = {"type": s.type, "cadence_s": s.cadence_s, "book": as_plain(s.book),
-                           "true": as_plain(true), "rows": record["rows"].get(s.name, 0),
-                           **({"counters": record["counters"][s.name]} if s.name in record["counters"] else {})}
+        sensors[s.name] = {
+            "type": s.type,
+            "cadence_s": s.cadence_s,
+            "book": as_plain(s.book),
+            "true": as_plain(true),
+            "rows": record["rows"].get(s.name, 0),
+            **({"counters": record["counters"][s.name]} if s.name in record["counters"] else {}),
+        }
     effects = []
     for e in cfg.effects:
         sensor, _, effect = e.id.partition(".")
-        effects.append({"id": e.id, "sensor": None if sensor == "model" else sensor, "effect": effect,
-                        "magnitude": e.magnitude, "unit": e.unit, "description": e.description})
+        effects.append(
+            {
+                "id": e.id,
+                "sensor": None if sensor == "model" else sensor,
+                "effect": effect,
+                "magnitude": e.magnitude,
+                "unit": e.unit,
+                "description": e.description,
+            }
+        )
     out = {
-        "mission": cfg.name, "generator": "gcs_core.sim", "seed": cfg.seed, "epoch": cfg.epoch,
-        "attitude_mode": cfg.attitude_mode, "duration_s": cfg.duration_s,
-        "hidden_effects": effects, "physics": dict(cfg.physics),
+        "mission": cfg.name,
+        "generator": "gcs_core.sim",
+        "seed": cfg.seed,
+        "epoch": cfg.epoch,
+        "attitude_mode": cfg.attitude_mode,
+        "duration_s": cfg.duration_s,
+        "hidden_effects": effects,
+        "physics": dict(cfg.physics),
         "ephemeris_time_error_s": cfg.ephemeris_time_error_s,
-        "sensors": sensors, "orbit": dataclasses.asdict(cfg.orbit),
+        "sensors": sensors,
+        "orbit": dataclasses.asdict(cfg.orbit),
         "attitude": as_plain(dataclasses.asdict(cfg.attitude)),
         "rows": record["rows"],
     }
@@ -313,8 +344,7 @@ def write_mission(cfg: MissionConfig, out_dir, *, truth_path=None) -> Path:
     return out_dir
 
 
-def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, catalog=None, aux=None,
-                    sightings=None):
+def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, catalog=None, aux=None, sightings=None):
     """The simulator object of one sensor (any of the seven ICD §5 types).
 
     ``catalog`` (star trackers), ``aux`` (magnetometer contamination) and ``sightings``
@@ -326,8 +356,9 @@ def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, ca
     if kind == "gyro":
         return GyroSim(sensor, world, rng)
     if kind == "star_tracker":
-        return StarTrackerSim(sensor, world, catalog, rng,
-                              stellar_aberration=bool(world.cfg.physics.get("stellar_aberration", True)))
+        return StarTrackerSim(
+            sensor, world, catalog, rng, stellar_aberration=bool(world.cfg.physics.get("stellar_aberration", True))
+        )
     if kind == "fine_sun":
         return FineSunSim(sensor, world, rng)
     if kind == "coarse_sun":

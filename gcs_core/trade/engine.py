@@ -40,8 +40,7 @@ TASKS_PER_WORKER = 16
 SERIAL_FLUSH_S = 1.0
 #: environment of every worker process: one BLAS/OpenMP thread (small matrices; threads
 #: would only contend for the cores)
-PIN_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
-           "NUMBA_NUM_THREADS": "1"}
+PIN_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1", "NUMBA_NUM_THREADS": "1"}
 
 
 def batch_size(n: int, workers: int, requested: int | None = None) -> int:
@@ -52,12 +51,20 @@ def batch_size(n: int, workers: int, requested: int | None = None) -> int:
 
 
 def batches(items: Sequence, size: int) -> list[list]:
-    return [list(items[i:i + size]) for i in range(0, len(items), size)]
+    return [list(items[i : i + size]) for i in range(0, len(items), size)]
 
 
-def run_jobs(func: Callable[[Any, list], list], payload: Any, items: Sequence, *,
-             on_batch: Callable[[list], None], workers: int | None = None, scheduler: str | None = None,
-             batch: int | None = None, progress: Callable[[int, int], None] | None = None) -> None:
+def run_jobs(
+    func: Callable[[Any, list], list],
+    payload: Any,
+    items: Sequence,
+    *,
+    on_batch: Callable[[list], None],
+    workers: int | None = None,
+    scheduler: str | None = None,
+    batch: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> None:
     """Compute ``func(payload, batch)`` over ``items`` (module docstring).
 
     ``progress(done, total)`` is called in the calling process after each handed-over
@@ -117,15 +124,17 @@ def connect(workers: int | None, scheduler: str | None):
         from dask.distributed import Client, LocalCluster
     except ImportError:  # pragma: no cover - an optional extra
         from gcs_core.errors import InputError
-        raise InputError("--workers and --scheduler need dask and distributed "
-                         "(pip install 'gcs[scale]')", key="workers") from None
+
+        raise InputError(
+            "--workers and --scheduler need dask and distributed (pip install 'gcs[scale]')", key="workers"
+        ) from None
     if scheduler:
         return Client(scheduler, timeout="20s"), None
     for k, v in PIN_ENV.items():
         os.environ.setdefault(k, v)
-    dask.config.set({"distributed.nanny.pre-spawn-environ": dict(PIN_ENV),
-                     "distributed.worker.daemon": False})
-    assert workers is not None                        # without a scheduler the caller gives a count
-    cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                           dashboard_address=":0", silence_logs=logging.ERROR)
+    dask.config.set({"distributed.nanny.pre-spawn-environ": dict(PIN_ENV), "distributed.worker.daemon": False})
+    assert workers is not None  # without a scheduler the caller gives a count
+    cluster = LocalCluster(
+        n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=logging.ERROR
+    )
     return Client(cluster), cluster

@@ -11,8 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 
-def field_turn_deg(orbit, epoch, t0: float, t1: float, *, step: float = 30.0,
-                   gaps: tuple[tuple[float, float], ...] = ()) -> float:
+def field_turn_deg(
+    orbit, epoch, t0: float, t1: float, *, step: float = 30.0, gaps: tuple[tuple[float, float], ...] = ()
+) -> float:
     """Angle [deg] the inertial field direction ``B̂_I`` turns through over ``[t0, t1]``
     outside ``gaps``: the sum of the angles between successive samples ``step`` apart.
 

@@ -71,6 +71,7 @@ class MonteCarlo:
         import hashlib
 
         from gcs_core.config import load_config
+
         cfg = load_config(self.config_path)
         d = {"config": cfg.digest(), "orbit": cfg.trade.get("orbit"), "seed": self.seed}
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
@@ -112,8 +113,11 @@ def simulation(cfg, spec, plan, seed: int):
 
     orbit = (cfg.trade or {}).get("orbit")
     if not orbit:
-        raise InputError("Monte Carlo needs the orbit: give a [trade.orbit] table (a_km, e, i_deg, "
-                         "raan_deg, argp_deg, mean_anomaly_deg)", key="trade.orbit")
+        raise InputError(
+            "Monte Carlo needs the orbit: give a [trade.orbit] table (a_km, e, i_deg, "
+            "raan_deg, argp_deg, mean_anomaly_deg)",
+            key="trade.orbit",
+        )
     if spec.attitude_mode == "spinning":
         raise InputError("Monte Carlo of spinning missions is not supported", key="analysis.mission")
     sensors = []
@@ -128,10 +132,18 @@ def simulation(cfg, spec, plan, seed: int):
     slews = [Slew(m.start, m.duration, m.axis, m.rate_deg_s, ramp_s=RAMP_S) for m in plan.maneuvers]
     profile = ThreeAxisProfile(rpy0_deg=rpy0, wobble_amp_deg=(0.0, 0.0, 0.0), slews=slews)
     epoch = spec.epoch.strftime("%Y-%m-%dT%H:%M:%SZ")
-    return MissionConfig(name=spec.name, epoch=epoch, attitude_mode=spec.attitude_mode,
-                         duration_s=float(plan.end) + 1.0,
-                         orbit=OrbitElements(**{k: float(v) for k, v in orbit.items()}),
-                         attitude=profile, sensors=sensors, aux=None, onboard=None, seed=int(seed))
+    return MissionConfig(
+        name=spec.name,
+        epoch=epoch,
+        attitude_mode=spec.attitude_mode,
+        duration_s=float(plan.end) + 1.0,
+        orbit=OrbitElements(**{k: float(v) for k, v in orbit.items()}),
+        attitude=profile,
+        sensors=sensors,
+        aux=None,
+        onboard=None,
+        seed=int(seed),
+    )
 
 
 def _restricted(mission, plan):
@@ -141,7 +153,7 @@ def _restricted(mission, plan):
     tel = {}
     for name, tab in mission.telemetry.items():
         keep = plan.in_span(tab.t) & ~plan.in_gap(tab.t)
-        if mission.spec.sensor(name).type == "gyro":       # the gyro runs through the gaps
+        if mission.spec.sensor(name).type == "gyro":  # the gyro runs through the gaps
             keep = (tab.t >= plan.start - 1e-9) & (tab.t <= plan.end + 1e-9)
         tel[name] = _subset(tab, keep)
     return replace(mission, telemetry=tel)
@@ -180,9 +192,16 @@ def _truth(truth: dict, problem, values_book: dict, method: str = "batch") -> di
     a = dict(truth["attitude"])
     slews = [Slew(**s) for s in a.pop("slews", [])]
     prof = ThreeAxisProfile(**{k: tuple(v) for k, v in a.items()}, slews=slews)
-    world = World(MissionConfig(name=truth["mission"], epoch=truth["epoch"], attitude_mode=truth["attitude_mode"],
-                                duration_s=float(truth["duration_s"]), orbit=OrbitElements(**truth["orbit"]),
-                                attitude=prof))
+    world = World(
+        MissionConfig(
+            name=truth["mission"],
+            epoch=truth["epoch"],
+            attitude_mode=truth["attitude_mode"],
+            duration_s=float(truth["duration_s"]),
+            orbit=OrbitElements(**truth["orbit"]),
+            attitude=prof,
+        )
+    )
     t_ref = att.t_ref
     if t_ref is None:
         t_ref = float(min(sd.t[0] for sd in problem.sensors if sd.n))
@@ -219,8 +238,15 @@ def one_run(mc: MonteCarlo, i: int) -> dict:
     for k, n in enumerate(names):
         if n.startswith("att."):
             e[k] = (e[k] + math.pi) % (2 * math.pi) - math.pi
-    rec.update(status=res.status, names=names, x_hat=[float(x) for x in res.x], error=e.tolist(),
-               P=np.asarray(res.P).tolist(), chi2=float(res.chi2), seconds=time.perf_counter() - t0)
+    rec.update(
+        status=res.status,
+        names=names,
+        x_hat=[float(x) for x in res.x],
+        error=e.tolist(),
+        P=np.asarray(res.P).tolist(),
+        chi2=float(res.chi2),
+        seconds=time.perf_counter() - t0,
+    )
     return rec
 
 
@@ -244,8 +270,13 @@ def predicted(mc: MonteCarlo):
         trackers = any(s.type == "star_tracker" for s in spec.sensors)
         p = replace(plan, stars="catalog", catalog=Path(path) / "star_catalog.csv") if trackers else plan
         from gcs_core.trade.study import make_orbit
-        return predict(cfg, mission=replace(spec, root=sim_spec.root, ephemeris_file=None), plan=p,
-                       orbit=make_orbit(cfg.trade.get("orbit"), spec.epoch))
+
+        return predict(
+            cfg,
+            mission=replace(spec, root=sim_spec.root, ephemeris_file=None),
+            plan=p,
+            orbit=make_orbit(cfg.trade.get("orbit"), spec.epoch),
+        )
 
 
 # ---------------------------------------------------------------------------- summary
@@ -292,17 +323,32 @@ def summarize(pred, records: Sequence[dict]) -> MonteCarloResult:
     nees = float(sum(e[idx] @ np.linalg.solve(P[np.ix_(idx, idx)], e[idx]) for e, P in zip(E, Ps)))
     dof = len(ok) * idx.size
     band = (float(stats.chi2.ppf(0.025, dof)), float(stats.chi2.ppf(0.975, dof))) if dof else (0.0, 0.0)
-    return MonteCarloResult(len(ok), len(records) - len(ok), names, units, psig, scat, scat / psig,
-                            np.mean(E, axis=0) / psig, np.sqrt(np.mean(np.einsum("kii->ki", Ps), axis=0)),
-                            det, nees, band, dof)
+    return MonteCarloResult(
+        len(ok),
+        len(records) - len(ok),
+        names,
+        units,
+        psig,
+        scat,
+        scat / psig,
+        np.mean(E, axis=0) / psig,
+        np.sqrt(np.mean(np.einsum("kii->ki", Ps), axis=0)),
+        det,
+        nees,
+        band,
+        dof,
+    )
 
 
 def summary_lines(res: MonteCarloResult) -> list[str]:
     from gcs_core.trade.report import sigma_display
 
-    out = [f"{res.runs} runs fitted" + (f", {res.failed} failed" if res.failed else "")
-           + f"; predicted σ against the Monte-Carlo scatter (±{100 * MATCH_FRACTION:g} %)",
-           f"{'element':<16}{'predicted σ':>13}{'MC σ':>11}{'ratio':>8}{'fit σ':>11}{'mean/σ':>8}  unit"]
+    out = [
+        f"{res.runs} runs fitted"
+        + (f", {res.failed} failed" if res.failed else "")
+        + f"; predicted σ against the Monte-Carlo scatter (±{100 * MATCH_FRACTION:g} %)",
+        f"{'element':<16}{'predicted σ':>13}{'MC σ':>11}{'ratio':>8}{'fit σ':>11}{'mean/σ':>8}  unit",
+    ]
     for k, n in enumerate(res.names):
         p, u = sigma_display(res.predicted[k], res.units[k])
         s, _ = sigma_display(res.scatter[k], res.units[k])
@@ -312,22 +358,38 @@ def summary_lines(res: MonteCarloResult) -> list[str]:
             flag = "  OUTSIDE ±15 %"
         out.append(f"{n:<16}{p:>13.4g}{s:>11.4g}{res.ratio[k]:>8.3f}{f:>11.4g}{res.mean_z[k]:>+8.2f}  {u}{flag}")
     lo, hi = res.nees_band
-    out.append(f"NEES over the determined elements: {res.nees:.1f} on {res.nees_dof} dof, 95 % band "
-               f"[{lo:.1f}, {hi:.1f}] — {'inside' if lo <= res.nees <= hi else 'OUTSIDE'}")
-    out.append("predicted σ " + ("match" if res.consistent else "do NOT match")
-               + f" the scatter within {100 * MATCH_FRACTION:g} % for every determined element")
+    out.append(
+        f"NEES over the determined elements: {res.nees:.1f} on {res.nees_dof} dof, 95 % band "
+        f"[{lo:.1f}, {hi:.1f}] — {'inside' if lo <= res.nees <= hi else 'OUTSIDE'}"
+    )
+    out.append(
+        "predicted σ "
+        + ("match" if res.consistent else "do NOT match")
+        + f" the scatter within {100 * MATCH_FRACTION:g} % for every determined element"
+    )
     return out
 
 
-def run_montecarlo(mc: MonteCarlo, output=None, *, workers=None, scheduler=None, resume=False,
-                   overwrite=False, batch=None, progress: Callable[[int, int], None] | None = None
-                   ) -> MonteCarloResult:
+def run_montecarlo(
+    mc: MonteCarlo,
+    output=None,
+    *,
+    workers=None,
+    scheduler=None,
+    resume=False,
+    overwrite=False,
+    batch=None,
+    progress: Callable[[int, int], None] | None = None,
+) -> MonteCarloResult:
     """All runs (those already in ``output`` skipped with ``resume``), then the summary."""
     if mc.runs < 2:
         raise InputError(f"need at least 2 runs, not {mc.runs}", key="montecarlo.runs")
     digest = mc.digest()
-    skip = store.prepare_output(output, store.MONTECARLO, digest, resume=resume, overwrite=overwrite) \
-        if output is not None else set()
+    skip = (
+        store.prepare_output(output, store.MONTECARLO, digest, resume=resume, overwrite=overwrite)
+        if output is not None
+        else set()
+    )
     records: list[dict] = []
 
     def on_batch(recs: list[dict]) -> None:
@@ -339,8 +401,9 @@ def run_montecarlo(mc: MonteCarlo, output=None, *, workers=None, scheduler=None,
     prog = None if progress is None else (lambda d, _n: progress(len(skip) + d, mc.runs))
     # a run (simulation and fit) takes seconds, far over Dask's per-task overhead: one
     # run per task balances the load and loses at most one run per worker to a Ctrl-C
-    engine.run_jobs(_runs, mc, items, on_batch=on_batch, workers=workers, scheduler=scheduler,
-                    batch=batch or 1, progress=prog)
+    engine.run_jobs(
+        _runs, mc, items, on_batch=on_batch, workers=workers, scheduler=scheduler, batch=batch or 1, progress=prog
+    )
     if output is not None:
         _, records = store.read(output, store.MONTECARLO)
         records = [r for r in records if int(r["index"]) < mc.runs]
@@ -357,6 +420,7 @@ def replay(output, i: int) -> list[str]:
         raise InputError(f"run {i} is not in the file", file=output)
     new = one_run(mc, i)
     same = old.get("x_hat") == new.get("x_hat")
-    return [f"run {i}: seed {new['seed']} (entropy {mc.seed}, spawn key {new['spawn_key']}), "
-            f"status {new['status']}", "estimates identical to the stored run" if same
-            else "estimates DIFFER from the stored run"]
+    return [
+        f"run {i}: seed {new['seed']} (entropy {mc.seed}, spawn key {new['spawn_key']}), status {new['status']}",
+        "estimates identical to the stored run" if same else "estimates DIFFER from the stored run",
+    ]

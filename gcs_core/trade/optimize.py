@@ -45,8 +45,18 @@ DEFAULT_RATES = (0.05, 0.1, 0.2)
 #: a target is met when σ·(1 + MARGIN) is below its limit
 MARGIN = 0.15
 #: unit suffix -> factor to the internal unit
-UNITS = {"deg": DEG, "°": DEG, "arcsec": ARCSEC, "″": ARCSEC, "rad": 1.0, "nT": 1.0, "ppm": 1e-6,
-         "deg/h": DEG / 3600.0, "": 1.0, "1": 1.0}
+UNITS = {
+    "deg": DEG,
+    "°": DEG,
+    "arcsec": ARCSEC,
+    "″": ARCSEC,
+    "rad": 1.0,
+    "nT": 1.0,
+    "ppm": 1e-6,
+    "deg/h": DEG / 3600.0,
+    "": 1.0,
+    "1": 1.0,
+}
 _TARGET = re.compile(r"^\s*([A-Za-z][\w.\-]*)\s*<\s*([0-9.eE+\-]+)\s*([^\s]*)\s*$")
 
 
@@ -62,12 +72,14 @@ class Target:
 def parse_target(text: str) -> Target:
     m = _TARGET.match(str(text))
     if not m:
-        raise InputError(f"a target is ELEMENT<SIGMA[unit], e.g. TAM1.alignment<0.01deg, not {text!r}",
-                         key="trade.optimize.targets")
+        raise InputError(
+            f"a target is ELEMENT<SIGMA[unit], e.g. TAM1.alignment<0.01deg, not {text!r}", key="trade.optimize.targets"
+        )
     unit = m.group(3)
     if unit not in UNITS:
-        raise InputError(f"unknown unit {unit!r} (known: {', '.join(u for u in UNITS if u)})",
-                         key="trade.optimize.targets")
+        raise InputError(
+            f"unknown unit {unit!r} (known: {', '.join(u for u in UNITS if u)})", key="trade.optimize.targets"
+        )
     value = float(m.group(2))
     if not value > 0:
         raise InputError(f"a σ limit must be > 0, not {value}", key="trade.optimize.targets")
@@ -142,10 +154,12 @@ class OptimizeResult:
     elements: dict[str, list[str]] = field(default_factory=dict)
 
     def lines(self) -> list[str]:
-        out = ["targets: " + ", ".join(t.text for t in self.targets),
-               f"budget: ≤ {self.budget.slew_min:g} min of slewing, ≤ {self.budget.hours:g} h of data, "
-               f"axes {','.join(self.budget.axes)}, rates {','.join(f'{r:g}' for r in self.budget.rates)} deg/s",
-               f"{self.searched} plans predicted"]
+        out = [
+            "targets: " + ", ".join(t.text for t in self.targets),
+            f"budget: ≤ {self.budget.slew_min:g} min of slewing, ≤ {self.budget.hours:g} h of data, "
+            f"axes {','.join(self.budget.axes)}, rates {','.join(f'{r:g}' for r in self.budget.rates)} deg/s",
+            f"{self.searched} plans predicted",
+        ]
         row = self.best
         if row is None:
             out.append("no plan within the budget meets every target")
@@ -154,25 +168,27 @@ class OptimizeResult:
                 return out
             out.append(f"closest: {row.plan_id}")
         else:
-            out.append(f"cheapest plan: {row.slew_min():g} min of slewing, {row.data_h():g} h of data "
-                       f"({row.plan_id})")
+            out.append(f"cheapest plan: {row.slew_min():g} min of slewing, {row.data_h():g} h of data ({row.plan_id})")
             for m in row.description.get("maneuvers", ()):
-                out.append(f"  maneuver: {m['axis']} at {m['rate_deg_s']:g} deg/s from t = {m['start']:g} s "
-                           f"for {m['duration']:g} s ({m['rate_deg_s'] * m['duration']:+g}°)")
+                out.append(
+                    f"  maneuver: {m['axis']} at {m['rate_deg_s']:g} deg/s from t = {m['start']:g} s "
+                    f"for {m['duration']:g} s ({m['rate_deg_s'] * m['duration']:+g}°)"
+                )
         for t in self.targets:
             for n in self.elements.get(t.name, []):
                 i = row.elements.index(n)
                 s, u = sigma_display(row.sigma[i], row.units[i])
                 lim, _ = sigma_display(t.limit, row.units[i])
                 ok = row.sigma[i] * (1.0 + self.margin) < t.limit
-                out.append(f"  σ {n:<16} {s:10.4g} {u:<3} (target < {lim:g} with a "
-                           f"{100 * self.margin:g} % margin) {'met' if ok else 'NOT met'}")
+                out.append(
+                    f"  σ {n:<16} {s:10.4g} {u:<3} (target < {lim:g} with a "
+                    f"{100 * self.margin:g} % margin) {'met' if ok else 'NOT met'}"
+                )
         out += self.why
         return out
 
 
-def _meets(row: PlanRow, targets: Sequence[Target], elements: Mapping[str, list[str]],
-           margin: float = MARGIN) -> bool:
+def _meets(row: PlanRow, targets: Sequence[Target], elements: Mapping[str, list[str]], margin: float = MARGIN) -> bool:
     if row.status != "ok":
         return False
     for t in targets:
@@ -194,9 +210,17 @@ def _shortfall(row: PlanRow, targets, elements) -> float:
     return worst
 
 
-def optimize(cfg: AnalysisConfig, targets: Sequence[Target], budget: Budget, *, method: str | None = None,
-             margin: float = MARGIN, workers: int | None = None, scheduler: str | None = None,
-             progress: Callable[[int, int], None] | None = None) -> OptimizeResult:
+def optimize(
+    cfg: AnalysisConfig,
+    targets: Sequence[Target],
+    budget: Budget,
+    *,
+    method: str | None = None,
+    margin: float = MARGIN,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> OptimizeResult:
     """Search the plan space (module docstring)."""
     from gcs_core.io.mission import read_mission_spec
 
@@ -206,13 +230,15 @@ def optimize(cfg: AnalysisConfig, targets: Sequence[Target], budget: Budget, *, 
     elements = {t.name: list(target_elements([t.name], spec)[0]) for t in targets}
     names = tuple(dict.fromkeys(n for t in targets for n in elements[t.name]))
     cands = candidates(budget)
-    defn = StudyDefinition(str(Path(cfg.path).resolve()), {"span_min": (), "maneuvers": ()}, names,
-                           cfg.trade.get("orbit"), method)
+    defn = StudyDefinition(
+        str(Path(cfg.path).resolve()), {"span_min": (), "maneuvers": ()}, names, cfg.trade.get("orbit"), method
+    )
     items = list(enumerate(cands))
     rows: list[PlanRow] = []
     if workers or scheduler:
-        engine.run_jobs(evaluate_plans, defn, items, on_batch=rows.extend, workers=workers,
-                        scheduler=scheduler, progress=progress)
+        engine.run_jobs(
+            evaluate_plans, defn, items, on_batch=rows.extend, workers=workers, scheduler=scheduler, progress=progress
+        )
         rows.sort(key=lambda r: r.index)
     else:
         for k, item in enumerate(items):
@@ -238,9 +264,15 @@ def plan_config(cfg: AnalysisConfig, row: PlanRow) -> AnalysisConfig:
     """The analysis config flying ``row``'s plan (``[prediction]`` span and maneuvers)."""
     d = row.description
     mans = tuple(Maneuver(m["start"], m["duration"], m["axis"], m["rate_deg_s"]) for m in d.get("maneuvers", ()))
-    return cfg.with_changes(prediction={"start": d["start"], "end": d["end"],
-                                        "gaps": tuple(tuple(g) for g in d.get("gaps", ())), "maneuvers": mans},
-                            name=f"optimized plan: {row.plan_id}")
+    return cfg.with_changes(
+        prediction={
+            "start": d["start"],
+            "end": d["end"],
+            "gaps": tuple(tuple(g) for g in d.get("gaps", ())),
+            "maneuvers": mans,
+        },
+        name=f"optimized plan: {row.plan_id}",
+    )
 
 
 def why_lines(defn: StudyDefinition, row: PlanRow, spec) -> list[str]:
@@ -253,8 +285,12 @@ def why_lines(defn: StudyDefinition, row: PlanRow, spec) -> list[str]:
     seq = space.parse_maneuvers(combo.get("maneuvers", "none"))
     for k in range(len(seq)):
         rest = [m for j, m in enumerate(seq) if j != k]
-        variants.append((f"without the {seq[k][0]} maneuver",
-                         {**combo, "maneuvers": ",".join(f"{a}:{r:g}:{m:g}" for a, r, m in rest) or "none"}))
+        variants.append(
+            (
+                f"without the {seq[k][0]} maneuver",
+                {**combo, "maneuvers": ",".join(f"{a}:{r:g}:{m:g}" for a, r, m in rest) or "none"},
+            )
+        )
     if not variants:
         return []
     rows = evaluate_plans(defn, list(enumerate(c for _, c in variants)))
@@ -264,7 +300,7 @@ def why_lines(defn: StudyDefinition, row: PlanRow, spec) -> list[str]:
         for (label, _), r in zip(variants, rows):
             s = r.sigma_of(n) if r.status == "ok" else math.nan
             if math.isnan(s):
-                continue                                  # its own sensor: nothing to say
+                continue  # its own sensor: nothing to say
             limited = bool(r.prior_limited) and r.prior_limited[r.elements.index(n)]
             if math.isinf(s) or limited:
                 parts.append(f"{label}: not determined (σ = a priori)")

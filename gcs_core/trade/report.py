@@ -40,24 +40,32 @@ def study_table(rows: Sequence[PlanRow], *, limit: int | None = 20) -> list[str]
         return ["no plans"]
     r0 = next((r for r in rows if r.status == "ok"), rows[0])
     keys = list(r0.values)
-    heads = ["#", "score"] + keys + [f"σ {_short(n)} [{sigma_display(1.0, u)[1]}]"
-                                     for n, u in zip(r0.elements, r0.units)]
+    heads = (
+        ["#", "score"] + keys + [f"σ {_short(n)} [{sigma_display(1.0, u)[1]}]" for n, u in zip(r0.elements, r0.units)]
+    )
     body = []
     for rank, (sc, r) in enumerate(ranked(rows), start=1):
         if limit is not None and rank > limit:
             break
         score = "failed" if r.status != "ok" else ("∞" if math.isinf(sc) else f"{sc:.3g}")
-        body.append([str(rank), score] + [str(r.values.get(k)) for k in keys]
-                    + [_cell(v, u, bool(r.prior_limited and r.prior_limited[i]))
-                       for i, (v, u) in enumerate(zip(r.sigma, r.units))])
+        body.append(
+            [str(rank), score]
+            + [str(r.values.get(k)) for k in keys]
+            + [
+                _cell(v, u, bool(r.prior_limited and r.prior_limited[i]))
+                for i, (v, u) in enumerate(zip(r.sigma, r.units))
+            ]
+        )
     widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(heads)]
     out = ["  ".join(h.rjust(w) for h, w in zip(heads, widths))]
     out += ["  ".join(c.rjust(w) for c, w in zip(b, widths)) for b in body]
     shown = min(len(rows), limit or len(rows))
     failed = [r for r in rows if r.status != "ok"]
-    out.append(f"{shown} of {len(rows)} plans shown (score: geometric mean of σ / best σ over the "
-               "targets; 1 = best at every target; * = set by the a priori: the data alone cannot "
-               "separate the element; '—' = not in the plan's state)")
+    out.append(
+        f"{shown} of {len(rows)} plans shown (score: geometric mean of σ / best σ over the "
+        "targets; 1 = best at every target; * = set by the a priori: the data alone cannot "
+        "separate the element; '—' = not in the plan's state)"
+    )
     if failed:
         out.append(f"{len(failed)} plans could not be predicted, e.g. {failed[0].plan_id}: {failed[0].status}")
     return out
@@ -75,8 +83,9 @@ def budget_lines(rows: Sequence[PlanRow], top: int = 3) -> list[str]:
                 continue
             _, unit = sigma_display(1.0, u)
             parts = [f"noise {_cell(r.noise_only[i], u)}"]
-            parts += [f"{c} {_cell(v[i], u)}" for c, v in sorted(r.budget.items(), key=lambda kv: -kv[1][i])
-                      if v[i] > 0]
+            parts += [
+                f"{c} {_cell(v[i], u)}" for c, v in sorted(r.budget.items(), key=lambda kv: -kv[1][i]) if v[i] > 0
+            ]
             out.append(f"  {n:<18} σ {_cell(r.sigma[i], u):>8} {unit:<4} = " + " ⊕ ".join(parts))
         if r.undetermined:
             out.append("  not determined by this plan: " + ", ".join(r.undetermined))

@@ -23,11 +23,23 @@ from gcs_core.trade.study import PlanRow, StudyDefinition, evaluate_plans
 def row_from_record(rec: dict) -> PlanRow:
     """A :class:`PlanRow` back from its stored record."""
     tup = lambda v: tuple(float(x) for x in v)
-    return PlanRow(int(rec["index"]), rec["plan_id"], rec["values"], rec["description"],
-                   tuple(rec["elements"]), tup(rec["sigma"]), tup(rec["noise_only"]), tuple(rec["units"]),
-                   {k: tup(v) for k, v in rec["budget"].items()}, tuple(rec["undetermined"]),
-                   tuple(rec["unobservable"]), dict(rec["frames"]), rec["status"], float(rec["seconds"]),
-                   tuple(bool(x) for x in rec.get("prior_limited", ())))
+    return PlanRow(
+        int(rec["index"]),
+        rec["plan_id"],
+        rec["values"],
+        rec["description"],
+        tuple(rec["elements"]),
+        tup(rec["sigma"]),
+        tup(rec["noise_only"]),
+        tuple(rec["units"]),
+        {k: tup(v) for k, v in rec["budget"].items()},
+        tuple(rec["undetermined"]),
+        tuple(rec["unobservable"]),
+        dict(rec["frames"]),
+        rec["status"],
+        float(rec["seconds"]),
+        tuple(bool(x) for x in rec.get("prior_limited", ())),
+    )
 
 
 def read_study(path: str | Path) -> tuple[StudyDefinition | None, list[PlanRow]]:
@@ -44,9 +56,17 @@ def _evaluate(defn: StudyDefinition, batch: list) -> list[PlanRow]:
     return evaluate_plans(defn, batch)
 
 
-def run_study(defn: StudyDefinition, output: str | Path | None = None, *, workers: int | None = None,
-              scheduler: str | None = None, resume: bool = False, overwrite: bool = False,
-              batch: int | None = None, progress: Callable[[int, int], None] | None = None) -> list[PlanRow]:
+def run_study(
+    defn: StudyDefinition,
+    output: str | Path | None = None,
+    *,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    resume: bool = False,
+    overwrite: bool = False,
+    batch: int | None = None,
+    progress: Callable[[int, int], None] | None = None,
+) -> list[PlanRow]:
     """Compute the study (module docstring); without ``output`` nothing is written.
 
     ``progress(done, total)`` counts plans, those already in the file included.
@@ -63,16 +83,22 @@ def run_study(defn: StudyDefinition, output: str | Path | None = None, *, worker
     def on_batch(rows: list[PlanRow]) -> None:
         new.extend(rows)
         if output is not None and rows:
-            store.append_batch(output, store.TRADE, study=study, digest=digest,
-                               records=[asdict(r) for r in rows],
-                               arrays={"sigma": np.array([r.sigma for r in rows], dtype=float)})
+            store.append_batch(
+                output,
+                store.TRADE,
+                study=study,
+                digest=digest,
+                records=[asdict(r) for r in rows],
+                arrays={"sigma": np.array([r.sigma for r in rows], dtype=float)},
+            )
 
     total = len(combos)
     prog = None if progress is None else (lambda done, _n: progress(len(skip) + done, total))
     if progress is not None and skip:
         progress(len(skip), total)
-    engine.run_jobs(_evaluate, defn, items, on_batch=on_batch, workers=workers, scheduler=scheduler,
-                    batch=batch, progress=prog)
+    engine.run_jobs(
+        _evaluate, defn, items, on_batch=on_batch, workers=workers, scheduler=scheduler, batch=batch, progress=prog
+    )
     if output is not None:
         _, rows = read_study(output)
         return rows

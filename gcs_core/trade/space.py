@@ -53,10 +53,24 @@ from gcs_core.errors import InputError
 from gcs_core.io.types import MissionSpec
 from gcs_core.predictor.plan import DataPlan
 
-PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min",
-             "gap_min", "maneuver.axis", "maneuver.rate_deg_s", "maneuver.start_min",
-             "maneuver.duration_min", "maneuver.angle_deg", "maneuver.back", "maneuvers", "attitude_mode",
-             "effects")
+PLAN_KEYS = (
+    "span_min",
+    "start_min",
+    "passes",
+    "pass_min",
+    "separation_min",
+    "gap_start_min",
+    "gap_min",
+    "maneuver.axis",
+    "maneuver.rate_deg_s",
+    "maneuver.start_min",
+    "maneuver.duration_min",
+    "maneuver.angle_deg",
+    "maneuver.back",
+    "maneuvers",
+    "attitude_mode",
+    "effects",
+)
 ATTITUDE_MODES = ("inertial", "sun_pointing", "earth_pointing")
 _ALIGN = re.compile(r"^([A-Za-z][A-Za-z0-9_-]*)\.alignment_deg\[([123])\]$")
 _BOOK = re.compile(r"^([A-Za-z][A-Za-z0-9_-]*)\.([A-Za-z_][A-Za-z0-9_]*)$")
@@ -76,8 +90,7 @@ def parse_values(text: str, key: str) -> tuple:
         except ValueError:
             raise InputError(f"a range is FIRST:LAST:STEP of numbers, not {text!r}", key=key) from None
         if not (s > 0 and b >= a) or (b - a) / s > MAX_VALUES:
-            raise InputError(f"range {text!r} needs STEP > 0, LAST ≥ FIRST and at most "
-                             f"{MAX_VALUES} values", key=key)
+            raise InputError(f"range {text!r} needs STEP > 0, LAST ≥ FIRST and at most {MAX_VALUES} values", key=key)
         n = int(math.floor((b - a) / s + 1e-9))
         return tuple(_clean(a + k * s) for k in range(n + 1))
     return tuple(_number_or_text(v.strip()) for v in text.split(","))
@@ -118,14 +131,19 @@ def check_key(key: str, spec: MissionSpec) -> None:
     m = _MODEL.match(key) or _ALIGN.match(key)
     if m:
         if m.group(1) not in names:
-            raise InputError(f"no sensor named '{m.group(1)}' in the mission "
-                             f"(sensors: {', '.join(sorted(names))})", key=full)
+            raise InputError(
+                f"no sensor named '{m.group(1)}' in the mission (sensors: {', '.join(sorted(names))})", key=full
+            )
         return
     m = _BOOK.match(key)
     if m and m.group(1) in names:
         return
-    raise InputError("unknown key (plan keys: " + ", ".join(PLAN_KEYS)
-                     + "; models.NAME, NAME.alignment_deg[i], NAME.noise, NAME.KEY)", key=full)
+    raise InputError(
+        "unknown key (plan keys: "
+        + ", ".join(PLAN_KEYS)
+        + "; models.NAME, NAME.alignment_deg[i], NAME.noise, NAME.KEY)",
+        key=full,
+    )
 
 
 def combinations(vary: Mapping[str, Sequence]) -> list[dict[str, Any]]:
@@ -155,16 +173,29 @@ class PlanSetup:
     def describe(self) -> dict[str, Any]:
         """The plan's full description (JSON-ready): span, gaps, maneuvers, sensors, state."""
         p = self.plan
-        return {"start": p.start, "end": p.end, "gaps": [list(g) for g in p.gaps],
-                "maneuvers": [{"start": m.start, "duration": m.duration, "axis": m.axis,
-                               "rate_deg_s": m.rate_deg_s} for m in p.maneuvers],
-                "stars": p.stars, "attitude_mode": self.spec.attitude_mode,
-                "sensors": {s.name: {"type": s.type, "on": self.config.models.get(s.name) != "off",
-                                     "alignment_deg": list(s.alignment_deg or (0.0, 0.0, 0.0)),
-                                     "noise": s.noise,
-                                     **{k: v for k, v in s.book.items() if isinstance(v, (int, float))}}
-                            for s in self.spec.sensors},
-                "effects": list(self.config.state.effects), "method": self.config.method}
+        return {
+            "start": p.start,
+            "end": p.end,
+            "gaps": [list(g) for g in p.gaps],
+            "maneuvers": [
+                {"start": m.start, "duration": m.duration, "axis": m.axis, "rate_deg_s": m.rate_deg_s}
+                for m in p.maneuvers
+            ],
+            "stars": p.stars,
+            "attitude_mode": self.spec.attitude_mode,
+            "sensors": {
+                s.name: {
+                    "type": s.type,
+                    "on": self.config.models.get(s.name) != "off",
+                    "alignment_deg": list(s.alignment_deg or (0.0, 0.0, 0.0)),
+                    "noise": s.noise,
+                    **{k: v for k, v in s.book.items() if isinstance(v, (int, float))},
+                }
+                for s in self.spec.sensors
+            },
+            "effects": list(self.config.state.effects),
+            "method": self.config.method,
+        }
 
 
 def _num(combo, key, default=None):
@@ -186,8 +217,7 @@ def _flag(v, key) -> bool:
     raise InputError(f"must be true or false, not {v!r}", key=f"trade.vary.{key}")
 
 
-def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
-          combo: Mapping[str, Any]) -> PlanSetup:
+def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan, combo: Mapping[str, Any]) -> PlanSetup:
     """The config, mission description and plan of one combination (module docstring).
 
     Keys not in ``combo`` keep the base's values; the base plan's gaps and maneuvers
@@ -201,14 +231,12 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
         span = 60.0 * _num(combo, "span_min")
     if any(k in combo for k in ("passes", "pass_min", "separation_min")):
         if "span_min" in combo:
-            raise InputError("give span_min or passes/pass_min/separation_min, not both",
-                             key="trade.vary.span_min")
+            raise InputError("give span_min or passes/pass_min/separation_min, not both", key="trade.vary.span_min")
         n = int(_num(combo, "passes", 2))
         length = 60.0 * _num(combo, "pass_min", 10.0)
         sep = 60.0 * _num(combo, "separation_min", 0.0)
         if n < 1 or length <= 0 or sep < 0:
-            raise InputError("passes ≥ 1, pass_min > 0 and separation_min ≥ 0 are needed",
-                             key="trade.vary.passes")
+            raise InputError("passes ≥ 1, pass_min > 0 and separation_min ≥ 0 are needed", key="trade.vary.passes")
         span = n * length + (n - 1) * sep
         gaps = [(k * (length + sep) + length, (k + 1) * (length + sep)) for k in range(n - 1) if sep > 0]
     if "gap_min" in combo or "gap_start_min" in combo:
@@ -219,10 +247,14 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
     if not span > 0:
         raise InputError(f"the plan needs a positive span, not {span / 60.0:g} min", key="trade.vary.span_min")
     shift = start - base_plan.start
-    plan = replace(base_plan, start=start, end=start + span,
-                   gaps=tuple((start + a, start + b) for a, b in gaps if b > 0 and a < span),
-                   maneuvers=tuple(replace(m, start=m.start + shift) for m in base_plan.maneuvers),
-                   step=min(base_plan.step, span))
+    plan = replace(
+        base_plan,
+        start=start,
+        end=start + span,
+        gaps=tuple((start + a, start + b) for a, b in gaps if b > 0 and a < span),
+        maneuvers=tuple(replace(m, start=m.start + shift) for m in base_plan.maneuvers),
+        step=min(base_plan.step, span),
+    )
     plan = _maneuver(plan, combo, base_plan)
 
     models = dict(cfg.models)
@@ -230,8 +262,11 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
         key = f"models.{s.name}"
         if key in combo:
             current = cfg.models.get(s.name)
-            models[s.name] = "off" if not _flag(combo[key], key) else (
-                current if current is not None and current != "off" else s.type)
+            models[s.name] = (
+                "off"
+                if not _flag(combo[key], key)
+                else (current if current is not None and current != "off" else s.type)
+            )
     off = {k for k, v in models.items() if v == "off"}
     elements = {k: v for k, v in cfg.state.elements.items() if k.split(".")[0] not in off}
     effects = tuple(e for e in cfg.state.effects if e.split(".")[0] not in off)
@@ -239,15 +274,21 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan,
         text = str(combo["effects"]).strip()
         extra = () if text.lower() in ("none", "") else tuple(t.strip() for t in text.split("+"))
         effects = tuple(dict.fromkeys(effects + tuple(e for e in extra if e.split(".")[0] not in off)))
-    new_cfg = cfg.with_changes(models=models, state={
-        "elements": elements, "effects": effects,
-        "exclude": tuple(e for e in cfg.state.exclude if e.split(".")[0] not in off)})
+    new_cfg = cfg.with_changes(
+        models=models,
+        state={
+            "elements": elements,
+            "effects": effects,
+            "exclude": tuple(e for e in cfg.state.exclude if e.split(".")[0] not in off),
+        },
+    )
     new_spec = _spec(spec, combo)
     if "attitude_mode" in combo:
         mode = combo["attitude_mode"]
         if mode not in ATTITUDE_MODES:
-            raise InputError(f"must be one of {', '.join(ATTITUDE_MODES)}, not {mode!r}",
-                             key="trade.vary.attitude_mode")
+            raise InputError(
+                f"must be one of {', '.join(ATTITUDE_MODES)}, not {mode!r}", key="trade.vary.attitude_mode"
+            )
         new_spec = replace(new_spec, attitude_mode=mode)
     return PlanSetup(new_cfg, new_spec, plan)
 
@@ -263,11 +304,14 @@ def parse_maneuvers(text: str) -> list[tuple[str, float, float]]:
         try:
             axis, rate, minutes = bits[0], float(bits[1]), float(bits[2])
         except (IndexError, ValueError):
-            raise InputError(f"a maneuver is axis:rate_deg_s:minutes, not {part!r}",
-                             key="trade.vary.maneuvers") from None
+            raise InputError(
+                f"a maneuver is axis:rate_deg_s:minutes, not {part!r}", key="trade.vary.maneuvers"
+            ) from None
         if axis not in AXES or not rate or not minutes > 0:
-            raise InputError(f"a maneuver needs an axis ({', '.join(AXES)}), a rate ≠ 0 and "
-                             f"minutes > 0, not {part!r}", key="trade.vary.maneuvers")
+            raise InputError(
+                f"a maneuver needs an axis ({', '.join(AXES)}), a rate ≠ 0 and minutes > 0, not {part!r}",
+                key="trade.vary.maneuvers",
+            )
         out.append((axis, rate, minutes))
     return out
 
@@ -299,15 +343,17 @@ def _maneuver(plan: DataPlan, combo: Mapping[str, Any], base: DataPlan) -> DataP
     if axis not in AXES:
         raise InputError(f"must be one of {', '.join(AXES)} or none, not {axis!r}", key="trade.vary.maneuver.axis")
     rate = _num(combo, "maneuver.rate_deg_s", first.rate_deg_s)
-    t0 = plan.start + (60.0 * _num(combo, "maneuver.start_min") if "maneuver.start_min" in combo
-                       else first.start - base.start)
+    t0 = plan.start + (
+        60.0 * _num(combo, "maneuver.start_min") if "maneuver.start_min" in combo else first.start - base.start
+    )
     duration = first.duration
     if "maneuver.duration_min" in combo:
         duration = 60.0 * _num(combo, "maneuver.duration_min")
     if "maneuver.angle_deg" in combo:
         if "maneuver.duration_min" in combo:
-            raise InputError("give maneuver.angle_deg or maneuver.duration_min, not both",
-                             key="trade.vary.maneuver.angle_deg")
+            raise InputError(
+                "give maneuver.angle_deg or maneuver.duration_min, not both", key="trade.vary.maneuver.angle_deg"
+            )
         angle = _num(combo, "maneuver.angle_deg")
         if not rate:
             raise InputError("an angle needs a rate ≠ 0", key="trade.vary.maneuver.rate_deg_s")
@@ -328,9 +374,9 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         if not (m or b) or key in PLAN_KEYS or key.startswith(("models.", "maneuver.")):
             continue
         found = m or b
-        assert found is not None                      # skipped above otherwise
+        assert found is not None  # skipped above otherwise
         name = found.group(1)
-        field = b.group(2) if b is not None else ""   # the data-book key of a book entry
+        field = b.group(2) if b is not None else ""  # the data-book key of a book entry
         idx = next((i for i, s in enumerate(sensors) if s.name == name), None)
         if idx is None:
             raise InputError(f"no sensor named '{name}' in the mission", key=f"trade.vary.{key}")
@@ -347,8 +393,7 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         else:
             book = dict(s.book)
             if field in book and not isinstance(book[field], (int, float)):
-                raise InputError(f"{name}.{field} is not a scalar data-book key",
-                                 key=f"trade.vary.{key}")
+                raise InputError(f"{name}.{field} is not a scalar data-book key", key=f"trade.vary.{key}")
             book[field] = x
             sensors[idx] = replace(s, book=book)
     return replace(spec, sensors=tuple(sensors))

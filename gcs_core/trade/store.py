@@ -35,10 +35,17 @@ VERSION = 1
 COLLECTION = "batches"
 
 
-def append_batch(path: str | Path, fmt: str, *, study: str, digest: str, records: Sequence[Mapping],
-                 arrays: Mapping[str, np.ndarray] | None = None) -> int:
+def append_batch(
+    path: str | Path,
+    fmt: str,
+    *,
+    study: str,
+    digest: str,
+    records: Sequence[Mapping],
+    arrays: Mapping[str, np.ndarray] | None = None,
+) -> int:
     """Append one batch of finished records; returns its group number."""
-    recs = [json.dumps(r, default=_plain) for r in records]        # key order kept: it is the study's
+    recs = [json.dumps(r, default=_plain) for r in records]  # key order kept: it is the study's
     idx = np.array([int(r["index"]) for r in records], dtype=np.int64)
 
     def build(group, number):
@@ -84,8 +91,11 @@ def done_indices(path: str | Path, fmt: str, digest: str) -> set[int]:
         return set()
     head, records = read(p, fmt)
     if head.get("study_digest") and head["study_digest"] != digest:
-        raise InputError(f"holds another study (digest {head['study_digest']}, this one {digest}): "
-                         "write to a new file, or use --overwrite", file=p)
+        raise InputError(
+            f"holds another study (digest {head['study_digest']}, this one {digest}): "
+            "write to a new file, or use --overwrite",
+            file=p,
+        )
     return {int(r["index"]) for r in records}
 
 
@@ -99,8 +109,7 @@ def prepare_output(path: str | Path, fmt: str, digest: str, *, resume: bool, ove
     if not p.parent.is_dir():
         raise InputError("the output's directory does not exist", file=p.parent)
     if p.exists() and not (resume or overwrite):
-        raise InputError("exists: add --resume to compute only what is missing, or --overwrite",
-                         file=p)
+        raise InputError("exists: add --resume to compute only what is missing, or --overwrite", file=p)
     if p.exists() and overwrite and not resume:
         p.unlink()
         return set()

@@ -75,9 +75,17 @@ class StudyDefinition:
         return space.combinations(self.vary)
 
     def as_json(self) -> str:
-        return json.dumps({"config_path": self.config_path, "vary": {k: list(v) for k, v in self.vary.items()},
-                           "targets": list(self.targets), "orbit": self.orbit, "method": self.method,
-                           "top": self.top}, sort_keys=True)
+        return json.dumps(
+            {
+                "config_path": self.config_path,
+                "vary": {k: list(v) for k, v in self.vary.items()},
+                "targets": list(self.targets),
+                "orbit": self.orbit,
+                "method": self.method,
+                "top": self.top,
+            },
+            sort_keys=True,
+        )
 
     def digest(self) -> str:
         """Hash of everything the numbers depend on: the base config's settings (not its
@@ -92,8 +100,14 @@ class StudyDefinition:
     @classmethod
     def from_json(cls, text: str) -> StudyDefinition:
         d = json.loads(text)
-        return cls(d["config_path"], {k: tuple(v) for k, v in d["vary"].items()}, tuple(d["targets"]),
-                   d.get("orbit"), d.get("method"), int(d.get("top", 3)))
+        return cls(
+            d["config_path"],
+            {k: tuple(v) for k, v in d["vary"].items()},
+            tuple(d["targets"]),
+            d.get("orbit"),
+            d.get("method"),
+            int(d.get("top", 3)),
+        )
 
 
 @dataclass(frozen=True)
@@ -174,7 +188,7 @@ def _context(defn: StudyDefinition):
         end = start + 3600.0 if cfg.prediction.end is None else cfg.prediction.end
         base = DataPlan.from_config(cfg, span=(start, end))
         ctx = (cfg, spec, base, make_orbit(defn.orbit, spec.epoch))
-        _CONTEXT.clear()                      # one study at a time per process
+        _CONTEXT.clear()  # one study at a time per process
         _CONTEXT[key] = ctx
     return ctx
 
@@ -187,8 +201,7 @@ def make_orbit(orbit: Mapping[str, float] | None, epoch):
 
     missing = [k for k in ORBIT_KEYS if k not in orbit]
     if missing:
-        raise InputError(f"missing {', '.join(missing)} (an orbit needs {', '.join(ORBIT_KEYS)})",
-                         key="trade.orbit")
+        raise InputError(f"missing {', '.join(missing)} (an orbit needs {', '.join(ORBIT_KEYS)})", key="trade.orbit")
     a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg = (float(orbit[k]) for k in ORBIT_KEYS)
     return KeplerOrbit(a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg, epoch)
 
@@ -215,17 +228,19 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
             found = [(t, "rad")]
         elif t.rpartition(".")[2] in MISALIGN and f"{t.rpartition('.')[0]}.alignment" in params:
             found = [(t, "rad")]
-        elif t.endswith(".misalignment") and f"{t[:-len('.misalignment')]}.alignment" in params:
-            found = [(f"{t[:-len('.misalignment')]}.{m}", "rad") for m in MISALIGN]
+        elif t.endswith(".misalignment") and f"{t[: -len('.misalignment')]}.alignment" in params:
+            found = [(f"{t[: -len('.misalignment')]}.{m}", "rad") for m in MISALIGN]
         elif t in params:
             found = params[t]
         elif gyro and t.startswith(f"{gyro[0]}.bias_rate"):
             found = [(t, "rad/s²")]
         else:
-            raise InputError(f"unknown target '{t}': give an element (TAM1.bias_x), an effect id "
-                             "(TAM1.alignment, see gcs effects), a sensor's misalignment about its "
-                             "own axes (FHST1.misalignment, FHST1.misalign_x) or 'attitude'",
-                             key="trade.targets")
+            raise InputError(
+                f"unknown target '{t}': give an element (TAM1.bias_x), an effect id "
+                "(TAM1.alignment, see gcs effects), a sensor's misalignment about its "
+                "own axes (FHST1.misalignment, FHST1.misalign_x) or 'attitude'",
+                key="trade.targets",
+            )
         for n, u in found:
             if n not in names:
                 names.append(n)
@@ -238,8 +253,8 @@ def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str
     from gcs_core.predictor import predict
 
     cfg, spec, base, orbit = _context(defn)
-    targets = defn.targets or (ATTITUDE,)          # without targets: the attitude
-    key = (targets, defn.config_path, id(spec))     # once per process, not once per batch
+    targets = defn.targets or (ATTITUDE,)  # without targets: the attitude
+    key = (targets, defn.config_path, id(spec))  # once per process, not once per batch
     if key not in _TARGETS:
         _TARGETS.clear()
         _TARGETS[key] = target_elements(targets, spec)
@@ -261,8 +276,20 @@ def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str
             except GcsError:
                 pass
             nan = (math.nan,) * len(names)
-            out.append(PlanRow(index, pid, dict(combo), desc, names, nan, nan, units,
-                               status=" ".join(str(err).split()), seconds=time.perf_counter() - t0))
+            out.append(
+                PlanRow(
+                    index,
+                    pid,
+                    dict(combo),
+                    desc,
+                    names,
+                    nan,
+                    nan,
+                    units,
+                    status=" ".join(str(err).split()),
+                    seconds=time.perf_counter() - t0,
+                )
+            )
             continue
         out.append(_row(index, pid, combo, setup, res, names, units, time.perf_counter() - t0))
     return out
@@ -324,9 +351,23 @@ def _row(index, pid, combo, setup, res, names, units, seconds) -> PlanRow:
             noise.append(math.nan)
             cols.append(None)
     budget = {c: tuple(float(v[i]) if i is not None else 0.0 for i in cols) for c, v in res.budget.items()}
-    return PlanRow(index, pid, dict(combo), setup.describe(), names, tuple(sig), tuple(noise), units,
-                   budget, tuple(res.undetermined), tuple(res.unobservable), dict(res.frames),
-                   "ok", seconds, tuple(_prior_limited(n, res, setup.spec, x) for n, x in zip(names, noise)))
+    return PlanRow(
+        index,
+        pid,
+        dict(combo),
+        setup.describe(),
+        names,
+        tuple(sig),
+        tuple(noise),
+        units,
+        budget,
+        tuple(res.undetermined),
+        tuple(res.unobservable),
+        dict(res.frames),
+        "ok",
+        seconds,
+        tuple(_prior_limited(n, res, setup.spec, x) for n, x in zip(names, noise)),
+    )
 
 
 def _prior_limited(name: str, res, spec, noise: float) -> bool:
@@ -336,8 +377,11 @@ def _prior_limited(name: str, res, spec, noise: float) -> bool:
     if res.prior is None or not math.isfinite(noise):
         return False
     if name in ATTITUDE_NAMES:
-        prior = float(np.max(res.prior[[res.index(n) for n in ("att.roll", "att.pitch", "att.yaw")]])) \
-            if all(n in res.names for n in ("att.roll", "att.pitch", "att.yaw")) else math.inf
+        prior = (
+            float(np.max(res.prior[[res.index(n) for n in ("att.roll", "att.pitch", "att.yaw")]]))
+            if all(n in res.names for n in ("att.roll", "att.pitch", "att.yaw"))
+            else math.inf
+        )
     elif name.rpartition(".")[2] in MISALIGN:
         sensor, _, axis = name.rpartition(".")
         al = [f"{sensor}.align_{k}" for k in (1, 2, 3)]
@@ -373,14 +417,20 @@ def scores(rows: Sequence[PlanRow]) -> np.ndarray:
 def ranked(rows: Sequence[PlanRow]) -> list[tuple[float, PlanRow]]:
     """Rows sorted best first (failed plans last)."""
     sc = scores(rows)
-    order = sorted(range(len(rows)), key=lambda i: (np.isnan(sc[i]), sc[i] if np.isfinite(sc[i]) else np.inf,
-                                                    rows[i].index))
+    order = sorted(
+        range(len(rows)), key=lambda i: (np.isnan(sc[i]), sc[i] if np.isfinite(sc[i]) else np.inf, rows[i].index)
+    )
     return [(float(sc[i]), rows[i]) for i in order]
 
 
-def definition_from_config(cfg: AnalysisConfig, vary: Mapping[str, tuple] | None = None,
-                           targets: Sequence[str] | None = None, *, method: str | None = None,
-                           top: int | None = None) -> StudyDefinition:
+def definition_from_config(
+    cfg: AnalysisConfig,
+    vary: Mapping[str, tuple] | None = None,
+    targets: Sequence[str] | None = None,
+    *,
+    method: str | None = None,
+    top: int | None = None,
+) -> StudyDefinition:
     """The study of a config's ``[trade]`` table; command-line ``vary`` and ``targets``,
     when given, replace the table's."""
     if cfg.path is None:
@@ -389,14 +439,28 @@ def definition_from_config(cfg: AnalysisConfig, vary: Mapping[str, tuple] | None
     table = tr.get("vary", {})
     if not isinstance(table, dict):
         raise InputError("must be a table of KEY = [values]", key="trade.vary")
-    v = dict(vary) if vary else {k: tuple(val) if isinstance(val, (list, tuple)) else (val,)
-                                 for k, val in table.items()}
+    v = (
+        dict(vary)
+        if vary
+        else {k: tuple(val) if isinstance(val, (list, tuple)) else (val,) for k, val in table.items()}
+    )
     if not v:
         raise InputError("nothing to vary: give --vary KEY=VALUES or a [trade.vary] table", key="trade.vary")
     tg = tuple(targets) if targets else tuple(tr.get("targets", ()))
-    return StudyDefinition(str(Path(cfg.path).resolve()), v, tg, tr.get("orbit"), method,
-                           int(top if top is not None else tr.get("top", 3)))
+    return StudyDefinition(
+        str(Path(cfg.path).resolve()), v, tg, tr.get("orbit"), method, int(top if top is not None else tr.get("top", 3))
+    )
 
 
-__all__ = ["ATTITUDE", "PlanRow", "StudyDefinition", "definition_from_config", "evaluate_plans",
-           "make_orbit", "ranked", "scores", "sensor_axes_covariance", "target_elements"]
+__all__ = [
+    "ATTITUDE",
+    "PlanRow",
+    "StudyDefinition",
+    "definition_from_config",
+    "evaluate_plans",
+    "make_orbit",
+    "ranked",
+    "scores",
+    "sensor_axes_covariance",
+    "target_elements",
+]

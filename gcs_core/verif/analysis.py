@@ -16,8 +16,9 @@ from gcs_core.verif.compare import TREND_WINDOW_S, VerifResult, verify
 from gcs_core.verif.ground import covered, ground_attitude
 
 
-def verify_analysis(analysis, *, angles: str = "euler", window_s: float = TREND_WINDOW_S,
-                    requirement_rad: float | None = None) -> VerifResult:
+def verify_analysis(
+    analysis, *, angles: str = "euler", window_s: float = TREND_WINDOW_S, requirement_rad: float | None = None
+) -> VerifResult:
     """Verify the onboard attitudes of ``analysis.mission`` against its fit.
 
     Parameters
@@ -29,8 +30,11 @@ def verify_analysis(analysis, *, angles: str = "euler", window_s: float = TREND_
     """
     ob = analysis.mission.onboard
     if ob is None or len(ob) == 0:
-        raise InputError("the mission has no onboard attitude to verify (onboard_attitude.csv, ICD §6)",
-                         file=analysis.mission.spec.root / "mission.toml", key="onboard_attitude.file")
+        raise InputError(
+            "the mission has no onboard attitude to verify (onboard_attitude.csv, ICD §6)",
+            file=analysis.mission.spec.root / "mission.toml",
+            key="onboard_attitude.file",
+        )
     if analysis.result is None:
         analysis.fit(holdout=False)
     t_ob = np.asarray(ob.t, dtype=float)
@@ -42,7 +46,15 @@ def verify_analysis(analysis, *, angles: str = "euler", window_s: float = TREND_
     sigma = g.sigma_rpy if angles == "euler" else g.sigma_body
     req = analysis.config.verification.requirement_deg * DEG if requirement_rad is None else requirement_rad
     A_of = dict(zip(g.t.tolist(), g.A))
-    return verify(t_ob[keep], q_ob[keep], g.t, g.q, sigma, requirement_rad=req,
-                  mode=analysis.mission.spec.attitude_mode,
-                  reference=lambda t: np.stack([A_of[x] for x in np.asarray(t).tolist()]),
-                  angles=angles, window_s=window_s)
+    return verify(
+        t_ob[keep],
+        q_ob[keep],
+        g.t,
+        g.q,
+        sigma,
+        requirement_rad=req,
+        mode=analysis.mission.spec.attitude_mode,
+        reference=lambda t: np.stack([A_of[x] for x in np.asarray(t).tolist()]),
+        angles=angles,
+        window_s=window_s,
+    )

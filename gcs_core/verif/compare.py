@@ -95,24 +95,36 @@ class VerifResult:
         """A few lines for a terminal: per-axis mean and σ against both thresholds, the flag."""
         u = _shown(self.sigma, self.ground_accuracy, self.requirement)
         q = lambda x: display.quantity(float(x), "rad", shown=u, with_unit=False)
-        lines = [f"{self.n} onboard attitudes compared ({self.angles} angles); "
-                 "§4.4 σ = RMS of onboard − ground about zero (N − 1)",
-                 f"{'axis':6s} {f'mean [{u}]':>14s} {f'§4.4 σ [{u}]':>14s} {f'ground [{u}]':>14s} "
-                 f"{f'required [{u}]':>16s}  flag"]
+        lines = [
+            f"{self.n} onboard attitudes compared ({self.angles} angles); "
+            "§4.4 σ = RMS of onboard − ground about zero (N − 1)",
+            f"{'axis':6s} {f'mean [{u}]':>14s} {f'§4.4 σ [{u}]':>14s} {f'ground [{u}]':>14s} "
+            f"{f'required [{u}]':>16s}  flag",
+        ]
         for k, a in enumerate(AXES):
-            lines.append(f"{a:6s} {q(self.mean[k]):>14s} {q(self.sigma[k]):>14s} "
-                         f"{q(self.ground_accuracy[k]):>14s} {q(self.requirement[k]):>16s}  "
-                         f"{'FLAG' if self.flag_axes[k] else '-'}")
+            lines.append(
+                f"{a:6s} {q(self.mean[k]):>14s} {q(self.sigma[k]):>14s} "
+                f"{q(self.ground_accuracy[k]):>14s} {q(self.requirement[k]):>16s}  "
+                f"{'FLAG' if self.flag_axes[k] else '-'}"
+            )
         lines.append(("FLAG: " if self.flag else "ok: ") + self.reason)
         return "\n".join(lines)
 
     def as_report(self) -> dict:
         """JSON-ready summary in degrees."""
         deg = lambda a: [float(x) / DEG for x in a]
-        return {"n": self.n, "angles": self.angles, "axes": list(AXES), "mean_deg": deg(self.mean),
-                "sigma_deg": deg(self.sigma), "ground_accuracy_deg": deg(self.ground_accuracy),
-                "requirement_deg": deg(self.requirement), "flag_axes": [bool(f) for f in self.flag_axes],
-                "flag": self.flag, "reason": self.reason}
+        return {
+            "n": self.n,
+            "angles": self.angles,
+            "axes": list(AXES),
+            "mean_deg": deg(self.mean),
+            "sigma_deg": deg(self.sigma),
+            "ground_accuracy_deg": deg(self.ground_accuracy),
+            "requirement_deg": deg(self.requirement),
+            "flag_axes": [bool(f) for f in self.flag_axes],
+            "flag": self.flag,
+            "reason": self.reason,
+        }
 
 
 # ----------------------------------------------------------------------------------------
@@ -137,7 +149,7 @@ def slerp(t_knots, q_knots, t) -> np.ndarray:
     u = ((t - tk[k]) / (tk[k + 1] - tk[k]))[:, None]
     q0, q1 = qk[k], qk[k + 1]
     dot = np.sum(q0 * q1, axis=1)
-    q1 = np.where(dot[:, None] < 0.0, -q1, q1)            # the short way round
+    q1 = np.where(dot[:, None] < 0.0, -q1, q1)  # the short way round
     dot = np.abs(dot)
     omega = np.arccos(np.clip(dot, -1.0, 1.0))[:, None]
     small = omega < 1e-8
@@ -151,15 +163,17 @@ def _reference_matrices(reference, mode: str, t: np.ndarray) -> np.ndarray:
     """(N, 3, 3) GCI-to-reference ``A(t)`` from whatever ``reference`` is."""
     if reference is None:
         if mode not in (None, "inertial"):
-            raise InputError(f"a '{mode}' mission needs its reference frame (an ephemeris)",
-                             key="verification.reference")
+            raise InputError(
+                f"a '{mode}' mission needs its reference frame (an ephemeris)", key="verification.reference"
+            )
         return np.broadcast_to(np.eye(3), (t.size, 3, 3))
     if isinstance(reference, AttitudeProvider):
         if reference.ref is None:
-            raise InputError("attitude verification needs a three-axis reference (roll/pitch/yaw)",
-                             key="verification.reference")
+            raise InputError(
+                "attitude verification needs a three-axis reference (roll/pitch/yaw)", key="verification.reference"
+            )
         return np.asarray(reference.ref.reference(t))
-    if hasattr(reference, "state") and hasattr(reference, "sun_geocentric"):   # an Ephemeris
+    if hasattr(reference, "state") and hasattr(reference, "sun_geocentric"):  # an Ephemeris
         return ReferenceAttitude(mode, reference).reference(t)
     if callable(reference):
         return np.asarray(reference(t))
@@ -189,7 +203,7 @@ def seed_sigma(diff: np.ndarray) -> np.ndarray:
     n = diff.shape[0]
     if n < 2:
         return np.full(diff.shape[1], np.nan)
-    return np.sqrt(np.sum(diff ** 2, axis=0) / (n - 1))
+    return np.sqrt(np.sum(diff**2, axis=0) / (n - 1))
 
 
 def flag_rule(sigma, ground_accuracy, requirement) -> np.ndarray:
@@ -207,13 +221,14 @@ def _reason(sigma, ground, req, flags, n) -> str:
     q = lambda x: display.quantity(float(x), "rad", shown=u)
     for a, s, g, r, f in zip(AXES, sigma, ground, req, flags):
         if f:
-            parts.append(f"{a}: σ = {q(s)} exceeds both the ground accuracy {q(g)} "
-                         f"and the requirement {q(r)}")
+            parts.append(f"{a}: σ = {q(s)} exceeds both the ground accuracy {q(g)} and the requirement {q(r)}")
     if parts:
         return "; ".join(parts) + " — the onboard sensor calibration needs an update"
     worst = int(np.nanargmax(sigma / np.maximum(np.maximum(ground, req), 1e-300)))
-    return (f"no axis exceeds both thresholds (largest: {AXES[worst]} σ = {q(sigma[worst])} "
-            f"vs ground {q(ground[worst])}, requirement {q(req[worst])})")
+    return (
+        f"no axis exceeds both thresholds (largest: {AXES[worst]} σ = {q(sigma[worst])} "
+        f"vs ground {q(ground[worst])}, requirement {q(req[worst])})"
+    )
 
 
 def _shown(*arrays) -> str:
@@ -221,9 +236,19 @@ def _shown(*arrays) -> str:
     return display.common_unit("rad", *arrays)
 
 
-def verify(onboard_t, onboard_q, ground_t, ground_q, ground_sigma_rad, *, requirement_rad,
-           mode: str = "inertial", reference=None, angles: str = "euler",
-           window_s: float = TREND_WINDOW_S) -> VerifResult:
+def verify(
+    onboard_t,
+    onboard_q,
+    ground_t,
+    ground_q,
+    ground_sigma_rad,
+    *,
+    requirement_rad,
+    mode: str = "inertial",
+    reference=None,
+    angles: str = "euler",
+    window_s: float = TREND_WINDOW_S,
+) -> VerifResult:
     """Compare onboard attitudes with the ground attitude (§4.4, module docstring).
 
     Parameters
@@ -257,26 +282,30 @@ def verify(onboard_t, onboard_q, ground_t, ground_q, ground_sigma_rad, *, requir
     sig_g = np.asarray(ground_sigma_rad, dtype=float)
     sig_g = np.broadcast_to(sig_g, (t_g.size, 3)) if sig_g.shape in ((3,), (1, 3)) else sig_g
     if sig_g.shape != (t_g.size, 3):
-        raise InputError(f"ground_sigma_rad must have shape ({t_g.size}, 3) or (3,), not {sig_g.shape}",
-                         key="verification")
+        raise InputError(
+            f"ground_sigma_rad must have shape ({t_g.size}, 3) or (3,), not {sig_g.shape}", key="verification"
+        )
     req = np.broadcast_to(np.asarray(requirement_rad, dtype=float), (3,)).copy()
 
     inside = (t_ob >= t_g[0]) & (t_ob <= t_g[-1])
     t = t_ob[inside]
     q_ground = slerp(t_g, q_g, t)
-    diff = attitude_differences(q_ob[inside], q_ground, _reference_matrices(reference, mode, t), angles) \
-        if t.size else np.zeros((0, 3))
+    diff = (
+        attitude_differences(q_ob[inside], q_ground, _reference_matrices(reference, mode, t), angles)
+        if t.size
+        else np.zeros((0, 3))
+    )
     sg = np.column_stack([np.interp(t, t_g, sig_g[:, a]) for a in range(3)]) if t.size else np.zeros((0, 3))
     n = int(t.size)
     sigma = seed_sigma(diff)
-    ground = np.sqrt(np.mean(sg ** 2, axis=0)) if n else np.full(3, np.nan)
+    ground = np.sqrt(np.mean(sg**2, axis=0)) if n else np.full(3, np.nan)
     flags = flag_rule(sigma, ground, req)
     mean = diff.mean(axis=0) if n else np.full(3, np.nan)
 
     # trend: the same statistic and rule in consecutive windows
     if n and window_s > 0:
         K = max(int(np.ceil((t[-1] - t[0]) / window_s - 1e-9)), 1)
-        k = np.clip(((t - t[0]) // window_s).astype(int), 0, K - 1)   # the last time closes the last window
+        k = np.clip(((t - t[0]) // window_s).astype(int), 0, K - 1)  # the last time closes the last window
         tr_t = t[0] + (np.arange(K) + 0.5) * window_s
         tr_s = np.full((K, 3), np.nan)
         tr_n = np.zeros(K, dtype=int)
@@ -289,7 +318,20 @@ def verify(onboard_t, onboard_q, ground_t, ground_q, ground_sigma_rad, *, requir
             tr_f[j] = bool(np.any(flag_rule(tr_s[j], g, req)))
     else:
         tr_t, tr_s, tr_n, tr_f = np.zeros(0), np.zeros((0, 3)), np.zeros(0, int), np.zeros(0, bool)
-    return VerifResult(t=t, diff=diff, mean=mean, sigma=sigma, n=n, ground_accuracy=ground,
-                       requirement=req, flag_axes=flags, flag=bool(np.any(flags)),
-                       reason=_reason(sigma, ground, req, flags, n), angles=angles,
-                       trend_t=tr_t, trend_sigma=tr_s, trend_n=tr_n, trend_flag=tr_f)
+    return VerifResult(
+        t=t,
+        diff=diff,
+        mean=mean,
+        sigma=sigma,
+        n=n,
+        ground_accuracy=ground,
+        requirement=req,
+        flag_axes=flags,
+        flag=bool(np.any(flags)),
+        reason=_reason(sigma, ground, req, flags, n),
+        angles=angles,
+        trend_t=tr_t,
+        trend_sigma=tr_s,
+        trend_n=tr_n,
+        trend_flag=tr_f,
+    )

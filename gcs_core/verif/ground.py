@@ -46,8 +46,10 @@ class GroundAttitude:
 def _reference(attitude):
     ref = attitude.ref
     if ref is None:
-        raise InputError("attitude verification needs a three-axis mission (a spinning mission has "
-                         "no roll/pitch/yaw)", key="mission.attitude_mode")
+        raise InputError(
+            "attitude verification needs a three-axis mission (a spinning mission has no roll/pitch/yaw)",
+            key="mission.attitude_mode",
+        )
     return ref
 
 
@@ -77,13 +79,18 @@ def ground_attitude(analysis, t) -> GroundAttitude:
         if nm in col:
             J[:, :, col[nm]] = att.J[:, :, a]
     S_body = np.einsum("nia,ab,njb->nij", J, res.P_consider, J)
-    if dyn is not None:                                # the gyro wander the knots carry
-
+    if dyn is not None:  # the gyro wander the knots carry
         S_body = S_body + attitude_covariance(dyn, att.C_BI, t, J)
     A = np.asarray(ref.reference(t))
     rpy = np.column_stack(dcm_to_euler123(att.C_BI @ np.swapaxes(A, -1, -2)))
     Jr_inv = np.linalg.solve(rpy_error_jacobians(rpy), np.broadcast_to(np.eye(3), (t.size, 3, 3)))
     S_rpy = Jr_inv @ S_body @ np.swapaxes(Jr_inv, -1, -2)
     diag = lambda S: np.sqrt(np.clip(np.diagonal(S, axis1=1, axis2=2), 0.0, None))
-    return GroundAttitude(t=t, q=quat_normalize(quat_from_dcm(att.C_BI)), C_BI=att.C_BI,
-                          sigma_body=diag(S_body), sigma_rpy=diag(S_rpy), A=A)
+    return GroundAttitude(
+        t=t,
+        q=quat_normalize(quat_from_dcm(att.C_BI)),
+        C_BI=att.C_BI,
+        sigma_body=diag(S_body),
+        sigma_rpy=diag(S_rpy),
+        A=A,
+    )

@@ -7,6 +7,7 @@ import argparse
 
 def whole_number(minimum: int):
     """An argparse type: a whole number of at least ``minimum``, with a one-line refusal."""
+
     def parse(text: str) -> int:
         try:
             v = int(text)
@@ -15,4 +16,5 @@ def whole_number(minimum: int):
         if v < minimum:
             raise argparse.ArgumentTypeError(f"must be ≥ {minimum}, not {v}")
         return v
+
     return parse

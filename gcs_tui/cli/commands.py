@@ -121,6 +121,7 @@ def _write_json(path: str | None, data) -> None:
     if callable(data):
         data = data()
     from gcs_core.reporting import write_json_atomic
+
     try:
         write_json_atomic(Path(path), data)
     except OSError as err:
@@ -142,6 +143,7 @@ def _export_plots(args, a) -> None:
     if not getattr(args, "plots", None):
         return
     from gcs_tui.cli.export import export_residual_plots
+
     try:
         paths = export_residual_plots(a, Path(args.plots), fmt=args.plot_format)
     except OSError as err:
@@ -167,8 +169,10 @@ def terminal_problem() -> str:
         except (AttributeError, ValueError, OSError):
             tty = False
         if not tty:
-            return (f"gcs tui needs a terminal, but {name} is not one (redirected or piped); "
-                    "for headless runs use gcs batch, discover, predict or verify")
+            return (
+                f"gcs tui needs a terminal, but {name} is not one (redirected or piped); "
+                "for headless runs use gcs batch, discover, predict or verify"
+            )
     return ""
 
 
@@ -181,12 +185,13 @@ def step_messages(prog: Progress, task):
     def say(message: str) -> None:
         prog.message(message)
         task(text=message)
+
     return say
 
 
 def cmd_tui(args, prog: Progress) -> int:
     problem = terminal_problem()
-    if problem:                      # a full-screen app on a pipe would spin; refuse at once
+    if problem:  # a full-screen app on a pipe would spin; refuse at once
         raise InputError(problem)
     from gcs_tui.tui.app import run_tui
 
@@ -203,6 +208,7 @@ def cmd_import(args, prog: Progress) -> int:
     _lines(import_table(m))
     if args.sdf:
         from gcs_core.io.sdf import write_sdf
+
         with prog.task(f"writing the SDF {args.sdf}"):
             path = write_sdf(_output(args.sdf), m)
         _out(f"SDF written to {path}")
@@ -213,8 +219,12 @@ def cmd_import(args, prog: Progress) -> int:
 def cmd_convert(args, prog: Progress) -> int:
     from gcs_core.convert import convert
 
-    options = {"overwrite": args.force, "tle": args.tle, "name": args.name,
-               "span": tuple(args.span) if args.span else None}
+    options = {
+        "overwrite": args.force,
+        "tle": args.tle,
+        "name": args.name,
+        "span": tuple(args.span) if args.span else None,
+    }
     with prog.task(f"converting {args.source} ({args.format})"):
         report = convert(args.format, args.source, args.out, **options)
     _lines(report.lines())
@@ -239,7 +249,7 @@ def cmd_batch(args, prog: Progress) -> int:
 
     a = _analysis(args, prog)
     _fit(a, prog)
-    if args.rank or args.report:          # ICD §7 reports always carry the candidates
+    if args.rank or args.report:  # ICD §7 reports always carry the candidates
         with prog.task("ranking candidate effects"):
             a.rank()
     _print_fit(a)
@@ -248,6 +258,7 @@ def cmd_batch(args, prog: Progress) -> int:
         _lines(candidate_table(a.candidates, alpha=a.config.diagnosis.significance))
     if args.scds:
         from gcs_core.calibration import save_calibration
+
         with prog.task(f"appending the calibration to {args.scds}"):
             v = save_calibration(a, _output(args.scds), note=args.note or "")
         _out(f"calibration saved as version {v} in {args.scds}")
@@ -305,8 +316,8 @@ def cmd_effects(args, prog: Progress) -> int:
         _lines(effects_lines(a.catalogue(), a.effects_in_state(), explain=args.explain, width=width))
         return EXIT_OK
     from gcs_core.diagnosis.catalogue import generic_catalogue
-    _out("Effect ids are <SENSOR>.<effect> or model.<effect> (ICD §7); `gcs effects MISSION` "
-         "lists a mission's.")
+
+    _out("Effect ids are <SENSOR>.<effect> or model.<effect> (ICD §7); `gcs effects MISSION` lists a mission's.")
     _out("")
     _lines(generic_effects_lines(generic_catalogue(), width=width))
     return EXIT_OK
@@ -336,6 +347,7 @@ def cmd_verify(args, prog: Progress) -> int:
     _out(v.summary() if hasattr(v, "summary") else str(v))
     if args.asf:
         from gcs_core.calibration import save_ground_attitude
+
         with prog.task(f"appending the ground attitudes to {args.asf}"):
             n = save_ground_attitude(a, _output(args.asf))
         _out(f"ground attitudes saved as solution {n} in {args.asf}")
@@ -371,8 +383,10 @@ def _alpha(text: str) -> float:
     return v
 
 
-EPILOG = ("exit codes: 0 ok; 1 a finding to act on (verify flag, discover --strict added effects); "
-          "2 bad input; 3 estimation failed; 4 internal error; 130 interrupted")
+EPILOG = (
+    "exit codes: 0 ok; 1 a finding to act on (verify flag, discover --strict added effects); "
+    "2 bad input; 3 estimation failed; 4 internal error; 130 interrupted"
+)
 
 
 def _common(top: bool) -> _Parser:
@@ -380,19 +394,36 @@ def _common(top: bool) -> _Parser:
     default to SUPPRESS so they do not undo what was given before the name)."""
     common = _Parser(add_help=False)
     dflt = (lambda v: v) if top else (lambda v: argparse.SUPPRESS)
-    common.add_argument("-v", "--verbose", action="store_true", default=dflt(False),
-                        help="debug logging (and the traceback of an internal error)")
-    common.add_argument("-q", "--quiet", action="store_true", default=dflt(False),
-                        help="no progress or log lines, only results, warnings and errors")
-    common.add_argument("--progress", choices=MODES, default=dflt("auto"),
-                        help="progress display: a live line on a terminal (auto), always (bar), "
-                             "plain log lines (plain) or none (off)")
+    common.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        default=dflt(False),
+        help="debug logging (and the traceback of an internal error)",
+    )
+    common.add_argument(
+        "-q",
+        "--quiet",
+        action="store_true",
+        default=dflt(False),
+        help="no progress or log lines, only results, warnings and errors",
+    )
+    common.add_argument(
+        "--progress",
+        choices=MODES,
+        default=dflt("auto"),
+        help="progress display: a live line on a terminal (auto), always (bar), plain log lines (plain) or none (off)",
+    )
     return common
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = _Parser(prog="gcs", description="GCS: calibrate and verify spacecraft attitude sensors",
-                epilog=EPILOG, parents=[_common(True)])
+    p = _Parser(
+        prog="gcs",
+        description="GCS: calibrate and verify spacecraft attitude sensors",
+        epilog=EPILOG,
+        parents=[_common(True)],
+    )
     sub = p.add_subparsers(dest="command", required=True, metavar="COMMAND", parser_class=_Parser)
     common = _common(False)
 
@@ -402,14 +433,20 @@ def build_parser() -> argparse.ArgumentParser:
         return sp
 
     def target(sp, required=True):
-        sp.add_argument("target", nargs=None if required else "?",
-                        help="analysis config (.toml) or mission directory")
+        sp.add_argument("target", nargs=None if required else "?", help="analysis config (.toml) or mission directory")
 
     sp = add("tui", cmd_tui, "the analyst's terminal UI")
-    sp.add_argument("target", nargs="?", default="sample_data/missions/hidden-tam-contamination",
-                    help="analysis config (.toml) or mission directory")
-    sp.add_argument("--out", help="folder for the files the TUI writes unasked (config, SCDS, screenshots); "
-                                  "default: beside the config, else beside the mission directory")
+    sp.add_argument(
+        "target",
+        nargs="?",
+        default="sample_data/missions/hidden-tam-contamination",
+        help="analysis config (.toml) or mission directory",
+    )
+    sp.add_argument(
+        "--out",
+        help="folder for the files the TUI writes unasked (config, SCDS, screenshots); "
+        "default: beside the config, else beside the mission directory",
+    )
 
     sp = add("import", cmd_import, "validate a mission directory, show what was read, write the SDF")
     sp.add_argument("mission", help="mission directory (ICD §1)")
@@ -421,8 +458,13 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("source", help="the file to convert")
     sp.add_argument("--out", required=True, help="the mission directory to write")
     sp.add_argument("--tle", help="two-line elements of the orbit (astropi)")
-    sp.add_argument("--span", nargs=2, type=float, metavar=("START", "END"),
-                    help="keep only the samples in this window [s from the first sample] (broad)")
+    sp.add_argument(
+        "--span",
+        nargs=2,
+        type=float,
+        metavar=("START", "END"),
+        help="keep only the samples in this window [s from the first sample] (broad)",
+    )
     sp.add_argument("--name", help="mission name (default from the source file)")
     sp.add_argument("--force", action="store_true", help="replace a non-empty output directory")
 
@@ -431,15 +473,21 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--start", type=float, help="first time used [s since the epoch]")
     sp.add_argument("--end", type=float, help="last time used [s since the epoch]")
 
-    for name, func, helptext in (("batch", cmd_batch, "fit the configured state"),
-                                 ("discover", cmd_discover, "stepwise missing-effect discovery")):
+    for name, func, helptext in (
+        ("batch", cmd_batch, "fit the configured state"),
+        ("discover", cmd_discover, "stepwise missing-effect discovery"),
+    ):
         sp = add(name, func, helptext)
         target(sp)
         sp.add_argument("--report", help="write the JSON report (ICD §7) here")
         sp.add_argument("--method", choices=("whole_span", "batch", "kalman"), help="override the config's method")
         sp.add_argument("--plots", help="export residual plots to this folder")
-        sp.add_argument("--plot-format", choices=("txt", "html"), default="txt",
-                        help="plain-text plots, one per component, or one HTML page")
+        sp.add_argument(
+            "--plot-format",
+            choices=("txt", "html"),
+            default="txt",
+            help="plain-text plots, one per component, or one HTML page",
+        )
         if name == "batch":
             sp.add_argument("--rank", action="store_true", help="also print the ranked candidate effects")
             sp.add_argument("--scds", help="append the calibration to this SCDS (HDF5)")
@@ -463,6 +511,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--asf", help="append the ground attitudes to this Attitude Status File")
 
     from gcs_tui.cli.trade import add_commands
+
     add_commands(add, target)
     return p
 
@@ -508,7 +557,7 @@ def main(argv=None) -> int:
     """Run one ``gcs`` command; returns the exit code (module docstring)."""
     try:
         args = build_parser().parse_args(argv)
-    except SystemExit as exc:             # --help (0) or a usage error (2), already printed
+    except SystemExit as exc:  # --help (0) or a usage error (2), already printed
         return exc.code if isinstance(exc.code, int) else EXIT_INPUT
     prog = Progress(sys.stderr, mode="off" if args.quiet else args.progress)
     handler = LogHandler(prog)
@@ -520,7 +569,7 @@ def main(argv=None) -> int:
         return code
     except InputError as err:
         if err.file is None and err.key and getattr(args, "config_path", None) is not None:
-            err.file = args.config_path          # a config key: name the config it is in
+            err.file = args.config_path  # a config key: name the config it is in
         kind = "config error" if isinstance(err, ConfigError) else "error"
         return _error(prog, f"{kind}: {err}", EXIT_INPUT)
     except EstimationError as err:
@@ -529,7 +578,7 @@ def main(argv=None) -> int:
         return _error(prog, f"error: {err}", EXIT_INPUT)
     except KeyboardInterrupt:
         return _error(prog, "interrupted", EXIT_INTERRUPT)
-    except BrokenPipeError:               # stdout closed early (gcs ... | head): not an error
+    except BrokenPipeError:  # stdout closed early (gcs ... | head): not an error
         try:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         except (OSError, ValueError, AttributeError):
@@ -541,8 +590,12 @@ def main(argv=None) -> int:
         if args.verbose:
             prog.close()
             traceback.print_exc(file=sys.stderr)
-        return _error(prog, f"internal error: {type(err).__name__}: {err} — a bug in GCS; please report it "
-                            "(rerun with -v for the traceback)", EXIT_INTERNAL)
+        return _error(
+            prog,
+            f"internal error: {type(err).__name__}: {err} — a bug in GCS; please report it "
+            "(rerun with -v for the traceback)",
+            EXIT_INTERNAL,
+        )
     finally:
         prog.close()
         _restore_logging(handler, saved)

@@ -49,7 +49,7 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
     esc = html.escape
     if t.size == 0:
         return f"<h2>{esc(title)}</h2><p>no data</p>"
-    left, right, top, bottom = 80, 170, 20, 50            # margins: ticks left, legend right
+    left, right, top, bottom = 80, 170, 20, 50  # margins: ticks left, legend right
     pw, ph = width - left - right, height - top - bottom
     finite = np.isfinite(y)
     spread = float(np.max(np.abs(y[finite & ~edited]))) if np.any(finite & ~edited) else 0.0
@@ -59,48 +59,61 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
         x1 = x0 + 1.0
     sx = lambda v: left + (v - x0) / (x1 - x0) * pw
     sy = lambda v: top + (lim - v) / (2 * lim) * ph
-    parts = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
-             f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12">',
-             f'<rect width="{width}" height="{height}" fill="white"/>',
-             f'<rect x="{left}" y="{sy(3 * sigma):.1f}" width="{pw}" height="{sy(-3 * sigma) - sy(3 * sigma):.1f}" '
-             'fill="#f5d5a0" fill-opacity="0.6"/>']
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+        f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12">',
+        f'<rect width="{width}" height="{height}" fill="white"/>',
+        f'<rect x="{left}" y="{sy(3 * sigma):.1f}" width="{pw}" height="{sy(-3 * sigma) - sy(3 * sigma):.1f}" '
+        'fill="#f5d5a0" fill-opacity="0.6"/>',
+    ]
     for v in (3 * sigma, -3 * sigma):
-        parts.append(f'<line x1="{left}" x2="{left + pw}" y1="{sy(v):.1f}" y2="{sy(v):.1f}" stroke="#d35400" '
-                     'stroke-dasharray="6 3"/>')
+        parts.append(
+            f'<line x1="{left}" x2="{left + pw}" y1="{sy(v):.1f}" y2="{sy(v):.1f}" stroke="#d35400" '
+            'stroke-dasharray="6 3"/>'
+        )
     parts.append(f'<line x1="{left}" x2="{left + pw}" y1="{sy(0):.1f}" y2="{sy(0):.1f}" stroke="#999"/>')
     yc = np.clip(y, -lim, lim)
     for ti, yi in zip(t[~edited & finite], yc[~edited & finite]):
         parts.append(f'<circle cx="{sx(ti):.1f}" cy="{sy(yi):.1f}" r="1.3" fill="#1f4e79"/>')
     for ti, yi in zip(t[edited & finite], yc[edited & finite]):
         a, b = sx(ti), sy(yi)
-        parts.append(f'<path d="M{a - 3:.1f},{b - 3:.1f}L{a + 3:.1f},{b + 3:.1f}M{a - 3:.1f},{b + 3:.1f}'
-                     f'L{a + 3:.1f},{b - 3:.1f}" stroke="#c0392b" stroke-width="1.5"/>')
+        parts.append(
+            f'<path d="M{a - 3:.1f},{b - 3:.1f}L{a + 3:.1f},{b + 3:.1f}M{a - 3:.1f},{b + 3:.1f}'
+            f'L{a + 3:.1f},{b - 3:.1f}" stroke="#c0392b" stroke-width="1.5"/>'
+        )
     # axes, ticks and labels
-    parts.append(f'<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#222" '
-                 'shape-rendering="crispEdges"/>')
+    parts.append(
+        f'<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#222" '
+        'shape-rendering="crispEdges"/>'
+    )
     xt = display.nice_ticks(x0, x1, 7)
     for v, lab in zip(xt, display.tick_labels(xt)):
-        parts.append(f'<line x1="{sx(v):.1f}" x2="{sx(v):.1f}" y1="{top + ph}" y2="{top + ph + 5}" stroke="#333"/>'
-                     f'<text x="{sx(v):.1f}" y="{top + ph + 18}" text-anchor="middle">{esc(lab)}</text>')
+        parts.append(
+            f'<line x1="{sx(v):.1f}" x2="{sx(v):.1f}" y1="{top + ph}" y2="{top + ph + 5}" stroke="#333"/>'
+            f'<text x="{sx(v):.1f}" y="{top + ph + 18}" text-anchor="middle">{esc(lab)}</text>'
+        )
     yt = display.nice_ticks(-lim, lim, 7)
     for v, lab in zip(yt, display.tick_labels(yt)):
-        parts.append(f'<line x1="{left - 5}" x2="{left}" y1="{sy(v):.1f}" y2="{sy(v):.1f}" stroke="#333"/>'
-                     f'<text x="{left - 8}" y="{sy(v) + 4:.1f}" text-anchor="end">{esc(lab)}</text>')
+        parts.append(
+            f'<line x1="{left - 5}" x2="{left}" y1="{sy(v):.1f}" y2="{sy(v):.1f}" stroke="#333"/>'
+            f'<text x="{left - 8}" y="{sy(v) + 4:.1f}" text-anchor="end">{esc(lab)}</text>'
+        )
     parts.append(f'<text x="{left + pw / 2}" y="{height - 10}" text-anchor="middle">mission time t [s]</text>')
     ylab = f"residual [{unit}]" if unit else "residual"
-    parts.append(f'<text transform="translate(18,{top + ph / 2}) rotate(-90)" text-anchor="middle">'
-                 f'{esc(ylab)}</text>')
+    parts.append(f'<text transform="translate(18,{top + ph / 2}) rotate(-90)" text-anchor="middle">{esc(ylab)}</text>')
     # legend, outside the data (right margin)
     lx, ly = left + pw + 15, top + 10
-    parts.append(f'<circle cx="{lx + 6}" cy="{ly}" r="3" fill="#1f4e79"/>'
-                 f'<text x="{lx + 16}" y="{ly + 4}">used</text>'
-                 f'<path d="M{lx + 3},{ly + 17}L{lx + 9},{ly + 23}M{lx + 3},{ly + 23}L{lx + 9},{ly + 17}" '
-                 f'stroke="#c0392b" stroke-width="1.5"/><text x="{lx + 16}" y="{ly + 24}">edited</text>'
-                 f'<rect x="{lx}" y="{ly + 33}" width="12" height="10" fill="#f5d5a0" stroke="#d35400" '
-                 f'stroke-dasharray="3 2"/><text x="{lx + 16}" y="{ly + 42}">±3σ band</text>'
-                 f'<text x="{lx}" y="{ly + 62}">σ = {esc(display.sig(sigma, 2))} {esc(unit)}</text>')
+    parts.append(
+        f'<circle cx="{lx + 6}" cy="{ly}" r="3" fill="#1f4e79"/>'
+        f'<text x="{lx + 16}" y="{ly + 4}">used</text>'
+        f'<path d="M{lx + 3},{ly + 17}L{lx + 9},{ly + 23}M{lx + 3},{ly + 23}L{lx + 9},{ly + 17}" '
+        f'stroke="#c0392b" stroke-width="1.5"/><text x="{lx + 16}" y="{ly + 24}">edited</text>'
+        f'<rect x="{lx}" y="{ly + 33}" width="12" height="10" fill="#f5d5a0" stroke="#d35400" '
+        f'stroke-dasharray="3 2"/><text x="{lx + 16}" y="{ly + 42}">±3σ band</text>'
+        f'<text x="{lx}" y="{ly + 62}">σ = {esc(display.sig(sigma, 2))} {esc(unit)}</text>'
+    )
     parts.append("</svg>")
-    return f'<h2>{esc(title)}</h2>\n<figure>{"".join(parts)}</figure>'
+    return f"<h2>{esc(title)}</h2>\n<figure>{''.join(parts)}</figure>"
 
 
 def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[Path]:
@@ -119,8 +132,10 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
             t, ed = r.t[sel], r.edited[sel]
             y = r.residual[sel, j] * k
             sigma = float(sig_all[j if sig_all.size > 1 else 0]) * k
-            title = (f"{name} {comp}: residual against time (normalized RMS {r.rms_normalized:.3f}, "
-                     f"n {int(np.count_nonzero(~ed))}, edited {int(np.count_nonzero(ed))})")
+            title = (
+                f"{name} {comp}: residual against time (normalized RMS {r.rms_normalized:.3f}, "
+                f"n {int(np.count_nonzero(~ed))}, edited {int(np.count_nonzero(ed))})"
+            )
             if fmt == "txt":
                 p = folder / f"residuals_{name}_{comp}.txt"
                 write_atomic(p, text_plot(t, y, ed, sigma, title, unit))
@@ -130,14 +145,17 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
     if fmt == "html":
         p = folder / "residuals.html"
         name = html.escape(analysis.mission.spec.name)
-        page = ("<!doctype html>\n<html lang='en'><head><meta charset='utf-8'>"
-                f"<title>GCS residuals — {name}</title>"
-                "<style>body{font-family:sans-serif;margin:2em;max-width:960px}h2{font-size:1.05em;"
-                "margin:1.5em 0 .3em}figure{margin:0}</style></head><body>"
-                f"<h1>Residuals: {name}</h1><p>Post-fit residual (measured − modelled) of every sensor "
-                "component against mission time, in the unit chosen from its σ; the shaded band is ±3σ "
-                "of the sensor's noise; red × marks frames edited out of the fit.</p>\n"
-                + "\n".join(sections) + "\n</body></html>\n")
+        page = (
+            "<!doctype html>\n<html lang='en'><head><meta charset='utf-8'>"
+            f"<title>GCS residuals — {name}</title>"
+            "<style>body{font-family:sans-serif;margin:2em;max-width:960px}h2{font-size:1.05em;"
+            "margin:1.5em 0 .3em}figure{margin:0}</style></head><body>"
+            f"<h1>Residuals: {name}</h1><p>Post-fit residual (measured − modelled) of every sensor "
+            "component against mission time, in the unit chosen from its σ; the shaded band is ±3σ "
+            "of the sensor's noise; red × marks frames edited out of the fit.</p>\n"
+            + "\n".join(sections)
+            + "\n</body></html>\n"
+        )
         write_atomic(p, page)
         out.append(p)
     return out

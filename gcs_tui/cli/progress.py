@@ -60,7 +60,7 @@ class Progress:
         if mode == "auto":
             mode = "bar" if (console is not None or _is_terminal(self.stream)) else "plain"
         self.mode = mode
-        self._live: Any = None     # rich.progress.Progress while a task runs (bar mode)
+        self._live: Any = None  # rich.progress.Progress while a task runs (bar mode)
         self._t0 = time.monotonic()
 
     # ------------------------------------------------------------------ output
@@ -101,8 +101,12 @@ class Progress:
             live.stop()
             self._live = None
             mark = "✓" if ok else "✗"
-            live.console.print(f"[green]{mark}[/] {handle.text} [dim]{time.monotonic() - start:.1f} s[/]"
-                               if ok else f"[red]{mark}[/] {handle.text}", highlight=False)
+            live.console.print(
+                f"[green]{mark}[/] {handle.text} [dim]{time.monotonic() - start:.1f} s[/]"
+                if ok
+                else f"[red]{mark}[/] {handle.text}",
+                highlight=False,
+            )
 
     def _update(self, task: Task, done, total, text) -> None:
         if text and text != task.last:
@@ -118,8 +122,7 @@ class Progress:
             kw["completed"] = done
         current = self._live.tasks[-1] if self._live.tasks else None
         if current is not None and (done is not None or total is not None):
-            kw["count"] = _count(current.completed if done is None else done,
-                                 current.total if total is None else total)
+            kw["count"] = _count(current.completed if done is None else done, current.total if total is None else total)
         if text:
             kw["description"] = _short(text)
         self._live.update(task._id, **kw)
@@ -132,9 +135,17 @@ class Progress:
         console = self._console or Console(file=self.stream, highlight=False)
         # "done/total" only when the total is known; the bar pulses otherwise
         count = TextColumn("{task.fields[count]}", style="progress.download")
-        live = RichProgress(SpinnerColumn(), TextColumn("{task.description}"), BarColumn(bar_width=20),
-                            count, TimeElapsedColumn(), console=console, transient=True,
-                            redirect_stdout=False, redirect_stderr=False)
+        live = RichProgress(
+            SpinnerColumn(),
+            TextColumn("{task.description}"),
+            BarColumn(bar_width=20),
+            count,
+            TimeElapsedColumn(),
+            console=console,
+            transient=True,
+            redirect_stdout=False,
+            redirect_stderr=False,
+        )
         live.start()
         self._live = live
         return live
@@ -183,4 +194,4 @@ def _count(done, total) -> str:
 
 
 def _short(text: str, width: int = 50) -> str:
-    return text if len(text) <= width else text[:width - 1] + "…"
+    return text if len(text) <= width else text[: width - 1] + "…"

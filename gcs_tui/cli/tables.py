@@ -19,8 +19,10 @@ from gcs_core import display
 from gcs_core.reporting import remaining_summary
 
 #: what "unobservable" means, said once under the list
-UNOBSERVABLE_NOTE = ("(unobservable: the data constrain only the combination named; each element's σ "
-                     "there comes from its a priori, not from the data)")
+UNOBSERVABLE_NOTE = (
+    "(unobservable: the data constrain only the combination named; each element's σ "
+    "there comes from its a priori, not from the data)"
+)
 
 
 def fit_table(analysis) -> list[str]:
@@ -29,24 +31,31 @@ def fit_table(analysis) -> list[str]:
     component; then the status and the goodness-of-fit verdict."""
     res = analysis.result
     gof = analysis.goodness() if hasattr(analysis, "goodness") else None
-    lines = [f"{'sensor':10s} {'n':>7s} {'edited':>6s} {'norm. RMS':>9s} {'held-out':>9s} "
-             f"{'p fit':>8s} {'p held':>8s}  RMS per component"]
+    lines = [
+        f"{'sensor':10s} {'n':>7s} {'edited':>6s} {'norm. RMS':>9s} {'held-out':>9s} "
+        f"{'p fit':>8s} {'p held':>8s}  RMS per component"
+    ]
     for name, r in res.residuals.items():
         rms = np.atleast_1d(np.asarray(r.rms, dtype=float))
         shown = display.display_unit(r.unit, float(np.nanmax(rms)) if rms.size else float("nan"))
-        comp = ", ".join(f"{c} {display.quantity(v, r.unit, shown=shown, with_unit=False)}"
-                         for c, v in zip(r.components, rms))
+        comp = ", ".join(
+            f"{c} {display.quantity(v, r.unit, shown=shown, with_unit=False)}" for c, v in zip(r.components, rms)
+        )
         ho = analysis.holdout_rms.get(name, float("nan"))
         lab = display.unit_label(shown)
         p_fit = _p_cell(gof.sensors.get(name) if gof else None, gof)
         p_ho = _p_cell(gof.holdout_sensors.get(name) if gof else None, gof)
-        lines.append(f"{name:10s} {r.n:7d} {int(np.count_nonzero(r.edited)):6d} {r.rms_normalized:9.3f} "
-                     f"{ho:9.3f} {p_fit:>8s} {p_ho:>8s}  {comp}" + (f" [{lab}]" if lab else ""))
+        lines.append(
+            f"{name:10s} {r.n:7d} {int(np.count_nonzero(r.edited)):6d} {r.rms_normalized:9.3f} "
+            f"{ho:9.3f} {p_fit:>8s} {p_ho:>8s}  {comp}" + (f" [{lab}]" if lab else "")
+        )
     lines.append(f"status: {res.message}; χ² {res.chi2:.1f} on {res.dof} dof")
     if gof is not None:
         lines.append(f"goodness of fit: {gof.verdict}")
-        lines.append(f"  (p: χ² upper tail on the effective dof, {gof.effective_parameters:.1f} effective "
-                     f"parameters; ! marks p below the per-test level {gof.level:.2g})")
+        lines.append(
+            f"  (p: χ² upper tail on the effective dof, {gof.effective_parameters:.1f} effective "
+            f"parameters; ! marks p below the per-test level {gof.level:.2g})"
+        )
     for u in res.unobservable:
         lines.append(f"unobservable from the data: {u}")
     if res.unobservable:
@@ -76,8 +85,13 @@ def state_table(analysis) -> list[str]:
     for e in res.state:
         if e.role == "held":
             continue
-        note = ("   (not determined by the data)" if e.name in loose else
-                "   (set by the a priori)" if e.name in prior else "")
+        note = (
+            "   (not determined by the data)"
+            if e.name in loose
+            else "   (set by the a priori)"
+            if e.name in prior
+            else ""
+        )
         lines.append(f"{e.name:28s} {e.role:10s} {display.estimate(e.value, sig.get(e.name, e.sigma0), e.unit)}{note}")
     for name, why in loose.items():
         lines.append(f"{name}: {why}")
@@ -86,8 +100,10 @@ def state_table(analysis) -> list[str]:
         ratio = {n: math.sqrt(res.P[idx[n], idx[n]]) / res.state[n].sigma0 for n in prior if n in idx}
         shown = [f"{n} {ratio[n]:.2f}" for n in prior if n not in loose and n in ratio]
         if shown:
-            lines.append("set by the a priori (the data give less information than the a priori; "
-                         "posterior σ / a-priori σ): " + ", ".join(shown))
+            lines.append(
+                "set by the a priori (the data give less information than the a priori; "
+                "posterior σ / a-priori σ): " + ", ".join(shown)
+            )
     return lines
 
 
@@ -100,8 +116,10 @@ def prediction_table(res) -> list[str]:
     lines = []
     plan = getattr(res, "plan", None)
     if plan is not None:
-        lines.append(f"plan t = {plan.start:g} to {plan.end:g} s, {len(plan.gaps)} gap(s), "
-                     f"{len(plan.maneuvers)} maneuver(s); method {res.method}")
+        lines.append(
+            f"plan t = {plan.start:g} to {plan.end:g} s, {len(plan.gaps)} gap(s), "
+            f"{len(plan.maneuvers)} maneuver(s); method {res.method}"
+        )
     lines.append(f"{'element':28s} predicted 1-sigma at end of plan")
     undetermined = set(getattr(res, "undetermined", ()))
     for n, u, s in zip(names, units, final):
@@ -112,13 +130,17 @@ def prediction_table(res) -> list[str]:
         # three-axis: about the body axes; spinning: of the spin-axis unit vector (≈ angles)
         axes = ("roll", "pitch", "yaw") if "att.roll" in names else ("spin axis x", "spin axis y", "spin axis z")
         shown = display.display_unit("rad", float(np.nanmax(att[-1])))
-        lines.append("attitude 1-sigma at end of plan: " + ", ".join(
-            f"{ax} {display.quantity(float(v), 'rad', shown=shown)}" for ax, v in zip(axes, att[-1])))
+        lines.append(
+            "attitude 1-sigma at end of plan: "
+            + ", ".join(f"{ax} {display.quantity(float(v), 'rad', shown=shown)}" for ax, v in zip(axes, att[-1]))
+        )
     frames = getattr(res, "frames", None)
     if frames:
         avail = getattr(res, "availability", {})
-        lines.append("usable frames: " + ", ".join(
-            f"{k} {v}" + (f" ({100 * avail[k]:.0f}%)" if k in avail else "") for k, v in frames.items()))
+        lines.append(
+            "usable frames: "
+            + ", ".join(f"{k} {v}" + (f" ({100 * avail[k]:.0f}%)" if k in avail else "") for k, v in frames.items())
+        )
     for u in getattr(res, "unobservable", ()):
         lines.append(f"unobservable from the plan: {u}")
     if getattr(res, "unobservable", ()):
@@ -136,8 +158,10 @@ def candidate_table(candidates: Iterable, *, alpha: float, limit: int | None = 1
     lines = [f"{'candidate':38s} {'Δχ²':>10s} {'dof':>3s} {'p':>9s} {'p adj':>9s}  identifiable"]
     for c in cands[:limit] if limit else cands:
         mark = " *" if c.identifiable and c.p_adjusted < alpha else ""
-        lines.append(f"{c.id:38s} {c.delta_chi2:10.1f} {c.dof:3d} {display.pvalue(c.p_value):>9s} "
-                     f"{display.pvalue(c.p_adjusted):>9s}  {'yes' if c.identifiable else 'no'}{mark}")
+        lines.append(
+            f"{c.id:38s} {c.delta_chi2:10.1f} {c.dof:3d} {display.pvalue(c.p_value):>9s} "
+            f"{display.pvalue(c.p_adjusted):>9s}  {'yes' if c.identifiable else 'no'}{mark}"
+        )
     if limit and len(cands) > limit:
         lines.append(f"... {len(cands) - limit} more (all are in the JSON report)")
     lines.append(f"* significant and identifiable at family-wise α = {alpha:g}: p adj = min(1, {len(cands)}·p) < α")
@@ -155,9 +179,10 @@ def steps_table(steps: Iterable, *, min_change: float = 0.005) -> list[str]:
         if not shown and moved:
             n = max(moved, key=lambda n: abs(moved[n][1] - moved[n][0]) if math.isfinite(moved[n][0]) else 0.0)
             shown = {n: moved[n]}
-        rms = ", ".join(f"{n} {b:.3f} → {a:.3f}" + (f" (held-out {s.holdout_after[n]:.3f})"
-                                                     if n in s.holdout_after else "")
-                        for n, (b, a) in shown.items())
+        rms = ", ".join(
+            f"{n} {b:.3f} → {a:.3f}" + (f" (held-out {s.holdout_after[n]:.3f})" if n in s.holdout_after else "")
+            for n, (b, a) in shown.items()
+        )
         verb = "added" if s.action == "add" else "removed"
         lines.append(f"{k:2d}. {verb} {s.effect}: Δχ² {s.delta_chi2:.1f}; normalized RMS {rms}")
     return lines
@@ -168,18 +193,21 @@ def import_table(mission) -> list[str]:
     (an :class:`~gcs_core.io.importer.ImportedMission`)."""
     spec, rep = mission.spec, mission.report
     root = Path(getattr(spec, "root", "."))
-    lines = [f"mission {spec.name}: {len(spec.sensors)} sensors "
-             f"({', '.join(f'{s.name} {s.type}' for s in spec.sensors)}), attitude mode {spec.attitude_mode}",
-             "",
-             f"{'file':34s} {'role':20s} {'rows kept':>9s} {'NaN dropped':>11s} {'duplicates':>10s}"]
+    lines = [
+        f"mission {spec.name}: {len(spec.sensors)} sensors "
+        f"({', '.join(f'{s.name} {s.type}' for s in spec.sensors)}), attitude mode {spec.attitude_mode}",
+        "",
+        f"{'file':34s} {'role':20s} {'rows kept':>9s} {'NaN dropped':>11s} {'duplicates':>10s}",
+    ]
     for fc in rep.files:
         try:
             shown = Path(fc.file).relative_to(root).as_posix()
         except ValueError:
             shown = str(fc.file)
         lines.append(f"{shown:34s} {fc.what:20s} {fc.rows:9d} {fc.dropped_nan:11d} {fc.dropped_duplicates:10d}")
-    lines.append(f"{'total':34s} {'':20s} {sum(f.rows for f in rep.files):9d} {rep.dropped_nan:11d} "
-                 f"{rep.dropped_duplicates:10d}")
+    lines.append(
+        f"{'total':34s} {'':20s} {sum(f.rows for f in rep.files):9d} {rep.dropped_nan:11d} {rep.dropped_duplicates:10d}"
+    )
     lines.append("")
     lines.append("unknown keys (kept, not used): " + (", ".join(rep.unknown_keys) or "none"))
     lines += [f"repair: {r}" for r in rep.repairs] or ["repairs: none"]
@@ -187,15 +215,16 @@ def import_table(mission) -> list[str]:
     return lines
 
 
-def effects_lines(effects: Iterable, in_state: Iterable[str], *, explain: bool = False,
-                  width: int = 100) -> list[str]:
+def effects_lines(effects: Iterable, in_state: Iterable[str], *, explain: bool = False, width: int = 100) -> list[str]:
     """A mission's catalogue: effect id, family, whether it is in the state, its elements."""
     in_state = set(in_state)
     lines = [f"{'effect id':38s} {'family':18s} {'in state':8s} elements"]
     for e in effects:
         elems = ", ".join(e.elements) if e.elements else "(physics option)"
-        lines.append(f"{e.id:38s} {e.family:18s} {'yes' if e.id in in_state else 'no':8s} "
-                     + textwrap.shorten(elems, max(20, width - 67), placeholder=" ..."))
+        lines.append(
+            f"{e.id:38s} {e.family:18s} {'yes' if e.id in in_state else 'no':8s} "
+            + textwrap.shorten(elems, max(20, width - 67), placeholder=" ...")
+        )
         if explain and e.explanation:
             lines += textwrap.wrap(e.explanation, width, initial_indent="    ", subsequent_indent="    ")
     return lines
@@ -218,9 +247,14 @@ def remaining_lines(analysis) -> list[str]:
         noise = d["noise"]
         what = "estimated from the data" if d["noise_estimated"] else "of the data book"
         src = f" {noise:.4g} {d['unit']} noise ({what})" if noise else " noise"
-        verdict = ("consistent with the noise" if d["consistent_with_noise"] else
-                   f"not consistent with the noise (χ²/n = {d['chi2_per_measurement']:.3g}, "
-                   f"1 ± {d['consistency_bound']:.2g} expected): something is left unexplained")
-        lines.append(f"{name}: residual {d['rms']:.4g} {d['unit']} RMS, {d['rms_normalized']:.3g}× "
-                     f"the{src}, held-out {d['holdout_rms_normalized']:.3g}×; {verdict}")
+        verdict = (
+            "consistent with the noise"
+            if d["consistent_with_noise"]
+            else f"not consistent with the noise (χ²/n = {d['chi2_per_measurement']:.3g}, "
+            f"1 ± {d['consistency_bound']:.2g} expected): something is left unexplained"
+        )
+        lines.append(
+            f"{name}: residual {d['rms']:.4g} {d['unit']} RMS, {d['rms_normalized']:.3g}× "
+            f"the{src}, held-out {d['holdout_rms_normalized']:.3g}×; {verdict}"
+        )
     return lines

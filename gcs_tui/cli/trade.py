@@ -49,8 +49,9 @@ def _count(text: str) -> int:
 def _scale_args(sp) -> None:
     sp.add_argument("--workers", type=_count, default=0, help="run on a local Dask cluster of N processes")
     sp.add_argument("--scheduler", help="run on an existing Dask cluster (tcp://host:port)")
-    sp.add_argument("--batch", type=_count, help="plans (runs) per Dask task (default: about 4 tasks per "
-                                                 "worker; Monte Carlo: 1)")
+    sp.add_argument(
+        "--batch", type=_count, help="plans (runs) per Dask task (default: about 4 tasks per worker; Monte Carlo: 1)"
+    )
     sp.add_argument("--resume", action="store_true", help="compute only what the output file lacks")
     sp.add_argument("--overwrite", action="store_true", help="replace an existing output file")
 
@@ -59,10 +60,21 @@ def add_commands(add, target) -> None:
     """Register the three commands on the ``gcs`` parser (``add``/``target`` from cli.py)."""
     sp = add("trade", cmd_trade, "trade study: the predictor over many plans and configurations")
     target(sp)
-    sp.add_argument("--vary", action="append", default=[], metavar="KEY=VALUES",
-                    help="a key and its values (V1,V2,... or FIRST:LAST:STEP); repeat for more keys")
-    sp.add_argument("--target", dest="target_", action="append", default=[], metavar="ELEMENT",
-                    help="element, effect id or 'attitude' whose σ ranks the plans (repeatable)")
+    sp.add_argument(
+        "--vary",
+        action="append",
+        default=[],
+        metavar="KEY=VALUES",
+        help="a key and its values (V1,V2,... or FIRST:LAST:STEP); repeat for more keys",
+    )
+    sp.add_argument(
+        "--target",
+        dest="target_",
+        action="append",
+        default=[],
+        metavar="ELEMENT",
+        help="element, effect id or 'attitude' whose σ ranks the plans (repeatable)",
+    )
     sp.add_argument("--output", help="HDF5 results file (default: [trade] output)")
     sp.add_argument("--plot", help="write the plot of σ against the varied keys here (text)")
     sp.add_argument("--top", type=_count, help="error budgets of this many best plans")
@@ -72,8 +84,14 @@ def add_commands(add, target) -> None:
 
     sp = add("optimize", cmd_optimize, "the cheapest data plan meeting σ targets within a budget")
     target(sp)
-    sp.add_argument("--target", dest="target_", action="append", default=[], metavar="ELEMENT<SIGMA",
-                    help="e.g. 'TAM1.alignment<0.01deg', 'FHST1.align_1<10arcsec' (repeatable)")
+    sp.add_argument(
+        "--target",
+        dest="target_",
+        action="append",
+        default=[],
+        metavar="ELEMENT<SIGMA",
+        help="e.g. 'TAM1.alignment<0.01deg', 'FHST1.align_1<10arcsec' (repeatable)",
+    )
     sp.add_argument("--slew-min", type=float, help="budget: most minutes of slewing")
     sp.add_argument("--hours", type=float, help="budget: most hours of data")
     sp.add_argument("--axes", help="allowed maneuver axes, e.g. roll,yaw")
@@ -102,26 +120,38 @@ def cmd_trade(args, prog) -> int:
     from gcs_core.trade.space import parse_vary
 
     cfg = load_config(args.target)
-    assert cfg.path is not None                      # a loaded config keeps its file's path
+    assert cfg.path is not None  # a loaded config keeps its file's path
     args.config_path = cfg.path
-    defn = definition_from_config(cfg, parse_vary(args.vary), args.target_ or None,
-                                  method=args.method, top=args.top)
+    defn = definition_from_config(cfg, parse_vary(args.vary), args.target_ or None, method=args.method, top=args.top)
     output = args.output or cfg.trade.get("output")
     if output is not None:
         output = Path(output) if Path(output).is_absolute() or args.output else Path(cfg.path).parent / output
     n = len(defn.combos())
     try:
-        with prog.task(f"trade study: {n} plans" + (f" on {args.workers} workers" if args.workers else "")
-                       + (f" on {args.scheduler}" if args.scheduler else ""), total=n) as task:
-            rows = run_study(defn, output, workers=args.workers or None, scheduler=args.scheduler,
-                             resume=args.resume, overwrite=args.overwrite, batch=args.batch,
-                             progress=_progress(task, "plans"))
+        with prog.task(
+            f"trade study: {n} plans"
+            + (f" on {args.workers} workers" if args.workers else "")
+            + (f" on {args.scheduler}" if args.scheduler else ""),
+            total=n,
+        ) as task:
+            rows = run_study(
+                defn,
+                output,
+                workers=args.workers or None,
+                scheduler=args.scheduler,
+                resume=args.resume,
+                overwrite=args.overwrite,
+                batch=args.batch,
+                progress=_progress(task, "plans"),
+            )
     except KeyboardInterrupt:
         if output is not None and Path(output).exists():
             from gcs_core.trade.run import read_study
+
             _, kept = read_study(output)
-            sys.stderr.write(f"gcs: interrupted: {len(kept)} of {n} plans are in {output}; "
-                             "rerun with --resume for the rest\n")
+            sys.stderr.write(
+                f"gcs: interrupted: {len(kept)} of {n} plans are in {output}; rerun with --resume for the rest\n"
+            )
         raise
     for line in study_table(rows, limit=args.limit):
         _out(line)
@@ -133,8 +163,10 @@ def cmd_trade(args, prog) -> int:
         _out(f"\n{len(rows)} plans in {output}")
     if args.plot:
         from gcs_tui.cli.trade_plot import study_plot
+
         path = Path(args.plot)
         from gcs_core.trade.run import varied_keys
+
         _write(path, study_plot(rows, varied_keys([r for r in rows if r.status == "ok"]) or tuple(defn.vary)))
         _out(f"plot written to {path}")
     return EXIT_OK
@@ -142,6 +174,7 @@ def cmd_trade(args, prog) -> int:
 
 def _write(path: Path, text: str) -> None:
     from gcs_core.fileperm import write_atomic
+
     if not path.parent.is_dir():
         raise InputError("directory does not exist", file=path.parent)
     write_atomic(path, text)
@@ -158,11 +191,19 @@ def cmd_optimize(args, prog) -> int:
     targets = [parse_target(t) for t in (args.target_ or opt.get("targets", []))]
     if not targets:
         raise InputError("give at least one --target ELEMENT<SIGMA", key="trade.optimize.targets")
-    budget = Budget.from_mapping(opt.get("budget", {}), slew_min=args.slew_min, hours=args.hours,
-                                 axes=args.axes, rates=args.rates)
+    budget = Budget.from_mapping(
+        opt.get("budget", {}), slew_min=args.slew_min, hours=args.hours, axes=args.axes, rates=args.rates
+    )
     with prog.task("searching the plan space", total=None) as task:
-        res = optimize(cfg, targets, budget, method=args.method, workers=args.workers or None,
-                       scheduler=args.scheduler, progress=_progress(task, "plans"))
+        res = optimize(
+            cfg,
+            targets,
+            budget,
+            method=args.method,
+            workers=args.workers or None,
+            scheduler=args.scheduler,
+            progress=_progress(task, "plans"),
+        )
     for line in res.lines():
         _out(line)
     if res.best is not None and res.config is not None and args.write_config:
@@ -177,7 +218,7 @@ def cmd_montecarlo(args, prog) -> int:
     from gcs_core.trade.montecarlo import MonteCarlo, replay, run_montecarlo, summary_lines
 
     cfg = load_config(args.target)
-    assert cfg.path is not None                      # a loaded config keeps its file's path
+    assert cfg.path is not None  # a loaded config keeps its file's path
     args.config_path = cfg.path
     mc = cfg.montecarlo
     runs = args.runs or int(mc.get("runs", 100))
@@ -195,11 +236,19 @@ def cmd_montecarlo(args, prog) -> int:
             _out(line)
         return EXIT_OK
     try:
-        with prog.task(f"Monte Carlo: {runs} runs" + (f" on {args.workers} workers" if args.workers else ""),
-                       total=runs) as task:
-            result = run_montecarlo(spec, output, workers=args.workers or None, scheduler=args.scheduler,
-                                    resume=args.resume, overwrite=args.overwrite, batch=args.batch,
-                                    progress=_progress(task, "runs"))
+        with prog.task(
+            f"Monte Carlo: {runs} runs" + (f" on {args.workers} workers" if args.workers else ""), total=runs
+        ) as task:
+            result = run_montecarlo(
+                spec,
+                output,
+                workers=args.workers or None,
+                scheduler=args.scheduler,
+                resume=args.resume,
+                overwrite=args.overwrite,
+                batch=args.batch,
+                progress=_progress(task, "runs"),
+            )
     except KeyboardInterrupt:
         if output is not None:
             sys.stderr.write(f"gcs: interrupted: finished runs are in {output}; rerun with --resume\n")
@@ -208,6 +257,7 @@ def cmd_montecarlo(args, prog) -> int:
         _out(line)
     if args.plot:
         from gcs_tui.cli.trade_plot import montecarlo_plot
+
         _write(Path(args.plot), montecarlo_plot(result))
         _out(f"plot written to {args.plot}")
     return EXIT_OK if result.consistent else EXIT_FLAG

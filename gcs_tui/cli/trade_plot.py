@@ -63,8 +63,10 @@ def heat_map(rows: Sequence, name: str, unit: str, keys: tuple[str, str]) -> str
     fin = disp[np.isfinite(disp) & (disp > 0)]
     lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (1.0, 1.0)
     span = math.log(hi / lo) if hi > lo else 1.0
-    lines = [f"σ {name} [{sigma_display(1.0, unit)[1]}]: rows {keys[0]}, columns {keys[1]}; "
-             f"shade '{SHADES[1]}' {lo:.3g} … '{SHADES[-1]}' {hi:.3g}, '?' not determined"]
+    lines = [
+        f"σ {name} [{sigma_display(1.0, unit)[1]}]: rows {keys[0]}, columns {keys[1]}; "
+        f"shade '{SHADES[1]}' {lo:.3g} … '{SHADES[-1]}' {hi:.3g}, '?' not determined"
+    ]
     w = max(6, *(len(str(v)) for v in v2))
     lines.append(" " * 12 + "".join(str(v).rjust(w + 1) for v in v2))
     for i, a in enumerate(v1):

@@ -48,9 +48,16 @@ from gcs_tui.tui.workbench import Workbench
 log = logging.getLogger(__name__)
 
 SCREENS_BY_VIEW: dict[str, str | Callable[[], Screen]] = {
-    "mission": MissionScreen, "models": ModelsScreen, "state": StateScreen, "plan": PlanScreen,
-    "filtr": FiltrScreen, "residuals": ResidualsScreen, "diagnosis": DiagnosisScreen,
-    "predictor": PredictorScreen, "verification": VerificationScreen, "history": HistoryScreen,
+    "mission": MissionScreen,
+    "models": ModelsScreen,
+    "state": StateScreen,
+    "plan": PlanScreen,
+    "filtr": FiltrScreen,
+    "residuals": ResidualsScreen,
+    "diagnosis": DiagnosisScreen,
+    "predictor": PredictorScreen,
+    "verification": VerificationScreen,
+    "history": HistoryScreen,
 }
 
 #: loggers whose warnings the app shows (and whose CLI handlers it detaches while it runs)
@@ -79,8 +86,14 @@ class GcsApp(App):
     HORIZONTAL_BREAKPOINTS = [(0, "-compact"), (120, "-wide"), (150, "-xwide")]
     VERTICAL_BREAKPOINTS = [(0, "-short"), (40, "-tall")]
 
-    def __init__(self, source: str | Path | None = None, *, workbench: Workbench | None = None,
-                 save_path: str | Path | None = None, start_view: str = "mission") -> None:
+    def __init__(
+        self,
+        source: str | Path | None = None,
+        *,
+        workbench: Workbench | None = None,
+        save_path: str | Path | None = None,
+        start_view: str = "mission",
+    ) -> None:
         super().__init__()
         self.source = source
         self.workbench = workbench if workbench is not None else Workbench(save_path=save_path)
@@ -129,8 +142,12 @@ class GcsApp(App):
             self.last_notice = f"{message.level} repeated (w shows all {len(self.messages)})"
             self._update_status()
             return
-        self.notify(message.text, title=f"{message.level} (w lists every one)",
-                    severity="error" if message.level == "error" else "warning", timeout=20)
+        self.notify(
+            message.text,
+            title=f"{message.level} (w lists every one)",
+            severity="error" if message.level == "error" else "warning",
+            timeout=20,
+        )
 
     def open_path(self, path: str | Path) -> None:
         """Import a mission (directory or config) in the background."""
@@ -171,8 +188,9 @@ class GcsApp(App):
             log.exception("job %s failed", job)
             self.post_message(JobFinished(job, label, False, error=f"{type(err).__name__}: {err}"))
         else:
-            self.post_message(JobFinished(job, label, not worker.is_cancelled,
-                                          cancelled=worker.is_cancelled, result=result))
+            self.post_message(
+                JobFinished(job, label, not worker.is_cancelled, cancelled=worker.is_cancelled, result=result)
+            )
 
     def on_job_started(self, message: JobStarted) -> None:
         self._update_status()
@@ -251,9 +269,10 @@ class GcsApp(App):
 
     def action_open_mission(self) -> None:
         start = str(self.source or "")
-        self.push_screen(FormScreen("Open a mission directory or analysis config",
-                                    [Field("path", "Path", start, kind="text")]),
-                         self._open_chosen)
+        self.push_screen(
+            FormScreen("Open a mission directory or analysis config", [Field("path", "Path", start, kind="text")]),
+            self._open_chosen,
+        )
 
     def _open_chosen(self, v: dict | None) -> None:
         if v:
@@ -298,11 +317,16 @@ class GcsApp(App):
         if not self.workbench.unsaved:
             self.exit()
             return
-        self.push_screen(ConfirmScreen(
-            "Quit with unsaved edits?",
-            "The analysis config has changes not saved to a file (models, roles, σ, the data plan). "
-            "Quitting loses them; esc stays, ctrl+s saves.", yes="quit", no="stay"),
-            self._quit_if)
+        self.push_screen(
+            ConfirmScreen(
+                "Quit with unsaved edits?",
+                "The analysis config has changes not saved to a file (models, roles, σ, the data plan). "
+                "Quitting loses them; esc stays, ctrl+s saves.",
+                yes="quit",
+                no="stay",
+            ),
+            self._quit_if,
+        )
 
     def _quit_if(self, ok: bool | None) -> None:
         if ok:
@@ -314,8 +338,9 @@ class GcsApp(App):
         by accident)."""
         return self.workbench.work_dir()
 
-    def deliver_screenshot(self, filename: str | None = None, path: str | None = None,
-                           time_format: str | None = None) -> str | None:
+    def deliver_screenshot(
+        self, filename: str | None = None, path: str | None = None, time_format: str | None = None
+    ) -> str | None:
         """Save an SVG screenshot in the work directory (:meth:`work_dir`) and say where."""
         folder = Path(path) if path else self.work_dir()
         if not filename:
@@ -325,8 +350,12 @@ class GcsApp(App):
             out = Path(self.save_screenshot(filename, str(folder)))
             make_usual(out)
         except OSError as err:
-            self.notify(f"cannot write {folder / filename}: {err.strerror or err}", title="screenshot not saved",
-                        severity="error", timeout=15)
+            self.notify(
+                f"cannot write {folder / filename}: {err.strerror or err}",
+                title="screenshot not saved",
+                severity="error",
+                timeout=15,
+            )
             return None
         self.last_notice = f"screenshot saved to {out}"
         self.notify(str(out), title="screenshot saved", timeout=15)
@@ -338,9 +367,14 @@ class GcsApp(App):
         if not wb.ready:
             return
         default = str(wb.save_path) if wb.save_path else "gcs.toml"
-        self.push_screen(FormScreen("Save the analysis config", [Field("path", "File", default, kind="text")],
-                                    note="Paths inside are written relative to the file."),
-                         self._save_chosen)
+        self.push_screen(
+            FormScreen(
+                "Save the analysis config",
+                [Field("path", "File", default, kind="text")],
+                note="Paths inside are written relative to the file.",
+            ),
+            self._save_chosen,
+        )
 
     def _save_chosen(self, v: dict | None) -> None:
         if v:
@@ -359,8 +393,11 @@ class GcsApp(App):
 
     def change_effect(self, effect_id: str, add: bool) -> None:
         verb = "adding" if add else "removing"
-        self.run_job("effect", f"{verb} {effect_id}",
-                     lambda progress, cancelled: self.workbench.change_effect(effect_id, add, progress, cancelled))
+        self.run_job(
+            "effect",
+            f"{verb} {effect_id}",
+            lambda progress, cancelled: self.workbench.change_effect(effect_id, add, progress, cancelled),
+        )
 
     def action_add_top_candidate(self) -> None:
         wb = self.workbench
@@ -377,6 +414,7 @@ class GcsApp(App):
         if not why:
             self.change_effect(c.id, True)
             return
+
         def add_if(ok: bool | None) -> None:
             if ok:
                 self.change_effect(c.id, True)
@@ -388,6 +426,7 @@ class GcsApp(App):
         if not wb.ready:
             return
         options = [(e, e) for e in wb.removable_effects()]
+
         def remove(eid: str | None) -> None:
             if eid:
                 self.change_effect(eid, False)
@@ -407,18 +446,29 @@ class GcsApp(App):
         if not wb.ready or wb.result is None:
             self.notify("fit first (f)", severity="warning")
             return
-        fields = [Field("path", "SCDS file", str(jobs.scds_path(wb)), kind="text"),
-                  Field("note", "note", "", kind="text", optional=True)]
+        fields = [
+            Field("path", "SCDS file", str(jobs.scds_path(wb)), kind="text"),
+            Field("note", "note", "", kind="text", optional=True),
+        ]
 
         def done(values) -> None:
             if not values:
                 return
-            self.run_job("calibration", "saving calibration",
-                         lambda p, c: jobs.save_calibration(wb, values["path"], values["note"] or "", p, c),
-                         on_done=lambda v: self.notify(f"calibration saved as version {v}"))
+            self.run_job(
+                "calibration",
+                "saving calibration",
+                lambda p, c: jobs.save_calibration(wb, values["path"], values["note"] or "", p, c),
+                on_done=lambda v: self.notify(f"calibration saved as version {v}"),
+            )
 
-        self.push_screen(FormScreen("Append the fitted calibration to the SCDS", fields,
-                                    note="Every element not held, with σ and covariance (append-only)."), done)
+        self.push_screen(
+            FormScreen(
+                "Append the fitted calibration to the SCDS",
+                fields,
+                note="Every element not held, with σ and covariance (append-only).",
+            ),
+            done,
+        )
 
     def open_trade(self, path: str | Path) -> bool:
         """Show a trade study's results file (``gcs trade --output``) in the Trade screen."""
@@ -438,9 +488,12 @@ class GcsApp(App):
         start = ""
         if cfg is not None and cfg.trade.get("output") and cfg.path is not None:
             start = str(Path(cfg.path).parent / cfg.trade["output"])
-        self.push_screen(FormScreen("Open a trade study's results (gcs trade --output)",
-                                    [Field("path", "HDF5 file", start, kind="text")]),
-                         self._trade_chosen)
+        self.push_screen(
+            FormScreen(
+                "Open a trade study's results (gcs trade --output)", [Field("path", "HDF5 file", start, kind="text")]
+            ),
+            self._trade_chosen,
+        )
 
     def _trade_chosen(self, v: dict | None) -> None:
         if v:
@@ -461,14 +514,18 @@ def poor_choice(c, alpha: float) -> str:
 
     reasons = []
     if not c.p_adjusted < alpha:
-        reasons.append(f"It is not significant: {fmt.p_text(c.p_adjusted, 'p adj')} is not below the family-wise "
-                       f"α = {alpha:g}, so its Δχ² = {fmt.sig(c.delta_chi2, 3)} is what noise alone often gives "
-                       "with this many candidates tried.")
+        reasons.append(
+            f"It is not significant: {fmt.p_text(c.p_adjusted, 'p adj')} is not below the family-wise "
+            f"α = {alpha:g}, so its Δχ² = {fmt.sig(c.delta_chi2, 3)} is what noise alone often gives "
+            "with this many candidates tried."
+        )
     if not c.identifiable:
         with_what = ", ".join(list(c.aliases_state) + [a for a, _ in c.aliases_candidates])
-        reasons.append("It is not identifiable: the data cannot tell it apart from "
-                       + (with_what if with_what else "what is already estimated")
-                       + ", so its estimate would be set by the a priori and trade off against those.")
+        reasons.append(
+            "It is not identifiable: the data cannot tell it apart from "
+            + (with_what if with_what else "what is already estimated")
+            + ", so its estimate would be set by the a priori and trade off against those."
+        )
     return " ".join(reasons)
 
 
@@ -500,7 +557,7 @@ def detached_terminal_logging() -> Iterator[None]:
             if name or isinstance(h, logging.StreamHandler):
                 lg.removeHandler(h)
                 saved.append((lg, h))
-    for name in LOGGERS:                        # warnings still reach the app's own handler
+    for name in LOGGERS:  # warnings still reach the app's own handler
         lg = logging.getLogger(name)
         if lg.level > logging.WARNING or lg.level == logging.NOTSET:
             lg.setLevel(logging.WARNING)

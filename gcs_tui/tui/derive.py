@@ -27,8 +27,11 @@ def argument_of_latitude(r_I: np.ndarray, v_I: np.ndarray) -> np.ndarray:
     h_hat = h / np.linalg.norm(h, axis=1, keepdims=True)
     n = np.column_stack([-h[:, 1], h[:, 0], np.zeros(len(h))])
     nn = np.linalg.norm(n, axis=1, keepdims=True)
-    n_hat = np.where(nn > 1e-12 * np.linalg.norm(h, axis=1, keepdims=True), n / np.where(nn > 0, nn, 1.0),
-                     np.array([[1.0, 0.0, 0.0]]))
+    n_hat = np.where(
+        nn > 1e-12 * np.linalg.norm(h, axis=1, keepdims=True),
+        n / np.where(nn > 0, nn, 1.0),
+        np.array([[1.0, 0.0, 0.0]]),
+    )
     m_hat = np.cross(h_hat, n_hat)
     u = np.degrees(np.arctan2(np.sum(m_hat * r, axis=1), np.sum(n_hat * r, axis=1)))
     return np.mod(u, 360.0)
@@ -121,7 +124,6 @@ def spread(values: np.ndarray, *, floor: float = 1e-300) -> float:
     return float(v.max()) if v.size else floor
 
 
-
 @dataclass(frozen=True)
 class Binned:
     """Binned means of a residual against a channel.
@@ -168,7 +170,7 @@ def binned_means(x: np.ndarray, y: np.ndarray, sigma: float, *, bins: int = 24, 
     keep = n > 0
     n, sx, sy, syy = n[keep], sx[keep], sy[keep], syy[keep]
     mean = sy / n
-    var = np.where(n > 1, np.clip(syy - n * mean ** 2, 0.0, None) / np.maximum(n - 1, 1), sigma ** 2)
+    var = np.where(n > 1, np.clip(syy - n * mean**2, 0.0, None) / np.maximum(n - 1, 1), sigma**2)
     return Binned(sx / n, mean, np.sqrt(var / n), n)
 
 

@@ -57,7 +57,7 @@ class FiltrRun:
     """A FILTR run on the workbench's current problem, every block report kept."""
 
     def __init__(self, wb) -> None:
-        engine("gcs_core.filtr.stepping", "Filtr")        # Unavailable, naming what is missing
+        engine("gcs_core.filtr.stepping", "Filtr")  # Unavailable, naming what is missing
         self.units = {e.name: e.unit for e in wb.analysis.problem.state}
         # the session's filter: [filter] block, k and per-sensor k as `gcs batch --method kalman`
         self.filtr = wb.analysis.make_filter()
@@ -86,27 +86,44 @@ class FiltrRun:
             lo, hi = chi2_band(b.dof)
             dof = max(b.dof, 1)
             blocks.append((b.pass_index, b.index, b.nis / dof, lo / dof, hi / dof))
-        state = {} if r is None else {n: (float(x), float(s), self.units.get(n, "1"))
-                                      for n, x, s in zip(r.names, r.x, r.sigma)}
-        sensors = {} if r is None else {
-            n: (st.n_used, st.n_gated, st.nis / st.dof if st.dof else math.nan, st.p_value)
-            for n, st in r.sensors.items()}
+        state = (
+            {}
+            if r is None
+            else {n: (float(x), float(s), self.units.get(n, "1")) for n, x, s in zip(r.names, r.x, r.sigma)}
+        )
+        sensors = (
+            {}
+            if r is None
+            else {
+                n: (st.n_used, st.n_gated, st.nis / st.dof if st.dof else math.nan, st.p_value)
+                for n, st in r.sensors.items()
+            }
+        )
         res = self.result
         return FiltrView(
-            done=len(self.reports), total=self.filtr.n_blocks * self.n_passes,
-            pass_index=r.pass_index if r else 0, n_passes=self.n_passes,
-            block=(r.index + 1) if r else 0, n_blocks=self.filtr.n_blocks,
-            t0=r.t_start if r else math.nan, t1=r.t_end if r else math.nan, blocks=tuple(blocks),
-            state=state, sensors=sensors, finished=self.finished,
+            done=len(self.reports),
+            total=self.filtr.n_blocks * self.n_passes,
+            pass_index=r.pass_index if r else 0,
+            n_passes=self.n_passes,
+            block=(r.index + 1) if r else 0,
+            n_blocks=self.filtr.n_blocks,
+            t0=r.t_start if r else math.nan,
+            t1=r.t_end if r else math.nan,
+            blocks=tuple(blocks),
+            state=state,
+            sensors=sensors,
+            finished=self.finished,
             status=res.message if res is not None else "",
-            post_fit={n: v.rms_normalized for n, v in res.residuals.items()} if res is not None else {})
+            post_fit={n: v.rms_normalized for n, v in res.residuals.items()} if res is not None else {},
+        )
 
 
-def advance(wb, blocks: int | None, progress=None, cancelled=None,
-            on_block: Callable[[object], object] | None = None) -> FiltrRun:
+def advance(
+    wb, blocks: int | None, progress=None, cancelled=None, on_block: Callable[[object], object] | None = None
+) -> FiltrRun:
     """Process ``blocks`` FILTR blocks (None: to the end), checking ``cancelled()``
     between blocks and calling ``on_block(report)`` after each."""
-    if wb.filtr is None or wb.filtr.finished:            # a finished run starts again
+    if wb.filtr is None or wb.filtr.finished:  # a finished run starts again
         wb.filtr = FiltrRun(wb)
     run = wb.filtr
     k = 0
@@ -116,8 +133,11 @@ def advance(wb, blocks: int | None, progress=None, cancelled=None,
         report = run.step()
         k += 1
         if progress:
-            progress(len(run.reports), run.filtr.n_blocks * run.n_passes,
-                     f"pass {report.pass_index + 1}, block {report.index + 1}/{report.n_blocks}")
+            progress(
+                len(run.reports),
+                run.filtr.n_blocks * run.n_passes,
+                f"pass {report.pass_index + 1}, block {report.index + 1}/{report.n_blocks}",
+            )
         if on_block:
             on_block(report)
     return run

@@ -45,8 +45,15 @@ class Key:
 
     @property
     def display_keys(self) -> str:
-        names = {"question_mark": "?", "escape": "esc", "left_square_bracket": "[",
-                 "right_square_bracket": "]", "space": "space", "enter": "enter", "delete": "del"}
+        names = {
+            "question_mark": "?",
+            "escape": "esc",
+            "left_square_bracket": "[",
+            "right_square_bracket": "]",
+            "space": "space",
+            "enter": "enter",
+            "delete": "del",
+        }
         return ", ".join(names.get(k, k) for k in self.keys.split(","))
 
 
@@ -78,9 +85,7 @@ APP: tuple[Key, ...] = tuple(
 
 SCREENS: dict[str, tuple[Key, ...]] = {
     "mission": (),
-    "models": (
-        Key("models.cycle", "enter,space", "cycle_model", "Change model"),
-    ),
+    "models": (Key("models.cycle", "enter,space", "cycle_model", "Change model"),),
     "state": (
         Key("state.edit", "e,enter", "edit_element", "Edit"),
         Key("state.solve", "s", "set_role('solve-for')", "Solve-for"),
@@ -119,9 +124,7 @@ SCREENS: dict[str, tuple[Key, ...]] = {
         Key("predictor.element", "right_square_bracket", "element(1)", "Next element"),
         Key("predictor.prev_element", "left_square_bracket", "element(-1)", "Prev element", show=False),
     ),
-    "verification": (
-        Key("verification.run", "r", "app.verify", "Verify"),
-    ),
+    "verification": (Key("verification.run", "r", "app.verify", "Verify"),),
     "history": (
         Key("history.mark_a", "a", "mark('a')", "Mark A"),
         Key("history.mark_b", "b", "mark('b')", "Mark B"),
@@ -132,8 +135,7 @@ SCREENS: dict[str, tuple[Key, ...]] = {
 
 def bindings(keys: tuple[Key, ...]) -> list[BindingType]:
     """Textual bindings of a tuple of :class:`Key` rows."""
-    return [Binding(k.keys, k.action, k.description, show=k.show, priority=k.priority, id=k.id)
-            for k in keys]
+    return [Binding(k.keys, k.action, k.description, show=k.show, priority=k.priority, id=k.id) for k in keys]
 
 
 def help_rows(scope: str | None = None) -> list[tuple[str, str, str]]:

@@ -91,8 +91,13 @@ class Workbench:
     out_dir : where files the user did not name go (None: :meth:`work_dir` decides).
     """
 
-    def __init__(self, analysis: Analysis | None = None, *, save_path: str | Path | None = None,
-                 scds_path: str | Path | None = None):
+    def __init__(
+        self,
+        analysis: Analysis | None = None,
+        *,
+        save_path: str | Path | None = None,
+        scds_path: str | Path | None = None,
+    ):
         self.analysis = analysis
         self.save_path = Path(save_path) if save_path else None
         self.scds_path = Path(scds_path) if scds_path else None
@@ -107,8 +112,9 @@ class Workbench:
 
     # ------------------------------------------------------------------ opening
     @classmethod
-    def open(cls, path: str | Path, *, save_path: str | Path | None = None,
-             scds_path: str | Path | None = None) -> Workbench:
+    def open(
+        cls, path: str | Path, *, save_path: str | Path | None = None, scds_path: str | Path | None = None
+    ) -> Workbench:
         """Import the mission of ``path`` (config or mission directory); no fit yet."""
         wb = cls(save_path=save_path, scds_path=scds_path)
         wb.load(path)
@@ -118,7 +124,7 @@ class Workbench:
         cfg = config_for(path)
         analysis = Analysis(cfg)
         self.fitted_config = ""
-        self._replace(analysis, keep_steps=False)          # a new mission: a new history
+        self._replace(analysis, keep_steps=False)  # a new mission: a new history
         self._saved = analysis_key(cfg)
         if self.save_path is None:
             self.save_path = cfg.path if cfg.path is not None else self.work_dir() / f"{analysis.mission.name}.toml"
@@ -191,15 +197,29 @@ class Workbench:
                 dn, dd = tab.dropped_nan, tab.dropped_duplicates
             t0 = float(tab.t[0]) if len(tab) else math.nan
             t1 = float(tab.t[-1]) if len(tab) else math.nan
-            rows.append(SensorRow(s.name, s.type, self.config.models.get(s.name, s.type), len(tab), t0, t1,
-                                  cadence, tuple(spans), dn, dd))
+            rows.append(
+                SensorRow(
+                    s.name,
+                    s.type,
+                    self.config.models.get(s.name, s.type),
+                    len(tab),
+                    t0,
+                    t1,
+                    cadence,
+                    tuple(spans),
+                    dn,
+                    dd,
+                )
+            )
         return rows
 
     def model_rows(self) -> list[ModelRow]:
         """Sensor models (type or off), physics switches and the estimation method."""
         cfg = self.config
-        rows = [ModelRow(s.name, "sensor", s.name, cfg.models.get(s.name, s.type), (s.type, "off"))
-                for s in self.mission.spec.sensors]
+        rows = [
+            ModelRow(s.name, "sensor", s.name, cfg.models.get(s.name, s.type), (s.type, "off"))
+            for s in self.mission.spec.sensors
+        ]
         for opt, (on, off) in PHYSICS_EFFECTS.items():
             val = getattr(cfg.physics, opt)
             choices = (on, off)
@@ -242,8 +262,9 @@ class Workbench:
         i = row.choices.index(row.value) if row.value in row.choices else -1
         self.set_model(key, row.choices[(i + 1) % len(row.choices)])
 
-    def set_element(self, name: str, *, role: str | None = None, value: float | None = None,
-                    sigma: float | None = None) -> None:
+    def set_element(
+        self, name: str, *, role: str | None = None, value: float | None = None, sigma: float | None = None
+    ) -> None:
         """Override an element's role, a-priori value or σ (internal units) in the config."""
         if name not in self.current.problem.state:
             raise ConfigError(f"no state element named '{name}'", key=f"state.elements.{name}")
@@ -255,16 +276,24 @@ class Workbench:
             raise ConfigError("must be finite", key=f"state.elements.{name}.value")
         cfg = self.config
         old = cfg.state.elements.get(name, ElementConfig())
-        new = ElementConfig(role if role is not None else old.role,
-                            value if value is not None else old.value,
-                            sigma if sigma is not None else old.sigma)
+        new = ElementConfig(
+            role if role is not None else old.role,
+            value if value is not None else old.value,
+            sigma if sigma is not None else old.sigma,
+        )
         elements = dict(cfg.state.elements)
         elements[name] = new
         self.set_config(cfg.with_changes(state={"elements": elements}))
 
-    def set_plan(self, *, start: float | EllipsisType | None = ..., end: float | EllipsisType | None = ...,
-                 step: float | None = None,
-                 gaps: tuple | None = None, maneuvers: tuple | None = None) -> None:
+    def set_plan(
+        self,
+        *,
+        start: float | EllipsisType | None = ...,
+        end: float | EllipsisType | None = ...,
+        step: float | None = None,
+        gaps: tuple | None = None,
+        maneuvers: tuple | None = None,
+    ) -> None:
         """Change the predictor's data plan (``...`` leaves a field as it is)."""
         cfg = self.config
         kw: dict[str, Any] = {}
@@ -295,8 +324,10 @@ class Workbench:
         """The plan's (start, end), defaulting to the telemetry span."""
         t0, t1 = self.mission.span()
         cfg = self.config
-        return (cfg.prediction.start if cfg.prediction.start is not None else t0,
-                cfg.prediction.end if cfg.prediction.end is not None else t1)
+        return (
+            cfg.prediction.start if cfg.prediction.start is not None else t0,
+            cfg.prediction.end if cfg.prediction.end is not None else t1,
+        )
 
     def save_config(self, path: str | Path | None = None) -> Path:
         path = Path(path) if path else self.save_path
@@ -309,8 +340,7 @@ class Workbench:
         return out
 
     # ------------------------------------------------------------------ fitting
-    def fit(self, progress: Progress | None = None, cancelled: Callable[[], bool] | None = None
-            ) -> Analysis | None:
+    def fit(self, progress: Progress | None = None, cancelled: Callable[[], bool] | None = None) -> Analysis | None:
         """A fresh fit of the current config, the held-out score and the ranking.
 
         The new analysis replaces the current one only when it is complete and not
@@ -330,7 +360,7 @@ class Workbench:
             return None
         say(2, 3, "ranking candidates")
         fresh.rank()
-        fresh.goodness()                  # the χ² tests, formed here rather than on the UI thread
+        fresh.goodness()  # the χ² tests, formed here rather than on the UI thread
         if stop():
             return None
         say(3, 3, "done")
@@ -338,8 +368,9 @@ class Workbench:
         self._replace(fresh, keep_steps=False)
         return fresh
 
-    def change_effect(self, effect_id: str, add: bool, progress: Progress | None = None,
-                      cancelled: Callable[[], bool] | None = None):
+    def change_effect(
+        self, effect_id: str, add: bool, progress: Progress | None = None, cancelled: Callable[[], bool] | None = None
+    ):
         """Add (or remove) a catalogue effect, refit and re-rank; returns the Step.
 
         Works on a copy of the analysis that replaces the current one only when done

@@ -38,8 +38,12 @@ three_sigma = 3.0
 #: 23 windows per 22.5-s half (4-s windows, as the benchmark uses on whole trials, leave 5)
 WINDOW_S = 1.0
 EFFECTS = ("MAG.time_offset", "OPT.time_offset", "MAG.field_gradient", "MAG.nonorthogonality")
-MAGNETIC = tuple(f"MAG.bias_{a}" for a in "xyz") + ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz") \
-    + tuple(f"field.B_{a}" for a in "xyz") + tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
+MAGNETIC = (
+    tuple(f"MAG.bias_{a}" for a in "xyz")
+    + ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz")
+    + tuple(f"field.B_{a}" for a in "xyz")
+    + tuple(f"field.G_{ab}" for ab in ("xx", "xy", "xz", "yy", "yz"))
+)
 
 
 def _half(tmp: Path, first: bool) -> Path:
@@ -93,15 +97,18 @@ def test_magnetometer_and_field_agree_between_halves_with_honest_sigma(halves):
     z_fit = {n: (va[n] - vb[n]) / np.hypot(a.sigma[n], b.sigma[n]) for n in MAGNETIC}
     worst = max(z, key=lambda n: abs(z[n]))
     assert abs(z[worst]) < three_sigma, (worst, z[worst], z)
-    assert max(abs(x) for x in z_fit.values()) > three_sigma      # the white-noise σ are optimistic
+    assert max(abs(x) for x in z_fit.values()) > three_sigma  # the white-noise σ are optimistic
 
 
-@pytest.mark.xfail(reason="the second half's gyro bias_x is 0.0113 rad/s against the first "
-                   "half's 0.0034 (the mean at rest): 18 σ of the fit, 3.1 σ of the sandwich's "
-                   "(which, conditional on the attitude, does not see the process noise the gyro "
-                   "elements are fitted under); in 22.5 s the bias_x is carried with the roll "
-                   "(correlation 0.58) and the drift; the whole trial's halves agree "
-                   "(docs/benchmarks.md)", strict=False)
+@pytest.mark.xfail(
+    reason="the second half's gyro bias_x is 0.0113 rad/s against the first "
+    "half's 0.0034 (the mean at rest): 18 σ of the fit, 3.1 σ of the sandwich's "
+    "(which, conditional on the attitude, does not see the process noise the gyro "
+    "elements are fitted under); in 22.5 s the bias_x is carried with the roll "
+    "(correlation 0.58) and the drift; the whole trial's halves agree "
+    "(docs/benchmarks.md)",
+    strict=False,
+)
 def test_gyro_bias_agrees_between_halves(halves):
     """With the gyro's noise as process noise the halves agree on its bias (the batch,
     carrying the attitude as exact, put them tens of σ apart: docs/benchmarks.md)."""

@@ -13,7 +13,7 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
 
-noise_floor_bound = 1.05   # normalized RMS: 1.0 is the noise floor
+noise_floor_bound = 1.05  # normalized RMS: 1.0 is the noise floor
 
 
 @pytest.fixture(scope="module")
@@ -26,19 +26,19 @@ def fitted(example_dir):
 def test_every_sensor_fits_to_the_noise_floor(fitted):
     for name, r in fitted.result.residuals.items():
         assert r.rms_normalized <= noise_floor_bound, name
-        assert r.rms_normalized >= 0.95, name   # not over-fitted either
+        assert r.rms_normalized >= 0.95, name  # not over-fitted either
     assert fitted.result.status == "converged"
 
 
 def test_heldout_span_is_also_at_the_noise_floor(fitted):
     assert fitted.holdout_rms
     for name, v in fitted.holdout_rms.items():
-        assert v <= 1.10, name     # held-out quarter: fewer samples, looser by sampling error
+        assert v <= 1.10, name  # held-out quarter: fewer samples, looser by sampling error
 
 
 def test_discover_adds_nothing_and_reports(fitted):
     fitted.discover()
-    rep = analysis_report(fitted, command="discover")      # what `gcs discover --report` writes
+    rep = analysis_report(fitted, command="discover")  # what `gcs discover --report` writes
     assert [s for s in rep["steps"]] == []
     assert rep["mission"] == "sunpoint-nominal"
     for s in rep["sensors"].values():
@@ -71,8 +71,12 @@ def test_report_says_which_physics_the_data_need_and_why(fitted):
     discovery measures when it is missing (test above: ≈ 270).
     """
     needed = {d["id"]: d for d in analysis_report(fitted)["physics_needed"]}
-    assert set(needed) == {"model.stellar_aberration", "model.solar_aberration",
-                           "model.sun_parallax", "model.field_model"}
+    assert set(needed) == {
+        "model.stellar_aberration",
+        "model.solar_aberration",
+        "model.sun_parallax",
+        "model.field_model",
+    }
     assert all(d["needed"] for d in needed.values())
     assert 150.0 < needed["model.stellar_aberration"]["delta_chi2_if_removed"] < 400.0
     assert "FHST" in needed["model.stellar_aberration"]["why"]

@@ -19,8 +19,8 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.units import DEG
 
-noise_floor_bound = 1.05      # normalized RMS, fitted and held-out (issue 11)
-z_bound = 3.0                 # determined elements against the truth (issue 11)
+noise_floor_bound = 1.05  # normalized RMS, fitted and held-out (issue 11)
+z_bound = 3.0  # determined elements against the truth (issue 11)
 
 
 @pytest.fixture(scope="module")

@@ -73,9 +73,14 @@ def test_earth_pointing_body_rate_is_the_frame_turn(discovered):
 @pytest.mark.skipif(not REAL.is_dir(), reason="the published file is not on this machine")
 def test_shipped_mission_is_what_the_converter_makes(tmp_path):
     from gcs_core.convert import convert
-    convert("astropi", REAL / "astro-pi-mk2-commissioning-ir.csv", tmp_path / "m",
-            tle=REAL / "iss-2022-01-31.tle", name="real-astropi-iss")
+
+    convert(
+        "astropi",
+        REAL / "astro-pi-mk2-commissioning-ir.csv",
+        tmp_path / "m",
+        tle=REAL / "iss-2022-01-31.tle",
+        name="real-astropi-iss",
+    )
     shipped = ROOT / "sample_data" / "missions" / "real-astropi-iss"
-    for f in ("mission.toml", "telemetry/MAG.csv", "aux.csv", "orbit.tle", "LICENCE.md",
-              "SOURCE.md"):
+    for f in ("mission.toml", "telemetry/MAG.csv", "aux.csv", "orbit.tle", "LICENCE.md", "SOURCE.md"):
         assert (tmp_path / "m" / f).read_bytes() == (shipped / f).read_bytes(), f

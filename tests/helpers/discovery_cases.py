@@ -25,9 +25,9 @@ ONE_HOUR = 3600.0
 class Case:
     effect: str
     magnitude: float
-    kind: str = "sun_pointing"          # scenario: a three-axis mode or "spinning"
-    exclude: tuple[str, ...] = ()       # seed effects the starting state leaves out
-    physics_off: str | None = None      # physics option the starting config lacks
+    kind: str = "sun_pointing"  # scenario: a three-axis mode or "spinning"
+    exclude: tuple[str, ...] = ()  # seed effects the starting state leaves out
+    physics_off: str | None = None  # physics option the starting config lacks
     options: dict = field(default_factory=dict)
 
     @property
@@ -61,9 +61,9 @@ CASES = [
     Case("PSS1.bias", 2e-3, kind="spinning", exclude=("PSS1.bias",)),
     # WGS-84 horizon in the data, the ICD's sphere in the config
     Case("model.earth_oblateness", 1.0, kind="spinning", physics_off="earth_oblateness"),
-    Case("model.field_model", 1.0, physics_off="field_model"),   # IGRF data, dipole in the config
+    Case("model.field_model", 1.0, physics_off="field_model"),  # IGRF data, dipole in the config
     Case("FHST2.time_offset", 0.5),
-    Case("IRU.bias_instability", 1e-10, exclude=("IRU.bias_instability",)),   # ḃ: 0.36 µrad/s in 1 h
+    Case("IRU.bias_instability", 1e-10, exclude=("IRU.bias_instability",)),  # ḃ: 0.36 µrad/s in 1 h
     # the Sun's parallax (≈ 9″) needs two hours of the fine Sun sensor; over two hours the
     # gyro's wander needs the Kalman method (the batch adds a spurious time offset on one
     # seed in three: the limit documented in test_false_alarms)
@@ -90,7 +90,7 @@ def simulate(case: Case, seed: int, folder: Path, duration_s: float | None = Non
     if case.options.get("rippled"):
         base = _fss_rippled(base)
     if case.physics_off:
-        cfg = base                       # the data carry the physics; the config lacks it
+        cfg = base  # the data carry the physics; the config lacks it
     else:
         kw = {"axis": case.options["axis"]} if "axis" in case.options else {}
         cfg = with_effect(base, case.effect, case.magnitude, **kw)
@@ -100,6 +100,9 @@ def simulate(case: Case, seed: int, folder: Path, duration_s: float | None = Non
 def analyse(case: Case, mission: Path) -> Analysis:
     physics = {}
     if case.physics_off:
-        physics[case.physics_off] = PHYSICS_EFFECTS[case.physics_off][1]     # the "off" value
-    return Analysis(AnalysisConfig(mission=mission, method=case.options.get("method", "batch")).with_changes(
-        state={"exclude": case.exclude}, physics=physics))
+        physics[case.physics_off] = PHYSICS_EFFECTS[case.physics_off][1]  # the "off" value
+    return Analysis(
+        AnalysisConfig(mission=mission, method=case.options.get("method", "batch")).with_changes(
+            state={"exclude": case.exclude}, physics=physics
+        )
+    )

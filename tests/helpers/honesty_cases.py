@@ -48,8 +48,8 @@ from gcs_core.sim.writer import write_mission
 ONE_HOUR = 3600.0
 MODES = ("sun_pointing", "inertial", "earth_pointing")
 #: acceptance amounts of issue 10
-rms_limit = 1.05            # normalized RMS, fitted and held-out
-divergence_limit = 10.0     # normalized RMS no step may show (sensors the effect does not carry)
+rms_limit = 1.05  # normalized RMS, fitted and held-out
+divergence_limit = 10.0  # normalized RMS no step may show (sensors the effect does not carry)
 three_sigma = 3.0
 
 
@@ -68,11 +68,11 @@ class Hidden:
     """One hidden effect: the simulator's changes and what discovery must add."""
 
     id: str
-    changes: tuple                      # ((effect id, magnitude, kwargs), ...) for with_effect
-    expected: tuple[str, ...]           # catalogue effects discovery must add (exactly)
-    exclude: tuple[str, ...] = ()       # seed effects the starting config leaves out
-    recover: tuple[str, ...] = ()       # elements whose truth differs from the book
-    sweep_deg: float = 0.0              # a slow pitch/yaw sweep carrying the Sun across the FSS
+    changes: tuple  # ((effect id, magnitude, kwargs), ...) for with_effect
+    expected: tuple[str, ...]  # catalogue effects discovery must add (exactly)
+    exclude: tuple[str, ...] = ()  # seed effects the starting config leaves out
+    recover: tuple[str, ...] = ()  # elements whose truth differs from the book
+    sweep_deg: float = 0.0  # a slow pitch/yaw sweep carrying the Sun across the FSS
 
     def build(self, mode: str, seed: int, hours: float):
         cfg = nominal(mode, seed, hours, sweep_deg=self.sweep_deg)
@@ -82,27 +82,52 @@ class Hidden:
 
 
 HIDDEN = (
-    Hidden("TAM1.matrix_1pct", (("TAM1.scale", 0.01, {}), ("TAM1.nonorthogonality", 0.01, {})),
-           ("TAM1.nonorthogonality", "TAM1.scale"),
-           recover=("TAM1.scale_x", "TAM1.scale_y", "TAM1.scale_z", "TAM1.nonorth_xy",
-                    "TAM1.nonorth_xz", "TAM1.nonorth_yz")),
-    Hidden("TAM1.contamination_mtb_x", (("TAM1.contamination_mtb_x", 1.0, {}),),
-           ("TAM1.contamination_mtb_x",),
-           recover=("TAM1.contam_mtb_x_x", "TAM1.contam_mtb_x_y", "TAM1.contam_mtb_x_z")),
-    Hidden("TAM1.time_offset", (("TAM1.time_offset", 1.0, {}),), ("TAM1.time_offset",),
-           recover=("TAM1.time_offset",)),
-    Hidden("FHST1.roll", (("FHST1.alignment", math.radians(0.1), {"axis": (1.0, 0.0, 0.0)}),),
-           ("FHST1.alignment",), recover=("FHST1.align_1", "FHST1.align_2", "FHST1.align_3")),
-    Hidden("IRU.scale", (("IRU.scale_misalignment", 1e-3,
-                          {"pattern": [[1.0, 0.0, 0.0], [0.0, -0.7, 0.0], [0.0, 0.0, 0.5]]}),),
-           ("IRU.scale_misalignment",), exclude=("IRU.scale_misalignment",),
-           recover=("IRU.G_11", "IRU.G_22", "IRU.G_33")),
-    Hidden("FSS1.harmonic", (("FSS1.harmonic", 6e-4, {}),), ("FSS1.harmonic",),
-           recover=("FSS1.A4h", "FSS1.B4h"), sweep_deg=3.0),
-    Hidden("FSS1.harmonic_no_sweep", (("FSS1.harmonic", 6e-4, {}),), ("FSS1.harmonic",),
-           recover=("FSS1.A4h", "FSS1.B4h")),
-    Hidden("FSS1.A3", (("FSS1.transfer_function", 6e-4, {}),), (),
-           recover=("FSS1.A1", "FSS1.A3", "FSS1.B1", "FSS1.B3")),
+    Hidden(
+        "TAM1.matrix_1pct",
+        (("TAM1.scale", 0.01, {}), ("TAM1.nonorthogonality", 0.01, {})),
+        ("TAM1.nonorthogonality", "TAM1.scale"),
+        recover=(
+            "TAM1.scale_x",
+            "TAM1.scale_y",
+            "TAM1.scale_z",
+            "TAM1.nonorth_xy",
+            "TAM1.nonorth_xz",
+            "TAM1.nonorth_yz",
+        ),
+    ),
+    Hidden(
+        "TAM1.contamination_mtb_x",
+        (("TAM1.contamination_mtb_x", 1.0, {}),),
+        ("TAM1.contamination_mtb_x",),
+        recover=("TAM1.contam_mtb_x_x", "TAM1.contam_mtb_x_y", "TAM1.contam_mtb_x_z"),
+    ),
+    Hidden("TAM1.time_offset", (("TAM1.time_offset", 1.0, {}),), ("TAM1.time_offset",), recover=("TAM1.time_offset",)),
+    Hidden(
+        "FHST1.roll",
+        (("FHST1.alignment", math.radians(0.1), {"axis": (1.0, 0.0, 0.0)}),),
+        ("FHST1.alignment",),
+        recover=("FHST1.align_1", "FHST1.align_2", "FHST1.align_3"),
+    ),
+    Hidden(
+        "IRU.scale",
+        (("IRU.scale_misalignment", 1e-3, {"pattern": [[1.0, 0.0, 0.0], [0.0, -0.7, 0.0], [0.0, 0.0, 0.5]]}),),
+        ("IRU.scale_misalignment",),
+        exclude=("IRU.scale_misalignment",),
+        recover=("IRU.G_11", "IRU.G_22", "IRU.G_33"),
+    ),
+    Hidden(
+        "FSS1.harmonic",
+        (("FSS1.harmonic", 6e-4, {}),),
+        ("FSS1.harmonic",),
+        recover=("FSS1.A4h", "FSS1.B4h"),
+        sweep_deg=3.0,
+    ),
+    Hidden(
+        "FSS1.harmonic_no_sweep", (("FSS1.harmonic", 6e-4, {}),), ("FSS1.harmonic",), recover=("FSS1.A4h", "FSS1.B4h")
+    ),
+    Hidden(
+        "FSS1.A3", (("FSS1.transfer_function", 6e-4, {}),), (), recover=("FSS1.A1", "FSS1.A3", "FSS1.B1", "FSS1.B3")
+    ),
 )
 HIDDEN_BY_ID = {h.id: h for h in HIDDEN}
 
@@ -132,7 +157,7 @@ def truth_all(truth: Mapping, problem, method: str) -> dict[str, float]:
             el = pm.get(name, {}).get(loc)
             if el is not None and el not in out:
                 out[el] = v
-    for e in problem.state:               # extended elements the simulator leaves at the book
+    for e in problem.state:  # extended elements the simulator leaves at the book
         if e.name not in out and not e.seed:
             out[e.name] = 0.0 if "contam" in e.name or e.name.endswith(("A4h", "B4h")) else e.value
     return out
@@ -150,8 +175,7 @@ def z_scores(result, truth: Mapping[str, float]) -> dict[str, float]:
 
 
 # ----------------------------------------------------------------------------- one run
-def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = (),
-                  max_steps: int = 6) -> dict:
+def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = (), max_steps: int = 6) -> dict:
     """Simulate ``cfg`` into ``folder``, discover, and compare with the truth (module
     docstring). Returns a plain record (JSON-ready)."""
     t0 = time.perf_counter()
@@ -166,10 +190,17 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
     except Exception as exc:  # noqa: BLE001 — a failed fit is a finding of the sweep, not a crash of it
         status = f"{type(exc).__name__}: {exc}"
     t2 = time.perf_counter()
-    rec = {"mission": cfg.name, "seed": cfg.seed, "hours": cfg.duration_s / ONE_HOUR,
-           "mode": cfg.attitude_mode, "method": method, "status": status,
-           "added": [s.effect for s in a.steps if s.action == "add"],
-           "sim_s": round(t1 - t0, 2), "discover_s": round(t2 - t1, 2)}
+    rec = {
+        "mission": cfg.name,
+        "seed": cfg.seed,
+        "hours": cfg.duration_s / ONE_HOUR,
+        "mode": cfg.attitude_mode,
+        "method": method,
+        "status": status,
+        "added": [s.effect for s in a.steps if s.action == "add"],
+        "sim_s": round(t1 - t0, 2),
+        "discover_s": round(t2 - t1, 2),
+    }
     if a.result is None:
         return rec
     rec["rms"] = {k: float(v) for k, v in a.rms().items()}
@@ -194,10 +225,14 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
         rec["chi2_per_dof"] = g.fit.reduced
         # per sensor: measurements and effective dof of the fit, measurements held out
         # (what a right model's RMS scatter follows: :func:`rms_ideal_share`)
-        rec["chi2_n"] = {k: [int(t.n), float(t.dof), int(g.holdout_sensors[k].n) if k in g.holdout_sensors else 0]
-                         for k, t in g.sensors.items()}
-    rec["estimate"] = {name: [float(a.result.x[i]), float(math.sqrt(a.result.P[i, i])), float(a.problem.state[name].sigma0)]
-                       for i, name in enumerate(a.result.solve_for)}
+        rec["chi2_n"] = {
+            k: [int(t.n), float(t.dof), int(g.holdout_sensors[k].n) if k in g.holdout_sensors else 0]
+            for k, t in g.sensors.items()
+        }
+    rec["estimate"] = {
+        name: [float(a.result.x[i]), float(math.sqrt(a.result.P[i, i])), float(a.problem.state[name].sigma0)]
+        for i, name in enumerate(a.result.solve_for)
+    }
     rec["stop"] = getattr(a, "stop_reason", "")
     return rec
 
@@ -210,8 +245,9 @@ def calibrated_z(rec: Mapping) -> dict[str, float]:
     return {k: v for k, v in rec.get("z", {}).items() if k not in skip}
 
 
-def verdicts(rec: Mapping, *, expected: tuple[str, ...] = (), carrier: tuple[str, ...] = (),
-             recover: tuple[str, ...] = ()) -> dict[str, bool]:
+def verdicts(
+    rec: Mapping, *, expected: tuple[str, ...] = (), carrier: tuple[str, ...] = (), recover: tuple[str, ...] = ()
+) -> dict[str, bool]:
     """The acceptance checks of one record: ``added`` exactly ``expected``; every sensor's
     final RMS and held-out RMS ≤ :data:`rms_limit`; no step above
     :data:`divergence_limit` on a sensor not in ``carrier``; every calibrated element within
@@ -219,12 +255,13 @@ def verdicts(rec: Mapping, *, expected: tuple[str, ...] = (), carrier: tuple[str
     rms = list(rec.get("rms", {}).values()) + list(rec.get("holdout_rms", {}).values())
     z = calibrated_z(rec)
     zr = [rec.get("z", {}).get(n, float("inf")) for n in recover]
-    return {"added": sorted(rec.get("added", ())) == sorted(expected) and rec.get("status") == "ok",
-            "rms": bool(rms) and all(v <= rms_limit for v in rms),
-            "no_divergence": all(v <= divergence_limit for k, v in rec.get("peak_rms", {}).items()
-                                 if k not in carrier),
-            "truth": bool(z) and all(abs(v) <= three_sigma for v in z.values()),
-            "hidden": all(abs(v) <= three_sigma for v in zr)}
+    return {
+        "added": sorted(rec.get("added", ())) == sorted(expected) and rec.get("status") == "ok",
+        "rms": bool(rms) and all(v <= rms_limit for v in rms),
+        "no_divergence": all(v <= divergence_limit for k, v in rec.get("peak_rms", {}).items() if k not in carrier),
+        "truth": bool(z) and all(abs(v) <= three_sigma for v in z.values()),
+        "hidden": all(abs(v) <= three_sigma for v in zr),
+    }
 
 
 def rms_ideal_share(rec: Mapping) -> float:
@@ -237,9 +274,9 @@ def rms_ideal_share(rec: Mapping) -> float:
     out = 1.0
     for n, dof, n_held in rec.get("chi2_n", {}).values():
         if n > 0 and dof > 0:
-            out *= float(stats.chi2.cdf(rms_limit ** 2 * n, dof))
+            out *= float(stats.chi2.cdf(rms_limit**2 * n, dof))
         if n_held > 0:
-            out *= float(stats.chi2.cdf(rms_limit ** 2 * n_held, n_held))
+            out *= float(stats.chi2.cdf(rms_limit**2 * n_held, n_held))
     return out
 
 

@@ -24,8 +24,14 @@ N_FRAMES = 8
 
 
 def sensor(name: str, type_: str, *, alignment_deg=(0.0, 0.0, 0.0), noise=1.0, **book) -> SensorSpec:
-    return SensorSpec(name=name, type=type_, telemetry=Path(f"telemetry/{name}.csv"),
-                      alignment_deg=tuple(alignment_deg), noise=noise, book=book)
+    return SensorSpec(
+        name=name,
+        type=type_,
+        telemetry=Path(f"telemetry/{name}.csv"),
+        alignment_deg=tuple(alignment_deg),
+        noise=noise,
+        book=book,
+    )
 
 
 def random_unit(rng, n: int) -> np.ndarray:
@@ -61,11 +67,11 @@ class CircularOrbit:
 
     @property
     def mean_motion(self) -> float:
-        return np.sqrt(units.MU_EARTH / self.radius_km ** 3)
+        return np.sqrt(units.MU_EARTH / self.radius_km**3)
 
     @property
     def normal(self) -> np.ndarray:
-        R = T1(self.incl) @ T3(self.raan)          # GCI -> orbit plane frame
+        R = T1(self.incl) @ T3(self.raan)  # GCI -> orbit plane frame
         return R.T @ np.array([0.0, 0.0, 1.0])
 
     def __call__(self, t):
@@ -79,7 +85,7 @@ class CircularOrbit:
         s0 = np.array(self.sun0) / np.linalg.norm(self.sun0)
         axis = np.cross(s0, [0.0, 0.0, 1.0])
         axis /= np.linalg.norm(axis)
-        rot = rotvec_to_dcm(-np.outer(self.sun_rate * t, axis))   # rotate s0 by +rate t about axis
+        rot = rotvec_to_dcm(-np.outer(self.sun_rate * t, axis))  # rotate s0 by +rate t about axis
         return r, v, rot @ s0
 
 
@@ -112,22 +118,30 @@ def _pointing(rng, params, S_S_target, v_I_of_C=None):
     n = S_S_target.shape[0]
     M, _ = alignment_matrix(params)
     C = random_dcm(rng, n)
-    v_B = S_S_target @ M                         # Mᵀ S_S (row form)
-    v_I = np.einsum("nji,nj->ni", C, v_B)        # Cᵀ v_B
+    v_B = S_S_target @ M  # Mᵀ S_S (row form)
+    v_I = np.einsum("nji,nj->ni", C, v_B)  # Cᵀ v_B
     return C, v_I
 
 
 # --------------------------------------------------------------------------------------
 def magnetometer_case(rng, n=N_FRAMES):
-    model = make_model(sensor("TAM1", "magnetometer", alignment_deg=_aligned(rng), noise=25.0,
-                              bias=tuple(rng.uniform(-50, 50, 3))), aux_channels=("mtb_x", "tam_temp"))
+    model = make_model(
+        sensor("TAM1", "magnetometer", alignment_deg=_aligned(rng), noise=25.0, bias=tuple(rng.uniform(-50, 50, 3))),
+        aux_channels=("mtb_x", "tam_temp"),
+    )
     orbit = CircularOrbit()
     t = _times(rng, n)
     r, v, _ = orbit(t)
-    geom = Geometry(t=t, C_BI=random_dcm(rng, n), r_I=r, v_I=v, B_I=dipole_field(t, r),
-                    omega_B=rng.normal(scale=2e-3, size=(n, 3)),
-                    aux={"mtb_x": rng.uniform(-60, 60, n), "tam_temp": rng.uniform(10, 30, n)},
-                    field_model=dipole_field)
+    geom = Geometry(
+        t=t,
+        C_BI=random_dcm(rng, n),
+        r_I=r,
+        v_I=v,
+        B_I=dipole_field(t, r),
+        omega_B=rng.normal(scale=2e-3, size=(n, 3)),
+        aux={"mtb_x": rng.uniform(-60, 60, n), "tam_temp": rng.uniform(10, 30, n)},
+        field_model=dipole_field,
+    )
     params = {f"bias_{a}": rng.uniform(-200, 200) for a in "xyz"}
     _jitter_alignment(rng, model, params)
     params.update({f"scale_{a}": rng.uniform(-2e-3, 2e-3) for a in "xyz"})
@@ -139,10 +153,21 @@ def magnetometer_case(rng, n=N_FRAMES):
 
 def star_tracker_case(rng, n=N_FRAMES):
     fov = 4.0
-    model = make_model(sensor("FHST1", "star_tracker", alignment_deg=(rng.uniform(-180, 180), 30.0, 90.0),
-                              noise=3.9e-5, scale=(1.0, 1.0), fov_deg=fov))
-    params = {"scale_h": 1.0 + rng.uniform(-1e-3, 1e-3), "scale_v": 1.0 + rng.uniform(-1e-3, 1e-3),
-              "time_offset": rng.uniform(-0.3, 0.3)}
+    model = make_model(
+        sensor(
+            "FHST1",
+            "star_tracker",
+            alignment_deg=(rng.uniform(-180, 180), 30.0, 90.0),
+            noise=3.9e-5,
+            scale=(1.0, 1.0),
+            fov_deg=fov,
+        )
+    )
+    params = {
+        "scale_h": 1.0 + rng.uniform(-1e-3, 1e-3),
+        "scale_v": 1.0 + rng.uniform(-1e-3, 1e-3),
+        "time_offset": rng.uniform(-0.3, 0.3),
+    }
     _jitter_alignment(rng, model, params)
     p = {**model.nominal(), **params}
     lim = 0.7 * fov * units.DEG
@@ -153,14 +178,30 @@ def star_tracker_case(rng, n=N_FRAMES):
 
 def fine_sun_case(rng, n=N_FRAMES):
     fov = 32.0
-    model = make_model(sensor("FSS1", "fine_sun", alignment_deg=_aligned(rng), noise=0.577, fov_deg=fov,
-                              coeff_alpha=(0.01, 7.6e-5, 0.002, 50.0), coeff_beta=(-0.02, 7.7e-5, 0.003, 45.0)))
-    params = {"A1": 0.01 + rng.uniform(-1e-3, 1e-3), "A2": 7.6e-5 * (1 + rng.uniform(-1e-3, 1e-3)),
-              "A3": rng.uniform(-3e-3, 3e-3), "k_alpha": 50.0 + rng.uniform(-2, 2),
-              "B1": -0.02 + rng.uniform(-1e-3, 1e-3), "B2": 7.7e-5 * (1 + rng.uniform(-1e-3, 1e-3)),
-              "B3": rng.uniform(-3e-3, 3e-3), "k_beta": 45.0 + rng.uniform(-2, 2),
-              "A4h": rng.uniform(-1e-3, 1e-3), "B4h": rng.uniform(-1e-3, 1e-3),
-              "time_offset": rng.uniform(-0.3, 0.3)}
+    model = make_model(
+        sensor(
+            "FSS1",
+            "fine_sun",
+            alignment_deg=_aligned(rng),
+            noise=0.577,
+            fov_deg=fov,
+            coeff_alpha=(0.01, 7.6e-5, 0.002, 50.0),
+            coeff_beta=(-0.02, 7.7e-5, 0.003, 45.0),
+        )
+    )
+    params = {
+        "A1": 0.01 + rng.uniform(-1e-3, 1e-3),
+        "A2": 7.6e-5 * (1 + rng.uniform(-1e-3, 1e-3)),
+        "A3": rng.uniform(-3e-3, 3e-3),
+        "k_alpha": 50.0 + rng.uniform(-2, 2),
+        "B1": -0.02 + rng.uniform(-1e-3, 1e-3),
+        "B2": 7.7e-5 * (1 + rng.uniform(-1e-3, 1e-3)),
+        "B3": rng.uniform(-3e-3, 3e-3),
+        "k_beta": 45.0 + rng.uniform(-2, 2),
+        "A4h": rng.uniform(-1e-3, 1e-3),
+        "B4h": rng.uniform(-1e-3, 1e-3),
+        "time_offset": rng.uniform(-0.3, 0.3),
+    }
     _jitter_alignment(rng, model, params)
     p = {**model.nominal(), **params}
     lim = 0.7 * fov * units.DEG
@@ -172,11 +213,24 @@ def fine_sun_case(rng, n=N_FRAMES):
 def coarse_sun_case(rng, n=N_FRAMES):
     fov = 60.0
     K = 4.3633231e-3
-    model = make_model(sensor("CSS1", "coarse_sun", alignment_deg=_aligned(rng), noise=0.577, fov_deg=fov,
-                              scale=(K, K * 1.01), bias=(0.001, -0.002)))
-    params = {"K_alpha": K * (1 + rng.uniform(-0.01, 0.01)), "K_beta": K * (1 + rng.uniform(-0.01, 0.01)),
-              "b_alpha": rng.uniform(-0.01, 0.01), "b_beta": rng.uniform(-0.01, 0.01),
-              "time_offset": rng.uniform(-0.3, 0.3)}
+    model = make_model(
+        sensor(
+            "CSS1",
+            "coarse_sun",
+            alignment_deg=_aligned(rng),
+            noise=0.577,
+            fov_deg=fov,
+            scale=(K, K * 1.01),
+            bias=(0.001, -0.002),
+        )
+    )
+    params = {
+        "K_alpha": K * (1 + rng.uniform(-0.01, 0.01)),
+        "K_beta": K * (1 + rng.uniform(-0.01, 0.01)),
+        "b_alpha": rng.uniform(-0.01, 0.01),
+        "b_beta": rng.uniform(-0.01, 0.01),
+        "time_offset": rng.uniform(-0.3, 0.3),
+    }
     _jitter_alignment(rng, model, params)
     p = {**model.nominal(), **params}
     lim = 0.7 * fov * units.DEG
@@ -205,9 +259,18 @@ def plane_field_sun_case(rng, n=N_FRAMES):
 def horizon_case(rng, n=N_FRAMES, observable="in_out"):
     """Spinner in a 7000 km circular orbit, spin axis within 20° of the orbit normal."""
     orbit = CircularOrbit(sun0=tuple(random_unit(rng, 1)[0]))
-    model = make_model(sensor("HS1", "horizon", noise=2e-3, gamma_deg=rng.uniform(75.0, 95.0),
-                              phi_h_deg=rng.uniform(0.0, 360.0), horizon_height_km=40.0,
-                              sun_sensor="PFSS", observable=observable))
+    model = make_model(
+        sensor(
+            "HS1",
+            "horizon",
+            noise=2e-3,
+            gamma_deg=rng.uniform(75.0, 95.0),
+            phi_h_deg=rng.uniform(0.0, 360.0),
+            horizon_height_km=40.0,
+            sun_sensor="PFSS",
+            observable=observable,
+        )
+    )
     tilt = rotvec_to_dcm(rng.normal(size=3) * (10.0 * units.DEG / np.sqrt(3.0)))
     A = tilt @ orbit.normal
     # sighting times at which the Sun angle stays within 35°..145° of the spin axis
@@ -219,10 +282,16 @@ def horizon_case(rng, n=N_FRAMES, observable="in_out"):
         return horizon_case(rng, n, observable)
     geom = Geometry(t=t, spin_axis_I=A, ephemeris=orbit, extra={"spin_rate": rng.uniform(1.0, 2.0, t.size)})
     deg = units.DEG
-    params = {"d_gamma": rng.uniform(-0.5, 0.5) * deg, "d_rho": rng.uniform(-0.3, 0.3) * deg,
-              "d_phi": rng.uniform(-1, 1) * deg, "eps_S": rng.uniform(-1, 1) * deg,
-              "eps_H": rng.uniform(-1, 1) * deg, "d_t": rng.uniform(-5, 5),
-              "horizon_height": rng.uniform(-3, 3), "oblateness": rng.uniform(0.0, 1.5)}
+    params = {
+        "d_gamma": rng.uniform(-0.5, 0.5) * deg,
+        "d_rho": rng.uniform(-0.3, 0.3) * deg,
+        "d_phi": rng.uniform(-1, 1) * deg,
+        "eps_S": rng.uniform(-1, 1) * deg,
+        "eps_H": rng.uniform(-1, 1) * deg,
+        "d_t": rng.uniform(-5, 5),
+        "horizon_height": rng.uniform(-3, 3),
+        "oblateness": rng.uniform(0.0, 1.5),
+    }
     return model, geom, params
 
 
@@ -231,8 +300,17 @@ def horizon_width_midscan_case(rng, n=N_FRAMES):
 
 
 def gyro_case(rng, n=N_FRAMES):
-    model = make_model(sensor("IRU", "gyro", alignment_deg=_aligned(rng), noise=None, arw=3.2e-7,
-                              rrw=3.2e-10, bias=tuple(rng.uniform(-1e-5, 1e-5, 3))))
+    model = make_model(
+        sensor(
+            "IRU",
+            "gyro",
+            alignment_deg=_aligned(rng),
+            noise=None,
+            arw=3.2e-7,
+            rrw=3.2e-10,
+            bias=tuple(rng.uniform(-1e-5, 1e-5, 3)),
+        )
+    )
     params = {f"G_{i}{j}": rng.uniform(-2e-3, 2e-3) for i in range(1, 4) for j in range(1, 4)}
     params.update({f"bias_{a}": rng.uniform(-2e-5, 2e-5) for a in "xyz"})
     _jitter_alignment(rng, model, params)
@@ -249,11 +327,12 @@ def attitude_reference_case(rng, n=N_FRAMES):
 
 
 def magnetometer_constant_field_case(rng, n=N_FRAMES):
-    model = make_model(sensor("MAG", "magnetometer", alignment_deg=_aligned(rng), noise=300.0,
-                              bias=tuple(rng.uniform(-500, 500, 3))), constant_field=True)
+    model = make_model(
+        sensor("MAG", "magnetometer", alignment_deg=_aligned(rng), noise=300.0, bias=tuple(rng.uniform(-500, 500, 3))),
+        constant_field=True,
+    )
     t = _times(rng, n)
-    geom = Geometry(t=t, C_BI=random_dcm(rng, n), B_I=np.zeros((n, 3)),
-                    omega_B=rng.normal(scale=1.0, size=(n, 3)))
+    geom = Geometry(t=t, C_BI=random_dcm(rng, n), B_I=np.zeros((n, 3)), omega_B=rng.normal(scale=1.0, size=(n, 3)))
     params = {f"bias_{a}": rng.uniform(-2000, 2000) for a in "xyz"}
     params.update({f"field_{a}": v for a, v in zip("xyz", (300.0, 17000.0, -45000.0))})
     _jitter_alignment(rng, model, params)
@@ -265,14 +344,17 @@ def magnetometer_constant_field_case(rng, n=N_FRAMES):
 def magnetometer_field_gradient_case(rng, n=N_FRAMES):
     """A lab magnetometer carried through a non-uniform field: the position channels give
     the gradient its lever (and no contamination terms); a temperature channel keeps its own."""
-    model = make_model(sensor("MAG", "magnetometer", alignment_deg=_aligned(rng), noise=300.0,
-                              bias=tuple(rng.uniform(-500, 500, 3))),
-                       aux_channels=("pos_x", "pos_y", "pos_z", "temp"), constant_field=True)
+    model = make_model(
+        sensor("MAG", "magnetometer", alignment_deg=_aligned(rng), noise=300.0, bias=tuple(rng.uniform(-500, 500, 3))),
+        aux_channels=("pos_x", "pos_y", "pos_z", "temp"),
+        constant_field=True,
+    )
     t = _times(rng, n)
     aux = {c: rng.uniform(-0.4, 0.4, n) for c in ("pos_x", "pos_y", "pos_z")}
     aux["temp"] = rng.uniform(10, 30, n)
-    geom = Geometry(t=t, C_BI=random_dcm(rng, n), B_I=np.zeros((n, 3)), aux=aux,
-                    omega_B=rng.normal(scale=1.0, size=(n, 3)))
+    geom = Geometry(
+        t=t, C_BI=random_dcm(rng, n), B_I=np.zeros((n, 3)), aux=aux, omega_B=rng.normal(scale=1.0, size=(n, 3))
+    )
     params = {f"bias_{a}": rng.uniform(-2000, 2000) for a in "xyz"}
     params.update({f"field_{a}": v for a, v in zip("xyz", (300.0, 17000.0, -45000.0))})
     params.update({f"gradient_{ab}": rng.uniform(-5000, 5000) for ab in ("xx", "xy", "xz", "yy", "yz")})

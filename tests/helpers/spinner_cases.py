@@ -91,7 +91,7 @@ def expected_estimates(a: Analysis, truth: dict[str, float]) -> dict[str, float]
         Hw = (lin.H[use] / lin.sigma[None, :, None]).reshape(-1, len(cols))
         N += Hw.T @ Hw
     s0 = np.array([state[nm].sigma0 for nm in names])
-    info0 = np.where(np.isfinite(s0), 1.0 / s0 ** 2, 0.0)
+    info0 = np.where(np.isfinite(s0), 1.0 / s0**2, 0.0)
     x_true = np.array([truth[nm] for nm in names])
     x_bar = np.array([state[nm].value for nm in names])
     rhs = info0 * (x_bar - x_true)
@@ -115,11 +115,21 @@ def run_case(inclination, hidden: str, seed: int, folder: Path, duration_s: floa
     tv = truth_values(truth, a.problem)
     loose = a.not_determined()
     z = {k: v for k, v in normalized_errors(res, tv).items() if k not in loose}
-    z_exp = {k: v for k, v in normalized_errors(res, {**tv, **expected_estimates(a, tv)}).items()
-             if k not in loose}
+    z_exp = {k: v for k, v in normalized_errors(res, {**tv, **expected_estimates(a, tv)}).items() if k not in loose}
     rep = analysis_report(a)
     cand = next((c for c in a.candidates if c.id == effect), None)
     hidden_aliases = tuple(cand.aliases_state) + tuple(x for x, _ in cand.aliases_candidates) if cand else ()
-    return Outcome(inclination, hidden, seed, [s.effect for s in a.steps if s.action == "add"], a.rms(),
-                   dict(a.holdout_rms), z, z_exp, loose, [al["text"] for al in rep.get("aliases", [])],
-                   hidden_aliases, time.perf_counter() - t0)
+    return Outcome(
+        inclination,
+        hidden,
+        seed,
+        [s.effect for s in a.steps if s.action == "add"],
+        a.rms(),
+        dict(a.holdout_rms),
+        z,
+        z_exp,
+        loose,
+        [al["text"] for al in rep.get("aliases", [])],
+        hidden_aliases,
+        time.perf_counter() - t0,
+    )

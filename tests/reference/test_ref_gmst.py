@@ -10,7 +10,7 @@ from gcs_core.ephem import timescale as ts
 from gcs_core.errors import InputError
 
 one_arcsecond = units.ARCSEC
-one_microsecond_of_day = 1e-6 / 86400.0   # [day]
+one_microsecond_of_day = 1e-6 / 86400.0  # [day]
 
 
 def test_vallado_example_3_5_gmst():
@@ -61,7 +61,7 @@ def test_vallado_example_3_4_julian_date():
     assert abs(jd - 2450383.09722222) < 1e-8
     whole, frac = ts.julian_date_parts("1996-10-26T14:20:00Z", np.array([0.0, 36000.0]))
     assert whole[0] == 2450382.5 and abs(frac[0] - 14 / 24 - 20 / 1440) < one_microsecond_of_day
-    assert whole[1] == 2450383.5                            # crossed midnight
+    assert whole[1] == 2450383.5  # crossed midnight
     assert np.all((frac >= 0.0) & (frac < 1.0))
 
 
@@ -82,13 +82,16 @@ def test_decimal_year_convention():
     assert abs(ts.decimal_year("2025-01-01T00:00:00Z", -183 * day) - 2024.5) < 1e-12
 
 
-@pytest.mark.parametrize("text, expected", [
-    ("2024-03-20T06:00:00Z", datetime(2024, 3, 20, 6, tzinfo=UTC)),
-    ("2024-03-20T06:00:00.250Z", datetime(2024, 3, 20, 6, 0, 0, 250000, tzinfo=UTC)),
-    ("2024-03-20 06:00:00", datetime(2024, 3, 20, 6, tzinfo=UTC)),
-    ("2024-03-20T08:00:00+02:00", datetime(2024, 3, 20, 6, tzinfo=UTC)),
-    ("2024-03-20", datetime(2024, 3, 20, tzinfo=UTC)),
-])
+@pytest.mark.parametrize(
+    "text, expected",
+    [
+        ("2024-03-20T06:00:00Z", datetime(2024, 3, 20, 6, tzinfo=UTC)),
+        ("2024-03-20T06:00:00.250Z", datetime(2024, 3, 20, 6, 0, 0, 250000, tzinfo=UTC)),
+        ("2024-03-20 06:00:00", datetime(2024, 3, 20, 6, tzinfo=UTC)),
+        ("2024-03-20T08:00:00+02:00", datetime(2024, 3, 20, 6, tzinfo=UTC)),
+        ("2024-03-20", datetime(2024, 3, 20, tzinfo=UTC)),
+    ],
+)
 def test_parse_epoch_accepts_iso_utc(text, expected):
     got = ts.parse_epoch(text, key="mission.epoch")
     assert got == expected and got.tzinfo is not None

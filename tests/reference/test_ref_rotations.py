@@ -12,7 +12,7 @@ from gcs_core import units
 from gcs_core.frames import rotations as R
 
 one_arcsecond = units.ARCSEC
-machine = 1e-14                     # round-off on unit-magnitude matrix elements
+machine = 1e-14  # round-off on unit-magnitude matrix elements
 
 
 def _rng(seed=0):
@@ -50,8 +50,7 @@ def test_quaternion_convention_is_eq_4_8():
 def test_quaternion_dcm_round_trip_generic():
     q = _random_quats(5000, 1)
     C = R.quat_to_dcm(q)
-    np.testing.assert_allclose(C @ np.swapaxes(C, -1, -2), np.broadcast_to(np.eye(3), C.shape),
-                               atol=machine)
+    np.testing.assert_allclose(C @ np.swapaxes(C, -1, -2), np.broadcast_to(np.eye(3), C.shape), atol=machine)
     q2 = R.quat_from_dcm(C)
     assert np.max(_same_rotation(q2, q)) < machine
     assert np.all(q2[:, 3] >= 0.0)
@@ -88,7 +87,7 @@ def test_tiny_rotations():
     np.testing.assert_allclose(R.quat_from_dcm(C), q, atol=1e-6 * ang)
     np.testing.assert_allclose(R.rotvec_to_dcm(ang * ax), C, atol=machine)
     # first-order small rotation agrees to second order
-    np.testing.assert_allclose(R.small_rotation(ang * ax), C, atol=ang ** 2)
+    np.testing.assert_allclose(R.small_rotation(ang * ax), C, atol=ang**2)
 
 
 def test_rotation_vector_round_trip():
@@ -108,8 +107,7 @@ def test_euler123_round_trip_generic():
         np.testing.assert_allclose(np.angle(np.exp(1j * (a - b))), 0.0, atol=1e-11)
 
 
-@pytest.mark.parametrize("pitch", [np.pi / 2, -np.pi / 2, np.pi / 2 - 1e-9, -np.pi / 2 + 1e-9,
-                                   np.pi / 2 - 1e-6])
+@pytest.mark.parametrize("pitch", [np.pi / 2, -np.pi / 2, np.pi / 2 - 1e-9, -np.pi / 2 + 1e-9, np.pi / 2 - 1e-6])
 def test_euler123_near_gimbal_lock_reproduces_the_matrix(pitch):
     """At and near pitch = ±90 deg the individual roll and yaw are ill-determined, but the
     angles returned must rebuild the same matrix. Observed: exact at ±90 deg, 1e-9 at
@@ -135,12 +133,12 @@ def test_quat_to_euler123_is_eq_4_11():
     ψ = atan2(−2(q1q2 − q3q4), q1²−q2²−q3²+q4²)."""
     q = _random_quats(3000, 8)
     q1, q2, q3, q4 = q.T
-    phi = np.arctan2(-2 * (q2 * q3 - q1 * q4), -q1 ** 2 - q2 ** 2 + q3 ** 2 + q4 ** 2)
+    phi = np.arctan2(-2 * (q2 * q3 - q1 * q4), -(q1**2) - q2**2 + q3**2 + q4**2)
     theta = np.arcsin(np.clip(2 * (q1 * q3 + q2 * q4), -1, 1))
-    psi = np.arctan2(-2 * (q1 * q2 - q3 * q4), q1 ** 2 - q2 ** 2 - q3 ** 2 + q4 ** 2)
+    psi = np.arctan2(-2 * (q1 * q2 - q3 * q4), q1**2 - q2**2 - q3**2 + q4**2)
     r, p, y = R.quat_to_euler123(q)
     np.testing.assert_allclose(r, phi, atol=1e-12)
-    np.testing.assert_allclose(p, theta, atol=1e-7)     # asin reference near ±1 loses precision
+    np.testing.assert_allclose(p, theta, atol=1e-7)  # asin reference near ±1 loses precision
     np.testing.assert_allclose(y, psi, atol=1e-12)
     # and the angles rebuild C(q) (Eq 4-4 = Eq 4-8)
     np.testing.assert_allclose(R.euler123_to_dcm(r, p, y), R.quat_to_dcm(q), atol=1e-12)
@@ -151,16 +149,23 @@ def test_composition_is_eq_4_10():
     a, b, c = _random_quats(1000, 9), _random_quats(1000, 10), _random_quats(1000, 11)
     ab = R.quat_multiply(a, b)
     np.testing.assert_allclose(R.quat_to_dcm(ab), R.quat_to_dcm(a) @ R.quat_to_dcm(b), atol=machine)
-    np.testing.assert_allclose(R.quat_multiply(R.quat_multiply(a, b), c),
-                               R.quat_multiply(a, R.quat_multiply(b, c)), atol=machine)
+    np.testing.assert_allclose(
+        R.quat_multiply(R.quat_multiply(a, b), c), R.quat_multiply(a, R.quat_multiply(b, c)), atol=machine
+    )
     ident = np.array([0.0, 0.0, 0.0, 1.0])
     np.testing.assert_allclose(R.quat_multiply(ident, a), a, atol=0)
-    np.testing.assert_allclose(R.quat_multiply(R.quat_conjugate(a), a),
-                               np.broadcast_to(ident, a.shape), atol=machine)
+    np.testing.assert_allclose(R.quat_multiply(R.quat_conjugate(a), a), np.broadcast_to(ident, a.shape), atol=machine)
     # the Eq 4-10b matrix form, written out from the seed
     a1, a2, a3, a4 = a.T
-    M = np.stack([np.stack([a4, a3, -a2, a1], -1), np.stack([-a3, a4, a1, a2], -1),
-                  np.stack([a2, -a1, a4, a3], -1), np.stack([-a1, -a2, -a3, a4], -1)], -2)
+    M = np.stack(
+        [
+            np.stack([a4, a3, -a2, a1], -1),
+            np.stack([-a3, a4, a1, a2], -1),
+            np.stack([a2, -a1, a4, a3], -1),
+            np.stack([-a1, -a2, -a3, a4], -1),
+        ],
+        -2,
+    )
     np.testing.assert_allclose(np.einsum("nij,nj->ni", M, b), ab, atol=machine)
 
 
@@ -182,6 +187,5 @@ def test_orthonormalize_restores_a_rotation():
     C = R.quat_to_dcm(_random_quats(200, 13))
     np.testing.assert_allclose(R.orthonormalize(C), C, atol=machine)
     noisy = R.orthonormalize(C + 1e-6 * _rng(14).normal(size=C.shape))
-    np.testing.assert_allclose(noisy @ np.swapaxes(noisy, -1, -2),
-                               np.broadcast_to(np.eye(3), C.shape), atol=machine)
+    np.testing.assert_allclose(noisy @ np.swapaxes(noisy, -1, -2), np.broadcast_to(np.eye(3), C.shape), atol=machine)
     np.testing.assert_allclose(np.linalg.det(noisy), 1.0, atol=machine)

@@ -6,7 +6,7 @@ from gcs_core import units
 from gcs_core.ephem import sun, timescale
 
 one_arcsecond = units.ARCSEC
-series_accuracy = 0.01 * units.DEG          # accuracy the Almanac states for the series
+series_accuracy = 0.01 * units.DEG  # accuracy the Almanac states for the series
 
 
 def _angle(a, b):
@@ -51,10 +51,14 @@ def test_sun_is_vectorized_and_at_the_march_equinox():
 def test_in_shadow_cylindrical_and_conical():
     s = np.array([units.AU_KM, 0.0, 0.0])
     R = units.R_EARTH_KM
-    r = np.array([[-7000.0, 0.0, 0.0],        # behind the Earth: shadow
-                  [7000.0, 0.0, 0.0],         # Sun side: lit
-                  [-7000.0, 0.0, R + 100.0],  # behind but above the shadow cylinder
-                  [0.0, 7000.0, 0.0]])        # terminator
+    r = np.array(
+        [
+            [-7000.0, 0.0, 0.0],  # behind the Earth: shadow
+            [7000.0, 0.0, 0.0],  # Sun side: lit
+            [-7000.0, 0.0, R + 100.0],  # behind but above the shadow cylinder
+            [0.0, 7000.0, 0.0],
+        ]
+    )  # terminator
     np.testing.assert_array_equal(sun.in_shadow(r, s, model="cylindrical"), [1, 0, 0, 0])
     np.testing.assert_array_equal(sun.in_shadow(r, s, model="conical"), [1, 0, 0, 0])
     frac = sun.sunlit_fraction(r, s)
@@ -73,17 +77,21 @@ def test_sunlit_fraction_across_the_penumbra():
     f = sun.sunlit_fraction(r, s)
     assert np.all(np.diff(f) >= -1e-12) and f[0] == 0.0 and f[-1] == 1.0
     shadow = sun.in_shadow(r, s, model="conical")
-    k = np.argmax(~shadow)                       # first point whose Sun centre is visible
+    k = np.argmax(~shadow)  # first point whose Sun centre is visible
     assert abs(f[k] - 0.5) < 0.02
 
 
 def test_earth_occults_line_of_sight():
     r = np.array([[7000.0, 0.0, 0.0]] * 4)
     rho = np.arcsin(units.R_EARTH_KM / 7000.0)
-    los = np.array([[-1.0, 0.0, 0.0],                                   # nadir
-                    [1.0, 0.0, 0.0],                                    # zenith
-                    [-np.cos(rho - 1e-3), np.sin(rho - 1e-3), 0.0],     # just inside limb
-                    [-np.cos(rho + 1e-3), np.sin(rho + 1e-3), 0.0]])    # just outside
+    los = np.array(
+        [
+            [-1.0, 0.0, 0.0],  # nadir
+            [1.0, 0.0, 0.0],  # zenith
+            [-np.cos(rho - 1e-3), np.sin(rho - 1e-3), 0.0],  # just inside limb
+            [-np.cos(rho + 1e-3), np.sin(rho + 1e-3), 0.0],
+        ]
+    )  # just outside
     np.testing.assert_array_equal(sun.earth_occults(r, los), [1, 0, 1, 0])
     np.testing.assert_array_equal(sun.earth_occults(r, los, 2e-3), [1, 0, 1, 1])
     # broadcasting a single line of sight over many positions

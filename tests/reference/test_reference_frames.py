@@ -58,8 +58,7 @@ def test_sun_pointing_axes_follow_the_icd():
     np.testing.assert_allclose(A[:, 1, 2], 0.0, atol=1e-15)
     assert np.all(A[:, 2, 2] > 0.0)
     # at the March equinox (Sun along +x_GCI) the reference frame is the GCI frame
-    np.testing.assert_allclose(ref.reference_dcm("sun_pointing", sun_I=[1.5e8, 0.0, 0.0])[0],
-                               np.eye(3), atol=1e-15)
+    np.testing.assert_allclose(ref.reference_dcm("sun_pointing", sun_I=[1.5e8, 0.0, 0.0])[0], np.eye(3), atol=1e-15)
 
 
 def test_inertial_and_bad_modes():
@@ -81,7 +80,7 @@ def test_spin_axis_and_ra_dec_round_trip():
     np.testing.assert_allclose(np.linalg.norm(A, axis=1), 1.0, atol=1e-15)
     ra2, dec2 = ref.ra_dec_from_vector(A)
     np.testing.assert_allclose(dec2, dec, atol=1e-12)
-    dra = np.angle(np.exp(1j * (ra2 - ra))) * np.cos(dec)     # RA error as an arc
+    dra = np.angle(np.exp(1j * (ra2 - ra))) * np.cos(dec)  # RA error as an arc
     np.testing.assert_allclose(dra, 0.0, atol=1e-12)
     assert np.all((ra2 >= 0) & (ra2 < 2 * np.pi))
     # the seed's example guess for a spinner: RA 303.5 deg, Dec -25.5 deg
@@ -113,7 +112,7 @@ def test_earth_pointing_rate_is_the_frame_rate():
     Ap = ref.reference_dcm("earth_pointing", *orbit.state(t + h))
     Am = ref.reference_dcm("earth_pointing", *orbit.state(t - h))
     Adot = (Ap - Am) / (2 * h)
-    W = -Adot @ np.swapaxes(A, -1, -2)                # [omega_R x]
+    W = -Adot @ np.swapaxes(A, -1, -2)  # [omega_R x]
     omega_R_fd = np.stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]], -1)
     r, v = orbit.state(t)
     omega_I = ref.earth_pointing_rate(r, v)

@@ -44,7 +44,7 @@ def test_earth_velocity_is_about_30_km_s_and_eclipse_geometry():
     v = astro.earth_velocity_km_s(jd, [0.0])[0]
     s = astro.sun_position_km(jd, [0.0])[0]
     assert np.linalg.norm(v) == pytest.approx(29.8, abs=0.6)
-    assert abs(v @ s) / np.linalg.norm(v) / np.linalg.norm(s) < 0.03        # nearly circular orbit
+    assert abs(v @ s) / np.linalg.norm(v) / np.linalg.norm(s) < 0.03  # nearly circular orbit
     u = s / np.linalg.norm(s)
     side = np.cross(u, [0.0, 0.0, 1.0])
     side /= np.linalg.norm(side)
@@ -61,12 +61,13 @@ def test_igrf_frame_conversion_against_a_dipole():
     formula evaluated independently in ECEF.
     """
     import ppigrf
+
     epoch = datetime(2024, 5, 14, 4, tzinfo=UTC)
     jd = astro.epoch_jd(epoch)
     a = 6371.2
     date = epoch.replace(tzinfo=None)
     comps = []
-    for th, ph in ((90.0, 0.0), (90.0, 90.0), (1e-9, 0.0)):   # (θ = 0 divides by sin θ)
+    for th, ph in ((90.0, 0.0), (90.0, 90.0), (1e-9, 0.0)):  # (θ = 0 divides by sin θ)
         comps.append(float(ppigrf.igrf_gc(a, th, ph, date, max_degree=1)[0][0]) / 2.0)
     m = np.array(comps)
     rng = np.random.default_rng(3)
@@ -91,7 +92,7 @@ def test_orbit_velocity_is_the_derivative_and_j2_drift_is_sun_synchronous():
     # Sun-synchronous at 700 km needs i ≈ 98.19° (Vallado 4th ed. §11.4): dΩ/dt = 360°/365.2422 d.
     raan_dot = orbit.secular_rates(7078.137, 0.0, math.radians(98.19))[0]
     assert math.degrees(raan_dot) * 86400 == pytest.approx(360 / 365.2422, rel=2e-3)
-    energy = np.sum(v ** 2, 1) / 2 - orbit.MU_EARTH / np.linalg.norm(r, axis=1)
+    energy = np.sum(v**2, 1) / 2 - orbit.MU_EARTH / np.linalg.norm(r, axis=1)
     assert np.ptp(energy) / abs(energy.mean()) < 5e-3
 
 
@@ -134,22 +135,20 @@ def test_slew_profile_is_continuous_and_turns_rate_times_plateau():
     ang = slew_angle(tau, 100.0, 20.0)
     rate = np.gradient(ang, tau)
     assert ang[-1] == pytest.approx(80.0)
-    assert np.max(np.abs(np.diff(rate))) < 1e-3                   # no rate step
+    assert np.max(np.abs(np.diff(rate))) < 1e-3  # no rate step
     assert rate.max() == pytest.approx(1.0, abs=1e-6)
 
 
 def test_catalog_and_first_order_aberration():
     cat = StarCatalog(20240320)
     assert cat.u_I.shape == (8000, 3) and 2.0 <= cat.mag.min() and cat.mag.max() <= 6.0
-    assert abs(cat.u_I[:, 2].mean()) < 0.03                          # uniform on the sphere
+    assert abs(cat.u_I[:, 2].mean()) < 0.03  # uniform on the sphere
     beta = np.array([30.0, 0.0, 0.0]) / astro.C_KM_S
     u = np.array([[0.0, 1.0, 0.0], [math.sqrt(0.5), math.sqrt(0.5), 0.0]])
     shift = np.arccos(np.sum(aberrate(u, beta) * u, 1))
     # δ = |β| sin θ: 20.6" for a star 90° from the apex, 14.6" at 45°.
     assert shift == pytest.approx(np.linalg.norm(beta) * np.array([1.0, math.sqrt(0.5)]), rel=1e-6)
     assert shift[0] / one_arcsecond == pytest.approx(20.64, abs=0.01)
-
-
 
 
 def test_field_pipeline_reproduces_the_independent_example_mission(example_dir):
@@ -161,8 +160,9 @@ def test_field_pipeline_reproduces_the_independent_example_mission(example_dir):
     epoch = astro.parse_epoch("2024-03-20T06:00:00Z")
     t = ob[:, 0]
     from scipy.interpolate import CubicHermiteSpline  # ICD §4 interpolation
+
     r = CubicHermiteSpline(eph[:, 0], eph[:, 1:4], eph[:, 4:7])(t)
     B_S = np.einsum("nij,nj->ni", _rot.quat_to_dcm(ob[:, 1:]), igrf_gci(epoch, astro.epoch_jd(epoch), t, r))
     res = tam[np.searchsorted(tam[:, 0], t), 1:] - B_S
-    assert np.all(np.abs(res.mean(axis=0)) < 8 * one_nT)     # onboard error ~0.02° → ~10 nT
-    assert np.all(res.std(axis=0) < 28 * one_nT)            # measured: 24.3 to 25.8 nT
+    assert np.all(np.abs(res.mean(axis=0)) < 8 * one_nT)  # onboard error ~0.02° → ~10 nT
+    assert np.all(res.std(axis=0) < 28 * one_nT)  # measured: 24.3 to 25.8 nT

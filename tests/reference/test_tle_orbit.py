@@ -38,8 +38,8 @@ from gcs_core.units import ARCSEC
 
 TLE = TEST_DATA / "astropi" / "iss-2022-01-31.tle"
 EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=UTC)
-one_metre = 1e-3      # km
-one_mm = 1e-6         # km
+one_metre = 1e-3  # km
+one_mm = 1e-6  # km
 
 VALLADO_EPOCH = datetime(2000, 6, 28, 15, 8, 51, 655000, tzinfo=UTC)
 R_TEME = np.array([3961.0035498, 6010.7511740, 4619.3009301])
@@ -55,7 +55,7 @@ TRUNCATION = 10e-3 * ARCSEC * 8560.0
 
 
 def test_vallado2006_tt_centuries():
-    T = teme._tt_centuries(VALLADO_EPOCH, np.array([21.0 - 32.0]))[0]      # the example's ΔAT
+    T = teme._tt_centuries(VALLADO_EPOCH, np.array([21.0 - 32.0]))[0]  # the example's ΔAT
     assert T == pytest.approx(0.004904360547, abs=1e-12)
 
 
@@ -65,7 +65,7 @@ def test_vallado2006_j2000_to_tod_precession_nutation():
     zeta, theta, z = teme.precession_angles(T)
     N, _ = teme._mod_to_tod(T, 0.0, 0.0)
     r_tod = (N @ T3(-z) @ T2(theta) @ T3(-zeta) @ R_J2000)[0]
-    assert np.linalg.norm(r_tod - R_TOD) < TRUNCATION          # 0.11 m here
+    assert np.linalg.norm(r_tod - R_TOD) < TRUNCATION  # 0.11 m here
 
 
 def test_vallado2006_teme_to_j2000():
@@ -79,9 +79,9 @@ def test_vallado2006_teme_to_pef_is_the_icd_earth_rotation():
     """ICD §2's Earth rotation R3(GMST) applied to TEME gives the published PEF vector;
     with the ICD's UT1 = UTC it is off by the Earth's turn in ΔUT1 = 0.16 s."""
     r = teme.teme_to_pef(VALLADO_EPOCH, [DUT1_S], R_TEME)[0]
-    assert np.linalg.norm(r - R_PEF) < 2 * EXAMPLE_Z_MISMATCH          # 1.17 m
+    assert np.linalg.norm(r - R_PEF) < 2 * EXAMPLE_Z_MISMATCH  # 1.17 m
     r_icd = teme.teme_to_pef(VALLADO_EPOCH, [0.0], R_TEME)[0]
-    turn = 7.292115e-5 * DUT1_S * np.hypot(*R_PEF[:2])                  # 85.2 m
+    turn = 7.292115e-5 * DUT1_S * np.hypot(*R_PEF[:2])  # 85.2 m
     assert np.linalg.norm(r_icd - R_PEF) == pytest.approx(turn, abs=2 * EXAMPLE_Z_MISMATCH)
 
 
@@ -95,6 +95,7 @@ def test_frame_chain_is_consistent():
 def test_table_rows_are_the_sgp4_package_states():
     """The tabulated rows are the sgp4 package's own TEME states at the same instants."""
     from sgp4.api import Satrec
+
     l1, l2 = read_tle(TLE)
     sat = Satrec.twoline2rv(l1, l2)
     table = tle_ephemeris_table(TLE, EPOCH, 0.0, 70200.0)
@@ -124,8 +125,8 @@ def test_interpolated_state_between_rows_matches_sgp4():
     t = np.sort(rng.uniform(0.0, 7200.0, 500))
     r_ref, v_ref = TleOrbit(*read_tle(TLE), EPOCH).state(t)
     r, v = eph.state(t)
-    assert np.max(np.linalg.norm(r - r_ref, axis=1)) < 50 * one_mm          # 1.9 cm
-    assert np.max(np.linalg.norm(v - v_ref, axis=1)) < 50 * one_mm          # km/s: 3.0 cm/s
+    assert np.max(np.linalg.norm(r - r_ref, axis=1)) < 50 * one_mm  # 1.9 cm
+    assert np.max(np.linalg.norm(v - v_ref, axis=1)) < 50 * one_mm  # km/s: 3.0 cm/s
 
 
 def test_sun_in_teme_is_the_analytic_sun_turned_by_nutation():
@@ -134,7 +135,7 @@ def test_sun_in_teme_is_the_analytic_sun_turned_by_nutation():
     mod = sun_position_km(julian_date(EPOCH, t))
     cos = np.sum(sun * mod, axis=1) / np.linalg.norm(sun, axis=1) / np.linalg.norm(mod, axis=1)
     ang = np.arccos(np.clip(cos, -1, 1)) / ARCSEC
-    assert np.all(ang < 20.0) and np.all(ang > 0.1)     # nutation + equation of equinoxes
+    assert np.all(ang < 20.0) and np.all(ang > 0.1)  # nutation + equation of equinoxes
 
 
 def test_j2000_frame_differs_by_precession():
@@ -173,13 +174,16 @@ def test_mission_orbit_table(tmp_path):
     assert spec.ephemeris_file is None and spec.orbit_step_s == 10.0
 
 
-@pytest.mark.parametrize("table, key", [
-    ('[orbit]\ntle = "o.tle"\nframe = "gcrf"\n', "orbit.frame"),
-    ('[orbit]\ntle = "o.tle"\nstep_s = 120\n', "orbit.step_s"),
-    ('[orbit]\ntle = "missing.tle"\n', "orbit.tle"),
-    ('[orbit]\nframe = "teme"\n', "orbit.tle"),
-    ('[orbit]\ntle = "o.tle"\n[ephemeris]\nfile = "e.csv"\n', "orbit"),
-])
+@pytest.mark.parametrize(
+    "table, key",
+    [
+        ('[orbit]\ntle = "o.tle"\nframe = "gcrf"\n', "orbit.frame"),
+        ('[orbit]\ntle = "o.tle"\nstep_s = 120\n', "orbit.step_s"),
+        ('[orbit]\ntle = "missing.tle"\n', "orbit.tle"),
+        ('[orbit]\nframe = "teme"\n', "orbit.tle"),
+        ('[orbit]\ntle = "o.tle"\n[ephemeris]\nfile = "e.csv"\n', "orbit"),
+    ],
+)
 def test_mission_orbit_errors_name_the_key(tmp_path, table, key):
     with pytest.raises(InputError) as err:
         read_mission_spec(_mission(tmp_path, table))
@@ -200,6 +204,7 @@ def test_tle_file_errors(tmp_path):
 
 def test_stale_elements_warn(caplog):
     import logging
+
     with caplog.at_level(logging.WARNING, logger="gcs_core.ephem.tle"):
         tle_ephemeris_table(TLE, EPOCH, 10 * 86400.0, 10 * 86400.0 + 600.0)
     assert "days from the elements' epoch" in caplog.text

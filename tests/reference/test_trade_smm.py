@@ -43,7 +43,7 @@ CONFIGS = ROOT / "sample_data" / "trade"
 several_times = 3.0
 #: "much worse" / "highly improved": at least this factor
 much = 5.0
-ORBIT_MIN = 95          # one orbit of the sample mission (5697 s) in whole minutes
+ORBIT_MIN = 95  # one orbit of the sample mission (5697 s) in whole minutes
 HALF_ORBIT_MIN = 48
 STARTS = tuple(range(0, ORBIT_MIN, 10))
 FINE_STARTS = tuple(range(0, ORBIT_MIN, 5))
@@ -65,8 +65,10 @@ def tam_bias():
     cfg, rows = _study("tam-bias", {"span_min": (10, HALF_ORBIT_MIN, ORBIT_MIN), "start_min": STARTS})
     _, fine = _study("tam-bias", {"span_min": (20,), "start_min": FINE_STARTS})
     _, two = _study("tam-bias", {"passes": (2,), "pass_min": (10,), "separation_min": (30,), "start_min": STARTS})
-    med = {span: float(np.median([_rss(r) for r in rows if r.values["span_min"] == span]))
-           for span in (10, HALF_ORBIT_MIN, ORBIT_MIN)}
+    med = {
+        span: float(np.median([_rss(r) for r in rows if r.values["span_min"] == span]))
+        for span in (10, HALF_ORBIT_MIN, ORBIT_MIN)
+    }
     med["2x10"] = float(np.median([_rss(r) for r in two]))
     return cfg, fine, med
 
@@ -99,8 +101,12 @@ def test_tam_bias_best_where_field_direction_turns_most(tam_bias):
     spec = read_mission_spec(cfg.mission)
     orbit = make_orbit(cfg.trade["orbit"], spec.epoch)
     sel = rows
-    turn = np.array([field_turn_deg(orbit, spec.epoch, 60.0 * r.values["start_min"],
-                                    60.0 * (r.values["start_min"] + 20)) for r in sel])
+    turn = np.array(
+        [
+            field_turn_deg(orbit, spec.epoch, 60.0 * r.values["start_min"], 60.0 * (r.values["start_min"] + 20))
+            for r in sel
+        ]
+    )
     sig = np.array([_rss(r) for r in sel])
     rho = stats.spearmanr(turn, sig).statistic
     assert rho <= -0.8, rho
@@ -112,8 +118,9 @@ def test_tam_misalignment_separable_from_attitude_only_with_slews():
     """§2.1.2 (1): at an inertial attitude the TAM misalignment is set by its a priori (the
     data cannot tell it from the attitude); slews about two axes determine all three angles;
     a slew about one axis leaves the angle about that axis undetermined."""
-    _, rows = _study("tam-alignment", {"attitude_mode": ("inertial",),
-                                       "maneuvers": ("none", "yaw:0.1:5", "roll:0.1:5,yaw:0.1:5")})
+    _, rows = _study(
+        "tam-alignment", {"attitude_mode": ("inertial",), "maneuvers": ("none", "yaw:0.1:5", "roll:0.1:5,yaw:0.1:5")}
+    )
     by = {r.values["maneuvers"]: r for r in rows}
     names = [f"TAM1.align_{k}" for k in (1, 2, 3)]
     still = by["none"]
@@ -135,8 +142,9 @@ def test_one_star_tracker_weak_about_its_boresight_two_remove_it():
     the second tracker gives the roll. Attitude from FHST1 alone: about its boresight
     (pitch) much worse than about the other axes; with both trackers most of it is gone.
     """
-    _, rows = _study("fhst", {"models.FHST2": ("on", "off"), "effects": ("none", "FHST1.alignment"),
-                              "models.FSS1": ("on", "off")})
+    _, rows = _study(
+        "fhst", {"models.FHST2": ("on", "off"), "effects": ("none", "FHST1.alignment"), "models.FSS1": ("on", "off")}
+    )
     get = {(r.values["models.FHST2"], r.values["effects"], r.values["models.FSS1"]): r for r in rows}
     one = get[("off", "FHST1.alignment", "on")]
     assert one.sigma_of("FHST1.misalign_x") >= much * one.sigma_of("FHST1.misalign_z")
@@ -153,11 +161,22 @@ def test_one_star_tracker_weak_about_its_boresight_two_remove_it():
 def test_gyro_calibration_needs_long_slews():
     """§2.3.2: the σ of the gyro scale factor about the slew axis falls with the slew angle,
     by more than ten from 5° to 90°."""
-    _, rows = _study("gyro", {"maneuver.axis": ("roll", "yaw"), "maneuver.angle_deg": (5, 20, 90),
-                              "maneuver.rate_deg_s": (0.1,), "maneuver.start_min": (10,),
-                              "maneuver.back": (True,)})
+    _, rows = _study(
+        "gyro",
+        {
+            "maneuver.axis": ("roll", "yaw"),
+            "maneuver.angle_deg": (5, 20, 90),
+            "maneuver.rate_deg_s": (0.1,),
+            "maneuver.start_min": (10,),
+            "maneuver.back": (True,),
+        },
+    )
     for axis, elem in (("roll", "IRU.G_11"), ("yaw", "IRU.G_33")):
-        sig = [r.sigma_of(elem) for r in sorted((r for r in rows if r.values["maneuver.axis"] == axis),
-                                                 key=lambda r: r.values["maneuver.angle_deg"])]
+        sig = [
+            r.sigma_of(elem)
+            for r in sorted(
+                (r for r in rows if r.values["maneuver.axis"] == axis), key=lambda r: r.values["maneuver.angle_deg"]
+            )
+        ]
         assert sig[0] > sig[1] > sig[2], (axis, sig)
         assert sig[2] <= 0.1 * sig[0], (axis, sig)

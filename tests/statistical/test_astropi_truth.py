@@ -27,7 +27,7 @@ from gcs_core.sim.field import igrf_gci
 DATA = TEST_DATA / "astropi"
 TLE = DATA / "iss-2022-01-31.tle"
 EPOCH = datetime(2022, 1, 31, 12, 21, 15, tzinfo=UTC)
-JD0 = 2459611.0 + (12 * 3600 + 21 * 60 + 15) / 86400.0 - 0.5      # JD of EPOCH (UTC)
+JD0 = 2459611.0 + (12 * 3600 + 21 * 60 + 15) / 86400.0 - 0.5  # JD of EPOCH (UTC)
 SPAN_S, STEP_S = 6 * 3600.0, 5.0
 SIGMA_NT = 150.0
 ATT_DEG = (1.4, 4.0, 0.2)
@@ -43,6 +43,7 @@ N_SETTLE = 5
 
 def _states(t):
     from sgp4.api import Satrec
+
     lines = [ln for ln in TLE.read_text().splitlines() if ln[:2] in ("1 ", "2 ")]
     sat = Satrec.twoline2rv(*lines)
     jd = JD0 + t / 86400.0
@@ -62,7 +63,7 @@ def _lvlh(r, v):
 def _simulate(path: Path) -> None:
     rng = np.random.default_rng(2022)
     t = np.arange(0.0, SPAN_S, STEP_S)
-    te = t + DT_TRUE_S                                   # the instant each sample is of
+    te = t + DT_TRUE_S  # the instant each sample is of
     r, v = _states(te)
     B_I = igrf_gci(EPOCH, JD0, te, r)
     C = rpy_to_dcm(*np.radians(ATT_DEG)) @ _lvlh(r, v)
@@ -70,7 +71,7 @@ def _simulate(path: Path) -> None:
     B_S = np.einsum("ij,njk,nk->ni", (np.eye(3) + D_TRUE) @ M, C, B_I) + BIAS_NT
     B_S += rng.normal(0.0, SIGMA_NT, B_S.shape)
     B_S[:N_SETTLE] *= (1.0 - np.exp(-np.arange(1, N_SETTLE + 1) / 1.2))[:, None]
-    ut = np.round(B_S / 100.0) / 10.0                    # µT with one decimal, as published
+    ut = np.round(B_S / 100.0) / 10.0  # µT with one decimal, as published
     with open(path, "w") as fh:
         fh.write("Date/Time,Latitude,Longitude,MagX,MagY,MagZ\n")
         for ti, b in zip(t, ut):
@@ -84,8 +85,9 @@ def fitted(tmp_path_factory):
     _simulate(root / "sim.csv")
     rep = convert("astropi", root / "sim.csv", root / "mission", tle=TLE)
     cfg = root / "cfg.toml"
-    cfg.write_text(f"""[analysis]
-mission = "{root / 'mission'}"
+    cfg.write_text(
+        f"""[analysis]
+mission = "{root / "mission"}"
 [state]
 effects = ["MAG.scale", "MAG.nonorthogonality", "MAG.time_offset"]
 attitude_sigma_deg = 10.0
@@ -97,8 +99,12 @@ sigma = inf
 sigma = inf
 [state.elements."MAG.time_offset"]
 sigma = 100.0
-""" + "".join(f'[state.elements."MAG.{n}"]\nsigma = 0.5\n' for n in
-              ("scale_x", "scale_y", "scale_z", "nonorth_xy", "nonorth_xz", "nonorth_yz")))
+"""
+        + "".join(
+            f'[state.elements."MAG.{n}"]\nsigma = 0.5\n'
+            for n in ("scale_x", "scale_y", "scale_z", "nonorth_xy", "nonorth_xz", "nonorth_yz")
+        )
+    )
     config = load_config(cfg)
     a = Analysis(config, mission=load_mission(config.mission))
     a.fit(holdout=False)
@@ -121,8 +127,7 @@ def test_fit_recovers_truth_within_sigma(fitted):
     truth = {"MAG.time_offset": DT_TRUE_S}
     truth.update({f"MAG.bias_{ax}": BIAS_NT[i] for i, ax in enumerate("xyz")})
     truth.update({f"MAG.scale_{ax}": D_TRUE[i, i] for i, ax in enumerate("xyz")})
-    truth.update({"MAG.nonorth_xy": D_TRUE[0, 1], "MAG.nonorth_xz": D_TRUE[0, 2],
-                  "MAG.nonorth_yz": D_TRUE[1, 2]})
+    truth.update({"MAG.nonorth_xy": D_TRUE[0, 1], "MAG.nonorth_xz": D_TRUE[0, 2], "MAG.nonorth_yz": D_TRUE[1, 2]})
     z = {k: (est[k] - v) / sig[k] for k, v in truth.items()}
     assert max(abs(x) for x in z.values()) < 4.0, z
     # the fitted normalized RMS is the noise floor (the data book noise was estimated)
@@ -133,6 +138,7 @@ def test_attitude_times_mounting_is_the_true_rotation(fitted):
     """Mounting and attitude offset are one rotation: their product against the truth."""
     _, a = fitted
     from gcs_core.frames.rotations import euler123_to_dcm
+
     est = a.result.state.values()
     spec = a.mission.spec.sensor("MAG")
     M_c = euler123_to_dcm(*np.radians(spec.alignment_deg))

@@ -49,9 +49,21 @@ family_alpha = 0.01
 #: the NEES acceptance band (issue 6: "inside its 95 % χ² band")
 nees_level = 0.95
 
-HEADLINE = ("att.roll", "att.pitch", "att.yaw", "TAM1.bias_x", "TAM1.bias_y", "TAM1.bias_z",
-            "IRU.bias_x", "IRU.bias_y", "IRU.bias_z",
-            "FHST1.scale_h", "FHST1.scale_v", "FHST2.scale_h", "FHST2.scale_v")
+HEADLINE = (
+    "att.roll",
+    "att.pitch",
+    "att.yaw",
+    "TAM1.bias_x",
+    "TAM1.bias_y",
+    "TAM1.bias_z",
+    "IRU.bias_x",
+    "IRU.bias_y",
+    "IRU.bias_z",
+    "FHST1.scale_h",
+    "FHST1.scale_v",
+    "FHST2.scale_h",
+    "FHST2.scale_v",
+)
 
 
 def headline(analysis, result, truth: dict, method: str = "batch"):
@@ -80,8 +92,7 @@ def headline(analysis, result, truth: dict, method: str = "batch"):
     return HEADLINE, e, T @ result.P @ T.T
 
 
-def one_run(seed: int, folder: Path, minutes: float = MINUTES, method: str = "batch",
-            mode: str = "sun_pointing"):
+def one_run(seed: int, folder: Path, minutes: float = MINUTES, method: str = "batch", mode: str = "sun_pointing"):
     """Simulate and fit one seed; returns (error (k,), covariance (k, k))."""
     a, res, _, tv = fit_and_compare(threeaxis(mode, seed, 60.0 * minutes), folder, method)
     _, e, P = headline(a, res, tv, method)
@@ -108,7 +119,7 @@ def test_batch_covariance_matches_monte_carlo_scatter(tmp_path):
         e, P = one_run(seed, tmp_path / f"run{seed}")
         errors.append(e)
         covs.append(P)
-    E, Ps = np.array(errors), np.array(covs)                       # (N, n), (N, n, n)
+    E, Ps = np.array(errors), np.array(covs)  # (N, n), (N, n, n)
     n = E.shape[1]
 
     lo, hi = variance_ratio_band(RUNS, family_alpha / n)

@@ -12,9 +12,9 @@ from discovery_cases import CASES, analyse, simulate
 
 from gcs_core.reporting import analysis_report
 
-noise_floor_bound = 1.05      # normalized RMS: 1.0 is the noise floor (issue 3), fitted and
-                              # held-out spans alike (the held-out quarter of an hour at 1 Hz
-                              # has enough samples for its RMS to be known to about 2 %)
+noise_floor_bound = 1.05  # normalized RMS: 1.0 is the noise floor (issue 3), fitted and
+# held-out spans alike (the held-out quarter of an hour at 1 Hz
+# has enough samples for its RMS to be known to about 2 %)
 
 
 @pytest.mark.slow

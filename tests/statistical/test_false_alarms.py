@@ -117,14 +117,15 @@ def test_discovery_adds_nothing_on_nominal_missions(seed, tmp_path, outcomes_dir
     record = {"seed": seed, "kind": kind_of(seed), "added": added, "stop": a.stop_reason}
     tmp = outcomes_dir / f".seed-{seed}.tmp"
     tmp.write_text(json.dumps(record))
-    tmp.replace(outcomes_dir / f"seed-{seed}.json")            # atomic: readers see whole files
+    tmp.replace(outcomes_dir / f"seed-{seed}.json")  # atomic: readers see whole files
     if added:
         warnings.warn(f"false alarm on nominal {kind_of(seed)} seed {seed}: added {added}", stacklevel=2)
     recorded = [json.loads(p.read_text()) for p in outcomes_dir.glob("seed-*.json")]
     alarms = [r for r in recorded if r["added"]]
     assert len(alarms) <= MAX_ALARMS, (
         f"{len(alarms)} false alarms so far (allowed {MAX_ALARMS} in {len(SEEDS)} seeds): "
-        + "; ".join(f"{r['kind']} seed {r['seed']} added {r['added']}" for r in alarms))
+        + "; ".join(f"{r['kind']} seed {r['seed']} added {r['added']}" for r in alarms)
+    )
 
 
 def _discover(cfg, folder: Path) -> list[str]:
@@ -135,7 +136,7 @@ def _discover(cfg, folder: Path) -> list[str]:
     return [s.effect for s in a.steps if s.action == "add"]
 
 
-LONG_SEED = 116             # inertial, 2 h: discovery adds FHST1.time_offset (module docstring)
+LONG_SEED = 116  # inertial, 2 h: discovery adds FHST1.time_offset (module docstring)
 
 
 def test_long_mission_false_alarm_from_gyro_noise(tmp_path):
@@ -171,8 +172,9 @@ LONG_SEEDS = range(100, 140)
 def test_long_inertial_missions_with_the_kalman_method_add_nothing(seed, tmp_path):
     """Two-hour inertial missions (where the batch alarms on 5 of these 40 seeds): the
     Kalman method models the gyro noise and its smoothed residuals carry no wander."""
-    mission = write_mission(threeaxis("inertial", seed, 2 * ONE_HOUR), tmp_path / "mission",
-                            truth_path=tmp_path / "truth.json")
+    mission = write_mission(
+        threeaxis("inertial", seed, 2 * ONE_HOUR), tmp_path / "mission", truth_path=tmp_path / "truth.json"
+    )
     a = Analysis(AnalysisConfig(mission=mission, method="kalman"))
     a.fit()
     a.discover()

@@ -36,8 +36,7 @@ from gcs_core.problem.prepare import PhysicsOptions
 
 EPOCH = datetime(2024, 3, 20, 6, 0, 0, tzinfo=UTC)
 #: physics the simulator does not model (so the filter must not either)
-PHYSICS = PhysicsOptions(stellar_aberration=False, solar_aberration=False, sun_parallax=False,
-                         field_model="dipole")
+PHYSICS = PhysicsOptions(stellar_aberration=False, solar_aberration=False, sun_parallax=False, field_model="dipole")
 TRACKERS = (("ST1", (0.0, 0.0, 0.0)), ("ST2", (0.0, 60.0, 90.0)))
 FOV_DEG = 4.0
 
@@ -47,15 +46,14 @@ class Truth:
     """What the simulator used: attitudes at the gyro knots and element values."""
 
     knots: np.ndarray
-    C: np.ndarray                  # (K+1, 3, 3) attitude at the knots
-    bias: np.ndarray               # (K+1, 3) gyro drift bias at the knots [rad/s]
-    values: dict                   # element name -> true value (static elements)
+    C: np.ndarray  # (K+1, 3, 3) attitude at the knots
+    bias: np.ndarray  # (K+1, 3) gyro drift bias at the knots [rad/s]
+    values: dict  # element name -> true value (static elements)
 
 
 def _table(name: str, t, **cols) -> Table:
     columns = {"t": np.asarray(t, float)} | {k: np.asarray(v, float) for k, v in cols.items()}
-    return Table(Path(f"telemetry/{name}.csv"), np.asarray(t, float), columns,
-                 np.arange(len(t)) + 2)
+    return Table(Path(f"telemetry/{name}.csv"), np.asarray(t, float), columns, np.arange(len(t)) + 2)
 
 
 def _alignment(deg) -> np.ndarray:
@@ -63,11 +61,21 @@ def _alignment(deg) -> np.ndarray:
     return T3(a[2]) @ T2(a[1]) @ T1(a[0])
 
 
-def simulate(seed: int, *, duration_s: float = 1800.0, rate_scale: float = 1.0,
-             arw: float = 3e-6, rrw: float = 3e-9, electronic: float = 0.0,
-             tracker_noise: float = 2e-5, trackers: int = 2, tracker_every: int = 1,
-             gyro: bool = True, attitude_sigma: float = units.DEG,
-             outliers: int = 0) -> tuple[ImportedMission, Truth]:
+def simulate(
+    seed: int,
+    *,
+    duration_s: float = 1800.0,
+    rate_scale: float = 1.0,
+    arw: float = 3e-6,
+    rrw: float = 3e-9,
+    electronic: float = 0.0,
+    tracker_noise: float = 2e-5,
+    trackers: int = 2,
+    tracker_every: int = 1,
+    gyro: bool = True,
+    attitude_sigma: float = units.DEG,
+    outliers: int = 0,
+) -> tuple[ImportedMission, Truth]:
     """An in-memory inertial-mode mission and its truth (module docstring).
 
     ``rate_scale = 0`` gives an inertially fixed attitude (for the gyro-less tests).
@@ -76,15 +84,15 @@ def simulate(seed: int, *, duration_s: float = 1800.0, rate_scale: float = 1.0,
     """
     rng = np.random.default_rng(seed)
     K = int(duration_s)
-    knots = np.arange(K + 1.0)                                    # 1 Hz; row k ends at τ_k
+    knots = np.arange(K + 1.0)  # 1 Hz; row k ends at τ_k
     tmid = 0.5 * (knots[1:] + knots[:-1])
-    omega = rate_scale * np.column_stack([1.5e-3 * np.sin(2 * np.pi * tmid / 1500.0),
-                                          8e-4 + 0 * tmid,
-                                          1.2e-3 * np.cos(2 * np.pi * tmid / 2100.0)])
+    omega = rate_scale * np.column_stack(
+        [1.5e-3 * np.sin(2 * np.pi * tmid / 1500.0), 8e-4 + 0 * tmid, 1.2e-3 * np.cos(2 * np.pi * tmid / 2100.0)]
+    )
     rpy = rng.normal(0.0, attitude_sigma, 3)
     C = np.empty((K + 1, 3, 3))
-    C[0] = euler123_to_dcm(*rpy)                                 # inertial: A = I
-    steps = rotvec_to_dcm(omega)                                  # exp(−[ω Δt ×]), Δt = 1 s
+    C[0] = euler123_to_dcm(*rpy)  # inertial: A = I
+    steps = rotvec_to_dcm(omega)  # exp(−[ω Δt ×]), Δt = 1 s
     for k in range(K):
         C[k + 1] = steps[k] @ C[k]
     values = {"att.roll": rpy[0], "att.pitch": rpy[1], "att.yaw": rpy[2]}
@@ -98,22 +106,21 @@ def simulate(seed: int, *, duration_s: float = 1800.0, rate_scale: float = 1.0,
         y = (omega + bias[1:]) @ (np.eye(3) + dG).T + arw * rng.normal(size=(K, 3))
         if electronic:
             e = electronic * rng.normal(size=(K + 1, 3))
-            y += e[1:] - e[:-1]                                   # read-out noise at both ends
+            y += e[1:] - e[:-1]  # read-out noise at both ends
         telemetry["IRU"] = _table("IRU", knots[1:], wx=y[:, 0], wy=y[:, 1], wz=y[:, 2])
         book = {"arw": arw, "rrw": rrw, "bias": (0.0, 0.0, 0.0)}
         if electronic:
             book["electronic"] = electronic
-        sensors.append(SensorSpec("IRU", "gyro", Path("telemetry/IRU.csv"), (0.0, 0.0, 0.0),
-                                  None, book))
+        sensors.append(SensorSpec("IRU", "gyro", Path("telemetry/IRU.csv"), (0.0, 0.0, 0.0), None, book))
         values |= {f"IRU.G_{i + 1}{j + 1}": dG[i, j] for i in range(3) for j in range(3)}
     for name, align in TRACKERS[:trackers]:
         idx = np.arange(0, K + 1, tracker_every)
         M = _alignment(align)
         scale = 1.0 + rng.normal(0.0, 1e-3, 2)
-        a = rng.uniform(-0.8, 0.8, (idx.size, 2)) * np.radians(FOV_DEG)   # star in the FOV
+        a = rng.uniform(-0.8, 0.8, (idx.size, 2)) * np.radians(FOV_DEG)  # star in the FOV
         F_S = np.column_stack([np.ones(idx.size), np.tan(a[:, 0]), np.tan(a[:, 1])])
         F_S /= np.linalg.norm(F_S, axis=1, keepdims=True)
-        F_I = np.einsum("kji,kj->ki", M @ C[idx], F_S)           # (M C)ᵀ F_S
+        F_I = np.einsum("kji,kj->ki", M @ C[idx], F_S)  # (M C)ᵀ F_S
         h = np.arcsin(F_S[:, 2]) / scale[0] + tracker_noise * rng.normal(size=idx.size)
         v = np.arctan2(F_S[:, 1], F_S[:, 0]) / scale[1] + tracker_noise * rng.normal(size=idx.size)
         if outliers:
@@ -122,19 +129,39 @@ def simulate(seed: int, *, duration_s: float = 1800.0, rate_scale: float = 1.0,
         ra = np.degrees(np.arctan2(F_I[:, 1], F_I[:, 0])) % 360.0
         dec = np.degrees(np.arcsin(np.clip(F_I[:, 2], -1, 1)))
         telemetry[name] = _table(name, knots[idx], h=h, v=v, ra=ra, dec=dec, mag=np.full(idx.size, 4.0))
-        sensors.append(SensorSpec(name, "star_tracker", Path(f"telemetry/{name}.csv"), align,
-                                  tracker_noise, {"fov_deg": FOV_DEG, "scale": (1.0, 1.0)}))
+        sensors.append(
+            SensorSpec(
+                name,
+                "star_tracker",
+                Path(f"telemetry/{name}.csv"),
+                align,
+                tracker_noise,
+                {"fov_deg": FOV_DEG, "scale": (1.0, 1.0)},
+            )
+        )
         values |= {f"{name}.scale_h": scale[0], f"{name}.scale_v": scale[1]}
-    te = np.arange(-120.0, K + 180.0, 60.0)                       # circular orbit, 7000 km
-    n_orb = np.sqrt(units.MU_EARTH / 7000.0 ** 3)
+    te = np.arange(-120.0, K + 180.0, 60.0)  # circular orbit, 7000 km
+    n_orb = np.sqrt(units.MU_EARTH / 7000.0**3)
     u = n_orb * te
     r = 7000.0 * np.column_stack([np.cos(u), 0.6 * np.sin(u), 0.8 * np.sin(u)])
     v = 7000.0 * n_orb * np.column_stack([-np.sin(u), 0.6 * np.cos(u), 0.8 * np.cos(u)])
     sun = np.broadcast_to([units.AU_KM, 0.0, 0.0], r.shape)
-    eph = _table("ephemeris", te, rx=r[:, 0], ry=r[:, 1], rz=r[:, 2], vx=v[:, 0], vy=v[:, 1],
-                 vz=v[:, 2], sx=sun[:, 0], sy=sun[:, 1], sz=sun[:, 2])
-    spec = MissionSpec(Path("/nonexistent/sim"), f"sim-{seed}", EPOCH, "inertial",
-                       Path("ephemeris.csv"), tuple(sensors))
+    eph = _table(
+        "ephemeris",
+        te,
+        rx=r[:, 0],
+        ry=r[:, 1],
+        rz=r[:, 2],
+        vx=v[:, 0],
+        vy=v[:, 1],
+        vz=v[:, 2],
+        sx=sun[:, 0],
+        sy=sun[:, 1],
+        sz=sun[:, 2],
+    )
+    spec = MissionSpec(
+        Path("/nonexistent/sim"), f"sim-{seed}", EPOCH, "inertial", Path("ephemeris.csv"), tuple(sensors)
+    )
     return ImportedMission(spec, eph, telemetry), Truth(knots, C, bias, values)
 
 

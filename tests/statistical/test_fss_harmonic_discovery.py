@@ -16,9 +16,8 @@ simulator, chosen before looking): 4 h with the 3° calibration sweep, the defau
 
 from __future__ import annotations
 
-import pytest
-
 import honesty_cases as hc
+import pytest
 
 FOUR_HOURS = 4.0
 SEED = 1
@@ -35,8 +34,11 @@ def _check(case: str, tmp_path):
     # fitted RMS against the fixed bound; the held-out span through its χ² test (a star tracker
     # with ≈300 held-out measurements exceeds 1.05 on ≈10 % of right fits: hc.rms_ideal_share)
     assert all(v <= hc.rms_limit for v in rec["rms"].values()), rec.get("rms")
-    assert rec.get("verdict", "").startswith("consistent with noise"), \
-        (rec.get("verdict"), rec.get("holdout_rms"), hc.rms_ideal_share(rec))
+    assert rec.get("verdict", "").startswith("consistent with noise"), (
+        rec.get("verdict"),
+        rec.get("holdout_rms"),
+        hc.rms_ideal_share(rec),
+    )
     assert checks["hidden"], f"the harmonic's amplitudes against truth (z): {z}"
     assert rec["fit_status"] == "converged", rec.get("fit_status")
     return rec
@@ -45,4 +47,4 @@ def _check(case: str, tmp_path):
 @pytest.mark.slow
 def test_hidden_harmonic_with_a_sweep_is_added_and_recovered(tmp_path):
     rec = _check("FSS1.harmonic", tmp_path)
-    assert "FSS1.k_alpha" not in rec["z"]           # held: its book amplitude is 0
+    assert "FSS1.k_alpha" not in rec["z"]  # held: its book amplitude is 0

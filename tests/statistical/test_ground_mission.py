@@ -21,40 +21,41 @@ from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, rotvec_to_
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis
 
-DT = 0.02                              # s (50 Hz)
-N = 3000                               # 60 s
-GYRO_NOISE = 1e-4                      # rad/s per sample
-MAG_NOISE = 300.0                      # nT
-OPT_NOISE = 1e-3                       # rad
-B_LAB = np.array([300.0, 17000.0, -45000.0])     # nT, East-North-Up
-MAG_BIAS = np.array([500.0, -300.0, 800.0])      # nT
-GYRO_BIAS = np.array([3e-3, -2e-3, 4e-3])        # rad/s
+DT = 0.02  # s (50 Hz)
+N = 3000  # 60 s
+GYRO_NOISE = 1e-4  # rad/s per sample
+MAG_NOISE = 300.0  # nT
+OPT_NOISE = 1e-3  # rad
+B_LAB = np.array([300.0, 17000.0, -45000.0])  # nT, East-North-Up
+MAG_BIAS = np.array([500.0, -300.0, 800.0])  # nT
+GYRO_BIAS = np.array([3e-3, -2e-3, 4e-3])  # rad/s
 #: symmetric D with zero trace: its common part (a scale of the whole magnetometer) is one
 #: quantity with the field's magnitude when the field is unknown, and the a priori of the
 #: scales holds it at zero
 D_TRUE = np.array([[0.01, 0.004, -0.006], [0.004, -0.004, 0.002], [-0.006, 0.002, -0.006]])
 MAG_ALIGN_RAD = np.array([0.01, -0.02, 0.015])
-MAG_DT = -0.012                         # s: the magnetometer samples 12 ms early
-OPT_DT = 0.004                          # s
+MAG_DT = -0.012  # s: the magnetometer samples 12 ms early
+OPT_DT = 0.004  # s
 #: a-priori σ of a MEMS unit (the flight defaults, 1e-5 rad/s of gyro bias and 1e-3 of its
 #: matrix, are those of a navigation-grade IRU): the gyro bias and matrix free, the
 #: magnetometer's non-orthogonality a few percent
-MEMS_PRIORS = {**{f"GYR.bias_{a}": ElementConfig(sigma=1e-1) for a in "xyz"},
-               **{f"GYR.G_{i}{j}": ElementConfig(sigma=0.05) for i in (1, 2, 3) for j in (1, 2, 3)},
-               **{f"MAG.nonorth_{p}": ElementConfig(sigma=0.1) for p in ("xy", "xz", "yz")}}
+MEMS_PRIORS = {
+    **{f"GYR.bias_{a}": ElementConfig(sigma=1e-1) for a in "xyz"},
+    **{f"GYR.G_{i}{j}": ElementConfig(sigma=0.05) for i in (1, 2, 3) for j in (1, 2, 3)},
+    **{f"MAG.nonorth_{p}": ElementConfig(sigma=0.1) for p in ("xy", "xz", "yz")},
+}
 #: estimates within this many σ of the truth (a seeded draw; 3.3 σ is the two-sided 0.1 %)
 Z_MAX = 3.5
 one_percent = 0.01
 
 
 def _rate(t):
-    return np.column_stack([0.9 * np.sin(0.31 * t), 0.8 * np.cos(0.23 * t + 1.0),
-                            0.6 * np.sin(0.17 * t + 2.0) + 0.2])
+    return np.column_stack([0.9 * np.sin(0.31 * t), 0.8 * np.cos(0.23 * t + 1.0), 0.6 * np.sin(0.17 * t + 2.0) + 0.2])
 
 
 def _simulate(rng):
     t = np.arange(N + 1) * DT
-    w = _rate(t[1:] - 0.5 * DT)                       # the rate of interval (t_{k-1}, t_k]
+    w = _rate(t[1:] - 0.5 * DT)  # the rate of interval (t_{k-1}, t_k]
     C = np.empty((N + 1, 3, 3))
     C[0] = euler123_to_dcm(0.3, -0.2, 1.0)
     steps = rotvec_to_dcm(w * DT)
@@ -64,7 +65,7 @@ def _simulate(rng):
     def shifted(dt):
         """C(t_k + dt) for |dt| < DT, k = 1..N-1: turned on at the rate of the interval."""
         k = np.arange(1, N)
-        rate = w[k] if dt > 0 else w[k - 1]           # interval after / before t_k
+        rate = w[k] if dt > 0 else w[k - 1]  # interval after / before t_k
         return rotvec_to_dcm(rate * dt) @ C[k]
 
     k = np.arange(1, N)
@@ -79,12 +80,30 @@ def _simulate(rng):
 def _write(root, t, gyro, B_S, q):
     (root / "telemetry").mkdir(parents=True)
     k = np.arange(1, N)
-    np.savetxt(root / "telemetry/GYR.csv", np.column_stack([t[1:], gyro]), delimiter=",",
-               header="t,wx,wy,wz", comments="", fmt="%.10g")
-    np.savetxt(root / "telemetry/MAG.csv", np.column_stack([t[k], B_S]), delimiter=",",
-               header="t,bx,by,bz", comments="", fmt="%.10g")
-    np.savetxt(root / "telemetry/OPT.csv", np.column_stack([t[k], q]), delimiter=",",
-               header="t,q1,q2,q3,q4", comments="", fmt="%.12g")
+    np.savetxt(
+        root / "telemetry/GYR.csv",
+        np.column_stack([t[1:], gyro]),
+        delimiter=",",
+        header="t,wx,wy,wz",
+        comments="",
+        fmt="%.10g",
+    )
+    np.savetxt(
+        root / "telemetry/MAG.csv",
+        np.column_stack([t[k], B_S]),
+        delimiter=",",
+        header="t,bx,by,bz",
+        comments="",
+        fmt="%.10g",
+    )
+    np.savetxt(
+        root / "telemetry/OPT.csv",
+        np.column_stack([t[k], q]),
+        delimiter=",",
+        header="t,q1,q2,q3,q4",
+        comments="",
+        fmt="%.12g",
+    )
     arw = GYRO_NOISE * np.sqrt(DT)
     (root / "mission.toml").write_text(f"""
 [mission]
@@ -127,9 +146,14 @@ def fitted(tmp_path_factory):
     _write(root, *_simulate(np.random.default_rng(2021)))
     mission = load_mission(root)
     cfg = default_config(root)
-    cfg = cfg.with_changes(physics={"field_model": "constant"}, state={
-        "attitude_sigma_deg": 10.0, "elements": MEMS_PRIORS,
-        "effects": ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset")})
+    cfg = cfg.with_changes(
+        physics={"field_model": "constant"},
+        state={
+            "attitude_sigma_deg": 10.0,
+            "elements": MEMS_PRIORS,
+            "effects": ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset"),
+        },
+    )
     a = Analysis(cfg, mission=mission)
     res = a.fit(holdout=False)
     return a, res
@@ -138,13 +162,18 @@ def fitted(tmp_path_factory):
 def test_estimates_against_truth_in_sigma(fitted):
     a, res = fitted
     v = res.state.values()
-    truth = {**{f"MAG.bias_{x}": MAG_BIAS[i] for i, x in enumerate("xyz")},
-             **{f"field.B_{x}": B_LAB[i] for i, x in enumerate("xyz")},
-             **{f"GYR.bias_{x}": GYRO_BIAS[i] for i, x in enumerate("xyz")},
-             **{f"MAG.align_{i + 1}": MAG_ALIGN_RAD[i] for i in range(3)},
-             **{f"MAG.scale_{x}": D_TRUE[i, i] for i, x in enumerate("xyz")},
-             "MAG.nonorth_xy": D_TRUE[0, 1], "MAG.nonorth_xz": D_TRUE[0, 2], "MAG.nonorth_yz": D_TRUE[1, 2],
-             "MAG.time_offset": MAG_DT, "OPT.time_offset": OPT_DT}
+    truth = {
+        **{f"MAG.bias_{x}": MAG_BIAS[i] for i, x in enumerate("xyz")},
+        **{f"field.B_{x}": B_LAB[i] for i, x in enumerate("xyz")},
+        **{f"GYR.bias_{x}": GYRO_BIAS[i] for i, x in enumerate("xyz")},
+        **{f"MAG.align_{i + 1}": MAG_ALIGN_RAD[i] for i in range(3)},
+        **{f"MAG.scale_{x}": D_TRUE[i, i] for i, x in enumerate("xyz")},
+        "MAG.nonorth_xy": D_TRUE[0, 1],
+        "MAG.nonorth_xz": D_TRUE[0, 2],
+        "MAG.nonorth_yz": D_TRUE[1, 2],
+        "MAG.time_offset": MAG_DT,
+        "OPT.time_offset": OPT_DT,
+    }
     z = {n: (v[n] - x) / res.sigma[n] for n, x in truth.items()}
     worst = max(z, key=lambda n: abs(z[n]))
     assert abs(z[worst]) < Z_MAX, (worst, z[worst], z)
@@ -159,7 +188,9 @@ def test_residuals_at_the_noise_floor(fitted):
 def test_a_sun_sensor_is_refused_on_the_ground(tmp_path):
     _write(tmp_path, *_simulate(np.random.default_rng(1)))
     text = (tmp_path / "mission.toml").read_text()
-    (tmp_path / "mission.toml").write_text(text + """
+    (tmp_path / "mission.toml").write_text(
+        text
+        + """
 [[sensor]]
 name = "FSS1"
 type = "fine_sun"
@@ -169,6 +200,7 @@ noise = 0.5
 coeff_alpha = [0.0, 7.6e-05, 0.0, 50.0]
 coeff_beta = [0.0, 7.6e-05, 0.0, 50.0]
 fov_deg = 32.0
-""")
+"""
+    )
     with pytest.raises(InputError, match="a ground mission has no Sun"):
         load_mission(tmp_path)

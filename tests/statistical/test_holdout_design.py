@@ -33,7 +33,7 @@ def _masks(hours: float, fraction: float = 0.25, cadence: float = 10.0):
 def test_held_out_frames_sample_every_orbital_phase(hours):
     t, held = _masks(hours)
     assert abs(held.mean() - 0.25) < share_tolerance
-    if hours >= 8.0:                                  # five orbits and more: every phase recurs
+    if hours >= 8.0:  # five orbits and more: every phase recurs
         phase = ((t % orbit_s) / orbit_s * 10).astype(int)
         shares = [held[phase == k].mean() for k in range(10)]
         assert min(shares) > phase_share_min, shares

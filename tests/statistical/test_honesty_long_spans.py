@@ -44,18 +44,24 @@ METHODS = tuple(dict.fromkeys(("batch", AnalysisConfig().method)))
 
 LIMITS = {
     ("nominal", "batch"): "the batch ignores the gyro's random walks (Q = 0): at 4 h its gyro "
-                          "elements miss the truth by ~12σ",
+    "elements miss the truth by ~12σ",
 }
 
 
 def _params(case: str):
-    return [pytest.param(m, id=m, marks=[pytest.mark.xfail(strict=False, reason=LIMITS[(case, m)])]
-                         if (case, m) in LIMITS else []) for m in METHODS]
+    return [
+        pytest.param(
+            m, id=m, marks=[pytest.mark.xfail(strict=False, reason=LIMITS[(case, m)])] if (case, m) in LIMITS else []
+        )
+        for m in METHODS
+    ]
 
 
 def _explain(rec) -> str:
-    return (f"added {rec['added']}; rms {rec.get('rms')}; held-out {rec.get('holdout_rms')}; "
-            f"worst z {hc.worst(hc.calibrated_z(rec))}; {rec.get('verdict')}; {rec.get('status')}")
+    return (
+        f"added {rec['added']}; rms {rec.get('rms')}; held-out {rec.get('holdout_rms')}; "
+        f"worst z {hc.worst(hc.calibrated_z(rec))}; {rec.get('verdict')}; {rec.get('status')}"
+    )
 
 
 @pytest.mark.slow

@@ -84,8 +84,9 @@ def test_runs_seeded_stored_replayable_and_resumable(config, tmp_path, monkeypat
 
     # the fit's σ is the predictor's σ; errors against the simulator's truth in σ
     det = res.determined
-    assert np.all(np.abs(res.fit_sigma[det] / res.predicted[det] - 1.0) <= same_sigma), \
-        dict(zip(np.array(res.names)[det], (res.fit_sigma / res.predicted)[det]))
+    assert np.all(np.abs(res.fit_sigma[det] / res.predicted[det] - 1.0) <= same_sigma), dict(
+        zip(np.array(res.names)[det], (res.fit_sigma / res.predicted)[det])
+    )
     for r in recs:
         z = np.array(r["error"]) / np.sqrt(np.diag(np.array(r["P"])))
         bad = {n: round(float(v), 2) for n, v in zip(r["names"], z) if abs(v) > four_sigma}

@@ -29,8 +29,12 @@ from gcs_core.units import DEG
 FIFTEEN_PERCENT = 0.15
 SPAN_S = 3600.0
 RPY0_DEG = (1.0, 3.0, -2.0)
-SLEWS = [Slew(792.0, 600.0, "roll", 0.04, ramp_s=0.0), Slew(1620.0, 300.0, "pitch", 0.02, ramp_s=0.0),
-         Slew(2160.0, 300.0, "yaw", -0.02, ramp_s=0.0), Slew(2700.0, 600.0, "roll", -0.04, ramp_s=0.0)]
+SLEWS = [
+    Slew(792.0, 600.0, "roll", 0.04, ramp_s=0.0),
+    Slew(1620.0, 300.0, "pitch", 0.02, ramp_s=0.0),
+    Slew(2160.0, 300.0, "yaw", -0.02, ramp_s=0.0),
+    Slew(2700.0, 600.0, "roll", -0.04, ramp_s=0.0),
+]
 MANEUVERS = tuple(Maneuver(s.t_start, s.duration_s, s.axis, s.rate_deg_s) for s in SLEWS)
 
 
@@ -48,8 +52,7 @@ def sim_mission(sim_dir):
 
 
 def the_plan(**kw) -> DataPlan:
-    base = dict(start=0.0, end=SPAN_S, step=60.0, maneuvers=MANEUVERS,
-                rpy0=tuple(a * DEG for a in RPY0_DEG))
+    base = dict(start=0.0, end=SPAN_S, step=60.0, maneuvers=MANEUVERS, rpy0=tuple(a * DEG for a in RPY0_DEG))
     base.update(kw)
     return DataPlan(**base)
 
@@ -72,16 +75,20 @@ def test_plan_prediction_matches_simulated_calibration_within_15_percent(sim_dir
 def test_problem_frames_reproduce_batch_covariance_and_ignore_values(example_dir):
     """Seed Eq 3-2 at the solution is the batch covariance: predicting the example
     mission's own frames (values ignored) gives the fit's P."""
-    analysis = Analysis(AnalysisConfig(mission=example_dir, method="batch").with_changes(
-        diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0}))
+    analysis = Analysis(
+        AnalysisConfig(mission=example_dir, method="batch").with_changes(
+            diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0}
+        )
+    )
     fit = analysis.fit(holdout=False)
     problem = analysis.problem.with_state(fit.state)
     pred = predict(problem)
     np.testing.assert_allclose(pred.P, fit.P, rtol=1e-6, atol=0.0)
     # the default whole-span fit: its covariance (knots eliminated) is predicted the same way
     # (the prediction linearizes with the knot corrections at zero: agreement to 1 %)
-    a_ws = Analysis(AnalysisConfig(mission=example_dir).with_changes(
-        diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0}))
+    a_ws = Analysis(
+        AnalysisConfig(mission=example_dir).with_changes(diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0})
+    )
     ws = a_ws.fit(holdout=False)
     pred_ws = predict(a_ws.problem.with_state(ws.state), method="whole_span")
     np.testing.assert_allclose(np.sqrt(np.diag(pred_ws.P)), np.sqrt(np.diag(ws.P)), rtol=1e-2)
@@ -94,8 +101,10 @@ def test_problem_frames_reproduce_batch_covariance_and_ignore_values(example_dir
 
 def test_consider_budget_matches_batch_and_adds_up(sim_dir):
     cfg = AnalysisConfig(mission=sim_dir, method="batch").with_changes(
-        diagnosis={"holdout_fraction": 0.0}, filter={"edit_k": 0.0},
-        state={"elements": {f"TAM1.bias_{a}": ElementConfig(role="consider") for a in "xyz"}})
+        diagnosis={"holdout_fraction": 0.0},
+        filter={"edit_k": 0.0},
+        state={"elements": {f"TAM1.bias_{a}": ElementConfig(role="consider") for a in "xyz"}},
+    )
     analysis = Analysis(cfg)
     fit = analysis.fit(holdout=False)
     pred = predict(analysis.problem.with_state(fit.state))
@@ -103,7 +112,7 @@ def test_consider_budget_matches_batch_and_adds_up(sim_dir):
     for c, contrib in pred.budget.items():
         np.testing.assert_allclose(contrib, fit.consider_budget[c], rtol=1e-6, atol=1e-300)
     # σ² = noise-only² + Σ consider contributions² (uncorrelated error sources)
-    total2 = pred.noise_only ** 2 + sum(v ** 2 for v in pred.budget.values())
+    total2 = pred.noise_only**2 + sum(v**2 for v in pred.budget.values())
     np.testing.assert_allclose(pred.sigma[-1] ** 2, total2, rtol=1e-9)
     rows = pred.budget_rows()
     assert rows[0]["name"] == "att.roll" and set(rows[0]["consider"]) == set(pred.budget)
@@ -124,21 +133,21 @@ def test_gaps_make_sigma_larger(sim_mission):
 def test_roll_maneuver_makes_gyro_alignment_observable(sim_dir):
     """Gyro misalignment about y and z shows only while the body turns about x."""
     cfg = AnalysisConfig(mission=sim_dir).with_changes(
-        state={"effects": ("IRU.alignment",), "exclude": ("IRU.scale_misalignment",)})
+        state={"effects": ("IRU.alignment",), "exclude": ("IRU.scale_misalignment",)}
+    )
     still = predict(cfg, plan=the_plan(end=1500.0, maneuvers=()))
     rolled = predict(cfg, plan=the_plan(end=1500.0, maneuvers=(Maneuver(600.0, 600.0, "roll", 0.04),)))
-    prior = 1e-3                                   # the gyro alignment's a-priori σ [rad]
+    prior = 1e-3  # the gyro alignment's a-priori σ [rad]
     for k in (2, 3):
         assert still.sigma_of(f"IRU.align_{k}")[-1] > 0.9 * prior
         assert rolled.sigma_of(f"IRU.align_{k}")[-1] < 0.1 * prior
-    assert rolled.sigma_of("IRU.align_1")[-1] > 0.9 * prior     # a roll says nothing about x
+    assert rolled.sigma_of("IRU.align_1")[-1] > 0.9 * prior  # a roll says nothing about x
 
 
 def test_kalman_recursion_without_process_noise_equals_information_form(sim_mission):
     """Eq 3-4 with Q = 0 is Eq 3-2 carried to the current time."""
     spec = sim_mission.spec
-    quiet = tuple(replace(s, book={**s.book, "arw": 0.0, "rrw": 0.0}) if s.type == "gyro" else s
-                  for s in spec.sensors)
+    quiet = tuple(replace(s, book={**s.book, "arw": 0.0, "rrw": 0.0}) if s.type == "gyro" else s for s in spec.sensors)
     mission = replace(sim_mission, spec=replace(spec, sensors=quiet))
     plan = the_plan(end=1500.0, maneuvers=(Maneuver(600.0, 600.0, "roll", 0.04),))
     info = predict(mission, plan=plan)
@@ -158,7 +167,7 @@ def test_prelaunch_prediction_from_an_orbit(sim_mission):
     orbit = KeplerOrbit(6898.137, 0.0012, 28.5, 35.0, 60.0, 10.0, spec.epoch)
     pred = predict(spec, plan=the_plan(end=6000.0), orbit=orbit)
     assert pred.availability["TAM1"] == 1.0
-    assert 0.3 < pred.availability["FSS1"] < 0.9          # eclipse: no Sun data
+    assert 0.3 < pred.availability["FSS1"] < 0.9  # eclipse: no Sun data
     assert np.all(np.isfinite(pred.sigma[-1]))
     with pytest.raises(Exception, match="ephemeris"):
         predict(spec, plan=the_plan(end=6000.0))
@@ -171,14 +180,22 @@ def test_prelaunch_spinner_from_the_data_book_alone(tmp_path):
 
     from gcs_core.io.types import MissionSpec, SensorSpec
 
-    pss = SensorSpec("PSS1", "plane_field_sun", tmp_path / "none.csv", noise=np.radians(0.05),
-                     book={"tilt_deg": 0.0, "bias": 0.0, "spin_rate_rpm": 10.0})
-    hs = SensorSpec("HS1", "horizon", tmp_path / "none.csv", noise=0.0015,
-                    book={"gamma_deg": 80.0, "phi_h_deg": 40.0, "horizon_height_km": 40.0,
-                          "sun_sensor": "PSS1"})
+    pss = SensorSpec(
+        "PSS1",
+        "plane_field_sun",
+        tmp_path / "none.csv",
+        noise=np.radians(0.05),
+        book={"tilt_deg": 0.0, "bias": 0.0, "spin_rate_rpm": 10.0},
+    )
+    hs = SensorSpec(
+        "HS1",
+        "horizon",
+        tmp_path / "none.csv",
+        noise=0.0015,
+        book={"gamma_deg": 80.0, "phi_h_deg": 40.0, "horizon_height_km": 40.0, "sun_sensor": "PSS1"},
+    )
     epoch = datetime(2024, 9, 2, 10, tzinfo=UTC)
-    spec = MissionSpec(tmp_path, "spinner", epoch, "spinning", None, (pss, hs),
-                       spin_axis_guess_deg=(320.0, 50.0))
+    spec = MissionSpec(tmp_path, "spinner", epoch, "spinning", None, (pss, hs), spin_axis_guess_deg=(320.0, 50.0))
     orbit = KeplerOrbit(7078.137, 0.001, 28.5, 35.0, 60.0, 10.0, epoch)
     pred = predict(spec, plan=DataPlan(0.0, 7200.0, step=600.0), orbit=orbit)
     spin_period = 6.0
@@ -187,12 +204,13 @@ def test_prelaunch_spinner_from_the_data_book_alone(tmp_path):
     assert 0 < pred.frames["HS1"] <= pred.frames["PSS1"]
     prior = 1.0 * DEG
     assert pred.sigma_of("att.ra")[-1] < 0.1 * prior and pred.sigma_of("att.dec")[-1] < 0.1 * prior
-    assert pred.sigma_of("att.ra")[0] == pytest.approx(prior)      # no data yet at the start
+    assert pred.sigma_of("att.ra")[0] == pytest.approx(prior)  # no data yet at the start
 
 
 def test_an_element_without_prior_is_infinite_until_data_arrive(sim_dir):
     cfg = AnalysisConfig(mission=sim_dir).with_changes(
-        state={"elements": {"TAM1.bias_x": ElementConfig(sigma=float("inf"))}})
+        state={"elements": {"TAM1.bias_x": ElementConfig(sigma=float("inf"))}}
+    )
     pred = predict(cfg, plan=the_plan(end=600.0, gaps=((0.0, 300.0),)))
     s = pred.sigma_of("TAM1.bias_x")
     before, after = pred.times < 300.0, pred.times >= 300.0

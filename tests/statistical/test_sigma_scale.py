@@ -23,20 +23,24 @@ HOLD = 10
 #: the bounds are ±3.5 of that
 BLOCK_S = 1.0
 SCALE_SCATTER = 3.5 / np.sqrt(2 * 60)
-MAG_ELEMENTS = tuple(f"MAG.bias_{a}" for a in "xyz") + tuple(f"field.G_{ab}" for ab in GRADIENT) \
+MAG_ELEMENTS = (
+    tuple(f"MAG.bias_{a}" for a in "xyz")
+    + tuple(f"field.G_{ab}" for ab in GRADIENT)
     + tuple(f"field.B_{a}" for a in "xyz")
+)
 
 
 def _truth():
-    return {**{f"MAG.bias_{a}": MAG_BIAS[i] for i, a in enumerate("xyz")},
-            **{f"field.G_{ab}": x for ab, x in GRADIENT.items()},
-            **{f"field.B_{a}": B_LAB[i] for i, a in enumerate("xyz")}}
+    return {
+        **{f"MAG.bias_{a}": MAG_BIAS[i] for i, a in enumerate("xyz")},
+        **{f"field.G_{ab}": x for ab, x in GRADIENT.items()},
+        **{f"field.B_{a}": B_LAB[i] for i, a in enumerate("xyz")},
+    }
 
 
 @pytest.fixture(scope="module", params=[1, HOLD], ids=["white", "held"])
 def fitted(request, tmp_path_factory):
-    root = write_mission(tmp_path_factory.mktemp(f"hold{request.param}"), np.random.default_rng(7),
-                         hold=request.param)
+    root = write_mission(tmp_path_factory.mktemp(f"hold{request.param}"), np.random.default_rng(7), hold=request.param)
     a, res = fit(root, EFFECTS + ("MAG.field_gradient",))
     return request.param, a, res
 
@@ -57,7 +61,7 @@ def test_scaled_sigma_cover_the_truth(fitted):
     z = {n: (v[n] - x) / honest[n] for n, x in _truth().items()}
     worst = max(z, key=lambda n: abs(z[n]))
     assert abs(z[worst]) < Z_MAX, (worst, z[worst])
-    if hold > 1:       # the fit's own σ, counting every held draw as new, do not
+    if hold > 1:  # the fit's own σ, counting every held draw as new, do not
         z_fit = {n: (v[n] - x) / res.sigma[n] for n, x in _truth().items()}
         assert max(abs(x) for x in z_fit.values()) > Z_MAX
 
@@ -65,7 +69,7 @@ def test_scaled_sigma_cover_the_truth(fitted):
 def test_bad_windows_are_refused(fitted):
     _, a, res = fitted
     with pytest.raises(InputError, match="windows"):
-        sigma_scale(a.problem, res, block_s=10.0)         # 6 windows
+        sigma_scale(a.problem, res, block_s=10.0)  # 6 windows
     with pytest.raises(InputError, match="positive"):
         sigma_scale(a.problem, res, block_s=0.0)
     with pytest.raises(InputError, match="no residuals"):

@@ -15,8 +15,8 @@ from __future__ import annotations
 import pytest
 from spinner_cases import HIDDEN, run_case
 
-noise_floor_bound = 1.05        # normalized RMS, fitted and held-out (issue 11)
-z_bound = 3.0                   # every determined element within 3σ of the truth (issue 11)
+noise_floor_bound = 1.05  # normalized RMS, fitted and held-out (issue 11)
+z_bound = 3.0  # every determined element within 3σ of the truth (issue 11)
 
 # a nominal Sun-synchronous spinner is tested on independent data (test_conformance_spinner)
 SLICE = [(90.0, "d_gamma", 2), (51.6, "height", 2)]

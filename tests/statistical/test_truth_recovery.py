@@ -82,9 +82,14 @@ def _world(truth: Mapping) -> World:
     att = dict(truth["attitude"])
     slews = [Slew(**s) for s in att.pop("slews", [])]
     profile = ThreeAxisProfile(**{k: tuple(v) for k, v in att.items()}, slews=slews)
-    cfg = MissionConfig(name=truth["mission"], epoch=truth["epoch"], attitude_mode=truth["attitude_mode"],
-                        duration_s=float(truth["duration_s"]), orbit=OrbitElements(**truth["orbit"]),
-                        attitude=profile)
+    cfg = MissionConfig(
+        name=truth["mission"],
+        epoch=truth["epoch"],
+        attitude_mode=truth["attitude_mode"],
+        duration_s=float(truth["duration_s"]),
+        orbit=OrbitElements(**truth["orbit"]),
+        attitude=profile,
+    )
     return World(cfg)
 
 
@@ -196,15 +201,15 @@ def threeaxis(mode: str, seed: int, duration_s: float = ONE_HOUR) -> MissionConf
 def calibrated_threeaxis(seed: int) -> MissionConfig:
     """Sun-pointing, true parameters away from the data book (elements all in the state)."""
     cfg = threeaxis("sun_pointing", seed)
-    cfg = with_effect(cfg, "TAM1.bias", 50.0)                 # nT, direction (0.6, -0.48, 0.64)
-    cfg = with_effect(cfg, "IRU.bias", 1e-6)                  # rad/s
-    cfg = with_effect(cfg, "FHST1.scale", 1e-3)               # S_H, S_V = 1.001, 0.9993
-    return with_effect(cfg, "CSS1.bias", 1e-3)                # rad
+    cfg = with_effect(cfg, "TAM1.bias", 50.0)  # nT, direction (0.6, -0.48, 0.64)
+    cfg = with_effect(cfg, "IRU.bias", 1e-6)  # rad/s
+    cfg = with_effect(cfg, "FHST1.scale", 1e-3)  # S_H, S_V = 1.001, 0.9993
+    return with_effect(cfg, "CSS1.bias", 1e-3)  # rad
 
 
 def calibrated_spinner(seed: int) -> MissionConfig:
     cfg = with_effect(spinner_nominal(seed=seed), "HS1.d_gamma", 0.2 * DEG)
-    return with_effect(cfg, "PSS1.bias", 4e-3)                # rad (σ ≈ 3.7e-4 in 3 h)
+    return with_effect(cfg, "PSS1.bias", 4e-3)  # rad (σ ≈ 3.7e-4 in 3 h)
 
 
 @dataclass(frozen=True)
@@ -222,8 +227,13 @@ CASES = [
     Case("earth_pointing", lambda s: threeaxis("earth_pointing", s), 1, "kalman"),
     Case("inertial", lambda s: threeaxis("inertial", s), 1, "kalman"),
     Case("sun_pointing_30min_batch", lambda s: threeaxis("sun_pointing", s, HALF_HOUR), 1, "batch"),
-    Case("calibrated_threeaxis", calibrated_threeaxis, 1, "kalman",
-         ("TAM1.bias_x", "IRU.bias_x", "FHST1.scale_h", "CSS1.b_alpha")),
+    Case(
+        "calibrated_threeaxis",
+        calibrated_threeaxis,
+        1,
+        "kalman",
+        ("TAM1.bias_x", "IRU.bias_x", "FHST1.scale_h", "CSS1.b_alpha"),
+    ),
     Case("spinner", spinner_nominal, 1, "batch"),
     Case("calibrated_spinner", calibrated_spinner, 1, "batch", ("HS1.d_gamma", "PSS1.bias")),
 ]
@@ -233,11 +243,9 @@ CASES = [
 def test_every_element_within_three_sigma_of_truth(case, tmp_path):
     a, res, z, tv = fit_and_compare(case.build(case.seed), tmp_path, case.method)
     # the iterated smoother may stop at its pass limit a hair short of its 0.01σ tolerance
-    assert res.status in (("converged", "max_passes") if case.method == "kalman" else ("converged",)), \
-        res.message
+    assert res.status in (("converged", "max_passes") if case.method == "kalman" else ("converged",)), res.message
     outside = {k: round(v, 2) for k, v in z.items() if abs(v) > three_sigma}
-    assert not outside, (f"{case.id} (seed {case.seed}, {case.method}): outside 3σ {outside}; "
-                         f"{len(z)} elements")
+    assert not outside, f"{case.id} (seed {case.seed}, {case.method}): outside 3σ {outside}; {len(z)} elements"
     # the parameters moved away from the data book are determined by the data (σ well
     # below the offset), so "within 3σ of truth" means "moved to the truth"
     book = {e.name: e.value for e in a.problem.state}

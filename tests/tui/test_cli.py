@@ -46,8 +46,14 @@ def run(*argv: str) -> tuple[int, str, str]:
 
 def run_process(*argv: str) -> subprocess.CompletedProcess:
     env = dict(os.environ, PYTHONPATH=str(ROOT), OPENBLAS_NUM_THREADS="1")
-    return subprocess.run([sys.executable, "-m", "gcs_tui.cli", *map(str, argv)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=120)
+    return subprocess.run(
+        [sys.executable, "-m", "gcs_tui.cli", *map(str, argv)],
+        cwd=ROOT,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
 
 
 def error_lines(stderr: str) -> list[str]:
@@ -63,8 +69,9 @@ def copy_mission(src: Path, dst: Path) -> Path:
 @pytest.fixture(scope="module")
 def discovered(tmp_path_factory):
     out = tmp_path_factory.mktemp("discover")
-    code, stdout, stderr = run("discover", TAM, "--report", out / "report.json",
-                               "--plots", out / "plots", "--plot-format", "html")
+    code, stdout, stderr = run(
+        "discover", TAM, "--report", out / "report.json", "--plots", out / "plots", "--plot-format", "html"
+    )
     return code, stdout, stderr, json.loads((out / "report.json").read_text()), out
 
 
@@ -85,7 +92,7 @@ def test_discover_finds_the_hidden_tam_contamination(discovered):
     assert abs(magnitude - hidden["magnitude"]) < three_sigma * sigma
     assert "stopped: no candidate is significant" in stdout
     assert "Traceback" not in stderr
-    assert "gcs: adding TAM1.contamination_mtb_x" in stderr        # progress, plain lines
+    assert "gcs: adding TAM1.contamination_mtb_x" in stderr  # progress, plain lines
 
 
 def test_discover_report_has_the_icd_fields(discovered):
@@ -100,7 +107,7 @@ def test_discover_report_has_the_icd_fields(discovered):
     assert {"id", "sensor", "effect", "delta_chi2", "dof", "p_value", "identifiable"} <= set(cand)
     assert cand["id"] == f"{cand['sensor']}.{cand['effect']}"
     assert rep["physics_needed"], "the always-on physics in the model, each with its cost"
-    for row in rep["physics_needed"]:           # statistics from the engine, the sentence made here
+    for row in rep["physics_needed"]:  # statistics from the engine, the sentence made here
         assert set(row) == {"id", "delta_chi2_if_removed", "needed", "why", "physics"}
         assert row["why"].startswith("switching it off would add Δχ²") and isinstance(row["needed"], bool)
     assert (out / "plots" / "residuals.html").read_text().startswith("<!doctype html>")
@@ -117,18 +124,26 @@ def test_discover_strict_exits_1_as_a_process():
 
 # ---------------------------------------------------------------------------- batch
 def test_batch_with_report_rank_and_plots(tmp_path):
-    code, stdout, stderr = run("batch", CONFIGS / "nominal-sunpoint.toml", "--rank",
-                               "--report", tmp_path / "r.json", "--plots", tmp_path / "plots")
+    code, stdout, stderr = run(
+        "batch",
+        CONFIGS / "nominal-sunpoint.toml",
+        "--rank",
+        "--report",
+        tmp_path / "r.json",
+        "--plots",
+        tmp_path / "plots",
+    )
     assert code == cli.EXIT_OK, stderr
     assert "status: converged" in stdout and "candidate" in stdout
     rep = json.loads((tmp_path / "r.json").read_text())
     assert icd_report_problems(rep) == []
     assert rep["mission"] == "nominal-sunpoint" and rep["command"] == "batch" and rep["steps"] == []
     assert set(rep["sensors"]) == {"TAM1", "FHST1", "FHST2", "FSS1", "CSS1"}
-    for s in rep["sensors"].values():                 # the nominal mission fits to the noise floor
+    for s in rep["sensors"].values():  # the nominal mission fits to the noise floor
         assert 0.9 < s["rms_normalized"] < 1.1
-        assert math.isclose(s["rms"], math.sqrt(sum(v * v for v in s["rms_components"].values())
-                                                / len(s["rms_components"])))
+        assert math.isclose(
+            s["rms"], math.sqrt(sum(v * v for v in s["rms_components"].values()) / len(s["rms_components"]))
+        )
     assert rep["candidates"], "an ICD §7 report always carries the ranked candidates"
     assert sorted(p.name for p in (tmp_path / "plots").iterdir())[0] == "residuals_CSS1_n_alpha.txt"
 
@@ -146,12 +161,14 @@ def test_effects_of_a_mission(capsys):
     row = next(ln for ln in out.splitlines() if ln.startswith("TAM1.contamination_mtb_x"))
     assert row.split()[1:3] == ["contamination", "no"]
     assert next(ln for ln in out.splitlines() if ln.startswith("TAM1.bias ")).split()[2] == "yes"
-    assert "auxiliary channel" in out                 # --explain
+    assert "auxiliary channel" in out  # --explain
 
 
 def test_predict_prints_and_reports(tmp_path, capsys):
-    assert main(["predict", str(CONFIGS / "hidden-tam-contamination.toml"),
-                 "--report", str(tmp_path / "p.json")]) == cli.EXIT_OK
+    assert (
+        main(["predict", str(CONFIGS / "hidden-tam-contamination.toml"), "--report", str(tmp_path / "p.json")])
+        == cli.EXIT_OK
+    )
     out = capsys.readouterr().out
     assert "predicted 1-sigma at end of plan" in out and "att.roll" in out
     rep = json.loads((tmp_path / "p.json").read_text())
@@ -168,8 +185,9 @@ def test_verify_exit_code_follows_the_flag(tmp_path, requirement_deg):
     target = NOMINAL
     if requirement_deg is not None:
         target = tmp_path / "loose.toml"
-        target.write_text(f'[analysis]\nmission = "{NOMINAL.as_posix()}"\n'
-                          f'[verification]\nrequirement_deg = {requirement_deg}\n')
+        target.write_text(
+            f'[analysis]\nmission = "{NOMINAL.as_posix()}"\n[verification]\nrequirement_deg = {requirement_deg}\n'
+        )
     code, stdout, stderr = run("verify", target, "--report", tmp_path / "v.json")
     rep = json.loads((tmp_path / "v.json").read_text())
     assert code == (cli.EXIT_FLAG if rep["flag"] else cli.EXIT_OK), stderr
@@ -182,15 +200,15 @@ def test_import_counts_dropped_rows_and_writes_the_sdf(tmp_path, capsys):
     m = copy_mission(TAM, tmp_path / "m")
     tam = m / "telemetry" / "TAM1.csv"
     lines = tam.read_text().splitlines()
-    lines[4] = lines[4].split(",")[0] + ",,1.0,2.0"       # an empty field: the row is dropped
-    lines.insert(7, lines[6])                             # a packet received twice
+    lines[4] = lines[4].split(",")[0] + ",,1.0,2.0"  # an empty field: the row is dropped
+    lines.insert(7, lines[6])  # a packet received twice
     tam.write_text("\n".join(lines) + "\n")
     sdf = tmp_path / "out" / "m.sdf.h5"
     code = main(["import", str(m), "--sdf", str(sdf), "--report", str(tmp_path / "i.json")])
     out = capsys.readouterr().out
     assert code == cli.EXIT_OK
     row = next(ln for ln in out.splitlines() if ln.startswith("telemetry/TAM1.csv")).split()
-    assert row[-3:] == ["7200", "1", "1"]               # rows kept, NaN dropped, duplicates dropped
+    assert row[-3:] == ["7200", "1", "1"]  # rows kept, NaN dropped, duplicates dropped
     assert "unknown keys (kept, not used): none" in out
     assert sdf.is_file() and sdf.stat().st_size > 0 and f"SDF written to {sdf}" in out
     counts = json.loads((tmp_path / "i.json").read_text())
@@ -210,24 +228,36 @@ def _broken_csv_mission(tmp_path: Path) -> Path:
     tam = m / "telemetry" / "TAM1.csv"
     lines = tam.read_text().splitlines()
     t, bx, rest = lines[4].split(",", 2)
-    lines[4] = f"{t},{bx[:3]}x{bx[4:]},{rest}"             # line 5, column 2: not a number
+    lines[4] = f"{t},{bx[:3]}x{bx[4:]},{rest}"  # line 5, column 2: not a number
     tam.write_text("\n".join(lines) + "\n")
     return m
 
 
 BAD = {
-    "missing mission dir": (lambda tmp: ["batch", tmp / "no-such-mission"],
-                            lambda tmp: f"{tmp / 'no-such-mission'}: no such mission directory"),
-    "unknown config key": (lambda tmp: ["batch", _bad_config(tmp, "[filter]\nedit_kk = 3\n")],
-                           lambda tmp: f"{tmp / 'bad.toml'}, key 'filter.edit_kk': unknown key"),
-    "wrong config type": (lambda tmp: ["discover", _bad_config(tmp, '[diagnosis]\nsignificance = "low"\n')],
-                          lambda tmp: f"{tmp / 'bad.toml'}, key 'diagnosis.significance': must be a number"),
-    "config names no sensor": (lambda tmp: ["verify", _bad_config(tmp, '[models]\nTAM7 = "off"\n')],
-                               lambda tmp: f"{tmp / 'bad.toml'}, key 'models.TAM7': no sensor named"),
-    "corrupted csv": (lambda tmp: ["batch", _broken_csv_mission(tmp)],
-                      lambda tmp: f"{tmp / 'broken' / 'telemetry' / 'TAM1.csv'}:5:2: not a number"),
-    "corrupted csv on import": (lambda tmp: ["import", _broken_csv_mission(tmp)],
-                                lambda tmp: f"{tmp / 'broken' / 'telemetry' / 'TAM1.csv'}:5:2: not a number"),
+    "missing mission dir": (
+        lambda tmp: ["batch", tmp / "no-such-mission"],
+        lambda tmp: f"{tmp / 'no-such-mission'}: no such mission directory",
+    ),
+    "unknown config key": (
+        lambda tmp: ["batch", _bad_config(tmp, "[filter]\nedit_kk = 3\n")],
+        lambda tmp: f"{tmp / 'bad.toml'}, key 'filter.edit_kk': unknown key",
+    ),
+    "wrong config type": (
+        lambda tmp: ["discover", _bad_config(tmp, '[diagnosis]\nsignificance = "low"\n')],
+        lambda tmp: f"{tmp / 'bad.toml'}, key 'diagnosis.significance': must be a number",
+    ),
+    "config names no sensor": (
+        lambda tmp: ["verify", _bad_config(tmp, '[models]\nTAM7 = "off"\n')],
+        lambda tmp: f"{tmp / 'bad.toml'}, key 'models.TAM7': no sensor named",
+    ),
+    "corrupted csv": (
+        lambda tmp: ["batch", _broken_csv_mission(tmp)],
+        lambda tmp: f"{tmp / 'broken' / 'telemetry' / 'TAM1.csv'}:5:2: not a number",
+    ),
+    "corrupted csv on import": (
+        lambda tmp: ["import", _broken_csv_mission(tmp)],
+        lambda tmp: f"{tmp / 'broken' / 'telemetry' / 'TAM1.csv'}:5:2: not a number",
+    ),
 }
 
 
@@ -258,17 +288,24 @@ def test_usage_errors_are_one_line_and_exit_2(capsys):
 
 
 # ---------------------------------------------------------------------------- exit 3, 4, 130
-@pytest.mark.parametrize("raised, code, words", [
-    (lambda: cli_errors().EstimationError("the normal matrix is singular: the data cannot separate a, b"),
-     cli.EXIT_ESTIMATION, "estimation failed: the normal matrix is singular"),
-    (lambda: KeyboardInterrupt(), cli.EXIT_INTERRUPT, "interrupted"),
-    (lambda: TypeError("unsupported operand"), cli.EXIT_INTERNAL, "internal error: TypeError"),
-])
+@pytest.mark.parametrize(
+    "raised, code, words",
+    [
+        (
+            lambda: cli_errors().EstimationError("the normal matrix is singular: the data cannot separate a, b"),
+            cli.EXIT_ESTIMATION,
+            "estimation failed: the normal matrix is singular",
+        ),
+        (lambda: KeyboardInterrupt(), cli.EXIT_INTERRUPT, "interrupted"),
+        (lambda: TypeError("unsupported operand"), cli.EXIT_INTERNAL, "internal error: TypeError"),
+    ],
+)
 def test_failures_map_to_exit_codes(monkeypatch, capsys, raised, code, words):
     from gcs_core.session import Analysis
 
     def fail(self, **kw):
         raise raised()
+
     monkeypatch.setattr(Analysis, "fit", fail)
     assert main(["-q", "batch", str(TAM)]) == code
     err = capsys.readouterr().err
@@ -277,6 +314,7 @@ def test_failures_map_to_exit_codes(monkeypatch, capsys, raised, code, words):
 
 def cli_errors():
     import gcs_core.errors
+
     return gcs_core.errors
 
 
@@ -285,6 +323,7 @@ def test_internal_error_traceback_only_with_verbose(monkeypatch, capsys):
 
     def fail(self, **kw):
         raise ZeroDivisionError("bug")
+
     monkeypatch.setattr(Analysis, "fit", fail)
     assert main(["-q", "-v", "batch", str(TAM)]) == cli.EXIT_INTERNAL
     assert "Traceback" in capsys.readouterr().err
@@ -303,15 +342,15 @@ def test_progress_bar_on_a_terminal_and_log_lines_elsewhere():
         for k in range(4):
             task(k + 1, 4, f"block {k + 1}")
         bar.message("adding TAM1.scale")
-    shown = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", screen.getvalue())   # without the ANSI codes
+    shown = re.sub(r"\x1b\[[0-9;?]*[A-Za-z]", "", screen.getvalue())  # without the ANSI codes
     assert "gcs: adding TAM1.scale" in shown and "✓ fitting" in shown and "4/4" in shown
 
     log = io.StringIO()
-    plain = Progress(log, mode="auto")                 # a StringIO is not a terminal
+    plain = Progress(log, mode="auto")  # a StringIO is not a terminal
     assert plain.mode == "plain"
     with plain.task("fitting") as task:
         task(1, 2, "pass 1")
-        task(2, 2, "pass 1")                           # unchanged text: no new line
+        task(2, 2, "pass 1")  # unchanged text: no new line
         plain.message("adding TAM1.scale")
     plain.finish()
     assert log.getvalue().splitlines()[:3] == ["gcs: fitting", "gcs: fitting: pass 1", "gcs: adding TAM1.scale"]

@@ -39,12 +39,20 @@ def fake_analysis(seed: int = 7):
         edited = np.zeros(t.size, bool)
         edited[[50, 300]] = True
         res[edited] = 8 * sigma
-        return SimpleNamespace(t=t, valid=np.ones(t.size, bool), edited=edited, residual=res,
-                               sigma=np.full(len(comps), sigma), unit=unit, components=comps,
-                               rms_normalized=1.0)
+        return SimpleNamespace(
+            t=t,
+            valid=np.ones(t.size, bool),
+            edited=edited,
+            residual=res,
+            sigma=np.full(len(comps), sigma),
+            unit=unit,
+            components=comps,
+            rms_normalized=1.0,
+        )
 
-    result = SimpleNamespace(residuals={"FHST1": sensor("rad", 8 * one_arcsecond, ("h", "v")),
-                                        "TAM1": sensor("nT", 25.0, ("bx",))})
+    result = SimpleNamespace(
+        residuals={"FHST1": sensor("rad", 8 * one_arcsecond, ("h", "v")), "TAM1": sensor("nT", 25.0, ("bx",))}
+    )
     return SimpleNamespace(result=result, mission=SimpleNamespace(spec=SimpleNamespace(name="synthetic")))
 
 
@@ -61,9 +69,9 @@ def test_text_plots_have_no_terminal_codes(tmp_path):
 def test_html_page_is_self_contained_with_axes_units_and_band(tmp_path):
     (page,) = export_residual_plots(fake_analysis(), tmp_path, fmt="html")
     text = page.read_text(encoding="utf-8")
-    assert "<script" not in text and "src=" not in text and "href=" not in text   # nothing external
+    assert "<script" not in text and "src=" not in text and "href=" not in text  # nothing external
     assert text.count("<svg") == 3
-    assert "residual [arcsec]" in text and "residual [nT]" in text      # units from σ
+    assert "residual [arcsec]" in text and "residual [nT]" in text  # units from σ
     assert text.count("mission time t [s]") == 3 and text.count("±3σ band") == 3
     assert "FHST1 h: residual against time" in text
 
@@ -88,8 +96,8 @@ def read_png(path: Path) -> np.ndarray:
     assert data[:8] == b"\x89PNG\r\n\x1a\n"
     pos, idat, header = 8, b"", None
     while pos < len(data):
-        n, kind = struct.unpack(">I4s", data[pos:pos + 8])
-        body = data[pos + 8:pos + 8 + n]
+        n, kind = struct.unpack(">I4s", data[pos : pos + 8])
+        body = data[pos + 8 : pos + 8 + n]
         if kind == b"IHDR":
             header = struct.unpack(">IIBBBBB", body)
         elif kind == b"IDAT":
@@ -109,7 +117,7 @@ def read_png(path: Path) -> np.ndarray:
             cur = line
         elif f == 2:
             cur = (line + prev) & 255
-        else:                              # sub, average, paeth need the running left pixel
+        else:  # sub, average, paeth need the running left pixel
             cur = np.zeros(stride, np.int32)
             for i in range(stride):
                 a = cur[i - ch] if i >= ch else 0
@@ -133,20 +141,30 @@ def test_html_plots_render_in_a_real_browser(tmp_path):
     """Chromium draws the page: the band, the axes and the text are there in the pixels."""
     browser = _chromium()
     if browser is None:
-        pytest.skip("no Chromium: `make test` installs it with apt-get (apt-get install chromium); "
-                    "this machine has neither it nor apt-get")
+        pytest.skip(
+            "no Chromium: `make test` installs it with apt-get (apt-get install chromium); "
+            "this machine has neither it nor apt-get"
+        )
     (page,) = export_residual_plots(fake_analysis(), tmp_path, fmt="html")
     png = tmp_path / "page.png"
-    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-           f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1000,1300",
-           f"--screenshot={png}", page.as_uri()]
+    cmd = [
+        browser,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--hide-scrollbars",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--window-size=1000,1300",
+        f"--screenshot={png}",
+        page.as_uri(),
+    ]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
     assert png.is_file(), run.stderr[-2000:]
     img = read_png(png).astype(int)
     h, w, _ = img.shape
     assert (h, w) == (1300, 1000)
     band = np.all(np.abs(img - np.array(BAND_RGB)) <= BAND_TOL, axis=2)
-    dark = np.all(img < 120, axis=2)                      # axes frame, ticks and text
+    dark = np.all(img < 120, axis=2)  # axes frame, ticks and text
     # three plots of 900×300 with bands spanning ±3σ of a ±~4σ axis: a lot of band pixels
     assert band.sum() > 3 * 0.4 * (900 - 250) * 150, band.sum()
     # the axes frame: long dark horizontal runs (the plots' top and bottom edges)

@@ -17,8 +17,9 @@ def _results():
     rng = np.random.default_rng(11)
     dt = 0.01
     t = np.arange(60_000) * dt
-    gyro = rng.normal(scale=1e-3 / np.sqrt(dt), size=(t.size, 3)) + \
-        np.cumsum(rng.normal(scale=1e-4 * np.sqrt(dt), size=(t.size, 3)), axis=0)
+    gyro = rng.normal(scale=1e-3 / np.sqrt(dt), size=(t.size, 3)) + np.cumsum(
+        rng.normal(scale=1e-4 * np.sqrt(dt), size=(t.size, 3)), axis=0
+    )
     mag = rng.normal(scale=300.0, size=(t.size, 3))
     g = sensor_noise("IRU", "gyro", t, dict(zip(("wx", "wy", "wz"), gyro.T)), stated=0.01)
     m = sensor_noise("TAM1", "magnetometer", t, dict(zip(("bx", "by", "bz"), mag.T)), stated=250.0)

@@ -58,8 +58,15 @@ def test_tui_without_a_terminal_exits_2_at_once():
     """stdin and stdout not a terminal: one line, exit 2, well within a second."""
     env = dict(os.environ, PYTHONPATH=str(ROOT))
     start = time.monotonic()
-    run = subprocess.run([sys.executable, "-m", "gcs_tui.cli", "tui", str(ROOT / "sample_data" / "missions" / MISSION)],
-                         stdin=subprocess.DEVNULL, capture_output=True, text=True, timeout=10, cwd=ROOT, env=env)
+    run = subprocess.run(
+        [sys.executable, "-m", "gcs_tui.cli", "tui", str(ROOT / "sample_data" / "missions" / MISSION)],
+        stdin=subprocess.DEVNULL,
+        capture_output=True,
+        text=True,
+        timeout=10,
+        cwd=ROOT,
+        env=env,
+    )
     elapsed = time.monotonic() - start
     assert run.returncode == 2, run.stderr
     assert elapsed < REFUSAL_SECONDS, elapsed
@@ -75,7 +82,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
     candidate is asked about; the screenshot and config go beside the mission (0644);
     q with unsaved edits asks."""
     terminal = io.StringIO()
-    cli_handler = LogHandler(Progress(terminal, mode="plain"))       # what `gcs` installs
+    cli_handler = LogHandler(Progress(terminal, mode="plain"))  # what `gcs` installs
     for name in LOGGERS:
         logging.getLogger(name).addHandler(cli_handler)
     try:
@@ -95,7 +102,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
                 shown = [n.message for n in app._notifications]
                 assert text in shown
 
-                await pilot.press("3")                               # State: estimate ± σ at 80 columns
+                await pilot.press("3")  # State: estimate ± σ at 80 columns
                 await settle(pilot)
                 table = app.screen.query_one("#elements", DataTable)
                 labels = [str(c.label) for c in table.columns.values()]
@@ -103,7 +110,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
                 row = table.get_row("att.roll")
                 assert "±" in str(row[1]) and "arcsec" in str(row[1])
 
-                await pilot.press("7")                               # Diagnosis
+                await pilot.press("7")  # Diagnosis
                 await settle(pilot)
                 table = app.screen.query_one("#candidates", DataTable)
                 labels = [str(c.label) for c in table.columns.values()]
@@ -111,7 +118,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
                 explanation = str(app.screen.query_one("#explanation", Static).render())
                 assert "p adj" in explanation and "Aliases in the state" in explanation
                 box = app.screen.query_one("#explanation-box")
-                assert box.max_scroll_y > 0                          # longer than its pane: it scrolls
+                assert box.max_scroll_y > 0  # longer than its pane: it scrolls
 
                 cands = app.workbench.analysis.candidates
                 alpha = app.workbench.config.diagnosis.significance
@@ -127,20 +134,20 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
                 assert not isinstance(app.screen, ConfirmScreen)
                 assert [s.action for s in app.workbench.analysis.steps] == ["fit"]
 
-                shot = Path(app.deliver_screenshot())                # palette: Screenshot
+                shot = Path(app.deliver_screenshot())  # palette: Screenshot
                 assert shot.parent == mission_copy.parent and shot.is_file()
                 assert (os.stat(shot).st_mode & 0o777) == 0o666 & ~_umask()
 
-                await pilot.press("3", "s")                          # an edit: the role of att.roll
+                await pilot.press("3", "s")  # an edit: the role of att.roll
                 await settle(pilot)
                 assert app.workbench.unsaved
                 await pilot.press("q")
                 await pilot.pause()
-                assert isinstance(app.screen, ConfirmScreen)         # asks, does not quit
+                assert isinstance(app.screen, ConfirmScreen)  # asks, does not quit
                 await pilot.press("escape")
                 await pilot.pause()
                 out = app.save_config_to(app.workbench.save_path)
-                assert out.parent == mission_copy.parent              # beside the mission, not the cwd
+                assert out.parent == mission_copy.parent  # beside the mission, not the cwd
                 assert (os.stat(out).st_mode & 0o777) == 0o666 & ~_umask()
                 assert not app.workbench.unsaved
                 await pilot.press("q")
@@ -148,36 +155,43 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
     finally:
         for name in LOGGERS:
             logging.getLogger(name).removeHandler(cli_handler)
-    assert terminal.getvalue() == "", terminal.getvalue()       # nothing behind the TUI
-    assert capfd.readouterr().err == ""                          # nor on the process's stderr
+    assert terminal.getvalue() == "", terminal.getvalue()  # nothing behind the TUI
+    assert capfd.readouterr().err == ""  # nor on the process's stderr
 
 
 async def test_dialog_labels_keep_their_units():
     """``value [deg]`` is text, not markup: the unit survives."""
     app = GcsApp()
     async with app.run_test(size=(80, 24)) as pilot:
-        app.push_screen(FormScreen("Edit att.roll", [Field("value", "value [deg]", "1.5"),
-                                                     Field("t", "start [s]", "0"), Field("b", "bias [nT]", "0")]))
+        app.push_screen(
+            FormScreen(
+                "Edit att.roll",
+                [Field("value", "value [deg]", "1.5"), Field("t", "start [s]", "0"), Field("b", "bias [nT]", "0")],
+            )
+        )
         await pilot.pause()
         texts = [str(lab.render()) for lab in app.screen.query(".form-label").results(Label)]
         assert texts == ["value [deg]", "start [s]", "bias [nT]"]
 
 
 # ---------------------------------------------------------------------------- one display rule
-@pytest.mark.parametrize("unit, value, sigma", [
-    ("rad", 5.6 * DEG, 3 * one_arcsecond),          # a large angle known to arcseconds: arcsec
-    ("rad", 0.2 * DEG, 3 * one_arcsecond),
-    ("rad", 30 * DEG, 2 * DEG),                     # σ of degrees: deg
-    ("rad/s", 1e-6, 1e-7),
-    ("rad/s2", 1.7e-12, 1.4e-12),
-    ("nT", 12.3, 0.4),
-    ("1", 0.99996, 4.3e-5),
-])
+@pytest.mark.parametrize(
+    "unit, value, sigma",
+    [
+        ("rad", 5.6 * DEG, 3 * one_arcsecond),  # a large angle known to arcseconds: arcsec
+        ("rad", 0.2 * DEG, 3 * one_arcsecond),
+        ("rad", 30 * DEG, 2 * DEG),  # σ of degrees: deg
+        ("rad/s", 1e-6, 1e-7),
+        ("rad/s2", 1.7e-12, 1.4e-12),
+        ("nT", 12.3, 0.4),
+        ("1", 0.99996, 4.3e-5),
+    ],
+)
 def test_cli_and_tui_choose_the_same_unit_and_digits(unit, value, sigma):
     """The ``gcs`` state table and the TUI show one element's estimate alike: the same
     unit chosen from its σ and the same digits."""
     el = SimpleNamespace(name="X.p", role="solve-for", value=value, sigma0=sigma, unit=unit)
-    res = SimpleNamespace(state=[el], sigma={"X.p": sigma}, solve_for=("X.p",), P=np.array([[sigma ** 2]]))
+    res = SimpleNamespace(state=[el], sigma={"X.p": sigma}, solve_for=("X.p",), P=np.array([[sigma**2]]))
     row = tables.state_table(SimpleNamespace(result=res))[1]
     tui = fmt.estimate(value, sigma, unit)
     assert row.split(None, 2)[2] == tui
@@ -190,19 +204,18 @@ def test_rows_with_similar_sigma_share_a_unit():
     pitch = fmt.estimate(5.6 * DEG, 3 * one_arcsecond, "rad")
     assert roll.endswith("arcsec") and pitch.endswith("arcsec")
     assert fmt.estimate(1.7e-12, 1.4e-12, "rad/s2") == "0.0013 ± 0.0010 deg/h²"
-    assert fmt.estimate(0.5, 0.01, "1") == "0.500 ± 0.010"             # no unit "1"
+    assert fmt.estimate(0.5, 0.01, "1") == "0.500 ± 0.010"  # no unit "1"
 
 
 def test_no_p_of_zero_in_the_cli_table():
-    cand = SimpleNamespace(id="TAM1.scale", delta_chi2=5000.0, dof=3, p_value=0.0, p_adjusted=0.0,
-                           identifiable=True)
+    cand = SimpleNamespace(id="TAM1.scale", delta_chi2=5000.0, dof=3, p_value=0.0, p_adjusted=0.0, identifiable=True)
     lines = tables.candidate_table([cand], alpha=0.001)
     assert "< 1e-16" in lines[1] and " 0 " not in lines[1]
     assert any("ranked by p" in ln for ln in lines)
 
 
 def test_value_prefill_at_sigma_precision():
-    assert fmt.value_text(0.044629361519 * DEG, 0.001 * DEG, "rad", "deg") == "0.04463"   # σ-s digits and one more
+    assert fmt.value_text(0.044629361519 * DEG, 0.001 * DEG, "rad", "deg") == "0.04463"  # σ-s digits and one more
     assert fmt.value_text(12.345678, 0.23, "nT", "nT") == "12.346"
 
 
@@ -216,6 +229,7 @@ def test_round_ticks():
 # ---------------------------------------------------------------------------- config hints
 def _cli(args, capsys):
     from gcs_tui.cli.commands import main
+
     code = main(["-q", *args])
     return code, capsys.readouterr().err
 
@@ -273,8 +287,9 @@ def test_kalman_passes_and_unobservable_are_said_in_words():
     assert _passes_text(3, "max_passes").startswith("3 passes done, as configured")
     assert _passes_text(2, "converged") == "converged after 2 passes"
     assert "pass(es)" not in _passes_text(1, "single_pass")
-    res = SimpleNamespace(residuals={}, message="converged", chi2=10.0, dof=10,
-                          unobservable=["TAM1.align_1 + att.roll"])
+    res = SimpleNamespace(
+        residuals={}, message="converged", chi2=10.0, dof=10, unobservable=["TAM1.align_1 + att.roll"]
+    )
     lines = tables.fit_table(SimpleNamespace(result=res, holdout_rms={}))
     assert lines[-1] == tables.UNOBSERVABLE_NOTE and "a priori" in lines[-1]
 

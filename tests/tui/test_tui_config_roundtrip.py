@@ -31,24 +31,24 @@ async def test_saved_config_runs_headless_to_the_same_estimates(shared_example, 
         await open_by_keys(pilot, config)
         await pilot.press("f")
         await settle(pilot)
-        await pilot.press("7", "a")                  # add the top candidate
+        await pilot.press("7", "a")  # add the top candidate
         await settle(pilot)
         added = [s.effect for s in app.workbench.analysis.steps if s.action == "add"]
 
-        await pilot.press("3")                       # State & covariance
+        await pilot.press("3")  # State & covariance
         await settle(pilot)
         table = app.screen.query_one("#elements", DataTable)
         target = table.get_row_index(EDITED)
         await pilot.press(*["down"] * (target - table.cursor_row))
-        await pilot.press("e", "tab", "ctrl+u")      # edit, go to σ, clear it
+        await pilot.press("e", "tab", "ctrl+u")  # edit, go to σ, clear it
         await type_text(pilot, f"{NEW_SIGMA_NT:g}")
         await pilot.press("enter")
         await settle(pilot)
-        await pilot.press("f")                       # refit from the edited config
+        await pilot.press("f")  # refit from the edited config
         await settle(pilot)
         tui = app.workbench.result
 
-        await pilot.press("ctrl+s", "ctrl+u")        # save the config
+        await pilot.press("ctrl+s", "ctrl+u")  # save the config
         await type_text(pilot, str(saved))
         await pilot.press("enter")
         await settle(pilot)
@@ -61,6 +61,7 @@ async def test_saved_config_runs_headless_to_the_same_estimates(shared_example, 
     res = headless.fit()
     assert res.solve_for == tui.solve_for
     np.testing.assert_allclose(res.x, tui.x, rtol=1e-9, atol=0.0)
-    np.testing.assert_allclose([res.sigma[n] for n in res.solve_for], [tui.sigma[n] for n in tui.solve_for],
-                               rtol=1e-9, atol=0.0)
+    np.testing.assert_allclose(
+        [res.sigma[n] for n in res.solve_for], [tui.sigma[n] for n in tui.solve_for], rtol=1e-9, atol=0.0
+    )
     assert abs(res.chi2 - tui.chi2) <= 1e-9 * tui.chi2

@@ -15,16 +15,19 @@ from gcs_core import display as fmt
 from gcs_core.units import ARCSEC, DEG
 
 
-@pytest.mark.parametrize("value, sigma, unit, expected", [
-    (12.3456, 0.0234, "nT", "12.346 ± 0.023 nT"),
-    (2e-5, 1.1e-5, "rad", "4.1 ± 2.3 arcsec"),                  # 4.125″ ± 2.269″
-    (math.pi / 2 + 1e-5, 1.32e-5, "rad", "324002.1 ± 2.7 arcsec"),   # unit from σ, not from the value
-    (0.99996, 4.3e-5, "1", "0.999960 ± 0.000043"),
-    (1.23e-5, 1.1e-6, "1", "(1.23 ± 0.11)e-5"),
-    (-0.0647, 0.0299, "s", "-0.065 ± 0.030 s"),
-    (12345.6, 1234.0, "nT", "12300 ± 1200 nT"),
-    (-2e-5 * DEG, 1.0 * DEG, "rad", "0.0 ± 1.0 deg"),          # no "-0.0"
-])
+@pytest.mark.parametrize(
+    "value, sigma, unit, expected",
+    [
+        (12.3456, 0.0234, "nT", "12.346 ± 0.023 nT"),
+        (2e-5, 1.1e-5, "rad", "4.1 ± 2.3 arcsec"),  # 4.125″ ± 2.269″
+        (math.pi / 2 + 1e-5, 1.32e-5, "rad", "324002.1 ± 2.7 arcsec"),  # unit from σ, not from the value
+        (0.99996, 4.3e-5, "1", "0.999960 ± 0.000043"),
+        (1.23e-5, 1.1e-6, "1", "(1.23 ± 0.11)e-5"),
+        (-0.0647, 0.0299, "s", "-0.065 ± 0.030 s"),
+        (12345.6, 1234.0, "nT", "12300 ± 1200 nT"),
+        (-2e-5 * DEG, 1.0 * DEG, "rad", "0.0 ± 1.0 deg"),  # no "-0.0"
+    ],
+)
 def test_estimate_keeps_two_digits_of_sigma(value, sigma, unit, expected):
     assert fmt.estimate(value, sigma, unit) == expected
 
@@ -37,8 +40,9 @@ def test_rates_in_degrees_per_hour():
 def test_display_round_trip():
     shown = fmt.display_unit("rad", 5 * ARCSEC)
     assert shown == "arcsec"
-    assert fmt.from_display(fmt.to_display(5 * ARCSEC, "rad", shown), "rad", shown) == pytest.approx(5 * ARCSEC,
-                                                                                                     rel=1e-15)
+    assert fmt.from_display(fmt.to_display(5 * ARCSEC, "rad", shown), "rad", shown) == pytest.approx(
+        5 * ARCSEC, rel=1e-15
+    )
 
 
 def test_missing_sigma_and_statistics():

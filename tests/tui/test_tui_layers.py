@@ -34,8 +34,11 @@ def test_tui_model_side_has_no_textual():
 
 
 def test_engine_has_no_ui_imports():
-    offenders = [str(p.relative_to(ROOT)) for p in (ROOT / "gcs_core").rglob("*.py")
-                 if imported_roots(p) & {"textual", "rich", "textual_plotext", "gcs_tui"}]
+    offenders = [
+        str(p.relative_to(ROOT))
+        for p in (ROOT / "gcs_core").rglob("*.py")
+        if imported_roots(p) & {"textual", "rich", "textual_plotext", "gcs_tui"}
+    ]
     assert offenders == []
 
 
@@ -53,10 +56,15 @@ def imported_modules(path: Path) -> set[str]:
 def test_the_two_faces_are_separate_packages():
     """The TUI (gcs_tui/tui) never imports the headless face (gcs_tui/cli); the headless face
     reaches the TUI only to start it (the ``gcs tui`` command), and draws no Textual."""
-    tui = [str(p.relative_to(ROOT)) for p in (ROOT / "gcs_tui" / "tui").rglob("*.py")
-           if any(m.startswith("gcs_tui.cli") for m in imported_modules(p))]
+    tui = [
+        str(p.relative_to(ROOT))
+        for p in (ROOT / "gcs_tui" / "tui").rglob("*.py")
+        if any(m.startswith("gcs_tui.cli") for m in imported_modules(p))
+    ]
     assert tui == []
-    cli = {str(p.relative_to(ROOT)): {m for m in imported_modules(p) if m.startswith("gcs_tui.tui")}
-           for p in (ROOT / "gcs_tui" / "cli").rglob("*.py")}
+    cli = {
+        str(p.relative_to(ROOT)): {m for m in imported_modules(p) if m.startswith("gcs_tui.tui")}
+        for p in (ROOT / "gcs_tui" / "cli").rglob("*.py")
+    }
     assert {k: v for k, v in cli.items() if v} == {"gcs_tui/cli/commands.py": {"gcs_tui.tui.app"}}
     assert not any(imported_roots(p) & {"textual"} for p in (ROOT / "gcs_tui" / "cli").rglob("*.py"))

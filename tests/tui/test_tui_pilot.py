@@ -68,24 +68,24 @@ async def test_find_hidden_effect_by_keys(shared_example, tmp_path):
         wb = app.workbench
         assert wb.ready and wb.result is None
 
-        await pilot.press("f")                       # fit
+        await pilot.press("f")  # fit
         await settle(pilot)
-        await pilot.press("6")                       # residuals
+        await pilot.press("6")  # residuals
         await settle(pilot)
         assert isinstance(app.screen, ResidualsScreen)
         before = wb.analysis.rms()
         assert max(before[s] for s in affected) > RMS_LIMIT, before
 
-        await pilot.press("7")                       # diagnosis
+        await pilot.press("7")  # diagnosis
         await settle(pilot)
         assert isinstance(app.screen, DiagnosisScreen)
         table = app.screen.query_one("#candidates", DataTable)
         top = table.coordinate_to_cell_key((table.cursor_row, 0)).row_key.value
         assert top == hidden
 
-        await pilot.press("a")                       # add the selected (top) candidate, refit
+        await pilot.press("a")  # add the selected (top) candidate, refit
         await settle(pilot)
-        await pilot.press("f")                       # refit from the config
+        await pilot.press("f")  # refit from the config
         await settle(pilot)
         after = wb.analysis.rms()
         assert hidden in wb.analysis.effects_in_state()
@@ -106,16 +106,16 @@ async def test_editing_screens_by_keys(shared_example, tmp_path):
         wb = app.workbench
         n_state = len(wb.analysis.problem.state)
 
-        await pilot.press("2", "space")              # TAM1 model -> off
+        await pilot.press("2", "space")  # TAM1 model -> off
         await settle(pilot)
         assert wb.config.models["TAM1"] == "off"
         assert "TAM1" not in [s.name for s in wb.analysis.problem.sensors]
-        await pilot.press("space")                   # and back
+        await pilot.press("space")  # and back
         await settle(pilot)
         assert wb.config.models["TAM1"] == "magnetometer"
         assert len(wb.analysis.problem.state) == n_state
 
-        await pilot.press("3")                       # State: TAM1.align_1 held -> solve-for
+        await pilot.press("3")  # State: TAM1.align_1 held -> solve-for
         await settle(pilot)
         table = app.screen.query_one("#elements", DataTable)
         await pilot.press(*["down"] * table.get_row_index("TAM1.align_1"), "s")
@@ -123,7 +123,7 @@ async def test_editing_screens_by_keys(shared_example, tmp_path):
         assert wb.config.state.elements["TAM1.align_1"].role == "solve-for"
         assert wb.analysis.problem.state["TAM1.align_1"].role == "solve-for"
 
-        await pilot.press("4", "g", "enter", "m", "enter")   # a default gap and maneuver
+        await pilot.press("4", "g", "enter", "m", "enter")  # a default gap and maneuver
         await settle(pilot)
         assert len(wb.config.prediction.gaps) == 1 and len(wb.config.prediction.maneuvers) == 1
         await pilot.press("e", "tab", "tab", "ctrl+u")
@@ -135,7 +135,7 @@ async def test_editing_screens_by_keys(shared_example, tmp_path):
         await pilot.press("d")
         assert wb.config.prediction.gaps == ()
 
-        await pilot.press("ctrl+p")                  # command palette
+        await pilot.press("ctrl+p")  # command palette
         await type_text(pilot, "view: residuals")
         await pilot.pause(0.5)
         await pilot.press("enter")

@@ -40,7 +40,7 @@ def workbench(tmp_path_factory) -> Workbench:
         jobs.save_calibration(wb, note="first fit")
         top = next(c for c in wb.analysis.candidates if c.identifiable)
         wb.change_effect(top.id, True)
-        wb.fit()                         # refit from the config, as the analyst does (f)
+        wb.fit()  # refit from the config, as the analyst does (f)
         now[0] = FIXED_UTC[1]
         jobs.save_calibration(wb, note=f"+{top.id}")
     jobs.predict(wb)

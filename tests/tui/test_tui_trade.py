@@ -21,8 +21,12 @@ CONFIG = ROOT / "sample_data" / "trade" / "smm-tam-bias.toml"
 def study(tmp_path_factory):
     out = tmp_path_factory.mktemp("trade") / "study.h5"
     cfg = load_config(CONFIG)
-    run_study(definition_from_config(cfg, {"passes": (1, 2), "pass_min": (10,), "separation_min": (30,),
-                                           "start_min": (0, 20, 40)}), out)
+    run_study(
+        definition_from_config(
+            cfg, {"passes": (1, 2), "pass_min": (10,), "separation_min": (30,), "start_min": (0, 20, 40)}
+        ),
+        out,
+    )
     return out
 
 
@@ -36,6 +40,7 @@ def workbench():
 
 def test_trade_screen(snap_compare, study, workbench):
     """The ranked plans of the study, σ of TAM1.bias_x against the pass start."""
+
     async def show(pilot):
         await settle(pilot)
         pilot.app.open_trade(study)

@@ -21,7 +21,7 @@ from gcs_core.units import DEG
 
 #: two evaluations of one attitude agree to round-off
 same_rotation = 1e-12
-RATE = np.array([1e-3, -2e-3, 5e-4])        # rad/s, a slow turn
+RATE = np.array([1e-3, -2e-3, 5e-4])  # rad/s, a slow turn
 
 
 def _gyro() -> GyroAttitude:
@@ -31,8 +31,9 @@ def _gyro() -> GyroAttitude:
 
 def _values(att) -> dict[str, float]:
     values = {n: 0.0 for n in att.names}
-    values.update({"att.roll": 10 * DEG, "att.pitch": -5 * DEG, "att.yaw": 30 * DEG,
-                   "att.ra": 40 * DEG, "att.dec": 20 * DEG})
+    values.update(
+        {"att.roll": 10 * DEG, "att.pitch": -5 * DEG, "att.yaw": 30 * DEG, "att.ra": 40 * DEG, "att.dec": 20 * DEG}
+    )
     for name in G_NAMES:
         if name in ("G_11", "G_22", "G_33"):
             values[f"IRU.{name}"] = 1.0
@@ -42,10 +43,10 @@ def _values(att) -> dict[str, float]:
 PROVIDERS = {
     "reference": lambda: ReferenceAttitude("inertial", None),
     "spin": SpinAttitude,
-    "maneuver": lambda: ManeuverAttitude(ReferenceAttitude("inertial", None),
-                                         lambda t: np.outer(np.atleast_1d(t), [0.0, 0.0, 1e-3])),
-    "body error": lambda: BodyErrorAttitude(ReferenceAttitude("inertial", None),
-                                            {n: 0.1 for n in RPY}),
+    "maneuver": lambda: ManeuverAttitude(
+        ReferenceAttitude("inertial", None), lambda t: np.outer(np.atleast_1d(t), [0.0, 0.0, 1e-3])
+    ),
+    "body error": lambda: BodyErrorAttitude(ReferenceAttitude("inertial", None), {n: 0.1 for n in RPY}),
     "gyro": _gyro,
 }
 

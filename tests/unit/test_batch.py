@@ -55,5 +55,5 @@ def test_consider_covariance_grows_sigma(example_dir):
     r1 = batch_fit(a.problem, BatchOptions(edit_k=None))
     assert "TAM1.scale_x" in r1.consider
     assert r1.sigma["TAM1.bias_x"] > r0.sigma["TAM1.bias_x"]
-    assert np.allclose(r1.P, r0.P, rtol=1e-6)        # noise-only part unchanged
+    assert np.allclose(r1.P, r0.P, rtol=1e-6)  # noise-only part unchanged
     assert set(r1.consider_budget) == {"TAM1.scale_x"}

@@ -50,11 +50,12 @@ def test_two_saves_make_versions_one_and_two_and_history_is_append_only(fitted, 
     assert scds.read_version(path).version == 2
 
     diff = {row[0]: row for row in scds.diff_versions(path, 1, 2)}
-    for k in (1, 2, 3):                                       # new in version 2
+    for k in (1, 2, 3):  # new in version 2
         name = f"TAM1.align_{k}"
         assert math.isnan(diff[name][1]) and math.isfinite(diff[name][2])
     assert diff["TAM1.bias_x"][3] == pytest.approx(
-        second.result.state["TAM1.bias_x"].value - first.result.state["TAM1.bias_x"].value, abs=1e-12)
+        second.result.state["TAM1.bias_x"].value - first.result.state["TAM1.bias_x"].value, abs=1e-12
+    )
 
 
 def test_version_holds_values_sigmas_covariance_and_provenance(fitted, tmp_path):
@@ -75,8 +76,14 @@ def test_version_holds_values_sigmas_covariance_and_provenance(fitted, tmp_path)
     assert p["config_hash"] == first.config.digest()
     assert p["mission"] == "sunpoint-nominal" and p["note"] == "check"
     assert (p["data_t0"], p["data_t1"]) == (0.0, 7200.0)
-    assert p["models"] == {"TAM1": "magnetometer", "IRU": "gyro", "FHST1": "star_tracker",
-                           "FHST2": "star_tracker", "FSS1": "fine_sun", "CSS1": "coarse_sun"}
+    assert p["models"] == {
+        "TAM1": "magnetometer",
+        "IRU": "gyro",
+        "FHST1": "star_tracker",
+        "FHST2": "star_tracker",
+        "FSS1": "fine_sun",
+        "CSS1": "coarse_sun",
+    }
     assert p["physics"] == first.config.physics.as_dict()
     assert p["created_utc"].endswith("Z") and p["gcs_version"]
 
@@ -93,11 +100,11 @@ def test_ground_attitude_goes_to_the_asf_with_its_sigma(fitted, tmp_path):
     path = tmp_path / "asf.h5"
     assert save_ground_attitude(first, path, note="frames") == 1
     sol = asf.read_solution(path, 1)
-    assert sol.source == "batch" and sol.t.size == 7201          # TAM1's frames, 1 Hz
+    assert sol.source == "batch" and sol.t.size == 7201  # TAM1's frames, 1 Hz
     np.testing.assert_allclose(np.linalg.norm(sol.q, axis=1), 1.0, atol=1e-12)
     assert np.all(np.isfinite(sol.sigma_rad)) and np.all(sol.sigma_rad > 0)
     one_arcsecond = np.radians(1 / 3600)
-    assert np.all(sol.sigma_rad < 10 * one_arcsecond)            # two trackers, two hours
+    assert np.all(sol.sigma_rad < 10 * one_arcsecond)  # two trackers, two hours
     # at the start the body axes are the roll/pitch/yaw axes (angles ≈ 0) and the gyro has
     # not yet carried the attitude: the fit's own att.* sigmas (1 s after t_ref)
     att_sigma = [first.result.sigma[n] for n in ("att.roll", "att.pitch", "att.yaw")]
@@ -106,4 +113,4 @@ def test_ground_attitude_goes_to_the_asf_with_its_sigma(fitted, tmp_path):
     grid = asf.read_solution(path, 2)
     np.testing.assert_allclose(np.diff(grid.t), 60.0)
     assert grid.provenance["scds_version"] == 1
-    np.testing.assert_array_equal(asf.read_solution(path, 1).q, sol.q)   # solution 1 untouched
+    np.testing.assert_array_equal(asf.read_solution(path, 1).q, sol.q)  # solution 1 untouched

@@ -59,8 +59,13 @@ def test_documented_example_loads_with_every_key(tmp_path):
     path = write(tmp_path, example_text(MISSION))
     cfg = C.load_config(path)
     assert cfg.mission == MISSION and cfg.method == "whole_span" and cfg.name == "nominal, first look"
-    assert cfg.physics.as_dict() == {"stellar_aberration": True, "solar_aberration": True, "sun_parallax": True,
-                           "earth_oblateness": True, "field_model": "igrf"}
+    assert cfg.physics.as_dict() == {
+        "stellar_aberration": True,
+        "solar_aberration": True,
+        "sun_parallax": True,
+        "earth_oblateness": True,
+        "field_model": "igrf",
+    }
     assert cfg.models == {"CSS1": "coarse_sun", "IRU": "gyro"}
     assert cfg.state.effects == ("TAM1.alignment",) and cfg.state.exclude == ()
     assert cfg.state.elements == {"TAM1.bias_x": C.ElementConfig("solve-for", 0.0, 200.0)}
@@ -81,7 +86,7 @@ def test_every_documented_key_survives_save_and_load(tmp_path):
     written = leaves(C.parse_toml(saved.read_text()))
     assert set(documented) <= set(written), set(documented) - set(written)
     for key, value in documented.items():
-        if key != "analysis.mission":          # written relative to the new file
+        if key != "analysis.mission":  # written relative to the new file
             assert written[key] == value, key
     again = C.load_config(saved)
     assert replace(again, path=None) == replace(cfg, path=None)
@@ -103,7 +108,7 @@ def test_infinite_sigma_and_label_round_trip(tmp_path):
     assert cfg.state.elements["CSS1.b_alpha"].sigma == math.inf
     again = C.load_config(C.save_config(cfg, tmp_path / "b.toml"))
     assert again.state.elements == cfg.state.elements and again.name == "run 1"
-    assert replace(cfg, name=None).digest() == cfg.digest()     # the label is not a setting
+    assert replace(cfg, name=None).digest() == cfg.digest()  # the label is not a setting
 
 
 def test_relative_mission_resolves_against_the_config_folder(tmp_path):
@@ -116,47 +121,56 @@ def test_relative_mission_resolves_against_the_config_folder(tmp_path):
 REFUSALS = [
     # (TOML after the [analysis] table, key named, part of the message)
     ('method = "fast"\n', "analysis.method", "must be one of whole_span, batch, kalman"),
-    ('name = 3\n', "analysis.name", "must be a string"),
+    ("name = 3\n", "analysis.name", "must be a string"),
     ('colour = "red"\n', "analysis.colour", "unknown key"),
-    ('[physcs]\n', "physcs", "did you mean 'physics'"),
+    ("[physcs]\n", "physcs", "did you mean 'physics'"),
     ('[physics]\nsun_parallax = "yes"\n', "physics.sun_parallax", "must be true or false"),
     ('[physics]\nfield_model = "wmm"\n', "physics.field_model", "must be one of igrf, dipole"),
-    ('[physics]\nrelativity = true\n', "physics.relativity", "unknown key"),
+    ("[physics]\nrelativity = true\n", "physics.relativity", "unknown key"),
     ('[models]\nTAM1 = "magnetic"\n', "models.TAM1", "must be the sensor's type"),
-    ('[models]\nTAM1 = 1\n', "models.TAM1", "must be the sensor's type"),
+    ("[models]\nTAM1 = 1\n", "models.TAM1", "must be the sensor's type"),
     ('[state]\neffects = "TAM1.scale"\n', "state.effects", "must be a list"),
     ('[state]\neffects = ["TAM1.scale", "scale"]\n', "state.effects[2]", "must be an effect id"),
-    ('[state]\nexclude = [3]\n', "state.exclude[1]", "must be an effect id"),
-    ('[state]\nattitude_sigma_deg = 0\n', "state.attitude_sigma_deg", "must be > 0"),
+    ("[state]\nexclude = [3]\n", "state.exclude[1]", "must be an effect id"),
+    ("[state]\nattitude_sigma_deg = 0\n", "state.attitude_sigma_deg", "must be > 0"),
     ('[state]\nattitude_sigma_deg = "1"\n', "state.attitude_sigma_deg", "must be a number"),
-    ('[state]\nelements = 3\n', "state.elements", "must be a table"),
-    ('[state.elements."TAM1.bias_x"]\nrole = "fixed"\n', 'state.elements."TAM1.bias_x".role',
-     "must be one of solve-for, consider, held"),
+    ("[state]\nelements = 3\n", "state.elements", "must be a table"),
+    (
+        '[state.elements."TAM1.bias_x"]\nrole = "fixed"\n',
+        'state.elements."TAM1.bias_x".role',
+        "must be one of solve-for, consider, held",
+    ),
     ('[state.elements."TAM1.bias_x"]\nsigma = -2.0\n', 'state.elements."TAM1.bias_x".sigma', "must be > 0"),
     ('[state.elements."TAM1.bias_x"]\nvalue = nan\n', 'state.elements."TAM1.bias_x".value', "not nan"),
     ('[state.elements."TAM1.bias_x"]\nvalue = inf\n', 'state.elements."TAM1.bias_x".value', "must be finite"),
     ('[state.elements."TAM1.bias_x"]\nsigam = 2.0\n', 'state.elements."TAM1.bias_x".sigam', "did you mean 'sigma'"),
-    ('[state.elements]\nbias = {sigma = 1.0}\n', "state.elements.bias", "must be an element name"),
-    ('[filter]\nblock_seconds = true\n', "filter.block_seconds", "must be a number, not True"),
-    ('[filter]\nedit_k = -1\n', "filter.edit_k", "must be ≥ 0.0"),
-    ('[filter.edit_k_sensor]\nFHST1 = -3\n', "filter.edit_k_sensor.FHST1", "must be ≥ 0.0"),
+    ("[state.elements]\nbias = {sigma = 1.0}\n", "state.elements.bias", "must be an element name"),
+    ("[filter]\nblock_seconds = true\n", "filter.block_seconds", "must be a number, not True"),
+    ("[filter]\nedit_k = -1\n", "filter.edit_k", "must be ≥ 0.0"),
+    ("[filter.edit_k_sensor]\nFHST1 = -3\n", "filter.edit_k_sensor.FHST1", "must be ≥ 0.0"),
     ('[filter.edit_k_sensor]\nFHST1 = "tight"\n', "filter.edit_k_sensor.FHST1", "must be a number"),
-    ('[filter]\nedit_k_sensor = 4\n', "filter.edit_k_sensor", "must be a table"),
-    ('[filter]\nmax_iterations = 2.5\n', "filter.max_iterations", "must be a whole number"),
-    ('[filter]\nmax_iterations = 0\n', "filter.max_iterations", "must be ≥ 1"),
-    ('[diagnosis]\nsignificance = 0.9\n', "diagnosis.significance", "must be ≤ 0.5"),
+    ("[filter]\nedit_k_sensor = 4\n", "filter.edit_k_sensor", "must be a table"),
+    ("[filter]\nmax_iterations = 2.5\n", "filter.max_iterations", "must be a whole number"),
+    ("[filter]\nmax_iterations = 0\n", "filter.max_iterations", "must be ≥ 1"),
+    ("[diagnosis]\nsignificance = 0.9\n", "diagnosis.significance", "must be ≤ 0.5"),
     ('[diagnosis]\nholdout_fraction = "quarter"\n', "diagnosis.holdout_fraction", "must be a number"),
-    ('[prediction]\nstep = 0\n', "prediction.step", "must be > 0"),
-    ('[prediction]\nstart = 100.0\nend = 50.0\n', "prediction.end", "must be later than prediction.start"),
-    ('[prediction]\ngaps = [[1.0, 2.0], [5.0, 3.0]]\n', "prediction.gaps[2]", "start < end"),
+    ("[prediction]\nstep = 0\n", "prediction.step", "must be > 0"),
+    ("[prediction]\nstart = 100.0\nend = 50.0\n", "prediction.end", "must be later than prediction.start"),
+    ("[prediction]\ngaps = [[1.0, 2.0], [5.0, 3.0]]\n", "prediction.gaps[2]", "start < end"),
     ('[prediction]\ngaps = [["a", "b"]]\n', "prediction.gaps[1]", "pair of numbers"),
-    ('[prediction]\nmaneuvers = [1]\n', "prediction.maneuvers[1]", "must be a table"),
-    ('[[prediction.maneuvers]]\nstart = 0.0\nduration = 60.0\naxis = "up"\nrate_deg_s = 0.1\n',
-     "prediction.maneuvers[1].axis", "must be one of roll, pitch, yaw"),
-    ('[[prediction.maneuvers]]\nstart = 0.0\naxis = "yaw"\nrate_deg_s = 0.1\n',
-     "prediction.maneuvers[1].duration", "missing"),
-    ('[verification]\nrequirement_deg = -0.01\n', "verification.requirement_deg", "must be > 0"),
-    ('[verification]\nrequirement = 0.01\n', "verification.requirement", "did you mean 'requirement_deg'"),
+    ("[prediction]\nmaneuvers = [1]\n", "prediction.maneuvers[1]", "must be a table"),
+    (
+        '[[prediction.maneuvers]]\nstart = 0.0\nduration = 60.0\naxis = "up"\nrate_deg_s = 0.1\n',
+        "prediction.maneuvers[1].axis",
+        "must be one of roll, pitch, yaw",
+    ),
+    (
+        '[[prediction.maneuvers]]\nstart = 0.0\naxis = "yaw"\nrate_deg_s = 0.1\n',
+        "prediction.maneuvers[1].duration",
+        "missing",
+    ),
+    ("[verification]\nrequirement_deg = -0.01\n", "verification.requirement_deg", "must be > 0"),
+    ("[verification]\nrequirement = 0.01\n", "verification.requirement", "did you mean 'requirement_deg'"),
 ]
 
 
@@ -173,8 +187,12 @@ def test_each_refusal_names_its_key(tmp_path, body, key, fragment):
 
 
 def test_mission_key_is_required_and_a_string(tmp_path):
-    for text, fragment in (("[analysis]\n", "missing"), ("[analysis]\nmission = 3\n", "as a string"),
-                           ('[analysis]\nmission = ""\n', "as a string"), ("[physics]\n", "missing")):
+    for text, fragment in (
+        ("[analysis]\n", "missing"),
+        ("[analysis]\nmission = 3\n", "as a string"),
+        ('[analysis]\nmission = ""\n', "as a string"),
+        ("[physics]\n", "missing"),
+    ):
         with pytest.raises(ConfigError) as info:
             C.load_config(write(tmp_path, text))
         assert info.value.key == "analysis.mission" and fragment in info.value.message
@@ -190,7 +208,7 @@ def test_toml_syntax_error_names_line_and_column(tmp_path):
 
 def test_bad_bytes_and_missing_files_name_the_place(tmp_path):
     path = tmp_path / "bin.toml"
-    path.write_bytes(BASE.encode() + b"name = \"caf\xe9\"\n")
+    path.write_bytes(BASE.encode() + b'name = "caf\xe9"\n')
     with pytest.raises(ConfigError) as info:
         C.load_config(path)
     assert (info.value.line, info.value.column) == (3, 12) and "byte 0xe9" in info.value.message
@@ -202,10 +220,12 @@ def test_bad_bytes_and_missing_files_name_the_place(tmp_path):
 
 def test_checks_against_the_mission_name_the_key(tmp_path):
     spec = load_mission(MISSION).spec
-    cases = [('[models]\nTAM9 = "magnetometer"\n', "models.TAM9", "no sensor named 'TAM9'"),
-             ('[models]\nTAM1 = "gyro"\n', "models.TAM1", "sensor TAM1 is a magnetometer"),
-             ('[state]\neffects = ["XYZ.scale"]\n', "state.effects[1]", "no sensor named 'XYZ'"),
-             ('[state.elements."FOO.bias"]\nsigma = 1.0\n', 'state.elements."FOO.bias"', "no sensor named 'FOO'")]
+    cases = [
+        ('[models]\nTAM9 = "magnetometer"\n', "models.TAM9", "no sensor named 'TAM9'"),
+        ('[models]\nTAM1 = "gyro"\n', "models.TAM1", "sensor TAM1 is a magnetometer"),
+        ('[state]\neffects = ["XYZ.scale"]\n', "state.effects[1]", "no sensor named 'XYZ'"),
+        ('[state.elements."FOO.bias"]\nsigma = 1.0\n', 'state.elements."FOO.bias"', "no sensor named 'FOO'"),
+    ]
     for body, key, fragment in cases:
         cfg = C.load_config(write(tmp_path, BASE + body))
         with pytest.raises(ConfigError) as info:
@@ -232,7 +252,7 @@ def test_sample_config_loads_and_points_at_its_mission(path):
     C.check_against_mission(cfg, spec)
     assert spec.name == path.stem
     shown = set(leaves(C.parse_toml(path.read_text())))
-    for table in C.TABLES:                    # each sample shows every table of the example
+    for table in C.TABLES:  # each sample shows every table of the example
         assert any(k == table or k.startswith(table + ".") for k in shown), (path.name, table)
 
 
@@ -259,7 +279,11 @@ def test_config_checks_doc_in_sync():
             raised.add(t)
         if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "error" and node.args:
             raised.add(_template(node.args[0]))
-    for source in (ROOT / "gcs_core" / "config.py", ROOT / "gcs_core" / "config_checks.py", ROOT / "gcs_tui" / "cli" / "commands.py"):
+    for source in (
+        ROOT / "gcs_core" / "config.py",
+        ROOT / "gcs_core" / "config_checks.py",
+        ROOT / "gcs_tui" / "cli" / "commands.py",
+    ):
         for node in ast.walk(ast.parse(source.read_text(encoding="utf-8"))):
             if isinstance(node, ast.Call):
                 name = node.func.id if isinstance(node.func, ast.Name) else getattr(node.func, "attr", None)
@@ -269,7 +293,7 @@ def test_config_checks_doc_in_sync():
                     if t:
                         raised.add(t)
     doc = (ROOT / "docs" / "input_checks.md").read_text(encoding="utf-8")
-    section = doc[doc.index("## The analysis config (TOML)"):]
+    section = doc[doc.index("## The analysis config (TOML)") :]
     documented = set(re.findall(r"^\|[^|\n]*\| `([^`]+)` \|\s*$", section, re.MULTILINE))
     assert raised - documented == set(), f"add to docs/input_checks.md: {sorted(raised - documented)}"
     assert documented - raised == set(), f"stale in docs/input_checks.md: {sorted(documented - raised)}"
@@ -284,15 +308,24 @@ def test_tables_and_the_fit_key_come_from_the_dataclasses():
     """``TABLES`` lists each table dataclass's fields; the fit key ignores exactly the tables
     marked as not changing a fit (the plan, the requirement, the planning tables)."""
     from dataclasses import fields
+
     assert C.TABLES["filter"] == tuple(f.name for f in fields(C.FilterConfig))
     assert C.TABLES["prediction"] == tuple(f.name for f in fields(C.PredictionConfig))
     base = C.AnalysisConfig(mission=MISSION)
-    same = base.with_changes(prediction={"start": 10.0, "end": 99.0, "step": 3.0},
-                             verification={"requirement_deg": 0.5}, trade={"top": 2}, path=Path("x.toml"))
+    same = base.with_changes(
+        prediction={"start": 10.0, "end": 99.0, "step": 3.0},
+        verification={"requirement_deg": 0.5},
+        trade={"top": 2},
+        path=Path("x.toml"),
+    )
     assert C.fit_key(same) == C.fit_key(base)
-    for changed in (base.with_changes(filter={"edit_k": 4.0}), base.with_changes(diagnosis={"significance": 0.01}),
-                    base.with_changes(physics={"sun_parallax": False}), base.with_changes(method="batch"),
-                    base.with_changes(state={"effects": ("TAM1.alignment",)})):
+    for changed in (
+        base.with_changes(filter={"edit_k": 4.0}),
+        base.with_changes(diagnosis={"significance": 0.01}),
+        base.with_changes(physics={"sun_parallax": False}),
+        base.with_changes(method="batch"),
+        base.with_changes(state={"effects": ("TAM1.alignment",)}),
+    ):
         assert C.fit_key(changed) != C.fit_key(base)
 
 
@@ -301,7 +334,7 @@ def test_config_for_opens_what_either_face_is_given(tmp_path):
     mission.toml gives the default config, a .toml file is read, anything else is refused."""
     assert C.config_for(MISSION) == C.default_config(MISSION)
     assert C.config_for(MISSION / "mission.toml") == C.default_config(MISSION)
-    path = write(tmp_path, BASE + '[diagnosis]\nsignificance = 0.01\n')
+    path = write(tmp_path, BASE + "[diagnosis]\nsignificance = 0.01\n")
     assert C.config_for(path).diagnosis.significance == 0.01
     with pytest.raises(ConfigError, match="no such mission directory or config file"):
         C.config_for(tmp_path / "nothing-here")

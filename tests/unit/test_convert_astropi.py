@@ -43,20 +43,18 @@ def test_extract_converts_to_a_mission_gcs_import_accepts(tmp_path):
     # steady field extrapolated back (12 here; 16 on the whole file, whose σ is smaller)
     n_tr = rep.flagged["MAG"]
     assert 5 <= n_tr <= 16
-    for f in ("mission.toml", "orbit.tle", "telemetry/MAG.csv", "aux.csv", "LICENCE.md",
-              "SOURCE.md", "PROVENANCE.md"):
+    for f in ("mission.toml", "orbit.tle", "telemetry/MAG.csv", "aux.csv", "LICENCE.md", "SOURCE.md", "PROVENANCE.md"):
         assert (out / f).is_file(), f
     m = load_mission(out)
     assert m.spec.orbit_tle == out / "orbit.tle" and m.spec.ephemeris_file is None
     mag = m.telemetry["MAG"]
-    assert len(mag) == 80 - n_tr                         # flagged rows kept in the file, unused
+    assert len(mag) == 80 - n_tr  # flagged rows kept in the file, unused
     assert any(f"{n_tr} rows flagged" in r for r in m.report.repairs)
     flags = np.loadtxt(out / "telemetry" / "MAG.csv", delimiter=",", skiprows=3)[:, 4]
     assert flags.size == 80 and np.all(flags[:n_tr] == 1) and np.all(flags[n_tr:] == 0)
     # µT -> nT, every unflagged row
     src = np.genfromtxt(CSV, delimiter=",", skip_header=1, usecols=(7, 8, 9))
-    np.testing.assert_allclose(mag.stack(("bx", "by", "bz")), src[n_tr:] * 1000.0,
-                               atol=1e-6 * one_nT)
+    np.testing.assert_allclose(mag.stack(("bx", "by", "bz")), src[n_tr:] * 1000.0, atol=1e-6 * one_nT)
     # the ephemeris covers the telemetry with the margin, at 10 s
     assert m.ephemeris_table.t[0] <= mag.t[0] - 100 and m.ephemeris_table.t[-1] >= mag.t[-1] + 100
     # aux channels by name, centred ones about their median
@@ -74,8 +72,7 @@ def test_cli_convert_then_import(tmp_path, capsys):
     # a second run refuses the non-empty directory, --force replaces it
     assert cli.main(["-q", "convert", "astropi", str(CSV), "--tle", str(TLE), "--out", str(out)]) == 2
     assert "not empty" in capsys.readouterr().err
-    assert cli.main(["-q", "convert", "astropi", str(CSV), "--tle", str(TLE), "--out", str(out),
-                     "--force"]) == 0
+    assert cli.main(["-q", "convert", "astropi", str(CSV), "--tle", str(TLE), "--out", str(out), "--force"]) == 0
 
 
 def _edited(tmp_path, edit) -> Path:
@@ -99,14 +96,18 @@ def _set_field(lines, line_no, name, value):
     return lines
 
 
-@pytest.mark.parametrize("edit, where", [
-    (lambda ls: _drop_column(ls, "MagY"), ("MagY", 1)),
-    (lambda ls: _set_field(ls, 12, "MagZ", "1.2.3"), ("'MagZ'", 12)),
-    (lambda ls: _set_field(ls, 9, "MagX", "nan"), ("'MagX'", 9)),
-    (lambda ls: _set_field(ls, 7, "Date/Time", "31/01/2022 12:21:45"), ("Date/Time", 7)),
-    (lambda ls: _set_field(ls, 8, "Date/Time", "2022-01-31 12:21:15"), ("does not follow", 8)),
-    (lambda ls: ls[:5] + [ls[5] + ",extra"] + ls[6:], ("fields where the header", 6)),
-], ids=["missing column", "bad number", "nan", "bad time", "time goes back", "extra field"])
+@pytest.mark.parametrize(
+    "edit, where",
+    [
+        (lambda ls: _drop_column(ls, "MagY"), ("MagY", 1)),
+        (lambda ls: _set_field(ls, 12, "MagZ", "1.2.3"), ("'MagZ'", 12)),
+        (lambda ls: _set_field(ls, 9, "MagX", "nan"), ("'MagX'", 9)),
+        (lambda ls: _set_field(ls, 7, "Date/Time", "31/01/2022 12:21:45"), ("Date/Time", 7)),
+        (lambda ls: _set_field(ls, 8, "Date/Time", "2022-01-31 12:21:15"), ("does not follow", 8)),
+        (lambda ls: ls[:5] + [ls[5] + ",extra"] + ls[6:], ("fields where the header", 6)),
+    ],
+    ids=["missing column", "bad number", "nan", "bad time", "time goes back", "extra field"],
+)
 def test_malformed_file_one_line_with_file_line_column(tmp_path, edit, where):
     bad = _edited(tmp_path, edit)
     with pytest.raises(InputError) as err:
@@ -115,7 +116,7 @@ def test_malformed_file_one_line_with_file_line_column(tmp_path, edit, where):
     text, line = where
     assert "\n" not in msg and str(bad) in msg and text in msg
     assert err.value.line == line
-    assert not (tmp_path / "m").exists()                 # nothing half-written
+    assert not (tmp_path / "m").exists()  # nothing half-written
 
 
 def test_bad_number_names_the_character_column(tmp_path):
@@ -131,7 +132,7 @@ def test_bad_or_missing_tle(tmp_path):
         _convert(tmp_path, tle=None)
     bad = tmp_path / "bad.tle"
     text = TLE.read_text().splitlines()
-    text[1] = text[1][:-1] + str((int(text[1][-1]) + 1) % 10)       # break the checksum
+    text[1] = text[1][:-1] + str((int(text[1][-1]) + 1) % 10)  # break the checksum
     bad.write_text("\n".join(text))
     with pytest.raises(InputError) as err:
         _convert(tmp_path, tle=bad)
@@ -174,7 +175,7 @@ def test_procrustes_recovers_a_mounting():
     M, b = procrustes_mounting(B_S, B_L)
     # angle σ per axis ≈ 150 nT / (42 µT √500) = 0.01°
     assert np.degrees(np.arccos((np.trace(M.T @ M_true) - 1) / 2)) < 0.05
-    np.testing.assert_allclose(b, b_true, atol=30.0 * one_nT)          # 4.5σ/√500 ≈ 30 nT
+    np.testing.assert_allclose(b, b_true, atol=30.0 * one_nT)  # 4.5σ/√500 ≈ 30 nT
 
 
 def test_extract_keeps_the_original_unchanged(tmp_path):
@@ -188,6 +189,7 @@ def test_extract_keeps_the_original_unchanged(tmp_path):
 def test_a_new_format_is_one_module_and_options_it_does_not_take_are_refused(monkeypatch):
     import sys
     import types
+
     mod = types.ModuleType("fake_format_converter")
     mod.convert = lambda source, out: ("converted", source, out)
     monkeypatch.setitem(sys.modules, "fake_format_converter", mod)
@@ -202,6 +204,7 @@ def test_prediction_beyond_the_data_propagates_the_tle(tmp_path):
     """A plan past the telemetry (the next hour) takes its orbit from the mission's TLE."""
     from gcs_core.predictor.plan import DataPlan
     from gcs_core.predictor.predict import predict
+
     _convert(tmp_path)
     m = load_mission(tmp_path / "m")
     res = predict(m, plan=DataPlan(3600.0, 7200.0, step=60.0))

@@ -20,9 +20,9 @@ from gcs_core.io.importer import load_mission
 
 RATE_HZ = 100.0
 N = 1200
-GYRO_NOISE = 2e-3          # rad/s per sample
-MAG_NOISE_UT = 0.5         # µT per sample
-OPT_NOISE = 1e-4           # rad per axis
+GYRO_NOISE = 2e-3  # rad/s per sample
+MAG_NOISE_UT = 0.5  # µT per sample
+OPT_NOISE = 1e-4  # rad per axis
 one_percent = 0.01
 
 
@@ -37,16 +37,22 @@ def _trial(path, *, drop=None, rate=RATE_HZ, bad_quat=False):
         C[k] = rotvec_to_dcm(omega[k] / rate) @ C[k - 1]
     q_xyzw = quat_from_dcm(rotvec_to_dcm(rng.normal(scale=OPT_NOISE, size=(N, 3))) @ C)
     q = np.column_stack([q_xyzw[:, 3], q_xyzw[:, :3]])
-    q[:15] = np.nan                                                   # untracked start
+    q[:15] = np.nan  # untracked start
     if bad_quat:
         q[100] *= 2.0
     B_enu = np.array([0.5, 17.0, -45.0])
     mag = np.einsum("nij,j->ni", C, B_enu) + rng.normal(scale=MAG_NOISE_UT, size=(N, 3))
     gyr = omega + 0.003 + rng.normal(scale=GYRO_NOISE, size=(N, 3))
     pos = np.array([0.1, -0.4, 1.5]) + 0.2 * rng.normal(size=(N, 3))
-    pos[:15] = np.nan                                                 # untracked start
-    data = {"imu_gyr": gyr, "imu_acc": rng.normal(size=(N, 3)), "imu_mag": mag, "opt_quat": q,
-            "opt_pos": pos, "movement": moving}
+    pos[:15] = np.nan  # untracked start
+    data = {
+        "imu_gyr": gyr,
+        "imu_acc": rng.normal(size=(N, 3)),
+        "imu_mag": mag,
+        "opt_quat": q,
+        "opt_pos": pos,
+        "movement": moving,
+    }
     with h5py.File(path, "w") as f:
         for k, v in data.items():
             if k != drop:
@@ -75,8 +81,7 @@ def test_converts_to_a_mission_that_imports(tmp_path):
     mag = m.spec.sensor("MAG")
     assert abs(mag.noise / (MAG_NOISE_UT * 1000.0) - 1.0) < 0.15
     assert abs(m.spec.sensor("OPT").noise / OPT_NOISE - 1.0) < 0.15
-    assert np.allclose(m.telemetry["MAG"].columns["bx"][:3] / 1000.0,
-                       h5py.File(src)["imu_mag"][:3, 0], atol=1e-6)
+    assert np.allclose(m.telemetry["MAG"].columns["bx"][:3] / 1000.0, h5py.File(src)["imu_mag"][:3, 0], atol=1e-6)
     # the quaternion keeps its C_BI: reordered scalar-last, unchanged otherwise
     q_src = h5py.File(src)["opt_quat"][20]
     q_gcs = np.array([m.telemetry["OPT"].columns[c][5] for c in ("q1", "q2", "q3", "q4")])
@@ -106,17 +111,20 @@ def test_optical_position_becomes_the_gradient_lever(tmp_path):
         assert tuple(c for c in aux.columns if c != "t") == ("pos_x", "pos_y", "pos_z")
         t = np.asarray(aux.t)
         k = np.rint(t * RATE_HZ).astype(int)
-        assert np.all(np.isfinite(pos[k]).all(axis=1))                # untracked rows left out
+        assert np.all(np.isfinite(pos[k]).all(axis=1))  # untracked rows left out
         assert len(t) == (N - 15 if span is None else 801)
         got = np.column_stack([aux.columns[c] for c in ("pos_x", "pos_y", "pos_z")])
-        assert np.allclose(got, pos[k] - mean, atol=2e-6)             # written to 1 µm
+        assert np.allclose(got, pos[k] - mean, atol=2e-6)  # written to 1 µm
 
 
-@pytest.mark.parametrize("kind, message", [
-    ("missing", "dataset 'imu_mag'"),
-    ("text", "not an HDF5 file"),
-    ("quat", "not a unit quaternion at sample 100"),
-])
+@pytest.mark.parametrize(
+    "kind, message",
+    [
+        ("missing", "dataset 'imu_mag'"),
+        ("text", "not an HDF5 file"),
+        ("quat", "not a unit quaternion at sample 100"),
+    ],
+)
 def test_malformed_file_is_one_clear_error(tmp_path, kind, message):
     src = tmp_path / "t.hdf5"
     if kind == "missing":
@@ -128,15 +136,16 @@ def test_malformed_file_is_one_clear_error(tmp_path, kind, message):
     with pytest.raises(InputError, match=message) as err:
         convert("broad", src, tmp_path / "m")
     assert "t.hdf5" in str(err.value)
-    assert not (tmp_path / "m").exists()            # nothing half-written
+    assert not (tmp_path / "m").exists()  # nothing half-written
 
 
 def test_a_reference_without_noise_at_rest_gets_a_floor_and_a_warning(tmp_path, monkeypatch):
     import gcs_core.convert.broad as broad
+
     monkeypatch.setattr(broad.noise_mod, "white_level", lambda curve, dt: (0.0, dt, True))
     rep = convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m")
     assert any("no noise measurable at rest" in w for w in rep.notes)
-    load_mission(tmp_path / "m")                     # every noise written is > 0
+    load_mission(tmp_path / "m")  # every noise written is > 0
 
 
 def test_refuses_a_full_output_directory(tmp_path):

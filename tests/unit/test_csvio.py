@@ -29,8 +29,11 @@ def refused(path, **kw) -> str:
 
 
 def test_reads_comments_header_extra_columns(tmp_path):
-    path = write(tmp_path, "# produced by a simulator\n# second comment\n"
-                           "t,bx,by,bz,temp\n0,1,2,3,20\n1,4,5,6,21\n\n# late comment\n2,7,8,9,22\n")
+    path = write(
+        tmp_path,
+        "# produced by a simulator\n# second comment\n"
+        "t,bx,by,bz,temp\n0,1,2,3,20\n1,4,5,6,21\n\n# late comment\n2,7,8,9,22\n",
+    )
     table = read_table(path, required=MAG)
     assert len(table) == 3
     assert list(table.columns) == ["t", "bx", "by", "bz", "temp"]
@@ -101,13 +104,16 @@ def test_wrong_number_of_fields_refused(tmp_path, row, column):
     assert f"{path}:3:{column}:" in message and "fields" in message
 
 
-@pytest.mark.parametrize("text,needle", [
-    ("", "empty file"),
-    ("# only a comment\n", "empty file"),
-    ("0,1,2,3\n1,2,3,4\n", "no header line"),
-    ("t,bx,bx,bz\n0,1,2,3\n", "appears twice"),
-    ("t,,by,bz\n0,1,2,3\n", "empty column name"),
-])
+@pytest.mark.parametrize(
+    "text,needle",
+    [
+        ("", "empty file"),
+        ("# only a comment\n", "empty file"),
+        ("0,1,2,3\n1,2,3,4\n", "no header line"),
+        ("t,bx,bx,bz\n0,1,2,3\n", "appears twice"),
+        ("t,,by,bz\n0,1,2,3\n", "empty column name"),
+    ],
+)
 def test_bad_headers_refused(tmp_path, text, needle):
     assert needle in refused(write(tmp_path, text), required=MAG)
 

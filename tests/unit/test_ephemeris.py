@@ -14,8 +14,8 @@ from gcs_core.ephem.sun import sun_position_km
 from gcs_core.errors import InputError
 from gcs_core.io.types import Table
 
-one_meter = 1e-3                 # km
-one_mm_per_s = 1e-6              # km/s
+one_meter = 1e-3  # km
+one_mm_per_s = 1e-6  # km/s
 one_arcsecond = units.ARCSEC
 EPOCH = "2024-03-20T06:00:00Z"
 
@@ -25,6 +25,7 @@ def _leo(j2=True):
 
 
 # ---------------------------------------------------------------- Ephemeris
+
 
 def test_hermite_on_a_kepler_orbit_is_better_than_a_meter_at_60_s():
     """Cubic Hermite error bound h^4/384 n^4 |r| ~ 0.3 m for LEO at 60 s (module docstring)."""
@@ -44,11 +45,13 @@ def test_hermite_on_a_kepler_orbit_is_better_than_a_meter_at_60_s():
 def test_hermite_reproduces_cubic_motion_exactly():
     """On each interval the interpolant is the cubic matching r and v at both ends, so a
     cubic trajectory is reproduced to round-off (also on uneven spacing)."""
+
     def traj(t):
         c = np.array([[7000.0, -3.0, 0.02, -1e-5], [10.0, 7.5, -0.01, 2e-6], [-50.0, 1.0, 0.0, 3e-6]])
-        r = c[:, 0] + np.outer(t, c[:, 1]) + np.outer(t ** 2, c[:, 2]) + np.outer(t ** 3, c[:, 3])
-        v = c[:, 1] + np.outer(2 * t, c[:, 2]) + np.outer(3 * t ** 2, c[:, 3])
+        r = c[:, 0] + np.outer(t, c[:, 1]) + np.outer(t**2, c[:, 2]) + np.outer(t**3, c[:, 3])
+        v = c[:, 1] + np.outer(2 * t, c[:, 2]) + np.outer(3 * t**2, c[:, 3])
         return r, v
+
     tk = np.array([0.0, 17.0, 60.0, 61.5, 120.0])
     rk, vk = traj(tk)
     eph = Ephemeris(tk, rk, vk, np.tile([1.5e8, 0.0, 0.0], (tk.size, 1)))
@@ -82,7 +85,7 @@ def test_scalar_and_vector_queries():
 def test_coverage_errors_name_the_file_and_the_gap():
     eph = build_ephemeris(_leo(), EPOCH, 0.0, 600.0, step=60.0, source="mission/ephemeris.csv")
     assert eph.t_start == 0.0 and eph.t_end == 600.0
-    eph.check_covers(np.array([0.0, 600.0]))          # edges are covered
+    eph.check_covers(np.array([0.0, 600.0]))  # edges are covered
     with pytest.raises(InputError) as err:
         eph.check_covers(np.array([-5.0, 100.0, 700.0]), what="telemetry of TAM1")
     msg = str(err.value)
@@ -120,8 +123,7 @@ def test_from_table_reads_icd_columns_and_names_a_missing_one():
     assert eph.source == str(Path("m/ephemeris.csv"))
     cols.pop("sy")
     with pytest.raises(InputError) as err:
-        Ephemeris.from_table(Table(path=Path("m/ephemeris.csv"), t=t, columns=cols,
-                                   lines=np.arange(2, 2 + t.size)))
+        Ephemeris.from_table(Table(path=Path("m/ephemeris.csv"), t=t, columns=cols, lines=np.arange(2, 2 + t.size)))
     assert "sy" in str(err.value) and "m/ephemeris.csv" in str(err.value)
 
 
@@ -138,7 +140,7 @@ def test_sun_interpolation_and_earth_velocity():
     speed = np.linalg.norm(ve, axis=1)
     assert np.all((speed > 29.2) & (speed < 30.4))
     cosang = np.sum(ve * s, axis=1) / (speed * np.linalg.norm(s, axis=1))
-    assert np.max(np.abs(cosang)) < 0.02                           # e = 0.0167
+    assert np.max(np.abs(cosang)) < 0.02  # e = 0.0167
     u = eph.sun_unit(t)
     r = eph.position(t)
     np.testing.assert_allclose(u, (s - r) / np.linalg.norm(s - r, axis=1)[:, None], atol=1e-15)
@@ -156,6 +158,7 @@ def test_600k_queries_are_fast():
 
 
 # ---------------------------------------------------------------- orbits
+
 
 def test_kepler_solver():
     rng = np.random.default_rng(2)
@@ -201,14 +204,17 @@ def test_kepler_refuses_bad_elements():
         KeplerOrbit(-7000.0, 0.0, 0.0, 0.0, 0.0, 0.0, EPOCH)
 
 
-ISS_TLE = ("1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991",
-           "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482")
+ISS_TLE = (
+    "1 25544U 98067A   19343.69339541  .00001764  00000-0  38792-4 0  9991",
+    "2 25544  51.6439 211.2001 0007417  17.6667  85.6398 15.50103472202482",
+)
 
 
 def test_tle_orbit_matches_sgp4_directly():
     """The ISS element set of the python-sgp4 documentation; TleOrbit must reproduce
     Satrec.sgp4 at the same Julian dates, with the mission epoch shifting t."""
     from sgp4.api import Satrec
+
     sat = Satrec.twoline2rv(*ISS_TLE)
     orbit = TleOrbit(*ISS_TLE, "2019-12-09T12:00:00Z")
     t = np.array([0.0, 600.0, 5400.0])
@@ -233,6 +239,7 @@ def test_build_ephemeris_shifts_between_orbit_and_mission_epochs():
 
 # ---------------------------------------------------------------- corrections
 
+
 def test_annual_aberration_constant():
     """The IAU 1976 constant of aberration kappa = 20.49552 arcsec is v/c for the Earth's
     mean orbital speed (v = kappa c = 29.789 km/s); a source perpendicular to that velocity
@@ -245,7 +252,7 @@ def test_annual_aberration_constant():
         up = corrections.aberrate(u, v, first_order=first)
         ang = corrections.angle_between(u, up)[0]
         assert abs(ang - kappa) < 1e-4 * one_arcsecond
-        assert up[0, 1] > 0.0                              # displaced toward the motion
+        assert up[0, 1] > 0.0  # displaced toward the motion
 
 
 def test_exact_and_first_order_aberration_differ_by_beta_squared():
@@ -257,8 +264,7 @@ def test_exact_and_first_order_aberration_differ_by_beta_squared():
     np.testing.assert_allclose(np.linalg.norm(a, axis=1), 1.0, atol=1e-15)
     assert np.max(corrections.angle_between(a, b)) < 0.01 * one_arcsecond
     # a source straight ahead or behind is not displaced
-    np.testing.assert_allclose(corrections.aberrate([0.0, 0.0, 1.0], [0.0, 0.0, 30.0]),
-                               [0.0, 0.0, 1.0], atol=1e-15)
+    np.testing.assert_allclose(corrections.aberrate([0.0, 0.0, 1.0], [0.0, 0.0, 30.0]), [0.0, 0.0, 1.0], atol=1e-15)
 
 
 def test_apparent_sun_from_spacecraft():
@@ -271,6 +277,5 @@ def test_apparent_sun_from_spacecraft():
     v = np.array([[0.0, 0.0, 7.5]])
     ua = corrections.apparent_sun_from_spacecraft(s, r, v)
     assert abs(corrections.angle_between(ua, u)[0] - 7.5 / units.C_KM_S) < 0.001 * one_arcsecond
-    star = corrections.apparent_star_direction([[1.0, 0.0, 0.0]], [[0.0, 29.78, 0.0]],
-                                               [[0.0, 0.0, 7.5]])
+    star = corrections.apparent_star_direction([[1.0, 0.0, 0.0]], [[0.0, 29.78, 0.0]], [[0.0, 0.0, 7.5]])
     assert star.shape == (1, 3)

@@ -20,8 +20,8 @@ from gcs_core.io.importer import TIME_TAG_BOUND_S, load_mission
 from gcs_core.session import Analysis
 from gcs_core.sim import spinner_nominal, write_mission
 
-spin_period_s = 6.0                 # 10 rpm
-noise_floor_bound = 1.1             # normalized RMS of a 40 min fit (≈ 400 spins)
+spin_period_s = 6.0  # 10 rpm
+noise_floor_bound = 1.1  # normalized RMS of a 40 min fit (≈ 400 spins)
 
 
 @pytest.fixture(scope="module")
@@ -43,8 +43,7 @@ def _cut_telemetry(mission, t_max):
     """Drop every telemetry row after ``t_max``."""
     for path in (mission / "telemetry").glob("*.csv"):
         lines = path.read_text().splitlines()
-        path.write_text("\n".join([lines[0]] + [ln for ln in lines[1:] if float(ln.split(",", 1)[0]) <= t_max])
-                        + "\n")
+        path.write_text("\n".join([lines[0]] + [ln for ln in lines[1:] if float(ln.split(",", 1)[0]) <= t_max]) + "\n")
 
 
 def _times(path) -> np.ndarray:
@@ -53,6 +52,7 @@ def _times(path) -> np.ndarray:
 
 def test_ephemeris_ending_at_the_last_sun_sighting_is_extrapolated_with_one_warning(mission, tmp_path, caplog):
     import shutil
+
     m = shutil.copytree(mission, tmp_path / "m")
     # the mission ends at an ephemeris row; its last Sun sighting lies within a spin before it
     t_eph = _times(m / "ephemeris.csv")
@@ -79,11 +79,12 @@ def test_ephemeris_ending_at_the_last_sun_sighting_is_extrapolated_with_one_warn
 
 def test_rows_needing_more_than_the_margin_are_trimmed_and_counted(mission, tmp_path):
     import shutil
+
     m = shutil.copytree(mission, tmp_path / "m")
     t_eph = _times(m / "ephemeris.csv")
     e1 = float(t_eph[t_eph <= _times(m / "telemetry/PSS1.csv").max()].max())
     _cut_ephemeris(m, lambda t: t <= e1)
-    _cut_telemetry(m, e1 + 9.0)               # the last spin or two lie up to 9 s past the end
+    _cut_telemetry(m, e1 + 9.0)  # the last spin or two lie up to 9 s past the end
     hs = _times(m / "telemetry/HS1.csv")
     imported = load_mission(m)
     # a horizon row past the end needs the orbit more than a spin period + the bound past it
@@ -94,6 +95,7 @@ def test_rows_needing_more_than_the_margin_are_trimmed_and_counted(mission, tmp_
 
 def test_ephemeris_ending_an_hour_early_is_refused_naming_the_span(mission, tmp_path):
     import shutil
+
     m = shutil.copytree(mission, tmp_path / "m")
     _cut_ephemeris(m, lambda t: t <= 1200.0)
     with pytest.raises(InputError) as err:

@@ -31,5 +31,6 @@ def test_no_estimator_result_is_converted_into_another():
     import inspect
 
     from gcs_core import session
+
     src = inspect.getsource(session)
     assert "BatchResult(" not in src and "np.zeros((n, n))" not in src

@@ -30,8 +30,11 @@ same_cost = 1e-9
 @pytest.fixture(scope="module")
 def analysis(tmp_path_factory):
     cfg = with_effect(nominal_threeaxis("sun_pointing", seed=5, duration_s=900.0), "TAM1.scale", 2e-3)
-    a = Analysis(AnalysisConfig(mission=write_mission(cfg, tmp_path_factory.mktemp("stop") / "m")).with_changes(
-        diagnosis={"holdout_fraction": 0.0}))
+    a = Analysis(
+        AnalysisConfig(mission=write_mission(cfg, tmp_path_factory.mktemp("stop") / "m")).with_changes(
+            diagnosis={"holdout_fraction": 0.0}
+        )
+    )
     a.fit(holdout=False)
     return a
 
@@ -44,7 +47,7 @@ def test_a_refit_starts_at_the_previous_minimum_and_cannot_end_above_it(analysis
     assert after.cost_history[0] == pytest.approx(before.cost_history[-1], rel=same_cost)
     assert step.delta_chi2 > 0.0 and after.chi2 <= before.chi2
     assert after.status == "converged", after.message
-    assert after.dynamics.grid is before.dynamics.grid          # the knots carried over
+    assert after.dynamics.grid is before.dynamics.grid  # the knots carried over
 
 
 def test_no_step_lowering_the_cost_is_a_stall_not_a_divergence(analysis, monkeypatch):
@@ -66,11 +69,12 @@ def test_no_step_lowering_the_cost_is_a_stall_not_a_divergence(analysis, monkeyp
 
 
 def test_the_iteration_limit_is_named_with_the_last_change(analysis):
-    res = smoothing_batch.whole_span_fit(analysis.problem, BatchOptions(edit_k=None, max_iterations=1,
-                                                                        tol_chi2=0.0, tol_step_sigma=0.0))
+    res = smoothing_batch.whole_span_fit(
+        analysis.problem, BatchOptions(edit_k=None, max_iterations=1, tol_chi2=0.0, tol_step_sigma=0.0)
+    )
     if res.status == stopping.ITERATION_LIMIT:
         assert res.message.endswith("per iteration") and "iteration limit" in res.message
-    else:   # one Gauss–Newton step from the batch can already be the minimum
+    else:  # one Gauss–Newton step from the batch can already be the minimum
         assert res.status == stopping.CONVERGED, res.message
 
 

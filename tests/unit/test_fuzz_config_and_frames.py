@@ -27,8 +27,9 @@ from gcs_core import config as C
 from gcs_core.errors import ConfigError, InputError
 from gcs_core.frames import rotations as R
 
-FUZZ = settings(max_examples=250, derandomize=True, database=None, deadline=None,
-                suppress_health_check=[HealthCheck.too_slow])
+FUZZ = settings(
+    max_examples=250, derandomize=True, database=None, deadline=None, suppress_health_check=[HealthCheck.too_slow]
+)
 FRAMES = settings(max_examples=200, derandomize=True, database=None, deadline=None)
 
 # --- named tolerances -------------------------------------------------------------------
@@ -69,38 +70,92 @@ def _round_trips(cfg: C.AnalysisConfig) -> None:
 
 #: per table: lines that belong there (good and bad values), and a few that do not
 _LINES = {
-    "[physics]": ["stellar_aberration = false", "sun_parallax = 1", "field_model = \"dipole\"",
-                  "field_model = \"wmm\"", "solar_aberration = true"],
-    "[models]": ["TAM1 = \"magnetometer\"", "IRU = \"off\"", "CSS1 = 7", "FSS1 = \"gyro\""],
-    "[state]": ["effects = [\"TAM1.alignment\"]", "effects = [1, 2]", "exclude = \"TAM1.bias\"",
-                "exclude = [\"IRU.bias\"]", "attitude_sigma_deg = -1", "attitude_sigma_deg = 2.0",
-                "elements = 5"],
-    "[state.elements.\"TAM1.bias_x\"]": ["role = \"held\"", "role = \"bogus\"", "value = nan", "value = 3",
-                                        "sigma = inf", "sigma = 0", "sigma = 20.0"],
-    "[filter]": ["block_seconds = 1e400", "block_seconds = 60", "edit_k = 0", "max_iterations = 2.5",
-                 "max_iterations = 5"],
+    "[physics]": [
+        "stellar_aberration = false",
+        "sun_parallax = 1",
+        'field_model = "dipole"',
+        'field_model = "wmm"',
+        "solar_aberration = true",
+    ],
+    "[models]": ['TAM1 = "magnetometer"', 'IRU = "off"', "CSS1 = 7", 'FSS1 = "gyro"'],
+    "[state]": [
+        'effects = ["TAM1.alignment"]',
+        "effects = [1, 2]",
+        'exclude = "TAM1.bias"',
+        'exclude = ["IRU.bias"]',
+        "attitude_sigma_deg = -1",
+        "attitude_sigma_deg = 2.0",
+        "elements = 5",
+    ],
+    '[state.elements."TAM1.bias_x"]': [
+        'role = "held"',
+        'role = "bogus"',
+        "value = nan",
+        "value = 3",
+        "sigma = inf",
+        "sigma = 0",
+        "sigma = 20.0",
+    ],
+    "[filter]": [
+        "block_seconds = 1e400",
+        "block_seconds = 60",
+        "edit_k = 0",
+        "max_iterations = 2.5",
+        "max_iterations = 5",
+    ],
     "[diagnosis]": ["significance = 0.7", "significance = 0.01", "holdout_fraction = 0.1"],
-    "[prediction]": ["start = 0.0", "end = -5.0", "end = 600.0", "step = 10", "gaps = [[1, 2], [3]]",
-                     "gaps = [[\"a\", \"b\"]]", "gaps = [[1.0, 2.0]]", "maneuvers = [1]"],
-    "[[prediction.maneuvers]]": ["start = 0", "axis = \"yaw\"", "axis = \"up\"", "duration = 60",
-                                 "rate_deg_s = 0.1", "rate_deg_s = 1e9"],
+    "[prediction]": [
+        "start = 0.0",
+        "end = -5.0",
+        "end = 600.0",
+        "step = 10",
+        "gaps = [[1, 2], [3]]",
+        'gaps = [["a", "b"]]',
+        "gaps = [[1.0, 2.0]]",
+        "maneuvers = [1]",
+    ],
+    "[[prediction.maneuvers]]": [
+        "start = 0",
+        'axis = "yaw"',
+        'axis = "up"',
+        "duration = 60",
+        "rate_deg_s = 0.1",
+        "rate_deg_s = 1e9",
+    ],
     "[verification]": ["requirement_deg = 0.01", "requirement_deg = -1"],
     "[unknown]": ["x = 1"],
 }
-_STRAY = ["method = 3", "name = \"x\"", "when = 1979-05-27T07:32:00Z", "x = {a = 1}", "a.b.c = [[[[1]]]]",
-          "= 1", "[", "\"", "\'\'\'", "physics = 3", "state = []", "mission = 5", "[analysis]"]
+_STRAY = [
+    "method = 3",
+    'name = "x"',
+    "when = 1979-05-27T07:32:00Z",
+    "x = {a = 1}",
+    "a.b.c = [[[[1]]]]",
+    "= 1",
+    "[",
+    '"',
+    "'''",
+    "physics = 3",
+    "state = []",
+    "mission = 5",
+    "[analysis]",
+]
 _SECTION = st.sampled_from(sorted(_LINES)).flatmap(
-    lambda head: st.lists(st.sampled_from(_LINES[head] + _STRAY[:1]), max_size=5,
-                          unique_by=lambda line: line.split("=")[0].strip()).map(
-        lambda lines: "\n".join([head] + lines)))
+    lambda head: st.lists(
+        st.sampled_from(_LINES[head] + _STRAY[:1]), max_size=5, unique_by=lambda line: line.split("=")[0].strip()
+    ).map(lambda lines: "\n".join([head] + lines))
+)
 
 
 @FUZZ
-@given(st.booleans(), st.lists(_SECTION, max_size=6, unique_by=lambda sec: sec.split("\n")[0]),
-       st.lists(st.sampled_from(_STRAY), max_size=1),
-       st.text(max_size=6))
+@given(
+    st.booleans(),
+    st.lists(_SECTION, max_size=6, unique_by=lambda sec: sec.split("\n")[0]),
+    st.lists(st.sampled_from(_STRAY), max_size=1),
+    st.text(max_size=6),
+)
 def test_config_loader_on_tomlish_text(with_analysis, sections, stray, noise):
-    head = "[analysis]\nmission = \"m\"\nmethod = \"kalman\"\n" if with_analysis else ""
+    head = '[analysis]\nmission = "m"\nmethod = "kalman"\n' if with_analysis else ""
     text = head + "\n".join(sections + stray) + "\n" + (noise if not with_analysis else "")
     cfg = _accepts_or_refuses(lambda: C.config_from_dict(C.parse_toml(text), path=Path("/fuzz/a.toml")))
     if cfg is not None:
@@ -112,15 +167,20 @@ def test_config_loader_on_tomlish_text(with_analysis, sections, stray, noise):
 def test_config_loader_on_random_bytes(data):
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "fuzz.toml"
-        path.write_bytes(b"[analysis]\nmission = \"m\"\n" + data)
+        path.write_bytes(b'[analysis]\nmission = "m"\n' + data)
         _accepts_or_refuses(lambda: C.load_config(path))
 
 
 _VALUES = st.recursive(
-    st.none() | st.booleans() | st.integers(-10**6, 10**6) | st.floats(allow_nan=True, allow_infinity=True)
-    | st.text(max_size=8) | st.sampled_from(["batch", "kalman", "igrf", "yaw", "held", "off", "TAM1.scale"]),
+    st.none()
+    | st.booleans()
+    | st.integers(-(10**6), 10**6)
+    | st.floats(allow_nan=True, allow_infinity=True)
+    | st.text(max_size=8)
+    | st.sampled_from(["batch", "kalman", "igrf", "yaw", "held", "off", "TAM1.scale"]),
     lambda inner: st.lists(inner, max_size=3) | st.dictionaries(st.text(max_size=6), inner, max_size=3),
-    max_leaves=6)
+    max_leaves=6,
+)
 
 
 def _paths(d, prefix=()):
@@ -147,6 +207,7 @@ def _without_none(v):
 @given(st.data())
 def test_config_loader_on_mutated_example(data):
     import copy
+
     doc = copy.deepcopy(EXAMPLE)
     for _ in range(data.draw(st.integers(1, 3))):
         paths = [p for p in _paths(doc) if p]
@@ -159,7 +220,7 @@ def test_config_loader_on_mutated_example(data):
             del parent[where[-1]]
         elif action == "replace":
             value = _without_none(data.draw(_VALUES))
-            if value is None:                     # TOML has no null: a key set to nothing is absent
+            if value is None:  # TOML has no null: a key set to nothing is absent
                 del parent[where[-1]]
             else:
                 parent[where[-1]] = value
@@ -178,8 +239,11 @@ def test_config_loader_on_mutated_example(data):
 
 # =========================================================================== (b) frames
 _unit = st.floats(-1.0, 1.0, allow_nan=False)
-_quats = st.tuples(_unit, _unit, _unit, _unit).filter(lambda q: sum(x * x for x in q) > 1e-6).map(
-    lambda q: np.asarray(q) / np.linalg.norm(q))
+_quats = (
+    st.tuples(_unit, _unit, _unit, _unit)
+    .filter(lambda q: sum(x * x for x in q) > 1e-6)
+    .map(lambda q: np.asarray(q) / np.linalg.norm(q))
+)
 _angle = st.floats(-math.pi, math.pi, allow_nan=False)
 
 
@@ -231,8 +295,9 @@ def test_euler123_near_gimbal_lock_rebuilds_the_matrix(roll, sign, offset, yaw):
 @given(_quats, _quats, _quats)
 def test_quat_multiply_agrees_with_matrix_products_and_associates(a, b, c):
     """Eq 4-10: C(quat_multiply(a, b)) = C(a) C(b); and (a b) c = a (b c)."""
-    np.testing.assert_allclose(R.quat_to_dcm(R.quat_multiply(a, b)), R.quat_to_dcm(a) @ R.quat_to_dcm(b),
-                               atol=round_off)
+    np.testing.assert_allclose(
+        R.quat_to_dcm(R.quat_multiply(a, b)), R.quat_to_dcm(a) @ R.quat_to_dcm(b), atol=round_off
+    )
     left = R.quat_multiply(R.quat_multiply(a, b), c)
     right = R.quat_multiply(a, R.quat_multiply(b, c))
     np.testing.assert_allclose(left, right, atol=round_off)

@@ -18,19 +18,22 @@ from gcs_core.io.csvio import read_table
 from gcs_core.io.mission import read_mission_spec
 from gcs_core.io.types import MissionSpec, Table
 
-FUZZ = settings(max_examples=300, derandomize=True, database=None, deadline=None,
-                suppress_health_check=list(HealthCheck))
+FUZZ = settings(
+    max_examples=300, derandomize=True, database=None, deadline=None, suppress_health_check=list(HealthCheck)
+)
 
-VALID_CSV = (b"# simulated magnetometer\n"
-             b"t,bx,by,bz,temp\n"
-             b"0.000,-27.329,1243.023,29400.574,20\n"
-             b"1.000,20.965,1157.964,29340.706,20.1\n"
-             b"2.000,-46.982,1207.348,29357.913,20.2\n"
-             b"2.000,-46.982,1207.348,29357.913,20.2\n"
-             b"3.5,,1140.691,29339.207,20.3\n"
-             b"4.0,-1.1e2,1.14e3,2.9339207e4,nan\n")
+VALID_CSV = (
+    b"# simulated magnetometer\n"
+    b"t,bx,by,bz,temp\n"
+    b"0.000,-27.329,1243.023,29400.574,20\n"
+    b"1.000,20.965,1157.964,29340.706,20.1\n"
+    b"2.000,-46.982,1207.348,29357.913,20.2\n"
+    b"2.000,-46.982,1207.348,29357.913,20.2\n"
+    b"3.5,,1140.691,29339.207,20.3\n"
+    b"4.0,-1.1e2,1.14e3,2.9339207e4,nan\n"
+)
 
-VALID_TOML = b'''# a small mission
+VALID_TOML = b"""# a small mission
 [mission]
 name = "fuzz"
 epoch = "2024-03-20T06:00:00Z"
@@ -68,17 +71,72 @@ fov_deg = 32.0
 noise = 0.577
 coeff_alpha = [0.0, 7.6e-05, 0.0, 50.0]
 coeff_beta = [0.0, 7.6e-05, 0.0, 50.0]
-'''
+"""
 
-CSV_TOKENS = [b"", b",", b",,", b"nan", b"NaN", b"inf", b"-inf", b"1e400", b"#", b"\n",
-              b"\r\n", b"\x00", b"\xff\xfe", "\ufeff".encode(), b"t", b"bx", b"1", b"-0",
-              b"1e-320", b"abc", b" ", b"\t", b'"', b"0x10", b"1_0", "\u0661".encode(),
-              b"9" * 400, b"t,bx,by,bz", b"-1e308", b"+.5", b"5."]
-TOML_VALUES = [b'""', b'"x"', b"-1", b"0", b"1e999", b"inf", b"nan", b"-inf", b"true", b"[]",
-               b"[1, 2]", b"[1, 2, 3]", b"[1, 2, 3, 4]", b"[[1]]", b"{a = 1}",
-               b"1979-05-27T07:32:00Z", b"1979-05-27", b"07:32:00", b'"/"', b'"telemetry"',
-               b'"horizon"', b'"spinning"', b'"IRU"', b'"TAM1"', b'"9999-12-31T23:59:59.9999999-23:59"',
-               b'"0001-01-01T00:00:00+23:59"', b"[0.0, 1e300, -1e300]", b"'''x'''", b'"a\\u0000b"']
+CSV_TOKENS = [
+    b"",
+    b",",
+    b",,",
+    b"nan",
+    b"NaN",
+    b"inf",
+    b"-inf",
+    b"1e400",
+    b"#",
+    b"\n",
+    b"\r\n",
+    b"\x00",
+    b"\xff\xfe",
+    "\ufeff".encode(),
+    b"t",
+    b"bx",
+    b"1",
+    b"-0",
+    b"1e-320",
+    b"abc",
+    b" ",
+    b"\t",
+    b'"',
+    b"0x10",
+    b"1_0",
+    "\u0661".encode(),
+    b"9" * 400,
+    b"t,bx,by,bz",
+    b"-1e308",
+    b"+.5",
+    b"5.",
+]
+TOML_VALUES = [
+    b'""',
+    b'"x"',
+    b"-1",
+    b"0",
+    b"1e999",
+    b"inf",
+    b"nan",
+    b"-inf",
+    b"true",
+    b"[]",
+    b"[1, 2]",
+    b"[1, 2, 3]",
+    b"[1, 2, 3, 4]",
+    b"[[1]]",
+    b"{a = 1}",
+    b"1979-05-27T07:32:00Z",
+    b"1979-05-27",
+    b"07:32:00",
+    b'"/"',
+    b'"telemetry"',
+    b'"horizon"',
+    b'"spinning"',
+    b'"IRU"',
+    b'"TAM1"',
+    b'"9999-12-31T23:59:59.9999999-23:59"',
+    b'"0001-01-01T00:00:00+23:59"',
+    b"[0.0, 1e300, -1e300]",
+    b"'''x'''",
+    b'"a\\u0000b"',
+]
 
 
 def _pos(data: bytes, k: int) -> int:
@@ -94,10 +152,10 @@ def mutate(data: bytes, ops) -> bytes:
             data = data[:p] + op[2] + data[p:]
         elif kind == "delete":
             p = _pos(data, op[1])
-            data = data[:p] + data[p + op[2]:]
+            data = data[:p] + data[p + op[2] :]
         elif kind == "flip" and data:
             p = op[1] % len(data)
-            data = data[:p] + bytes([op[2]]) + data[p + 1:]
+            data = data[:p] + bytes([op[2]]) + data[p + 1 :]
         else:
             lines = data.split(b"\n")
             i = op[1] % len(lines)
@@ -116,23 +174,25 @@ def mutate(data: bytes, ops) -> bytes:
 
 def ops_strategy(tokens):
     position = st.integers(0, 10_000)
-    return st.lists(st.one_of(
-        st.tuples(st.just("insert"), position,
-                  st.sampled_from(tokens) | st.binary(min_size=1, max_size=4)),
-        st.tuples(st.just("delete"), position, st.integers(1, 40)),
-        st.tuples(st.just("flip"), position, st.integers(0, 255)),
-        st.tuples(st.just("dupline"), position),
-        st.tuples(st.just("swaplines"), position, position),
-        st.tuples(st.just("delline"), position),
-        st.tuples(st.just("setvalue"), position, st.sampled_from(TOML_VALUES)),
-    ), min_size=1, max_size=6)
+    return st.lists(
+        st.one_of(
+            st.tuples(st.just("insert"), position, st.sampled_from(tokens) | st.binary(min_size=1, max_size=4)),
+            st.tuples(st.just("delete"), position, st.integers(1, 40)),
+            st.tuples(st.just("flip"), position, st.integers(0, 255)),
+            st.tuples(st.just("dupline"), position),
+            st.tuples(st.just("swaplines"), position, position),
+            st.tuples(st.just("delline"), position),
+            st.tuples(st.just("setvalue"), position, st.sampled_from(TOML_VALUES)),
+        ),
+        min_size=1,
+        max_size=6,
+    )
 
 
 _WORK = Path(tempfile.mkdtemp(prefix="gcs-fuzz-"))
 _MISSION = _WORK / "mission"
 (_MISSION / "telemetry").mkdir(parents=True)
-for name in ("ephemeris.csv", "aux.csv", "telemetry/TAM1.csv", "telemetry/IRU.csv",
-             "telemetry/FSS1.csv"):
+for name in ("ephemeris.csv", "aux.csv", "telemetry/TAM1.csv", "telemetry/IRU.csv", "telemetry/FSS1.csv"):
     (_MISSION / name).write_text("t\n")
 
 

@@ -34,7 +34,7 @@ def _linear_problem(rng, n=6, m=40):
     sigma = rng.uniform(0.5, 2.0, m)
     s0 = rng.uniform(0.3, 3.0, n)
     A = (H / sigma[:, None] ** 2).T @ H
-    P = np.linalg.inv(A + np.diag(1 / s0 ** 2))
+    P = np.linalg.inv(A + np.diag(1 / s0**2))
     return H, sigma, s0, A, P
 
 
@@ -43,7 +43,7 @@ def test_holdout_chi2_is_the_quadratic_form_it_stands_for():
     H, sigma, _, _, P = _linear_problem(rng)
     r = rng.standard_normal(H.shape[0]) * sigma
     Hw, rw = H / sigma[:, None], r / sigma
-    direct = r @ np.linalg.solve(np.diag(sigma ** 2) + H @ P @ H.T, r)
+    direct = r @ np.linalg.solve(np.diag(sigma**2) + H @ P @ H.T, r)
     L = goodness._chol_cov(P)
     woodbury = goodness._woodbury_chi2(L, Hw.T @ Hw, Hw.T @ rw, float(rw @ rw))
     assert woodbury == pytest.approx(direct, rel=round_off)
@@ -58,9 +58,9 @@ def test_holdout_chi2_has_its_degrees_of_freedom():
     Hw = Hh / sh[:, None]
     vals = []
     for _ in range(2000):
-        x = rng.standard_normal(H.shape[1]) * s0                 # truth drawn from the a priori
+        x = rng.standard_normal(H.shape[1]) * s0  # truth drawn from the a priori
         y = H @ x + rng.standard_normal(H.shape[0]) * sigma
-        x_hat = P @ ((H / sigma[:, None] ** 2).T @ y)           # prior mean 0
+        x_hat = P @ ((H / sigma[:, None] ** 2).T @ y)  # prior mean 0
         rh = (Hh @ x + rng.standard_normal(30) * sh - Hh @ x_hat) / sh
         vals.append(goodness._woodbury_chi2(L, Hw.T @ Hw, Hw.T @ rh, float(rh @ rh)))
     vals = np.array(vals)
@@ -115,7 +115,7 @@ def test_nominal_sample_reads_noise_and_names_what_the_a_priori_set():
     rows = {r["name"]: r for r in rep["state"]}
     marked = {n for n, r in rows.items() if r.get("set_by_prior")}
     assert marked == set(a.set_by_prior())
-    for n in marked:        # the a priori gives more than half of what is known about them
+    for n in marked:  # the a priori gives more than half of what is known about them
         assert rows[n]["prior_share"] > determination.PRIOR_SHARE
     # the FSS frequencies reach the data only through amplitudes that are 0 a priori:
     # held by default

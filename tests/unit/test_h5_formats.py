@@ -26,18 +26,29 @@ def imported(example_dir):
 
 
 def params(k: int = 0) -> dict:
-    return {"TAM1.bias_x": (3.0 + k, 0.4, "nT"), "TAM1.bias_y": (-1.0, 0.4, "nT"),
-            "IRU.bias_z": (1e-6 * k, 1e-7, "rad/s")}
+    return {
+        "TAM1.bias_x": (3.0 + k, 0.4, "nT"),
+        "TAM1.bias_y": (-1.0, 0.4, "nT"),
+        "IRU.bias_z": (1e-6 * k, 1e-7, "rad/s"),
+    }
 
 
 def append(path, k: int = 0, note: str = "") -> int:
     names = ["TAM1.bias_x", "TAM1.bias_y", "IRU.bias_z"]
     cov = np.diag([0.16, 0.16, 1e-14])
-    return scds.append_version(path, sensor_params=params(k), covariance=cov,
-                               element_names=names,
-                               provenance={"data_t0": 0.0, "data_t1": 7200.0, "note": note,
-                                           "models": ["magnetometer", "gyro"],
-                                           "config_hash": "abc123"})
+    return scds.append_version(
+        path,
+        sensor_params=params(k),
+        covariance=cov,
+        element_names=names,
+        provenance={
+            "data_t0": 0.0,
+            "data_t1": 7200.0,
+            "note": note,
+            "models": ["magnetometer", "gyro"],
+            "config_hash": "abc123",
+        },
+    )
 
 
 def one_line_error(fn, *args, **kw) -> str:
@@ -49,6 +60,7 @@ def one_line_error(fn, *args, **kw) -> str:
 
 
 # --- round trips ------------------------------------------------------------------------
+
 
 def test_sdf_round_trip(tmp_path, imported):
     path = write_sdf(tmp_path / "m.sdf.h5", imported, block_seconds=600)
@@ -70,8 +82,7 @@ def test_sdf_round_trip(tmp_path, imported):
     assert tam.type == "magnetometer" and tam.noise == 25.0 and tam.book["bias"] == [0, 0, 0]
     assert sdf.frames_n_points.shape == (sdf.frames_t.size, len(imported.telemetry))
     assert int(sdf.frames_n_points.sum()) == sum(len(t) for t in imported.telemetry.values())
-    np.testing.assert_array_equal(sdf.ephemeris["r_I_km"],
-                                  imported.ephemeris_table.stack(("rx", "ry", "rz")))
+    np.testing.assert_array_equal(sdf.ephemeris["r_I_km"], imported.ephemeris_table.stack(("rx", "ry", "rz")))
     np.testing.assert_array_equal(sdf.onboard["q"], imported.onboard.stack(("q1", "q2", "q3", "q4")))
     # the aux channels are held at each sample time (ICD §6)
     first = sdf.blocks[0].sensors["TAM1"]
@@ -94,14 +105,13 @@ def test_sdf_headers_only(tmp_path, imported):
 
 def test_sdf_with_an_empty_aux_table_and_late_aux_rows(tmp_path, imported):
     from dataclasses import replace
+
     aux = imported.aux
-    late = replace(aux, t=aux.t[100:], columns={k: v[100:] for k, v in aux.columns.items()},
-                   lines=aux.lines[100:])
+    late = replace(aux, t=aux.t[100:], columns={k: v[100:] for k, v in aux.columns.items()}, lines=aux.lines[100:])
     sdf = read_sdf(write_sdf(tmp_path / "late.h5", replace(imported, aux=late)))
     held = sdf.blocks[0].sensors["TAM1"].aux
     assert np.all(np.isnan(held[:100])) and not np.any(np.isnan(held[100:]))
-    empty = replace(aux, t=aux.t[:0], columns={k: v[:0] for k, v in aux.columns.items()},
-                    lines=aux.lines[:0])
+    empty = replace(aux, t=aux.t[:0], columns={k: v[:0] for k, v in aux.columns.items()}, lines=aux.lines[:0])
     sdf = read_sdf(write_sdf(tmp_path / "empty.h5", replace(imported, aux=empty)))
     assert np.all(np.isnan(sdf.blocks[0].sensors["TAM1"].aux))
 
@@ -133,8 +143,12 @@ def test_asf_round_trip(tmp_path):
     q /= np.linalg.norm(q, axis=1, keepdims=True)
     t = np.arange(50.0) * 10
     sigma = np.full((50, 3), 1e-4)
-    assert asf.append_solution(path, t=t, q=q, sigma=sigma, source="batch",
-                               provenance={"scds_version": 2, "note": "first"}) == 1
+    assert (
+        asf.append_solution(
+            path, t=t, q=q, sigma=sigma, source="batch", provenance={"scds_version": 2, "note": "first"}
+        )
+        == 1
+    )
     assert asf.append_solution(path, t=t[:5], q=q[:5], sigma=sigma[:5], source="onboard") == 2
     sol = asf.read_solution(path, 1)
     np.testing.assert_array_equal(sol.q, q)
@@ -147,6 +161,7 @@ def test_asf_round_trip(tmp_path):
 
 # --- damaged files --------------------------------------------------------------------------
 
+
 def test_truncated_file(tmp_path):
     path = tmp_path / "cal.scds.h5"
     append(path)
@@ -156,8 +171,7 @@ def test_truncated_file(tmp_path):
     assert message == f"{path}: is truncated ({len(data) // 2} of {len(data)} bytes)"
 
 
-@pytest.mark.parametrize("content,needle", [(b"t,bx\n0,1\n", "not an HDF5 file"),
-                                            (b"", "empty")])
+@pytest.mark.parametrize("content,needle", [(b"t,bx\n0,1\n", "not an HDF5 file"), (b"", "empty")])
 def test_not_hdf5(tmp_path, content, needle):
     path = tmp_path / "cal.scds.h5"
     path.write_bytes(content)
@@ -233,8 +247,7 @@ def test_lock_held_by_another_process(tmp_path, monkeypatch):
             time.sleep(60)
     """)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, "-c", holder], stdout=subprocess.PIPE, env=env,
-                            text=True)
+    proc = subprocess.Popen([sys.executable, "-c", holder], stdout=subprocess.PIPE, env=env, text=True)
     try:
         assert proc.stdout.readline().strip() == "locked"
         monkeypatch.setattr(h5store, "LOCK_WAIT_S", 0.1)

@@ -26,9 +26,9 @@ from gcs_core.models.base import Geometry
 from gcs_core.models.horizon import FLATTENING
 
 H_KM, ALT_KM = 40.0, 700.0
-sigma_phase = 1.5e-3 * 2 * np.pi / 6.0          # 1.5 ms at 10 rpm [rad]
-model_bound = 0.2 * sigma_phase                 # the model against the exact crossing
-sphere_factor = 10.0                            # the ICD's sphere errs at least 10× more
+sigma_phase = 1.5e-3 * 2 * np.pi / 6.0  # 1.5 ms at 10 rpm [rad]
+model_bound = 0.2 * sigma_phase  # the model against the exact crossing
+sphere_factor = 10.0  # the ICD's sphere errs at least 10× more
 
 
 def orbit_positions(inc_deg, n=24, raan_deg=35.0):
@@ -50,12 +50,14 @@ def exact_phases(r, A, S, gamma, f, sign, n_grid=2880):
     v = np.cross(A, u)
     p = r * D
 
-    def g(psi):                                  # > 0 off the Earth
+    def g(psi):  # > 0 off the Earth
         d = np.cos(gamma) * A + np.sin(gamma) * (np.cos(psi)[..., None] * u + np.sin(psi)[..., None] * v)
         q = d * D
         c = -np.einsum("...i,...i", q, p[:, None, :] if q.ndim == 3 else p) / (
-            np.linalg.norm(q, axis=-1) * np.linalg.norm(p, axis=-1)[..., None] if q.ndim == 3
-            else np.linalg.norm(q, axis=-1) * np.linalg.norm(p, axis=-1))
+            np.linalg.norm(q, axis=-1) * np.linalg.norm(p, axis=-1)[..., None]
+            if q.ndim == 3
+            else np.linalg.norm(q, axis=-1) * np.linalg.norm(p, axis=-1)
+        )
         pn = np.linalg.norm(p, axis=-1)
         return np.arccos(np.clip(c, -1, 1)) - np.arcsin(1 / (pn[:, None] if q.ndim == 3 else pn))
 
@@ -77,15 +79,18 @@ def exact_phases(r, A, S, gamma, f, sign, n_grid=2880):
 def model_phases(r, A, S, gamma_deg, f):
     """The model's crossing phases (dt at ω = 1 rad/s, Φ_H = 0) at frozen geometries."""
     n = r.shape[0]
-    model = make_model(sensor("HS1", "horizon", noise=1e-3, gamma_deg=gamma_deg, phi_h_deg=0.0,
-                              horizon_height_km=H_KM))
+    model = make_model(sensor("HS1", "horizon", noise=1e-3, gamma_deg=gamma_deg, phi_h_deg=0.0, horizon_height_km=H_KM))
 
-    def frozen(t):                                # frame k lives in [100 k, 100 k + 100)
+    def frozen(t):  # frame k lives in [100 k, 100 k + 100)
         k = np.clip(np.floor(np.nan_to_num(np.asarray(t), nan=50.0) / 100.0).astype(int), 0, n - 1)
         return r[k], np.zeros((k.size, 3)), np.tile(S, (k.size, 1))
 
-    geom = Geometry(t=100.0 * np.arange(n) + 50.0, spin_axis_I=A, ephemeris=frozen,
-                    extra={"spin_rate": np.ones(n), "earth_flattening": f})
+    geom = Geometry(
+        t=100.0 * np.arange(n) + 50.0,
+        spin_axis_I=A,
+        ephemeris=frozen,
+        extra={"spin_rate": np.ones(n), "earth_flattening": f},
+    )
     pred = model.predict(geom, {})
     return pred.y, pred.valid
 
@@ -112,4 +117,4 @@ def test_model_matches_exact_ray_ellipsoid_crossing(inc_deg, gamma_deg):
             worst_sphere = max(worst_sphere, float(np.max(np.abs(err0), initial=0.0)))
     assert n_used >= 60
     assert worst < model_bound, f"model off the exact crossing by {worst / sigma_phase:.3f} σ_Φ"
-    assert worst_sphere > sphere_factor * worst       # the check has teeth
+    assert worst_sphere > sphere_factor * worst  # the check has teeth

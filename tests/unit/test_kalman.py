@@ -37,10 +37,10 @@ from gcs_core.frames.rotations import rotvec_to_dcm
 
 #: tolerances: round-off of the lifted core, and agreement of two converged estimators
 ROUND_OFF = 1e-9
-SAME_TO_ROUND_OFF = 1e-10           # compiled kernel against the numpy core, relative
+SAME_TO_ROUND_OFF = 1e-10  # compiled kernel against the numpy core, relative
 ENGINES = ("compiled", "numpy")
-SAME_ESTIMATE_SIGMA = 1e-3          # |x_filter − x_batch| / σ_batch
-SAME_SIGMA_RELATIVE = 1e-3          # |σ_filter / σ_batch − 1|
+SAME_ESTIMATE_SIGMA = 1e-3  # |x_filter − x_batch| / σ_batch
+SAME_SIGMA_RELATIVE = 1e-3  # |σ_filter / σ_batch − 1|
 
 
 # ----------------------------------------------------------------------------------------
@@ -60,7 +60,7 @@ def _random_block(rng, K=120, d=6, ns=9):
     H = [rng.normal(size=(m, n)) for _, _, m in frames]
     sig = [np.full(m, (0.5, 0.1)[s]) for _, s, m in frames]
     z = [rng.normal(size=m) * 0.3 for _, _, m in frames]
-    z[7] = z[7] + 40.0                                           # an outlier for the gate
+    z[7] = z[7] + 40.0  # an outlier for the gate
     return Phi_dd, Phi_ds, Q, frames, H, sig, z
 
 
@@ -92,8 +92,9 @@ def _linear_block(Phi_dd, Phi_ds, Q, frames, H, sig, z):
     """The problem of :func:`_random_block` as a LinearBlock (block-start coordinates)."""
     d, n = Phi_dd.shape[1], H[0].shape[1]
     Pdd, Pds, Pi = referred_transitions(Phi_dd, Phi_ds, Q)
-    Psi_d = np.concatenate([np.concatenate([np.eye(d)[None], Pdd]),
-                            np.concatenate([np.zeros((1, d, n - d)), Pds])], axis=2)
+    Psi_d = np.concatenate(
+        [np.concatenate([np.eye(d)[None], Pdd]), np.concatenate([np.zeros((1, d, n - d)), Pds])], axis=2
+    )
     A, r, s, rep, start, m_f, ep = [], [], [], [], [], [], []
     for (k, _, m), Hk, sk, zk in zip(frames, H, sig, z):
         Psi = np.eye(n)
@@ -105,13 +106,21 @@ def _linear_block(Phi_dd, Phi_ds, Q, frames, H, sig, z):
         rep += [k] * m
         m_f.append(m)
         ep.append(k)
-    return LinearBlock(np.arange(Phi_dd.shape[0] + 1.0), np.concatenate([np.zeros((1, d, d)), Pi]),
-                       Psi_d, np.concatenate(A), np.concatenate(r), np.concatenate(s), np.array(rep),
-                       np.array(start), np.array(m_f), np.array(ep))
+    return LinearBlock(
+        np.arange(Phi_dd.shape[0] + 1.0),
+        np.concatenate([np.zeros((1, d, d)), Pi]),
+        Psi_d,
+        np.concatenate(A),
+        np.concatenate(r),
+        np.concatenate(s),
+        np.array(rep),
+        np.array(start),
+        np.array(m_f),
+        np.array(ep),
+    )
 
 
-@pytest.mark.parametrize("engine,group_rows", [("compiled", None), ("numpy", 1), ("numpy", 10),
-                                               ("numpy", 48)])
+@pytest.mark.parametrize("engine,group_rows", [("compiled", None), ("numpy", 1), ("numpy", 10), ("numpy", 48)])
 @pytest.mark.parametrize("edit_k", [None, 5.0])
 def test_core_equals_textbook_filter(engine, group_rows, edit_k):
     """The compiled kernel and the lifted groups (any group size), in block-start
@@ -130,7 +139,7 @@ def test_core_equals_textbook_filter(engine, group_rows, edit_k):
     np.testing.assert_allclose(Psi @ sol.y, x_ref, atol=ROUND_OFF)
     np.testing.assert_allclose(Psi @ sol.P @ Psi.T, P_ref, atol=ROUND_OFF * np.abs(P_ref).max())
     assert np.array_equal(sol.gated, [o[3] for o in out])
-    assert (edit_k is None) != bool(sol.gated[7])              # the outlier is gated iff a gate
+    assert (edit_k is None) != bool(sol.gated[7])  # the outlier is gated iff a gate
     for f, (nu, S, nis, _) in enumerate(out):
         m = nu.size
         np.testing.assert_allclose(sol.nu[f, :m], nu, rtol=1e-8, atol=ROUND_OFF)
@@ -159,9 +168,19 @@ def test_compiled_kernel_equals_numpy_core(dynamic):
     blk = _linear_block(Phi_dd, Phi_ds, Q, frames, H, sig, z)
     n, M = blk.n, blk.A.shape[0]
     if not dynamic:
-        blk = LinearBlock(blk.t, np.zeros((blk.t.size, 0, 0)), None, blk.A, blk.r, blk.sigma,
-                          blk.row_epoch, blk.frame_start, blk.frame_m, blk.frame_epoch)
-    blk = replace(blk, Hth=rng.normal(size=(M, 3)), sig_e2=0.2 ** 2)
+        blk = LinearBlock(
+            blk.t,
+            np.zeros((blk.t.size, 0, 0)),
+            None,
+            blk.A,
+            blk.r,
+            blk.sigma,
+            blk.row_epoch,
+            blk.frame_start,
+            blk.frame_m,
+            blk.frame_epoch,
+        )
+    blk = replace(blk, Hth=rng.normal(size=(M, 3)), sig_e2=0.2**2)
     y0, P0 = rng.normal(size=n) * 0.1, np.diag(rng.uniform(0.5, 2.0, n))
     for edit_k in (None, 5.0):
         sols = [solve_block(y0, P0, blk, edit_k=edit_k, keep_epochs=True, engine=e) for e in ENGINES]
@@ -184,12 +203,14 @@ def test_kernel_compiled_for_one_signature():
 
 def test_numpy_engine_without_numba():
     """Without numba the package imports and solve_block runs the numpy core."""
-    code = ("import sys; sys.modules['numba'] = None\n"
-            "from gcs_core import compiled\n"
-            "from gcs_core.filtr import kalman\n"
-            "from gcs_core.models import common\n"
-            "assert not compiled.COMPILED and kalman.ENGINE == 'numpy'\n"
-            "assert common._jit(len) is len\n")
+    code = (
+        "import sys; sys.modules['numba'] = None\n"
+        "from gcs_core import compiled\n"
+        "from gcs_core.filtr import kalman\n"
+        "from gcs_core.models import common\n"
+        "assert not compiled.COMPILED and kalman.ENGINE == 'numpy'\n"
+        "assert common._jit(len) is len\n"
+    )
     root = ROOT
     subprocess.run([sys.executable, "-c", code], cwd=root, check=True)
 
@@ -208,8 +229,7 @@ def test_gyro_rates_match_attitude_provider():
 # ----------------------------------------------------------------------------------------
 def _compare_with_batch(prob, **filter_kw):
     bat = batch_fit(prob, BatchOptions(edit_k=None, tol_step_sigma=1e-9, max_iterations=30))
-    opts = FilterOptions(process_noise_scale=0.0, edit_k=None, max_passes=5, pass_tol_sigma=1e-5,
-                         **filter_kw)
+    opts = FilterOptions(process_noise_scale=0.0, edit_k=None, max_passes=5, pass_tol_sigma=1e-5, **filter_kw)
     res = Filtr(prob, options=opts, block_seconds=240).run()
     perm = [res.solve_for.index(n) for n in bat.solve_for]
     sig = np.sqrt(np.diag(bat.P))

@@ -44,16 +44,20 @@ def appender(path: str, fd: int, pause_in_write: bool = False) -> None:
             os.write(fd, struct.pack("<q", IN_WRITE))
             time.sleep(30)
             return ds
+
         h5store.write_array = slow_write_array
     try:
         names = [f"S{i}.p" for i in range(N_PARAMS)]
         n = len(scds.list_versions(path)) if os.path.exists(path) else 0
         while True:
             n += 1
-            got = scds.append_version(path, sensor_params=version_params(n),
-                                      covariance=np.eye(N_PARAMS) * n, element_names=names,
-                                      provenance={"note": f"v{n}", "data_t0": 0.0,
-                                                  "data_t1": 1.0})
+            got = scds.append_version(
+                path,
+                sensor_params=version_params(n),
+                covariance=np.eye(N_PARAMS) * n,
+                element_names=names,
+                provenance={"note": f"v{n}", "data_t0": 0.0, "data_t1": 1.0},
+            )
             if got != n:
                 os._exit(4)
             os.write(fd, struct.pack("<q", n))
@@ -85,7 +89,7 @@ def confirmed(read_fd: int) -> list[int]:
             break
         if not chunk:
             break
-        out += [struct.unpack("<q", chunk[i:i + 8])[0] for i in range(0, len(chunk) - 7, 8)]
+        out += [struct.unpack("<q", chunk[i : i + 8])[0] for i in range(0, len(chunk) - 7, 8)]
     return out
 
 
@@ -137,8 +141,13 @@ def test_sigkill_while_appending_never_loses_a_version(tmp_path, kills):
         np.testing.assert_array_equal(version.covariance, np.eye(N_PARAMS) * v)
     # a clean append afterwards removes the temporaries the kills left behind
     names = [f"S{i}.p" for i in range(N_PARAMS)]
-    scds.append_version(path, sensor_params=version_params(n_versions + 1),
-                        covariance=np.eye(N_PARAMS), element_names=names, provenance={})
+    scds.append_version(
+        path,
+        sensor_params=version_params(n_versions + 1),
+        covariance=np.eye(N_PARAMS),
+        element_names=names,
+        provenance={},
+    )
     assert not list(tmp_path.glob(".*.tmp"))
 
 
@@ -147,9 +156,13 @@ def test_sigkill_in_the_middle_of_writing_the_new_file(tmp_path):
     path = str(tmp_path / "cal.scds.h5")
     names = [f"S{i}.p" for i in range(N_PARAMS)]
     for v in (1, 2):
-        scds.append_version(path, sensor_params=version_params(v),
-                            covariance=np.eye(N_PARAMS) * v, element_names=names,
-                            provenance={"note": f"v{v}"})
+        scds.append_version(
+            path,
+            sensor_params=version_params(v),
+            covariance=np.eye(N_PARAMS) * v,
+            element_names=names,
+            provenance={"note": f"v{v}"},
+        )
     before = open(path, "rb").read()
     ctx = multiprocessing.get_context("fork")
     for _ in range(3):
@@ -164,9 +177,16 @@ def test_sigkill_in_the_middle_of_writing_the_new_file(tmp_path):
         os.close(read_fd)
         assert open(path, "rb").read() == before  # untouched, byte for byte
         assert check_file(path, 2) == 2
-    assert scds.append_version(path, sensor_params=version_params(3),
-                               covariance=np.eye(N_PARAMS) * 3, element_names=names,
-                               provenance={"note": "v3"}) == 3
+    assert (
+        scds.append_version(
+            path,
+            sensor_params=version_params(3),
+            covariance=np.eye(N_PARAMS) * 3,
+            element_names=names,
+            provenance={"note": "v3"},
+        )
+        == 3
+    )
     assert not list(tmp_path.glob(".*.tmp"))
 
 
@@ -183,13 +203,14 @@ def text_writer(path: str, fd: int) -> None:
     """Child: rewrite a text file forever through the writers that use write_atomic and
     atomic_open (a config or report, a CSV table); each version's lines name it."""
     from gcs_core.fileperm import atomic_open, write_atomic
+
     try:
         n = 0
         while True:
             n += 1
             if n % 2:
                 write_atomic(path, _text(n))
-            else:                       # line by line, flushed: a kill lands mid-file
+            else:  # line by line, flushed: a kill lands mid-file
                 with atomic_open(path, "w", newline="\n") as fh:
                     for i, line in enumerate(_text(n).splitlines(keepends=True)):
                         fh.write(line)
@@ -203,6 +224,7 @@ def text_writer(path: str, fd: int) -> None:
 def directory_writer(path: str, fd: int) -> None:
     """Child: replace a mission-like directory forever (convert's staged directory)."""
     from gcs_core.convert.common import staged_directory
+
     try:
         n = 0
         while True:
@@ -245,7 +267,7 @@ def _kill_rounds(tmp_path, target, path: Path, check, kills: int, seed: int) -> 
         os.close(read_fd)
         on_disk = check(path)
         assert on_disk >= max(done), (on_disk, max(done))
-        assert on_disk <= max(done) + 1          # at most the one in flight landed
+        assert on_disk <= max(done) + 1  # at most the one in flight landed
         last = on_disk
     return last
 
@@ -254,6 +276,7 @@ def test_sigkill_while_rewriting_a_text_file(tmp_path):
     """write_atomic / atomic_open (configs, reports, CSV tables, plots): after each kill
     the file is one whole version, with the usual permissions."""
     from gcs_core.fileperm import usual_mode
+
     path = tmp_path / "report.json"
 
     def check(p):
@@ -276,4 +299,4 @@ def test_sigkill_while_replacing_a_directory(tmp_path):
 
     _kill_rounds(tmp_path, directory_writer, path, check, kills=15, seed=8)
     left = [p.name for p in tmp_path.iterdir() if p.name != "mission"]
-    assert all(n.startswith(".mission.") for n in left), left    # only hidden stages of killed writers
+    assert all(n.startswith(".mission.") for n in left), left  # only hidden stages of killed writers

@@ -22,10 +22,22 @@ PACKAGES = ("gcs_core", "gcs_tui")
 
 #: layers from the bottom; a module may import its own layer (without cycles) and those below
 LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
-    ("foundation", ("gcs_core", "gcs_core.errors", "gcs_core.units", "gcs_core.fileperm",
-                    "gcs_core.compiled", "gcs_core.toml_values",
-                    "gcs_core.display", "gcs_core.linalg", "gcs_core.frames", "gcs_core.ephem",
-                    "gcs_core.sim")),
+    (
+        "foundation",
+        (
+            "gcs_core",
+            "gcs_core.errors",
+            "gcs_core.units",
+            "gcs_core.fileperm",
+            "gcs_core.compiled",
+            "gcs_core.toml_values",
+            "gcs_core.display",
+            "gcs_core.linalg",
+            "gcs_core.frames",
+            "gcs_core.ephem",
+            "gcs_core.sim",
+        ),
+    ),
     ("mission files", ("gcs_core.io",)),
     ("models", ("gcs_core.models",)),
     ("problem", ("gcs_core.problem",)),
@@ -33,8 +45,17 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("estimators", ("gcs_core.filtr",)),
     ("predictor", ("gcs_core.predictor",)),
     ("diagnosis", ("gcs_core.diagnosis",)),
-    ("reports and session", ("gcs_core.verif", "gcs_core.calibration", "gcs_core.reporting",
-                             "gcs_core.session", "gcs_core.trade", "gcs_core.convert")),
+    (
+        "reports and session",
+        (
+            "gcs_core.verif",
+            "gcs_core.calibration",
+            "gcs_core.reporting",
+            "gcs_core.session",
+            "gcs_core.trade",
+            "gcs_core.convert",
+        ),
+    ),
     ("faces", ("gcs_tui",)),
 )
 #: what the truth simulator may use of the engine: a shared bug must not cancel out
@@ -71,8 +92,9 @@ def _targets(module: str, is_pkg: bool, node: ast.Import | ast.ImportFrom) -> li
 
 
 def _is_type_checking(test: ast.expr) -> bool:
-    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or \
-        (isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING")
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
 
 
 def _graph() -> tuple[dict[str, set[str]], dict[str, set[str]]]:
@@ -81,8 +103,13 @@ def _graph() -> tuple[dict[str, set[str]], dict[str, set[str]]]:
     external: dict[str, set[str]] = defaultdict(set)
     for module, (path, is_pkg) in MODULES.items():
         tree = ast.parse(path.read_text(), filename=str(path))
-        typing_only = {id(n) for block in ast.walk(tree) if isinstance(block, ast.If) and _is_type_checking(block.test)
-                       for stmt in block.body for n in ast.walk(stmt)}
+        typing_only = {
+            id(n)
+            for block in ast.walk(tree)
+            if isinstance(block, ast.If) and _is_type_checking(block.test)
+            for stmt in block.body
+            for n in ast.walk(stmt)
+        }
         for node in ast.walk(tree):
             if not isinstance(node, (ast.Import, ast.ImportFrom)) or id(node) in typing_only:
                 continue
@@ -185,30 +212,46 @@ def test_no_package_imports_itself_round_a_cycle(side):
 
 
 def test_every_import_goes_down_the_layers():
-    upward = sorted(f"{a} ({LAYERS[_layer(a)][0]}) imports {b} ({LAYERS[_layer(b)][0]})"
-                    for a, targets in INTERNAL.items() for b in targets if _layer(b) > _layer(a))
+    upward = sorted(
+        f"{a} ({LAYERS[_layer(a)][0]}) imports {b} ({LAYERS[_layer(b)][0]})"
+        for a, targets in INTERNAL.items()
+        for b in targets
+        if _layer(b) > _layer(a)
+    )
     assert upward == []
 
 
 def test_the_simulator_imports_nothing_of_the_engine_but_units_and_errors():
     """The truth simulator must not share code with the models it checks."""
-    leaks = sorted(f"{a} imports {b}" for a, targets in INTERNAL.items() if a.startswith("gcs_core.sim")
-                   for b in targets if not b.startswith("gcs_core.sim") and b not in SIM_MAY_IMPORT)
+    leaks = sorted(
+        f"{a} imports {b}"
+        for a, targets in INTERNAL.items()
+        if a.startswith("gcs_core.sim")
+        for b in targets
+        if not b.startswith("gcs_core.sim") and b not in SIM_MAY_IMPORT
+    )
     assert leaks == []
 
 
 @pytest.mark.parametrize("side", sorted(FORBIDDEN))
 def test_each_side_keeps_off_the_others_libraries(side):
-    leaks = sorted(f"{m} imports {x}" for m, names in EXTERNAL.items() if m.split(".")[0] == side
-                   for x in names if x in FORBIDDEN[side])
+    leaks = sorted(
+        f"{m} imports {x}"
+        for m, names in EXTERNAL.items()
+        if m.split(".")[0] == side
+        for x in names
+        if x in FORBIDDEN[side]
+    )
     assert leaks == []
 
 
 def test_no_module_level_getattr_shims():
     """No PEP 562 ``__getattr__`` re-exporting another module's names on first use."""
-    shims = sorted(m for m, (path, _) in MODULES.items()
-                   if any(isinstance(n, ast.FunctionDef) and n.name == "__getattr__"
-                          for n in ast.parse(path.read_text()).body))
+    shims = sorted(
+        m
+        for m, (path, _) in MODULES.items()
+        if any(isinstance(n, ast.FunctionDef) and n.name == "__getattr__" for n in ast.parse(path.read_text()).body)
+    )
     assert shims == []
 
 

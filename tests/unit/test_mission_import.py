@@ -60,6 +60,7 @@ def refused(mission: Path) -> str:
 
 # --- the example loads ----------------------------------------------------------------
 
+
 def test_example_mission_loads(example_dir):
     m = load_mission(example_dir)
     assert m.spec.name == "sunpoint-nominal"
@@ -77,6 +78,7 @@ def test_example_mission_loads(example_dir):
 
 # --- CSV rules, through the importer ----------------------------------------------------
 
+
 def test_missing_column(mission):
     path = mission / "telemetry/TAM1.csv"
     edit_lines(path, lambda ls: ls.__setitem__(slice(None), [",".join(l.split(",")[:3]) for l in ls]))
@@ -86,8 +88,10 @@ def test_missing_column(mission):
 
 def test_unsorted_times(mission):
     path = mission / "telemetry/TAM1.csv"
+
     def swap(ls):
         ls[10], ls[11] = ls[11], ls[10]
+
     edit_lines(path, swap)
     message = refused(mission)
     assert f"{path}:12:1:" in message and "sorted" in message
@@ -102,10 +106,12 @@ def test_text_in_a_number(mission):
 
 def test_nan_rows_dropped_and_counted(mission):
     path = mission / "telemetry/TAM1.csv"
+
     def blank(ls):
         ls[5] = ls[5].rsplit(",", 1)[0] + ","
         ls[6] = ls[6].split(",")[0] + ",nan,1,2"
         ls[7] = ls[7].split(",")[0] + ",,,"
+
     edit_lines(path, blank)
     m = load_mission(mission)
     assert len(m.telemetry["TAM1"]) == 7201 - 3
@@ -125,15 +131,18 @@ def test_duplicate_packets_dropped_and_counted(mission):
 
 def test_same_time_different_rows(mission):
     path = mission / "telemetry/IRU.csv"
+
     def dup(ls):
         t, *rest = ls[100].split(",")
         ls.insert(101, ",".join([t, "0.0", "0.0", "0.0"]))
+
     edit_lines(path, dup)
     message = refused(mission)
     assert f"{path}:102:2:" in message and "same time" in message and "lines 101 and 102" in message
 
 
 # --- mission.toml ---------------------------------------------------------------------------
+
 
 def test_unknown_sensor_type(mission):
     edit_toml(mission, 'type = "coarse_sun"', 'type = "sextant"')
@@ -167,19 +176,19 @@ def test_duplicate_sensor_names(mission):
     assert f"{toml}:{second}" in message and "used twice" in message
 
 
-@pytest.mark.parametrize("old,new,key,needle", [
-    ("noise = 25.0", "noise = -25.0", "sensor[1].noise", "must be > 0"),
-    ("fov_deg = 32.0", "fov_deg = 95.0", "sensor[5].fov_deg", "(0, 90]"),
-    ('attitude_mode = "sun_pointing"', 'attitude_mode = "tumbling"', "mission.attitude_mode",
-     "one of"),
-    ('epoch = "2024-03-20T06:00:00Z"', 'epoch = "2024-13-20T06:00:00Z"', "mission.epoch",
-     "valid date"),
-    ("scale = [1.0, 1.0]", "scale = [1.0]", "sensor[3].scale", "list of 2"),
-    ("arw = 3.162278e-07", 'arw = "small"', "sensor[2].arw", "must be a number"),
-    ("alignment_deg = [0.0, 0.0, 0.0]\nnoise = 25.0", "noise = 25.0", "sensor[1].alignment_deg",
-     "missing key"),
-    ('type = "coarse_sun"', 'type = "horizon"', "sensor[6].type", "spinning"),
-])
+@pytest.mark.parametrize(
+    "old,new,key,needle",
+    [
+        ("noise = 25.0", "noise = -25.0", "sensor[1].noise", "must be > 0"),
+        ("fov_deg = 32.0", "fov_deg = 95.0", "sensor[5].fov_deg", "(0, 90]"),
+        ('attitude_mode = "sun_pointing"', 'attitude_mode = "tumbling"', "mission.attitude_mode", "one of"),
+        ('epoch = "2024-03-20T06:00:00Z"', 'epoch = "2024-13-20T06:00:00Z"', "mission.epoch", "valid date"),
+        ("scale = [1.0, 1.0]", "scale = [1.0]", "sensor[3].scale", "list of 2"),
+        ("arw = 3.162278e-07", 'arw = "small"', "sensor[2].arw", "must be a number"),
+        ("alignment_deg = [0.0, 0.0, 0.0]\nnoise = 25.0", "noise = 25.0", "sensor[1].alignment_deg", "missing key"),
+        ('type = "coarse_sun"', 'type = "horizon"', "sensor[6].type", "spinning"),
+    ],
+)
 def test_bad_data_book_values(mission, old, new, key, needle):
     edit_toml(mission, old, new)
     message = refused(mission)
@@ -206,6 +215,7 @@ def test_mission_spec_accepts_the_toml_path_and_spinning_keys(mission):
 
 # --- ephemeris and physical ranges -------------------------------------------------------
 
+
 def test_ephemeris_not_covering_telemetry(mission):
     eph = mission / "ephemeris.csv"
     edit_lines(eph, lambda ls: ls.__delitem__(slice(122, None)))  # keep t <= 3600 s
@@ -224,10 +234,12 @@ def test_ephemeris_cadence_over_60_s(mission):
 
 def test_ephemeris_position_in_metres(mission):
     eph = mission / "ephemeris.csv"
+
     def metres(ls):
         f = ls[5].split(",")
         f[1:4] = [str(float(x) * 1000) for x in f[1:4]]
         ls[5] = ",".join(f)
+
     edit_lines(eph, metres)
     message = refused(mission)
     assert f"{eph}:6:" in message and "|r|" in message
@@ -256,10 +268,12 @@ def test_gyro_rate_in_degrees(mission):
 
 def test_star_declination_out_of_range(mission):
     path = mission / "telemetry/FHST1.csv"
+
     def bad(ls):
         f = ls[3].split(",")
         f[4] = "95.0"
         ls[3] = ",".join(f)
+
     edit_lines(path, bad)
     message = refused(mission)
     assert f"{path}:4:5:" in message and "declination" in message
@@ -301,20 +315,26 @@ def test_parse_utc_forms():
     for bad in ("2024-03-20T06:00:60Z", "20 March 2024", "2024-02-30"):
         with pytest.raises(ValueError):
             parse_utc(bad)
-    assert np.isclose((parse_utc("2024-01-01T00:00:00Z") - parse_utc("2023-12-31T23:59:59Z"))
-                      .total_seconds(), 1.0)
+    assert np.isclose((parse_utc("2024-01-01T00:00:00Z") - parse_utc("2023-12-31T23:59:59Z")).total_seconds(), 1.0)
 
 
 # --- docs/input_checks.md lists every message the readers raise ----------------------------
 
 #: callables whose argument at this position is a user-facing message template
-_MESSAGE_ARG = {"InputError": 0, "DataFileError": 0, "error": 0, "_refuse": 3,
-                "_field_error": 4, "_check_vector_norm": 4}
+_MESSAGE_ARG = {
+    "InputError": 0,
+    "DataFileError": 0,
+    "error": 0,
+    "_refuse": 3,
+    "_field_error": 4,
+    "_check_vector_norm": 4,
+}
 
 
 def _template(node) -> str | None:
     import ast
     import re
+
     if isinstance(node, ast.Constant) and isinstance(node.value, str):
         text = node.value
     elif isinstance(node, ast.JoinedStr):
@@ -329,6 +349,7 @@ def _code_templates() -> tuple[set[str], set[str]]:
     template in their sources and in what they call for words: the epoch parser
     :func:`gcs_core.ephem.timescale.parse_utc` and the value complaints of :mod:`gcs_core.toml_values`)."""
     import ast
+
     raised, everything = set(), set()
     sources = sorted((ROOT / "gcs_core" / "io").glob("*.py")) + [ROOT / "gcs_core" / "filtr" / "noise.py"]
     for source in sources + [ROOT / "gcs_core" / "ephem" / "timescale.py", ROOT / "gcs_core" / "toml_values.py"]:
@@ -349,6 +370,7 @@ def _code_templates() -> tuple[set[str], set[str]]:
 
 def test_input_checks_doc_in_sync():
     import re
+
     doc = (ROOT / "docs" / "input_checks.md").read_text()
     documented = {m.group(1) for m in re.finditer(r"→ `([^`]+)`\s*$", doc, re.MULTILINE)}
     raised, everything = _code_templates()

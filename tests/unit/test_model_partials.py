@@ -30,7 +30,7 @@ SEEDS = (0, 1, 2, 3)
 def test_partials_central_difference(case, seed):
     model, geom, params = CASES[case](np.random.default_rng(seed))
     report = assert_partials_match(model, geom, params, scheme="central", rtol=CENTRAL_DIFFERENCE_RTOL)
-    assert report.n_valid == geom.n            # the fixtures keep every frame usable
+    assert report.n_valid == geom.n  # the fixtures keep every frame usable
     names = {e.name for e in report.elements}
     second = {f"d2:{a},{b}" for a, b in model.predict(geom, params).d2_par}
     assert names == {p.name for p in model.parameters()} | {"att_1", "att_2", "att_3"} | second
@@ -60,14 +60,19 @@ def test_prediction_shapes_and_vectorization(case):
 
 def _frame(geom, i):
     """The geometry of frame ``i`` alone (a single (3,) spin axis is kept as it is)."""
+
     def pick(name, x):
         if x is None or (name == "spin_axis_I" and np.ndim(x) == 1):
             return x
-        return np.asarray(x)[i:i + 1]
-    changes = {f.name: pick(f.name, getattr(geom, f.name)) for f in dataclasses.fields(geom)
-               if f.name not in ("aux", "extra", "ephemeris", "field_model")}
-    changes["aux"] = {k: np.asarray(v)[i:i + 1] for k, v in geom.aux.items()}
-    changes["extra"] = {k: np.asarray(v)[i:i + 1] for k, v in geom.extra.items()}
+        return np.asarray(x)[i : i + 1]
+
+    changes = {
+        f.name: pick(f.name, getattr(geom, f.name))
+        for f in dataclasses.fields(geom)
+        if f.name not in ("aux", "extra", "ephemeris", "field_model")
+    }
+    changes["aux"] = {k: np.asarray(v)[i : i + 1] for k, v in geom.aux.items()}
+    changes["extra"] = {k: np.asarray(v)[i : i + 1] for k, v in geom.extra.items()}
     return dataclasses.replace(geom, **changes)
 
 
@@ -87,8 +92,9 @@ class _CorruptedModel:
         return Prediction(p.y, p.d_att, d_par, p.valid)
 
 
-@pytest.mark.parametrize("case, name", [("magnetometer", "align_2"), ("horizon", "d_rho"),
-                                        ("fine_sun", "k_alpha"), ("gyro", "G_23")])
+@pytest.mark.parametrize(
+    "case, name", [("magnetometer", "align_2"), ("horizon", "d_rho"), ("fine_sun", "k_alpha"), ("gyro", "G_23")]
+)
 def test_checker_catches_a_wrong_partial(case, name):
     model, geom, params = CASES[case](np.random.default_rng(1))
     report = check_partials(_CorruptedModel(model, name), geom, params)

@@ -27,7 +27,7 @@ from gcs_core.models.horizon import TWO_PI
 one_arcsecond = units.ARCSEC
 one_nT = 1.0
 one_microsecond = 1e-6
-machine_counts = 1e-9          # counts: round-off of a ~1e4-count value
+machine_counts = 1e-9  # counts: round-off of a ~1e4-count value
 
 
 # --------------------------------------------------------------------------------------
@@ -74,9 +74,13 @@ def test_magnetometer_time_offset_without_field_model_leaves_the_field_still():
     rng = np.random.default_rng(12)
     model = make_model(sensor("TAM1", "magnetometer"))
     n = 5
-    geom = Geometry(t=np.arange(float(n)), C_BI=random_dcm(rng, n), B_I=rng.normal(scale=3e4, size=(n, 3)),
-                    omega_B=rng.normal(scale=1e-2, size=(n, 3)))
-    dt, h = 0.3, 1e-4                                      # [s]
+    geom = Geometry(
+        t=np.arange(float(n)),
+        C_BI=random_dcm(rng, n),
+        B_I=rng.normal(scale=3e4, size=(n, 3)),
+        omega_B=rng.normal(scale=1e-2, size=(n, 3)),
+    )
+    dt, h = 0.3, 1e-4  # [s]
     pred = model.predict(geom, {"time_offset": dt})
     slope = np.asarray(pred.d_par["time_offset"])
     assert np.all(np.isfinite(pred.y)) and np.all(np.isfinite(slope))
@@ -87,8 +91,9 @@ def test_magnetometer_time_offset_without_field_model_leaves_the_field_still():
 
 def test_magnetometer_contamination_adds_k_times_channel():
     model = make_model(sensor("TAM1", "magnetometer"), aux_channels=("mtb_x",))
-    geom = Geometry(t=np.arange(2.0), C_BI=np.stack([np.eye(3)] * 2), B_I=np.zeros((2, 3)),
-                    aux={"mtb_x": np.array([-60.0, 60.0])})
+    geom = Geometry(
+        t=np.arange(2.0), C_BI=np.stack([np.eye(3)] * 2), B_I=np.zeros((2, 3)), aux={"mtb_x": np.array([-60.0, 60.0])}
+    )
     pred = model.predict(geom, {"contam_mtb_x_z": 0.5})
     np.testing.assert_allclose(pred.y, [[0, 0, -30.0], [0, 0, 30.0]], atol=1e-12)
 
@@ -109,7 +114,7 @@ def test_star_tracker_identity_alignment_reads_the_star_angles():
 
 
 def test_star_tracker_frame_outside_fov_is_invalid():
-    star = np.array([[np.cos(0.2), np.sin(0.2), 0.0], [1.0, 0.0, 0.0]])   # 11.5° off, on axis
+    star = np.array([[np.cos(0.2), np.sin(0.2), 0.0], [1.0, 0.0, 0.0]])  # 11.5° off, on axis
     model = make_model(sensor("FHST1", "star_tracker", fov_deg=4.0, noise=4e-5))
     pred = model.predict(Geometry(t=np.arange(2.0), C_BI=np.stack([np.eye(3)] * 2), star_I=star), {})
     assert pred.valid.tolist() == [False, True]
@@ -132,7 +137,8 @@ FSS_COEFF = (0.01, 7.6e-5, 0.003, 50.0)
 def test_fss_eight_coefficients_eq_4_25():
     A1, A2, A3, k = FSS_COEFF
     assert eight_coefficients(*FSS_COEFF) == pytest.approx(
-        (A1, A2, A3, k * A2, k * A1, k * A3 ** 2 / 2, 2 * k * A2, 2 * k * A1))
+        (A1, A2, A3, k * A2, k * A1, k * A3**2 / 2, 2 * k * A2, 2 * k * A1)
+    )
 
 
 def test_fss_transfer_function_inverse_consistency():
@@ -140,8 +146,11 @@ def test_fss_transfer_function_inverse_consistency():
     n_true = np.array([-5000.0, -1200.0, 0.0, 37.0, 4100.0])
     ta = tan_from_counts(n_true, *FSS_COEFF)
     tb = tan_from_counts(-n_true, 0.0, 7.7e-5, 0.002, 45.0)
-    model = make_model(sensor("FSS1", "fine_sun", noise=0.577, fov_deg=32.0, coeff_alpha=FSS_COEFF,
-                              coeff_beta=(0.0, 7.7e-5, 0.002, 45.0)))
+    model = make_model(
+        sensor(
+            "FSS1", "fine_sun", noise=0.577, fov_deg=32.0, coeff_alpha=FSS_COEFF, coeff_beta=(0.0, 7.7e-5, 0.002, 45.0)
+        )
+    )
     sun = unit_from_angles(np.arctan(ta), np.arctan(tb))
     pred = model.predict(Geometry(t=np.arange(5.0), C_BI=np.stack([np.eye(3)] * 5), sun_I=sun), {})
     np.testing.assert_allclose(pred.y, np.column_stack([n_true, -n_true]), atol=machine_counts)
@@ -149,15 +158,18 @@ def test_fss_transfer_function_inverse_consistency():
     A = eight_coefficients(*FSS_COEFF)
     series = A[0] + A[1] * n_true + A[2] * np.sin(A[3] * n_true + A[4]) + A[5] * np.sin(A[6] * n_true + A[7])
     k, A3 = FSS_COEFF[3], FSS_COEFF[2]
-    assert np.max(np.abs(series - ta)) < 2 * k ** 2 * A3 ** 3      # next term is O(k² A3³)
+    assert np.max(np.abs(series - ta)) < 2 * k**2 * A3**3  # next term is O(k² A3³)
 
 
 def test_fss_behind_the_sensor_is_invalid():
-    model = make_model(sensor("FSS1", "fine_sun", noise=0.577, fov_deg=32.0, coeff_alpha=FSS_COEFF,
-                              coeff_beta=FSS_COEFF))
+    model = make_model(
+        sensor("FSS1", "fine_sun", noise=0.577, fov_deg=32.0, coeff_alpha=FSS_COEFF, coeff_beta=FSS_COEFF)
+    )
     sun = np.array([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0]])
-    assert model.predict(Geometry(t=np.arange(2.0), C_BI=np.stack([np.eye(3)] * 2), sun_I=sun), {}).valid.tolist() \
-        == [False, True]
+    assert model.predict(Geometry(t=np.arange(2.0), C_BI=np.stack([np.eye(3)] * 2), sun_I=sun), {}).valid.tolist() == [
+        False,
+        True,
+    ]
 
 
 def test_css_known_angles_eq_4_16():
@@ -189,12 +201,22 @@ def _static_ephemeris(r, sun):
     def eph(t):
         n = np.shape(t)[0]
         return np.tile(r, (n, 1)), np.zeros((n, 3)), np.tile(sun, (n, 1))
+
     return eph
 
 
 def _horizon(gamma_deg=90.0, phi_h_deg=0.0, observable="in_out"):
-    return make_model(sensor("HS1", "horizon", noise=1e-3, gamma_deg=gamma_deg, phi_h_deg=phi_h_deg,
-                             horizon_height_km=H_KM, observable=observable))
+    return make_model(
+        sensor(
+            "HS1",
+            "horizon",
+            noise=1e-3,
+            gamma_deg=gamma_deg,
+            phi_h_deg=phi_h_deg,
+            horizon_height_km=H_KM,
+            observable=observable,
+        )
+    )
 
 
 @pytest.mark.parametrize("gamma_deg", [90.0, 80.0, 60.0])
@@ -210,9 +232,12 @@ def test_horizon_symmetric_geometry(gamma_deg):
     omega, phi_h = 2.0, 30.0 * units.DEG
     rho = np.arcsin((units.R_EARTH_KM + H_KM) / R_KM)
     half_chord = np.arccos(np.cos(rho) / np.sin(np.radians(gamma_deg)))
-    geom = Geometry(t=np.array([0.0]), spin_axis_I=np.array([0.0, 0.0, 1.0]),
-                    ephemeris=_static_ephemeris(np.array([R_KM, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])),
-                    extra={"spin_rate": np.array([omega]), "earth_flattening": 0.0})
+    geom = Geometry(
+        t=np.array([0.0]),
+        spin_axis_I=np.array([0.0, 0.0, 1.0]),
+        ephemeris=_static_ephemeris(np.array([R_KM, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])),
+        extra={"spin_rate": np.array([omega]), "earth_flattening": 0.0},
+    )
     pred = _horizon(gamma_deg, 30.0).predict(geom, {})
     assert pred.valid[0]
     expected = np.array([np.pi - half_chord - phi_h, np.pi + half_chord - phi_h]) / omega
@@ -222,10 +247,13 @@ def test_horizon_symmetric_geometry(gamma_deg):
 
 
 def test_horizon_cone_missing_the_earth_is_invalid():
-    geom = Geometry(t=np.array([0.0]), spin_axis_I=np.array([0.0, 0.0, 1.0]),
-                    ephemeris=_static_ephemeris(np.array([R_KM, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])),
-                    extra={"spin_rate": np.array([1.0])})
-    pred = _horizon(gamma_deg=10.0).predict(geom, {})     # |η − γ| = 80° > ρ ≈ 66.5°
+    geom = Geometry(
+        t=np.array([0.0]),
+        spin_axis_I=np.array([0.0, 0.0, 1.0]),
+        ephemeris=_static_ephemeris(np.array([R_KM, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])),
+        extra={"spin_rate": np.array([1.0])},
+    )
+    pred = _horizon(gamma_deg=10.0).predict(geom, {})  # |η − γ| = 80° > ρ ≈ 66.5°
     assert not pred.valid[0] and np.all(np.isnan(pred.y[0]))
 
 
@@ -247,9 +275,15 @@ def test_horizon_implicit_solution_is_self_consistent():
         frozen = Geometry(t=t, spin_axis_I=orbit.normal, extra=geom.extra, ephemeris=_static_ephemeris(r[0], s[0]))
         assert model.predict(frozen, {}).y[0, k] == pytest.approx(dt[k], abs=one_microsecond)
     moving_vs_frozen_at_sighting = model.predict(
-        Geometry(t=t, spin_axis_I=orbit.normal, extra=geom.extra,
-                 ephemeris=_static_ephemeris(orbit(t + 3.0)[0][0], orbit(t + 3.0)[2][0])), {}).y[0]
-    assert np.max(np.abs(moving_vs_frozen_at_sighting - dt)) > 1e3 * one_microsecond   # the effect is real
+        Geometry(
+            t=t,
+            spin_axis_I=orbit.normal,
+            extra=geom.extra,
+            ephemeris=_static_ephemeris(orbit(t + 3.0)[0][0], orbit(t + 3.0)[2][0]),
+        ),
+        {},
+    ).y[0]
+    assert np.max(np.abs(moving_vs_frozen_at_sighting - dt)) > 1e3 * one_microsecond  # the effect is real
 
 
 def test_horizon_residual_wraps_modulo_the_spin_period():
@@ -271,9 +305,17 @@ def test_horizon_width_midscan_noise():
 def test_horizon_width_midscan_measurements_wrap():
     """dt_in = 3.0 s, dt_out = 0.5 s at ω = 2 rad/s (P = π s): the scan crossed the Sun
     sighting, so width = (0.5 − 3.0) mod π and mid-scan = (3.0 + width/2) mod π."""
-    table = Table(path=Path("HS1.csv"), t=np.array([0.0]), lines=np.array([2]),
-                  columns={"t": np.array([0.0]), "spin_rate": np.array([2.0]),
-                           "dt_in": np.array([3.0]), "dt_out": np.array([0.5])})
+    table = Table(
+        path=Path("HS1.csv"),
+        t=np.array([0.0]),
+        lines=np.array([2]),
+        columns={
+            "t": np.array([0.0]),
+            "spin_rate": np.array([2.0]),
+            "dt_in": np.array([3.0]),
+            "dt_out": np.array([0.5]),
+        },
+    )
     _, y = _horizon(observable="width_midscan").measurements(table)
     width = np.pi - 2.5
     np.testing.assert_allclose(y, [[width, 3.0 + width / 2 - np.pi]], atol=1e-12)
@@ -282,8 +324,9 @@ def test_horizon_width_midscan_measurements_wrap():
 
 
 def test_horizon_shared_sun_sensor_tilt_element():
-    model = make_model(sensor("HS1", "horizon", noise=1e-3, gamma_deg=80, phi_h_deg=0, horizon_height_km=40,
-                              sun_sensor="PFSS"))
+    model = make_model(
+        sensor("HS1", "horizon", noise=1e-3, gamma_deg=80, phi_h_deg=0, horizon_height_km=40, sun_sensor="PFSS")
+    )
     spec = {p.name: p for p in model.parameters()}["eps_S"]
     assert spec.element == "PFSS.tilt"
 
@@ -293,8 +336,9 @@ def test_horizon_shared_sun_sensor_tilt_element():
 # --------------------------------------------------------------------------------------
 def test_gyro_model_inverse_recovers_the_rate():
     rng = np.random.default_rng(3)
-    model = make_model(sensor("IRU", "gyro", alignment_deg=(1.0, -2.0, 0.5), noise=None, arw=3e-7,
-                              bias=(1e-6, -2e-6, 3e-6)))
+    model = make_model(
+        sensor("IRU", "gyro", alignment_deg=(1.0, -2.0, 0.5), noise=None, arw=3e-7, bias=(1e-6, -2e-6, 3e-6))
+    )
     params = {**model.nominal(), **{f"G_{i}{j}": rng.uniform(-1e-2, 1e-2) for i in (1, 2, 3) for j in (1, 2, 3)}}
     omega = rng.normal(scale=0.01, size=(6, 3))
     y = model.predict(Geometry(t=np.arange(6.0), omega_B=omega), params).y
@@ -322,5 +366,5 @@ def test_rate_from_quaternions_inverts_propagation():
 
 def test_gyro_sigma_from_angle_random_walk():
     model = make_model(sensor("IRU", "gyro", noise=None, arw=3.2e-7))
-    np.testing.assert_allclose(model.sigma(), 3.2e-7)            # Δt = 1 s
+    np.testing.assert_allclose(model.sigma(), 3.2e-7)  # Δt = 1 s
     np.testing.assert_allclose(model.sigma(dt=4.0), 1.6e-7)

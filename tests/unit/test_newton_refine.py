@@ -26,7 +26,7 @@ from gcs_core.filtr import local_refine
 from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
 from gcs_core.io.importer import load_mission
 from gcs_core.models import common
-from gcs_core.problem.build import build_problem, ElementOverride, StateOptions
+from gcs_core.problem.build import ElementOverride, StateOptions, build_problem
 from gcs_core.problem.state import SOLVE_FOR
 from gcs_core.sim.scenarios import nominal_threeaxis
 from gcs_core.sim.writer import write_mission
@@ -113,7 +113,7 @@ def test_refinement_ends_at_the_conditional_minimum(problem, fitted):
     state = problem.state
     x_bar = np.array([state[n].value for n in names])
     s0 = np.array([state[n].sigma0 for n in names])
-    prior_info = 1.0 / s0 ** 2
+    prior_info = 1.0 / s0**2
     sig = np.sqrt(np.diag(fitted.P))
     x = fitted.x.copy()
     for e in groups["FSS1"]:

@@ -15,9 +15,9 @@ from repo_paths import TEST_DATA
 from gcs_core.errors import InputError
 from gcs_core.filtr import noise
 
-DT = 0.01                      # s
-N_ARW = 1e-3                   # rad/s^0.5
-K_RRW = 1e-4                   # rad/s^1.5
+DT = 0.01  # s
+N_ARW = 1e-3  # rad/s^0.5
+K_RRW = 1e-4  # rad/s^1.5
 #: overlapping ADEV at τ0 from 4e5 samples scatters by ~0.2 %; N by ~1 % on its line
 arw_tolerance = 0.03
 #: K is read where few clusters remain (τ ~ 100-1000 s of a 4000 s span): ~15 % scatter
@@ -37,12 +37,12 @@ def _gyro(seed, n=400_000):
 def test_white_plus_random_walk_known_strength(seed):
     t, y = _gyro(seed)
     curve = noise.allan_deviation(t, y)[0]
-    assert np.allclose(np.diff(np.log2(curve.tau)), 1.0)             # octaves
+    assert np.allclose(np.diff(np.log2(curve.tau)), 1.0)  # octaves
     g = noise.gyro_terms(curve)
     assert abs(g.arw / N_ARW - 1) < arw_tolerance and not g.arw_bound
     assert abs(g.rrw / K_RRW - 1) < rrw_tolerance and not g.rrw_bound
     # the model curve sqrt(N²/τ + K²τ/3) where both terms are well measured
-    model = np.sqrt(N_ARW ** 2 / curve.tau + K_RRW ** 2 * curve.tau / 3)
+    model = np.sqrt(N_ARW**2 / curve.tau + K_RRW**2 * curve.tau / 3)
     short = curve.tau < 10.0
     assert np.max(np.abs(curve.adev[short] / model[short] - 1)) < arw_tolerance
     # the white-noise line as a per-sample σ
@@ -56,14 +56,15 @@ def test_white_noise_on_a_moving_signal_with_hits_and_held_samples():
     sigma = np.array([300.0, 50.0, 2.0])
     signal = 4e4 * np.column_stack([np.sin(0.5 * t), np.cos(0.3 * t), np.sin(0.2 * t + 1)])
     y = signal + rng.normal(size=(t.size, 3)) * sigma
-    y[rng.choice(t.size, 20, replace=False)] += 1e5                      # telemetry hits
-    held = np.repeat(np.arange(t.size)[::2], 2)[: t.size]               # every value read twice
+    y[rng.choice(t.size, 20, replace=False)] += 1e5  # telemetry hits
+    held = np.repeat(np.arange(t.size)[::2], 2)[: t.size]  # every value read twice
     est = noise.white_noise(t, y[held])
     assert np.max(np.abs(est / sigma - 1)) < white_tolerance
 
 
 def test_quaternion_noise_in_radians():
     from gcs_core.frames.rotations import quat_from_dcm, rotvec_to_dcm
+
     rng = np.random.default_rng(4)
     n = 20_000
     t = np.arange(n) * DT
@@ -90,8 +91,7 @@ def test_both_converters_mark_estimated_noise_one_way(tmp_path):
     from gcs_core.filtr.noise import ESTIMATED_MARK, noise_estimated
 
     data = TEST_DATA / "astropi"
-    convert("astropi", data / "astropi_extract.csv", tmp_path / "a",
-            tle=data / "iss-2022-01-31.tle")
+    convert("astropi", data / "astropi_extract.csv", tmp_path / "a", tle=data / "iss-2022-01-31.tle")
     src = tmp_path / "trial.hdf5"
     _trial(src)
     convert("broad", src, tmp_path / "b")

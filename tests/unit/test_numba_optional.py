@@ -57,8 +57,7 @@ def _fits(no_numba: bool) -> dict:
     env.pop("GCS_NO_NUMBA", None)
     if no_numba:
         env["GCS_NO_NUMBA"] = "1"
-    done = subprocess.run([sys.executable, "-c", FITS], cwd=ROOT, env=env, check=True,
-                          capture_output=True, text=True)
+    done = subprocess.run([sys.executable, "-c", FITS], cwd=ROOT, env=env, check=True, capture_output=True, text=True)
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 

@@ -51,7 +51,7 @@ def test_gyro_noise_rule_for_missing_keys():
         gyro_noise(_gyro())
     dt = 0.25
     g = GyroNoise(3e-7, 3e-10, 2e-6)
-    expected = np.sqrt(g.sigma_v ** 2 / dt + 2 * g.sigma_e ** 2 / dt ** 2 + g.sigma_u ** 2 * dt / 3)
+    expected = np.sqrt(g.sigma_v**2 / dt + 2 * g.sigma_e**2 / dt**2 + g.sigma_u**2 * dt / 3)
     sigma = make_model(_gyro(arw=3e-7, rrw=3e-10, electronic=2e-6)).sigma(dt)
     np.testing.assert_allclose(sigma, expected, rtol=ROUND_OFF)
 
@@ -76,17 +76,17 @@ def test_predictor_and_filter_share_gyro_noise_and_q(monkeypatch):
     filt = Filtr(problem, options=FilterOptions(max_passes=1))
     filt.run()
     assert calls, "the filter did not call farrenkopf_q"
-    f_noise, f_Wy, f_Wb, f_axes = calls[-1]              # at the filter's estimate, not the nominal
+    f_noise, f_Wy, f_Wb, f_axes = calls[-1]  # at the filter's estimate, not the nominal
     assert f_noise == noise and f_axes == axes
     np.testing.assert_allclose(f_Wb, Wb, atol=ROUND_OFF)
-    np.testing.assert_allclose(f_Wy, Wy, atol=1e-2)    # G estimated: ΔG ~ 1e-3
+    np.testing.assert_allclose(f_Wy, Wy, atol=1e-2)  # G estimated: ΔG ~ 1e-3
     assert noise == filt._noise == mekf.attitude_gyro_noise(problem) == GyroNoise(3e-6, 3e-9, 5e-6)
     values = problem.state.values()
     _, _, Wy_f, Wb_f = mekf.gyro_rates(problem.attitude, values, 0, 1)
     np.testing.assert_allclose(Wy, Wy_f, atol=ROUND_OFF)
     np.testing.assert_allclose(Wb, Wb_f, atol=ROUND_OFF)
     layout = mekf.make_layout(problem, filt._noise)
-    assert [f"IRU.bias_{'xyz'[a]}" for a in axes] == list(layout.elements[3:3 + layout.nb])
+    assert [f"IRU.bias_{'xyz'[a]}" for a in axes] == list(layout.elements[3 : 3 + layout.nb])
 
 
 def test_knots_use_farrenkopf_q():
@@ -97,8 +97,9 @@ def test_knots_use_farrenkopf_q():
         R = rotvec_to_dcm(rng.normal(size=(grid.K - 1, 3)))
         _, W = kn.transitions(grid, R)
         d = grid.d
-        Q = farrenkopf_q(np.diff(grid.tau), GyroNoise(sv, su), np.eye(3), -R if d == 6 else np.eye(3),
-                         range(3) if d == 6 else ())
+        Q = farrenkopf_q(
+            np.diff(grid.tau), GyroNoise(sv, su), np.eye(3), -R if d == 6 else np.eye(3), range(3) if d == 6 else ()
+        )
         np.testing.assert_allclose(W @ Q, np.broadcast_to(np.eye(d), Q.shape), atol=1e-9)
 
 
@@ -118,7 +119,7 @@ def test_truth_recovered_with_read_out_noise():
         problem = sim_problem(mission)
         res = Filtr(problem, options=FilterOptions(max_passes=2)).run()
         e = smoothed_error(res, truth)
-        P = res.P + np.diag([TRACKER_NOISE ** 2 if nm.startswith("att.") else 0.0 for nm in res.solve_for])
+        P = res.P + np.diag([TRACKER_NOISE**2 if nm.startswith("att.") else 0.0 for nm in res.solve_for])
         z = e / np.sqrt(np.diag(P))
         assert np.all(np.abs(z) < 4.0), dict(zip(res.solve_for, np.round(z, 2)))
         nees += float(e @ np.linalg.solve(P, e))
@@ -146,8 +147,10 @@ def test_physics_defaults_are_one_table():
     assert config.AnalysisConfig().physics == PhysicsOptions()
     assert config.TABLES["physics"] == tuple(table)
     assert {k: on for k, (on, _) in PHYSICS_EFFECTS.items()} == table
-    assert config.parse_toml("[analysis]\nmission = '.'\n") and \
-        config.config_from_dict({"analysis": {"mission": "."}, "physics": {}}).physics == PhysicsOptions()
+    assert (
+        config.parse_toml("[analysis]\nmission = '.'\n")
+        and config.config_from_dict({"analysis": {"mission": "."}, "physics": {}}).physics == PhysicsOptions()
+    )
 
 
 def test_config_and_mission_word_bad_values_alike(tmp_path):
@@ -162,7 +165,7 @@ def test_config_and_mission_word_bad_values_alike(tmp_path):
 
     def mission_error(text):
         d = tmp_path / f"m{len(list(tmp_path.iterdir()))}"
-        for f in root.rglob("*.csv"):             # the files it names (mission.toml is read first)
+        for f in root.rglob("*.csv"):  # the files it names (mission.toml is read first)
             (d / f.relative_to(root)).parent.mkdir(parents=True, exist_ok=True)
             (d / f.relative_to(root)).touch()
         (d / "mission.toml").write_text(text)
@@ -202,8 +205,12 @@ def test_one_atomic_write_helper():
     root = ROOT
     pattern = re.compile(r"os\.replace\(|mkstemp\(|mkdtemp\(|os\.fsync\(|\.rename\(")
     allowed = {"gcs_core/fileperm.py", "gcs_core/sim/writer.py"}
-    offenders = [str(p.relative_to(root)) for pkg in ("gcs_core", "gcs_tui") for p in (root / pkg).rglob("*.py")
-                 if str(p.relative_to(root)) not in allowed and pattern.search(p.read_text(encoding="utf-8"))]
+    offenders = [
+        str(p.relative_to(root))
+        for pkg in ("gcs_core", "gcs_tui")
+        for p in (root / pkg).rglob("*.py")
+        if str(p.relative_to(root)) not in allowed and pattern.search(p.read_text(encoding="utf-8"))
+    ]
     assert offenders == []
 
 

@@ -31,8 +31,9 @@ def test_parse_target_units():
 
 def test_candidates_cheapest_first_within_budget():
     c = candidates(Budget(slew_min=4.0, hours=1.0, axes=("roll",), rates=(0.1,)))
-    slews = [sum(float(p.split(":")[2]) for p in x["maneuvers"].split(",")) if x["maneuvers"] != "none" else 0.0
-             for x in c]
+    slews = [
+        sum(float(p.split(":")[2]) for p in x["maneuvers"].split(",")) if x["maneuvers"] != "none" else 0.0 for x in c
+    ]
     assert slews == sorted(slews) and max(slews) <= 4.0
     assert all(x["span_min"] <= 60.0 for x in c)
 
@@ -47,4 +48,4 @@ def test_cheapest_plan_meeting_a_gyro_target_needs_a_roll_slew():
     assert best.sigma_of("IRU.G_11") * (1.0 + MARGIN) < target.limit
     text = "\n".join(res.lines())
     assert "without the roll maneuver: not determined" in text, text
-    assert res.searched > 1                       # cheaper plans were tried and failed
+    assert res.searched > 1  # cheaper plans were tried and failed

@@ -39,8 +39,12 @@ from gcs_core.units import DEG
 
 FIFTEEN_PERCENT = 0.15
 SPAN_S = 3600.0
-SLEWS = [Slew(792.0, 600.0, "roll", 0.04, ramp_s=0.0), Slew(1620.0, 300.0, "pitch", 0.02, ramp_s=0.0),
-         Slew(2160.0, 300.0, "yaw", -0.02, ramp_s=0.0), Slew(2700.0, 600.0, "roll", -0.04, ramp_s=0.0)]
+SLEWS = [
+    Slew(792.0, 600.0, "roll", 0.04, ramp_s=0.0),
+    Slew(1620.0, 300.0, "pitch", 0.02, ramp_s=0.0),
+    Slew(2160.0, 300.0, "yaw", -0.02, ramp_s=0.0),
+    Slew(2700.0, 600.0, "roll", -0.04, ramp_s=0.0),
+]
 MANEUVERS = tuple(Maneuver(s.t_start, s.duration_s, s.axis, s.rate_deg_s) for s in SLEWS)
 SEEDS = (1, 2, 3)
 
@@ -58,15 +62,14 @@ def inertial(request, tmp_path_factory):
     mdir, rpy0 = inertial_mission(tmp_path_factory.mktemp("cat"), request.param)
     analysis = Analysis(AnalysisConfig(mission=mdir).with_changes(diagnosis={"holdout_fraction": 0.0}))
     fit = analysis.fit(holdout=False)
-    plan = DataPlan(0.0, SPAN_S, step=60.0, rpy0=tuple(a * DEG for a in rpy0), maneuvers=MANEUVERS,
-                    stars="catalog")
+    plan = DataPlan(0.0, SPAN_S, step=60.0, rpy0=tuple(a * DEG for a in rpy0), maneuvers=MANEUVERS, stars="catalog")
     return analysis, fit, plan
 
 
 def test_inertial_plan_with_the_catalog_matches_post_fit_sigma_within_15_percent(inertial):
     analysis, fit, plan = inertial
     assert fit.status == "converged"
-    pred = predict(analysis.mission, plan=plan, method="whole_span")      # the fit's method
+    pred = predict(analysis.mission, plan=plan, method="whole_span")  # the fit's method
     assert pred.names == fit.solve_for
     ratio = pred.noise_only / np.sqrt(np.diag(fit.P))
     # k_beta is held (B3 is 0 in the data book); anything the plan does not determine is
@@ -104,11 +107,11 @@ def test_simulator_writes_its_catalog_and_the_importer_ignores_it(small_mission)
     assert SIM_CATALOG_FILE == STAR_CATALOG_FILE
     sim = StarCatalog(nominal_threeaxis("inertial").catalog_seed)
     cat = read_catalog(small_mission / STAR_CATALOG_FILE)
-    ten_microarcseconds = 1e-5 / 3600.0      # %.12g of a value below 360 deg: 9 decimals
+    ten_microarcseconds = 1e-5 / 3600.0  # %.12g of a value below 360 deg: 9 decimals
     np.testing.assert_allclose(cat.ra_deg, sim.ra_deg, rtol=0, atol=ten_microarcseconds)
     np.testing.assert_allclose(cat.dec_deg, sim.dec_deg, rtol=0, atol=ten_microarcseconds)
     np.testing.assert_allclose(cat.mag, sim.mag, rtol=1e-11)
-    mission = load_mission(small_mission)                      # not named in mission.toml
+    mission = load_mission(small_mission)  # not named in mission.toml
     assert STAR_CATALOG_FILE not in {Path(s.telemetry).name for s in mission.spec.sensors}
 
 
@@ -117,33 +120,42 @@ def test_telemetry_source_collects_the_distinct_stars(small_mission):
     tabs = [mission.telemetry[s.name] for s in mission.spec.sensors if s.type == "star_tracker"]
     cat = telemetry_catalog(tabs)
     reported = np.concatenate([np.column_stack([t.columns[c] for c in ("ra", "dec", "mag")]) for t in tabs])
-    assert 0 < len(cat) < len(reported)                        # each star reported many times
+    assert 0 < len(cat) < len(reported)  # each star reported many times
     assert len(cat) == len(np.unique(reported, axis=0))
     full = read_catalog(small_mission / STAR_CATALOG_FILE)
     one_arcsecond_deg = 1.0 / 3600.0
     d = np.abs(full.ra_deg[None, :] - cat.ra_deg[:, None]) + np.abs(full.dec_deg[None, :] - cat.dec_deg[:, None])
-    assert np.all(d.min(axis=1) < one_arcsecond_deg)           # every one a catalog star
+    assert np.all(d.min(axis=1) < one_arcsecond_deg)  # every one a catalog star
     # the same star in two rows (and two trackers) is one entry
-    row = lambda *v: Table(Path("x.csv"), np.arange(len(v), dtype=float),
-                           {"ra": np.array([a for a, _, _ in v]), "dec": np.array([b for _, b, _ in v]),
-                            "mag": np.array([m for _, _, m in v])}, np.arange(len(v)))
-    two = telemetry_catalog([row((10.0, 20.0, 4.0), (10.0, 20.0, 4.0), (11.0, 20.0, 5.0)),
-                             row((11.0, 20.0, 5.0))])
+    row = lambda *v: Table(
+        Path("x.csv"),
+        np.arange(len(v), dtype=float),
+        {
+            "ra": np.array([a for a, _, _ in v]),
+            "dec": np.array([b for _, b, _ in v]),
+            "mag": np.array([m for _, _, m in v]),
+        },
+        np.arange(len(v)),
+    )
+    two = telemetry_catalog([row((10.0, 20.0, 4.0), (10.0, 20.0, 4.0), (11.0, 20.0, 5.0)), row((11.0, 20.0, 5.0))])
     assert len(two) == 2 and isinstance(two, Catalog)
     assert telemetry_catalog([row()]) is None
 
 
-@pytest.mark.parametrize("text, line, column, words", [
-    ("ra,dec,mag\n10.0,20.0,4.0\n10.0,abc,4.0\n", 3, 2, "not a number"),
-    ("# a comment\nra,dec,mag\n\n# star 1\n10.0,20.0,4.0\n10.0,20.0\n", 6, 3, "missing column 3 'mag'"),
-    ("ra,mag\n10.0,4.0\n", 1, "dec", "missing required column 'dec'"),
-    ("ra,dec,mag\n400.0,20.0,4.0\n", 2, 1, "right ascension outside [0, 360] deg"),
-    ("ra,dec,mag\n10.0,20.0,4.0\n10.0,-95.0,4.0\n", 3, 2, "declination outside [-90, 90] deg"),
-    ("ra,dec,mag\n10.0,20.0,\n", 2, 3, "empty or nan value"),
-    ("ra,dec,mag\n10.0,20.0,inf\n", 2, 3, "infinite value"),
-    ("ra,dec,mag\n", 1, None, "no stars"),
-    ("10.0,20.0,4.0\n", 1, 1, "no header line"),
-])
+@pytest.mark.parametrize(
+    "text, line, column, words",
+    [
+        ("ra,dec,mag\n10.0,20.0,4.0\n10.0,abc,4.0\n", 3, 2, "not a number"),
+        ("# a comment\nra,dec,mag\n\n# star 1\n10.0,20.0,4.0\n10.0,20.0\n", 6, 3, "missing column 3 'mag'"),
+        ("ra,mag\n10.0,4.0\n", 1, "dec", "missing required column 'dec'"),
+        ("ra,dec,mag\n400.0,20.0,4.0\n", 2, 1, "right ascension outside [0, 360] deg"),
+        ("ra,dec,mag\n10.0,20.0,4.0\n10.0,-95.0,4.0\n", 3, 2, "declination outside [-90, 90] deg"),
+        ("ra,dec,mag\n10.0,20.0,\n", 2, 3, "empty or nan value"),
+        ("ra,dec,mag\n10.0,20.0,inf\n", 2, 3, "infinite value"),
+        ("ra,dec,mag\n", 1, None, "no stars"),
+        ("10.0,20.0,4.0\n", 1, 1, "no header line"),
+    ],
+)
 def test_catalog_read_errors_name_file_line_and_column(tmp_path, text, line, column, words):
     path = tmp_path / "skymap.csv"
     path.write_text(text)
@@ -194,7 +206,7 @@ def test_plan_validation_of_the_star_model(small_mission, tmp_path):
 def test_config_keys_stars_and_catalog(small_mission, tmp_path):
     base = {"analysis": {"mission": str(small_mission)}}
     cfg = config_from_dict({**base, "prediction": {"catalog": "star_catalog.csv"}}, path=tmp_path / "a.toml")
-    assert cfg.prediction.catalog == small_mission / "star_catalog.csv"        # relative to the mission
+    assert cfg.prediction.catalog == small_mission / "star_catalog.csv"  # relative to the mission
     plan = DataPlan.from_config(cfg, span=(0.0, 600.0))
     assert (plan.stars, plan.catalog) == ("catalog", small_mission / "star_catalog.csv")
     assert DataPlan.from_config(cfg, span=(0.0, 600.0), stars="sky").catalog is None
@@ -221,11 +233,12 @@ def test_tracker_magnitude_limit_keeps_only_bright_candidates(small_mission):
     plan = DataPlan(0.0, 600.0, step=60.0, stars="catalog")
 
     def limited(m):
-        sensors = tuple(replace(s, book={**s.book, "mag_limit": m}) if s.type == "star_tracker" else s
-                        for s in mission.spec.sensors)
+        sensors = tuple(
+            replace(s, book={**s.book, "mag_limit": m}) if s.type == "star_tracker" else s for s in mission.spec.sensors
+        )
         return predict(replace(mission, spec=replace(mission.spec, sensors=sensors)), plan=plan)
 
     full = predict(mission, plan=plan)
     assert full.frames["FHST1"] > 0
-    assert "FHST1" not in limited(1.0).frames                  # no frame finds a star
+    assert "FHST1" not in limited(1.0).frames  # no frame finds a star
     np.testing.assert_array_equal(limited(6.0).sigma, full.sigma)

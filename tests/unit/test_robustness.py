@@ -25,14 +25,14 @@ from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
 
 three_sigma = 3.0
-spike_nT = 3000.0            # a telemetry hit: 120 σ of the 25 nT TAM noise
+spike_nT = 3000.0  # a telemetry hit: 120 σ of the 25 nT TAM noise
 
 
 def _inject_spikes(path: Path, fraction: float, rng: np.random.Generator) -> list[float]:
     """Add ``spike_nT`` to one component of a fraction of TAM rows; return their times."""
     rows = list(csv.reader(path.open()))
     header_at = next(i for i, r in enumerate(rows) if r and not r[0].startswith("#"))
-    body = rows[header_at + 1:]
+    body = rows[header_at + 1 :]
     n = max(1, int(round(fraction * len(body))))
     picks = rng.choice(len(body), size=n, replace=False)
     times = []
@@ -41,7 +41,7 @@ def _inject_spikes(path: Path, fraction: float, rng: np.random.Generator) -> lis
         body[k][comp] = f"{float(body[k][comp]) + spike_nT * rng.choice([-1, 1]):.3f}"
         times.append(float(body[k][0]))
     with path.open("w", newline="") as fh:
-        csv.writer(fh).writerows(rows[:header_at + 1] + body)
+        csv.writer(fh).writerows(rows[: header_at + 1] + body)
     return sorted(times)
 
 
@@ -67,7 +67,7 @@ def test_spikes_are_flagged_not_dropped(dirty):
     r = a.result.residuals["TAM1"]
     flagged_t = set(np.round(r.t[r.edited], 3))
     assert set(np.round(spikes, 3)) <= flagged_t
-    assert len(r.t) == len(r.y)                      # every frame is still there
+    assert len(r.t) == len(r.y)  # every frame is still there
     assert np.count_nonzero(r.edited) < 0.01 * r.t.size
 
 
@@ -75,8 +75,9 @@ def test_misidentified_stars_are_flagged(dirty):
     a, _, truth = dirty
     for name in ("FHST1", "FHST2"):
         r = a.result.residuals[name]
-        n_bad = (truth["sensors"][name].get("n_misidentified")
-                 or truth.get("counters", {}).get(name, {}).get("n_misidentified"))
+        n_bad = truth["sensors"][name].get("n_misidentified") or truth.get("counters", {}).get(name, {}).get(
+            "n_misidentified"
+        )
         flagged = int(np.count_nonzero(r.edited))
         assert flagged >= 1
         if n_bad:
@@ -103,5 +104,5 @@ def test_editing_is_configurable_per_sensor(dirty, method):
     b.fit(holdout=False)
     tam = b.result.residuals["TAM1"]
     assert not tam.edited.any()
-    assert tam.rms_normalized > 2.0                        # 3000 nT spikes left in
-    assert b.result.residuals["FHST1"].edited.any()        # still edited at the global k
+    assert tam.rms_normalized > 2.0  # 3000 nT spikes left in
+    assert b.result.residuals["FHST1"].edited.any()  # still edited at the global k

@@ -24,6 +24,7 @@ from gcs_core.sim.truth import World
 one_nT = 1.0
 one_arcsecond = units.ARCSEC
 
+
 def aberrated(u, beta):
     """First-order aberration (Wertz 1978 §5.4): u' = unit(u + β − (u·β) u), β = v/c."""
     d = np.sum(u * beta, axis=-1, keepdims=True)
@@ -39,8 +40,11 @@ def apparent_sun(world, t):
 
 
 EXPECTED_HEADERS = {
-    "magnetometer": "t,bx,by,bz", "gyro": "t,wx,wy,wz", "star_tracker": "t,h,v,ra,dec,mag",
-    "fine_sun": "t,n_alpha,n_beta", "coarse_sun": "t,n_alpha,n_beta",
+    "magnetometer": "t,bx,by,bz",
+    "gyro": "t,wx,wy,wz",
+    "star_tracker": "t,h,v,ra,dec,mag",
+    "fine_sun": "t,n_alpha,n_beta",
+    "coarse_sun": "t,n_alpha,n_beta",
 }
 
 
@@ -88,8 +92,11 @@ def test_icd_directory_layout_and_headers(mission):
     assert toml["ephemeris"]["file"] == "ephemeris.csv"
     assert (out / toml["aux"]["file"]).exists() and (out / toml["onboard_attitude"]["file"]).exists()
     assert [s["name"] for s in toml["sensor"]] == [s.name for s in cfg.sensors]
-    headers = {"ephemeris.csv": "t,rx,ry,rz,vx,vy,vz,sx,sy,sz", "aux.csv": "t,mtb_x,mtb_y,mtb_z,tam_temp",
-               "onboard_attitude.csv": "t,q1,q2,q3,q4"}
+    headers = {
+        "ephemeris.csv": "t,rx,ry,rz,vx,vy,vz,sx,sy,sz",
+        "aux.csv": "t,mtb_x,mtb_y,mtb_z,tam_temp",
+        "onboard_attitude.csv": "t,q1,q2,q3,q4",
+    }
     for s in toml["sensor"]:
         headers[s["telemetry"]] = EXPECTED_HEADERS[s["type"]]
         assert len(s["alignment_deg"]) == 3
@@ -136,11 +143,11 @@ def test_ephemeris_rows_hermite_interpolate_to_the_truth(mission):
     t0, t1 = e[:-1, 0], e[1:, 0]
     h = (t1 - t0)[:, None]
     p0, p1, v0, v1 = e[:-1, 1:4], e[1:, 1:4], e[:-1, 4:7], e[1:, 4:7]
-    s = 0.5                                                          # mid-interval
+    s = 0.5  # mid-interval
     h00, h10, h01, h11 = 2 * s**3 - 3 * s**2 + 1, s**3 - 2 * s**2 + s, -2 * s**3 + 3 * s**2, s**3 - s**2
     r_mid = h00 * p0 + h10 * h * v0 + h01 * p1 + h11 * h * v1
     r_true, _ = World(cfg).orbit(0.5 * (t0 + t1))
-    assert np.max(np.linalg.norm(r_mid - r_true, axis=1)) < 1e-3        # 1 m
+    assert np.max(np.linalg.norm(r_mid - r_true, axis=1)) < 1e-3  # 1 m
     sun_lin = 0.5 * (e[:-1, 7:10] + e[1:, 7:10])
     sun_true = World(cfg).sun(0.5 * (t0 + t1))
     ang = np.linalg.norm(np.cross(sun_lin, sun_true), axis=1) / np.linalg.norm(sun_true, axis=1) ** 2
@@ -161,7 +168,7 @@ def test_gyro_rates_integrate_to_the_attitude_change(tmp_path):
     world = World(cfg)
     C = _truth_attitude(world, [0.0])[0]
     for k in range(y.shape[0]):
-        C = R.rotvec_to_dcm(y[k, 1:] * 1.0) @ C        # C(t_k) = exp(-[ω Δt x]) C(t_k-1)
+        C = R.rotvec_to_dcm(y[k, 1:] * 1.0) @ C  # C(t_k) = exp(-[ω Δt x]) C(t_k-1)
     C_true = _truth_attitude(world, [y[-1, 0]])[0]
     err = np.linalg.norm(R.dcm_to_rotvec(C @ C_true.T))
     assert err < 1e-3 * one_arcsecond
@@ -174,7 +181,7 @@ def test_gyro_noise_matches_arw_and_rrw(mission):
     t = y[:, 0]
     res = y[:, 1:] - world.omega_avg(t - 1.0, t)
     arw, rrw = 3.162278e-07, 3.162278e-10
-    expected = math.sqrt(arw ** 2 + rrw ** 2 / 12.0)        # Farrenkopf, Δt = 1 s
+    expected = math.sqrt(arw**2 + rrw**2 / 12.0)  # Farrenkopf, Δt = 1 s
     # First differences remove the slowly wandering bias (its step adds σ_u² Δt, negligible).
     d = np.diff(res, axis=0) / math.sqrt(2.0)
     assert np.std(d) == pytest.approx(expected, rel=0.03)
@@ -200,7 +207,7 @@ def test_gyro_integration_error_is_angle_random_walk(tmp_path):
         errs.append(R.dcm_to_rotvec(C @ world.attitude(np.array([y[k0 + T - 1, 0]]))[0].T))
     z = np.asarray(errs) / (arw * math.sqrt(T))
     assert z.size == 36
-    assert 0.62 < np.sqrt(np.mean(z ** 2)) < 1.42          # chi-square, 36 dof, 99.9 %
+    assert 0.62 < np.sqrt(np.mean(z**2)) < 1.42  # chi-square, 36 dof, 99.9 %
 
 
 def test_magnetometer_residual_is_the_configured_noise(mission):
@@ -210,7 +217,7 @@ def test_magnetometer_residual_is_the_configured_noise(mission):
     t = b[:, 0]
     r, _ = world.orbit(t)
     B_I = igrf_gci(world.epoch, world.jd0, t, r)
-    B_S = np.einsum("nij,nj->ni", world.attitude(t), B_I)     # M = I, bias 0 in the book
+    B_S = np.einsum("nij,nj->ni", world.attitude(t), B_I)  # M = I, bias 0 in the book
     res = b[:, 1:] - B_S
     assert np.abs(res.mean(axis=0)).max() < 2.0 * one_nT
     assert res.std() == pytest.approx(25.0, rel=0.03)
@@ -226,10 +233,10 @@ def test_star_tracker_follows_icd_model_within_noise(mission):
         ra, dec = np.radians(d[:, 3]), np.radians(d[:, 4])
         F_I = np.stack([np.cos(ra) * np.cos(dec), np.sin(ra) * np.cos(dec), np.sin(dec)], -1)
         _, v_sc = world.orbit(d[:, 0])
-        v_earth = -(world.sun(d[:, 0] + 1.0) - world.sun(d[:, 0] - 1.0)) / 2.0   # Earth about the Sun
-        F_I = aberrated(F_I, (v_earth + v_sc) / units.C_KM_S)           # stellar aberration
+        v_earth = -(world.sun(d[:, 0] + 1.0) - world.sun(d[:, 0] - 1.0)) / 2.0  # Earth about the Sun
+        F_I = aberrated(F_I, (v_earth + v_sc) / units.C_KM_S)  # stellar aberration
         F_S = np.einsum("ij,njk,nk->ni", M, world.attitude(d[:, 0]), F_I)
-        h = np.arcsin(F_S[:, 2])                                     # Eq 4-29, S_H = S_V = 1
+        h = np.arcsin(F_S[:, 2])  # Eq 4-29, S_H = S_V = 1
         v = np.arctan2(F_S[:, 1], F_S[:, 0])
         res = np.concatenate([d[:, 1] - h, d[:, 2] - v])
         assert np.all(np.abs(d[:, 1:3]) < np.radians(4.0) + 10 * s.book["noise"])
@@ -272,6 +279,7 @@ def test_onboard_attitude_carries_the_injected_error(mission):
 
 def test_bad_configuration_is_one_clear_line(tmp_path):
     from gcs_core.errors import InputError
+
     cfg = nominal_threeaxis("sun_pointing", seed=1, duration_s=60.0)
     cfg.attitude_mode = "tumbling"
     with pytest.raises(InputError, match="attitude_mode"):
@@ -291,12 +299,12 @@ def test_gyro_read_out_noise_telescopes(tmp_path):
     out = write_mission(cfg, tmp_path / "g")
     _, y = _read(out / "telemetry/IRU.csv")
     t = y[:, 0]
-    res = y[:, 1:] - World(cfg).omega_avg(t - 1.0, t)            # Δt = 1 s
+    res = y[:, 1:] - World(cfg).omega_avg(t - 1.0, t)  # Δt = 1 s
     n = res.shape[0]
     assert np.std(res) == pytest.approx(math.sqrt(2.0) * sig_e, rel=4 / math.sqrt(3 * n))
     lag1 = np.mean(res[1:] * res[:-1]) / np.mean(res * res)
     assert lag1 == pytest.approx(-0.5, abs=4 / math.sqrt(3 * n))
-    S = np.cumsum(res, axis=0)                                    # integrated angle error
+    S = np.cumsum(res, axis=0)  # integrated angle error
     for T in (10, 900):
-        ang = S[T:] - S[:-T]                                      # e_{k+T} − e_k
+        ang = S[T:] - S[:-T]  # e_{k+T} − e_k
         assert np.std(ang) == pytest.approx(math.sqrt(2.0) * sig_e, rel=4 / math.sqrt(3 * (n - T))), T

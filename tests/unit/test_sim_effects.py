@@ -99,7 +99,7 @@ def test_fhst_rotation_about_boresight(base):
 
 def test_stellar_aberration_and_misidentification(base):
     y0, world, _ = run(with_effect(base, "model.stellar_aberration", 0.0), "FHST2", T10, noise=0.0)
-    y1, _, _ = run(base, "FHST2", T10, noise=0.0)                    # real physics: on
+    y1, _, _ = run(base, "FHST2", T10, noise=0.0)  # real physics: on
     k = np.isin(y1["t"], y0["t"])
     k0 = np.searchsorted(y0["t"], y1["t"][k])
     ok = y0["ra"][k0] == y1["ra"][k]
@@ -120,12 +120,12 @@ def test_fss_harmonic_and_css_bias(base):
     swept = nominal_threeaxis("sun_pointing", seed=21, duration_s=D, sweep_deg=3.0)
     y0, _, _ = run(swept, "FSS1", T1HZ)
     y1, world, _ = run(with_effect(swept, "FSS1.harmonic", H), "FSS1", T1HZ)
-    tan_a = 7.6e-5 * y0["n_alpha"]                                    # A1 = 0, A3 = 0 in the book
-    expected = -H * np.sin(2 * 50.0 * tan_a) / 7.6e-5                 # second harmonic, ±0.66 counts
+    tan_a = 7.6e-5 * y0["n_alpha"]  # A1 = 0, A3 = 0 in the book
+    expected = -H * np.sin(2 * 50.0 * tan_a) / 7.6e-5  # second harmonic, ±0.66 counts
     dn = y1["n_alpha"] - y0["n_alpha"]
     assert np.max(np.abs(dn - expected)) <= 1.0 + 1e-9
     # The shared Gaussian noise dithers the rounding, so E[Δn | expected] = expected.
-    slope = np.sum(dn * expected) / np.sum(expected ** 2)
+    slope = np.sum(dn * expected) / np.sum(expected**2)
     assert slope == pytest.approx(1.0, abs=0.1)
     c0, _, _ = run(base, "CSS1", T1HZ)
     cfg = with_effect(base, "CSS1.bias", math.radians(1.0))

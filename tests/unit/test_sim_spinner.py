@@ -31,8 +31,9 @@ def apparent_sun(world, t):
     return S / np.linalg.norm(S, axis=1)[:, None]
 
 
-def icd_dt(world, t_s, dt0, w, *, gamma, phi_h, h_H, d_gamma=0.0, d_phi=0.0, eps_s=0.0, eps_h=0.0,
-           d_rho=0.0, out=False):
+def icd_dt(
+    world, t_s, dt0, w, *, gamma, phi_h, h_H, d_gamma=0.0, d_phi=0.0, eps_s=0.0, eps_h=0.0, d_rho=0.0, out=False
+):
     """ICD §5 horizon model, iterated at the crossing time (Eq 4-12a to 4-12e)."""
     A = world.spin_axis_I
     g = gamma + d_gamma
@@ -48,7 +49,7 @@ def icd_dt(world, t_s, dt0, w, *, gamma, phi_h, h_H, d_gamma=0.0, d_phi=0.0, eps
         Mh = np.cross(A, E) / np.sin(eta)[:, None]
         Nh = np.cross(E, Mh)
         cL = (np.cos(g) - np.cos(rho) * np.cos(eta)) / (np.sin(rho) * np.sin(eta))
-        sL = np.sqrt(1 - cL ** 2) * (1.0 if out else -1.0)
+        sL = np.sqrt(1 - cL**2) * (1.0 if out else -1.0)
         H = np.cos(rho)[:, None] * E + np.sin(rho)[:, None] * (Mh * sL[:, None] + Nh * cL[:, None])
         Phi = np.arctan2(np.cross(S, H) @ A, np.sum(S * H, 1) - (S @ A) * (H @ A))
         dPS = np.arcsin(np.tan(eps_s) / np.tan(np.arccos(S @ A)))
@@ -57,14 +58,22 @@ def icd_dt(world, t_s, dt0, w, *, gamma, phi_h, h_H, d_gamma=0.0, d_phi=0.0, eps
     return dt
 
 
-CASES = [(None, 0.0), ("HS1.d_gamma", 0.01), ("HS1.d_phi", 0.02), ("PSS1.tilt", 0.03), ("HS1.eps_H", 0.02),
-         ("HS1.horizon_height", 15.0), ("HS1.d_rho", 0.004), ("PSS1.bias", 0.01)]
+CASES = [
+    (None, 0.0),
+    ("HS1.d_gamma", 0.01),
+    ("HS1.d_phi", 0.02),
+    ("PSS1.tilt", 0.03),
+    ("HS1.eps_H", 0.02),
+    ("HS1.horizon_height", 15.0),
+    ("HS1.d_rho", 0.004),
+    ("PSS1.bias", 0.01),
+]
 
 
 @pytest.mark.parametrize("effect,magnitude", CASES)
 def test_root_found_crossings_match_icd_closed_form(effect, magnitude):
     base = spinner_nominal(seed=5, duration_s=1000.0)
-    base.physics["earth_oblateness"] = False            # the ICD's spherical Earth
+    base.physics["earth_oblateness"] = False  # the ICD's spherical Earth
     cfg = base if effect is None else with_effect(base, effect, magnitude)
     hs, pss = cfg.sensor("HS1"), cfg.sensor("PSS1")
     hs.true["noise"] = pss.true["noise"] = 0.0
@@ -75,9 +84,16 @@ def test_root_found_crossings_match_icd_closed_form(effect, magnitude):
     d = h_sim.run_span(0.0, 1000.0, 980.0)
     p = p_sim.run_span(0.0, 1000.0, 980.0)
     assert d["t"].size > 120 and p["t"].size >= d["t"].size
-    kw = dict(gamma=math.radians(hs.value("gamma_deg")), phi_h=math.radians(hs.value("phi_h_deg")),
-              h_H=hs.value("horizon_height_km"), d_gamma=hs.value("d_gamma", 0.0), d_phi=hs.value("d_phi", 0.0),
-              eps_s=math.radians(pss.value("tilt_deg")), eps_h=hs.value("eps_H", 0.0), d_rho=hs.value("d_rho", 0.0))
+    kw = dict(
+        gamma=math.radians(hs.value("gamma_deg")),
+        phi_h=math.radians(hs.value("phi_h_deg")),
+        h_H=hs.value("horizon_height_km"),
+        d_gamma=hs.value("d_gamma", 0.0),
+        d_phi=hs.value("d_phi", 0.0),
+        eps_s=math.radians(pss.value("tilt_deg")),
+        eps_h=hs.value("eps_H", 0.0),
+        d_rho=hs.value("d_rho", 0.0),
+    )
     for col, out in (("dt_in", False), ("dt_out", True)):
         ref = icd_dt(world, d["t"], d[col], d["spin_rate"], out=out, **kw)
         assert np.max(np.abs(ref - d[col])) < 5 * one_microsecond, col
@@ -92,7 +108,7 @@ def test_oblate_crossings_are_tangent_to_the_ellipsoid():
     exact criterion: scaled by ``D = diag(1/a, 1/a, 1/b)`` the ellipsoid is the unit sphere,
     and the beam at each crossing must be tangent to it: ``∠(D d, −D r) = asin(1/|D r|)``."""
     cfg = spinner_nominal(seed=5, duration_s=1000.0)
-    cfg.orbit.i_deg = 90.0                               # the poles: the largest flattening effect
+    cfg.orbit.i_deg = 90.0  # the poles: the largest flattening effect
     hs = cfg.sensor("HS1")
     hs.true["noise"] = 0.0
     world = World(cfg)
@@ -121,7 +137,7 @@ def test_spinner_mission_files_one_row_per_spin(tmp_path):
     hs = np.loadtxt(out / "telemetry/HS1.csv", delimiter=",", skiprows=1)
     assert (out / "telemetry/HS1.csv").read_text().splitlines()[0] == "t,spin_rate,dt_in,dt_out"
     assert (out / "telemetry/PSS1.csv").read_text().splitlines()[0] == "t,beta"
-    period = 6.0                                                     # 10 rpm
+    period = 6.0  # 10 rpm
     steps = np.diff(pss[:, 0])
     assert np.median(steps) == pytest.approx(period, abs=1e-3)
     assert np.all(steps > 0.99 * period)
@@ -142,8 +158,9 @@ def test_horizon_oblateness_and_time_offset_act_as_physics():
         cfg.sensor("HS1").true["noise"] = 0.0
         world = World(cfg)
         sight = SunSightings(world, cfg.sensor("PSS1"))
-        runs[eid] = make_sensor_sim(cfg.sensor("HS1"), world, np.random.default_rng(0),
-                                    sightings=sight).run_span(0.0, 1200.0, 1180.0)
+        runs[eid] = make_sensor_sim(cfg.sensor("HS1"), world, np.random.default_rng(0), sightings=sight).run_span(
+            0.0, 1200.0, 1180.0
+        )
     nominal, oblate, shifted = runs[None], runs["HS1.oblateness"], runs["HS1.time_offset"]
     width = lambda d: d["dt_out"] - d["dt_in"]
     n = min(nominal["t"].size, oblate["t"].size)
@@ -157,8 +174,11 @@ def test_simulator_imports_no_model_code():
     """The simulator checks the models, so it must not share their code (issue 11)."""
     import subprocess
     import sys
-    code = ("import sys, gcs_core.sim, gcs_core.sim.spinner, gcs_core.sim.writer; "
-            "print(sorted(m for m in sys.modules if m.startswith(('gcs_core.models', 'gcs_core.ephem', "
-            "'gcs_core.frames'))))")
+
+    code = (
+        "import sys, gcs_core.sim, gcs_core.sim.spinner, gcs_core.sim.writer; "
+        "print(sorted(m for m in sys.modules if m.startswith(('gcs_core.models', 'gcs_core.ephem', "
+        "'gcs_core.frames'))))"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"

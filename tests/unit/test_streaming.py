@@ -22,9 +22,9 @@ from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
 
-TINY = 97                     # frames per chunk / knots per gyro block, forced
-ONE_CHUNK = 10 ** 9           # the whole span at once
-round_off = 1e-9              # relative agreement expected between chunkings
+TINY = 97  # frames per chunk / knots per gyro block, forced
+ONE_CHUNK = 10**9  # the whole span at once
+round_off = 1e-9  # relative agreement expected between chunkings
 one_sigma = 1.0
 
 
@@ -39,8 +39,7 @@ def mission_dir(tmp_path_factory):
 
 
 def _analysis(mission_dir, chunk: int) -> Analysis:
-    physics = {"stellar_aberration": False, "solar_aberration": True, "sun_parallax": True,
-               "field_model": "igrf"}
+    physics = {"stellar_aberration": False, "solar_aberration": True, "sun_parallax": True, "field_model": "igrf"}
     a = Analysis(AnalysisConfig(mission=mission_dir).with_changes(physics=physics))
     a.problem.set_chunk(chunk)
     return a
@@ -63,7 +62,7 @@ def test_tiny_chunks_really_are_tiny(fits):
     seen = 0
     for blk in iter_blocks(a.problem, a.problem.state.values(), list(a.problem.state.solve_for)):
         assert blk.hi - blk.lo <= TINY
-        assert len(a.problem.attitude._blocks) <= 1          # one propagation block held
+        assert len(a.problem.attitude._blocks) <= 1  # one propagation block held
         seen += blk.hi - blk.lo
     assert seen == sum(sd.n for sd in a.problem.sensors)
 
@@ -74,16 +73,16 @@ def test_batch_fit_does_not_depend_on_the_chunk(fits):
     sig = np.sqrt(np.diag(r1.P))
     assert np.max(np.abs(r1.x - r2.x) / sig) < round_off * 1e3 * one_sigma
     np.testing.assert_allclose(r2.P, r1.P, rtol=round_off, atol=round_off * np.max(np.abs(r1.P)))
-    np.testing.assert_allclose(r2.information, r1.information, rtol=round_off,
-                               atol=round_off * np.max(np.abs(r1.information)))
+    np.testing.assert_allclose(
+        r2.information, r1.information, rtol=round_off, atol=round_off * np.max(np.abs(r1.information))
+    )
     assert r2.chi2 == pytest.approx(r1.chi2, rel=round_off)
     for name, a in r1.residuals.items():
         b = r2.residuals[name]
         assert np.array_equal(a.valid, b.valid) and np.array_equal(a.edited, b.edited)
         np.testing.assert_allclose(b.normalized, a.normalized, rtol=0, atol=1e-6)
         # relative to the sensor's scale: a prediction that crosses zero has no relative digits
-        np.testing.assert_allclose(b.y_pred, a.y_pred, rtol=round_off,
-                                   atol=round_off * np.nanmax(np.abs(a.y_pred)))
+        np.testing.assert_allclose(b.y_pred, a.y_pred, rtol=round_off, atol=round_off * np.nanmax(np.abs(a.y_pred)))
 
 
 def test_ranking_does_not_depend_on_the_chunk(fits):
@@ -94,7 +93,7 @@ def test_ranking_does_not_depend_on_the_chunk(fits):
     c2 = {c.id: c for c in rank_candidates(a2.problem, r1, effects)}
     assert set(c1) == set(c2)
     top = max(c1.values(), key=lambda c: c.delta_chi2)
-    assert top.delta_chi2 > 100.0            # the hidden time offset (or its alias) is seen
+    assert top.delta_chi2 > 100.0  # the hidden time offset (or its alias) is seen
     for k, c in c1.items():
         assert c2[k].delta_chi2 == pytest.approx(c.delta_chi2, rel=1e-7, abs=1e-6), k
         assert c2[k].dof == c.dof
@@ -107,10 +106,10 @@ def test_legacy_linearize_equals_the_blocks(fits):
     lins = {lin.name: lin for lin in linearize(a.problem, values, names)}
     for blk in iter_blocks(a.problem, values, names):
         lin = lins[blk.name]
-        full = lin.H[blk.lo:blk.hi][:, :, blk.cols]
+        full = lin.H[blk.lo : blk.hi][:, :, blk.cols]
         np.testing.assert_array_equal(full[blk.valid], blk.H[blk.valid])
         others = np.setdiff1d(np.arange(len(names)), blk.cols)
-        assert not np.any(lin.H[blk.lo:blk.hi][:, :, others])     # no data depends on them
+        assert not np.any(lin.H[blk.lo : blk.hi][:, :, others])  # no data depends on them
 
 
 @pytest.mark.parametrize("label", ["one", "tiny"])
@@ -124,8 +123,9 @@ def test_summed_rows_equal_the_stored_rows(fits, label, monkeypatch):
     a, r = fits[label]
     names = list(r.solve_for)
     values = r.state.values()
-    summed = [blk.G is not None for blk in iter_blocks(a.problem, values, names, weighted=True,
-                                                        augmented=True, gram=True)]
+    summed = [
+        blk.G is not None for blk in iter_blocks(a.problem, values, names, weighted=True, augmented=True, gram=True)
+    ]
     A1, b1, c1, m1 = normal_equations(a.problem, values, names, {})
     monkeypatch.setattr(batch_kernels, "DSYRK", None)
     A2, b2, c2, m2 = normal_equations(a.problem, values, names, {})
@@ -159,8 +159,9 @@ def test_factored_partials_chain_like_the_jacobian(fits):
     fr = att.frames(values, t)
     D = np.random.default_rng(4).standard_normal((t.size, 3, 3))
     sel = np.array([0, 2, 3, 4, 5, 12, 13, 19, 20])
-    np.testing.assert_allclose(fr.chain(D, sel), D @ att.evaluate(values, t).J[:, :, sel],
-                               rtol=1e-12, atol=1e-12 * np.max(np.abs(fr.J)))
+    np.testing.assert_allclose(
+        fr.chain(D, sel), D @ att.evaluate(values, t).J[:, :, sel], rtol=1e-12, atol=1e-12 * np.max(np.abs(fr.J))
+    )
 
 
 def test_held_channels_equal_the_stored_ones(fits):

@@ -42,8 +42,15 @@ def _numbers(rows):
 
 def _gcs(args, **kw):
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", PYTHONPATH=str(ROOT))
-    return subprocess.Popen([sys.executable, "-m", "gcs_tui.cli", *args], cwd=ROOT, env=env,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, **kw)
+    return subprocess.Popen(
+        [sys.executable, "-m", "gcs_tui.cli", *args],
+        cwd=ROOT,
+        env=env,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        **kw,
+    )
 
 
 def _wait_for_rows(path: Path, proc, minimum: int = 1, timeout: float = 60.0) -> int:
@@ -81,7 +88,7 @@ def test_killed_study_keeps_finished_plans_and_resume_computes_the_rest(tmp_path
     proc.send_signal(signal.SIGKILL)
     proc.wait(timeout=30)
     assert kept > 0, proc.stderr.read()
-    defn, rows = read_study(out)                         # every finished plan readable
+    defn, rows = read_study(out)  # every finished plan readable
     total = len(_defn(KILL_VARY).combos())
     assert 0 < len(rows) < total, "the kill came too late to test anything"
     assert all(r.status == "ok" for r in rows)
@@ -98,9 +105,11 @@ def test_killed_study_keeps_finished_plans_and_resume_computes_the_rest(tmp_path
     assert sorted(computed) == sorted(set(range(total)) - {r.index for r in rows})
     assert len(resumed) == total
     monkeypatch.setattr(trade_run, "evaluate_plans", real)
-    sample = [r.index for r in rows[:3]] + sorted(computed)[:3]      # written before and after
-    fresh = {r.index: r for r in trade_run.evaluate_plans(_defn(KILL_VARY), [(i, _defn(KILL_VARY).combos()[i])
-                                                                              for i in sample])}
+    sample = [r.index for r in rows[:3]] + sorted(computed)[:3]  # written before and after
+    fresh = {
+        r.index: r
+        for r in trade_run.evaluate_plans(_defn(KILL_VARY), [(i, _defn(KILL_VARY).combos()[i]) for i in sample])
+    }
     assert _numbers([resumed[i] for i in sample]) == _numbers([fresh[i] for i in sample])
 
 
@@ -132,12 +141,20 @@ def test_output_refused_without_resume_and_other_study(tmp_path):
 
 
 def test_serial_path_never_imports_dask(tmp_path):
-    code = ("import sys; from gcs_core.config import load_config; from gcs_core.trade import "
-            "definition_from_config; from gcs_core.trade.run import run_study; "
-            f"run_study(definition_from_config(load_config({str(CONFIG)!r}), {{'span_min': (10,)}})); "
-            "print('dask' in sys.modules, 'distributed' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True,
-                         env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=120)
+    code = (
+        "import sys; from gcs_core.config import load_config; from gcs_core.trade import "
+        "definition_from_config; from gcs_core.trade.run import run_study; "
+        f"run_study(definition_from_config(load_config({str(CONFIG)!r}), {{'span_min': (10,)}})); "
+        "print('dask' in sys.modules, 'distributed' in sys.modules)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        env=dict(os.environ, PYTHONPATH=str(ROOT)),
+        timeout=120,
+    )
     assert out.stdout.split() == ["False", "False"], out.stderr
 
 

@@ -29,8 +29,16 @@ def test_passes_become_gaps(base):
 
 
 def test_maneuver_keys(base):
-    s = space.apply(*base, {"maneuver.axis": "roll", "maneuver.rate_deg_s": 0.1, "maneuver.angle_deg": 30,
-                            "maneuver.start_min": 10, "maneuver.back": True})
+    s = space.apply(
+        *base,
+        {
+            "maneuver.axis": "roll",
+            "maneuver.rate_deg_s": 0.1,
+            "maneuver.angle_deg": 30,
+            "maneuver.start_min": 10,
+            "maneuver.back": True,
+        },
+    )
     (out, back) = s.plan.maneuvers
     assert (out.axis, out.start, out.duration, out.rate_deg_s) == ("roll", 600.0, 300.0, 0.1)
     assert (back.start, back.rate_deg_s) == (900.0, -0.1)
@@ -41,13 +49,21 @@ def test_maneuver_keys(base):
 
 
 def test_sensor_keys(base):
-    s = space.apply(*base, {"models.FHST2": "off", "FHST1.alignment_deg[2]": 5.0, "FHST1.noise": 1e-5,
-                            "IRU.arw": 1e-6, "effects": "FHST1.alignment+TAM1.alignment"})
+    s = space.apply(
+        *base,
+        {
+            "models.FHST2": "off",
+            "FHST1.alignment_deg[2]": 5.0,
+            "FHST1.noise": 1e-5,
+            "IRU.arw": 1e-6,
+            "effects": "FHST1.alignment+TAM1.alignment",
+        },
+    )
     assert s.config.models["FHST2"] == "off"
     fh = s.spec.sensor("FHST1")
     assert fh.alignment_deg[1] == 5.0 and fh.noise == 1e-5
     assert s.spec.sensor("IRU").book["arw"] == 1e-6
-    assert "FHST1.alignment" in s.config.state.effects and "TAM1.alignment" not in s.config.state.effects   # TAM1 is off
+    assert "FHST1.alignment" in s.config.state.effects and "TAM1.alignment" not in s.config.state.effects  # TAM1 is off
     d = s.describe()
     assert d["sensors"]["FHST2"]["on"] is False and d["sensors"]["FHST1"]["alignment_deg"][1] == 5.0
 
@@ -64,6 +80,7 @@ def test_misalignment_about_the_sensor_axes(base):
     """FHST1 is mounted with a3 = 90°: a small a1 turns about body x, which is the sensor's −y;
     a2 turns about the sensor's x (the boresight)."""
     import numpy as np
+
     _, spec, _ = base
     P = np.diag([1.0, 4.0, 9.0])
     Q = sensor_axes_covariance(spec, "FHST1", P)

@@ -28,16 +28,19 @@ ROUND_OFF_RAD = 1e-12
 
 
 # --------------------------------------------------------------------- the rule itself
-@pytest.mark.parametrize("sigma, ground, req, expected", [
-    (1.0001e-4, 1.0e-4, 0.5e-4, True),       # just above the ground accuracy, above the requirement
-    (0.9999e-4, 1.0e-4, 0.5e-4, False),      # just below the ground accuracy
-    (1.0e-4, 1.0e-4, 0.5e-4, False),         # equal is not "higher than"
-    (2.0001e-4, 1.0e-4, 2.0e-4, True),       # just above the requirement, above the ground
-    (1.9999e-4, 1.0e-4, 2.0e-4, False),      # just below the requirement
-    (5.0e-4, 1.0e-3, 1.0e-4, False),         # exceeds only the requirement
-    (5.0e-4, 1.0e-4, 1.0e-3, False),         # exceeds only the ground accuracy
-    (np.nan, 1.0e-4, 1.0e-4, False),         # too few points never flags
-])
+@pytest.mark.parametrize(
+    "sigma, ground, req, expected",
+    [
+        (1.0001e-4, 1.0e-4, 0.5e-4, True),  # just above the ground accuracy, above the requirement
+        (0.9999e-4, 1.0e-4, 0.5e-4, False),  # just below the ground accuracy
+        (1.0e-4, 1.0e-4, 0.5e-4, False),  # equal is not "higher than"
+        (2.0001e-4, 1.0e-4, 2.0e-4, True),  # just above the requirement, above the ground
+        (1.9999e-4, 1.0e-4, 2.0e-4, False),  # just below the requirement
+        (5.0e-4, 1.0e-3, 1.0e-4, False),  # exceeds only the requirement
+        (5.0e-4, 1.0e-4, 1.0e-3, False),  # exceeds only the ground accuracy
+        (np.nan, 1.0e-4, 1.0e-4, False),  # too few points never flags
+    ],
+)
 def test_flag_rule_needs_both_thresholds_strictly(sigma, ground, req, expected):
     assert bool(flag_rule(sigma, ground, req)) is expected
 
@@ -51,7 +54,7 @@ def test_seed_sigma_uses_n_minus_one_and_keeps_the_mean():
 
 
 def test_slerp_reproduces_a_constant_rate_rotation():
-    rate = np.array([1e-3, -2e-3, 0.5e-3])            # rad/s
+    rate = np.array([1e-3, -2e-3, 0.5e-3])  # rad/s
     t_knots = np.arange(0.0, 101.0, 10.0)
     t = np.linspace(0.0, 100.0, 37)
     q_knots = quat_from_dcm(rotvec_to_dcm(rate[None] * t_knots[:, None]))
@@ -96,17 +99,33 @@ def test_verify_interpolates_the_ground_and_reports_a_trend():
     late = t >= 600.0
     _, q_bad, _ = _inertial_pair(n=1201, offset_rad=(a, 0.0, 0.0))
     q_ob = np.where(late[:, None], q_bad, q_ob)
-    g_t = t[::5]                                       # ground every 5 s, slerped to onboard times
-    res = verify(t, q_ob, g_t, q_g[::5], np.full(3, 1 * one_arcsecond), requirement_rad=0.01 * units.DEG,
-                 mode="inertial", window_s=300.0)
-    slerp_error = 0.2 * one_arcsecond      # Euler angles linear in t are not a constant-rate turn
+    g_t = t[::5]  # ground every 5 s, slerped to onboard times
+    res = verify(
+        t,
+        q_ob,
+        g_t,
+        q_g[::5],
+        np.full(3, 1 * one_arcsecond),
+        requirement_rad=0.01 * units.DEG,
+        mode="inertial",
+        window_s=300.0,
+    )
+    slerp_error = 0.2 * one_arcsecond  # Euler angles linear in t are not a constant-rate turn
     np.testing.assert_allclose(res.diff[~late], 0.0, atol=slerp_error)
     np.testing.assert_allclose(res.diff[late][:, 0], a, atol=slerp_error)
     assert res.flag and list(res.flag_axes) == [True, False, False]
     assert list(res.trend_flag) == [False, False, True, True]
     assert res.trend_n.sum() == res.n == t.size
-    body = verify(t, q_ob, g_t, q_g[::5], np.full(3, 1 * one_arcsecond), requirement_rad=0.01 * units.DEG,
-                  mode="inertial", angles="body")
+    body = verify(
+        t,
+        q_ob,
+        g_t,
+        q_g[::5],
+        np.full(3, 1 * one_arcsecond),
+        requirement_rad=0.01 * units.DEG,
+        mode="inertial",
+        angles="body",
+    )
     # body axes differ from the roll axis by the Eq 4-22 Jacobian at (0.2, -0.1, 0.3) rad
     assert body.flag and body.sigma[0] == pytest.approx(res.sigma[0], rel=0.1)
 
@@ -136,8 +155,12 @@ def sim_pair(tmp_path_factory):
 
 
 def test_simulated_onboard_error_is_flagged_and_clean_one_is_not(sim_pair):
-    clean = verify_analysis(Analysis(AnalysisConfig(mission=sim_pair["clean"]).with_changes(diagnosis={"holdout_fraction": 0.0})))
-    bad = verify_analysis(Analysis(AnalysisConfig(mission=sim_pair["injected"]).with_changes(diagnosis={"holdout_fraction": 0.0})))
+    clean = verify_analysis(
+        Analysis(AnalysisConfig(mission=sim_pair["clean"]).with_changes(diagnosis={"holdout_fraction": 0.0}))
+    )
+    bad = verify_analysis(
+        Analysis(AnalysisConfig(mission=sim_pair["injected"]).with_changes(diagnosis={"holdout_fraction": 0.0}))
+    )
     assert not clean.flag, clean.reason
     assert np.all(clean.sigma < 0.01 * units.DEG)
     assert bad.flag and bad.flag_axes[0], bad.reason
@@ -148,13 +171,14 @@ def test_simulated_onboard_error_is_flagged_and_clean_one_is_not(sim_pair):
 def test_example_mission_and_its_rotated_onboard_attitude(example_dir):
     """sunpoint-nominal: its onboard yaw differs from the ground fit by about 0.02°, so it
     passes a 0.03° requirement; the same quaternions turned 0.05° about x do not."""
-    cfg = AnalysisConfig(mission=example_dir).with_changes(diagnosis={"holdout_fraction": 0.0},
-                                                 verification={"requirement_deg": 0.03})
+    cfg = AnalysisConfig(mission=example_dir).with_changes(
+        diagnosis={"holdout_fraction": 0.0}, verification={"requirement_deg": 0.03}
+    )
     analysis = Analysis(cfg)
     ok = verify_analysis(analysis)
     assert not ok.flag, ok.reason
     assert ok.n == len(analysis.mission.onboard)
-    rotated = copy.copy(analysis)                  # same fit, other onboard file
+    rotated = copy.copy(analysis)  # same fit, other onboard file
     rotated.mission = _rotate_onboard(analysis.mission, INJECTED_DEG * units.DEG)
     bad = verify_analysis(rotated)
     assert bad.flag and list(bad.flag_axes) == [True, False, False], bad.reason

@@ -46,11 +46,11 @@ def _small(seed=3, duration_s=300.0, spacing=20.0):
     state = problem.state
     x_bar = np.array([state[nm].value for nm in names])
     s0 = np.array([state[nm].sigma0 for nm in names])
-    prior = 1.0 / s0 ** 2
+    prior = 1.0 / s0**2
     noise = attitude_gyro_noise(problem)
     grid = sb.make_knots(problem, noise, batch.information, names, spacing=spacing)
     passes = sb.Passes(problem, names, grid, x_bar, prior)
-    passes.stream = False                  # every knot's blocks kept (Dk, Bk) for inspection
+    passes.stream = False  # every knot's blocks kept (Dk, Bk) for inspection
     return problem, batch, grid, passes, x_bar, prior
 
 
@@ -69,7 +69,7 @@ def _dense(A, b, prior, x, x_bar, sysk):
         N[s, :n] = sysk.Bk[j][:, :n]
         N[:n, s] = sysk.Bk[j][:, :n].T
         g[s] += sysk.Bk[j][:, n]
-    for i in range(K - 1):                     # prior on z_{i+1} − Φ_i z_i (z_0 = 0)
+    for i in range(K - 1):  # prior on z_{i+1} − Φ_i z_i (z_0 = 0)
         W, Phi = sysk.W[i], sysk.Phi[i]
         s1 = slice(n + d * i, n + d * (i + 1))
         N[s1, s1] += W
@@ -165,8 +165,7 @@ def test_reduces_to_the_batch_when_the_process_noise_vanishes():
     problem = sim_problem(mission)
     batch = batch_fit(problem, NO_EDIT)
     book = attitude_gyro_noise(problem)
-    res = sb.whole_span_fit(problem, NO_EDIT, start=batch,
-                            noise=GyroNoise(1e-4 * book.sigma_v, 1e-4 * book.sigma_u))
+    res = sb.whole_span_fit(problem, NO_EDIT, start=batch, noise=GyroNoise(1e-4 * book.sigma_v, 1e-4 * book.sigma_u))
     sig = np.sqrt(np.diag(batch.P))
     assert np.max(np.abs(res.x - batch.x) / sig) < 1e-3
     np.testing.assert_allclose(np.sqrt(np.diag(res.P)), sig, rtol=1e-3)
@@ -226,10 +225,12 @@ def test_gross_magnetometer_error_does_not_drag_the_attitude(tmp_path):
     assert res.status == "converged", res.message
     for name in ("FHST1", "FHST2"):
         assert res.residuals[name].rms_normalized < 5.0, (name, res.residuals[name].rms_normalized)
-    assert res.residuals["TAM1"].rms_normalized > 3.0                  # the error stays visible
+    assert res.residuals["TAM1"].rms_normalized > 3.0  # the error stays visible
     assert not res.residuals["TAM1"].edited.any()
     top = a.rank()[0]
     assert top.id in ("TAM1.nonorthogonality", "TAM1.scale"), [c.id for c in a.candidates[:3]]
+
+
 def test_knot_grid_graded_near_the_static_attitude():
     """The first interval (where the static attitude is) cut at Δ/8, Δ/4, Δ/2, the next two
     halved, the rest equal; no interval shorter than the gyro's sample interval."""
@@ -240,4 +241,4 @@ def test_knot_grid_graded_near_the_static_attitude():
     assert grid.tau[0] == 0.0 and grid.tau[-1] > 100.0
     coarse = kn.make_grid(0.0, 100.0, 10.0, 1e-6, 1e-9, min_step=3.0)
     assert np.diff(coarse.tau).min() >= 3.0 - ROUND_OFF
-    assert coarse.K == grid.K - 2                  # the Δ/8 cuts dropped, the halvings kept
+    assert coarse.K == grid.K - 2  # the Δ/8 cuts dropped, the halvings kept

@@ -25,8 +25,8 @@ import pytest
 
 from gcs_core.filtr import smoothing_batch as sb
 from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.problem.build import build_problem
 from gcs_core.io.importer import load_mission
+from gcs_core.problem.build import build_problem
 from gcs_core.sim.scenarios import nominal_threeaxis
 from gcs_core.sim.writer import write_mission
 
@@ -44,7 +44,7 @@ def setup(tmp_path_factory):
     names = tuple(b.solve_for)
     grid = sb.make_knots(problem, sb.process_noise(problem), b.information, names)
     passes = sb.Passes(problem, names, grid, np.array(b.x), np.zeros(len(names)))
-    passes.stream = False                       # keep the knot rows for the check
+    passes.stream = False  # keep the knot rows for the check
     rng = np.random.default_rng(11)
     z = np.zeros((grid.K, grid.d))
     z[1:, :3] = np.cumsum(rng.standard_normal((grid.K - 1, 3)), 0)
@@ -63,12 +63,13 @@ def _chi2_slope(passes, x, z, edits, dx, dz):
 def test_partials_match_differences_at_large_corrections(setup):
     passes, x, sig, z, edits, rng = setup
     A, b, chi2, _, sysk, _ = passes.run(x, z, edits)
-    g_knots = sysk.Bk[:, :, -1].copy()           # Σ uᵀ r/σ per knot = −½ ∂χ²/∂z
+    g_knots = sysk.Bk[:, :, -1].copy()  # Σ uᵀ r/σ per knot = −½ ∂χ²/∂z
     zero_x, zero_z = np.zeros_like(x), np.zeros_like(z)
     for part in (slice(0, 3), slice(3, z.shape[1])):
         dz = zero_z.copy()
-        dz[1:, part] = rng.standard_normal((z.shape[0] - 1, part.stop - part.start)) * (1e-7 if part.start == 0
-                                                                                         else 1e-10)
+        dz[1:, part] = rng.standard_normal((z.shape[0] - 1, part.stop - part.start)) * (
+            1e-7 if part.start == 0 else 1e-10
+        )
         fd = _chi2_slope(passes, x, z, edits, zero_x, dz)
         assert fd == pytest.approx(-2.0 * float(np.sum(g_knots * dz)), rel=gradient_agreement)
     for j, name in enumerate(passes.names):

@@ -31,14 +31,18 @@ def summary(r) -> str:
     """The lines under one sensor's chart (white noise, data book, gyro terms)."""
     rms = math.sqrt(sum(w * w for w in r.white) / len(r.white))
     line = math.sqrt(sum(w * w for w in r.line) / len(r.line))
-    book = "none" if r.stated is None else \
-        f"{_fmt(r.stated)} (spread {rms / r.stated:.2f}, line {line / r.stated:.2f} of it)"
-    text = [f"white noise per sample [{r.unit}]: spread {_fmt(rms)}, Allan white line {_fmt(line)}; "
-            f"data book {book}"]
+    book = (
+        "none"
+        if r.stated is None
+        else f"{_fmt(r.stated)} (spread {rms / r.stated:.2f}, line {line / r.stated:.2f} of it)"
+    )
+    text = [f"white noise per sample [{r.unit}]: spread {_fmt(rms)}, Allan white line {_fmt(line)}; data book {book}"]
     for c, g in zip(r.components, r.gyro):
-        text.append(f"{c}: N {_fmt(g.arw)} rad/s^0.5{' (bound)' if g.arw_bound else ''}, "
-                    f"K {_fmt(g.rrw)} rad/s^1.5{' (bound)' if g.rrw_bound else ''}, "
-                    f"B {_fmt(g.bias_instability)} rad/s")
+        text.append(
+            f"{c}: N {_fmt(g.arw)} rad/s^0.5{' (bound)' if g.arw_bound else ''}, "
+            f"K {_fmt(g.rrw)} rad/s^1.5{' (bound)' if g.rrw_bound else ''}, "
+            f"B {_fmt(g.bias_instability)} rad/s"
+        )
     return "\n".join(text)
 
 
@@ -55,8 +59,7 @@ class AllanScreen(ModalScreen[None]):
 
     def compose(self) -> ComposeResult:
         with Vertical(id="dialog"):
-            yield Static(f"{self.title_text} (overlapping, IEEE 952 Annex C) · esc closes",
-                         id="dialog-title")
+            yield Static(f"{self.title_text} (overlapping, IEEE 952 Annex C) · esc closes", id="dialog-title")
             with VerticalScroll(id="allan-charts"):
                 if not self.results:
                     yield Static("no sensor with measured values in this mission", classes="dialog-note")
@@ -74,7 +77,7 @@ class AllanScreen(ModalScreen[None]):
             plt.xscale("log")
             plt.yscale("log")
             for i, (c, curve) in enumerate(zip(r.components, r.curves)):
-                plt.plot(list(curve.tau), list(curve.adev), label=c, color=COLOURS[i % len(COLOURS)],
-                         marker="braille")
+                plt.plot(list(curve.tau), list(curve.adev), label=c, color=COLOURS[i % len(COLOURS)], marker="braille")
             plt.title(f"{r.name} ({r.type}) [{r.unit}] against τ [s]")
+
         return paint

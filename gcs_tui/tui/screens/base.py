@@ -41,7 +41,7 @@ class GcsScreen(Screen):
         super().__init__()
         self._drawn = -1
 
-    if TYPE_CHECKING:                # for the type checker: the running app is a GcsApp
+    if TYPE_CHECKING:  # for the type checker: the running app is a GcsApp
         app = getters.app(GcsApp)
 
     # ------------------------------------------------------------------ frame
@@ -82,7 +82,7 @@ class GcsScreen(Screen):
         if self.NEEDS_FIT and wb.result is None:
             return
         if self.needs_job() and getattr(self, "_auto_for", None) is not wb.analysis:
-            self._auto_for = wb.analysis            # once per analysis: a failure is not retried
+            self._auto_for = wb.analysis  # once per analysis: a failure is not retried
             getattr(self.app, f"action_{self.AUTO_JOB}")()
 
     def update_view(self, *, force: bool = False) -> None:

@@ -56,19 +56,34 @@ class DiagnosisScreen(GcsScreen):
         a = self.wb.analysis
         alpha = a.config.diagnosis.significance
         table = self.query_one("#candidates", DataTable)
-        labels = [Text("#", justify="right"), "candidate", Text("Δχ²", justify="right"), Text("dof", justify="right"),
-                  Text("p", justify="right"), Text("p adj", justify="right"), "id?", "aliases"]
+        labels = [
+            Text("#", justify="right"),
+            "candidate",
+            Text("Δχ²", justify="right"),
+            Text("dof", justify="right"),
+            Text("p", justify="right"),
+            Text("p adj", justify="right"),
+            "id?",
+            "aliases",
+        ]
         rows = []
         for i, c in enumerate(a.candidates):
             signif = c.p_adjusted < alpha
             style = f"bold {color('gcs-warn')}" if signif and c.identifiable else ""
             names = list(c.aliases_state) + [x for x, _ in c.aliases_candidates]
             aliases = ", ".join(names) if names else "—"
-            cells = [Text(str(i + 1), justify="right"), Text(c.id, style=style),
-                     Text(fmt.sig(c.delta_chi2, 3), justify="right"), Text(str(c.dof), justify="right"),
-                     Text(fmt.pvalue(c.p_value), justify="right"), Text(fmt.pvalue(c.p_adjusted), justify="right")]
-            cells += [Text("yes" if c.identifiable else "no",
-                           style=color("gcs-ok" if c.identifiable else "gcs-bad")), Text(aliases)]
+            cells = [
+                Text(str(i + 1), justify="right"),
+                Text(c.id, style=style),
+                Text(fmt.sig(c.delta_chi2, 3), justify="right"),
+                Text(str(c.dof), justify="right"),
+                Text(fmt.pvalue(c.p_value), justify="right"),
+                Text(fmt.pvalue(c.p_adjusted), justify="right"),
+            ]
+            cells += [
+                Text("yes" if c.identifiable else "no", style=color("gcs-ok" if c.identifiable else "gcs-bad")),
+                Text(aliases),
+            ]
             rows.append((cells, c.id))
         fill(table, labels, rows)
         if table.row_count:
@@ -93,21 +108,34 @@ class DiagnosisScreen(GcsScreen):
         self.app.selected_candidate = c.id
         units = {e.name: e.unit for e in self.wb.analysis.problem.state}
         alpha = self.wb.analysis.config.diagnosis.significance
-        verdict = ("significant and identifiable: a good candidate to add (a)" if c.identifiable and c.p_adjusted < alpha
-                   else "not significant" if c.identifiable else
-                   "not identifiable" + ("" if c.p_adjusted < alpha else ", not significant"))
-        lines = [f"{c.id} — {verdict}",
-                 f"Δχ² {fmt.sig(c.delta_chi2, 3)} on {c.dof} dof · {fmt.p_text(c.p_value)} · "
-                 f"{fmt.p_text(c.p_adjusted, 'p adj')} (α = {alpha:g})", "", c.explanation, ""]
-        lines.append("If added (one linearization, first order), with MDB = the smallest value this test "
-                     "detects 80 % of the time:")
+        verdict = (
+            "significant and identifiable: a good candidate to add (a)"
+            if c.identifiable and c.p_adjusted < alpha
+            else "not significant"
+            if c.identifiable
+            else "not identifiable" + ("" if c.p_adjusted < alpha else ", not significant")
+        )
+        lines = [
+            f"{c.id} — {verdict}",
+            f"Δχ² {fmt.sig(c.delta_chi2, 3)} on {c.dof} dof · {fmt.p_text(c.p_value)} · "
+            f"{fmt.p_text(c.p_adjusted, 'p adj')} (α = {alpha:g})",
+            "",
+            c.explanation,
+            "",
+        ]
+        lines.append(
+            "If added (one linearization, first order), with MDB = the smallest value this test "
+            "detects 80 % of the time:"
+        )
         for name, value in c.estimate.items():
             s = c.sigma.get(name, math.nan)
             mdb = c.mdb.get(name, math.nan)
             unit = units.get(name, "1")
             shown = fmt.shown_unit(unit, value, s)
-            lines.append(f"  {name}: {fmt.estimate(value, s, unit, shown=shown)}   "
-                         f"(MDB {fmt.quantity(mdb, unit, digits=2, shown=shown)})")
+            lines.append(
+                f"  {name}: {fmt.estimate(value, s, unit, shown=shown)}   "
+                f"(MDB {fmt.quantity(mdb, unit, digits=2, shown=shown)})"
+            )
         state_al = ", ".join(c.aliases_state) or "none"
         cand_al = ", ".join(f"{a} (ρ {rho:.3f})" for a, rho in c.aliases_candidates) or "none"
         lines += ["", f"Aliases in the state: {state_al}", f"Aliases among the candidates: {cand_al}", "", RULE]
@@ -158,8 +186,8 @@ class DiagnosisScreen(GcsScreen):
                 continue
             top = max(top, max(finite) * 1.02)
             yy = [v if math.isfinite(v) else 0.0 for v in y]
-            plt.plot(x, yy, color=series(k), marker="braille")          # the line thin,
-            plt.scatter(x, yy, color=series(k), marker=marker(k))       # the steps by shape
+            plt.plot(x, yy, color=series(k), marker="braille")  # the line thin,
+            plt.scatter(x, yy, color=series(k), marker=marker(k))  # the steps by shape
         plt.horizontal_line(1.0, color=(158, 158, 158))
         plt.horizontal_line(1.05, color=color_rgb("gcs-bad"))
         nice_y(plt, 0.9, top, 4)

@@ -54,8 +54,16 @@ def key_fields(table, values: dict[str, str], names: Sequence[str] | None = None
     for name in names if names is not None else list(meta):
         m = meta[name]
         choices = tuple(m.get("choices", ()))
-        out.append(Field(name, m["label"], values.get(name, ""), kind="choice" if choices else "float",
-                         choices=choices, positive=bool(m.get("positive", False))))
+        out.append(
+            Field(
+                name,
+                m["label"],
+                values.get(name, ""),
+                kind="choice" if choices else "float",
+                choices=choices,
+                positive=bool(m.get("positive", False)),
+            )
+        )
     return out
 
 

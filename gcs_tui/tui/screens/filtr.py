@@ -51,8 +51,11 @@ class FiltrScreen(GcsScreen):
         sensors.clear(columns=True)
         if run is None or not run.reports:
             available = jobs.available("gcs_core.filtr.stepping", "Filtr")
-            info.update(self.app.job_errors.get("filtr", EMPTY) if available else
-                        "FILTR stepping is not available in this installation (gcs_core.filtr.stepping).")
+            info.update(
+                self.app.job_errors.get("filtr", EMPTY)
+                if available
+                else "FILTR stepping is not available in this installation (gcs_core.filtr.stepping)."
+            )
             bar.update(total=1, progress=0)
             plot.paint(None, empty="no blocks yet")
             return
@@ -62,13 +65,21 @@ class FiltrScreen(GcsScreen):
         inside = f" · {v.inside}/{len(v.blocks)} blocks inside the band"
         if v.finished:
             post = ", ".join(f"{n} {fmt.fixed(x, 3)}" for n, x in v.post_fit.items())
-            info.update(Text.assemble((" finished ", f"bold reverse {color('gcs-ok')}"), f" {v.status}{inside}",
-                                      f" · post-fit normalized RMS: {post}"))
+            info.update(
+                Text.assemble(
+                    (" finished ", f"bold reverse {color('gcs-ok')}"),
+                    f" {v.status}{inside}",
+                    f" · post-fit normalized RMS: {post}",
+                )
+            )
         else:
-            info.update(Text.assemble(
-                (f" pass {v.pass_index + 1}/{v.n_passes} · block {v.block}/{v.n_blocks}", "bold"),
-                f" · t {fmt.span(v.t0, v.t1)} · NIS/dof {fmt.fixed(last[2], 3)}"
-                f" (band {fmt.fixed(last[3], 3)}–{fmt.fixed(last[4], 3)}){inside}"))
+            info.update(
+                Text.assemble(
+                    (f" pass {v.pass_index + 1}/{v.n_passes} · block {v.block}/{v.n_blocks}", "bold"),
+                    f" · t {fmt.span(v.t0, v.t1)} · NIS/dof {fmt.fixed(last[2], 3)}"
+                    f" (band {fmt.fixed(last[3], 3)}–{fmt.fixed(last[4], 3)}){inside}",
+                )
+            )
         state.add_column("element")
         state.add_column(Text("estimate ± σ", justify="right"))
         for name, (x, s, unit) in v.state.items():
@@ -79,9 +90,13 @@ class FiltrScreen(GcsScreen):
         sensors.add_column(Text("NIS/dof", justify="right"))
         sensors.add_column(Text("p", justify="right"))
         for name, (used, gated, z, p) in v.sensors.items():
-            sensors.add_row(name, Text(str(used), justify="right"),
-                            Text(str(gated), justify="right", style=color("gcs-edited") if gated else ""),
-                            Text(fmt.fixed(z, 3), justify="right"), Text(fmt.pvalue(p), justify="right"))
+            sensors.add_row(
+                name,
+                Text(str(used), justify="right"),
+                Text(str(gated), justify="right", style=color("gcs-edited") if gated else ""),
+                Text(fmt.fixed(z, 3), justify="right"),
+                Text(fmt.pvalue(p), justify="right"),
+            )
         plot.paint(lambda plt: self._nis(plt, v))
 
     @staticmethod
@@ -110,8 +125,11 @@ class FiltrScreen(GcsScreen):
     def _run(self, blocks: int | None) -> None:
         label = "FILTR step" if blocks == 1 else "FILTR run"
         post = self.app.post_message
-        self.app.run_job("filtr", label, lambda p, c: filtr_run.advance(
-            self.wb, blocks, p, c, on_block=lambda rep: post(FiltrBlock(rep))))
+        self.app.run_job(
+            "filtr",
+            label,
+            lambda p, c: filtr_run.advance(self.wb, blocks, p, c, on_block=lambda rep: post(FiltrBlock(rep))),
+        )
 
     def action_step_block(self) -> None:
         self._run(1)

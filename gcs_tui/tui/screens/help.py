@@ -42,8 +42,11 @@ class HelpScreen(ModalScreen[None]):
     def compose(self) -> ComposeResult:
         title = dict((m, t) for m, _, t, _ in VIEWS).get(self.scope or "", "all screens")
         with Vertical(id="help-box"):
-            yield Label(f"Keys — {title}   (esc closes · tab: the terms · ctrl+p: command palette)",
-                        id="help-title", markup=False)
+            yield Label(
+                f"Keys — {title}   (esc closes · tab: the terms · ctrl+p: command palette)",
+                id="help-title",
+                markup=False,
+            )
             yield DataTable(id="help-table", cursor_type="row", zebra_stripes=True)
             yield Label("What the numbers mean", id="terms-title", markup=False)
             with VerticalScroll(id="terms-box", can_focus=True):

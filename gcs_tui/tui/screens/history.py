@@ -64,7 +64,7 @@ class HistoryScreen(GcsScreen):
             return
         info.update(f" SCDS {path.name} · {len(versions)} version{'s' if len(versions) != 1 else ''}")
         numbers = [v.version for v in versions]
-        if getattr(self, "_seen", None) != numbers:        # a new version: diff the latest two again
+        if getattr(self, "_seen", None) != numbers:  # a new version: diff the latest two again
             self._seen = numbers
             self.marks = {}
         if self.marks.get("b") not in numbers:
@@ -79,8 +79,12 @@ class HistoryScreen(GcsScreen):
         versions_t.add_column("note")
         for v in versions:
             mark = "".join(k.upper() for k in ("a", "b") if self.marks.get(k) == v.version)
-            cells = [Text(str(v.version), justify="right"), Text(mark, style="bold"), v.created_utc[:19],
-                     Text(str(v.n_params), justify="right")]
+            cells = [
+                Text(str(v.version), justify="right"),
+                Text(mark, style="bold"),
+                v.created_utc[:19],
+                Text(str(v.n_params), justify="right"),
+            ]
             cells += [fmt.span(v.data_t0, v.data_t1) if math.isfinite(v.data_t0) else "—", v.note]
             versions_t.add_row(*cells, key=str(v.version))
         self._diff(path, diff_t)
@@ -112,12 +116,21 @@ class HistoryScreen(GcsScreen):
             # Δ at the decimal place of the combined σ, like the estimates
             s_comb = math.hypot(sa, sb) if math.isfinite(sa) and math.isfinite(sb) else ref_s
             k = fmt.scale(unit, shown)
-            d_text = (fmt.value_sigma(delta * k, s_comb * k)[0] if math.isfinite(delta)
-                      else "new" if math.isfinite(xb) else "gone")
-            cells = [name, Text(fmt.unit_column(shown)), Text(est(xb, sb), justify="right"),
-                     Text(d_text, justify="right"),
-                     Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else ""),
-                     Text(est(xa, sa), justify="right")]
+            d_text = (
+                fmt.value_sigma(delta * k, s_comb * k)[0]
+                if math.isfinite(delta)
+                else "new"
+                if math.isfinite(xb)
+                else "gone"
+            )
+            cells = [
+                name,
+                Text(fmt.unit_column(shown)),
+                Text(est(xb, sb), justify="right"),
+                Text(d_text, justify="right"),
+                Text(fmt.fixed(z, 1), justify="right", style=color("gcs-warn") if big else ""),
+                Text(est(xa, sa), justify="right"),
+            ]
             table.add_row(*cells, key=name)
 
     def action_mark(self, which: str) -> None:

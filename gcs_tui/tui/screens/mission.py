@@ -34,10 +34,15 @@ class MissionScreen(GcsScreen):
         m = wb.mission
         spec = m.spec
         t0, t1 = m.span()
-        self.query_one("#mission-info", Static).update(Text.assemble(
-            (spec.name, "bold"), f"  {spec.attitude_mode.replace('_', ' ')}  ·  epoch ",
-            spec.epoch.strftime("%Y-%m-%d %H:%M:%S UTC"), f"  ·  span {fmt.span(t0, t1)}",
-            f"  ·  {len(spec.sensors)} sensors"))
+        self.query_one("#mission-info", Static).update(
+            Text.assemble(
+                (spec.name, "bold"),
+                f"  {spec.attitude_mode.replace('_', ' ')}  ·  epoch ",
+                spec.epoch.strftime("%Y-%m-%d %H:%M:%S UTC"),
+                f"  ·  span {fmt.span(t0, t1)}",
+                f"  ·  {len(spec.sensors)} sensors",
+            )
+        )
         table = self.query_one("#sensors", DataTable)
         table.clear(columns=True)
         table.add_column("sensor", key="sensor")
@@ -52,18 +57,30 @@ class MissionScreen(GcsScreen):
         for r in rows:
             dropped = r.dropped_nan + r.dropped_duplicates
             table.add_row(
-                r.name, r.type.replace("_", " "),
+                r.name,
+                r.type.replace("_", " "),
                 Text(r.model, style=f"bold {color('gcs-bad')}" if r.model == "off" else ""),
-                Text(str(r.samples), justify="right"), fmt.span(r.t0, r.t1),
+                Text(str(r.samples), justify="right"),
+                fmt.span(r.t0, r.t1),
                 Text(fmt.seconds(r.cadence), justify="right"),
                 Text(str(r.gaps), justify="right"),
                 Text(f"{r.dropped_nan} NaN, {r.dropped_duplicates} dup" if dropped else "0", justify="right"),
-                key=r.name)
+                key=r.name,
+            )
         for f in m.report.files:
             if f.what.startswith("telemetry "):
                 continue
-            table.add_row(Text(f.what, style="italic"), "file", "", Text(str(f.rows), justify="right"), "", "", "",
-                          Text(str(f.dropped_nan + f.dropped_duplicates), justify="right"), key=f"file:{f.what}")
+            table.add_row(
+                Text(f.what, style="italic"),
+                "file",
+                "",
+                Text(str(f.rows), justify="right"),
+                "",
+                "",
+                "",
+                Text(str(f.dropped_nan + f.dropped_duplicates), justify="right"),
+                key=f"file:{f.what}",
+            )
         self.query_one("#timeline", GcsPlot).paint(lambda plt: self._timeline(plt, rows))
 
     @staticmethod

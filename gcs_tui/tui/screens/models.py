@@ -61,11 +61,17 @@ class ModelsScreen(GcsScreen):
         for e in state:
             counts[e.role] += 1
             shown = fmt.display_unit(e.unit, e.sigma0)
-            st.add_row(e.name, fmt.unit_column(shown), role_text(e.role),
-                       Text(fmt.quantity(e.sigma0, e.unit, digits=2, shown=shown), justify="right"), key=e.name)
+            st.add_row(
+                e.name,
+                fmt.unit_column(shown),
+                role_text(e.role),
+                Text(fmt.quantity(e.sigma0, e.unit, digits=2, shown=shown), justify="right"),
+                key=e.name,
+            )
         self.query_one("#state-title", Label).update(
             f"State vector: {len(state)} elements — {counts['solve-for']} solve-for, "
-            f"{counts['consider']} consider, {counts['held']} held")
+            f"{counts['consider']} consider, {counts['held']} held"
+        )
 
     def action_cycle_model(self) -> None:
         table = self.query_one("#models-table", DataTable)

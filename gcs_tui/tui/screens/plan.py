@@ -53,10 +53,17 @@ class PlanScreen(GcsScreen):
         cfg = wb.config
         t0, t1 = wb.plan_span()
         source = "config" if cfg.prediction.start is not None and cfg.prediction.end is not None else "telemetry span"
-        self.query_one("#plan-span", Static).update(Text.assemble(
-            ("span ", "bold"), fmt.span(t0, t1), f" ({source})  ·  ", ("step ", "bold"), fmt.seconds(cfg.prediction.step),
-            f"  ·  {_count(len(cfg.prediction.gaps), 'gap')}, {_count(len(cfg.prediction.maneuvers), 'maneuver')}"
-            "  ·  e: edit span/step  ·  p: predict"))
+        self.query_one("#plan-span", Static).update(
+            Text.assemble(
+                ("span ", "bold"),
+                fmt.span(t0, t1),
+                f" ({source})  ·  ",
+                ("step ", "bold"),
+                fmt.seconds(cfg.prediction.step),
+                f"  ·  {_count(len(cfg.prediction.gaps), 'gap')}, {_count(len(cfg.prediction.maneuvers), 'maneuver')}"
+                "  ·  e: edit span/step  ·  p: predict",
+            )
+        )
         gaps = self.query_one("#gaps", DataTable)
         gaps.clear(columns=True)
         gaps.add_columns(Text("start", justify="right"), Text("end", justify="right"), Text("length", justify="right"))
@@ -64,12 +71,22 @@ class PlanScreen(GcsScreen):
             gaps.add_row(*(Text(fmt.seconds(v), justify="right") for v in (a, b, b - a)), key=str(i))
         man = self.query_one("#maneuvers", DataTable)
         man.clear(columns=True)
-        man.add_columns(Text("start", justify="right"), Text("duration", justify="right"), "axis",
-                        Text("rate", justify="right"), Text("angle", justify="right"))
+        man.add_columns(
+            Text("start", justify="right"),
+            Text("duration", justify="right"),
+            "axis",
+            Text("rate", justify="right"),
+            Text("angle", justify="right"),
+        )
         for i, m in enumerate(cfg.prediction.maneuvers):
-            man.add_row(Text(fmt.seconds(m.start), justify="right"), Text(fmt.seconds(m.duration), justify="right"),
-                        m.axis, Text(f"{fmt.sig(m.rate_deg_s, 3)} deg/s", justify="right"),
-                        Text(f"{fmt.sig(m.rate_deg_s * m.duration, 3)} deg", justify="right"), key=str(i))
+            man.add_row(
+                Text(fmt.seconds(m.start), justify="right"),
+                Text(fmt.seconds(m.duration), justify="right"),
+                m.axis,
+                Text(f"{fmt.sig(m.rate_deg_s, 3)} deg/s", justify="right"),
+                Text(f"{fmt.sig(m.rate_deg_s * m.duration, 3)} deg", justify="right"),
+                key=str(i),
+            )
         self.query_one("#plan-plot", GcsPlot).paint(lambda plt: self._plot(plt, t0, t1, cfg))
 
     @staticmethod
@@ -82,8 +99,10 @@ class PlanScreen(GcsScreen):
             plt.plot([m.start, m.start + m.duration], [y, y], color=series(1 + AXES.index(m.axis)), marker="sd")
         plt.yticks([4, 3, 2, 1], ["data", "roll", "pitch", "yaw"])
         plt.ylim(0.5, 4.5)
-        plt.xlim(min(t0, *(a for a, _ in cfg.prediction.gaps)) if cfg.prediction.gaps else t0,
-                 max(t1, *(b for _, b in cfg.prediction.gaps)) if cfg.prediction.gaps else t1)
+        plt.xlim(
+            min(t0, *(a for a, _ in cfg.prediction.gaps)) if cfg.prediction.gaps else t0,
+            max(t1, *(b for _, b in cfg.prediction.gaps)) if cfg.prediction.gaps else t1,
+        )
         plt.xlabel("t [s]   (red: gap)")
         plt.title("data plan")
 
@@ -105,8 +124,12 @@ class PlanScreen(GcsScreen):
     def action_edit_span(self) -> None:
         cfg = self.wb.config
         t0, t1 = self.wb.plan_span()
-        fields = key_fields(PredictionConfig, {"start": _num(t0), "end": _num(t1),
-                                               "step": _num(cfg.prediction.step)}, ("start", "end", "step"))
+        fields = key_fields(
+            PredictionConfig,
+            {"start": _num(t0), "end": _num(t1), "step": _num(cfg.prediction.step)},
+            ("start", "end", "step"),
+        )
+
         def done(v):
             if v:
                 self._apply(start=v["start"], end=v["end"], step=v["step"])
@@ -124,8 +147,9 @@ class PlanScreen(GcsScreen):
                 gaps[index] = (v["start"], v["end"])
             self._apply(gaps=tuple(gaps))
 
-        self.app.push_screen(FormScreen(title, key_fields(PredictionConfig, {"start": _num(a), "end": _num(b)},
-                                                          ("start", "end"))), done)
+        self.app.push_screen(
+            FormScreen(title, key_fields(PredictionConfig, {"start": _num(a), "end": _num(b)}, ("start", "end"))), done
+        )
 
     def action_add_gap(self) -> None:
         t0, t1 = self.wb.plan_span()
@@ -144,10 +168,13 @@ class PlanScreen(GcsScreen):
                 mans[index] = new
             self._apply(maneuvers=tuple(mans))
 
-        fields = key_fields(Maneuver, {"start": _num(m.start), "duration": _num(m.duration), "axis": m.axis,
-                                       "rate_deg_s": _num(m.rate_deg_s)})
-        self.app.push_screen(FormScreen(title, fields, note="Constant-rate rotation about one reference "
-                                        "axis (Eq 4-35, 4-36)."), done)
+        fields = key_fields(
+            Maneuver,
+            {"start": _num(m.start), "duration": _num(m.duration), "axis": m.axis, "rate_deg_s": _num(m.rate_deg_s)},
+        )
+        self.app.push_screen(
+            FormScreen(title, fields, note="Constant-rate rotation about one reference axis (Eq 4-35, 4-36)."), done
+        )
 
     def action_add_maneuver(self) -> None:
         t0, t1 = self.wb.plan_span()

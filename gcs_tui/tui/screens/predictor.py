@@ -53,13 +53,31 @@ class PredictorScreen(GcsScreen):
             return
         att = p.attitude_sigma[-1] if p.attitude_sigma.size else np.full(3, np.nan)
         avail = ", ".join(f"{k} {100 * v:.0f}%" for k, v in p.availability.items())
-        info.update(Text.assemble(
-            (" method ", "bold"), p.method, f" · {fmt.span(float(p.times[0]), float(p.times[-1]))}",
-            " · final attitude σ ", (" / ".join(fmt.quantity(v, "rad", digits=2, shown=fmt.display_unit(
-                "rad", float(np.nanmax(att)))) for v in att), "bold"),
-            f" · data: {avail}" + (f" · {len(p.unobservable)} unobservable combinations (the plan fixes only "
-                                   "combinations of those elements; their σ is the a priori)" if p.unobservable else "")
-            + (f" · {len(p.undetermined)} not determined by the plan (σ = a priori, dim)" if p.undetermined else "")))
+        info.update(
+            Text.assemble(
+                (" method ", "bold"),
+                p.method,
+                f" · {fmt.span(float(p.times[0]), float(p.times[-1]))}",
+                " · final attitude σ ",
+                (
+                    " / ".join(
+                        fmt.quantity(v, "rad", digits=2, shown=fmt.display_unit("rad", float(np.nanmax(att))))
+                        for v in att
+                    ),
+                    "bold",
+                ),
+                f" · data: {avail}"
+                + (
+                    f" · {len(p.unobservable)} unobservable combinations (the plan fixes only "
+                    "combinations of those elements; their σ is the a priori)"
+                    if p.unobservable
+                    else ""
+                )
+                + (
+                    f" · {len(p.undetermined)} not determined by the plan (σ = a priori, dim)" if p.undetermined else ""
+                ),
+            )
+        )
         choices = ["attitude"] + list(p.names)
         self.element_i %= len(choices)
         what = choices[self.element_i]
@@ -76,8 +94,9 @@ class PredictorScreen(GcsScreen):
                 marked_line(plt, t, y.tolist(), series(k), marker(k))
             if p.attitude_sigma.size:
                 nice_y(plt, 0.0, float(np.nanmax(p.attitude_sigma)) * fmt.scale("rad", u))
-            plt.title(f"attitude σ about the body axes [{u}] · "
-                      + " ".join(f"{marker(k)} {a}" for k, a in enumerate("xyz")))
+            plt.title(
+                f"attitude σ about the body axes [{u}] · " + " ".join(f"{marker(k)} {a}" for k, a in enumerate("xyz"))
+            )
         else:
             i = p.index(what)
             unit = p.units[i]
@@ -109,11 +128,15 @@ class PredictorScreen(GcsScreen):
             unit = row["unit"]
             shown = fmt.display_unit(unit, row["sigma"])
             style = ("bold " if row["name"] == what else "") + ("dim" if row["name"] in undetermined else "")
-            cells = [Text(row["name"], style=style.strip()),
-                     Text(fmt.quantity(row["sigma"], unit, digits=2, shown=shown), justify="right"),
-                     Text(fmt.quantity(row["noise_only"], unit, digits=2, shown=shown), justify="right")]
-            cells += [Text(fmt.quantity(row["consider"].get(c, 0.0), unit, digits=2, shown=shown), justify="right")
-                      for c in cons]
+            cells = [
+                Text(row["name"], style=style.strip()),
+                Text(fmt.quantity(row["sigma"], unit, digits=2, shown=shown), justify="right"),
+                Text(fmt.quantity(row["noise_only"], unit, digits=2, shown=shown), justify="right"),
+            ]
+            cells += [
+                Text(fmt.quantity(row["consider"].get(c, 0.0), unit, digits=2, shown=shown), justify="right")
+                for c in cons
+            ]
             table.add_row(*cells, key=row["name"])
 
     def action_element(self, step: int) -> None:

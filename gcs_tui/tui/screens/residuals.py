@@ -54,8 +54,9 @@ def x_axes(sd, shown_unit: str, unit: str, orbit=None) -> list[tuple[str, str, n
         out.append((f"measured {comp}", f"measured {comp}" + (f" [{label}]" if label else ""), vals))
     for name, values in sorted(g.aux.items()):
         u = derive.aux_unit(name)
-        out.append((f"aux {name}", f"{name} [{u}]" if u else f"{name} (unit as in aux.csv)",
-                    np.asarray(values, dtype=float)))
+        out.append(
+            (f"aux {name}", f"{name} [{u}]" if u else f"{name} (unit as in aux.csv)", np.asarray(values, dtype=float))
+        )
     return out
 
 
@@ -66,8 +67,14 @@ def candidate_line(cand, sensor: str, comp: str, xname: str, unit: str, shown: s
         return None
     channel = xname[4:]
     # the elements are named by axis (``_x``), the components may carry a prefix (``bx``)
-    name = next((n for n in (f"{sensor}.contam_{channel}_{comp}", f"{sensor}.contam_{channel}_{comp[-1:]}")
-                 if n in cand.estimate), None)
+    name = next(
+        (
+            n
+            for n in (f"{sensor}.contam_{channel}_{comp}", f"{sensor}.contam_{channel}_{comp[-1:]}")
+            if n in cand.estimate
+        ),
+        None,
+    )
     if name is None:
         return None
     return fmt.scale(unit, shown) * float(cand.estimate[name]), f"{cand.id} (its estimate × {channel})"
@@ -128,12 +135,21 @@ class ResidualsScreen(GcsScreen):
         res = self.wb.result
         n_edit = int(np.count_nonzero(r.edited))
         ho = self.wb.analysis.holdout_rms.get(name, float("nan"))
-        self.query_one("#res-info", Static).update(Text.assemble(
-            (f" {name}", "bold"), f" ({self.sensor_i + 1}/{len(self._sensors())}) · ", (r.components[j], "bold"),
-            f" · {kind}" + (f" vs {xname}" if kind == "residual" else ""), " · normalized RMS ",
-            (fmt.fixed(r.rms_normalized, 3), f"bold {color('gcs-bad' if r.rms_normalized > RMS_LIMIT else 'gcs-ok')}"),
-            f" · held-out {fmt.fixed(ho, 3)} · n {r.n} · edited {n_edit}",
-            *self._verdict(res)))
+        self.query_one("#res-info", Static).update(
+            Text.assemble(
+                (f" {name}", "bold"),
+                f" ({self.sensor_i + 1}/{len(self._sensors())}) · ",
+                (r.components[j], "bold"),
+                f" · {kind}" + (f" vs {xname}" if kind == "residual" else ""),
+                " · normalized RMS ",
+                (
+                    fmt.fixed(r.rms_normalized, 3),
+                    f"bold {color('gcs-bad' if r.rms_normalized > RMS_LIMIT else 'gcs-ok')}",
+                ),
+                f" · held-out {fmt.fixed(ho, 3)} · n {r.n} · edited {n_edit}",
+                *self._verdict(res),
+            )
+        )
         z = r.normalized[:, j]
         resid = r.residual[:, j] * fmt.scale(r.unit, shown)
         sigma = fmt.to_display(float(r.sigma[j]), r.unit, shown)
@@ -144,8 +160,21 @@ class ResidualsScreen(GcsScreen):
             cands = {c.id: c for c in self.wb.analysis.candidates}
             line = candidate_line(cands.get(self.app.selected_candidate), name, r.components[j], xname, r.unit, shown)
             binned = xname != "time"
-            main.paint(lambda plt: self._scatter(plt, xvals, resid, sigma, r.used, r.edited, title, xlabel,
-                                                 binned=binned, line=line, orbit=xname == "orbit angle"))
+            main.paint(
+                lambda plt: self._scatter(
+                    plt,
+                    xvals,
+                    resid,
+                    sigma,
+                    r.used,
+                    r.edited,
+                    title,
+                    xlabel,
+                    binned=binned,
+                    line=line,
+                    orbit=xname == "orbit angle",
+                )
+            )
         elif kind == "histogram":
             main.paint(lambda plt: self._hist(plt, z[r.used], f"{title}: normalized"))
         else:
@@ -178,13 +207,17 @@ class ResidualsScreen(GcsScreen):
         table.add_column(Text("RMS", justify="right"))
         for name, r in wb.result.residuals.items():
             bad = r.rms_normalized > RMS_LIMIT
-            cells = [Text(name, style="bold" if self._sensors().index(name) == self.sensor_i else ""),
-                     Text(fmt.fixed(r.rms_normalized, 3), justify="right",
-                          style=color("gcs-bad" if bad else "gcs-ok")),
-                     Text(fmt.fixed(wb.analysis.holdout_rms.get(name, float("nan")), 3), justify="right"),
-                     Text(str(r.n), justify="right"),
-                     Text(str(int(np.count_nonzero(r.edited))), justify="right",
-                          style=color("gcs-edited") if np.any(r.edited) else "")]
+            cells = [
+                Text(name, style="bold" if self._sensors().index(name) == self.sensor_i else ""),
+                Text(fmt.fixed(r.rms_normalized, 3), justify="right", style=color("gcs-bad" if bad else "gcs-ok")),
+                Text(fmt.fixed(wb.analysis.holdout_rms.get(name, float("nan")), 3), justify="right"),
+                Text(str(r.n), justify="right"),
+                Text(
+                    str(int(np.count_nonzero(r.edited))),
+                    justify="right",
+                    style=color("gcs-edited") if np.any(r.edited) else "",
+                ),
+            ]
             rms = np.atleast_1d(r.rms)
             shown = fmt.display_unit(r.unit, float(np.nanmax(rms)) if rms.size else 0.0)
             vals = "/".join(fmt.sig(fmt.to_display(v, r.unit, shown), 2) for v in rms)

@@ -39,8 +39,11 @@ class StateScreen(GcsScreen):
     def compose_body(self) -> ComposeResult:
         with Horizontal(id="state-split"):
             with Vertical(id="state-left"):
-                yield Label("Elements  (s/c/h: role · e: edit value and σ · v: show/hide held)",
-                            id="state-title", classes="panel-title")
+                yield Label(
+                    "Elements  (s/c/h: role · e: edit value and σ · v: show/hide held)",
+                    id="state-title",
+                    classes="panel-title",
+                )
                 yield DataTable(id="elements", cursor_type="row", zebra_stripes=True)
             with Vertical(id="state-right"):
                 yield Label("Selected element", classes="panel-title")
@@ -63,11 +66,17 @@ class StateScreen(GcsScreen):
                 continue
             # dim: an element the fit did not determine (its σ is not to be trusted), or one
             # the a priori set rather than the data
-            name = Text(e.name + (" *" if e.name in overridden else ""),
-                        style="dim" if e.name in loose or e.name in prior else "")
+            name = Text(
+                e.name + (" *" if e.name in overridden else ""),
+                style="dim" if e.name in loose or e.name in prior else "",
+            )
             v = est.get(e.name)
-            cells = [name, Text(fmt.estimate(v[0], v[1], e.unit) if v else "", justify="right"), role_text(e.role),
-                     Text(fmt.estimate(e.value, e.sigma0, e.unit), justify="right")]
+            cells = [
+                name,
+                Text(fmt.estimate(v[0], v[1], e.unit) if v else "", justify="right"),
+                role_text(e.role),
+                Text(fmt.estimate(e.value, e.sigma0, e.unit), justify="right"),
+            ]
             rows.append((cells, e.name))
         fill(table, labels, rows)
         if selected is not None:
@@ -80,7 +89,8 @@ class StateScreen(GcsScreen):
             f"Elements{' (held hidden)' if self.hide_held else ''} — {held} held · "
             + (f"{len(loose)} not determined (dim) · " if loose else "")
             + (f"{len(set(prior) - set(loose))} set by the a priori (dim) · " if set(prior) - set(loose) else "")
-            + "s/c/h role · e edit · v held · i details · * = set in config")
+            + "s/c/h role · e edit · v held · i details · * = set in config"
+        )
         self._detail()
 
     def _selected(self) -> str | None:
@@ -97,9 +107,12 @@ class StateScreen(GcsScreen):
             return
         wb = self.wb
         e = wb.analysis.problem.state[name]
-        lines = [name, f"  {e.description or e.effect}",
-                 f"  effect {e.effect or '—'} · internal unit {fmt.unit_column(e.unit)}",
-                 f"  a priori {fmt.estimate(e.value, e.sigma0, e.unit)}"]
+        lines = [
+            name,
+            f"  {e.description or e.effect}",
+            f"  effect {e.effect or '—'} · internal unit {fmt.unit_column(e.unit)}",
+            f"  a priori {fmt.estimate(e.value, e.sigma0, e.unit)}",
+        ]
         res = wb.result
         if res is not None and not wb.stale and name in res.solve_for:
             i = res.solve_for.index(name)
@@ -116,8 +129,10 @@ class StateScreen(GcsScreen):
             budget = {c: float(v[i]) for c, v in res.consider_budget.items() if v[i] > 0}
             if budget:
                 lines.append("  consider contributions:")
-                lines += [f"    {c:<22s} {fmt.quantity(v, e.unit, digits=2)}" for c, v in
-                          sorted(budget.items(), key=lambda kv: -kv[1])[:4]]
+                lines += [
+                    f"    {c:<22s} {fmt.quantity(v, e.unit, digits=2)}"
+                    for c, v in sorted(budget.items(), key=lambda kv: -kv[1])[:4]
+                ]
         box.update("\n".join(lines))
 
     def on_data_table_row_highlighted(self, event: DataTable.RowHighlighted) -> None:
@@ -159,8 +174,7 @@ class StateScreen(GcsScreen):
             # σ₀ shown to 3 digits: an untouched field keeps the exact configured value
             if value is None and sigma is None:
                 return
-            self.app.run_job("state", f"edit {name}",
-                             lambda p, c: self.wb.set_element(name, value=value, sigma=sigma))
+            self.app.run_job("state", f"edit {name}", lambda p, c: self.wb.set_element(name, value=value, sigma=sigma))
 
         self.app.push_screen(FormScreen(f"Edit {name}", fields, note=e.description or ""), done)
 

@@ -31,21 +31,22 @@ if TYPE_CHECKING:
     from gcs_tui.tui.app import GcsApp
 
 #: plan keys the Data plan screen shows; the others (sensors, mountings) are named on open
-PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min", "gap_min",
-             "maneuvers")
+PLAN_KEYS = ("span_min", "start_min", "passes", "pass_min", "separation_min", "gap_start_min", "gap_min", "maneuvers")
 
 
 class TradeScreen(Screen):
     """The rows of one trade study (module docstring)."""
 
-    if TYPE_CHECKING:                # for the type checker: the running app is a GcsApp
+    if TYPE_CHECKING:  # for the type checker: the running app is a GcsApp
         app = getters.app(GcsApp)
 
     CSS_PATH = "trade.tcss"
-    BINDINGS = [Binding("enter", "open_plan", "Open in Data plan", id="trade.open"),
-                Binding("right_square_bracket", "element(1)", "Next element", id="trade.element"),
-                Binding("left_square_bracket", "element(-1)", "Prev element", show=False, id="trade.prev"),
-                Binding("escape", "app.pop_screen", "Close", id="trade.close")]
+    BINDINGS = [
+        Binding("enter", "open_plan", "Open in Data plan", id="trade.open"),
+        Binding("right_square_bracket", "element(1)", "Next element", id="trade.element"),
+        Binding("left_square_bracket", "element(-1)", "Prev element", show=False, id="trade.prev"),
+        Binding("escape", "app.pop_screen", "Close", id="trade.close"),
+    ]
 
     def __init__(self, rows, *, source: str = "") -> None:
         super().__init__()
@@ -67,28 +68,38 @@ class TradeScreen(Screen):
 
     def on_mount(self) -> None:
         table = self.query_one("#trade-table", DataTable)
-        table.add_columns("#", Text("score", justify="right"), *self.keys,
-                          *(Text(f"σ {n.split('.', 1)[-1]} [{sigma_display(1.0, u)[1]}]", justify="right")
-                            for n, u in zip(self.elements, self.units)))
+        table.add_columns(
+            "#",
+            Text("score", justify="right"),
+            *self.keys,
+            *(
+                Text(f"σ {n.split('.', 1)[-1]} [{sigma_display(1.0, u)[1]}]", justify="right")
+                for n, u in zip(self.elements, self.units)
+            ),
+        )
         for rank, (score, r) in enumerate(self.ranked, start=1):
             cells = [str(rank), Text("failed" if r.status != "ok" else f"{score:.3g}", justify="right")]
             cells += [str(r.values.get(k)) for k in self.keys]
             for i, (v, u) in enumerate(zip(r.sigma, r.units)):
                 prior = bool(r.prior_limited) and r.prior_limited[i]
                 text = "—" if math.isnan(v) else ("undet." if math.isinf(v) else f"{sigma_display(v, u)[0]:.3g}")
-                cells.append(Text(text + ("*" if prior else ""), justify="right",
-                                  style="dim" if prior else ""))
+                cells.append(Text(text + ("*" if prior else ""), justify="right", style="dim" if prior else ""))
             table.add_row(*cells, key=str(r.index))
         self._redraw()
 
     def _redraw(self) -> None:
         n_ok = sum(r.status == "ok" for r in self.rows)
         name = self.elements[self.element] if self.elements else "—"
-        self.query_one("#trade-info", Static).update(Text.assemble(
-            ("trade study ", "bold"), f"{self.source}  ·  {len(self.rows)} plans ({n_ok} predicted)  ·  "
-            f"varied: {', '.join(self.keys) or '—'}  ·  plotted: {name}  ·  * = set by the a priori"))
-        self.query_one("#trade-plot", GcsPlot).paint(self._plot if self.elements and self.keys else None,
-                                                     empty="no plans to plot")
+        self.query_one("#trade-info", Static).update(
+            Text.assemble(
+                ("trade study ", "bold"),
+                f"{self.source}  ·  {len(self.rows)} plans ({n_ok} predicted)  ·  "
+                f"varied: {', '.join(self.keys) or '—'}  ·  plotted: {name}  ·  * = set by the a priori",
+            )
+        )
+        self.query_one("#trade-plot", GcsPlot).paint(
+            self._plot if self.elements and self.keys else None, empty="no plans to plot"
+        )
 
     def _plot(self, plt) -> None:
         name, unit = self.elements[self.element], self.units[self.element]
@@ -102,8 +113,13 @@ class TradeScreen(Screen):
             y = [sigma_display(float(g), unit)[0] for g in G[:, j]]
             pts = [(a, c) for a, c in zip(x, y) if math.isfinite(c) and c > 0]
             if pts:
-                plt.plot([a for a, _ in pts], [c for _, c in pts], marker="dot", color=series(j % 6),
-                         label=None if k2 is None else f"{k2}={b}")
+                plt.plot(
+                    [a for a, _ in pts],
+                    [c for _, c in pts],
+                    marker="dot",
+                    color=series(j % 6),
+                    label=None if k2 is None else f"{k2}={b}",
+                )
         if not numeric:
             plt.xticks(x, [str(v) for v in v1])
         plt.yscale("log")

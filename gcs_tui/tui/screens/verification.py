@@ -61,9 +61,13 @@ class VerificationScreen(GcsScreen):
             diff_plot.paint(None, empty="no verification")
             trend_plot.paint(None, empty="no verification")
             return
-        flag.update(Text.assemble(
-            (" FLAG SET " if v.flag else " no flag ", f"bold reverse {color('gcs-bad' if v.flag else 'gcs-ok')}"),
-            f" {v.n} onboard attitudes · {v.angles} angles · ", v.reason))
+        flag.update(
+            Text.assemble(
+                (" FLAG SET " if v.flag else " no flag ", f"bold reverse {color('gcs-bad' if v.flag else 'gcs-ok')}"),
+                f" {v.n} onboard attitudes · {v.angles} angles · ",
+                v.reason,
+            )
+        )
         u = shown_unit(v)
         diff_plot.paint(lambda plt: self._diff(plt, v, u))
         trend_plot.paint(lambda plt: self._trend(plt, v, u))
@@ -74,11 +78,16 @@ class VerificationScreen(GcsScreen):
         table.add_column(Text("requirement", justify="right"))
         table.add_column("flag")
         for k, axis in enumerate(AXES):
-            q = lambda x: Text(fmt.quantity(float(x), "rad", digits=3, shown=u, with_unit=False),
-                               justify="right")
+            q = lambda x: Text(fmt.quantity(float(x), "rad", digits=3, shown=u, with_unit=False), justify="right")
             flagged = bool(v.flag_axes[k])
-            table.add_row(axis, q(v.mean[k]), q(v.sigma[k]), q(v.ground_accuracy[k]), q(v.requirement[k]),
-                          Text("set" if flagged else "—", style=color("gcs-bad") if flagged else ""))
+            table.add_row(
+                axis,
+                q(v.mean[k]),
+                q(v.sigma[k]),
+                q(v.ground_accuracy[k]),
+                q(v.requirement[k]),
+                Text("set" if flagged else "—", style=color("gcs-bad") if flagged else ""),
+            )
 
     @staticmethod
     def _legend() -> str:

@@ -30,7 +30,7 @@ class NavBar(Widget):
     with the current screen's title. A click on an entry switches to it.
     """
 
-    if TYPE_CHECKING:                # for the type checker: the running app is a GcsApp
+    if TYPE_CHECKING:  # for the type checker: the running app is a GcsApp
         app = getters.app(GcsApp)
 
     current: reactive[str] = reactive("mission")

@@ -76,4 +76,4 @@ def marked_line(plt, x, y, colour, mark: str, *, marks: int = 12, line: bool = T
         plt.scatter(x, y, color=colour, marker="braille")
     if x:
         step = max(1, len(x) // marks)
-        plt.scatter(x[step // 2::step], y[step // 2::step], color=colour, marker=mark)
+        plt.scatter(x[step // 2 :: step], y[step // 2 :: step], color=colour, marker=mark)
