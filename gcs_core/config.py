@@ -96,7 +96,18 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core import toml_values
-from gcs_core.config_checks import _choice, _fail, _list, _number, _pair, _require, _table, _unknown
+from gcs_core.config_checks import (
+    MODEL_OFF,
+    _choice,
+    _fail,
+    _list,
+    _number,
+    _pair,
+    _require,
+    _table,
+    _unknown,
+    edit_k_sensor,
+)
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import write_atomic
 from gcs_core.io.types import SENSOR_TYPES
@@ -111,7 +122,6 @@ AXES = ("roll", "pitch", "yaw")
 #: the predictor's star models for tracker frames (:mod:`gcs_core.predictor.stars`)
 STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")
 #: value of ``[models]`` that drops a sensor from the analysis
-MODEL_OFF = "off"
 ELEMENT_KEYS = ("role", "value", "sigma")
 MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
 _ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
@@ -474,7 +484,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
             block_seconds=_number(fl, "block_seconds", 600.0, f, positive=True, prefix="filter."),
             edit_k=_number(fl, "edit_k", 5.0, f, lo=0.0, prefix="filter."),
             max_iterations=_number(fl, "max_iterations", 20, f, lo=1, hi=1000, integer=True, prefix="filter."),
-            edit_k_sensor=_edit_k_sensor(fl, f),
+            edit_k_sensor=edit_k_sensor(fl, f),
         ),
         diagnosis=DiagnosisConfig(
             significance=_number(dg, "significance", 0.001, f, lo=1e-12, hi=0.5, prefix="diagnosis."),
@@ -495,58 +505,6 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         trade=dict(tables["trade"]),
         montecarlo=dict(tables["montecarlo"]),
     )
-
-
-def _edit_k_sensor(fl: dict, f) -> dict[str, float]:
-    """``[filter.edit_k_sensor]``: sensor name -> k ≥ 0 (sensor names are checked against
-    the mission by :func:`check_against_mission`)."""
-    table = _table(fl, "edit_k_sensor", "filter.edit_k_sensor", f)
-    return {str(name): _number(table, name, 5.0, f, lo=0.0, prefix="filter.edit_k_sensor.") for name in table}
-
-
-def check_against_mission(cfg: AnalysisConfig, spec) -> None:
-    """The checks that need the mission: ``[models]`` names its sensors with their types,
-    and effect ids and element names start with one of its sensors (``att.``/``model.`` too).
-
-    ``spec`` is the mission's :class:`~gcs_core.io.types.MissionSpec`.
-    """
-    f = cfg.path
-    types = {s.name: s.type for s in spec.sensors}
-    listed = ", ".join(types) or "none"
-    st = cfg.state
-    for name, model in cfg.models.items():
-        key = f"models.{_quote(name)}"
-        _require(name in types, key, f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
-        _require(
-            model in (types[name], MODEL_OFF),
-            key,
-            f'sensor {name} is a {types[name]}: use "{types[name]}" or "off", not {_show(model)}',
-            f,
-        )
-    for key, ids in (("state.effects", st.effects), ("state.exclude", st.exclude)):
-        for i, e in enumerate(ids, start=1):
-            owner = e.split(".")[0]
-            _require(
-                owner in types or owner == "model",
-                f"{key}[{i}]",
-                f"effect {e}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})",
-                f,
-            )
-    for name in cfg.filter.edit_k_sensor:
-        _require(
-            name in types,
-            f"filter.edit_k_sensor.{_quote(name)}",
-            f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})",
-            f,
-        )
-    for name in st.elements:
-        owner = name.split(".")[0]
-        _require(
-            owner in types or owner == "att",
-            f"state.elements.{_quote(name)}",
-            f"element {name}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})",
-            f,
-        )
 
 
 # ---------------------------------------------------------------------------- writing

@@ -70,3 +70,61 @@ def _unknown(table: dict, known, prefix: str, file) -> None:
 
 def _pair(g: Any) -> bool:
     return isinstance(g, list) and len(g) == 2 and all(is_number(x) and math.isfinite(x) for x in g) and g[0] < g[1]
+
+
+#: a [models] value that switches a sensor off
+MODEL_OFF = "off"
+
+
+def check_against_mission(cfg, spec) -> None:
+    """The checks that need the mission, on a loaded
+    :class:`~gcs_core.config.AnalysisConfig` ``cfg``: ``[models]`` names its sensors with their
+    types, and effect ids and element names start with one of its sensors (``att.``/``model.``
+    too).
+
+    ``spec`` is the mission's :class:`~gcs_core.io.types.MissionSpec`.
+    """
+    f = cfg.path
+    types = {s.name: s.type for s in spec.sensors}
+    listed = ", ".join(types) or "none"
+    st = cfg.state
+    for name, model in cfg.models.items():
+        key = f"models.{quote(name)}"
+        _require(name in types, key, f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})", f)
+        _require(
+            model in (types[name], MODEL_OFF),
+            key,
+            f'sensor {name} is a {types[name]}: use "{types[name]}" or "off", not {show(model)}',
+            f,
+        )
+    for key, ids in (("state.effects", st.effects), ("state.exclude", st.exclude)):
+        for i, e in enumerate(ids, start=1):
+            owner = e.split(".")[0]
+            _require(
+                owner in types or owner == "model",
+                f"{key}[{i}]",
+                f"effect {e}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})",
+                f,
+            )
+    for name in cfg.filter.edit_k_sensor:
+        _require(
+            name in types,
+            f"filter.edit_k_sensor.{quote(name)}",
+            f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})",
+            f,
+        )
+    for name in st.elements:
+        owner = name.split(".")[0]
+        _require(
+            owner in types or owner == "att",
+            f"state.elements.{quote(name)}",
+            f"element {name}: no sensor named '{owner}' in mission {spec.name} (sensors: {listed})",
+            f,
+        )
+
+
+def edit_k_sensor(fl: dict, f) -> dict[str, float]:
+    """``[filter.edit_k_sensor]``: sensor name -> k ≥ 0 (sensor names are checked against
+    the mission by :func:`gcs_core.config_checks.check_against_mission`)."""
+    table = _table(fl, "edit_k_sensor", "filter.edit_k_sensor", f)
+    return {str(name): _number(table, name, 5.0, f, lo=0.0, prefix="filter.edit_k_sensor.") for name in table}

@@ -12,6 +12,7 @@ from functools import cached_property
 from typing import Protocol
 
 import numpy as np
+from scipy import special
 
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.problem.state import StateVector
@@ -376,3 +377,20 @@ class FilterResult:
     def correlation(self) -> np.ndarray:
         d = np.sqrt(np.diag(self.P))
         return self.P / np.outer(d, d)
+
+
+def passes_text(n: int, status: str) -> str:
+    """The run's status in words: the iterated smoother's passes are a refinement, and
+    ending at the pass limit is normal, not a failure."""
+    passes = f"{n} pass{'es' if n != 1 else ''}"
+    return {
+        "converged": f"converged after {passes}",
+        "max_passes": f"{passes} done, as configured (max_passes): each relinearizes about the smoothed estimate",
+        "single_pass": "one pass (filter and smoother)",
+        "cancelled": f"cancelled during pass {n}",
+    }.get(status, f"{passes}, {status}")
+
+
+def nis_p_value(nis: float, dof: int) -> float:
+    """``P(χ²_dof ≥ nis)``: the upper tail of a normalized innovation squared (NaN without dof)."""
+    return float(special.chdtrc(dof, nis)) if dof > 0 else float("nan")

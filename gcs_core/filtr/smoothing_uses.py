@@ -17,7 +17,8 @@ import numpy as np
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.batch import _solve_normal
 from gcs_core.filtr.results import BatchResult
-from gcs_core.filtr.smoothing_batch import Dynamics, Passes, SmoothedResult, make_knots, process_noise
+from gcs_core.filtr.smoothing_batch import SmoothedResult, make_knots, process_noise
+from gcs_core.filtr.whole_span_passes import Dynamics, Passes
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, linearize
 

@@ -14,8 +14,8 @@ and returns a :class:`FilterResult` carrying post-fit residuals of the whole spa
 
 Passes. The first pass is an EKF (re-linearized at each block start). Further passes
 (``FilterOptions.max_passes``) re-linearize every block about the previous pass's
-smoothed trajectory, starting again from the a priori: the iterated Kalman smoother,
-a Gauss–Newton method on the whole span (Bell 1994). With Q = 0 it converges to the
+smoothed trajectory from the a priori: the iterated Kalman smoother, Gauss–Newton on
+the whole span (Bell 1994). With Q = 0 it converges to the
 batch least-squares solution of :func:`~gcs_core.filtr.batch.batch_fit` (same a priori);
 ``tests/unit/test_kalman.py`` checks it.
 
@@ -28,7 +28,6 @@ import logging
 from collections.abc import Callable, Mapping
 
 import numpy as np
-from scipy import special
 
 from gcs_core.errors import EstimationError
 from gcs_core.filtr.filter_options import FilterOptions
@@ -42,7 +41,15 @@ from gcs_core.filtr.mekf import (
     make_layout,
 )
 from gcs_core.filtr.residuals import make_residuals
-from gcs_core.filtr.results import BlockReport, FilterResult, FrameDiagnostics, InnovationStats, SmoothedTrajectory
+from gcs_core.filtr.results import (
+    BlockReport,
+    FilterResult,
+    FrameDiagnostics,
+    InnovationStats,
+    SmoothedTrajectory,
+    nis_p_value,
+    passes_text,
+)
 from gcs_core.filtr.smoother import EpochStore, SmoothedStates, block_records, gyro_residuals, rts_smooth, trajectory
 from gcs_core.frames.rotations import dcm_to_rotvec, euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
 from gcs_core.problem.attitude import RPY, rpy_error_jacobian
@@ -411,7 +418,7 @@ class Filtr:
                 int(dg["gated"][idx].sum()),
                 nis,
                 dof,
-                _pvalue(nis, dof),
+                nis_p_value(nis, dof),
                 float(np.sqrt(np.mean(zn**2))) if zn.size else np.nan,
             )
             tot_nis, tot_dof = tot_nis + nis, tot_dof + dof
@@ -434,7 +441,7 @@ class Filtr:
             per,
             tot_nis,
             tot_dof,
-            _pvalue(tot_nis, tot_dof),
+            nis_p_value(tot_nis, tot_dof),
             n_used,
             n_gated,
             n_invalid,
@@ -496,7 +503,7 @@ class Filtr:
         used = [(f.nis[f.used], f.innovation.shape[1] * int(f.used.sum())) for f in diag.values()]
         nis, dof = float(sum(np.sum(a) for a, _ in used)), int(sum(k for _, k in used))
         status = "cancelled" if not self._done else self._status
-        msg = _passes_text(self._pass + 1, status)
+        msg = passes_text(self._pass + 1, status)
         if prob.state.consider:
             msg += "; consider elements held at their values: " + ", ".join(prob.state.consider)
         return FilterResult(
@@ -513,21 +520,5 @@ class Filtr:
             msg,
             nis,
             dof,
-            _pvalue(nis, dof),
+            nis_p_value(nis, dof),
         )
-
-
-def _pvalue(nis: float, dof: int) -> float:
-    return float(special.chdtrc(dof, nis)) if dof > 0 else float("nan")  # P(χ²_dof ≥ nis)
-
-
-def _passes_text(n: int, status: str) -> str:
-    """The run's status in words: the iterated smoother's passes are a refinement, and
-    ending at the pass limit is normal, not a failure."""
-    passes = f"{n} pass{'es' if n != 1 else ''}"
-    return {
-        "converged": f"converged after {passes}",
-        "max_passes": f"{passes} done, as configured (max_passes): each relinearizes about the smoothed estimate",
-        "single_pass": "one pass (filter and smoother)",
-        "cancelled": f"cancelled during pass {n}",
-    }.get(status, f"{passes}, {status}")

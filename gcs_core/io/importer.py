@@ -36,7 +36,7 @@ import numpy as np
 from gcs_core.errors import InputError
 from gcs_core.io.csvio import read_table
 from gcs_core.io.mission import read_mission_spec
-from gcs_core.io.tle_table import tle_ephemeris_table
+from gcs_core.io.tle_table import mission_tle_table
 from gcs_core.io.types import MissionSpec, Table
 
 log = logging.getLogger(__name__)
@@ -457,23 +457,6 @@ def _drop_flagged(table: Table) -> tuple[Table, int]:
     ), int(np.count_nonzero(~keep))
 
 
-def _tle_ephemeris(spec: MissionSpec, tables) -> Table:
-    """The ephemeris propagated from ``[orbit] tle`` over every table's span (ephem/tle.py)."""
-    spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
-    if spec.orbit_tle is None:  # a ground mission whose every sensor was left out (no rows)
-        raise InputError("no sensor has any telemetry rows", file=spec.root / "mission.toml")
-    if not spans:
-        raise InputError("no telemetry rows to propagate the orbit over", file=spec.orbit_tle)
-    return tle_ephemeris_table(
-        spec.orbit_tle,
-        spec.epoch,
-        min(a for a, _ in spans),
-        max(b for _, b in spans),
-        frame=spec.orbit_frame,
-        step_s=spec.orbit_step_s,
-    )
-
-
 def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     """Read and check a mission directory (ICD §1-§6).
 
@@ -537,7 +520,7 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     if ground and telemetry:
         eph = ground_ephemeris(spec, telemetry)
     elif eph is None:
-        eph = _tle_ephemeris(spec, [*telemetry.values(), aux, onboard])
+        eph = mission_tle_table(spec, [*telemetry.values(), aux, onboard])
         counts.append(FileCount(eph.path, "orbit (TLE)", len(eph), 0, 0))
     types = {s.name: s.type for s in spec.sensors}
     margin = ephemeris_margin(telemetry, types)

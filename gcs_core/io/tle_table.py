@@ -19,7 +19,7 @@ from gcs_core.ephem.ephemeris import EPHEMERIS_COLUMNS
 from gcs_core.ephem.orbit import TleOrbit
 from gcs_core.ephem.tle import DEFAULT_STEP_S, MARGIN_S, STALE_DAYS, read_tle, tle_states
 from gcs_core.errors import InputError
-from gcs_core.io.types import Table
+from gcs_core.io.types import MissionSpec, Table
 
 log = logging.getLogger(__name__)
 
@@ -60,3 +60,21 @@ def tle_ephemeris_table(
     cols = dict(zip(EPHEMERIS_COLUMNS, [t, *r.T, *v.T, *sun.T]))
     cols = {k: np.ascontiguousarray(c, dtype=float) for k, c in cols.items()}
     return Table(path=Path(tle_file), t=cols["t"], columns=cols, lines=np.zeros(t.size, dtype=int))
+
+
+def mission_tle_table(spec: MissionSpec, tables) -> Table:
+    """The ephemeris of a mission that gives ``[orbit] tle``: propagated over every
+    telemetry table's span (:func:`tle_ephemeris_table`)."""
+    spans = [(float(tb.t[0]), float(tb.t[-1])) for tb in tables if tb is not None and len(tb)]
+    if spec.orbit_tle is None:  # a ground mission whose every sensor was left out (no rows)
+        raise InputError("no sensor has any telemetry rows", file=spec.root / "mission.toml")
+    if not spans:
+        raise InputError("no telemetry rows to propagate the orbit over", file=spec.orbit_tle)
+    return tle_ephemeris_table(
+        spec.orbit_tle,
+        spec.epoch,
+        min(a for a, _ in spans),
+        max(b for _, b in spans),
+        frame=spec.orbit_frame,
+        step_s=spec.orbit_step_s,
+    )

@@ -173,7 +173,7 @@ def _context(defn: StudyDefinition):
     key = defn.as_json()
     ctx = _CONTEXT.get(key)
     if ctx is None:
-        from gcs_core.config import check_against_mission
+        from gcs_core.config_checks import check_against_mission
         from gcs_core.io.mission import read_mission_spec
         from gcs_core.predictor.plan import DataPlan
 

@@ -80,7 +80,7 @@ def _load(args):
 
 def _setup(args, prog: Progress):
     """(config, imported mission), the config checked against the mission."""
-    from gcs_core.config import check_against_mission
+    from gcs_core.config_checks import check_against_mission
     from gcs_core.io.importer import load_mission
 
     cfg = _load(args)

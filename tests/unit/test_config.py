@@ -14,6 +14,7 @@ import pytest
 from repo_paths import ROOT
 
 from gcs_core import config as C
+from gcs_core import config_checks
 from gcs_core.errors import ConfigError, InputError
 from gcs_core.io.importer import load_mission
 
@@ -229,10 +230,10 @@ def test_checks_against_the_mission_name_the_key(tmp_path):
     for body, key, fragment in cases:
         cfg = C.load_config(write(tmp_path, BASE + body))
         with pytest.raises(ConfigError) as info:
-            C.check_against_mission(cfg, spec)
+            config_checks.check_against_mission(cfg, spec)
         assert info.value.key == key and fragment in info.value.message
         assert info.value.file == cfg.path
-    C.check_against_mission(C.load_config(write(tmp_path, BASE + '[models]\nTAM1 = "off"\n')), spec)
+    config_checks.check_against_mission(C.load_config(write(tmp_path, BASE + '[models]\nTAM1 = "off"\n')), spec)
 
 
 # ---------------------------------------------------------------------------- sample configs
@@ -249,7 +250,7 @@ def test_sample_config_loads_and_points_at_its_mission(path):
     assert cfg.mission.is_dir() and (cfg.mission / "mission.toml").is_file()
     assert cfg.mission.resolve() == (MISSIONS / path.stem).resolve()
     spec = load_mission(cfg.mission).spec
-    C.check_against_mission(cfg, spec)
+    config_checks.check_against_mission(cfg, spec)
     assert spec.name == path.stem
     shown = set(leaves(C.parse_toml(path.read_text())))
     for table in C.TABLES:  # each sample shows every table of the example

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.filtr import smoothing_batch, stopping
+from gcs_core.filtr import smoothing_batch, stopping, whole_span_passes
 from gcs_core.filtr.batch import BatchOptions
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
@@ -52,7 +52,7 @@ def test_a_refit_starts_at_the_previous_minimum_and_cannot_end_above_it(analysis
 
 def test_no_step_lowering_the_cost_is_a_stall_not_a_divergence(analysis, monkeypatch):
     problem = analysis.problem
-    honest = smoothing_batch.Passes.cost
+    honest = whole_span_passes.Passes.cost
     first = {}
 
     def jagged(self, x, chi2, sysk):
@@ -61,7 +61,7 @@ def test_no_step_lowering_the_cost_is_a_stall_not_a_divergence(analysis, monkeyp
         first.setdefault("x", x.copy())
         return c if np.array_equal(x, first["x"]) else c + 1e6
 
-    monkeypatch.setattr(smoothing_batch.Passes, "cost", jagged)
+    monkeypatch.setattr(whole_span_passes.Passes, "cost", jagged)
     res = smoothing_batch.whole_span_fit(problem, BatchOptions(edit_k=None))
     assert res.status == stopping.STALLED, res.message
     assert "stalled after" in res.message and "relative cost change" in res.message

@@ -28,6 +28,7 @@ from test_truth_recovery import ONE_HOUR, fit_and_compare, threeaxis
 from gcs_core.compiled import COMPILED
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr import smoothing_batch as sb
+from gcs_core.filtr import whole_span_passes as wsp
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.models.gyro_noise import GyroNoise
@@ -49,7 +50,7 @@ def _small(seed=3, duration_s=300.0, spacing=20.0):
     prior = 1.0 / s0**2
     noise = attitude_gyro_noise(problem)
     grid = sb.make_knots(problem, noise, batch.information, names, spacing=spacing)
-    passes = sb.Passes(problem, names, grid, x_bar, prior)
+    passes = wsp.Passes(problem, names, grid, x_bar, prior)
     passes.stream = False  # every knot's blocks kept (Dk, Bk) for inspection
     return problem, batch, grid, passes, x_bar, prior
 
@@ -150,10 +151,10 @@ def test_compiled_and_numpy_forms_agree(monkeypatch):
     z[1:, 3:] = 1e-7
     x = np.asarray(batch.x)
     _, _, _, _, fast, _ = passes.run(x, z, {})
-    C_fast = sb.CorrectedAttitude(problem.attitude, grid, z, fast.R).evaluate(passes.values, problem.sensors[0].t).C_BI
+    C_fast = wsp.CorrectedAttitude(problem.attitude, grid, z, fast.R).evaluate(passes.values, problem.sensors[0].t).C_BI
     monkeypatch.setattr(kn, "COMPILED", False)
     _, _, _, _, slow, _ = passes.run(x, z, {})
-    C_slow = sb.CorrectedAttitude(problem.attitude, grid, z, slow.R).evaluate(passes.values, problem.sensors[0].t).C_BI
+    C_slow = wsp.CorrectedAttitude(problem.attitude, grid, z, slow.R).evaluate(passes.values, problem.sensors[0].t).C_BI
     np.testing.assert_allclose(fast.Dk, slow.Dk, rtol=1e-10, atol=1e-12 * np.abs(slow.Dk).max())
     np.testing.assert_allclose(fast.Bk, slow.Bk, rtol=1e-10, atol=1e-12 * np.abs(slow.Bk).max())
     np.testing.assert_allclose(C_fast, C_slow, atol=1e-14)

@@ -24,6 +24,7 @@ import numpy as np
 import pytest
 
 from gcs_core.filtr import smoothing_batch as sb
+from gcs_core.filtr import whole_span_passes as wsp
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.io.importer import load_mission
 from gcs_core.problem.build import build_problem
@@ -43,7 +44,7 @@ def setup(tmp_path_factory):
     b = batch_fit(problem, BatchOptions(edit_k=None, max_iterations=3))
     names = tuple(b.solve_for)
     grid = sb.make_knots(problem, sb.process_noise(problem), b.information, names)
-    passes = sb.Passes(problem, names, grid, np.array(b.x), np.zeros(len(names)))
+    passes = wsp.Passes(problem, names, grid, np.array(b.x), np.zeros(len(names)))
     passes.stream = False  # keep the knot rows for the check
     rng = np.random.default_rng(11)
     z = np.zeros((grid.K, grid.d))

@@ -1,0 +1,220 @@
+"""The whole-span fit's moving parts (module docstring of :mod:`gcs_core.filtr.smoothing_batch`):
+the knot corrections as an attitude provider (:class:`CorrectedAttitude`), their state
+(:class:`Dynamics`), the drift-bias axes at the knots (:func:`mid_rotations`) and one
+Gauss–Newton pass over the data (:class:`Passes`: linearize, accumulate per knot, eliminate)."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from gcs_core.compiled import COMPILED
+from gcs_core.filtr import knots as kn
+from gcs_core.filtr.knot_kernels import correct_attitude
+from gcs_core.filtr.residuals import Residuals
+from gcs_core.frames.rotations import rotvec_to_dcm
+from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
+from gcs_core.problem.build import Problem
+from gcs_core.problem.gyro_attitude import GyroAttitude
+from gcs_core.problem.linearization import iter_blocks
+
+log = logging.getLogger(__name__)
+
+#: a Gauss–Newton step that would lower the cost by less than this is negligible
+GAIN_TOL = 1e-3
+#: ... and, when no shortened step lowers the cost, a predicted gain below this fraction
+#: of the cost (the first-order knot partials' accuracy where the corrections are large)
+NOISE_GAIN = 1e-6
+
+
+@dataclass
+class Dynamics:
+    """The knot corrections of a whole-span fit and what their covariance needs.
+
+    grid : the knots; z : (K, d) corrections; R : (K−1, 3, 3) mid-interval rotations;
+    names : the static columns of ``factors`` and ``P``; factors : the elimination at the
+    solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics.
+    """
+
+    grid: kn.KnotGrid
+    z: np.ndarray
+    R: np.ndarray
+    names: tuple = ()
+    factors: tuple | None = None
+    P: np.ndarray | None = None
+    _cov: tuple | None = field(default=None, repr=False)
+
+    def attitude(self, base) -> CorrectedAttitude:
+        return CorrectedAttitude(base, self.grid, self.z, self.R)
+
+    def problem(self, problem: Problem) -> Problem:
+        """The problem with its attitude corrected by the knots (caches shared)."""
+        base = problem.attitude.base if isinstance(problem.attitude, CorrectedAttitude) else problem.attitude
+        out = replace(problem, attitude=self.attitude(base))
+        out.__dict__["_variant_cache"] = problem.__dict__.setdefault("_variant_cache", {})
+        return out
+
+    def covariance(self):
+        """(Σ_j (K, d, d), Cov(z_j, x) (K, d, n)) at the solution (computed once)."""
+        if self._cov is None and self.factors is not None:
+            assert self.P is not None  # set with the factors
+            self._cov = kn.KnotSystem.covariance(self.factors, self.P)
+        return self._cov
+
+    def knot_sigma(self) -> np.ndarray:
+        """(K, d) 1-sigma of the corrections."""
+        S = self.covariance()[0]
+        return np.sqrt(np.clip(np.einsum("kaa->ka", S), 0, None))
+
+
+class CorrectedAttitude:
+    """The gyro-carried attitude with the knot corrections applied exactly:
+    ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.filtr.knots`).
+    Partials stay factored as the base provider's (chained through the corrected C)."""
+
+    def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray):
+        self.base, self.grid, self.z, self.R = base, grid, z, R
+
+    def __getattr__(self, name):
+        return getattr(self.base, name)
+
+    @property
+    def names(self):
+        return self.base.names
+
+    def _correct(self, C, t):
+        if not np.any(self.z):
+            return C
+        if COMPILED:
+            out = np.empty_like(C)
+            correct_attitude(
+                np.ascontiguousarray(C),
+                t,
+                self.grid.index(t).astype(np.int64),
+                self.grid.tau,
+                self.z,
+                self.R if self.R.shape[0] else np.eye(3)[None],
+                out,
+            )
+            return out
+        a = kn.alpha_at(self.grid, self.z, self.R, t)
+        return rotvec_to_dcm(np.einsum("nab,nb->na", C, a)) @ C
+
+    def frames(self, values, t, *, partials: bool = True) -> FrameAttitude:
+        t = np.atleast_1d(np.asarray(t, float))
+        fr = self.base.frames(values, t, partials=partials)
+        # the statics' partials stay the gyro-carried attitude's (C_chain, exact: a body-frame
+        # perturbation ε of C_gyro moves C = C_gyro exp(−[α×]) by the same ε)
+        return FrameAttitude(
+            self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro, C_chain=fr.C_BI
+        )
+
+    def evaluate(self, values, t) -> AttitudeEval:
+        t = np.atleast_1d(np.asarray(t, float))
+        ev = self.base.evaluate(values, t)
+        return AttitudeEval(self._correct(ev.C_BI, t), None, ev.names, ev.J, omega_B=ev.omega_B)
+
+
+def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
+    """``C_gyro(t)ᵀ`` (N, 3, 3) at times ``t``, block by block of the propagation."""
+    out = np.empty((t.size, 3, 3))
+    if not t.size:
+        return out
+    b = (att._rows(t) - 1) // att.block_knots
+    for bb in np.unique(b):
+        sel = np.flatnonzero(b == bb)
+        out[sel] = np.swapaxes(att.frames(values, t[sel], partials=False).C_BI, 1, 2)
+    return out
+
+
+class Passes:
+    """Linearization passes of the whole-span problem at (x, z)."""
+
+    def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info):
+        self.problem, self.names, self.grid = problem, tuple(names), grid
+        self.base = problem.gyro_attitude  # the whole-span problem is gyro-carried
+        self.x_bar, self.prior_info = x_bar, prior_info
+        self.values = problem.state.values()
+        self.work: dict = {}
+        self.buffers = Residuals().ensure(problem)
+        self.stream, self.keep = True, True  # knots eliminated as the data pass them
+        # the knots' drift-bias axes R_j (knots.py), taken from the trajectory where the fit
+        # starts and then held: the cost is a function of (x, z) alone, and the Jacobian
+        # (which has no ∂R/∂x) is its exact one. Re-taken at every x, R moved with steps of
+        # the statics of degrees (a week's wander) and the steps stopped lowering the cost.
+        self.R_fixed: np.ndarray | None = None
+
+    def set_x(self, x, names=None):
+        for j, nm in enumerate(self.names if names is None else names):
+            self.values[nm] = x[j]
+
+    def run(self, x, z, edits, *, columns=None, jacobian=True):
+        """One pass: (A, b, χ², m, system) at (x, z); the residual buffers are filled."""
+        cols = tuple(columns or self.names)
+        self.set_x(x)
+        if self.R_fixed is None:
+            self.R_fixed = mid_rotations(self.base, self.values, self.grid.mid_times())
+        R = self.R_fixed
+        sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream, keep=self.keep)
+        sysk.track(self.problem.sensors)
+        prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R))
+        n = len(cols) if jacobian else 0
+        A, b = np.zeros((n, n)), np.zeros(n)
+        chi2, m_used = 0.0, 0
+        for blk in iter_blocks(
+            prob,
+            self.values,
+            cols if jacobian else (),
+            exclude=edits,
+            weighted=True,
+            jacobian=jacobian,
+            work=self.work,
+            augmented=True,
+        ):
+            if blk.name in self.buffers.y_pred:
+                self.buffers.y_pred[blk.name][blk.lo : blk.hi] = blk.y_pred
+            self.buffers.r[blk.name][blk.lo : blk.hi] = blk.r
+            self.buffers.valid[blk.name][blk.lo : blk.hi] = blk.valid
+            nu = int(np.count_nonzero(blk.used))
+            if not nu:
+                sysk.passed(blk.sensor, blk.hi)
+                continue
+            m_used += nu * blk.r.shape[1]
+            sd = blk.sensor
+            c = blk.cols
+            if jacobian and blk.Hr is not None:
+                # [H r]ᵀ [H r]: Hᵀ R⁻¹ H, Hᵀ R⁻¹ r and χ² in one product
+                G = blk.Hr.T @ blk.Hr
+                k = c.size
+                chi2 += float(G[k, k])
+                A[np.ix_(c, c)] += G[:k, :k]
+                b[c] += G[:k, k]
+                rw = None
+            else:
+                rw = np.where(blk.used[:, None], blk.r, 0.0) / sd.sigma
+                chi2 += float(np.sum(rw * rw))
+            if not jacobian:
+                continue
+            self._knot_rows(blk, sysk, rw, R)
+            sysk.passed(sd, blk.hi)
+        return A, b, chi2, m_used, sysk, R
+
+    def _knot_rows(self, blk, sysk, rw, R) -> None:
+        """The block's rows in the knot columns, added to the knot system."""
+        sd = blk.sensor
+        D = getattr(blk.pred, "d_att", None)
+        if D is None or blk.geom.C_BI is None:
+            return
+        t = sd.t[blk.lo : blk.hi]
+        w = blk.used[:, None] / sd.sigma[None, :]
+        C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
+        if blk.Hr is not None:
+            sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+        else:
+            sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(), np.zeros(0, np.int64))
+
+    def cost(self, x, chi2, sysk) -> float:
+        d = self.x_bar - x
+        return chi2 + float(np.sum(self.prior_info * d * d)) + sysk.prior_cost()
