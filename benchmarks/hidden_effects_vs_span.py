@@ -41,7 +41,11 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "helpers"), str(ROOT / "benchmarks")]
+sys.path[:0] = [
+    str(ROOT),
+    *(str(p) for p in sorted((ROOT / "tests").iterdir()) if p.is_dir()),
+    str(ROOT / "benchmarks"),
+]
 
 import honesty_cases as hc
 

@@ -54,7 +54,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT), str(ROOT / "tests" / "statistical"), str(ROOT / "tests" / "helpers")]
+sys.path[:0] = [str(ROOT), *(str(p) for p in sorted((ROOT / "tests").iterdir()) if p.is_dir())]
 
 from test_consistency_batch import HEADLINE, headline, nees_band
 from test_truth_recovery import simulate, threeaxis, truth_values
