@@ -35,9 +35,9 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 from gcs_core.config import load_config
-from gcs_core.trade import definition_from_config
 from gcs_core.trade.engine import connect
 from gcs_core.trade.run import run_study
+from gcs_core.trade.study import definition_from_config
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-gyro.toml"
 #: the speed-up the scale-out must reach on two idle cores

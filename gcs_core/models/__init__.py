@@ -19,19 +19,7 @@ from gcs_core.models.magnetometer import MagnetometerModel
 from gcs_core.models.plane_field_sun import PlaneFieldSunModel
 from gcs_core.models.star_tracker import StarTrackerModel
 
-__all__ = [
-    "MODEL_TYPES",
-    "make_model",
-    "ObservationModel",
-    "MagnetometerModel",
-    "GyroModel",
-    "StarTrackerModel",
-    "FineSunModel",
-    "CoarseSunModel",
-    "PlaneFieldSunModel",
-    "HorizonModel",
-    "AttitudeReferenceModel",
-]
+__all__ = ["MODEL_TYPES", "make_model"]
 
 #: ICD §5 type key -> model class.
 MODEL_TYPES: dict[str, type[ObservationModel]] = {

@@ -10,8 +10,3 @@
 - :mod:`.kalman` — the covariance-only recursion of Eq 3-4.
 - :mod:`.predict` — :func:`predict` and :class:`PredictionResult`.
 """
-
-from gcs_core.predictor.plan import DataPlan
-from gcs_core.predictor.predict import PredictionResult, predict
-
-__all__ = ["DataPlan", "PredictionResult", "predict"]

@@ -16,39 +16,8 @@ book does not say. ``list_effects()`` lists them with their units.
 
 Typical use::
 
-    from gcs_core.sim import nominal_threeaxis, with_effect, write_mission
+    from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
+    from gcs_core.sim.writer import write_mission
     cfg = with_effect(nominal_threeaxis("sun_pointing", seed=7), "TAM1.bias", 200.0)
     write_mission(cfg, "out/mission", truth_path="out/answers/mission.json")
 """
-
-from gcs_core.sim.config import (
-    AuxConfig,
-    HiddenEffect,
-    MissionConfig,
-    OnboardConfig,
-    OrbitElements,
-    SensorConfig,
-    Slew,
-    SpinProfile,
-    ThreeAxisProfile,
-)
-from gcs_core.sim.scenarios import EFFECTS, list_effects, nominal_threeaxis, spinner_nominal, with_effect
-from gcs_core.sim.writer import write_mission
-
-__all__ = [
-    "AuxConfig",
-    "HiddenEffect",
-    "MissionConfig",
-    "OnboardConfig",
-    "OrbitElements",
-    "SensorConfig",
-    "Slew",
-    "SpinProfile",
-    "ThreeAxisProfile",
-    "EFFECTS",
-    "list_effects",
-    "nominal_threeaxis",
-    "spinner_nominal",
-    "with_effect",
-    "write_mission",
-]

@@ -9,7 +9,3 @@
 
 Nothing here imports Dask unless ``workers`` or ``scheduler`` is given.
 """
-
-from gcs_core.trade.study import ATTITUDE, PlanRow, StudyDefinition, definition_from_config
-
-__all__ = ["ATTITUDE", "PlanRow", "StudyDefinition", "definition_from_config"]

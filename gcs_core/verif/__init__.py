@@ -4,18 +4,3 @@
 - :mod:`.ground` — the fitted attitude with its 1-σ.
 - :mod:`.analysis` — :func:`verify_analysis` on a fitted :class:`~gcs_core.session.Analysis`.
 """
-
-from gcs_core.verif.analysis import verify_analysis
-from gcs_core.verif.compare import VerifResult, flag_rule, seed_sigma, slerp, verify
-from gcs_core.verif.ground import GroundAttitude, ground_attitude
-
-__all__ = [
-    "VerifResult",
-    "verify",
-    "verify_analysis",
-    "flag_rule",
-    "seed_sigma",
-    "slerp",
-    "GroundAttitude",
-    "ground_attitude",
-]

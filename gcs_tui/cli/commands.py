@@ -324,7 +324,7 @@ def cmd_effects(args, prog: Progress) -> int:
 
 
 def cmd_predict(args, prog: Progress) -> int:
-    from gcs_core.predictor import predict
+    from gcs_core.predictor.predict.predict.predict.predict.predict import predict
     from gcs_tui.cli.tables import prediction_table
 
     cfg, mission = _setup(args, prog)
@@ -336,7 +336,7 @@ def cmd_predict(args, prog: Progress) -> int:
 
 
 def cmd_verify(args, prog: Progress) -> int:
-    from gcs_core.verif import verify_analysis
+    from gcs_core.verif.analysis import verify_analysis
 
     a = _analysis(args, prog)
     _fit(a, prog, holdout=False)

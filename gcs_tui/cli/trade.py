@@ -114,10 +114,10 @@ def add_commands(add, target) -> None:
 # ---------------------------------------------------------------------------- trade
 def cmd_trade(args, prog) -> int:
     from gcs_core.config import load_config
-    from gcs_core.trade import definition_from_config
     from gcs_core.trade.report import budget_lines, study_table
     from gcs_core.trade.run import run_study
     from gcs_core.trade.space import parse_vary
+    from gcs_core.trade.study import definition_from_config
 
     cfg = load_config(args.target)
     assert cfg.path is not None  # a loaded config keeps its file's path

@@ -33,10 +33,9 @@ from scipy import stats
 
 from gcs_core.config import load_config
 from gcs_core.io.mission import read_mission_spec
-from gcs_core.trade import definition_from_config
 from gcs_core.trade.geometry import field_turn_deg
 from gcs_core.trade.run import run_study
-from gcs_core.trade.study import make_orbit
+from gcs_core.trade.study import definition_from_config, make_orbit
 
 CONFIGS = ROOT / "sample_data" / "trade"
 #: "several times larger": at least this factor

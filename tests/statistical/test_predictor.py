@@ -20,10 +20,12 @@ import pytest
 from gcs_core.config import AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.ephem.orbit import KeplerOrbit
 from gcs_core.io.importer import load_mission
-from gcs_core.predictor import DataPlan, predict
+from gcs_core.predictor.plan import DataPlan
+from gcs_core.predictor.predict.predict.predict.predict.predict import predict
 from gcs_core.session import Analysis
-from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import Slew, ThreeAxisProfile
+from gcs_core.sim.scenarios import nominal_threeaxis
+from gcs_core.sim.writer import write_mission
 from gcs_core.units import DEG
 
 FIFTEEN_PERCENT = 0.15

@@ -266,7 +266,7 @@ def test_verification_speaks_one_unit_in_both_faces():
     """The CLI summary, the flag's reason and the TUI table use the unit chosen from the largest
     σ or threshold: a 100″ offset against a 36″ requirement reads in arcsec everywhere."""
     from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm
-    from gcs_core.verif import verify
+    from gcs_core.verif.compare import verify
     from gcs_tui.tui.screens.verification import shown_unit
 
     t = np.arange(0.0, 600.0, 10.0)

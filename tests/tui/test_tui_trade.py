@@ -8,8 +8,8 @@ from repo_paths import ROOT
 from tui_testing import sample_mission, settle
 
 from gcs_core.config import load_config
-from gcs_core.trade import definition_from_config
 from gcs_core.trade.run import run_study
+from gcs_core.trade.study import definition_from_config
 from gcs_tui.tui.app import GcsApp
 from gcs_tui.tui.screens.trade import TradeScreen
 from gcs_tui.tui.workbench import Workbench

@@ -18,7 +18,8 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.errors import InputError
 from gcs_core.io.importer import TIME_TAG_BOUND_S, load_mission
 from gcs_core.session import Analysis
-from gcs_core.sim import spinner_nominal, write_mission
+from gcs_core.sim.scenarios import spinner_nominal
+from gcs_core.sim.writer import write_mission
 
 spin_period_s = 6.0  # 10 rpm
 noise_floor_bound = 1.1  # normalized RMS of a 40 min fit (≈ 400 spins)

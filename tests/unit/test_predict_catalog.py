@@ -28,13 +28,15 @@ from gcs_core.config import AnalysisConfig, ConfigError, Maneuver, config_from_d
 from gcs_core.errors import InputError
 from gcs_core.io.importer import load_mission
 from gcs_core.io.types import Table
-from gcs_core.predictor import DataPlan, predict
+from gcs_core.predictor.plan import DataPlan
+from gcs_core.predictor.predict.predict.predict.predict.predict import predict
 from gcs_core.predictor.stars import STAR_CATALOG_FILE, Catalog, read_catalog, telemetry_catalog
 from gcs_core.session import Analysis
-from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import Slew, ThreeAxisProfile
+from gcs_core.sim.scenarios import nominal_threeaxis
 from gcs_core.sim.stars import StarCatalog
 from gcs_core.sim.writer import STAR_CATALOG_FILE as SIM_CATALOG_FILE
+from gcs_core.sim.writer import write_mission
 from gcs_core.units import DEG
 
 FIFTEEN_PERCENT = 0.15

@@ -17,9 +17,10 @@ import pytest
 
 from gcs_core import units
 from gcs_core.frames import rotations as R
-from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.field import igrf_gci
+from gcs_core.sim.scenarios import nominal_threeaxis
 from gcs_core.sim.truth import World
+from gcs_core.sim.writer import write_mission
 
 one_nT = 1.0
 one_arcsecond = units.ARCSEC

@@ -15,11 +15,11 @@ import pytest
 from gcs_core import units
 from gcs_core.errors import InputError
 from gcs_core.frames import rotations as R
-from gcs_core.sim import list_effects, nominal_threeaxis, spinner_nominal, with_effect, write_mission
 from gcs_core.sim.aux import AuxSchedule
+from gcs_core.sim.scenarios import list_effects, nominal_threeaxis, spinner_nominal, with_effect
 from gcs_core.sim.stars import StarCatalog
 from gcs_core.sim.truth import World
-from gcs_core.sim.writer import _rng, make_sensor_sim
+from gcs_core.sim.writer import _rng, make_sensor_sim, write_mission
 
 one_nT = 1.0
 one_arcsecond = units.ARCSEC

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from gcs_core import units
-from gcs_core.sim import spinner_nominal, with_effect, write_mission
+from gcs_core.sim.scenarios import spinner_nominal, with_effect
 from gcs_core.sim.spinner import SunSightings
 from gcs_core.sim.truth import World
-from gcs_core.sim.writer import make_sensor_sim
+from gcs_core.sim.writer import make_sensor_sim, write_mission
 
 one_microsecond = 1e-6
 

@@ -21,10 +21,11 @@ from repo_paths import ROOT
 
 from gcs_core.config import load_config
 from gcs_core.errors import InputError
-from gcs_core.trade import definition_from_config, store
 from gcs_core.trade import run as trade_run
+from gcs_core.trade import store
 from gcs_core.trade.run import read_study, run_study
 from gcs_core.trade.space import parse_values, parse_vary
+from gcs_core.trade.study import definition_from_config
 
 CONFIG = ROOT / "sample_data" / "trade" / "smm-tam-bias.toml"
 #: the kill test's study: 2 spans × 48 starts = 96 short plans (a few seconds serially,

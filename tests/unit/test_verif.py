@@ -18,9 +18,11 @@ from gcs_core import units
 from gcs_core.config import AnalysisConfig
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_to_dcm, rotvec_to_dcm
 from gcs_core.session import Analysis
-from gcs_core.sim import nominal_threeaxis, write_mission
 from gcs_core.sim.config import OnboardConfig
-from gcs_core.verif import flag_rule, seed_sigma, slerp, verify, verify_analysis
+from gcs_core.sim.scenarios import nominal_threeaxis
+from gcs_core.sim.writer import write_mission
+from gcs_core.verif.analysis import verify_analysis
+from gcs_core.verif.compare import flag_rule, seed_sigma, slerp, verify
 
 one_arcsecond = units.ARCSEC
 INJECTED_DEG = 0.05
