@@ -282,11 +282,11 @@ def test_verification_speaks_one_unit_in_both_faces():
 
 
 def test_kalman_passes_and_unobservable_are_said_in_words():
-    from gcs_core.filtr.stepping import _passes_text
+    from gcs_core.filtr.results import passes_text
 
-    assert _passes_text(3, "max_passes").startswith("3 passes done, as configured")
-    assert _passes_text(2, "converged") == "converged after 2 passes"
-    assert "pass(es)" not in _passes_text(1, "single_pass")
+    assert passes_text(3, "max_passes").startswith("3 passes done, as configured")
+    assert passes_text(2, "converged") == "converged after 2 passes"
+    assert "pass(es)" not in passes_text(1, "single_pass")
     res = SimpleNamespace(
         residuals={}, message="converged", chi2=10.0, dof=10, unobservable=["TAM1.align_1 + att.roll"]
     )
