@@ -39,7 +39,7 @@ sys.path.insert(0, str(REPO))
 from gcs_core.config import AnalysisConfig, Maneuver
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.predictor.plan import DataPlan
-from gcs_core.predictor.predict.predict.predict.predict.predict import predict
+from gcs_core.predictor.predict import predict
 from gcs_core.predictor.synth import plan_problem
 from gcs_core.session import Analysis
 from gcs_core.sim.config import Slew, ThreeAxisProfile

@@ -258,7 +258,7 @@ def _runs(mc: MonteCarlo, batch: list) -> list[dict]:
 def predicted(mc: MonteCarlo):
     """The predictor's result for the plan, the trackers' stars from the simulator's catalog."""
     from gcs_core.io.mission import read_mission_spec
-    from gcs_core.predictor.predict.predict.predict.predict.predict import predict
+    from gcs_core.predictor.predict import predict
     from gcs_core.sim.writer import write_mission
 
     cfg, spec, plan = _context(mc)

@@ -250,7 +250,7 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
 
 def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str, Any]]]) -> list[PlanRow]:
     """Predict each ``(index, combination)`` of ``items`` (a batch of one task)."""
-    from gcs_core.predictor.predict.predict.predict.predict.predict import predict
+    from gcs_core.predictor.predict import predict
 
     cfg, spec, base, orbit = _context(defn)
     targets = defn.targets or (ATTITUDE,)  # without targets: the attitude

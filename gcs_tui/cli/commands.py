@@ -324,7 +324,7 @@ def cmd_effects(args, prog: Progress) -> int:
 
 
 def cmd_predict(args, prog: Progress) -> int:
-    from gcs_core.predictor.predict.predict.predict.predict.predict import predict
+    from gcs_core.predictor.predict import predict
     from gcs_tui.cli.tables import prediction_table
 
     cfg, mission = _setup(args, prog)

@@ -41,7 +41,7 @@ def available(module: str, name: str) -> bool:
 # ---------------------------------------------------------------------------- predictor
 def predict(wb, progress=None, cancelled=None):
     """σ of every solve-for element along the config's data plan (gcs_core.predictor)."""
-    run = engine("gcs_core.predictor", "predict")
+    run = engine("gcs_core.predictor.predict", "predict")
     if progress:
         progress(0, None, "accumulating information")
     result = run(wb.analysis)
@@ -54,7 +54,7 @@ def predict(wb, progress=None, cancelled=None):
 # ---------------------------------------------------------------------------- verification
 def verify(wb, progress=None, cancelled=None):
     """Onboard against ground attitude (gcs_core.verif.verify_analysis); fits first if needed."""
-    run = engine("gcs_core.verif", "verify_analysis")
+    run = engine("gcs_core.verif.analysis", "verify_analysis")
     if wb.result is None:
         if progress:
             progress(0, 2, "fitting first")

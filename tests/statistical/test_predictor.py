@@ -21,7 +21,7 @@ from gcs_core.config import AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.ephem.orbit import KeplerOrbit
 from gcs_core.io.importer import load_mission
 from gcs_core.predictor.plan import DataPlan
-from gcs_core.predictor.predict.predict.predict.predict.predict import predict
+from gcs_core.predictor.predict import predict
 from gcs_core.session import Analysis
 from gcs_core.sim.config import Slew, ThreeAxisProfile
 from gcs_core.sim.scenarios import nominal_threeaxis

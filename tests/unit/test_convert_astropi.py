@@ -203,7 +203,7 @@ def test_a_new_format_is_one_module_and_options_it_does_not_take_are_refused(mon
 def test_prediction_beyond_the_data_propagates_the_tle(tmp_path):
     """A plan past the telemetry (the next hour) takes its orbit from the mission's TLE."""
     from gcs_core.predictor.plan import DataPlan
-    from gcs_core.predictor.predict.predict.predict.predict.predict.predict import predict
+    from gcs_core.predictor.predict import predict
 
     _convert(tmp_path)
     m = load_mission(tmp_path / "m")

@@ -28,7 +28,7 @@ from gcs_core.io.types import SensorSpec
 from gcs_core.models import make_model
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q, gyro_noise
 from gcs_core.predictor import kalman as pk
-from gcs_core.predictor.predict.predict.predict.predict.predict.predict import predict
+from gcs_core.predictor.predict import predict
 
 #: round-off of two evaluations of the same expression
 ROUND_OFF = 1e-12

@@ -29,7 +29,7 @@ from gcs_core.errors import InputError
 from gcs_core.io.importer import load_mission
 from gcs_core.io.types import Table
 from gcs_core.predictor.plan import DataPlan
-from gcs_core.predictor.predict.predict.predict.predict.predict import predict
+from gcs_core.predictor.predict import predict
 from gcs_core.predictor.stars import STAR_CATALOG_FILE, Catalog, read_catalog, telemetry_catalog
 from gcs_core.session import Analysis
 from gcs_core.sim.config import Slew, ThreeAxisProfile
