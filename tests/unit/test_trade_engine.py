@@ -143,7 +143,7 @@ def test_output_refused_without_resume_and_other_study(tmp_path):
 
 def test_serial_path_never_imports_dask(tmp_path):
     code = (
-        "import sys; from gcs_core.config import load_config; from gcs_core.trade import "
+        "import sys; from gcs_core.config import load_config; from gcs_core.trade.study import "
         "definition_from_config; from gcs_core.trade.run import run_study; "
         f"run_study(definition_from_config(load_config({str(CONFIG)!r}), {{'span_min': (10,)}})); "
         "print('dask' in sys.modules, 'distributed' in sys.modules)"
