@@ -28,7 +28,7 @@ Conditional on the attitude. ``A`` is the information with the attitude held; th
 own covariance has the attitude (and, for the whole-span method, its knots) marginalized.
 For an element the attitude cannot absorb — a ground calibration under a precise attitude
 reference, the BROAD magnetometer against a reference 30 times finer than it — the two
-agree and ``s`` is the honest factor (``tests/test_sigma_scale.py``). For an element the
+agree and ``s`` is the honest factor (``tests/statistical/test_sigma_scale.py``). For an element the
 attitude's freedom absorbs in part (a Sun sensor's or a gyro's in flight, against knots
 every tens of seconds) the residuals are orthogonal to what the attitude took, window by
 window, and ``s`` comes out below 1 on a correct model (0.3–0.9 on the 8-h Sun-pointing

@@ -1,4 +1,4 @@
-"""The ``gcs`` command (gcs_tui/cli.py): every command on the bundled sample missions, the
+"""The ``gcs`` command (gcs_tui/cli/commands.py): every command on the bundled sample missions, the
 ICD §7 JSON report, exit codes, one-line errors without tracebacks, and the progress display.
 
 Commands run in-process through ``gcs_tui.cli.main([...])``; two runs go through a real
