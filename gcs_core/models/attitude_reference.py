@@ -80,17 +80,7 @@ class AttitudeReferenceModel(ObservationModel):
 
     def _parameters(self) -> tuple[ParamSpec, ...]:
         specs = list(common.alignment_specs(self.sensor, seed=True, sigma=0.01))
-        specs.append(
-            ParamSpec(
-                "time_offset",
-                "s",
-                0.0,
-                0.1,
-                seed=False,
-                effect="time_offset",
-                description="time-tag offset: the attitude sample is of time t + Δt",
-            )
-        )
+        specs.append(common.time_offset_spec("the attitude sample"))
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:

@@ -78,17 +78,7 @@ class CoarseSunModel(ObservationModel):
                 )
             )
         specs += common.alignment_specs(self.sensor, seed=False, sigma=0.02)
-        specs.append(
-            ParamSpec(
-                "time_offset",
-                "s",
-                0.0,
-                0.1,
-                seed=False,
-                effect="time_offset",
-                description="time-tag offset: the sample is of time t + Δt",
-            )
-        )
+        specs.append(common.time_offset_spec())
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:

@@ -183,6 +183,20 @@ def merged_params(specs: tuple[ParamSpec, ...], params: Mapping[str, float]) -> 
 # --------------------------------------------------------------------------------------
 # Alignment
 # --------------------------------------------------------------------------------------
+def time_offset_spec(what: str = "the sample") -> ParamSpec:
+    """``time_offset`` [s]: the time-tag offset of a sensor's samples (``what`` is of time
+    t + Δt), nominal 0, a-priori σ 0.1 s, not a seed parameter, effect ``time_offset``."""
+    return ParamSpec(
+        "time_offset",
+        "s",
+        0.0,
+        0.1,
+        seed=False,
+        effect="time_offset",
+        description=f"time-tag offset: {what} is of time t + Δt",
+    )
+
+
 def alignment_specs(sensor: SensorSpec, *, seed: bool, sigma: float) -> tuple[ParamSpec, ...]:
     """``align_1..3`` [rad], nominal from ``alignment_deg`` (ICD §2), effect ``alignment``."""
     a_deg = (0.0, 0.0, 0.0) if sensor.alignment_deg is None else sensor.alignment_deg

@@ -144,17 +144,7 @@ class FineSunModel(ObservationModel):
                     description=f"{axis} transfer function second harmonic sin(2k tan)",
                 )
             )
-        specs.append(
-            ParamSpec(
-                "time_offset",
-                "s",
-                0.0,
-                0.1,
-                seed=False,
-                effect="time_offset",
-                description="time-tag offset: the sample is of time t + Δt",
-            )
-        )
+        specs.append(common.time_offset_spec())
         return tuple(specs)
 
     def sigma(self) -> np.ndarray:

@@ -161,17 +161,7 @@ class MagnetometerModel(ObservationModel):
                 )
                 for ax in AXES
             ]
-        specs.append(
-            ParamSpec(
-                "time_offset",
-                "s",
-                0.0,
-                0.1,
-                seed=False,
-                effect="time_offset",
-                description="time-tag offset: the sample is of time t + Δt",
-            )
-        )
+        specs.append(common.time_offset_spec())
         if self.constant_field:
             specs += [
                 ParamSpec(

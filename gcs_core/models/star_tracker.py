@@ -67,15 +67,7 @@ class StarTrackerModel(ObservationModel):
                 effect="scale",
                 description="scale factor S_V of the v axis (Eq 4-29b)",
             ),
-            ParamSpec(
-                "time_offset",
-                "s",
-                0.0,
-                0.1,
-                seed=False,
-                effect="time_offset",
-                description="time-tag offset: the sample is of time t + Δt",
-            ),
+            common.time_offset_spec(),
         ]
         return tuple(specs)
 
