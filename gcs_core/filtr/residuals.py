@@ -70,22 +70,10 @@ def residuals_from(problem: Problem, buffers: Residuals, edits: Mapping[str, np.
     out = {}
     for sd in problem.sensors:
         valid = buffers.valid[sd.name]
-        ed = edits.get(sd.name, np.zeros(valid.shape, bool)) & valid
         r = buffers.r[sd.name]
         r[~valid] = np.nan
-        out[sd.name] = SensorResiduals(
-            sd.name,
-            tuple(sd.model.components),
-            sd.model.unit,
-            sd.t,
-            sd.y,
-            buffers.y_pred.get(sd.name),
-            r,
-            None,
-            sd.sigma,
-            valid & ~ed,
-            valid,
-            ed,
+        out[sd.name] = SensorResiduals.of(
+            sd, buffers.y_pred.get(sd.name), r, valid, edits.get(sd.name), normalized=False
         )
     return out
 
@@ -104,21 +92,6 @@ def make_residuals(
     out = {}
     for lin in lins:
         sd = problem.sensor(lin.name)
-        ed = edits.get(lin.name, np.zeros(lin.valid.shape, bool)) & lin.valid
-        used = lin.valid & ~ed
         r = np.where(lin.valid[:, None], lin.r, np.nan)
-        out[lin.name] = SensorResiduals(
-            lin.name,
-            tuple(sd.model.components),
-            sd.model.unit,
-            sd.t,
-            sd.y,
-            lin.y_pred,
-            r,
-            r / lin.sigma,
-            lin.sigma,
-            used,
-            lin.valid,
-            ed,
-        )
+        out[lin.name] = SensorResiduals.of(sd, lin.y_pred, r, lin.valid, edits.get(lin.name), sigma=lin.sigma)
     return out

@@ -138,6 +138,29 @@ class SensorResiduals:
     valid: np.ndarray
     edited: np.ndarray
 
+    @classmethod
+    def of(cls, sd, y_pred, residual, valid, edited, *, sigma=None, normalized: bool = True) -> SensorResiduals:
+        """Residuals of a prepared sensor ``sd`` (its name, components, unit, times, data and
+        σ unless ``sigma`` is given): ``residual`` (NaN already where not ``valid``), the
+        ``edited`` frames counted only where valid; ``normalized`` stores ``residual / σ``
+        (else it is formed when read)."""
+        sigma = sd.sigma if sigma is None else sigma
+        ed = (np.zeros(valid.shape, bool) if edited is None else np.asarray(edited, bool)) & valid
+        return cls(
+            sd.name,
+            tuple(sd.model.components),
+            sd.model.unit,
+            sd.t,
+            sd.y,
+            y_pred,
+            residual,
+            residual / sigma if normalized else None,
+            sigma,
+            valid & ~ed,
+            valid,
+            ed,
+        )
+
     @property
     def y_pred(self) -> np.ndarray:
         return self.y - self.residual if self.y_pred_ is None else self.y_pred_

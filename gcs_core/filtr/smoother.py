@@ -258,22 +258,8 @@ def smoothed_residuals(
             valid[lo:hi] = np.asarray(pred.valid, bool)
         r = sd.model.residual(sd.y, y_pred)
         valid &= np.all(np.isfinite(r), axis=1) & reached
-        ed = np.asarray(edited.get(sd.name, np.zeros(sd.n, bool)), bool) & valid
         r = np.where(valid[:, None], r, np.nan)
-        out[sd.name] = SensorResiduals(
-            sd.name,
-            tuple(sd.model.components),
-            sd.model.unit,
-            sd.t,
-            sd.y,
-            y_pred,
-            r,
-            r / sd.sigma,
-            sd.sigma,
-            valid & ~ed,
-            valid,
-            ed,
-        )
+        out[sd.name] = SensorResiduals.of(sd, y_pred, r, valid, edited.get(sd.name))
     return out
 
 
