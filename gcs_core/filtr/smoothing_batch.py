@@ -163,7 +163,7 @@ def whole_span_fit(
     ):
         grid, z = warm.grid, warm.z.copy()  # a whole-span start: its knots too
     else:
-        assert batch.information is not None  # no knots to reuse: a batch result, with its information
+        assert isinstance(batch, BatchResult)  # a restart always brings its knots
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
         warm = None
@@ -344,7 +344,6 @@ class _Restart:
     residuals: Mapping
     dynamics: Dynamics
     iterations: int = 0
-    information: np.ndarray | None = None  # never read: a restart carries its knots
 
 
 def _restart(problem: Problem, previous: FitResult, dyn: Dynamics) -> _Restart:
