@@ -197,6 +197,16 @@ class ObservationModel:
         """All parameters of this sensor, seed ones first, then extended physics."""
         raise NotImplementedError
 
+    def unavailable_effects(self) -> dict[str, str]:
+        """Effects this type knows but this sensor lacks, each with what it would need.
+
+        An effect whose parameters exist only under a condition of the mission or the
+        physics (the magnetometer's field gradient needs a constant field and position
+        channels) is named here, so asking for it says what is missing rather than
+        only that the effect does not exist.
+        """
+        return {}
+
     def nominal(self) -> dict[str, float]:
         """Data-book values of every parameter, by local name."""
         return {p.name: p.nominal for p in self.parameters()}

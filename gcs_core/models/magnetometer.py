@@ -109,6 +109,15 @@ class MagnetometerModel(ObservationModel):
     def parameters(self) -> tuple[ParamSpec, ...]:
         return common.cached_parameters(self, self._parameters)
 
+    def unavailable_effects(self) -> dict[str, str]:
+        if self.gradient:
+            return {}
+        missing = [c for c in POSITION_CHANNELS if c not in self.aux_channels]
+        needs = [] if self.constant_field else ['physics field_model = "constant" (a laboratory field)']
+        if missing:
+            needs.append(f"the sensor's position as aux channels {', '.join(missing)} [m] in aux.csv")
+        return {"field_gradient": "needs " + " and ".join(needs)}
+
     def _parameters(self) -> tuple[ParamSpec, ...]:
         bias = common.book_vector(self.sensor, "bias", 3, default=(0.0, 0.0, 0.0))
         specs = [

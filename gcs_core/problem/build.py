@@ -321,7 +321,8 @@ def build_problem(
         param_map[s.name] = pmap
     elements = _link_sun_sensor_tilt(spec, elements, param_map)
     state = StateVector(tuple(elements))
-    state = apply_state_options(state, options)
+    unavailable = {f"{name}.{eid}": why for name, m in models.items() for eid, why in m.unavailable_effects().items()}
+    state = apply_state_options(state, options, unavailable)
     return Problem(
         state=state,
         attitude=attitude,
@@ -357,9 +358,20 @@ def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> lis
     return [e for e in elements if e.name not in drop]
 
 
-def apply_state_options(state: StateVector, options: StateOptions) -> StateVector:
+def apply_state_options(
+    state: StateVector, options: StateOptions, unavailable: Mapping[str, str] | None = None
+) -> StateVector:
+    """Roles and overrides of the config's ``[state]`` table applied to the state.
+
+    ``unavailable`` maps an effect id this mission cannot have (``MAG.field_gradient``
+    without position channels) to what it needs, for the message when one is asked for.
+    """
     roles: dict[str, str] = {}
+    unavailable = unavailable or {}
     for eid in options.effects:
+        if eid in unavailable:
+            why = unavailable[eid]
+            raise ConfigError(f"effect '{eid}' is not available on this mission: it {why}", key="state.effects")
         names = _effect_elements(state, eid)
         roles.update({n: SOLVE_FOR for n in names})
     for eid in options.exclude:
