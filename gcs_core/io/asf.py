@@ -140,15 +140,11 @@ def append_solution(
     return h5store.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
 
 
-def _names(f: h5py.File) -> list[str]:
-    return sorted(n for n in f[COLLECTION] if n.isdigit()) if COLLECTION in f else []
-
-
 def list_solutions(path: str | os.PathLike) -> list[AsfSummary]:
     """Every solution of the ASF, oldest first."""
     with h5store.open_read(path, FORMAT, max_version=VERSION) as f:
         out = []
-        for name in _names(f):
+        for name in h5store.numbered_names(f, COLLECTION):
             g = f[COLLECTION][name]
             a = g.attrs
             out.append(
@@ -169,15 +165,8 @@ def read_solution(path: str | os.PathLike, n: int | None = None) -> AsfSolution:
     """Solution ``n`` of the ASF (the latest when ``n`` is None)."""
     path = Path(path)
     with h5store.open_read(path, FORMAT, max_version=VERSION) as f:
-        available = _names(f)
-        if not available:
-            raise DataFileError("holds no attitude solutions", file=path)
-        name = available[-1] if n is None else f"{int(n):05d}"
-        if name not in available:
-            raise DataFileError(
-                f"has no attitude solution {n} (solutions {int(available[0])} to {int(available[-1])})", file=path
-            )
-        g = f[COLLECTION][name]
+        g = h5store.pick_numbered(f, COLLECTION, n, "attitude solution", path)
+        name = g.name.rsplit("/", 1)[-1]
         t, q, sigma = g["t"][()], g["q"][()], g["sigma_rad"][()]
         if q.shape != (t.size, 4) or sigma.shape != (t.size, 3):
             raise DataFileError(f"solution {int(name)} has arrays of inconsistent shapes", file=path)

@@ -468,6 +468,27 @@ def append_group(
         return number
 
 
+def numbered_names(f: h5py.File, collection: str) -> list[str]:
+    """The numbered groups ``/<collection>/NNNNN`` of an append-only file, oldest first."""
+    return sorted(n for n in f[collection] if n.isdigit()) if collection in f else []
+
+
+def pick_numbered(f: h5py.File, collection: str, n: int | None, what: str, path: Path) -> h5py.Group:
+    """Group ``n`` of ``collection`` (the latest when ``n`` is None).
+
+    ``what`` names one group for the messages ("attitude solution", "calibration
+    version"): an empty file, or a number outside the file's range, is refused with
+    the range it holds.
+    """
+    available = numbered_names(f, collection)
+    if not available:
+        raise DataFileError(f"holds no {what}s", file=path)
+    name = available[-1] if n is None else f"{int(n):05d}"
+    if name not in available:
+        raise DataFileError(f"has no {what} {n} ({what}s {int(available[0])} to {int(available[-1])})", file=path)
+    return f[collection][name]
+
+
 def write_array(group: h5py.Group, name: str, data, *, attrs: dict | None = None) -> h5py.Dataset:
     """A chunked, fletcher32-checksummed dataset (strings stored as UTF-8 bytes)."""
     a = np.asarray(data)

@@ -182,10 +182,6 @@ def append_version(
     return h5store.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
 
 
-def _version_names(f: h5py.File) -> list[str]:
-    return sorted(n for n in f[COLLECTION] if n.isdigit()) if COLLECTION in f else []
-
-
 def _summary(g: h5py.Group) -> VersionSummary:
     a = g.attrs
     return VersionSummary(
@@ -203,22 +199,15 @@ def _summary(g: h5py.Group) -> VersionSummary:
 def list_versions(path: str | os.PathLike) -> list[VersionSummary]:
     """Every version of the SCDS, oldest first."""
     with h5store.open_read(path, FORMAT, max_version=VERSION) as f:
-        return [_summary(f[COLLECTION][n]) for n in _version_names(f)]
+        return [_summary(f[COLLECTION][n]) for n in h5store.numbered_names(f, COLLECTION)]
 
 
 def read_version(path: str | os.PathLike, n: int | None = None) -> ScdsVersion:
     """Version ``n`` of the SCDS (the latest when ``n`` is None)."""
     path = Path(path)
     with h5store.open_read(path, FORMAT, max_version=VERSION) as f:
-        available = _version_names(f)
-        if not available:
-            raise DataFileError("holds no calibration versions", file=path)
-        name = available[-1] if n is None else f"{int(n):05d}"
-        if name not in available:
-            raise DataFileError(
-                f"has no calibration version {n} (versions {int(available[0])} to {int(available[-1])})", file=path
-            )
-        g = f[COLLECTION][name]
+        g = h5store.pick_numbered(f, COLLECTION, n, "calibration version", path)
+        name = g.name.rsplit("/", 1)[-1]
         names = h5store.read_strings(g["param_names"])
         units = h5store.read_strings(g["unit"])
         values, sigmas = g["value"][()], g["sigma"][()]
