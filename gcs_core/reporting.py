@@ -17,6 +17,7 @@ from typing import Any
 import numpy as np
 
 from gcs_core.fileperm import write_atomic
+from gcs_core.json_values import json_default
 from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.toml_values import is_number
 
@@ -263,16 +264,6 @@ def icd_report_problems(rep: Mapping[str, Any]) -> list[str]:
     return out
 
 
-def _default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON serializable: {type(o).__name__}")
-
-
 def _clean(o):
     if isinstance(o, float) and not math.isfinite(o):
         return None
@@ -285,5 +276,5 @@ def _clean(o):
 
 def write_json_atomic(path: Path, data: dict) -> Path:
     """Write JSON (NaN/inf as null) atomically (:func:`gcs_core.fileperm.write_atomic`)."""
-    text = json.dumps(_clean(json.loads(json.dumps(data, default=_default))), indent=2)
+    text = json.dumps(_clean(json.loads(json.dumps(data, default=json_default))), indent=2)
     return write_atomic(path, text, parents=True)

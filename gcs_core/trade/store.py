@@ -29,6 +29,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.io import h5store
+from gcs_core.json_values import json_default
 
 TRADE, MONTECARLO = "TRADE", "MONTECARLO"
 VERSION = 1
@@ -45,7 +46,7 @@ def append_batch(
     arrays: Mapping[str, np.ndarray] | None = None,
 ) -> int:
     """Append one batch of finished records; returns its group number."""
-    recs = [json.dumps(r, default=_plain) for r in records]  # key order kept: it is the study's
+    recs = [json.dumps(r, default=json_default) for r in records]  # key order kept: it is the study's
     idx = np.array([int(r["index"]) for r in records], dtype=np.int64)
 
     def build(group, number):
@@ -57,16 +58,6 @@ def append_batch(
             h5store.write_array(group, name, np.asarray(a, dtype=float))
 
     return h5store.append_group(path, fmt, VERSION, COLLECTION, build, max_version=VERSION)
-
-
-def _plain(v):
-    if isinstance(v, (np.floating, np.integer, np.bool_)):
-        return v.item()
-    if isinstance(v, np.ndarray):
-        return v.tolist()
-    if isinstance(v, Path):
-        return str(v)
-    raise TypeError(f"cannot store {type(v).__name__}")
 
 
 def read(path: str | Path, fmt: str) -> tuple[dict[str, str], list[dict[str, Any]]]:

@@ -31,6 +31,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "gcs_core.fileperm",
             "gcs_core.compiled",
             "gcs_core.toml_values",
+            "gcs_core.json_values",
             "gcs_core.display",
             "gcs_core.linalg",
             "gcs_core.frames",
