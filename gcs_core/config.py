@@ -56,28 +56,7 @@ sample mission)::
     [verification]
     requirement_deg = 0.01
 
-    [trade]                       # gcs trade / gcs optimize (gcs_core/trade)
-    targets = ["TAM1.bias", "FHST1.misalignment", "attitude"]
-    output = "trade.h5"           # results file, relative to this config
-    top = 3                       # error budgets printed for the best plans
-    [trade.vary]                  # keys of gcs_core.trade.space and their values
-    span_min = [10, 20, 48, 95]
-    "models.FHST2" = ["on", "off"]
-    [trade.orbit]                 # Kepler elements: every plan's ephemeris (any span or start)
-    a_km = 6898.137
-    e = 0.0012
-    i_deg = 28.5
-    raan_deg = 35.0
-    argp_deg = 60.0
-    mean_anomaly_deg = 10.0
-    [trade.optimize]
-    targets = ["TAM1.alignment<0.01deg", "FHST1.misalignment<10arcsec"]
-    budget = {slew_min = 10.0, hours = 2.0, axes = ["roll", "yaw"], rates = [0.1]}
-
-    [montecarlo]                  # gcs montecarlo
-    runs = 100
-    seed = 20261202               # entropy of the SeedSequence
-    output = "montecarlo.h5"
+    # [trade] and [montecarlo], the planning tables: gcs_core/trade/__init__.py
 
 Every error names the key and says what is wrong (:class:`~gcs_core.errors.ConfigError`);
 ``docs/input_checks.md`` lists the messages. Keys are dotted as in TOML: a state element
@@ -481,14 +460,20 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
             effects=lists["effects"], exclude=lists["exclude"], attitude_sigma_deg=att_sig, elements=elements
         ),
         filter=FilterConfig(
-            block_seconds=_number(fl, "block_seconds", 600.0, f, positive=True, prefix="filter."),
-            edit_k=_number(fl, "edit_k", 5.0, f, lo=0.0, prefix="filter."),
-            max_iterations=_number(fl, "max_iterations", 20, f, lo=1, hi=1000, integer=True, prefix="filter."),
+            block_seconds=_number(fl, "block_seconds", FilterConfig.block_seconds, f, positive=True, prefix="filter."),
+            edit_k=_number(fl, "edit_k", FilterConfig.edit_k, f, lo=0.0, prefix="filter."),
+            max_iterations=_number(
+                fl, "max_iterations", FilterConfig.max_iterations, f, lo=1, hi=1000, integer=True, prefix="filter."
+            ),
             edit_k_sensor=edit_k_sensor(fl, f),
         ),
         diagnosis=DiagnosisConfig(
-            significance=_number(dg, "significance", 0.001, f, lo=1e-12, hi=0.5, prefix="diagnosis."),
-            holdout_fraction=_number(dg, "holdout_fraction", 0.25, f, lo=0.0, hi=0.9, prefix="diagnosis."),
+            significance=_number(
+                dg, "significance", DiagnosisConfig.significance, f, lo=1e-12, hi=0.5, prefix="diagnosis."
+            ),
+            holdout_fraction=_number(
+                dg, "holdout_fraction", DiagnosisConfig.holdout_fraction, f, lo=0.0, hi=0.9, prefix="diagnosis."
+            ),
         ),
         prediction=PredictionConfig(
             step=_number(pr, "step", 10.0, f, positive=True, prefix="prediction."),

@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg
 
+from gcs_core.config import FilterConfig
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.filtr import local_refine, stopping
 from gcs_core.filtr.noise import MAD_TO_SIGMA
@@ -84,10 +85,10 @@ class BatchOptions:
     rank_tol : relative eigenvalue threshold naming unobservable combinations.
     """
 
-    max_iterations: int = 20
+    max_iterations: int = FilterConfig.max_iterations
     tol_step_sigma: float = 1e-4
     tol_chi2: float = 1e-2
-    edit_k: float | None = 5.0
+    edit_k: float | None = FilterConfig.edit_k
     edit_passes: int = 6
     max_edit_fraction: float = 0.05
     rank_tol: float = 1e-10

@@ -7,6 +7,8 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
+from gcs_core.config import FilterConfig
+
 
 @dataclass(frozen=True)
 class FilterOptions:
@@ -29,7 +31,7 @@ class FilterOptions:
     diffuse_sigma : prior 1-sigma used for elements whose ``sigma0`` is infinite.
     """
 
-    edit_k: float | None = 5.0
+    edit_k: float | None = FilterConfig.edit_k
     edit_k_sensor: Mapping[str, float | None] = field(default_factory=dict)
     process_noise_scale: float = 1.0
     max_passes: int = 3

@@ -11,6 +11,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import pytest
+from config_example import example_config_text
 from repo_paths import ROOT
 
 from gcs_core import config as C
@@ -24,10 +25,9 @@ MISSION = MISSIONS / "hidden-tam-contamination"
 
 
 def example_text(mission: Path) -> str:
-    """The example config of the module docstring (the documented keys), pointed at ``mission``."""
-    lines = C.__doc__.split("::", 1)[1].split("\n")[1:]
-    end = next(i for i, ln in enumerate(lines) if ln.strip() and not ln.startswith("    "))
-    text = "\n".join(ln[4:] for ln in lines[:end])
+    """The documented example config (gcs_core/config.py's docstring and the planning
+    tables of gcs_core/trade/__init__.py's), pointed at ``mission``."""
+    text = example_config_text()
     return re.sub(r'^mission = "[^"]*"', f'mission = "{mission.as_posix()}"', text, flags=re.MULTILINE)
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import numpy as np
 import tomli_w
+from config_example import example_config_text
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -43,11 +44,9 @@ one_arcsecond = math.radians(1.0 / 3600.0)
 
 # =========================================================================== (a) config
 def _example_text() -> str:
-    """The documented example of gcs_core/config.py (its module docstring)."""
-    lines = C.__doc__.split("::", 1)[1].split("\n")
-    body = [ln[4:] for ln in lines[1:] if ln.startswith("    ") or not ln.strip()]
-    end = next(i for i, ln in enumerate(lines[1:]) if ln.strip() and not ln.startswith("    "))
-    return "\n".join(body[:end])
+    """The documented example config: gcs_core/config.py's docstring and the planning
+    tables of gcs_core/trade/__init__.py's."""
+    return example_config_text()
 
 
 EXAMPLE = C.parse_toml(_example_text())
