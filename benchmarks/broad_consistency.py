@@ -37,8 +37,13 @@ import numpy as np
 from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
 from gcs_core.diagnosis.correlation import sigma_scale
+from gcs_core.filtr.gyro_bias import gyro_bias_at
+from gcs_core.filtr.process_likelihood import rrw_profile
+from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.io.importer import load_mission
+from gcs_core.models.gyro import g_matrix
 from gcs_core.session import Analysis
+from gcs_core.units import OMEGA_EARTH
 
 TRIALS = (
     "02_undisturbed_slow_rotation_B",
@@ -67,6 +72,8 @@ MEMS_PRIORS = {
     **{f"MAG.nonorth_{p}": ElementConfig(sigma=0.1) for p in ("xy", "xz", "yz")},
     **BIAS_DRIFT,
 }
+#: factors on the book's rate random walk over which the evidence is profiled
+RRW_SCALES = (1.0, 10.0, 100.0, 300.0, 1000.0)
 #: the sandwich's window [s]: longer than the hand motions' time scale (about a second)
 BLOCK_S = 4.0
 SHOWN = (
@@ -74,13 +81,18 @@ SHOWN = (
     + tuple(f"MAG.scale_{a}" for a in "xyz")
     + ("MAG.nonorth_xy", "MAG.nonorth_xz", "MAG.nonorth_yz")
     + tuple(f"MAG.align_{k}" for k in (1, 2, 3))
-    + tuple(f"GYR.bias_{a}" for a in "xyz")
     + ("MAG.time_offset", "OPT.time_offset")
     + GRADIENT
 )
 
 
-def fit(source: Path, work: Path, label: str, span=None, method="whole_span", effects=EFFECTS):
+def fit(source: Path, work: Path, label: str, span=None, method="whole_span", effects=EFFECTS, epochs=None):
+    """Convert and fit one trial (or its span); the shown elements as name -> (x, σ, sandwich
+    scale), the gyro's bias ``b(t)`` at each of ``epochs`` (label -> t [s]) as
+    ``GYR.b_<axis>(<label>)`` (σ with the walk, :mod:`gcs_core.filtr.gyro_bias`), the same
+    refitted with the rate random walk the data support (the evidence over :data:`RRW_SCALES`,
+    :mod:`gcs_core.filtr.process_likelihood`) as ``GYR.b_<axis>(<label>)*``, and the fitted
+    gyro matrix ``G`` under ``"_G"``."""
     out = work / label
     convert("broad", source, out, span=span)
     mission = load_mission(out)
@@ -99,22 +111,40 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
     worst = max((n for n in sc if not n.startswith("GYR.")), key=lambda n: sc[n])
     print(
         f"  {label}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}), normalized RMS {rms}, "
-        f"sandwich σ scale ({BLOCK_S:g} s windows) {min(sc.values()):.2f} to {sc[worst]:.2f} ({worst})",
+        f"sandwich σ scale ({BLOCK_S:g} s windows) {min(sc.values()):.2f} to {sc[worst]:.2f} ({worst}); "
+        f"gyro rrw {next(s.book.get('rrw', 0.0) for s in mission.spec.sensors if s.type == 'gyro'):.3g} rad/s^1.5",
         flush=True,
     )
-    return {
+    row = {
         n: (vals[n], res.sigma.get(n, np.nan), 1.0 if n.startswith("GYR.") else max(1.0, sc.get(n, 1.0)))
         for n in SHOWN
         if n in vals
     }
+    if epochs and getattr(res, "dynamics", None) is not None:
+        t1 = time.perf_counter()
+        prof = rrw_profile(a.problem, res, RRW_SCALES)
+        v = prof.neg2_log_evidence - prof.neg2_log_evidence.min()
+        print(
+            f"    the data's rrw: −2 log p over σ_u × {RRW_SCALES}: {np.round(v, 1).tolist()}, best × {prof.best:g} "
+            f"= {prof.best * prof.sigma_u[0] / RRW_SCALES[0]:.3g} rad/s^1.5 ({time.perf_counter() - t1:.0f} s)",
+            flush=True,
+        )
+        best = prof.results[int(np.argmin(prof.neg2_log_evidence))]
+        for fitted, mark in ((res, ""), (best, "*")):
+            gb = gyro_bias_at(a.problem, fitted, list(epochs.values()))
+            for k, lab in enumerate(epochs):
+                for i, ax in enumerate("xyz"):
+                    row[f"GYR.b_{ax}({lab}){mark}"] = (float(gb.b[k, i]), float(gb.sigma[k, i]), 1.0)
+    row["_G"] = g_matrix({n.split(".", 1)[1]: v for n, v in vals.items() if n.startswith("GYR.G_")})
+    return row
 
 
 def table(title: str, a: dict, b: dict) -> int:
     print(f"\n{title}")
     print(f"{'element':<18}{'A':>14}{'σ_A':>11}{'s_A':>6}{'B':>14}{'σ_B':>11}{'s_B':>6}{'z':>8}{'z_s':>8}")
     worst = worst_k = 0.0
-    for n in SHOWN:
-        if n not in a or n not in b:
+    for n in a:
+        if n.startswith("_") or n not in b:
             continue
         (xa, sa, ka), (xb, sb, kb) = a[n], b[n]
         z = (xa - xb) / np.hypot(sa, sb)
@@ -126,6 +156,85 @@ def table(title: str, a: dict, b: dict) -> int:
         f"({'within' if worst_k <= 3 else 'beyond'} 3σ)"
     )
     return int(worst_k > 3)
+
+
+#: the laboratory's latitude (Berlin), for the Earth's rate the gyro sees as bias [deg]
+LAB_LATITUDE_DEG = 52.5
+#: batch-means window of a rest's mean gyro rate [s]
+REST_BLOCK_S = 0.5
+
+
+def rests(source: Path) -> list[dict]:
+    """The trial's rest runs of at least 3 s (BROAD's ``movement`` false), each's middle
+    half: its middle time, the raw gyro mean with a batch-means σ, and the Earth's rate
+    in the unit's frame there (from the optical attitude)."""
+    import h5py
+
+    with h5py.File(source) as f:
+        fs = float(f.attrs["sampling_rate"])
+        y, moving, q = f["imu_gyr"][:], f["movement"][:], f["opt_quat"][:]
+    edges = np.flatnonzero(np.diff(np.r_[0, (~moving).astype(int), 0]))
+    lat = np.radians(LAB_LATITUDE_DEG)
+    w_enu = OMEGA_EARTH * np.array([0.0, np.cos(lat), np.sin(lat)])
+    out = []
+    for i0, i1 in zip(edges[::2], edges[1::2], strict=True):
+        if (i1 - i0) / fs < 3.0:
+            continue
+        a, b = i0 + (i1 - i0) // 4, i1 - (i1 - i0) // 4
+        k = int(REST_BLOCK_S * fs)
+        nb = (b - a) // k
+        means = y[a : a + nb * k].reshape(nb, k, 3).mean(axis=1)
+        qm = np.nanmean(q[a:b], axis=0)
+        C_BI = quat_to_dcm(np.r_[qm[1:], qm[0]] / np.linalg.norm(qm))
+        out.append(
+            {
+                "t": 0.5 * (a + b) / fs,
+                "span": (i0 / fs, i1 / fs),
+                "y": y[a:b].mean(axis=0),
+                "sigma": means.std(axis=0, ddof=1) / np.sqrt(nb),
+                "earth": C_BI @ w_enu,
+            }
+        )
+    return out
+
+
+def rest_table(title: str, row: dict, rest: list[dict], mark: str = "") -> int:
+    """The fitted bias b(t) at each rest against the rest's own mean rate G⁻¹ ȳ (at rest the
+    lab-relative rate is zero; the Earth's rate is in both)."""
+    print(f"\n{title}")
+    print(f"{'rest [s]':<16}{'axis':>5}{'fitted b':>12}{'σ':>10}{'rest G⁻¹ȳ':>12}{'σ':>10}{'z':>8}")
+    worst = 0.0
+    Ginv = np.linalg.inv(row["_G"])
+    for k, r in enumerate(rest):
+        yb = Ginv @ r["y"]
+        sy = np.abs(Ginv) @ r["sigma"]
+        for i, ax in enumerate("xyz"):
+            b, sb, _ = row[f"GYR.b_{ax}(rest {k + 1}){mark}"]
+            z = (b - yb[i]) / np.hypot(sb, sy[i])
+            worst = max(worst, abs(z))
+            lab = f"{r['span'][0]:.0f}–{r['span'][1]:.0f}" if i == 0 else ""
+            print(f"{lab:<16}{ax:>5}{b:>12.5g}{sb:>10.2g}{yb[i]:>12.5g}{sy[i]:>10.2g}{z:>8.2f}")
+    print(f"worst |z| = {worst:.2f} ({'within' if worst <= 3 else 'beyond'} 3σ)")
+    return int(worst > 3)
+
+
+def first_rest(row: dict, rest: list[dict]) -> dict:
+    """A whole trial's row for comparison with another trial: the static elements, and the
+    gyro bias at the first rest less the Earth's rate there (the attitudes at rest differ
+    between trials), fitted and as the rest's own mean rate."""
+    out = {n: v for n, v in row.items() if "(rest " not in n}
+    if not rest:
+        return out
+    r = rest[0]
+    Ginv = np.linalg.inv(row["_G"])
+    yb, sy = Ginv @ r["y"] - r["earth"], np.abs(Ginv) @ r["sigma"]
+    for mark in ("", "*"):
+        for i, ax in enumerate("xyz"):
+            b, sb, _ = row[f"GYR.b_{ax}(rest 1){mark}"]
+            out[f"GYR.b_{ax}(rest 1)−Ω⊕{mark}"] = (b - r["earth"][i], sb, 1.0)
+    for i, ax in enumerate("xyz"):
+        out[f"rest_{ax}(1) G⁻¹ȳ−Ω⊕"] = (float(yb[i]), float(sy[i]), 1.0)
+    return out
 
 
 def main() -> int:
@@ -144,9 +253,16 @@ def main() -> int:
 
             with h5py.File(src) as f:
                 T = f["imu_gyr"].shape[0] / float(f.attrs["sampling_rate"])
-            full[trial] = fit(src, work, trial, method=method, effects=effects)
-            h1 = fit(src, work, trial + "-h1", span=(0.0, T / 2), method=method, effects=effects)
-            h2 = fit(src, work, trial + "-h2", span=(T / 2, T), method=method, effects=effects)
+            rest = rests(src)
+            epochs = {f"rest {k + 1}": r["t"] for k, r in enumerate(rest)}
+            whole = fit(src, work, trial, method=method, effects=effects, epochs=epochs)
+            title = f"{trial}: the fitted gyro bias at each rest against the rest's mean rate"
+            bad += rest_table(title + " (the book's rrw)", whole, rest)
+            bad += rest_table(title + " (the data's rrw)", whole, rest, "*")
+            full[trial] = first_rest(whole, rest)
+            half = {"T/2": T / 2}
+            h1 = fit(src, work, trial + "-h1", span=(0.0, T / 2), method=method, effects=effects, epochs=half)
+            h2 = fit(src, work, trial + "-h2", span=(T / 2, T), method=method, effects=effects, epochs=half)
             bad += table(f"{trial}: first half (A) against second half (B)", h1, h2)
         if all(t in full for t in TRIALS):
             bad += table("trial 02 (A) against trial 09 (B)", full[TRIALS[0]], full[TRIALS[1]])

@@ -88,7 +88,9 @@ def gyro_bias_at(problem: Problem, result: FitResult, t) -> GyroBias:
     cov = np.einsum("nia,ab,njb->nij", J, P, J)
     dyn = getattr(result, "dynamics", None)
     if dyn is not None and dyn.grid.d == 6:
-        M, _ = model_common.alignment_matrix({k.split(".", 1)[1]: v for k, v in values.items() if k.startswith(gyro + ".")})
+        M, _ = model_common.alignment_matrix(
+            {k.split(".", 1)[1]: v for k, v in values.items() if k.startswith(gyro + ".")}
+        )
         j = np.clip(np.searchsorted(dyn.grid.tau, t, side="right") - 1, 0, dyn.grid.K - 1)
         b = b + dyn.z[j, 3:6] @ M.T  # M β_j
         S, X = dyn.covariance()  # Σ_j (K, 6, 6), Cov(z_j, x) (K, 6, p) over dyn.names
