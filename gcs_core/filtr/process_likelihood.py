@@ -37,7 +37,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.filtr.batch import BatchOptions
-from gcs_core.filtr.results import FitResult
+from gcs_core.filtr.results import BatchResult, FitResult
 from gcs_core.filtr.smoothing_batch import whole_span_fit
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.problem.build import Problem
@@ -89,7 +89,7 @@ class RrwProfile:
 
 def rrw_profile(
     problem: Problem,
-    result: FitResult,
+    result: BatchResult,
     scales=(0.5, 1.0, 2.0, 4.0, 8.0),
     *,
     arw_scale: float = 1.0,
