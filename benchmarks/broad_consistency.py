@@ -31,6 +31,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -39,6 +40,7 @@ from gcs_core.convert import convert
 from gcs_core.diagnosis.correlation import sigma_scale
 from gcs_core.filtr.gyro_bias import gyro_bias_at
 from gcs_core.filtr.process_likelihood import rrw_profile
+from gcs_core.filtr.smoothing_batch import SmoothedResult
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.io.importer import load_mission
 from gcs_core.models.gyro import g_matrix
@@ -115,12 +117,12 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
         f"gyro rrw {next(s.book.get('rrw', 0.0) for s in mission.spec.sensors if s.type == 'gyro'):.3g} rad/s^1.5",
         flush=True,
     )
-    row = {
+    row: dict[str, Any] = {
         n: (vals[n], res.sigma.get(n, np.nan), 1.0 if n.startswith("GYR.") else max(1.0, sc.get(n, 1.0)))
         for n in SHOWN
         if n in vals
     }
-    if epochs and getattr(res, "dynamics", None) is not None:
+    if epochs and isinstance(res, SmoothedResult) and res.dynamics is not None:
         t1 = time.perf_counter()
         prof = rrw_profile(a.problem, res, RRW_SCALES)
         v = prof.neg2_log_evidence - prof.neg2_log_evidence.min()
