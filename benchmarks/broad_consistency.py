@@ -19,8 +19,19 @@ camera frames), so σ computed for white noise of the stated σ are optimistic. 
 also gives ``z_s``: the σ of the magnetometer's, the field's and the optical reference's
 elements scaled by the batch-means sandwich of :mod:`gcs_core.diagnosis.correlation`
 (windows of :data:`BLOCK_S`), which measures from the residuals how much information they
-really carry. The gyro's elements keep the fit's σ (its noise is the process noise of the
-whole-span fit, which the sandwich, conditional on the attitude, does not see). Fitting the
+really carry.
+
+The gyro's bias is not a constant in the whole-span fit: ``b(t) = bias + ḃ (t − t_mid) + β(t)``
+with the knots' random walk β (:mod:`gcs_core.filtr.gyro_bias`), and the static ``bias`` is
+its value at the span's first knot carried to the middle by the drift. Two halves' static
+biases are therefore at different epochs; the halves are compared at the epoch where they
+meet (``GYR.b_*(T/2)``, each σ with the walk the data leave open there), and each whole
+trial's ``b(t)`` at its rests against the rest's own mean rate ``G⁻¹ ȳ`` (an independent
+measurement: at rest the lab-relative rate is zero). Both once with the book's rate random
+walk (read off the unit's own rests) and once (marked ``*``) refitted with the σ_u the data
+support, the best of :data:`RRW_SCALES` by the fit's evidence
+(:mod:`gcs_core.filtr.process_likelihood`). Trials are compared on their first rest's bias
+less the Earth's rate there, fitted and as the rest's own mean. Fitting the
 field gradient (``MAG.field_gradient``, aux ``pos_x/y/z`` from the optical position) is the
 default; a fourth argument ``uniform`` leaves it out, for comparison.
 """
