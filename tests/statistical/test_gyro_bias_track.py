@@ -17,13 +17,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_filter_consistency import chi2_band, sim_problem, simulate
+from test_filter_consistency import PHYSICS, chi2_band, sim_problem, simulate
 
 from gcs_core.errors import InputError
 from gcs_core.filtr import smoothing_batch as sb
 from gcs_core.filtr.batch import BatchOptions, batch_fit
 from gcs_core.filtr.gyro_bias import gyro_bias_at
 from gcs_core.filtr.process_likelihood import neg2_log_evidence, rrw_profile
+from gcs_core.problem.build import build_problem
 
 #: a MEMS-like rate random walk for a 10-minute span [rad/s^1.5]
 RRW = 3e-7
@@ -63,6 +64,31 @@ def test_bias_along_the_span_is_consistent_with_truth():
     scatter = float(np.std(np.concatenate(zs)))
     assert abs(scatter - 1.0) < SCATTER_TOL, scatter
     assert naive > 3 * hi, f"the static bias taken for b(end) gave NEES {naive:.1f}: the walk is not visible"
+
+
+def test_batch_bias_drifts_on_its_line_with_the_statics_covariance():
+    """With the bias-instability effect the batch's b(t) is ``bias + ḃ (t − t_mid)``, its
+    covariance ``J P Jᵀ`` with ``J = [I, (t − t_mid) I]`` on the bias and drift columns."""
+    mission, _ = simulate(6, duration_s=300.0, rrw=RRW)
+    problem = build_problem(mission, physics=PHYSICS)  # the seed's bias_instability in the state
+    res = batch_fit(problem, BatchOptions(edit_k=None))
+    names = list(res.solve_for)
+    assert "IRU.bias_rate_x" in names
+    v = res.state.values()
+    knots = problem.gyro_attitude.knots
+    t_mid = 0.5 * (knots[0] + knots[-1])
+    t = np.array([0.0, 123.0, 299.0])
+    gb = gyro_bias_at(problem, res, t)
+    bias = np.array([v[f"IRU.bias_{a}"] for a in "xyz"])
+    rate = np.array([v[f"IRU.bias_rate_{a}"] for a in "xyz"])
+    np.testing.assert_allclose(gb.b, bias + np.outer(t - t_mid, rate), rtol=0, atol=1e-15)
+    ib = [names.index(f"IRU.bias_{a}") for a in "xyz"]
+    ir = [names.index(f"IRU.bias_rate_{a}") for a in "xyz"]
+    for k, tk in enumerate(t):
+        J = np.zeros((3, len(names)))
+        J[np.arange(3), ib] = 1.0
+        J[np.arange(3), ir] = tk - t_mid
+        np.testing.assert_allclose(gb.cov[k], J @ res.P @ J.T, rtol=1e-10, atol=1e-30)
 
 
 def test_batch_bias_is_the_static_line_and_needs_a_gyro():
