@@ -34,8 +34,9 @@ walk (read off the unit's own rests); refitted with the σ_u the data support (m
 weighted by its effective noise (marked ``†``, every element): its stated σ times the
 long-run factor of its residuals over :data:`REF_BLOCK_S` windows
 (:func:`gcs_core.diagnosis.correlation.noise_scale`), since its error in motion is
-correlated over 35–100 ms and a white-noise weight lets the knots follow it. Trials are compared on their first rest's bias
-less the Earth's rate there, fitted and as the rest's own mean. Fitting the
+correlated over 35–100 ms and a white-noise weight lets the knots follow it. Trials are
+compared on their first rest's bias less the Earth's rate there, fitted and as the rest's
+own mean. Fitting the
 field gradient (``MAG.field_gradient``, aux ``pos_x/y/z`` from the optical position) is the
 default; a fourth argument ``uniform`` leaves it out, for comparison.
 """
