@@ -37,6 +37,11 @@ example): that is the method's blind spot, not better data, so
 
 Residuals are the fit's own (``result.residuals``, knots included for the whole-span
 method); the partials are those of the sensor's model at the fitted state.
+
+:func:`noise_scale` is the same batch-means ratio for one sensor's residuals alone, with no
+partials: the factor by which its stated σ understates its effective white noise on time
+scales longer than its correlation, for weighting a reference whose errors are correlated
+(an optical attitude in motion) against a gyro that carries the attitude across them.
 """
 
 from __future__ import annotations
