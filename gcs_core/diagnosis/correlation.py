@@ -37,6 +37,11 @@ example): that is the method's blind spot, not better data, so
 
 Residuals are the fit's own (``result.residuals``, knots included for the whole-span
 method); the partials are those of the sensor's model at the fitted state.
+
+:func:`noise_scale` is the same batch-means ratio for one sensor's residuals alone, with no
+partials: the factor by which its stated σ understates its effective white noise on time
+scales longer than its correlation, for weighting a reference whose errors are correlated
+(an optical attitude in motion) against a gyro that carries the attitude across them.
 """
 
 from __future__ import annotations
@@ -141,3 +146,33 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
     honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)
     scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
     return SigmaScale(sensors, float(block_s), n_blocks, dict(zip(names, map(float, scale))))
+
+
+def noise_scale(result, sensor: str, *, block_s: float) -> float:
+    """The long-run noise factor of one sensor's residuals: how much larger its stated σ
+    would have to be for white noise to carry the information its residuals carry over
+    windows of ``block_s``::
+
+        s² = Σ_b ‖Σ_{k ∈ b} r_k / σ_k‖² / Σ_k ‖r_k / σ_k‖²
+
+    (the batch-means estimate of ``1 + 2 Σ_j ρ_j``, the long-run over the short-run
+    variance; Conway 1963). White residuals give ``s ≈ 1``; residuals held over ``n``
+    samples ``s ≈ √n``. ``σ s`` is the sensor's effective white noise on time scales longer
+    than its correlation time, which is what weights it honestly against a gyro that
+    carries the attitude across those scales. Residuals are the fit's own; what a fit's
+    dynamic freedom absorbed is not in them, so ``s`` is a lower bound.
+
+    Raises InputError for an unknown sensor or a window that is not positive.
+    """
+    if not (np.isfinite(block_s) and block_s > 0):
+        raise InputError(f"window {block_s!r} s must be a positive number", key="block_s")
+    if sensor not in result.residuals:
+        raise InputError(f"no residuals of sensor '{sensor}' (known: {', '.join(result.residuals)})", key="sensor")
+    res = result.residuals[sensor]
+    t = np.asarray(res.t, float)
+    used = np.asarray(res.used, bool)
+    w = np.where(used[:, None], np.asarray(res.residual, float) / np.asarray(res.sigma, float), 0.0)
+    bins = np.floor((t - t[0]) / block_s).astype(np.int64)
+    sums = np.zeros((int(bins.max()) + 1, w.shape[1]))
+    np.add.at(sums, bins, w)
+    return float(np.sqrt(np.sum(sums**2) / max(float(np.sum(w**2)), 1e-300)))
