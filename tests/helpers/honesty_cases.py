@@ -13,7 +13,8 @@ default config and the given method, and records against the simulator's truth:
 * the goodness-of-fit verdict (:mod:`gcs_core.diagnosis.goodness`).
 
 Truth (:func:`truth_all`): :func:`test_truth_recovery.truth_values` for the seed elements
-(the gyro bias as the LS line through the simulator's logged random walk), and for the
+(the gyro bias in the method's own form: for the whole-span fit the simulator's bias at
+``t_ref`` and its deterministic drift, the walk after ``t_ref`` being the knots'), and for the
 extended elements the simulator's ``true`` values: TAM ``D = K − I`` (scale, non-
 orthogonality), contamination per aux channel, time offsets, alignment angles, the FSS
 second harmonic ``A4h, B4h``; 0 where the simulator has none (book = truth).
@@ -135,7 +136,7 @@ HIDDEN_BY_ID = {h.id: h for h in HIDDEN}
 # ----------------------------------------------------------------------------- truth
 def truth_all(truth: Mapping, problem, method: str) -> dict[str, float]:
     """Element -> true value for every element of ``problem``'s state (module docstring)."""
-    bias_form = method if method in ("batch", "kalman") else "kalman"
+    bias_form = method if method in ("batch", "kalman", "whole_span") else "kalman"
     out = truth_values(truth, problem, bias_form)
     pm = problem.param_map
     for name, s in truth["sensors"].items():

@@ -16,7 +16,12 @@ Truth of each element (:func:`truth_values`):
 * gyro ``G_ij``: ``G_true − I``; ``bias``/``bias_rate``: the least-squares line through the
   true bias history (the simulator's random walk logged once a minute), as the estimator
   parametrizes it: ``b(t) = bias + bias_rate (t − t_mid)`` in a batch fit, and in the Kalman
-  smoother the random-walk part at ``t_ref``, ``b(t_ref) − bias_rate (t_ref − t_mid)``.
+  smoother the random-walk part at ``t_ref``, ``b(t_ref) − bias_rate (t_ref − t_mid)``. The
+  whole-span fit carries ``b(t) = bias + bias_rate (t − t_mid) + β(t)`` with the knots'
+  random walk ``β(t_ref) = 0`` (:mod:`gcs_core.filtr.knots`): its ``bias_rate`` is the
+  simulator's deterministic drift (0 unless hidden), not the slope of the walk, which ``β``
+  carries and the fit's σ counts, and its ``bias`` is ``b(t_ref) − bias_rate (t_ref − t_mid)``
+  with that drift (as :mod:`gcs_core.trade.montecarlo` reads it).
 * every other element: the sensor's ``true`` values (scale, bias, transfer coefficients,
   horizon angles, ephemeris time error).
 
@@ -108,8 +113,9 @@ def truth_values(truth: Mapping, problem, method: str = "batch") -> dict[str, fl
 
     ``problem`` is the fitted :class:`~gcs_core.problem.build.Problem` (for ``t_ref``, the
     gyro span and the estimator's reference frame); ``method`` selects the gyro-bias
-    parametrization (``"batch"``, or ``"kalman"`` and ``"whole_span"``, whose bias is the
-    value at ``t_ref`` carried by the process noise).
+    parametrization (module docstring): ``"batch"`` (the line through the walk),
+    ``"kalman"`` (the walk at ``t_ref`` less that line's drift) or ``"whole_span"`` (the walk
+    at ``t_ref`` and the simulator's deterministic drift).
     """
     out: dict[str, float] = {}
     att = problem.attitude
@@ -127,6 +133,10 @@ def truth_values(truth: Mapping, problem, method: str = "batch") -> dict[str, fl
                     # the process-noise fits carry the bias from t_ref (their knots start there)
                     h = np.asarray(truth["gyro_bias_history"][name], float)
                     b_ref = np.array([np.interp(att.t_ref, h[:, 0], h[:, 1 + i]) for i in range(3)])
+                    if method == "whole_span":
+                        # the knots' β carries the walk (its slope included, in the fit's σ):
+                        # bias_rate is the simulator's deterministic drift
+                        slope = np.asarray(tr.get("bias_rate", (0.0, 0.0, 0.0)), float)
                     b_mid = b_ref - slope * (att.t_ref - 0.5 * (t0 + t1))
                 for i, c in enumerate("xyz"):
                     out[f"{name}.bias_{c}"] = float(b_mid[i])
