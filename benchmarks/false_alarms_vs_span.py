@@ -116,8 +116,8 @@ def element_rows(recs: list[dict]) -> list[dict]:
         for k, v in hc.calibrated_z(r).items():
             zs.setdefault(k, []).append(v)
     out = []
-    for k, v in zs.items():
-        a = np.abs(np.asarray(v))
+    for k, vals in zs.items():
+        a = np.abs(np.asarray(vals))
         ok = int(np.sum(a <= hc.three_sigma))
         out.append(
             {
@@ -189,8 +189,8 @@ def pooled_rows(recs: list[dict]) -> list[dict]:
             groups.setdefault("all", []).append(v)
             groups.setdefault(_group(k), []).append(v)
     out = []
-    for g, v in groups.items():
-        z = np.asarray(v)
+    for g, vals in groups.items():
+        z = np.asarray(vals)
         out.append(
             {
                 "group": g,
@@ -298,7 +298,7 @@ def summarize(recs: list[dict]) -> dict:
     """Shares of seeds passing each check, with failure-rate bounds and the worst numbers."""
     n = len(recs)
     checks = [hc.verdicts(r) for r in recs]
-    out = {"n": n}
+    out: dict = {"n": n}
     for key in ("added", "rms", "truth"):
         fails = sum(not c[key] for c in checks)
         out[key] = (1.0 - fails / n if n else float("nan"), failure_bound(fails, n))
