@@ -30,6 +30,8 @@ script also prints the acceptance read per element and per sensor, as markdown t
   both, each beside what a right model gives from that sensor's own dof on those runs
   (``P(χ²_dof ≤ 1.05² n)`` fitted, ``P(χ²_n ≤ 1.05² n)`` held-out, averaged over the seeds)
   and the binomial p-value of seeing that few passes if it did (:func:`sensor_rows`);
+* the NEES of each seed's calibrated elements, correlations included (:func:`nees_row`):
+  summed over the seeds against its χ² band, and the seeds' p-values against uniform;
 * the pooled z of the calibrated elements per mode and per group of elements: mean, sd,
   the share beyond 3σ against 0.27 %, the Kolmogorov–Smirnov p-value against N(0, 1)
   (:func:`pooled_rows`).
@@ -205,6 +207,29 @@ def pooled_rows(recs: list[dict]) -> list[dict]:
     return out
 
 
+def nees_row(recs: list[dict]) -> dict:
+    """The NEES of the calibrated elements (:func:`honesty_cases.nees`, correlations
+    included) over the seeds: its sum against the two-sided 95 % band of χ² on the summed
+    dof, the share of seeds whose own NEES has p < 0.05 (5 % for an honest covariance), the
+    KS p-value of the seeds' p against uniform, and the smallest p."""
+    pairs = [r["nees"] for r in recs if r.get("nees") and np.isfinite(r["nees"][0])]
+    if not pairs:
+        return {"n": 0}
+    eps = np.array([e for e, _ in pairs])
+    k = np.array([d for _, d in pairs], float)
+    p = stats.chi2.sf(eps, k)
+    dof = float(k.sum())
+    return {
+        "n": len(pairs),
+        "sum": float(eps.sum()),
+        "dof": dof,
+        "band": (float(stats.chi2.ppf(0.025, dof)), float(stats.chi2.ppf(0.975, dof))),
+        "below_05": float(np.mean(p < 0.05)),
+        "ks": float(stats.kstest(p, "uniform").pvalue) if p.size > 1 else float("nan"),
+        "min_p": float(p.min()),
+    }
+
+
 def print_readings(groups: dict) -> bool:
     """The per-element, per-sensor and pooled readings (module docstring), as markdown;
     True when every element is within 3σ on ≥ 95 % of seeds and every sensor passes its
@@ -258,6 +283,18 @@ def print_readings(groups: dict) -> bool:
                 share, _, p = row["both"]
                 ok_all &= share >= required_share or p >= 0.05
                 print(f"| {MODE_SHORT[m]} | {row['sensor']} | {row['n']} | " + " | ".join(cells) + " |")
+        print(f"\n{hours:g} h, NEES of the calibrated elements per seed (correlations included)")
+        print("| mode | seeds | Σ NEES | dof | 95 % band | seeds with p < 0.05 | KS p (seeds' p) | smallest p |")
+        print("|---|---:|---:|---:|---|---:|---:|---:|")
+        for m in modes:
+            q = nees_row(groups[(m, hours)])
+            if not q["n"]:
+                continue
+            lo, hi = q["band"]
+            print(
+                f"| {MODE_SHORT[m]} | {q['n']} | {q['sum']:.1f} | {q['dof']:.0f} | [{lo:.0f}, {hi:.0f}] | "
+                f"{100 * q['below_05']:.1f} % | {q['ks']:.2g} | {q['min_p']:.2g} |"
+            )
         print(
             f"\n{hours:g} h, pooled z of the calibrated elements (beyond 3σ: {100 * (1 - ideal_within):.2f} % expected)"
         )
