@@ -9,11 +9,13 @@ default config and the given method, and records against the simulator's truth:
 
 * the effects added; the final normalized RMS per sensor, fitted and held-out; the
   largest normalized RMS any step showed per sensor (divergence);
-* ``z = (x̂ − x)/σ`` of every solve-for element (:func:`truth_all`);
+* ``z = (x̂ − x)/σ`` of every solve-for element (:func:`truth_all`) and the NEES of the
+  calibrated ones (:func:`nees`);
 * the goodness-of-fit verdict (:mod:`gcs_core.diagnosis.goodness`).
 
 Truth (:func:`truth_all`): :func:`test_truth_recovery.truth_values` for the seed elements
-(the gyro bias as the LS line through the simulator's logged random walk), and for the
+(the gyro bias in the method's own form: for the whole-span fit the simulator's bias at
+``t_ref`` and its deterministic drift, the walk after ``t_ref`` being the knots'), and for the
 extended elements the simulator's ``true`` values: TAM ``D = K − I`` (scale, non-
 orthogonality), contamination per aux channel, time offsets, alignment angles, the FSS
 second harmonic ``A4h, B4h``; 0 where the simulator has none (book = truth).
@@ -135,7 +137,7 @@ HIDDEN_BY_ID = {h.id: h for h in HIDDEN}
 # ----------------------------------------------------------------------------- truth
 def truth_all(truth: Mapping, problem, method: str) -> dict[str, float]:
     """Element -> true value for every element of ``problem``'s state (module docstring)."""
-    bias_form = method if method in ("batch", "kalman") else "kalman"
+    bias_form = method if method in ("batch", "kalman", "whole_span") else "kalman"
     out = truth_values(truth, problem, bias_form)
     pm = problem.param_map
     for name, s in truth["sensors"].items():
@@ -172,6 +174,29 @@ def z_scores(result, truth: Mapping[str, float]) -> dict[str, float]:
         d = _angle_diff(result.x[i], truth[name]) if name.startswith("att.") else result.x[i] - truth[name]
         z[name] = float(d / math.sqrt(result.P[i, i]))
     return z
+
+
+def nees(result, truth: Mapping[str, float], *, skip=()) -> list[float]:
+    """``[ε, k]``: the normalized estimation error squared ``ε = eᵀ P⁻¹ e`` of the ``k``
+    solve-for elements with a truth, ``skip`` aside (χ²_k for an honest covariance,
+    correlations included; Bar-Shalom, Li & Kirubarajan 2001, §5.4). ``ε`` is NaN when
+    that block of ``P`` is not positive definite."""
+    skip = set(skip)
+    idx = [i for i, n in enumerate(result.solve_for) if n in truth and n not in skip]
+    if not idx:
+        return [float("nan"), 0]
+    names = [result.solve_for[i] for i in idx]
+    x = np.asarray(result.x, float)[idx]
+    t = np.array([truth[n] for n in names])
+    e = np.array([_angle_diff(a, b) if n.startswith("att.") else a - b for n, a, b in zip(names, x, t)])
+    P = np.asarray(result.P, float)[np.ix_(idx, idx)]
+    d = np.sqrt(np.diag(P))
+    try:
+        L = np.linalg.cholesky(P / np.outer(d, d))  # on the correlation matrix: scale-free
+    except np.linalg.LinAlgError:
+        return [float("nan"), len(idx)]
+    u = np.linalg.solve(L, e / d)
+    return [float(u @ u), len(idx)]
 
 
 # ----------------------------------------------------------------------------- one run
@@ -216,6 +241,7 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
     tv = truth_all(truth, a.problem, method)
     rec["z"] = z_scores(a.result, tv)
     rec["not_determined"] = sorted(a.not_determined())
+    rec["nees"] = nees(a.result, tv, skip=rec["not_determined"])
     rec["set_by_prior"] = sorted(getattr(a, "set_by_prior", lambda: {})())
     gof = getattr(a, "goodness", None)
     if gof is not None:

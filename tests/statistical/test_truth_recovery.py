@@ -16,7 +16,12 @@ Truth of each element (:func:`truth_values`):
 * gyro ``G_ij``: ``G_true − I``; ``bias``/``bias_rate``: the least-squares line through the
   true bias history (the simulator's random walk logged once a minute), as the estimator
   parametrizes it: ``b(t) = bias + bias_rate (t − t_mid)`` in a batch fit, and in the Kalman
-  smoother the random-walk part at ``t_ref``, ``b(t_ref) − bias_rate (t_ref − t_mid)``.
+  smoother the random-walk part at ``t_ref``, ``b(t_ref) − bias_rate (t_ref − t_mid)``. The
+  whole-span fit carries ``b(t) = bias + bias_rate (t − t_mid) + β(t)`` with the knots'
+  random walk ``β(t_ref) = 0`` (:mod:`gcs_core.filtr.knots`): its ``bias_rate`` is the
+  simulator's deterministic drift (0 unless hidden), not the slope of the walk, which ``β``
+  carries and the fit's σ counts, and its ``bias`` is ``b(t_ref) − bias_rate (t_ref − t_mid)``
+  with that drift (as :mod:`gcs_core.trade.montecarlo` reads it).
 * every other element: the sensor's ``true`` values (scale, bias, transfer coefficients,
   horizon angles, ephemeris time error).
 
@@ -53,6 +58,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -108,8 +114,9 @@ def truth_values(truth: Mapping, problem, method: str = "batch") -> dict[str, fl
 
     ``problem`` is the fitted :class:`~gcs_core.problem.build.Problem` (for ``t_ref``, the
     gyro span and the estimator's reference frame); ``method`` selects the gyro-bias
-    parametrization (``"batch"``, or ``"kalman"`` and ``"whole_span"``, whose bias is the
-    value at ``t_ref`` carried by the process noise).
+    parametrization (module docstring): ``"batch"`` (the line through the walk),
+    ``"kalman"`` (the walk at ``t_ref`` less that line's drift) or ``"whole_span"`` (the walk
+    at ``t_ref`` and the simulator's deterministic drift).
     """
     out: dict[str, float] = {}
     att = problem.attitude
@@ -127,6 +134,10 @@ def truth_values(truth: Mapping, problem, method: str = "batch") -> dict[str, fl
                     # the process-noise fits carry the bias from t_ref (their knots start there)
                     h = np.asarray(truth["gyro_bias_history"][name], float)
                     b_ref = np.array([np.interp(att.t_ref, h[:, 0], h[:, 1 + i]) for i in range(3)])
+                    if method == "whole_span":
+                        # the knots' β carries the walk (its slope included, in the fit's σ):
+                        # bias_rate is the simulator's deterministic drift
+                        slope = np.asarray(tr.get("bias_rate", (0.0, 0.0, 0.0)), float)
                     b_mid = b_ref - slope * (att.t_ref - 0.5 * (t0 + t1))
                 for i, c in enumerate("xyz"):
                     out[f"{name}.bias_{c}"] = float(b_mid[i])
@@ -261,3 +272,37 @@ def test_default_covariance_carries_gyro_noise_on_long_missions(tmp_path):
     (the batch, which takes the gyro as exact, missed by up to ~9σ here)."""
     _, _, z, _ = fit_and_compare(threeaxis("inertial", 1, 2 * ONE_HOUR), tmp_path, "whole_span")
     assert max(abs(v) for v in z.values()) <= three_sigma
+
+
+def test_gyro_bias_truth_follows_each_estimator_form():
+    """The drift bias's truth in each estimator's parametrization (module docstring), on a
+    logged walk with a deterministic drift: the whole-span fit's ``bias_rate`` is the drift
+    (its knots carry the walk and its slope), the batch's and the smoother's the line
+    through the walk; each form's ``bias + bias_rate (t − t_mid)`` meets the simulator's
+    bias where that form anchors it (``t_ref`` for the process-noise fits)."""
+    rng = np.random.default_rng(11)
+    span, drift = 4 * ONE_HOUR, np.array([2e-10, -1e-10, 0.0])  # rad/s, rad/s²
+    t = np.arange(0.0, span + 1.0, 60.0)
+    walk = np.cumsum(rng.standard_normal((t.size, 3)) * 3.2e-10 * math.sqrt(60.0), axis=0)
+    b = 1e-6 + walk + drift * t[:, None]
+    truth = {
+        "attitude_mode": "spinning",
+        "spin_axis_deg": [0.0, 0.0],
+        "sensors": {"IRU": {"type": "gyro", "true": {"bias_rate": drift.tolist()}}},
+        "gyro_bias_history": {"IRU": np.column_stack([t, b]).tolist()},
+    }
+    t_ref, t_mid = 0.0, 0.5 * span
+
+    att = SimpleNamespace(gyro="IRU", knots=np.array([0.0, span]), t_ref=t_ref)  # what the truth reads
+    problem = SimpleNamespace(attitude=att)
+    rate = {
+        m: np.array([truth_values(truth, problem, m)[f"IRU.bias_rate_{c}"] for c in "xyz"])
+        for m in ("batch", "kalman", "whole_span")
+    }
+    bias = {m: np.array([truth_values(truth, problem, m)[f"IRU.bias_{c}"] for c in "xyz"]) for m in rate}
+    one_rad_s2 = 1e-15  # far below the walk's slope scatter over 4 h (~2e-12 rad/s²)
+    assert np.allclose(rate["whole_span"], drift, atol=one_rad_s2)
+    assert np.allclose(rate["kalman"], rate["batch"], atol=one_rad_s2)
+    assert np.max(np.abs(rate["batch"] - drift)) > 1e-13  # the walk's slope is not the drift
+    for m in ("kalman", "whole_span"):  # anchored at t_ref: b(t_ref) = bias + bias_rate (t_ref − t_mid)
+        assert np.allclose(bias[m] + rate[m] * (t_ref - t_mid), b[0], atol=1e-15)
