@@ -38,7 +38,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -167,7 +167,7 @@ def whole_span_fit(
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
         warm = None
-    passes = Passes(problem, names, grid, x_bar, prior_info)
+    passes = Passes(problem, names, grid, x_bar, prior_info, noise.sigma_e**2)
     if warm is not None and warm.R is not None and warm.R.shape[0] == grid.K - 1:
         passes.R_fixed = warm.R  # ... and their drift-bias axes
     x = np.array(batch.x, float)
@@ -268,7 +268,7 @@ def whole_span_fit(
             status, message = stopping.iteration_limit(opts.max_iterations, cost, change)
         if not edits_on:
             break
-        edits, suspect, changed = edit_frames(problem, passes.buffers, preflag, opts, edits)
+        edits, suspect, changed = edit_frames(problem, passes.buffers, preflag, opts, edits, passes.marginal_sigma())
         suspect_all |= suspect
         if not changed:
             break
@@ -301,12 +301,16 @@ def whole_span_fit(
     chi2_proc = sysk.prior_cost()
     message = (
         f"whole-span fit with gyro process noise ({grid.K} knots every "
-        f"{float(np.median(np.diff(grid.tau))):.3g} s): {message}"
+        f"{float(np.median(np.diff(grid.tau))):.3g} s"
+        + (f"; read-out noise σ_e {np.sqrt(passes.sig_e2):.3g} rad per epoch" if passes.sig_e2 else "")
+        + f"): {message}"
     )
     message += suspect_note(suspect_all, opts)
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, passes.buffers, edits)
-    dyn = Dynamics(grid, z, R, names, fac, P)
+    for nm, sig_row in passes.marginal_sigma().items():  # against each row's marginal σ (readout.py)
+        residuals[nm] = replace(residuals[nm], normalized_=residuals[nm].residual / sig_row)
+    dyn = Dynamics(grid, z, R, names, fac, P, passes.sig_e2)
     sig = np.sqrt(np.diag(P))
     if not np.isfinite(chi2 + chi2_proc):
         status, message = stopping.diverged(it_total)

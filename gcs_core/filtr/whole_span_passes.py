@@ -13,6 +13,7 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.knot_kernels import correct_attitude
+from gcs_core.filtr.readout import ReadoutEpochs, row_variance
 from gcs_core.filtr.residuals import Residuals
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
@@ -35,7 +36,8 @@ class Dynamics:
 
     grid : the knots; z : (K, d) corrections; R : (K−1, 3, 3) mid-interval rotations;
     names : the static columns of ``factors`` and ``P``; factors : the elimination at the
-    solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics.
+    solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics; sig_e2 : the
+    gyro's read-out noise σ_e² [rad²] the fit carried (:mod:`gcs_core.filtr.readout`).
     """
 
     grid: kn.KnotGrid
@@ -44,6 +46,7 @@ class Dynamics:
     names: tuple = ()
     factors: tuple | None = None
     P: np.ndarray | None = None
+    sig_e2: float = 0.0
     _cov: tuple | None = field(default=None, repr=False)
 
     def attitude(self, base) -> CorrectedAttitude:
@@ -132,8 +135,12 @@ def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
 class Passes:
     """Linearization passes of the whole-span problem at (x, z)."""
 
-    def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info):
+    def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info, sig_e2: float = 0.0):
         self.problem, self.names, self.grid = problem, tuple(names), grid
+        # the gyro's read-out noise, eliminated per epoch (readout.py); 0: the rows independent
+        self.sig_e2 = float(sig_e2)
+        # sensor -> (N, m) σ_e² |D_i|², each row's read-out variance at the last pass
+        self.readout_var: dict[str, np.ndarray] = {}
         self.base = problem.gyro_attitude  # the whole-span problem is gyro-carried
         self.x_bar, self.prior_info = x_bar, prior_info
         self.values = problem.state.values()
@@ -163,6 +170,8 @@ class Passes:
         n = len(cols) if jacobian else 0
         A, b = np.zeros((n, n)), np.zeros(n)
         chi2, m_used = 0.0, 0
+        ro = ReadoutEpochs(self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors) if self.sig_e2 else None
+        passed = sysk.passed if ro is None else ro.passed
         for blk in iter_blocks(
             prob,
             self.values,
@@ -177,9 +186,12 @@ class Passes:
                 self.buffers.y_pred[blk.name][blk.lo : blk.hi] = blk.y_pred
             self.buffers.r[blk.name][blk.lo : blk.hi] = blk.r
             self.buffers.valid[blk.name][blk.lo : blk.hi] = blk.valid
+            if ro is not None:
+                ro.visit(blk.sensor)
+                self._readout_rows(blk)
             nu = int(np.count_nonzero(blk.used))
             if not nu:
-                sysk.passed(blk.sensor, blk.hi)
+                passed(blk.sensor, blk.hi)
                 continue
             m_used += nu * blk.r.shape[1]
             sd = blk.sensor
@@ -196,17 +208,24 @@ class Passes:
                 rw = np.where(blk.used[:, None], blk.r, 0.0) / sd.sigma
                 chi2 += float(np.sum(rw * rw))
             if not jacobian:
+                if ro is not None:
+                    self._readout_add(ro, blk, None, rw, R)
                 continue
-            self._knot_rows(blk, sysk, rw, R)
-            sysk.passed(sd, blk.hi)
+            C = self._knot_rows(blk, sysk, rw, R)
+            if ro is not None:
+                self._readout_add(ro, blk, C, rw, R)
+            passed(sd, blk.hi)
+        if ro is not None:
+            chi2 -= ro.finish()
         return A, b, chi2, m_used, sysk, R
 
-    def _knot_rows(self, blk, sysk, rw, R) -> None:
-        """The block's rows in the knot columns, added to the knot system."""
+    def _knot_rows(self, blk, sysk, rw, R) -> np.ndarray | None:
+        """The block's rows in the knot columns, added to the knot system; returns the
+        attitude they chain through (None for rows without attitude partials)."""
         sd = blk.sensor
         D = getattr(blk.pred, "d_att", None)
         if D is None or blk.geom.C_BI is None:
-            return
+            return None
         t = sd.t[blk.lo : blk.hi]
         w = blk.used[:, None] / sd.sigma[None, :]
         C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
@@ -214,6 +233,39 @@ class Passes:
             sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
         else:
             sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(), np.zeros(0, np.int64))
+        return C
+
+    def _readout_rows(self, blk) -> None:
+        """Each row's read-out variance σ_e² |D_i|² (for the normalized residuals)."""
+        sd = blk.sensor
+        buf = self.readout_var.get(sd.name)
+        if buf is None or buf.shape[0] != sd.n:
+            buf = self.readout_var[sd.name] = np.zeros((sd.n, len(sd.sigma)))
+        D = getattr(blk.pred, "d_att", None)
+        buf[blk.lo : blk.hi] = 0.0 if D is None or blk.geom.C_BI is None else row_variance(D, self.sig_e2)
+
+    def _readout_add(self, ro: ReadoutEpochs, blk, C, rw, R) -> None:
+        """The block's rows in the per-epoch elimination of the read-out error."""
+        sd = blk.sensor
+        D = getattr(blk.pred, "d_att", None)
+        if D is None or blk.geom.C_BI is None:
+            return
+        t = sd.t[blk.lo : blk.hi]
+        w = blk.used[:, None] / sd.sigma[None, :]
+        if blk.Hr is not None and ro.p:
+            ro.add(t, D, w, C, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+        else:
+            rwf = blk.Hr[:, -1] if blk.Hr is not None else rw.reshape(-1)
+            ro.add(t, D, w, C, np.zeros((rwf.size, 0)), rwf, np.zeros(0, np.int64))
+
+    def marginal_sigma(self) -> dict[str, np.ndarray]:
+        """sensor -> (N, m) each row's marginal σ at the last pass, ``sqrt(σ² + σ_e² |D|²)``
+        ({} without read-out noise: the data-book σ)."""
+        return {
+            sd.name: np.sqrt(sd.sigma[None, :] ** 2 + v)
+            for sd in self.problem.sensors
+            if (v := self.readout_var.get(sd.name)) is not None
+        }
 
     def cost(self, x, chi2, sysk) -> float:
         d = self.x_bar - x
