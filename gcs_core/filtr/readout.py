@@ -93,6 +93,46 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dp: np.ndarray, t: np.ndarray, V: np
     sysk.Bk[js, :, -1] -= HB[:, :, -1]
 
 
+class EpochErrors:
+    """The per-epoch read-out errors ``ε̂_k`` the whole-span fit linearizes about.
+
+    T : (E,) the epochs (every sample time of the data); eps : (E, 3) the current
+    linearization values [rad, body frame]; cond : (E, 3) their conditional optimum
+    ``ε + M⁻¹ g_ε`` given the statics and knots of the last pass (:meth:`adopt` takes it).
+    """
+
+    def __init__(self, sensors):
+        ts = [np.asarray(sd.t, float) for sd in sensors if sd.n]
+        self.T = np.unique(np.concatenate(ts)) if ts else np.zeros(0)
+        self.eps = np.zeros((self.T.size, 3))
+        self.cond = self.eps.copy()
+        self.stale = False  # ε̂ adopted after the last pass
+
+    def index(self, t: np.ndarray) -> np.ndarray:
+        """(n,) epoch of each time (every data time is one)."""
+        return np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch)."""
+        if not self.T.size:
+            return np.zeros((np.size(t), 3))
+        i = self.index(t)
+        return np.where((self.T[i] == t)[:, None], self.eps[i], 0.0)
+
+    def moved(self, sig_e: float) -> float:
+        """The largest change :meth:`adopt` would make, in σ_e (inf when ε̂ changed since the
+        last pass: that pass's normal equations are not at ε̂)."""
+        if self.stale:
+            return float("inf")
+        return float(np.max(np.abs(self.cond - self.eps))) / sig_e if self.T.size else 0.0
+
+    def adopt(self) -> None:
+        """Linearize the next passes about the last pass's conditional optimum."""
+        if not self.stale:
+            self.eps = self.cond.copy()
+            self.stale = True
+
+
 class ReadoutEpochs:
     """The per-epoch elimination of the read-out error over one streaming pass.
 
@@ -105,8 +145,17 @@ class ReadoutEpochs:
     :attr:`chi2_removed`.
     """
 
-    def __init__(self, sig_e2: float, A: np.ndarray, b: np.ndarray, knots: kn.KnotSystem | None, sensors):
+    def __init__(
+        self,
+        sig_e2: float,
+        A: np.ndarray,
+        b: np.ndarray,
+        knots: kn.KnotSystem | None,
+        sensors,
+        errors: EpochErrors | None = None,
+    ):
         self.inv_e2 = 1.0 / float(sig_e2)
+        self.errors = errors  # ε̂ the rows were evaluated at (None: ε = 0)
         self.A, self.b, self.knots = A, b, knots
         self.p = A.shape[0]
         self.order = {sd.name: i for i, sd in enumerate(sensors)}
@@ -184,8 +233,20 @@ class ReadoutEpochs:
             return
         M = F + self.inv_e2 * np.eye(3)
         L = np.linalg.cholesky(M)
+        ro = self.errors
+        if ro is not None:
+            # rows evaluated at ε̂: the gradient in ε is Σ D̃ᵀ r̃ − ε̂/σ_e², and the prior's
+            # ‖ε̂‖²/σ_e² is part of the cost
+            k = ro.index(T)
+            eps = ro.eps[k]
+            G[:, p, :] -= self.inv_e2 * eps
+            self.chi2_removed -= self.inv_e2 * float(np.sum(eps * eps))
         V = np.linalg.solve(L, np.swapaxes(G, 1, 2))  # (E, 3, p + 1): L⁻¹ G
         Vf = V.reshape(-1, p + 1)
+        if ro is not None:
+            # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε = ε̂ + L⁻ᵀ (L⁻¹ g_ε)
+            ro.cond[k] = eps + np.linalg.solve(np.swapaxes(L, 1, 2), V[:, :, p : p + 1])[:, :, 0]
+            ro.stale = False
         if p:
             self.A -= Vf[:, :p].T @ Vf[:, :p]
             self.b -= Vf[:, :p].T @ Vf[:, p]

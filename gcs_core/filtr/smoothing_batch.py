@@ -62,6 +62,8 @@ GAIN_TOL = 1e-3
 #: ... and, when no shortened step lowers the cost, a predicted gain below this fraction
 #: of the cost (the first-order knot partials' accuracy where the corrections are large)
 NOISE_GAIN = 1e-6
+#: ... with the per-epoch read-out errors ε̂ (readout.py) moving by less than this, in σ_e
+EPS_TOL = 0.02
 
 
 @dataclass(frozen=True)
@@ -219,6 +221,14 @@ def whole_span_fit(
             # then below sqrt(GAIN_TOL) ≈ 0.03 σ); the solution is this point, whose
             # residuals and normal equations the last pass holds
             if np.all(np.abs(dx) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)) or gain < GAIN_TOL:
+                if passes.errors is not None and passes.errors.moved(np.sqrt(passes.sig_e2)) > EPS_TOL:
+                    # the read-out errors' linearization point still moves: take it, re-linearize
+                    passes.errors.adopt()
+                    lin = passes.run(x, z, edits)
+                    A, b, chi2, m_used, sysk, R = lin
+                    cost = passes.cost(x, chi2, sysk)
+                    history.append(cost)
+                    continue
                 status, message = "converged", f"converged after {it} iterations"
                 it_total -= 1
                 break
@@ -256,6 +266,8 @@ def whole_span_fit(
             change = cost - cost_t
             x, z = x_try, z_try
             lin = trial if attempt == 0 else passes.run(x, z, edits)
+            if passes.errors is not None:
+                passes.errors.adopt()  # the read-out errors' conditional optimum at (x, z)
             A, b, chi2, m_used, sysk, R = lin
             cost = passes.cost(x, chi2, sysk)
             history.append(cost)

@@ -131,7 +131,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     s0 = np.array([state[nm].sigma0 for nm in names])
     prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     grid = make_knots(problem, noise, res.information, names)
-    passes = Passes(problem, names, grid, x_bar, prior_info)
+    passes = Passes(problem, names, grid, x_bar, prior_info, noise.sigma_e**2)
     passes.keep = False
     edits = {nm: r.edited for nm, r in res.residuals.items()}
     x = np.asarray(res.x, float)
@@ -193,7 +193,7 @@ def predicted_covariance(
     n = len(names)
     prior = np.where(np.isfinite(sigma0) & (sigma0 > 0), 1.0 / np.where(sigma0 > 0, sigma0, 1.0) ** 2, 0.0)
     grid = make_knots(problem, noise, information, names)
-    passes = Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior)
+    passes = Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior, noise.sigma_e**2)
     passes.values = dict(values)
     passes.keep = False
     x = np.array([values[nm] for nm in names])

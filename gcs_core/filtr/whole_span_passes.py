@@ -13,7 +13,7 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.knot_kernels import correct_attitude
-from gcs_core.filtr.readout import ReadoutEpochs, row_variance
+from gcs_core.filtr.readout import EpochErrors, ReadoutEpochs, row_variance
 from gcs_core.filtr.residuals import Residuals
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
@@ -77,8 +77,9 @@ class CorrectedAttitude:
     ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.filtr.knots`).
     Partials stay factored as the base provider's (chained through the corrected C)."""
 
-    def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray):
+    def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray, errors: EpochErrors | None = None):
         self.base, self.grid, self.z, self.R = base, grid, z, R
+        self.errors = errors  # per-epoch read-out errors ε̂: C ← exp(−[ε̂×]) C (readout.py)
 
     def __getattr__(self, name):
         return getattr(self.base, name)
@@ -88,6 +89,12 @@ class CorrectedAttitude:
         return self.base.names
 
     def _correct(self, C, t):
+        C = self._correct_knots(C, t)
+        if self.errors is not None and np.any(self.errors.eps):
+            C = rotvec_to_dcm(self.errors.at(t)) @ C
+        return C
+
+    def _correct_knots(self, C, t):
         if not np.any(self.z):
             return C
         if COMPILED:
@@ -141,6 +148,8 @@ class Passes:
         self.sig_e2 = float(sig_e2)
         # sensor -> (N, m) σ_e² |D_i|², each row's read-out variance at the last pass
         self.readout_var: dict[str, np.ndarray] = {}
+        # the per-epoch read-out errors the passes linearize about (readout.py)
+        self.errors = EpochErrors(problem.sensors) if self.sig_e2 else None
         self.base = problem.gyro_attitude  # the whole-span problem is gyro-carried
         self.x_bar, self.prior_info = x_bar, prior_info
         self.values = problem.state.values()
@@ -166,11 +175,15 @@ class Passes:
         R = self.R_fixed
         sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream, keep=self.keep)
         sysk.track(self.problem.sensors)
-        prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R))
+        prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R, self.errors))
         n = len(cols) if jacobian else 0
         A, b = np.zeros((n, n)), np.zeros(n)
         chi2, m_used = 0.0, 0
-        ro = ReadoutEpochs(self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors) if self.sig_e2 else None
+        ro = (
+            ReadoutEpochs(self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors, self.errors)
+            if self.sig_e2
+            else None
+        )
         passed = sysk.passed if ro is None else ro.passed
         for blk in iter_blocks(
             prob,
@@ -236,13 +249,21 @@ class Passes:
         return C
 
     def _readout_rows(self, blk) -> None:
-        """Each row's read-out variance σ_e² |D_i|² (for the normalized residuals)."""
+        """Each row's read-out variance σ_e² |D_i|² (for the normalized residuals), and the
+        residual buffer at ε = 0: ``r + D ε̂`` (to first order in ε̂, ~1e-4 rad), the
+        marginal residual whose variance is ``σ² + σ_e² |D|² − (prediction variance)``."""
         sd = blk.sensor
         buf = self.readout_var.get(sd.name)
         if buf is None or buf.shape[0] != sd.n:
             buf = self.readout_var[sd.name] = np.zeros((sd.n, len(sd.sigma)))
         D = getattr(blk.pred, "d_att", None)
-        buf[blk.lo : blk.hi] = 0.0 if D is None or blk.geom.C_BI is None else row_variance(D, self.sig_e2)
+        if D is None or blk.geom.C_BI is None:
+            buf[blk.lo : blk.hi] = 0.0
+            return
+        buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2)
+        if self.errors is not None and np.any(self.errors.eps):
+            eps = self.errors.at(sd.t[blk.lo : blk.hi])
+            self.buffers.r[sd.name][blk.lo : blk.hi] += np.einsum("nma,na->nm", np.nan_to_num(D), eps)
 
     def _readout_add(self, ro: ReadoutEpochs, blk, C, rw, R) -> None:
         """The block's rows in the per-epoch elimination of the read-out error."""
