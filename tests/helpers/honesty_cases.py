@@ -41,6 +41,7 @@ import numpy as np
 from test_truth_recovery import _angle_diff, truth_values
 
 from gcs_core.config import AnalysisConfig
+from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
@@ -163,15 +164,26 @@ def truth_all(truth: Mapping, problem, method: str) -> dict[str, float]:
     return out
 
 
-def z_scores(result, truth: Mapping[str, float]) -> dict[str, float]:
-    """Solve-for element -> ``(x̂ − x)/σ`` (σ from the fit's noise covariance)."""
+def z_scores(result, truth: Mapping[str, float], readout_var: float = 0.0) -> dict[str, float]:
+    """Solve-for element -> ``(x̂ − x)/σ`` (σ from the fit's noise covariance). The attitude
+    elements are the gyro-carried trajectory's reference: with a gyro read-out noise
+    (``readout_var`` = σ_e²) the simulator's attitude at ``t_ref`` differs from it by that
+    epoch's read-out error, whose variance is added (:mod:`gcs_core.filtr.readout`)."""
     z = {}
     for i, name in enumerate(result.solve_for):
         if name not in truth:
             continue
-        d = _angle_diff(result.x[i], truth[name]) if name.startswith("att.") else result.x[i] - truth[name]
-        z[name] = float(d / math.sqrt(result.P[i, i]))
+        att = name.startswith("att.")
+        d = _angle_diff(result.x[i], truth[name]) if att else result.x[i] - truth[name]
+        z[name] = float(d / math.sqrt(result.P[i, i] + (readout_var if att else 0.0)))
     return z
+
+
+def readout_variance(problem) -> float:
+    """σ_e² [rad²] of the gyro carrying the attitude (0 without one)."""
+    if problem.gyro_name is None:
+        return 0.0
+    return attitude_gyro_noise(problem).sigma_e ** 2
 
 
 # ----------------------------------------------------------------------------- one run
@@ -214,7 +226,7 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
     rec["peak_rms"] = peak
     rec["fit_status"] = a.result.status
     tv = truth_all(truth, a.problem, method)
-    rec["z"] = z_scores(a.result, tv)
+    rec["z"] = z_scores(a.result, tv, readout_variance(a.problem))
     rec["not_determined"] = sorted(a.not_determined())
     rec["set_by_prior"] = sorted(getattr(a, "set_by_prior", lambda: {})())
     gof = getattr(a, "goodness", None)
