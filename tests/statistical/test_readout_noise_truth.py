@@ -72,10 +72,7 @@ def _errors(res, truth: dict, sig_e2: float):
     names = [n for n in res.solve_for if n in truth]
     idx = [res.solve_for.index(n) for n in names]
     e = np.array(
-        [
-            _angle_diff(res.x[i], truth[n]) if n.startswith("att.") else res.x[i] - truth[n]
-            for n, i in zip(names, idx)
-        ]
+        [_angle_diff(res.x[i], truth[n]) if n.startswith("att.") else res.x[i] - truth[n] for n, i in zip(names, idx)]
     )
     P = np.asarray(res.P)[np.ix_(idx, idx)].copy()
     for j, n in enumerate(names):

@@ -74,7 +74,7 @@ def test_epoch_elimination_equals_the_dense_covariance():
     z[1:, :3] = rng.normal(0, 1e-5, (grid.K - 1, 3))
     z[1:, 3:] = rng.normal(0, 1e-8, (grid.K - 1, 3))
     A, b, chi2, _, sysk, R = passes.run(x, z, {})
-    n, d = x.size, grid.d
+    n = x.size
     A_d, b_d, chi_d = np.zeros((n, n)), np.zeros(n), 0.0
     Dk, Bk = np.zeros_like(sysk.Dk), np.zeros_like(sysk.Bk)
     for t, rs in _dense_rows(problem, passes, x, z, R).items():
