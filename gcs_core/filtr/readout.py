@@ -38,6 +38,23 @@ blocks take them as they take the data (:func:`subtract_knot_rows`). The cost is
 of three rows per epoch over the epoch's columns; σ_e = 0 never builds this object (the
 σ_e = 0 path is unchanged to the byte).
 
+Linearization point. The gyro-carried attitude is computed from the gyro data, so it
+carries ``e_k`` itself: the partials of a sensor whose signal is the attitude's small
+variation about a fixed geometry (a Sun sensor's scale on a Sun-pointing spacecraft,
+``∂n/∂A2 ∝ tan α``) are evaluated at ``α_true + e_k``, a regressor with errors. Linearized
+at ``ε = 0`` the Gauss–Newton fixed point is the regression of the data on that noisy
+attitude, biased toward zero slope (errors in variables: on a 4 h Sun-pointing mission with
+σ_e three times the tracker noise the FSS ``A2``, ``A3`` came out 10–12σ off, the Kalman
+filter's alike). So the passes keep ``ε̂_k`` per epoch (:class:`EpochErrors`), evaluate the
+attitude at ``exp(−[ε̂_k×]) C_k`` and take the gradient in ε as ``Σ D̃ᵀ r̃ − ε̂_k/σ_e²``, the
+cost with ``‖ε̂_k‖²/σ_e²``: Gauss–Newton on the joint problem in ``(x, z, ε)``, whose
+minimum is the known-variance functional errors-in-variables estimate (Deming's), consistent
+where the ``ε = 0`` form is not. After each accepted step ``ε̂`` moves to its conditional
+optimum ``ε̂ + M⁻¹ g_ε`` at the new ``(x, z)``; the fit converges when that move is below
+:data:`~gcs_core.filtr.smoothing_batch.EPS_TOL` σ_e as well. The reported residuals are at
+``ε = 0`` (``r + D ε̂`` to first order): the marginal residuals, of variance
+``σ² + σ_e² |D|²`` less the prediction's.
+
 χ² becomes ``Σ_k r_kᵀ (R_k + σ_e² D_k D_kᵀ)⁻¹ r_k``, the generalized least-squares cost,
 and the statics' and knots' covariance that of the correlated rows. Per row the marginal
 variance is ``σ_i² + σ_e² |D_i|²`` (:func:`row_variance`): the normalized residuals, the
@@ -54,7 +71,8 @@ Farrenkopf, R. L., "Analytic steady-state accuracy solutions for two common spac
 attitude estimators", J. Guidance & Control 1(4), 1978. Markley, F. L. and Crassidis,
 J. L., *Fundamentals of Spacecraft Attitude Determination and Control*, Springer 2014, §6
 (gyro noise model). Golub & Van Loan, *Matrix Computations*, 4th ed., §2.1.4
-(Sherman–Morrison–Woodbury).
+(Sherman–Morrison–Woodbury). Fuller, W. A., *Measurement Error Models*, Wiley 1987, §1.3
+(the functional model with known error variances).
 """
 
 from __future__ import annotations

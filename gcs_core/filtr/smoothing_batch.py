@@ -27,6 +27,18 @@ knots are empty and the fit is the batch's.
 prior), on ``m − n`` degrees of freedom: the increments are pseudo-measurements that
 bring as many equations as knot unknowns.
 
+The gyro's read-out (electronic) noise σ_e (ICD §5 ``electronic``) does not accumulate:
+it is a white attitude error ``ε_k ~ N(0, σ_e² I)`` at every epoch, shared by the rows of
+every sensor sampled then (:mod:`gcs_core.filtr.readout`), so ``J`` gains
+``Σ_k ‖ε_k‖²/σ_e²`` and the rows of one epoch the covariance ``R + σ_e² D Dᵀ``. Each pass
+eliminates ε_k per epoch in closed form (Woodbury, three pseudo-rows per epoch) about its
+current estimate ε̂_k, which follows the solution (the gyro-carried attitude is a noisy
+regressor: linearized at ε = 0 the fit is biased, errors in variables). ``chi2`` is then
+the generalized ``Σ rᵀ (R + σ_e² D Dᵀ)⁻¹ r`` plus the process term, the residuals are
+reported at ε = 0 and normalized by each row's marginal σ ``sqrt(σ² + σ_e² |D|²)``, and the
+editing, the score tests and the leverage read the same covariance. σ_e = 0 is the
+common case and runs the σ_e-free code.
+
 References
 ----------
 Bell, B. M., "The iterated Kalman smoother as a Gauss–Newton method", SIAM J. Optim.
