@@ -215,8 +215,9 @@ def rank_candidates(
     if knots is not None:
         knots.track(problem.sensors)
     # ... and the gyro's read-out error it eliminated per epoch (readout.py): the same rows
-    ro = ReadoutEpochs(dyn.sig_e2, A, g, knots, problem.sensors) if dyn is not None and dyn.sig_e2 else None
-    src = dyn.problem(problem) if dyn is not None else problem
+    # (about the fit's ε̂, as the fit linearizes)
+    ro = ReadoutEpochs(dyn.sig_e2, A, g, knots, problem.sensors, dyn.errors) if dyn is not None and dyn.sig_e2 else None
+    src = dyn.problem(problem, readout=True) if dyn is not None else problem
     for blk in iter_blocks(src, values, cols, exclude=exclude, weighted=True, chunk=chunk, work=work):
         if not np.any(blk.used):
             continue

@@ -334,7 +334,7 @@ def whole_span_fit(
     residuals = residuals_from(problem, passes.buffers, edits)
     for nm, sig_row in passes.marginal_sigma().items():  # against each row's marginal σ (readout.py)
         residuals[nm] = replace(residuals[nm], normalized_=residuals[nm].residual / sig_row)
-    dyn = Dynamics(grid, z, R, names, fac, P, passes.sig_e2)
+    dyn = Dynamics(grid, z, R, names, fac, P, passes.sig_e2, passes.errors)
     sig = np.sqrt(np.diag(P))
     if not np.isfinite(chi2 + chi2_proc):
         status, message = stopping.diverged(it_total)

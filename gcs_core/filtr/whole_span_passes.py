@@ -37,7 +37,8 @@ class Dynamics:
     grid : the knots; z : (K, d) corrections; R : (K−1, 3, 3) mid-interval rotations;
     names : the static columns of ``factors`` and ``P``; factors : the elimination at the
     solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics; sig_e2 : the
-    gyro's read-out noise σ_e² [rad²] the fit carried (:mod:`gcs_core.filtr.readout`).
+    gyro's read-out noise σ_e² [rad²] the fit carried and errors its per-epoch estimates
+    ε̂ at the solution (:mod:`gcs_core.filtr.readout`).
     """
 
     grid: kn.KnotGrid
@@ -47,15 +48,17 @@ class Dynamics:
     factors: tuple | None = None
     P: np.ndarray | None = None
     sig_e2: float = 0.0
+    errors: EpochErrors | None = None
     _cov: tuple | None = field(default=None, repr=False)
 
-    def attitude(self, base) -> CorrectedAttitude:
-        return CorrectedAttitude(base, self.grid, self.z, self.R)
+    def attitude(self, base, *, readout: bool = False) -> CorrectedAttitude:
+        return CorrectedAttitude(base, self.grid, self.z, self.R, self.errors if readout else None)
 
-    def problem(self, problem: Problem) -> Problem:
-        """The problem with its attitude corrected by the knots (caches shared)."""
+    def problem(self, problem: Problem, *, readout: bool = False) -> Problem:
+        """The problem with its attitude corrected by the knots (caches shared); with
+        ``readout`` also by the per-epoch read-out errors ε̂ (the fit's linearization)."""
         base = problem.attitude.base if isinstance(problem.attitude, CorrectedAttitude) else problem.attitude
-        out = replace(problem, attitude=self.attitude(base))
+        out = replace(problem, attitude=self.attitude(base, readout=readout))
         out.__dict__["_variant_cache"] = problem.__dict__.setdefault("_variant_cache", {})
         return out
 
