@@ -97,6 +97,20 @@ class CorrectedAttitude:
             C = rotvec_to_dcm(self.errors.at(t)) @ C
         return C
 
+    def _rate(self, w, t):
+        """The body rate of the corrected attitude: the gyro's rate over the interval
+        ``(τ_{k−1}, τ_k]`` holding ``t`` plus ``(ε̂(τ_k) − ε̂(τ_{k−1}))/(τ_k − τ_{k−1})``
+        (``C = exp(−[ε̂×]) C_gyro`` ⇒ ``ω = ω_gyro + ε̂̇``; ε̂ = 0 where no datum is). The
+        gyro's rate carries ``(e_k − e_{k−1})/Δ``: a time-tag offset's partials
+        ``−ω × v`` made from it would be a regressor with errors, correlated with the
+        residuals; corrected, its error is the posterior one, uncorrelated with them."""
+        er, base = self.errors, self.base
+        if er is None or w is None or not np.any(er.eps) or not hasattr(base, "knots"):
+            return w
+        k = base._rows(t)
+        t1, t0 = base.knots[k], base.knots[k - 1]
+        return w + (er.at(t1) - er.at(t0)) / (t1 - t0)[:, None]
+
     def _correct_knots(self, C, t):
         if not np.any(self.z):
             return C
@@ -121,13 +135,19 @@ class CorrectedAttitude:
         # the statics' partials stay the gyro-carried attitude's (C_chain, exact: a body-frame
         # perturbation ε of C_gyro moves C = C_gyro exp(−[α×]) by the same ε)
         return FrameAttitude(
-            self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro, C_chain=fr.C_BI
+            self._correct(fr.C_BI, t),
+            None,
+            self._rate(fr.omega_B, t),
+            fr.names,
+            J=fr._J,
+            gyro=fr._gyro,
+            C_chain=fr.C_BI,
         )
 
     def evaluate(self, values, t) -> AttitudeEval:
         t = np.atleast_1d(np.asarray(t, float))
         ev = self.base.evaluate(values, t)
-        return AttitudeEval(self._correct(ev.C_BI, t), None, ev.names, ev.J, omega_B=ev.omega_B)
+        return AttitudeEval(self._correct(ev.C_BI, t), None, ev.names, ev.J, omega_B=self._rate(ev.omega_B, t))
 
 
 def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
