@@ -31,10 +31,11 @@ epoch) apart is the exact decomposition of the simulator's and the model's error
     [H̃ Ũ r̃]ᵀ (I + σ_e² D̃ D̃ᵀ)⁻¹ [H̃ Ũ r̃] = Σ_i [.]ᵢᵀ[.]ᵢ − G_kᵀ M_k⁻¹ G_k,
     G_k = Σ_i D̃_iᵀ [H̃_i | Ũ_i | r̃_i] = [G_x | F_k C_k [I | Γ_j(t_k)] | G_r]
 
-i.e. three pseudo-rows ``V_k = L_k⁻¹ G_k`` (``L_k L_kᵀ = M_k``) per epoch, subtracted
-(a rank-3 downdate of the normal matrix, the gradient and χ²). Their knot part is
-``L_k⁻¹ F_k C_k [I | Γ_j]``, the form of the knot rows with ``D → L_k⁻¹ F_k``, so the knot
-blocks take them as they take the data (:func:`subtract_knot_rows`). The cost is that
+a rank-3 downdate per epoch of the normal matrix, the gradient and χ² (three negative
+pseudo-rows ``L_k⁻¹ G_k``, ``L_k L_kᵀ = M_k``; formed as ``G_kᵀ (M_k⁻¹ G_k)`` with the 3 × 3
+inverse, :func:`inverse_spd3`). Its knot part has the form of the knot rows with
+``D → F_k`` on the left and ``M_k⁻¹ F_k`` on the right, so the knot blocks take it as they
+take the data (:func:`subtract_knot_rows`). The cost is that
 of three rows per epoch over the epoch's columns; σ_e = 0 never builds this object (the
 σ_e = 0 path is unchanged to the byte).
 
@@ -79,7 +80,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from gcs_core.compiled import COMPILED, jit
 from gcs_core.filtr import knots as kn
+
+_jit = jit()
 
 
 def row_variance(D: np.ndarray, sig_e2: float) -> np.ndarray:
@@ -89,26 +93,54 @@ def row_variance(D: np.ndarray, sig_e2: float) -> np.ndarray:
     return sig_e2 * np.einsum("nma,nma->nm", D, D)
 
 
-def subtract_knot_rows(sysk: kn.KnotSystem, Dp: np.ndarray, t: np.ndarray, V: np.ndarray, cols) -> None:
-    """Subtract pseudo-rows from the knot blocks of ``sysk``: per epoch (E of them, times
-    ``t`` in order) three rows whose knot part is ``Dp [I | Γ_j(t)]`` (Dp (E, 3, 3), the
-    attitude already chained) and whose static part and residual are ``V`` (E, 3, p + 1)
-    over ``cols`` (p,) and the last column (module docstring)."""
+def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: np.ndarray, Y: np.ndarray, cols) -> None:
+    """Subtract the epochs' downdate from the knot blocks of ``sysk`` (module docstring):
+    per epoch (E of them, times ``t`` in order) ``Dk_j −= U_lᵀ U_r`` and
+    ``Bk_j −= U_lᵀ Y`` with ``U_l = Dl [I | Γ_j(t)]``, ``U_r = Dr [I | Γ_j(t)]``: ``Dl = F C``,
+    ``Dr = M⁻¹ F C`` (E, 3, 3), ``Y = M⁻¹ G`` (E, 3, p + 1) over ``cols`` (p,) and the
+    residual column."""
     if not t.size:
         return
     j = sysk.grid.index(t)
-    U = kn.knot_rows(Dp, np.broadcast_to(np.eye(3), (t.size, 3, 3)), t, j, sysk.grid, sysk.R)  # (E, 3, d)
+    if COMPILED:
+        knot = sysk._local(j.astype(np.int64))
+        R = sysk.R
+        if sysk.grid.d == 6 and R.shape[0]:
+            Gam = -(t - sysk.grid.tau[j])[:, None, None] * R[np.minimum(j, R.shape[0] - 1)]  # Γ_j(t)
+        else:
+            Gam = np.zeros((t.size, 3, 3))
+        _knot_downdate(Dl, Dr, Gam, Y, knot, np.asarray(cols, np.int64), sysk.Dk, sysk.Bk)
+        return
+    eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
+    Ul = kn.knot_rows(Dl, eye, t, j, sysk.grid, sysk.R)  # (E, 3, d)
+    Ur = kn.knot_rows(Dr, eye, t, j, sysk.grid, sysk.R)
     knot = sysk._local(j.astype(np.int64))
     starts = np.flatnonzero(np.r_[True, knot[1:] != knot[:-1]])
     js = knot[starts]
-    sysk.Dk[js] -= np.add.reduceat(np.einsum("nra,nrb->nab", U, U), starts, axis=0)
-    HB = np.add.reduceat(np.einsum("nra,nrq->naq", U, V), starts, axis=0)  # (J, d, p + 1)
+    Ult = np.swapaxes(Ul, 1, 2)
+    DD = np.add.reduceat(np.matmul(Ult, Ur), starts, axis=0)
+    sysk.Dk[js] -= 0.5 * (DD + np.swapaxes(DD, 1, 2))
+    HB = np.add.reduceat(np.matmul(Ult, Y), starts, axis=0)  # (J, d, p + 1)
     cols = np.asarray(cols, int)
     if cols.size:
         Bk = sysk.Bk
         for q, c in enumerate(cols):
             Bk[js, :, c] -= HB[:, :, q]
     sysk.Bk[js, :, -1] -= HB[:, :, -1]
+
+
+def inverse_spd3(M: np.ndarray) -> np.ndarray:
+    """(E, 3, 3) inverses of symmetric positive definite 3 × 3 matrices (adjugate over the
+    determinant; here ``M = σ_e⁻² I + F``, conditioned by ``1 + σ_e² λ_max(F)``)."""
+    a, b, c = M[:, 0, 0], M[:, 0, 1], M[:, 0, 2]
+    d, e, f = M[:, 1, 1], M[:, 1, 2], M[:, 2, 2]
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    out = np.empty_like(M)
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = A, B, C
+    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = B, a * f - c * c, b * c - a * e
+    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = C, b * c - a * e, a * d - b * b
+    out /= (a * A + b * B + c * C)[:, None, None]
+    return out
 
 
 class EpochErrors:
@@ -228,46 +260,119 @@ class ReadoutEpochs:
         T = np.unique(np.concatenate([p[0] for p in parts]))
         E, p = T.size, self.p
         F = np.zeros((E, 3, 3))
-        G = np.zeros((E, p + 1, 3))  # D̃ᵀ[H̃ | r̃] per epoch, columns first (fancy-index adds)
+        G = np.zeros((E, 3, p + 1))  # D̃ᵀ[H̃ | r̃] per epoch
         FC = np.zeros((E, 3, 3)) if self.knots is not None else None
         for t, Fb, FCb, X, cols in parts:
             idx = np.searchsorted(T, t)
             ext = np.append(cols, p)
-            if idx.size > 1 and np.any(np.diff(idx) <= 0):  # repeated times: unbuffered adds
+            rep = idx.size > 1 and bool(np.any(np.diff(idx) <= 0))  # repeated times: unbuffered adds
+            if rep:
                 np.add.at(F, idx, Fb)
-                if FC is not None and FCb is not None:
-                    np.add.at(FC, idx, FCb)
-                np.add.at(G, (idx[:, None], ext[None, :]), np.swapaxes(X, 1, 2))
-                continue
-            F[idx] += Fb
+            else:
+                F[idx] += Fb
             if FC is not None and FCb is not None:
-                FC[idx] += FCb
-            G[idx[:, None], ext[None, :], :] += np.swapaxes(X, 1, 2)
+                if rep:
+                    np.add.at(FC, idx, FCb)
+                else:
+                    FC[idx] += FCb
+            if COMPILED:
+                _scatter(idx.astype(np.int64), ext.astype(np.int64), X, G)
+            elif rep:
+                np.add.at(G, (idx[:, None], slice(None), ext[None, :]), np.swapaxes(X, 1, 2))
+            else:  # the advanced indices' axes come first: (n, k + 1, 3)
+                G[idx[:, None], :, ext[None, :]] += np.swapaxes(X, 1, 2)
         keep = np.einsum("eaa->e", F) > 0  # epochs with attitude-sensitive rows
         if not np.all(keep):
             T, F, G = T[keep], F[keep], G[keep]
             FC = FC[keep] if FC is not None else None
         if not T.size:
             return
-        M = F + self.inv_e2 * np.eye(3)
-        L = np.linalg.cholesky(M)
         ro = self.errors
         if ro is not None:
             # rows evaluated at ε̂: the gradient in ε is Σ D̃ᵀ r̃ − ε̂/σ_e², and the prior's
             # ‖ε̂‖²/σ_e² is part of the cost
             k = ro.index(T)
             eps = ro.eps[k]
-            G[:, p, :] -= self.inv_e2 * eps
+            G[:, :, p] -= self.inv_e2 * eps
             self.chi2_removed -= self.inv_e2 * float(np.sum(eps * eps))
-        V = np.linalg.solve(L, np.swapaxes(G, 1, 2))  # (E, 3, p + 1): L⁻¹ G
-        Vf = V.reshape(-1, p + 1)
+        if COMPILED:
+            Minv, Y = np.empty_like(F), np.empty_like(G)
+            _epoch_solve(F, G, self.inv_e2, Minv, Y)
+        else:
+            Minv = inverse_spd3(F + self.inv_e2 * np.eye(3))
+            Y = np.matmul(Minv, G)  # (E, 3, p + 1): M⁻¹ G
         if ro is not None:
-            # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε = ε̂ + L⁻ᵀ (L⁻¹ g_ε)
-            ro.cond[k] = eps + np.linalg.solve(np.swapaxes(L, 1, 2), V[:, :, p : p + 1])[:, :, 0]
+            ro.cond[k] = eps + Y[:, :, p]  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
             ro.stale = False
+        Gf, Yf = G.reshape(-1, p + 1), Y.reshape(-1, p + 1)
         if p:
-            self.A -= Vf[:, :p].T @ Vf[:, :p]
-            self.b -= Vf[:, :p].T @ Vf[:, p]
-        self.chi2_removed += float(Vf[:, p] @ Vf[:, p])
+            S = Gf[:, :p].T @ Yf[:, :p]  # Σ G_xᵀ M⁻¹ G_x, symmetric to round-off
+            self.A -= 0.5 * (S + S.T)
+            self.b -= Gf[:, :p].T @ Yf[:, p]
+        self.chi2_removed += float(Gf[:, p] @ Yf[:, p])
         if self.knots is not None and FC is not None:
-            subtract_knot_rows(self.knots, np.linalg.solve(L, FC), T, V, np.arange(p))
+            subtract_knot_rows(self.knots, FC, np.matmul(Minv, FC), T, Y, np.arange(p))
+
+
+@_jit
+def _knot_downdate(Dl, Dr, Gam, Y, knot, cols, Dk, Bk):
+    """The compiled form of :func:`subtract_knot_rows`: per epoch ``U_l = Dl [I | Γ]``,
+    ``U_r = Dr [I | Γ]``, ``Dk_j −= U_lᵀ U_r``, ``Bk_j −= U_lᵀ Y`` (Gam (E, 3, 3) the Γ_j(t)
+    of each epoch; ``knot`` local indices of the held blocks)."""
+    d = Dk.shape[1]
+    p = cols.shape[0]
+    last = Bk.shape[2] - 1
+    Ul = np.empty((3, 6))
+    Ur = np.empty((3, 6))
+    for e in range(Dl.shape[0]):
+        jj = knot[e]
+        for r in range(3):
+            for c in range(3):
+                Ul[r, c] = Dl[e, r, c]
+                Ur[r, c] = Dr[e, r, c]
+            if d == 6:
+                for c in range(3):
+                    Ul[r, 3 + c] = Dl[e, r, 0] * Gam[e, 0, c] + Dl[e, r, 1] * Gam[e, 1, c] + Dl[e, r, 2] * Gam[e, 2, c]
+                    Ur[r, 3 + c] = Dr[e, r, 0] * Gam[e, 0, c] + Dr[e, r, 1] * Gam[e, 1, c] + Dr[e, r, 2] * Gam[e, 2, c]
+        for a in range(d):
+            for b in range(d):
+                Dk[jj, a, b] -= 0.5 * (
+                    Ul[0, a] * Ur[0, b]
+                    + Ul[1, a] * Ur[1, b]
+                    + Ul[2, a] * Ur[2, b]
+                    + Ul[0, b] * Ur[0, a]
+                    + Ul[1, b] * Ur[1, a]
+                    + Ul[2, b] * Ur[2, a]
+                )
+            for q in range(p):
+                Bk[jj, a, cols[q]] -= Ul[0, a] * Y[e, 0, q] + Ul[1, a] * Y[e, 1, q] + Ul[2, a] * Y[e, 2, q]
+            Bk[jj, a, last] -= Ul[0, a] * Y[e, 0, p] + Ul[1, a] * Y[e, 1, p] + Ul[2, a] * Y[e, 2, p]
+
+
+@_jit
+def _epoch_solve(F, G, inv_e2, Minv, Y):
+    """``Minv_e = (F_e + σ_e⁻² I)⁻¹`` (adjugate, as :func:`inverse_spd3`) and ``Y_e = Minv_e G_e``."""
+    for e in range(F.shape[0]):
+        a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
+        d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
+        A, B, C = d * g - f * f, c * f - b * g, b * f - c * d
+        det = a * A + b * B + c * C
+        m = Minv[e]
+        m[0, 0], m[0, 1], m[0, 2] = A / det, B / det, C / det
+        m[1, 0], m[1, 1], m[1, 2] = B / det, (a * g - c * c) / det, (b * c - a * f) / det
+        m[2, 0], m[2, 1], m[2, 2] = C / det, (b * c - a * f) / det, (a * d - b * b) / det
+        for q in range(G.shape[2]):
+            g0, g1, g2 = G[e, 0, q], G[e, 1, q], G[e, 2, q]
+            for r in range(3):
+                Y[e, r, q] = m[r, 0] * g0 + m[r, 1] * g1 + m[r, 2] * g2
+
+
+@_jit
+def _scatter(idx, ext, X, G):
+    """``G[idx[i], :, ext[q]] += X[i, :, q]`` (repeated epochs add)."""
+    for i in range(idx.shape[0]):
+        e = idx[i]
+        for q in range(ext.shape[0]):
+            c = ext[q]
+            for r in range(3):
+                G[e, r, c] += X[i, r, q]
