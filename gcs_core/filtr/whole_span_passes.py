@@ -285,8 +285,10 @@ class Passes:
             return
         buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2)
         if self.errors is not None and np.any(self.errors.eps):
-            eps = self.errors.at(sd.t[blk.lo : blk.hi])
-            self.buffers.r[sd.name][blk.lo : blk.hi] += np.einsum("nma,na->nm", np.nan_to_num(D), eps)
+            De = np.einsum("nma,na->nm", np.nan_to_num(D), self.errors.at(sd.t[blk.lo : blk.hi]))
+            self.buffers.r[sd.name][blk.lo : blk.hi] += De
+            if sd.name in self.buffers.y_pred:  # the prediction at ε = 0 likewise
+                self.buffers.y_pred[sd.name][blk.lo : blk.hi] -= De
 
     def _readout_add(self, ro: ReadoutEpochs, blk, C, rw, R) -> None:
         """The block's rows in the per-epoch elimination of the read-out error."""
