@@ -201,6 +201,9 @@ def whole_span_fit(
     for edit_pass in range(opts.edit_passes if edits_on else 1):
         if lin is None:
             lin = passes.run(x, z, edits)
+            if passes.errors is not None and passes.errors.moved(np.sqrt(passes.sig_e2)) > EPS_TOL:
+                passes.errors.adopt()  # start about the read-out errors' conditional optimum
+                lin = passes.run(x, z, edits)
         A, b, chi2, m_used, sysk, R = lin
         cost = passes.cost(x, chi2, sysk)
         history.append(cost)
@@ -279,7 +282,10 @@ def whole_span_fit(
             x, z = x_try, z_try
             lin = trial if attempt == 0 else passes.run(x, z, edits)
             if passes.errors is not None:
-                passes.errors.adopt()  # the read-out errors' conditional optimum at (x, z)
+                # the read-out errors' conditional optimum at (x, z), when it moved (a pass
+                # re-linearizes there before the fit may stop)
+                if passes.errors.moved(np.sqrt(passes.sig_e2)) > EPS_TOL:
+                    passes.errors.adopt()
             A, b, chi2, m_used, sysk, R = lin
             cost = passes.cost(x, chi2, sysk)
             history.append(cost)
