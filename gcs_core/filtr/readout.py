@@ -231,13 +231,17 @@ class ReadoutEpochs:
         the chained attitude C (n, 3, 3) or None (no knots), weighted static rows Hm
         (n·m, k) over ``cols`` (k,), weighted residuals rw (n·m,)."""
         n, m = D.shape[:2]
-        Dw = np.nan_to_num(D) * w[:, :, None]
-        F = np.einsum("nma,nmb->nab", Dw, Dw)
         k = len(cols)
-        X = np.empty((n, 3, k + 1))
-        if k:
-            X[:, :, :k] = np.einsum("nma,nmq->naq", Dw, Hm.reshape(n, m, k))
-        X[:, :, k] = np.einsum("nma,nm->na", Dw, rw.reshape(n, m))
+        if COMPILED:
+            F, X = np.zeros((n, 3, 3)), np.zeros((n, 3, k + 1))
+            _frame_products(D, w, Hm, rw, F, X)
+        else:
+            Dw = np.nan_to_num(D) * w[:, :, None]
+            F = np.einsum("nma,nmb->nab", Dw, Dw)
+            X = np.empty((n, 3, k + 1))
+            if k:
+                X[:, :, :k] = np.einsum("nma,nmq->naq", Dw, Hm.reshape(n, m, k))
+            X[:, :, k] = np.einsum("nma,nm->na", Dw, rw.reshape(n, m))
         FC = F @ C if C is not None else None
         self._parts.append((np.asarray(t, float), F, FC, X, np.asarray(cols, int)))
 
@@ -376,3 +380,27 @@ def _scatter(idx, ext, X, G):
             c = ext[q]
             for r in range(3):
                 G[e, r, c] += X[i, r, q]
+
+
+@_jit
+def _frame_products(D, w, Hm, rw, F, X):
+    """Per frame ``F = Σ_r D̃_rᵀ D̃_r`` and ``X = Σ_r D̃_rᵀ [h̃_r | r̃_r]`` with ``D̃_r = w_r D_r``
+    (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,); rows of weight 0 skipped)."""
+    n, m = D.shape[0], D.shape[1]
+    k = Hm.shape[1]
+    d = np.empty(3)
+    for i in range(n):
+        for r in range(m):
+            wr = w[i, r]
+            if wr == 0.0:
+                continue
+            for a in range(3):
+                v = D[i, r, a] * wr
+                d[a] = v if v == v else 0.0  # NaN partials count as 0 (np.nan_to_num)
+            row = i * m + r
+            for a in range(3):
+                for b in range(3):
+                    F[i, a, b] += d[a] * d[b]
+                for q in range(k):
+                    X[i, a, q] += d[a] * Hm[row, q]
+                X[i, a, k] += d[a] * rw[row]
