@@ -282,7 +282,8 @@ class ReadoutEpochs:
             if COMPILED:
                 _scatter(idx.astype(np.int64), ext.astype(np.int64), X, G)
             elif rep:
-                np.add.at(G, (idx[:, None], slice(None), ext[None, :]), np.swapaxes(X, 1, 2))
+                for q, c in enumerate(ext):
+                    np.add.at(G[:, :, c], idx, X[:, :, q])
             else:  # the advanced indices' axes come first: (n, k + 1, 3)
                 G[idx[:, None], :, ext[None, :]] += np.swapaxes(X, 1, 2)
         keep = np.einsum("eaa->e", F) > 0  # epochs with attitude-sensitive rows

@@ -12,6 +12,7 @@ from __future__ import annotations
 from collections import defaultdict
 
 import numpy as np
+import pytest
 from test_filter_consistency import sim_problem, simulate
 
 from gcs_core.filtr import knots as kn
@@ -98,3 +99,58 @@ def test_epoch_elimination_equals_the_dense_covariance():
     np.testing.assert_allclose(sysk.Bk, Bk, rtol=1e-6, atol=ROUND_OFF * np.abs(Bk).max())
     # the line search's χ² (no Jacobian) is the same generalized χ²
     assert abs(passes.run(x, z, {}, jacobian=False)[2] - chi_d) < ROUND_OFF * chi_d
+
+
+def test_epoch_elimination_synthetic_rows_both_forms(monkeypatch):
+    """Random rows of two sensors sharing epochs, one sensor with a repeated time: the
+    compiled and numpy forms of the elimination give the dense per-epoch weighting."""
+    from types import SimpleNamespace
+
+    from gcs_core.filtr import readout
+
+    rng = np.random.default_rng(11)
+    p = 5
+    sensors = [SimpleNamespace(name="S1"), SimpleNamespace(name="S2")]
+    blocks = [
+        (sensors[0], np.array([0.0, 1.0, 2.0, 3.0]), 2, np.array([0, 2, 4])),
+        (sensors[1], np.array([1.0, 1.0, 3.0]), 3, np.array([1, 2])),  # a repeated time
+    ]
+    data = []
+    for sd, t, m, cols in blocks:
+        n = t.size
+        D = rng.normal(size=(n, m, 3)) * 1e4
+        w = np.ones((n, m))
+        Hm = rng.normal(size=(n * m, cols.size))
+        rw = rng.normal(size=n * m)
+        data.append((sd, t, m, cols, D, w, Hm, rw))
+    sig_e2 = 1e-8
+
+    def eliminate(compiled: bool):
+        monkeypatch.setattr(readout, "COMPILED", compiled)
+        A, b = np.zeros((p, p)), np.zeros(p)
+        ro = readout.ReadoutEpochs(sig_e2, A, b, None, sensors)
+        for sd, t, _m, cols, D, w, Hm, rw in data:
+            ro.visit(sd)
+            ro.add(t, D, w, None, Hm, rw, cols)
+        return A, b, ro.finish()
+
+    rows: dict = {}
+    for _, t, m, cols, D, _, Hm, rw in data:
+        for i, ti in enumerate(t):
+            H = np.zeros((m, p))
+            H[:, cols] = Hm[i * m : (i + 1) * m]
+            rows.setdefault(float(ti), []).append((H, rw[i * m : (i + 1) * m], D[i]))
+    A_d, b_d, removed = np.zeros((p, p)), np.zeros(p), 0.0
+    for rs in rows.values():
+        H = np.concatenate([r[0] for r in rs])
+        r = np.concatenate([r[1] for r in rs])
+        D = np.concatenate([r[2] for r in rs])
+        W = np.eye(r.size) - np.linalg.inv(np.eye(r.size) + sig_e2 * D @ D.T)  # I − (I + σ²DDᵀ)⁻¹
+        A_d -= H.T @ W @ H
+        b_d -= H.T @ W @ r
+        removed += r @ W @ r
+    for compiled in (True, False) if readout.COMPILED else (False,):
+        A, b, chi = eliminate(compiled)
+        np.testing.assert_allclose(A, A_d, rtol=1e-9, atol=1e-9 * np.abs(A_d).max())
+        np.testing.assert_allclose(b, b_d, rtol=1e-9, atol=1e-9 * np.abs(b_d).max())
+        assert chi == pytest.approx(removed, rel=1e-9)
