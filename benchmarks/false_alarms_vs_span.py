@@ -46,11 +46,12 @@ Usage::
 
     nice -n 10 python benchmarks/false_alarms_vs_span.py [--method whole_span] [--spans 4 8 24]
         [--seeds 40] [--seeds-24h 10] [--modes sun_pointing inertial earth_pointing]
-        [--processes 1] [--records out.jsonl]
+        [--processes 1] [--records out.jsonl] [--electronic 3.9e-5]
 
-``--method`` is passed through to the analysis config (``batch``, ``kalman`` or the
-estimator a config names). ``--records`` keeps one JSON line per run (and re-uses the
-runs it already holds, so a long sweep can be resumed).
+``--electronic σ_e`` [rad] gives the gyro a read-out noise (in its data book, so the fit
+carries it: :mod:`gcs_core.filtr.readout`). ``--method`` is passed through to the analysis
+config (``batch``, ``kalman`` or the estimator a config names). ``--records`` keeps one
+JSON line per run (and re-uses the runs it already holds, so a long sweep can be resumed).
 
 References
 ----------
@@ -314,10 +315,15 @@ def print_readings(groups: dict) -> bool:
 
 def _job(job):
     logging.getLogger("gcs_core").setLevel(logging.ERROR)  # the per-run method warnings
-    mode, hours, run, seed, method = job
+    mode, hours, run, seed, method, electronic = job
+    cfg = hc.nominal(mode, seed, hours)
+    for s in cfg.sensors:
+        if s.type == "gyro" and electronic > 0:
+            s.book["electronic"] = electronic  # the gyro's read-out noise, in its data book
     with tempfile.TemporaryDirectory(prefix="gcs-fa-") as d:
-        rec = hc.run_discovery(hc.nominal(mode, seed, hours), Path(d), method)
+        rec = hc.run_discovery(cfg, Path(d), method)
     rec["run"] = run
+    rec["electronic"] = electronic
     return rec
 
 
@@ -327,7 +333,7 @@ def _load(path: Path | None) -> dict:
         for line in path.read_text().splitlines():
             if line.strip():
                 r = json.loads(line)
-                out[(r["mode"], r["hours"], r["seed"], r["method"])] = r
+                out[(r["mode"], r["hours"], r["seed"], r["method"], r.get("electronic", 0.0))] = r
     return out
 
 
@@ -405,6 +411,7 @@ def main() -> int:
     ap.add_argument("--entropy", type=int, default=20261202, help="the SeedSequence entropy")
     ap.add_argument("--processes", type=int, default=1)
     ap.add_argument("--records", type=Path, default=None, help="JSON lines: one per run (resumable)")
+    ap.add_argument("--electronic", type=float, default=0.0, help="the gyro's read-out noise σ_e [rad]")
     args = ap.parse_args()
     t0 = time.perf_counter()
     done = _load(args.records)
@@ -413,10 +420,12 @@ def main() -> int:
         n = args.seeds_24h if hours >= 24 else args.seeds
         for mode in args.modes:
             for run in range(n):
-                jobs.append((mode, float(hours), run, seed_of(args.entropy, mode, hours, run), args.method))
+                jobs.append(
+                    (mode, float(hours), run, seed_of(args.entropy, mode, hours, run), args.method, args.electronic)
+                )
     # round-robin over the modes (and spans), so a sweep cut short still covers each
     todo = sorted(
-        (j for j in jobs if (j[0], j[1], j[3], j[4]) not in done),
+        (j for j in jobs if (j[0], j[1], j[3], j[4], j[5]) not in done),
         key=lambda j: (j[1] >= 24, j[2], j[1], hc.MODES.index(j[0])),
     )
     print(
@@ -430,7 +439,7 @@ def main() -> int:
         ctx = get_context("spawn")
         with ctx.Pool(args.processes) as pool:
             for k, rec in enumerate(pool.imap_unordered(_job, todo)):
-                out[(rec["mode"], rec["hours"], rec["seed"], rec["method"])] = rec
+                out[(rec["mode"], rec["hours"], rec["seed"], rec["method"], rec["electronic"])] = rec
                 if sink:
                     sink.write(json.dumps(rec) + "\n")
                     sink.flush()
@@ -444,7 +453,7 @@ def main() -> int:
             sink.close()
     groups: dict = {}
     for j in jobs:
-        rec = out[(j[0], j[1], j[3], j[4])]
+        rec = out[(j[0], j[1], j[3], j[4], j[5])]
         groups.setdefault((j[0], j[1]), []).append(rec)
     ok = print_table(groups, args.method)
     ok_read = print_readings(groups)

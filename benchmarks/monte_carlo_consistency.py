@@ -17,11 +17,17 @@ criterion is a 3-sigma statement. The headline NEES (13 elements) is also printe
 its 95 % χ² band. Truth and headline definitions: ``tests/statistical/test_consistency_batch.py``
 (:func:`headline`) and ``tests/statistical/test_truth_recovery.py`` (:func:`truth_values`).
 
+``--electronic σ_e`` [rad] gives the gyro a read-out (electronic) noise, written to its data
+book; ``--ignore-electronic`` fits as if the book said 0 (the estimator's σ then leave the
+read-out error out). The attitude headline's truth is the simulator's attitude at ``t_ref``,
+which differs from the gyro-carried trajectory's reference by that epoch's read-out error:
+its predicted covariance gets ``σ_e² I`` (:mod:`gcs_core.filtr.readout`).
+
 Usage::
 
     python benchmarks/monte_carlo_consistency.py [--runs 200] [--minutes 30 | --hours 8]
         [--method batch|kalman|...] [--bias-form batch|kalman] [--mode sun_pointing]
-        [--processes 2]
+        [--electronic 3.9e-5 [--ignore-electronic]] [--processes 2]
 
 ``--bias-form`` says how the estimator parametrizes the gyro bias, for its truth: ``batch``
 (``bias + bias_rate (t − t_mid)``, the line through the simulated random walk) or
@@ -63,28 +69,58 @@ from test_truth_recovery import simulate, threeaxis, truth_values
 match_fraction = 0.15
 
 
-def one_run(seed: int, folder: Path, minutes: float, method: str, mode: str, bias_form: str):
+def one_run(
+    seed: int,
+    folder: Path,
+    minutes: float,
+    method: str,
+    mode: str,
+    bias_form: str,
+    electronic: float = 0.0,
+    ignore_electronic: bool = False,
+):
     """Simulate and fit one seed (no held-out fit); returns (error (k,), covariance (k, k))."""
     from gcs_core.config import AnalysisConfig
     from gcs_core.session import Analysis
 
-    mission, truth = simulate(threeaxis(mode, seed, 60.0 * minutes), folder)
+    cfg = threeaxis(mode, seed, 60.0 * minutes)
+    for s in cfg.sensors:
+        if s.type == "gyro" and electronic > 0:
+            # the truth; the data book the estimator reads says so unless it is to be ignored
+            (s.true if ignore_electronic else s.book)["electronic"] = electronic
+    mission, truth = simulate(cfg, folder)
     a = Analysis(AnalysisConfig(mission=mission, method=method))
     res = a.fit(holdout=False)
     _, e, P = headline(a, res, truth_values(truth, a.problem, bias_form), bias_form)
+    if electronic > 0 and not ignore_electronic:
+        P = P.copy()
+        P[:3, :3] += electronic**2 * np.eye(3)  # the truth at t_ref carries that epoch's read-out error
     return e, P
 
 
 def _worker(job):
     logging.getLogger("gcs_core").setLevel(logging.ERROR)  # the per-run method warnings
-    seed, minutes, method, mode, bias_form = job
+    seed, minutes, method, mode, bias_form, electronic, ignore = job
     with tempfile.TemporaryDirectory(prefix="gcs-mc-") as d:
-        e, P = one_run(seed, Path(d), minutes, method, mode, bias_form)
+        e, P = one_run(seed, Path(d), minutes, method, mode, bias_form, electronic, ignore)
     return seed, e, P
 
 
-def run(runs: int, minutes: float, method: str, mode: str, processes: int, first_seed: int, bias_form: str = "batch"):
-    jobs = [(s, minutes, method, mode, bias_form) for s in range(first_seed, first_seed + runs)]
+def run(
+    runs: int,
+    minutes: float,
+    method: str,
+    mode: str,
+    processes: int,
+    first_seed: int,
+    bias_form: str = "batch",
+    electronic: float = 0.0,
+    ignore_electronic: bool = False,
+):
+    jobs = [
+        (s, minutes, method, mode, bias_form, electronic, ignore_electronic)
+        for s in range(first_seed, first_seed + runs)
+    ]
     out = {}
     with get_context("spawn").Pool(processes) as pool:
         for k, (seed, e, P) in enumerate(pool.imap_unordered(_worker, jobs, chunksize=4)):
@@ -132,6 +168,8 @@ def main() -> int:
     ap.add_argument("--mode", choices=("sun_pointing", "inertial", "earth_pointing"), default="sun_pointing")
     ap.add_argument("--processes", type=int, default=2)
     ap.add_argument("--first-seed", type=int, default=1)
+    ap.add_argument("--electronic", type=float, default=0.0, help="gyro read-out noise σ_e [rad]")
+    ap.add_argument("--ignore-electronic", action="store_true", help="fit as if the data book had no σ_e")
     args = ap.parse_args()
     if args.hours is not None:
         args.minutes = 60.0 * args.hours
@@ -140,8 +178,24 @@ def main() -> int:
     print(
         f"{args.runs} runs, {args.mode}, {args.minutes:g} min, method {args.method}, "
         f"gyro bias as in the {bias_form} form, {args.processes} processes"
+        + (
+            f", gyro read-out noise σ_e {args.electronic:g} rad"
+            + (" (ignored by the fit)" if args.ignore_electronic else "")
+            if args.electronic
+            else ""
+        )
     )
-    E, Ps = run(args.runs, args.minutes, args.method, args.mode, args.processes, args.first_seed, bias_form)
+    E, Ps = run(
+        args.runs,
+        args.minutes,
+        args.method,
+        args.mode,
+        args.processes,
+        args.first_seed,
+        bias_form,
+        args.electronic,
+        args.ignore_electronic,
+    )
     ok = table(E, Ps)
     print(
         f"\n{time.perf_counter() - t0:.1f} s; predicted σ {'matches' if ok else 'does NOT match'} "

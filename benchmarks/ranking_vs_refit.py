@@ -39,8 +39,10 @@ once each unless ``--refit-repeats``. OpenBLAS runs on one thread unless
 one ``Hᵀ H`` of a few tens of columns then takes ten to fifty times its time, by turns.
 
 Usage: ``python benchmarks/ranking_vs_refit.py [--hours 2] [--seed 11] [--repeats 5]
-[--refit-repeats 1] [--top 0] [--cache DIR]`` (``--cache`` keeps the simulated mission
-between runs; ``--top N`` prints only the N strongest candidates).
+[--refit-repeats 1] [--top 0] [--cache DIR] [--electronic 3.9e-5]`` (``--cache`` keeps the
+simulated mission between runs; ``--top N`` prints only the N strongest candidates;
+``--electronic`` gives the gyro a read-out noise σ_e, carried by the fit, its score tests and
+refits alike: :mod:`gcs_core.filtr.readout`).
 """
 
 from __future__ import annotations
@@ -77,15 +79,20 @@ HIDDEN = (("TAM1.contamination_mtb_x", 0.3, {}), ("FHST1.alignment", math.radian
 LOCAL_SIGMA = 1.0
 
 
-def make_mission(hours: float, folder: Path, seed: int) -> Path:
-    """The benchmark mission with its hidden effects, simulated once per folder."""
-    out = folder / f"ranking-mission-{hours:g}h-seed{seed}"
+def make_mission(hours: float, folder: Path, seed: int, electronic: float = 0.0) -> Path:
+    """The benchmark mission with its hidden effects, simulated once per folder (with a gyro
+    read-out noise σ_e [rad] in the data book when ``electronic`` > 0)."""
+    tag = f"-e{electronic:g}" if electronic > 0 else ""
+    out = folder / f"ranking-mission-{hours:g}h-seed{seed}{tag}"
     if (out / "mission.toml").exists():
         return out
     cfg = nominal_threeaxis("sun_pointing", seed=seed, duration_s=hours * 3600.0)
     for eid, magnitude, kw in HIDDEN:
         cfg = with_effect(cfg, eid, magnitude, **kw)
-    return write_mission(cfg, out, truth_path=folder / f"ranking-truth-{hours:g}h-seed{seed}.json")
+    for s in cfg.sensors:
+        if s.type == "gyro" and electronic > 0:
+            s.book["electronic"] = electronic
+    return write_mission(cfg, out, truth_path=folder / f"ranking-truth-{hours:g}h-seed{seed}{tag}.json")
 
 
 def n_edited(result) -> int:
@@ -131,10 +138,18 @@ def refit_with(base: Analysis, cand, repeats: int) -> dict:
 
 
 def run(
-    hours: float, folder: Path, *, seed: int, repeats: int, refit_repeats: int, top: int, method: str = "whole_span"
+    hours: float,
+    folder: Path,
+    *,
+    seed: int,
+    repeats: int,
+    refit_repeats: int,
+    top: int,
+    method: str = "whole_span",
+    electronic: float = 0.0,
 ) -> dict:
     t0 = time.perf_counter()
-    mission = make_mission(hours, folder, seed)
+    mission = make_mission(hours, folder, seed, electronic)
     t_sim = time.perf_counter() - t0
     t0 = time.perf_counter()
     a = Analysis(AnalysisConfig(mission=mission, method=method))
@@ -258,10 +273,18 @@ def main() -> None:
         choices=("whole_span", "batch"),
         help="the estimator (default: the default config's, whole_span)",
     )
+    ap.add_argument("--electronic", type=float, default=0.0, help="the gyro's read-out noise σ_e [rad] (0: none)")
     args = ap.parse_args()
     # the session warns (once per fit) that the batch's σ are optimistic; not this benchmark's point
     logging.getLogger("gcs_core").setLevel(logging.ERROR)
-    kw = dict(seed=args.seed, repeats=args.repeats, refit_repeats=args.refit_repeats, top=args.top, method=args.method)
+    kw = dict(
+        seed=args.seed,
+        repeats=args.repeats,
+        refit_repeats=args.refit_repeats,
+        top=args.top,
+        method=args.method,
+        electronic=args.electronic,
+    )
     if args.cache is not None:
         args.cache.mkdir(parents=True, exist_ok=True)
         run(args.hours, args.cache, **kw)

@@ -314,8 +314,8 @@ def smoothed_leverage(problem, result) -> dict[str, float] | None:
         return None
     used = {k: np.asarray(r.used, bool) for k, r in result.residuals.items()}
     out = {k: 0.0 for k in used}
-    for name, _, sigma, var in _smoothed_frames(problem, result, used):
-        out[name] += float(np.sum(var / sigma[None, :] ** 2))
+    for name, _, noise, var in _smoothed_frames(problem, result, used):
+        out[name] += float(np.sum(var / noise))
     return out
 
 
@@ -326,9 +326,9 @@ def _smoothed_holdout(problem, train, masks) -> dict[str, ChiSquare]:
     of the knots across a held-out block is formed), so the test is exact only where the
     prediction variance is small against the noise."""
     acc: dict[str, list] = {}
-    for name, r, sigma, var in _smoothed_frames(problem, train, masks):
+    for name, r, noise, var in _smoothed_frames(problem, train, masks):
         a = acc.setdefault(name, [0.0, 0])
-        a[0] += float(np.sum(r**2 / (sigma[None, :] ** 2 + var)))
+        a[0] += float(np.sum(r**2 / (noise + var)))
         a[1] += r.size
     out = {k: ChiSquare(k, v[0], v[1], float(v[1])) for k, v in acc.items() if v[1]}
     if out:

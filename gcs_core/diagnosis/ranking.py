@@ -48,6 +48,7 @@ from scipy import stats
 from gcs_core.diagnosis.catalogue import Effect
 from gcs_core.filtr.knots import KnotSystem
 from gcs_core.filtr.knots import chained_attitude as kn_chain
+from gcs_core.filtr.readout import ReadoutEpochs
 from gcs_core.filtr.results import FitResult
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, window_geometry
@@ -213,11 +214,16 @@ def rank_candidates(
     knots = KnotSystem(dyn.grid, K, dyn.R, dyn.z, stream=True, keep=False) if dyn is not None else None
     if knots is not None:
         knots.track(problem.sensors)
-    src = dyn.problem(problem) if dyn is not None else problem
+    # ... and the gyro's read-out error it eliminated per epoch (readout.py): the same rows
+    # (about the fit's ε̂, as the fit linearizes)
+    ro = ReadoutEpochs(dyn.sig_e2, A, g, knots, problem.sensors, dyn.errors) if dyn is not None and dyn.sig_e2 else None
+    src = dyn.problem(problem, readout=True) if dyn is not None else problem
     for blk in iter_blocks(src, values, cols, exclude=exclude, weighted=True, chunk=chunk, work=work):
         if not np.any(blk.used):
             continue
         sd = blk.sensor
+        if ro is not None:
+            ro.visit(sd)
         H, c = blk.H, blk.cols
         assert H is not None  # rows stored (not gram-only blocks)
         extra = _physics_block(problem, blk, values, phys_ids) if phys_ids else []
@@ -246,11 +252,17 @@ def rank_candidates(
                 np.ascontiguousarray(rw),
                 c,
             )
-        if knots is not None:
+            if ro is not None:
+                ro.add(t_blk, D, blk.used[:, None] / sd.sigma[None, :], C, Hm, rw, c)
+        if ro is not None:
+            ro.passed(sd, blk.hi)
+        elif knots is not None:
             knots.passed(sd, blk.hi)
         g[c] += gs
         acc = per_sensor_g.setdefault(sd.name, np.zeros(K))
         acc[c] += gs
+    if ro is not None:
+        ro.finish()
     s0 = np.array([state[nm].sigma0 for nm in x_names])
     prior = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     Nxx = A[:n, :n] + np.diag(prior)

@@ -438,10 +438,17 @@ def _solution(
 
 
 def edit_frames(
-    problem: Problem, buffers, preflag: Mapping[str, np.ndarray], opts: BatchOptions, previous: Mapping[str, np.ndarray]
+    problem: Problem,
+    buffers,
+    preflag: Mapping[str, np.ndarray],
+    opts: BatchOptions,
+    previous: Mapping[str, np.ndarray],
+    scale: Mapping[str, np.ndarray] | None = None,
 ):
     """k-σ editing of every sensor's residuals by the robust rule (:func:`robust_outliers`),
-    on top of the frames flagged before the fit (``preflag``).
+    on top of the frames flagged before the fit (``preflag``); ``scale`` gives a sensor's
+    (N, m) σ per row where it is not the data book's (the whole-span fit's marginal σ under
+    the gyro's read-out noise).
 
     A sensor that would lose more than ``opts.max_edit_fraction`` of its frames is not
     edited: that many outliers is a model error to report and rank, not outliers. Returns
@@ -455,7 +462,8 @@ def edit_frames(
         if k is None:
             new_edits[sd.name] = pre
             continue
-        out = robust_outliers(buffers.r[sd.name] / sd.sigma, valid & ~pre, k)
+        sig = sd.sigma if scale is None or sd.name not in scale else scale[sd.name]
+        out = robust_outliers(buffers.r[sd.name] / sig, valid & ~pre, k)
         n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
         if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
             suspect.add(sd.name)

@@ -27,6 +27,18 @@ knots are empty and the fit is the batch's.
 prior), on ``m − n`` degrees of freedom: the increments are pseudo-measurements that
 bring as many equations as knot unknowns.
 
+The gyro's read-out (electronic) noise σ_e (ICD §5 ``electronic``) does not accumulate:
+it is a white attitude error ``ε_k ~ N(0, σ_e² I)`` at every epoch, shared by the rows of
+every sensor sampled then (:mod:`gcs_core.filtr.readout`), so ``J`` gains
+``Σ_k ‖ε_k‖²/σ_e²`` and the rows of one epoch the covariance ``R + σ_e² D Dᵀ``. Each pass
+eliminates ε_k per epoch in closed form (Woodbury, three pseudo-rows per epoch) about its
+current estimate ε̂_k, which follows the solution (the gyro-carried attitude is a noisy
+regressor: linearized at ε = 0 the fit is biased, errors in variables). ``chi2`` is then
+the generalized ``Σ rᵀ (R + σ_e² D Dᵀ)⁻¹ r`` plus the process term, the residuals are
+reported at ε = 0 and normalized by each row's marginal σ ``sqrt(σ² + σ_e² |D|²)``, and the
+editing, the score tests and the leverage read the same covariance. σ_e = 0 is the
+common case and runs the σ_e-free code.
+
 References
 ----------
 Bell, B. M., "The iterated Kalman smoother as a Gauss–Newton method", SIAM J. Optim.
@@ -38,7 +50,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -62,6 +74,8 @@ GAIN_TOL = 1e-3
 #: ... and, when no shortened step lowers the cost, a predicted gain below this fraction
 #: of the cost (the first-order knot partials' accuracy where the corrections are large)
 NOISE_GAIN = 1e-6
+#: ... with the per-epoch read-out errors ε̂ (readout.py) moving by less than this, in σ_e
+EPS_TOL = 0.02
 
 
 @dataclass(frozen=True)
@@ -167,7 +181,7 @@ def whole_span_fit(
         grid = make_knots(problem, noise, batch.information, names, spacing=spacing)
         z = np.zeros((grid.K, grid.d))
         warm = None
-    passes = Passes(problem, names, grid, x_bar, prior_info)
+    passes = Passes(problem, names, grid, x_bar, prior_info, noise.sigma_e**2)
     if warm is not None and warm.R is not None and warm.R.shape[0] == grid.K - 1:
         passes.R_fixed = warm.R  # ... and their drift-bias axes
     x = np.array(batch.x, float)
@@ -187,6 +201,9 @@ def whole_span_fit(
     for edit_pass in range(opts.edit_passes if edits_on else 1):
         if lin is None:
             lin = passes.run(x, z, edits)
+            if passes.errors is not None and passes.errors.moved(np.sqrt(passes.sig_e2)) > EPS_TOL:
+                passes.errors.adopt()  # start about the read-out errors' conditional optimum
+                lin = passes.run(x, z, edits)
         A, b, chi2, m_used, sysk, R = lin
         cost = passes.cost(x, chi2, sysk)
         history.append(cost)
@@ -219,6 +236,14 @@ def whole_span_fit(
             # then below sqrt(GAIN_TOL) ≈ 0.03 σ); the solution is this point, whose
             # residuals and normal equations the last pass holds
             if np.all(np.abs(dx) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)) or gain < GAIN_TOL:
+                if passes.errors is not None and passes.errors.moved(np.sqrt(passes.sig_e2)) > EPS_TOL:
+                    # the read-out errors' linearization point still moves: take it, re-linearize
+                    passes.errors.adopt()
+                    lin = passes.run(x, z, edits)
+                    A, b, chi2, m_used, sysk, R = lin
+                    cost = passes.cost(x, chi2, sysk)
+                    history.append(cost)
+                    continue
                 status, message = "converged", f"converged after {it} iterations"
                 it_total -= 1
                 break
@@ -256,6 +281,11 @@ def whole_span_fit(
             change = cost - cost_t
             x, z = x_try, z_try
             lin = trial if attempt == 0 else passes.run(x, z, edits)
+            if passes.errors is not None:
+                # the read-out errors' conditional optimum at (x, z), when it moved (a pass
+                # re-linearizes there before the fit may stop)
+                if passes.errors.moved(np.sqrt(passes.sig_e2)) > EPS_TOL:
+                    passes.errors.adopt()
             A, b, chi2, m_used, sysk, R = lin
             cost = passes.cost(x, chi2, sysk)
             history.append(cost)
@@ -268,7 +298,7 @@ def whole_span_fit(
             status, message = stopping.iteration_limit(opts.max_iterations, cost, change)
         if not edits_on:
             break
-        edits, suspect, changed = edit_frames(problem, passes.buffers, preflag, opts, edits)
+        edits, suspect, changed = edit_frames(problem, passes.buffers, preflag, opts, edits, passes.marginal_sigma())
         suspect_all |= suspect
         if not changed:
             break
@@ -301,12 +331,16 @@ def whole_span_fit(
     chi2_proc = sysk.prior_cost()
     message = (
         f"whole-span fit with gyro process noise ({grid.K} knots every "
-        f"{float(np.median(np.diff(grid.tau))):.3g} s): {message}"
+        f"{float(np.median(np.diff(grid.tau))):.3g} s"
+        + (f"; read-out noise σ_e {np.sqrt(passes.sig_e2):.3g} rad per epoch" if passes.sig_e2 else "")
+        + f"): {message}"
     )
     message += suspect_note(suspect_all, opts)
     new_state = state.with_values({nm: x[j] for j, nm in enumerate(names)})
     residuals = residuals_from(problem, passes.buffers, edits)
-    dyn = Dynamics(grid, z, R, names, fac, P)
+    for nm, sig_row in passes.marginal_sigma().items():  # against each row's marginal σ (readout.py)
+        residuals[nm] = replace(residuals[nm], normalized_=residuals[nm].residual / sig_row)
+    dyn = Dynamics(grid, z, R, names, fac, P, passes.sig_e2, passes.errors)
     sig = np.sqrt(np.diag(P))
     if not np.isfinite(chi2 + chi2_proc):
         status, message = stopping.diverged(it_total)

@@ -16,6 +16,7 @@ import numpy as np
 
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.batch import _solve_normal
+from gcs_core.filtr.readout import row_variance
 from gcs_core.filtr.results import BatchResult
 from gcs_core.filtr.smoothing_batch import SmoothedResult, make_knots, process_noise
 from gcs_core.filtr.whole_span_passes import Dynamics, Passes
@@ -61,8 +62,10 @@ def static_holdout_rms(problem: Problem, res, masks: Mapping[str, np.ndarray]) -
 
 
 def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, np.ndarray]):
-    """(sensor, residual (k, m), σ (m,), prediction variance (k, m)) of the ``select``-ed
-    valid frames of a whole-span fit, chunk by chunk: the variance
+    """(sensor, residual (k, m), noise variance (k, m), prediction variance (k, m)) of the
+    ``select``-ed valid frames of a whole-span fit, chunk by chunk: the noise variance
+    ``σ² + σ_e² |D|²`` (the data book's σ plus the gyro's read-out error the fit carried,
+    :mod:`gcs_core.filtr.readout`), the prediction variance
     ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of the static elements and the knots."""
     dyn = res.dynamics
     assert dyn is not None  # a whole-span fit with knots (callers check)
@@ -79,13 +82,16 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
         H = np.nan_to_num(blk.H[sel]) if blk.H is not None else np.zeros((int(sel.sum()), len(sd.sigma), 0))
         var = np.einsum("nmk,kl,nml->nm", H, res.P[np.ix_(c, c)], H, optimize=True)
         D = getattr(blk.pred, "d_att", None)
+        noise = np.broadcast_to(sd.sigma[None, :] ** 2, var.shape)
         if D is not None and blk.geom.C_BI is not None:
             t = sd.t[blk.lo : blk.hi][sel]
             j = dyn.grid.index(t)
             C = kn.chained_attitude(blk.geom.C_BI[sel], dyn.grid, dyn.z, dyn.R, t)
             U = kn.knot_rows(np.nan_to_num(D[sel]), C, t, j, dyn.grid, dyn.R)
             var = var + knot_variance(dyn, U, j, H, c)
-        yield blk.name, blk.r[sel], sd.sigma, np.clip(var, 0, None)
+            if dyn.sig_e2:
+                noise = noise + row_variance(D[sel], dyn.sig_e2)
+        yield blk.name, blk.r[sel], noise, np.clip(var, 0, None)
 
 
 def smoothed_holdout_rms(problem: Problem, res: SmoothedResult, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
@@ -97,8 +103,8 @@ def smoothed_holdout_rms(problem: Problem, res: SmoothedResult, masks: Mapping[s
     knot corrections (:func:`smoothed_frames`), so 1.0 is the expected value for a right model.
     """
     sums: dict[str, list] = {}
-    for name, r, sigma, var in smoothed_frames(problem, res, masks):
-        zz = r / np.sqrt(sigma[None, :] ** 2 + var)
+    for name, r, noise, var in smoothed_frames(problem, res, masks):
+        zz = r / np.sqrt(noise + var)
         acc = sums.setdefault(name, [0.0, 0])
         acc[0] += float(np.sum(zz**2))
         acc[1] += zz.size
@@ -125,7 +131,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     s0 = np.array([state[nm].sigma0 for nm in names])
     prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     grid = make_knots(problem, noise, res.information, names)
-    passes = Passes(problem, names, grid, x_bar, prior_info)
+    passes = Passes(problem, names, grid, x_bar, prior_info, noise.sigma_e**2)
     passes.keep = False
     edits = {nm: r.edited for nm, r in res.residuals.items()}
     x = np.asarray(res.x, float)
@@ -146,7 +152,8 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
 
 def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarray) -> np.ndarray:
     """(N, 3, 3) body-frame attitude error covariance added by the knots at times ``t``:
-    ``δθ = C [I | Γ_j(t)] z_j`` with ``J`` (N, 3, n) the static partials over ``dyn.names``."""
+    ``δθ = C [I | Γ_j(t)] z_j`` with ``J`` (N, 3, n) the static partials over ``dyn.names``,
+    plus the gyro's read-out error ``σ_e² I`` the fit carried (:mod:`gcs_core.filtr.readout`)."""
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     j = dyn.grid.index(t)
     U = kn.knot_rows(
@@ -155,7 +162,10 @@ def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarr
     Sig, X = dyn.covariance()
     S = np.einsum("nia,nab,njb->nij", U, Sig[j], U, optimize=True)
     cross = np.einsum("nia,nak,njk->nij", U, X[j], J, optimize=True)
-    return S + cross + np.swapaxes(cross, 1, 2)
+    out = S + cross + np.swapaxes(cross, 1, 2)
+    if dyn.sig_e2:  # the read-out error of the epoch, white (readout.py)
+        out += dyn.sig_e2 * np.eye(3)
+    return out
 
 
 def predicted_covariance(
@@ -183,7 +193,7 @@ def predicted_covariance(
     n = len(names)
     prior = np.where(np.isfinite(sigma0) & (sigma0 > 0), 1.0 / np.where(sigma0 > 0, sigma0, 1.0) ** 2, 0.0)
     grid = make_knots(problem, noise, information, names)
-    passes = Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior)
+    passes = Passes(problem, names, grid, np.array([values[nm] for nm in names]), prior, noise.sigma_e**2)
     passes.values = dict(values)
     passes.keep = False
     x = np.array([values[nm] for nm in names])

@@ -13,6 +13,7 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.filtr import knots as kn
 from gcs_core.filtr.knot_kernels import correct_attitude
+from gcs_core.filtr.readout import EpochErrors, ReadoutEpochs, row_variance
 from gcs_core.filtr.residuals import Residuals
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
@@ -35,7 +36,9 @@ class Dynamics:
 
     grid : the knots; z : (K, d) corrections; R : (K−1, 3, 3) mid-interval rotations;
     names : the static columns of ``factors`` and ``P``; factors : the elimination at the
-    solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics.
+    solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics; sig_e2 : the
+    gyro's read-out noise σ_e² [rad²] the fit carried and errors its per-epoch estimates
+    ε̂ at the solution (:mod:`gcs_core.filtr.readout`).
     """
 
     grid: kn.KnotGrid
@@ -44,15 +47,18 @@ class Dynamics:
     names: tuple = ()
     factors: tuple | None = None
     P: np.ndarray | None = None
+    sig_e2: float = 0.0
+    errors: EpochErrors | None = None
     _cov: tuple | None = field(default=None, repr=False)
 
-    def attitude(self, base) -> CorrectedAttitude:
-        return CorrectedAttitude(base, self.grid, self.z, self.R)
+    def attitude(self, base, *, readout: bool = False) -> CorrectedAttitude:
+        return CorrectedAttitude(base, self.grid, self.z, self.R, self.errors if readout else None)
 
-    def problem(self, problem: Problem) -> Problem:
-        """The problem with its attitude corrected by the knots (caches shared)."""
+    def problem(self, problem: Problem, *, readout: bool = False) -> Problem:
+        """The problem with its attitude corrected by the knots (caches shared); with
+        ``readout`` also by the per-epoch read-out errors ε̂ (the fit's linearization)."""
         base = problem.attitude.base if isinstance(problem.attitude, CorrectedAttitude) else problem.attitude
-        out = replace(problem, attitude=self.attitude(base))
+        out = replace(problem, attitude=self.attitude(base, readout=readout))
         out.__dict__["_variant_cache"] = problem.__dict__.setdefault("_variant_cache", {})
         return out
 
@@ -74,8 +80,9 @@ class CorrectedAttitude:
     ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.filtr.knots`).
     Partials stay factored as the base provider's (chained through the corrected C)."""
 
-    def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray):
+    def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray, errors: EpochErrors | None = None):
         self.base, self.grid, self.z, self.R = base, grid, z, R
+        self.errors = errors  # per-epoch read-out errors ε̂: C ← exp(−[ε̂×]) C (readout.py)
 
     def __getattr__(self, name):
         return getattr(self.base, name)
@@ -85,6 +92,26 @@ class CorrectedAttitude:
         return self.base.names
 
     def _correct(self, C, t):
+        C = self._correct_knots(C, t)
+        if self.errors is not None and np.any(self.errors.eps):
+            C = rotvec_to_dcm(self.errors.at(t)) @ C
+        return C
+
+    def _rate(self, w, t):
+        """The body rate of the corrected attitude: the gyro's rate over the interval
+        ``(τ_{k−1}, τ_k]`` holding ``t`` plus ``(ε̂(τ_k) − ε̂(τ_{k−1}))/(τ_k − τ_{k−1})``
+        (``C = exp(−[ε̂×]) C_gyro`` ⇒ ``ω = ω_gyro + ε̂̇``; ε̂ = 0 where no datum is). The
+        gyro's rate carries ``(e_k − e_{k−1})/Δ``: a time-tag offset's partials
+        ``−ω × v`` made from it would be a regressor with errors, correlated with the
+        residuals; corrected, its error is the posterior one, uncorrelated with them."""
+        er, base = self.errors, self.base
+        if er is None or w is None or not np.any(er.eps) or not hasattr(base, "knots"):
+            return w
+        k = base._rows(t)
+        t1, t0 = base.knots[k], base.knots[k - 1]
+        return w + (er.at(t1) - er.at(t0)) / (t1 - t0)[:, None]
+
+    def _correct_knots(self, C, t):
         if not np.any(self.z):
             return C
         if COMPILED:
@@ -108,13 +135,19 @@ class CorrectedAttitude:
         # the statics' partials stay the gyro-carried attitude's (C_chain, exact: a body-frame
         # perturbation ε of C_gyro moves C = C_gyro exp(−[α×]) by the same ε)
         return FrameAttitude(
-            self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro, C_chain=fr.C_BI
+            self._correct(fr.C_BI, t),
+            None,
+            self._rate(fr.omega_B, t),
+            fr.names,
+            J=fr._J,
+            gyro=fr._gyro,
+            C_chain=fr.C_BI,
         )
 
     def evaluate(self, values, t) -> AttitudeEval:
         t = np.atleast_1d(np.asarray(t, float))
         ev = self.base.evaluate(values, t)
-        return AttitudeEval(self._correct(ev.C_BI, t), None, ev.names, ev.J, omega_B=ev.omega_B)
+        return AttitudeEval(self._correct(ev.C_BI, t), None, ev.names, ev.J, omega_B=self._rate(ev.omega_B, t))
 
 
 def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
@@ -132,8 +165,14 @@ def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
 class Passes:
     """Linearization passes of the whole-span problem at (x, z)."""
 
-    def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info):
+    def __init__(self, problem: Problem, names, grid: kn.KnotGrid, x_bar, prior_info, sig_e2: float = 0.0):
         self.problem, self.names, self.grid = problem, tuple(names), grid
+        # the gyro's read-out noise, eliminated per epoch (readout.py); 0: the rows independent
+        self.sig_e2 = float(sig_e2)
+        # sensor -> (N, m) σ_e² |D_i|², each row's read-out variance at the last pass
+        self.readout_var: dict[str, np.ndarray] = {}
+        # the per-epoch read-out errors the passes linearize about (readout.py)
+        self.errors = EpochErrors(problem.sensors) if self.sig_e2 else None
         self.base = problem.gyro_attitude  # the whole-span problem is gyro-carried
         self.x_bar, self.prior_info = x_bar, prior_info
         self.values = problem.state.values()
@@ -159,10 +198,16 @@ class Passes:
         R = self.R_fixed
         sysk = kn.KnotSystem(self.grid, len(cols) if jacobian else 0, R, z, stream=self.stream, keep=self.keep)
         sysk.track(self.problem.sensors)
-        prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R))
+        prob = replace(self.problem, attitude=CorrectedAttitude(self.base, self.grid, z, R, self.errors))
         n = len(cols) if jacobian else 0
         A, b = np.zeros((n, n)), np.zeros(n)
         chi2, m_used = 0.0, 0
+        ro = (
+            ReadoutEpochs(self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors, self.errors)
+            if self.sig_e2
+            else None
+        )
+        passed = sysk.passed if ro is None else ro.passed
         for blk in iter_blocks(
             prob,
             self.values,
@@ -177,9 +222,12 @@ class Passes:
                 self.buffers.y_pred[blk.name][blk.lo : blk.hi] = blk.y_pred
             self.buffers.r[blk.name][blk.lo : blk.hi] = blk.r
             self.buffers.valid[blk.name][blk.lo : blk.hi] = blk.valid
+            if ro is not None:
+                ro.visit(blk.sensor)
+                self._readout_rows(blk)
             nu = int(np.count_nonzero(blk.used))
             if not nu:
-                sysk.passed(blk.sensor, blk.hi)
+                passed(blk.sensor, blk.hi)
                 continue
             m_used += nu * blk.r.shape[1]
             sd = blk.sensor
@@ -196,17 +244,24 @@ class Passes:
                 rw = np.where(blk.used[:, None], blk.r, 0.0) / sd.sigma
                 chi2 += float(np.sum(rw * rw))
             if not jacobian:
+                if ro is not None:
+                    self._readout_add(ro, blk, None, rw, R)
                 continue
-            self._knot_rows(blk, sysk, rw, R)
-            sysk.passed(sd, blk.hi)
+            C = self._knot_rows(blk, sysk, rw, R)
+            if ro is not None:
+                self._readout_add(ro, blk, C, rw, R)
+            passed(sd, blk.hi)
+        if ro is not None:
+            chi2 -= ro.finish()
         return A, b, chi2, m_used, sysk, R
 
-    def _knot_rows(self, blk, sysk, rw, R) -> None:
-        """The block's rows in the knot columns, added to the knot system."""
+    def _knot_rows(self, blk, sysk, rw, R) -> np.ndarray | None:
+        """The block's rows in the knot columns, added to the knot system; returns the
+        attitude they chain through (None for rows without attitude partials)."""
         sd = blk.sensor
         D = getattr(blk.pred, "d_att", None)
         if D is None or blk.geom.C_BI is None:
-            return
+            return None
         t = sd.t[blk.lo : blk.hi]
         w = blk.used[:, None] / sd.sigma[None, :]
         C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
@@ -214,6 +269,49 @@ class Passes:
             sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
         else:
             sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(), np.zeros(0, np.int64))
+        return C
+
+    def _readout_rows(self, blk) -> None:
+        """Each row's read-out variance σ_e² |D_i|² (for the normalized residuals), and the
+        residual buffer at ε = 0: ``r + D ε̂`` (to first order in ε̂, ~1e-4 rad), the
+        marginal residual whose variance is ``σ² + σ_e² |D|² − (prediction variance)``."""
+        sd = blk.sensor
+        buf = self.readout_var.get(sd.name)
+        if buf is None or buf.shape[0] != sd.n:
+            buf = self.readout_var[sd.name] = np.zeros((sd.n, len(sd.sigma)))
+        D = getattr(blk.pred, "d_att", None)
+        if D is None or blk.geom.C_BI is None:
+            buf[blk.lo : blk.hi] = 0.0
+            return
+        buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2)
+        if self.errors is not None and np.any(self.errors.eps):
+            De = np.einsum("nma,na->nm", np.nan_to_num(D), self.errors.at(sd.t[blk.lo : blk.hi]))
+            self.buffers.r[sd.name][blk.lo : blk.hi] += De
+            if sd.name in self.buffers.y_pred:  # the prediction at ε = 0 likewise
+                self.buffers.y_pred[sd.name][blk.lo : blk.hi] -= De
+
+    def _readout_add(self, ro: ReadoutEpochs, blk, C, rw, R) -> None:
+        """The block's rows in the per-epoch elimination of the read-out error."""
+        sd = blk.sensor
+        D = getattr(blk.pred, "d_att", None)
+        if D is None or blk.geom.C_BI is None:
+            return
+        t = sd.t[blk.lo : blk.hi]
+        w = blk.used[:, None] / sd.sigma[None, :]
+        if blk.Hr is not None and ro.p:
+            ro.add(t, D, w, C, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+        else:
+            rwf = blk.Hr[:, -1] if blk.Hr is not None else rw.reshape(-1)
+            ro.add(t, D, w, C, np.zeros((rwf.size, 0)), rwf, np.zeros(0, np.int64))
+
+    def marginal_sigma(self) -> dict[str, np.ndarray]:
+        """sensor -> (N, m) each row's marginal σ at the last pass, ``sqrt(σ² + σ_e² |D|²)``
+        ({} without read-out noise: the data-book σ)."""
+        return {
+            sd.name: np.sqrt(sd.sigma[None, :] ** 2 + v)
+            for sd in self.problem.sensors
+            if (v := self.readout_var.get(sd.name)) is not None
+        }
 
     def cost(self, x, chi2, sysk) -> float:
         d = self.x_bar - x

@@ -13,7 +13,8 @@ angle random walk of spectral density σ_v² [rad²/s] and a bias that random-wa
 the integrated angle at each sample, which telescopes in the integral: it does not
 accumulate, so it is not process noise but a white attitude error seen by the
 measurements (the Kalman filter and the predictor add ``σ_e² H_θ H_θᵀ`` to the
-measurement covariance of one epoch).
+measurement covariance of one epoch; the whole-span fit eliminates it per epoch,
+:mod:`gcs_core.filtr.readout`).
 
 Rule for a missing key (a mission file always holds ``arw`` and ``rrw``,
 :mod:`gcs_core.io.mission`; a data book built in memory may not): without ``arw`` the

@@ -43,6 +43,7 @@ import numpy as np
 from test_truth_recovery import _angle_diff, truth_values
 
 from gcs_core.config import AnalysisConfig
+from gcs_core.filtr.mekf import attitude_gyro_noise
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
@@ -165,22 +166,28 @@ def truth_all(truth: Mapping, problem, method: str) -> dict[str, float]:
     return out
 
 
-def z_scores(result, truth: Mapping[str, float]) -> dict[str, float]:
-    """Solve-for element -> ``(x̂ − x)/σ`` (σ from the fit's noise covariance)."""
+def z_scores(result, truth: Mapping[str, float], readout_var: float = 0.0) -> dict[str, float]:
+    """Solve-for element -> ``(x̂ − x)/σ`` (σ from the fit's noise covariance). The attitude
+    elements are the gyro-carried trajectory's reference: with a gyro read-out noise
+    (``readout_var`` = σ_e²) the simulator's attitude at ``t_ref`` differs from it by that
+    epoch's read-out error, whose variance is added (:mod:`gcs_core.filtr.readout`)."""
     z = {}
     for i, name in enumerate(result.solve_for):
         if name not in truth:
             continue
-        d = _angle_diff(result.x[i], truth[name]) if name.startswith("att.") else result.x[i] - truth[name]
-        z[name] = float(d / math.sqrt(result.P[i, i]))
+        att = name.startswith("att.")
+        d = _angle_diff(result.x[i], truth[name]) if att else result.x[i] - truth[name]
+        z[name] = float(d / math.sqrt(result.P[i, i] + (readout_var if att else 0.0)))
     return z
 
 
-def nees(result, truth: Mapping[str, float], *, skip=()) -> list[float]:
+def nees(result, truth: Mapping[str, float], *, skip=(), readout_var: float = 0.0) -> list[float]:
     """``[ε, k]``: the normalized estimation error squared ``ε = eᵀ P⁻¹ e`` of the ``k``
     solve-for elements with a truth, ``skip`` aside (χ²_k for an honest covariance,
     correlations included; Bar-Shalom, Li & Kirubarajan 2001, §5.4). ``ε`` is NaN when
-    that block of ``P`` is not positive definite."""
+    that block of ``P`` is not positive definite. ``readout_var`` (σ_e² [rad²]) is added to
+    the attitude elements' variance, as in :func:`z_scores`: the estimate is the reference
+    of the gyro-carried trajectory, off the true attitude by that epoch's read-out error."""
     skip = set(skip)
     idx = [i for i, n in enumerate(result.solve_for) if n in truth and n not in skip]
     if not idx:
@@ -189,7 +196,8 @@ def nees(result, truth: Mapping[str, float], *, skip=()) -> list[float]:
     x = np.asarray(result.x, float)[idx]
     t = np.array([truth[n] for n in names])
     e = np.array([_angle_diff(a, b) if n.startswith("att.") else a - b for n, a, b in zip(names, x, t)])
-    P = np.asarray(result.P, float)[np.ix_(idx, idx)]
+    P = np.asarray(result.P, float)[np.ix_(idx, idx)].copy()
+    P[np.diag_indices_from(P)] += np.array([readout_var if n.startswith("att.") else 0.0 for n in names])
     d = np.sqrt(np.diag(P))
     try:
         L = np.linalg.cholesky(P / np.outer(d, d))  # on the correlation matrix: scale-free
@@ -197,6 +205,13 @@ def nees(result, truth: Mapping[str, float], *, skip=()) -> list[float]:
         return [float("nan"), len(idx)]
     u = np.linalg.solve(L, e / d)
     return [float(u @ u), len(idx)]
+
+
+def readout_variance(problem) -> float:
+    """σ_e² [rad²] of the gyro carrying the attitude (0 without one)."""
+    if problem.gyro_name is None:
+        return 0.0
+    return attitude_gyro_noise(problem).sigma_e ** 2
 
 
 # ----------------------------------------------------------------------------- one run
@@ -239,9 +254,9 @@ def run_discovery(cfg, folder: Path, method: str, *, exclude: tuple[str, ...] = 
     rec["peak_rms"] = peak
     rec["fit_status"] = a.result.status
     tv = truth_all(truth, a.problem, method)
-    rec["z"] = z_scores(a.result, tv)
+    rec["z"] = z_scores(a.result, tv, readout_variance(a.problem))
     rec["not_determined"] = sorted(a.not_determined())
-    rec["nees"] = nees(a.result, tv, skip=rec["not_determined"])
+    rec["nees"] = nees(a.result, tv, skip=rec["not_determined"], readout_var=readout_variance(a.problem))
     rec["set_by_prior"] = sorted(getattr(a, "set_by_prior", lambda: {})())
     gof = getattr(a, "goodness", None)
     if gof is not None:

@@ -1,0 +1,407 @@
+"""The gyro's read-out (electronic) noise σ_e in the whole-span normal equations (ICD §5 ``electronic``).
+
+A gyro whose integrated angle is read with a white error ``e_k ~ N(0, σ_e² I)`` at each
+sample (Farrenkopf 1978; Markley & Crassidis 2014 §6.2) gives rates that carry
+``(e_k − e_{k−1})/Δ``, so the attitude it carries from ``t_ref`` to ``t_k`` is off by
+
+    δθ(t_k) = w(t_k) + e_k − e_ref
+
+``w`` the random walk of the angle and rate noise (σ_v, σ_u: the knots of
+:mod:`gcs_core.filtr.knots`), ``e_k − e_ref`` the read-out noise, which telescopes and does
+not accumulate. ``e_ref`` is one constant rotation: the static roll/pitch/yaw take it up
+(they are the gyro-carried trajectory's reference, which differs from the true attitude
+at ``t_ref`` by ``e_ref``). What remains is a white body-frame attitude error ``ε_k = e_k``
+of variance σ_e² per axis at every sample, shared by every row of every sensor at that
+epoch. The measurement model of the rows ``i`` of epoch ``k`` is then::
+
+    y_i = h_i(x, z) + D_i ε_k + v_i,   v ~ N(0, R),   D_i = ∂h_i/∂δθ   (body frame)
+
+so the rows of one epoch are correlated: ``Cov(y_k) = R_k + σ_e² D_k D_kᵀ``. The knots
+cannot carry ``e``: a knot correction ``α_j`` that were the whole error at its own epoch
+would see increments ``α_{j+1} − α_j`` with ``2σ_e²`` more variance, correlated from one
+interval to the next through the shared ``e_j`` (not a Markov process, which the
+information-filter elimination needs). Keeping the wander (knots) and the read-out (per
+epoch) apart is the exact decomposition of the simulator's and the model's error.
+
+ε_k is eliminated per epoch in closed form (Woodbury), with the whitened rows
+``[H̃ | Ũ | r̃] = R^-1/2 [H | U | r]`` and ``D̃ = R^-1/2 D``::
+
+    (I + σ_e² D̃ D̃ᵀ)⁻¹ = I − D̃ M⁻¹ D̃ᵀ,      M_k = σ_e⁻² I + F_k,   F_k = Σ_i D̃_iᵀ D̃_i
+
+    [H̃ Ũ r̃]ᵀ (I + σ_e² D̃ D̃ᵀ)⁻¹ [H̃ Ũ r̃] = Σ_i [.]ᵢᵀ[.]ᵢ − G_kᵀ M_k⁻¹ G_k,
+    G_k = Σ_i D̃_iᵀ [H̃_i | Ũ_i | r̃_i] = [G_x | F_k C_k [I | Γ_j(t_k)] | G_r]
+
+a rank-3 downdate per epoch of the normal matrix, the gradient and χ² (three negative
+pseudo-rows ``L_k⁻¹ G_k``, ``L_k L_kᵀ = M_k``; formed as ``G_kᵀ (M_k⁻¹ G_k)`` with the 3 × 3
+inverse, :func:`inverse_spd3`). Its knot part has the form of the knot rows with
+``D → F_k`` on the left and ``M_k⁻¹ F_k`` on the right, so the knot blocks take it as they
+take the data (:func:`subtract_knot_rows`). The cost is that
+of three rows per epoch over the epoch's columns; σ_e = 0 never builds this object (the
+σ_e = 0 path is unchanged to the byte).
+
+Linearization point. The gyro-carried attitude is computed from the gyro data, so it
+carries ``e_k`` itself: the partials of a sensor whose signal is the attitude's small
+variation about a fixed geometry (a Sun sensor's scale on a Sun-pointing spacecraft,
+``∂n/∂A2 ∝ tan α``) are evaluated at ``α_true + e_k``, a regressor with errors. Linearized
+at ``ε = 0`` the Gauss–Newton fixed point is the regression of the data on that noisy
+attitude, biased toward zero slope (errors in variables: on a 4 h Sun-pointing mission with
+σ_e three times the tracker noise the FSS ``A2``, ``A3`` came out 10–12σ off, the Kalman
+filter's alike). So the passes keep ``ε̂_k`` per epoch (:class:`EpochErrors`), evaluate the
+attitude at ``exp(−[ε̂_k×]) C_k`` and take the gradient in ε as ``Σ D̃ᵀ r̃ − ε̂_k/σ_e²``, the
+cost with ``‖ε̂_k‖²/σ_e²``: Gauss–Newton on the joint problem in ``(x, z, ε)``, whose
+minimum is the known-variance functional errors-in-variables estimate (Deming's), consistent
+where the ``ε = 0`` form is not. After each accepted step ``ε̂`` moves to its conditional
+optimum ``ε̂ + M⁻¹ g_ε`` at the new ``(x, z)``; the fit converges when that move is below
+:data:`~gcs_core.filtr.smoothing_batch.EPS_TOL` σ_e as well. The reported residuals are at
+``ε = 0`` (``r + D ε̂`` to first order): the marginal residuals, of variance
+``σ² + σ_e² |D|²`` less the prediction's.
+
+χ² becomes ``Σ_k r_kᵀ (R_k + σ_e² D_k D_kᵀ)⁻¹ r_k``, the generalized least-squares cost,
+and the statics' and knots' covariance that of the correlated rows. Per row the marginal
+variance is ``σ_i² + σ_e² |D_i|²`` (:func:`row_variance`): the normalized residuals, the
+editing, the per-sensor χ² and leverage are formed against it (the rows of one epoch
+are correlated, so the per-sensor sums are χ²-like with the right mean, not exactly
+χ²-distributed). An epoch is a sample time shared by the sensors' data (the gyro's
+sample times in the missions GCS reads); a sensor sampled between gyro samples would
+carry the interpolated ``(1 − f) e_{k−1} + f e_k``, variance ``((1 − f)² + f²) σ_e²``,
+which this form bounds from above.
+
+References
+----------
+Farrenkopf, R. L., "Analytic steady-state accuracy solutions for two common spacecraft
+attitude estimators", J. Guidance & Control 1(4), 1978. Markley, F. L. and Crassidis,
+J. L., *Fundamentals of Spacecraft Attitude Determination and Control*, Springer 2014, §6
+(gyro noise model). Golub & Van Loan, *Matrix Computations*, 4th ed., §2.1.4
+(Sherman–Morrison–Woodbury). Fuller, W. A., *Measurement Error Models*, Wiley 1987, §1.3
+(the functional model with known error variances).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gcs_core.compiled import COMPILED, jit
+from gcs_core.filtr import knots as kn
+
+_jit = jit()
+
+
+def row_variance(D: np.ndarray, sig_e2: float) -> np.ndarray:
+    """(N, m) the read-out noise's share of each row's variance, ``σ_e² |D_i|²``
+    (D (N, m, 3) the model's attitude partials, NaN rows give 0)."""
+    D = np.nan_to_num(D)
+    return sig_e2 * np.einsum("nma,nma->nm", D, D)
+
+
+def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: np.ndarray, Y: np.ndarray, cols) -> None:
+    """Subtract the epochs' downdate from the knot blocks of ``sysk`` (module docstring):
+    per epoch (E of them, times ``t`` in order) ``Dk_j −= U_lᵀ U_r`` and
+    ``Bk_j −= U_lᵀ Y`` with ``U_l = Dl [I | Γ_j(t)]``, ``U_r = Dr [I | Γ_j(t)]``: ``Dl = F C``,
+    ``Dr = M⁻¹ F C`` (E, 3, 3), ``Y = M⁻¹ G`` (E, 3, p + 1) over ``cols`` (p,) and the
+    residual column."""
+    if not t.size:
+        return
+    j = sysk.grid.index(t)
+    if COMPILED:
+        knot = sysk._local(j.astype(np.int64))
+        R = sysk.R
+        if sysk.grid.d == 6 and R.shape[0]:
+            Gam = -(t - sysk.grid.tau[j])[:, None, None] * R[np.minimum(j, R.shape[0] - 1)]  # Γ_j(t)
+        else:
+            Gam = np.zeros((t.size, 3, 3))
+        _knot_downdate(Dl, Dr, Gam, Y, knot, np.asarray(cols, np.int64), sysk.Dk, sysk.Bk)
+        return
+    eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
+    Ul = kn.knot_rows(Dl, eye, t, j, sysk.grid, sysk.R)  # (E, 3, d)
+    Ur = kn.knot_rows(Dr, eye, t, j, sysk.grid, sysk.R)
+    knot = sysk._local(j.astype(np.int64))
+    starts = np.flatnonzero(np.r_[True, knot[1:] != knot[:-1]])
+    js = knot[starts]
+    Ult = np.swapaxes(Ul, 1, 2)
+    DD = np.add.reduceat(np.matmul(Ult, Ur), starts, axis=0)
+    sysk.Dk[js] -= 0.5 * (DD + np.swapaxes(DD, 1, 2))
+    HB = np.add.reduceat(np.matmul(Ult, Y), starts, axis=0)  # (J, d, p + 1)
+    cols = np.asarray(cols, int)
+    if cols.size:
+        Bk = sysk.Bk
+        for q, c in enumerate(cols):
+            Bk[js, :, c] -= HB[:, :, q]
+    sysk.Bk[js, :, -1] -= HB[:, :, -1]
+
+
+def inverse_spd3(M: np.ndarray) -> np.ndarray:
+    """(E, 3, 3) inverses of symmetric positive definite 3 × 3 matrices (adjugate over the
+    determinant; here ``M = σ_e⁻² I + F``, conditioned by ``1 + σ_e² λ_max(F)``)."""
+    a, b, c = M[:, 0, 0], M[:, 0, 1], M[:, 0, 2]
+    d, e, f = M[:, 1, 1], M[:, 1, 2], M[:, 2, 2]
+    A, B, C = d * f - e * e, c * e - b * f, b * e - c * d
+    out = np.empty_like(M)
+    out[:, 0, 0], out[:, 0, 1], out[:, 0, 2] = A, B, C
+    out[:, 1, 0], out[:, 1, 1], out[:, 1, 2] = B, a * f - c * c, b * c - a * e
+    out[:, 2, 0], out[:, 2, 1], out[:, 2, 2] = C, b * c - a * e, a * d - b * b
+    out /= (a * A + b * B + c * C)[:, None, None]
+    return out
+
+
+class EpochErrors:
+    """The per-epoch read-out errors ``ε̂_k`` the whole-span fit linearizes about.
+
+    T : (E,) the epochs (every sample time of the data); eps : (E, 3) the current
+    linearization values [rad, body frame]; cond : (E, 3) their conditional optimum
+    ``ε + M⁻¹ g_ε`` given the statics and knots of the last pass (:meth:`adopt` takes it).
+    """
+
+    def __init__(self, sensors):
+        ts = [np.asarray(sd.t, float) for sd in sensors if sd.n]
+        self.T = np.unique(np.concatenate(ts)) if ts else np.zeros(0)
+        self.eps = np.zeros((self.T.size, 3))
+        self.cond = self.eps.copy()
+        self.stale = False  # ε̂ adopted after the last pass
+
+    def index(self, t: np.ndarray) -> np.ndarray:
+        """(n,) epoch of each time (every data time is one)."""
+        return np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
+
+    def at(self, t: np.ndarray) -> np.ndarray:
+        """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch)."""
+        if not self.T.size:
+            return np.zeros((np.size(t), 3))
+        i = self.index(t)
+        return np.where((self.T[i] == t)[:, None], self.eps[i], 0.0)
+
+    def moved(self, sig_e: float) -> float:
+        """The largest change :meth:`adopt` would make, in σ_e (inf when ε̂ changed since the
+        last pass: that pass's normal equations are not at ε̂)."""
+        if self.stale:
+            return float("inf")
+        return float(np.max(np.abs(self.cond - self.eps))) / sig_e if self.T.size else 0.0
+
+    def adopt(self) -> None:
+        """Linearize the next passes about the last pass's conditional optimum."""
+        if not self.stale:
+            self.eps = self.cond.copy()
+            self.stale = True
+
+
+class ReadoutEpochs:
+    """The per-epoch elimination of the read-out error over one streaming pass.
+
+    A pass visits time windows, each sensor at most once per window
+    (:func:`~gcs_core.problem.linearization.iter_blocks`); rows of one epoch never straddle
+    windows. Per block :meth:`add` keeps the block's ``F`` and ``D̃ᵀ[H̃ | r̃]`` per frame
+    (small: 3 × (k + 1) per frame); when a sensor comes round again (a new window) or at
+    :meth:`finish`, the window's epochs are formed and subtracted from ``A`` (p, p),
+    ``b`` (p,) (in place), the knot system (its ``passed`` calls held until then) and
+    :attr:`chi2_removed`.
+    """
+
+    def __init__(
+        self,
+        sig_e2: float,
+        A: np.ndarray,
+        b: np.ndarray,
+        knots: kn.KnotSystem | None,
+        sensors,
+        errors: EpochErrors | None = None,
+    ):
+        self.inv_e2 = 1.0 / float(sig_e2)
+        self.errors = errors  # ε̂ the rows were evaluated at (None: ε = 0)
+        self.A, self.b, self.knots = A, b, knots
+        self.p = A.shape[0]
+        self.order = {sd.name: i for i, sd in enumerate(sensors)}
+        self.chi2_removed = 0.0
+        self._last = -1
+        self._parts: list[tuple] = []
+        self._passed: list[tuple] = []
+
+    def visit(self, sd) -> None:
+        """A block of ``sd`` comes next: close the window when ``sd`` was in it already."""
+        i = self.order[sd.name]
+        if i <= self._last:
+            self.flush()
+        self._last = i
+
+    def passed(self, sd, hi: int) -> None:
+        """``KnotSystem.passed``, held until the window's epochs are in."""
+        if self.knots is not None:
+            self._passed.append((sd, hi))
+
+    def add(self, t, D, w, C, Hm, rw, cols) -> None:
+        """One block: times t (n,), attitude partials D (n, m, 3), row weights w (n, m),
+        the chained attitude C (n, 3, 3) or None (no knots), weighted static rows Hm
+        (n·m, k) over ``cols`` (k,), weighted residuals rw (n·m,)."""
+        n, m = D.shape[:2]
+        k = len(cols)
+        if COMPILED:
+            F, X = np.zeros((n, 3, 3)), np.zeros((n, 3, k + 1))
+            _frame_products(D, w, Hm, rw, F, X)
+        else:
+            Dw = np.nan_to_num(D) * w[:, :, None]
+            F = np.einsum("nma,nmb->nab", Dw, Dw)
+            X = np.empty((n, 3, k + 1))
+            if k:
+                X[:, :, :k] = np.einsum("nma,nmq->naq", Dw, Hm.reshape(n, m, k))
+            X[:, :, k] = np.einsum("nma,nm->na", Dw, rw.reshape(n, m))
+        FC = F @ C if C is not None else None
+        self._parts.append((np.asarray(t, float), F, FC, X, np.asarray(cols, int)))
+
+    def flush(self) -> None:
+        """Form the held window's epochs and subtract their pseudo-rows."""
+        parts, self._parts, self._last = self._parts, [], -1
+        if parts:
+            self._eliminate(parts)
+        if self.knots is not None:
+            for sd, hi in self._passed:
+                self.knots.passed(sd, hi)
+        self._passed = []
+
+    def finish(self) -> float:
+        """Close the last window; returns the χ² the read-out error took out."""
+        self.flush()
+        return self.chi2_removed
+
+    def _eliminate(self, parts) -> None:
+        T = np.unique(np.concatenate([p[0] for p in parts]))
+        E, p = T.size, self.p
+        F = np.zeros((E, 3, 3))
+        G = np.zeros((E, 3, p + 1))  # D̃ᵀ[H̃ | r̃] per epoch
+        FC = np.zeros((E, 3, 3)) if self.knots is not None else None
+        for t, Fb, FCb, X, cols in parts:
+            idx = np.searchsorted(T, t)
+            ext = np.append(cols, p)
+            rep = idx.size > 1 and bool(np.any(np.diff(idx) <= 0))  # repeated times: unbuffered adds
+            if rep:
+                np.add.at(F, idx, Fb)
+            else:
+                F[idx] += Fb
+            if FC is not None and FCb is not None:
+                if rep:
+                    np.add.at(FC, idx, FCb)
+                else:
+                    FC[idx] += FCb
+            if COMPILED:
+                _scatter(idx.astype(np.int64), ext.astype(np.int64), X, G)
+            elif rep:
+                for q, c in enumerate(ext):
+                    np.add.at(G[:, :, c], idx, X[:, :, q])
+            else:  # the advanced indices' axes come first: (n, k + 1, 3)
+                G[idx[:, None], :, ext[None, :]] += np.swapaxes(X, 1, 2)
+        keep = np.einsum("eaa->e", F) > 0  # epochs with attitude-sensitive rows
+        if not np.all(keep):
+            T, F, G = T[keep], F[keep], G[keep]
+            FC = FC[keep] if FC is not None else None
+        if not T.size:
+            return
+        ro = self.errors
+        if ro is not None:
+            # rows evaluated at ε̂: the gradient in ε is Σ D̃ᵀ r̃ − ε̂/σ_e², and the prior's
+            # ‖ε̂‖²/σ_e² is part of the cost
+            k = ro.index(T)
+            eps = ro.eps[k]
+            G[:, :, p] -= self.inv_e2 * eps
+            self.chi2_removed -= self.inv_e2 * float(np.sum(eps * eps))
+        if COMPILED:
+            Minv, Y = np.empty_like(F), np.empty_like(G)
+            _epoch_solve(F, G, self.inv_e2, Minv, Y)
+        else:
+            Minv = inverse_spd3(F + self.inv_e2 * np.eye(3))
+            Y = np.matmul(Minv, G)  # (E, 3, p + 1): M⁻¹ G
+        if ro is not None:
+            ro.cond[k] = eps + Y[:, :, p]  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
+            ro.stale = False
+        Gf, Yf = G.reshape(-1, p + 1), Y.reshape(-1, p + 1)
+        if p:
+            S = Gf[:, :p].T @ Yf[:, :p]  # Σ G_xᵀ M⁻¹ G_x, symmetric to round-off
+            self.A -= 0.5 * (S + S.T)
+            self.b -= Gf[:, :p].T @ Yf[:, p]
+        self.chi2_removed += float(Gf[:, p] @ Yf[:, p])
+        if self.knots is not None and FC is not None:
+            subtract_knot_rows(self.knots, FC, np.matmul(Minv, FC), T, Y, np.arange(p))
+
+
+@_jit
+def _knot_downdate(Dl, Dr, Gam, Y, knot, cols, Dk, Bk):
+    """The compiled form of :func:`subtract_knot_rows`: per epoch ``U_l = Dl [I | Γ]``,
+    ``U_r = Dr [I | Γ]``, ``Dk_j −= U_lᵀ U_r``, ``Bk_j −= U_lᵀ Y`` (Gam (E, 3, 3) the Γ_j(t)
+    of each epoch; ``knot`` local indices of the held blocks)."""
+    d = Dk.shape[1]
+    p = cols.shape[0]
+    last = Bk.shape[2] - 1
+    Ul = np.empty((3, 6))
+    Ur = np.empty((3, 6))
+    for e in range(Dl.shape[0]):
+        jj = knot[e]
+        for r in range(3):
+            for c in range(3):
+                Ul[r, c] = Dl[e, r, c]
+                Ur[r, c] = Dr[e, r, c]
+            if d == 6:
+                for c in range(3):
+                    Ul[r, 3 + c] = Dl[e, r, 0] * Gam[e, 0, c] + Dl[e, r, 1] * Gam[e, 1, c] + Dl[e, r, 2] * Gam[e, 2, c]
+                    Ur[r, 3 + c] = Dr[e, r, 0] * Gam[e, 0, c] + Dr[e, r, 1] * Gam[e, 1, c] + Dr[e, r, 2] * Gam[e, 2, c]
+        for a in range(d):
+            for b in range(d):
+                Dk[jj, a, b] -= 0.5 * (
+                    Ul[0, a] * Ur[0, b]
+                    + Ul[1, a] * Ur[1, b]
+                    + Ul[2, a] * Ur[2, b]
+                    + Ul[0, b] * Ur[0, a]
+                    + Ul[1, b] * Ur[1, a]
+                    + Ul[2, b] * Ur[2, a]
+                )
+            for q in range(p):
+                Bk[jj, a, cols[q]] -= Ul[0, a] * Y[e, 0, q] + Ul[1, a] * Y[e, 1, q] + Ul[2, a] * Y[e, 2, q]
+            Bk[jj, a, last] -= Ul[0, a] * Y[e, 0, p] + Ul[1, a] * Y[e, 1, p] + Ul[2, a] * Y[e, 2, p]
+
+
+@_jit
+def _epoch_solve(F, G, inv_e2, Minv, Y):
+    """``Minv_e = (F_e + σ_e⁻² I)⁻¹`` (adjugate, as :func:`inverse_spd3`) and ``Y_e = Minv_e G_e``."""
+    for e in range(F.shape[0]):
+        a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
+        d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
+        A, B, C = d * g - f * f, c * f - b * g, b * f - c * d
+        det = a * A + b * B + c * C
+        m = Minv[e]
+        m[0, 0], m[0, 1], m[0, 2] = A / det, B / det, C / det
+        m[1, 0], m[1, 1], m[1, 2] = B / det, (a * g - c * c) / det, (b * c - a * f) / det
+        m[2, 0], m[2, 1], m[2, 2] = C / det, (b * c - a * f) / det, (a * d - b * b) / det
+        for q in range(G.shape[2]):
+            g0, g1, g2 = G[e, 0, q], G[e, 1, q], G[e, 2, q]
+            for r in range(3):
+                Y[e, r, q] = m[r, 0] * g0 + m[r, 1] * g1 + m[r, 2] * g2
+
+
+@_jit
+def _scatter(idx, ext, X, G):
+    """``G[idx[i], :, ext[q]] += X[i, :, q]`` (repeated epochs add)."""
+    for i in range(idx.shape[0]):
+        e = idx[i]
+        for q in range(ext.shape[0]):
+            c = ext[q]
+            for r in range(3):
+                G[e, r, c] += X[i, r, q]
+
+
+@_jit
+def _frame_products(D, w, Hm, rw, F, X):
+    """Per frame ``F = Σ_r D̃_rᵀ D̃_r`` and ``X = Σ_r D̃_rᵀ [h̃_r | r̃_r]`` with ``D̃_r = w_r D_r``
+    (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,); rows of weight 0 skipped)."""
+    n, m = D.shape[0], D.shape[1]
+    k = Hm.shape[1]
+    d = np.empty(3)
+    for i in range(n):
+        for r in range(m):
+            wr = w[i, r]
+            if wr == 0.0:
+                continue
+            for a in range(3):
+                v = D[i, r, a] * wr
+                d[a] = v if v == v else 0.0  # NaN partials count as 0 (np.nan_to_num)
+            row = i * m + r
+            for a in range(3):
+                for b in range(3):
+                    F[i, a, b] += d[a] * d[b]
+                for q in range(k):
+                    X[i, a, q] += d[a] * Hm[row, q]
+                X[i, a, k] += d[a] * rw[row]
