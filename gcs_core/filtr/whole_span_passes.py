@@ -108,7 +108,7 @@ class CorrectedAttitude:
         # the statics' partials stay the gyro-carried attitude's (C_chain, exact: a body-frame
         # perturbation ε of C_gyro moves C = C_gyro exp(−[α×]) by the same ε)
         return FrameAttitude(
-            self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro, C_chain=fr.C_BI
+            self._correct(fr.C_BI, t), None, fr.omega_B, fr.names, J=fr._J, gyro=fr._gyro, C_chain=fr.C_chain
         )
 
     def evaluate(self, values, t) -> AttitudeEval:

@@ -6,6 +6,19 @@ respect to the attitude, the gyro's ``G`` (Eq 4-37), bias and bias rate as cumul
 sums; the derivation is in the docstring of :mod:`gcs_core.problem.attitude`, where the
 other attitude providers and their :class:`~gcs_core.problem.attitude.AttitudeProvider`
 protocol live.
+
+On a ground mission whose reference frame is the laboratory's (docs/ground.md) the gyro
+measures its rate against inertial space while the lab turns with the Earth at
+``ω_E`` (constant in the lab frame): ``ω_meas = ω_B/lab + C_B,lab ω_E + b + noise``. With
+``earth_rate`` given, the propagation carries the inertial attitude ``C_in`` from the
+corrected rates (as without it) and turns it into the lab's exactly,
+
+    C_B,lab(t) = C_in(t) exp(+[ω_E (t − t_ref)×]),     ω_B/lab = ω − C_B,lab ω_E,
+
+which is the solution of ``Ċ = −[(ω − C ω_E)×] C`` (the lab frame turns about the fixed
+``ω_E``: ``C_lab,in(t) = exp(−[ω_E τ×])``), evaluated at the propagated attitude itself.
+A body-frame perturbation of ``C_in`` moves ``C_B,lab`` by the same angles, so the partials
+are those of ``C_in`` exactly (:attr:`FrameAttitude.C_chain` = ``C_in``): nothing neglected.
 """
 
 from __future__ import annotations
@@ -18,7 +31,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from gcs_core.compiled import COMPILED
-from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize
+from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize, rotvec_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.problem import kernels
@@ -232,8 +245,20 @@ class GyroAttitude:
 
     kind = "three_axis"
 
-    def __init__(self, mode: str, ephemeris, gyro_name: str, t_gyro, y_gyro, *, block_knots: int = BLOCK_KNOTS):
+    def __init__(
+        self,
+        mode: str,
+        ephemeris,
+        gyro_name: str,
+        t_gyro,
+        y_gyro,
+        *,
+        block_knots: int = BLOCK_KNOTS,
+        earth_rate=None,
+    ):
         self.ref = ReferenceAttitude(mode, ephemeris)
+        #: (3,) the Earth's rate in the reference (lab) frame [rad/s], or None (module docstring)
+        self.earth_rate = None if earth_rate is None else np.asarray(earth_rate, float).reshape(3)
         self.gyro = gyro_name
         t_gyro = np.asarray(t_gyro, float)
         dt = np.diff(t_gyro)
@@ -288,6 +313,14 @@ class GyroAttitude:
     def covers(self, t) -> np.ndarray:
         t = np.asarray(t, float)
         return (t >= self.knots[0]) & (t <= self.knots[-1])
+
+    def to_lab(self, C_in: np.ndarray, omega: np.ndarray, t: np.ndarray):
+        """``(C_B,lab, ω_B/lab)`` from the inertially carried ``C_in`` (N, 3, 3) and its rates
+        (N, 3) at times ``t`` (module docstring); unchanged without an Earth rate."""
+        if self.earth_rate is None:
+            return C_in, omega
+        C = C_in @ rotvec_to_dcm(-np.multiply.outer(np.asarray(t, float) - self.t_ref, self.earth_rate))
+        return C, omega - C @ self.earth_rate
 
     def _gyro_params(self, values):
         return {n.split(".", 1)[1]: values[n] for n in self.param_names}
@@ -461,6 +494,9 @@ class GyroAttitude:
         j, g = where.j, where.g
         if g is None:  # every frame on a knot
             w = blk.omega[where.w]
+            if self.earth_rate is not None:
+                C_lab, w = self.to_lab(blk.C[j], w, t)
+                return FrameAttitude(C_lab, None, w, self.names, gyro=(c.Ma, (blk.E, j), None), C_chain=blk.C[j])
             return FrameAttitude(blk.C[j], None, w, self.names, gyro=(c.Ma, (blk.E, j), None))
         C = blk.C[j].copy() if isinstance(j, slice) else blk.C[j]
         w = blk.omega[where.w]
@@ -469,6 +505,9 @@ class GyroAttitude:
         C[g] = _dcm(_step_quaternions(blk.omega[ig], s)) @ blk.C[ig]
         Gy, u, tau = blk.W
         Wg = _rate_partials(c, Gy[ig], u[ig], tau[ig])
+        if self.earth_rate is not None:
+            C_lab, w = self.to_lab(C, w, t)
+            return FrameAttitude(C_lab, None, w, self.names, gyro=(c.Ma, (blk.E, j), (g, Wg, s)), C_chain=C)
         return FrameAttitude(C, None, w, self.names, gyro=(c.Ma, (blk.E, j), (g, Wg, s)))
 
     def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
@@ -488,7 +527,8 @@ class GyroAttitude:
                     if isinstance(where.j, slice):
                         C = C.copy()
                     C[where.g] = _dcm(_step_quaternions(blk.omega[where.ig], where.s)) @ blk.C[where.ig]
-                return FrameAttitude(C, None, blk.omega[where.w], self.names)
+                C, w = self.to_lab(C, blk.omega[where.w], t)
+                return FrameAttitude(C, None, w, self.names)
             return self._frames_in_block(blk, t, where)
         return FrameAttitude.of(self.evaluate(values, t))
 
