@@ -54,6 +54,8 @@ EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offse
 #: exact propagation: round-off over 3000 steps
 ROUND_OFF_RAD = 1e-10
 one_percent = 0.01
+#: the gyro's and the attitude's elements within this many σ of the truth (seeded draw)
+THREE_SIGMA = 3.0
 
 
 def _truth():
@@ -120,7 +122,7 @@ def _z(res):
 
 @pytest.fixture(scope="module")
 def missions(tmp_path_factory):
-    sim = _simulate(np.random.default_rng(2052))
+    sim = _simulate(np.random.default_rng(2056))
     with_lat = tmp_path_factory.mktemp("lab-earth")
     _write(with_lat, *sim)
     _set_latitude(with_lat, f"latitude_deg = {LATITUDE_DEG}")
@@ -157,19 +159,23 @@ def test_with_the_latitude_the_fit_recovers_the_truth(missions):
     z = _z(res)
     worst = max(z, key=lambda n: abs(z[n]))
     assert abs(z[worst]) < Z_MAX, (worst, z[worst], z)
+    gyro_att = max((n for n in z if n.startswith(("GYR.", "att."))), key=lambda n: abs(z[n]))
+    assert abs(z[gyro_att]) < THREE_SIGMA, (gyro_att, z[gyro_att], z)
     for sensor, nrms in a.rms().items():
         assert abs(nrms - 1.0) < 5 * one_percent, (sensor, nrms)
 
 
 def test_without_the_latitude_the_gyro_bias_is_off_by_many_sigma(missions):
-    """The effect's size on this geometry: the bias absorbs the mean Earth rate in the body
-    frame and the attitude bends for the rest (seed 2052: ~50σ on the worst axis, the
-    optical reference's normalized RMS above 1.5)."""
+    """The effect's size on this geometry (60 s, 50 Hz, σ_b ≈ 7–10 µrad/s): the bias takes
+    the mean of ``C_B,lab ω_E`` and the attitude bends for the rest. Over seeds 2052–2059
+    the worst gyro bias is 11.8–14.8σ from the truth (with the latitude: within 2.4σ) and
+    the optical reference's normalized RMS 1.020–1.039 (with it: 0.987–1.011); this seed:
+    11.8σ, 1.031."""
     a, res = _fit(missions[1])
     z = _z(res)
     worst_bias = max(abs(z[f"GYR.bias_{x}"]) for x in "xyz")
-    assert worst_bias > 10.0, z
-    assert a.rms()["OPT"] > 1.2, a.rms()
+    assert worst_bias > 8.0, z
+    assert a.rms()["OPT"] > 1.0 + 1.5 * one_percent, a.rms()
 
 
 def test_the_filter_is_exact_too(missions):
