@@ -178,8 +178,9 @@ def test_without_the_latitude_the_gyro_bias_is_off_by_many_sigma(missions):
     assert a.rms()["OPT"] > 1.0 + 1.5 * one_percent, a.rms()
 
 
-def test_the_filter_is_exact_too(missions):
-    a, res = _fit(missions[0], "kalman")
+@pytest.mark.parametrize("method", ["kalman", "whole_span"])
+def test_the_filter_and_the_whole_span_fit_too(missions, method):
+    a, res = _fit(missions[0], method)
     z = _z(res)
     worst = max((n for n in z if n.startswith("GYR.") or n.startswith("MAG.")), key=lambda n: abs(z[n]))
     assert abs(z[worst]) < Z_MAX, (worst, z[worst], z)
