@@ -43,12 +43,13 @@ import numpy as np
 
 from gcs_core.errors import EstimationError
 from gcs_core.filtr.kalman import LinearBlock
-from gcs_core.frames.rotations import quat_to_dcm, rotvec_to_dcm
+from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q, gyro_noise
 from gcs_core.problem.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval, ProviderDefaults
 from gcs_core.problem.build import Problem
+from gcs_core.problem.earth_rate import lab_attitude
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.prepare import SensorData
 
@@ -120,9 +121,7 @@ class GyroSegment:
 
     def _lab(self, C_in, t):
         """The lab-frame nominal from the inertially carried one (no Earth rate: itself)."""
-        if self.earth is None:
-            return C_in
-        return C_in @ rotvec_to_dcm(-np.multiply.outer(np.asarray(t, float) - self.knots[0], self.earth))
+        return lab_attitude(C_in, None, t, self.knots[0], self.earth)[0]
 
     def _referred(self, C, E, Q):
         """``Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ`` at the given states (process noise referred to τ_0)."""
@@ -163,6 +162,12 @@ class GyroSegment:
             C_lab = self._lab(C, t)
             return C_lab, w - C_lab @ self.earth, C @ self.C0.T, C @ E, Pi
         return C, w, C @ self.C0.T, C @ E, Pi
+
+
+def gyro_segment(att, k_a: int, k_b: int, omega, Wg, C0, noise: GyroNoise, Wy, Wb, axes=()) -> GyroSegment:
+    """The :class:`GyroSegment` over gyro knots ``k_a..k_b`` of ``att`` (a GyroAttitude), with
+    its Earth rate (None but on a ground mission that states it)."""
+    return GyroSegment(att.knots[k_a : k_b + 1], omega, Wg, C0, noise, Wy, Wb, axes, earth=att.earth_rate)
 
 
 @dataclass(frozen=True)

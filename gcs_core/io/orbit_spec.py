@@ -12,14 +12,12 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core.io.toml_fields import Ctx, existing_file, number, numbers, optional_file, string
+from gcs_core.units import OMEGA_EARTH
 
-__all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "EARTH_RATE_RAD_S", "earth_rate", "ephemeris_or_orbit", "read_orbit_table"]
+__all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "GROUND_KEYS", "earth_rate", "ephemeris_or_orbit", "read_orbit_table"]
 
 #: keys of [orbit]
 ORBIT_KEYS = ("tle", "frame", "step_s")
-#: the Earth's rotation rate against inertial space [rad/s] (IERS Conventions 2010, §1.2: 7.292115e-5;
-#: the value of the GRS 80 / WGS 84 ellipsoid)
-EARTH_RATE_RAD_S = 7.2921159e-5
 #: keys of [ephemeris] on a ground mission (docs/ground.md)
 GROUND_KEYS = ("ground_position_km", "latitude_deg", "earth_rate_rad_s")
 #: a stated Earth rate vector must have this magnitude within this fraction (a unit check)
@@ -100,7 +98,8 @@ def earth_rate(ctx: Ctx, e: dict) -> tuple[float, float, float] | None:
 
     ``[ephemeris] latitude_deg = φ`` for a lab frame that is East-North-Up at geodetic
     latitude φ: ``ω_E^lab = Ω (0, cos φ, sin φ)``; or ``earth_rate_rad_s = [x, y, z]`` for
-    any other lab frame (its magnitude must be Ω within 1 %). Not both. Absent: None (the
+    any other lab frame (its magnitude must be Ω within 1 %), Ω = :data:`gcs_core.units.OMEGA_EARTH`
+    (7.292115e-5 rad/s, the WGS 84 value). Not both. Absent: None (the
     Earth's rotation is left in the gyro's bias, docs/ground.md).
     """
     if "latitude_deg" in e and "earth_rate_rad_s" in e:
@@ -115,17 +114,21 @@ def earth_rate(ctx: Ctx, e: dict) -> tuple[float, float, float] | None:
         lat = number(ctx, e["latitude_deg"], "ephemeris.latitude_deg", "ephemeris", 1, "latitude_deg")
         if not -90.0 <= lat <= 90.0:
             raise ctx.error(
-                f"latitude must be in [-90, 90] deg, not {lat:g}", "ephemeris.latitude_deg", "ephemeris", 1, "latitude_deg"
+                f"latitude must be in [-90, 90] deg, not {lat:g}",
+                "ephemeris.latitude_deg",
+                "ephemeris",
+                1,
+                "latitude_deg",
             )
         phi = math.radians(lat)
-        return 0.0, EARTH_RATE_RAD_S * math.cos(phi), EARTH_RATE_RAD_S * math.sin(phi)
+        return 0.0, OMEGA_EARTH * math.cos(phi), OMEGA_EARTH * math.sin(phi)
     if "earth_rate_rad_s" in e:
         w = numbers(ctx, e["earth_rate_rad_s"], 3, "ephemeris.earth_rate_rad_s", "ephemeris", 1, "earth_rate_rad_s")
         norm = math.sqrt(sum(v * v for v in w))
-        if abs(norm / EARTH_RATE_RAD_S - 1.0) > EARTH_RATE_TOLERANCE:
+        if abs(norm / OMEGA_EARTH - 1.0) > EARTH_RATE_TOLERANCE:
             raise ctx.error(
                 f"|earth_rate_rad_s| = {norm:.6g} rad/s is not the Earth's rate "
-                f"{EARTH_RATE_RAD_S:.8g} rad/s within 1 % (rad/s, in the lab frame?)",
+                f"{OMEGA_EARTH:.8g} rad/s within 1 % (rad/s, in the lab frame?)",
                 "ephemeris.earth_rate_rad_s",
                 "ephemeris",
                 1,

@@ -7,18 +7,8 @@ sums; the derivation is in the docstring of :mod:`gcs_core.problem.attitude`, wh
 other attitude providers and their :class:`~gcs_core.problem.attitude.AttitudeProvider`
 protocol live.
 
-On a ground mission whose reference frame is the laboratory's (docs/ground.md) the gyro
-measures its rate against inertial space while the lab turns with the Earth at
-``ω_E`` (constant in the lab frame): ``ω_meas = ω_B/lab + C_B,lab ω_E + b + noise``. With
-``earth_rate`` given, the propagation carries the inertial attitude ``C_in`` from the
-corrected rates (as without it) and turns it into the lab's exactly,
-
-    C_B,lab(t) = C_in(t) exp(+[ω_E (t − t_ref)×]),     ω_B/lab = ω − C_B,lab ω_E,
-
-which is the solution of ``Ċ = −[(ω − C ω_E)×] C`` (the lab frame turns about the fixed
-``ω_E``: ``C_lab,in(t) = exp(−[ω_E τ×])``), evaluated at the propagated attitude itself.
-A body-frame perturbation of ``C_in`` moves ``C_B,lab`` by the same angles, so the partials
-are those of ``C_in`` exactly (:attr:`FrameAttitude.C_chain` = ``C_in``): nothing neglected.
+On a ground mission that states the Earth's rate in its lab frame, the attitude carried by
+the rates is inertial and is turned into the lab's exactly (:mod:`gcs_core.problem.earth_rate`).
 """
 
 from __future__ import annotations
@@ -31,7 +21,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from gcs_core.compiled import COMPILED
-from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize, rotvec_to_dcm
+from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.problem import kernels
@@ -44,6 +34,7 @@ from gcs_core.problem.attitude import (
     ReferenceAttitude,
     rpy_error_jacobian,
 )
+from gcs_core.problem.earth_rate import lab_attitude
 
 
 # ----------------------------------------------------------------------------------------
@@ -234,6 +225,8 @@ class GyroAttitude:
     t_gyro : (K,) gyro row times; row k averages the rate over ``(t_{k-1}, t_k]``.
     y_gyro : (K, 3) gyro output [rad/s].
     block_knots : rows per block of the propagation (bounded memory, below).
+    earth_rate : (3,) the Earth's rate in the lab frame of a ground mission [rad/s], or None
+        (:mod:`gcs_core.problem.earth_rate`).
 
     Memory. The propagation is computed in blocks of ``block_knots`` rows: each block
     starts from the attitude and ``E`` at its first knot (a checkpoint, 3×3 + 3×P
@@ -314,13 +307,10 @@ class GyroAttitude:
         t = np.asarray(t, float)
         return (t >= self.knots[0]) & (t <= self.knots[-1])
 
-    def to_lab(self, C_in: np.ndarray, omega: np.ndarray, t: np.ndarray):
-        """``(C_B,lab, ω_B/lab)`` from the inertially carried ``C_in`` (N, 3, 3) and its rates
-        (N, 3) at times ``t`` (module docstring); unchanged without an Earth rate."""
-        if self.earth_rate is None:
-            return C_in, omega
-        C = C_in @ rotvec_to_dcm(-np.multiply.outer(np.asarray(t, float) - self.t_ref, self.earth_rate))
-        return C, omega - C @ self.earth_rate
+    def _lab(self, C, w, t, gyro=None) -> FrameAttitude:
+        """The frames in the lab's attitude, the partials at the carried one (earth_rate.py)."""
+        C_lab, w = lab_attitude(C, w, t, self.t_ref, self.earth_rate)
+        return FrameAttitude(C_lab, None, w, self.names, gyro=gyro, C_chain=C)
 
     def _gyro_params(self, values):
         return {n.split(".", 1)[1]: values[n] for n in self.param_names}
@@ -493,11 +483,7 @@ class GyroAttitude:
         assert c is not None  # blk came from _block(), after _state()
         j, g = where.j, where.g
         if g is None:  # every frame on a knot
-            w = blk.omega[where.w]
-            if self.earth_rate is not None:
-                C_lab, w = self.to_lab(blk.C[j], w, t)
-                return FrameAttitude(C_lab, None, w, self.names, gyro=(c.Ma, (blk.E, j), None), C_chain=blk.C[j])
-            return FrameAttitude(blk.C[j], None, w, self.names, gyro=(c.Ma, (blk.E, j), None))
+            return self._lab(blk.C[j], blk.omega[where.w], t, (c.Ma, (blk.E, j), None))
         C = blk.C[j].copy() if isinstance(j, slice) else blk.C[j]
         w = blk.omega[where.w]
         ig, s = where.ig, where.s
@@ -505,10 +491,7 @@ class GyroAttitude:
         C[g] = _dcm(_step_quaternions(blk.omega[ig], s)) @ blk.C[ig]
         Gy, u, tau = blk.W
         Wg = _rate_partials(c, Gy[ig], u[ig], tau[ig])
-        if self.earth_rate is not None:
-            C_lab, w = self.to_lab(C, w, t)
-            return FrameAttitude(C_lab, None, w, self.names, gyro=(c.Ma, (blk.E, j), (g, Wg, s)), C_chain=C)
-        return FrameAttitude(C, None, w, self.names, gyro=(c.Ma, (blk.E, j), (g, Wg, s)))
+        return self._lab(C, w, t, (c.Ma, (blk.E, j), (g, Wg, s)))
 
     def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
         """The attitude at times ``t`` in factored form (:class:`FrameAttitude`); without
@@ -527,8 +510,7 @@ class GyroAttitude:
                     if isinstance(where.j, slice):
                         C = C.copy()
                     C[where.g] = _dcm(_step_quaternions(blk.omega[where.ig], where.s)) @ blk.C[where.ig]
-                C, w = self.to_lab(C, blk.omega[where.w], t)
-                return FrameAttitude(C, None, w, self.names)
+                return self._lab(C, blk.omega[where.w], t)
             return self._frames_in_block(blk, t, where)
         return FrameAttitude.of(self.evaluate(values, t))
 
