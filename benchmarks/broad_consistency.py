@@ -54,6 +54,7 @@ import numpy as np
 
 from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
+from gcs_core.convert.broad import LAB_LATITUDE_DEG
 from gcs_core.diagnosis.correlation import noise_scale, sigma_scale
 from gcs_core.filtr.gyro_bias import gyro_bias_at
 from gcs_core.filtr.process_likelihood import rrw_profile
@@ -205,8 +206,6 @@ def table(title: str, a: dict, b: dict) -> int:
     return int(worst.get("", [0.0, 0.0])[1] > 3)
 
 
-#: the laboratory's latitude (Berlin), for the Earth's rate the gyro sees as bias [deg]
-LAB_LATITUDE_DEG = 52.5
 #: batch-means window of a rest's mean gyro rate [s]
 REST_BLOCK_S = 0.5
 
@@ -246,14 +245,15 @@ def rests(source: Path) -> list[dict]:
 
 
 def rest_table(title: str, row: dict, rest: list[dict], mark: str = "") -> int:
-    """The fitted bias b(t) at each rest against the rest's own mean rate G⁻¹ ȳ (at rest the
-    lab-relative rate is zero; the Earth's rate is in both)."""
+    """The fitted bias b(t) at each rest against the rest's own mean rate G⁻¹ ȳ less the
+    Earth's rate there (at rest the lab-relative rate is zero; the converted mission states
+    the lab's latitude, so the fit removes the Earth's rate from the gyro)."""
     print(f"\n{title}")
-    print(f"{'rest [s]':<16}{'axis':>5}{'fitted b':>12}{'σ':>10}{'rest G⁻¹ȳ':>12}{'σ':>10}{'z':>8}")
+    print(f"{'rest [s]':<16}{'axis':>5}{'fitted b':>12}{'σ':>10}{'G⁻¹ȳ−Ω⊕':>12}{'σ':>10}{'z':>8}")
     worst = 0.0
     Ginv = np.linalg.inv(row["_G"])
     for k, r in enumerate(rest):
-        yb = Ginv @ r["y"]
+        yb = Ginv @ r["y"] - r["earth"]
         sy = np.abs(Ginv) @ r["sigma"]
         for i, ax in enumerate("xyz"):
             b, sb, _ = row[f"GYR.b_{ax}(rest {k + 1}){mark}"]
@@ -276,9 +276,9 @@ def first_rest(row: dict, rest: list[dict]) -> dict:
     Ginv = np.linalg.inv(row["_G"])
     yb, sy = Ginv @ r["y"] - r["earth"], np.abs(Ginv) @ r["sigma"]
     for mark in ("", "*", "†"):
-        for i, ax in enumerate("xyz"):
+        for ax in "xyz":
             b, sb, _ = row[f"GYR.b_{ax}(rest 1){mark}"]
-            out[f"GYR.b_{ax}(rest 1)−Ω⊕{mark}"] = (b - r["earth"][i], sb, 1.0)
+            out[f"GYR.b_{ax}(rest 1)−Ω⊕{mark}"] = (b, sb, 1.0)  # the fit's bias is without the Earth's rate
     for i, ax in enumerate("xyz"):
         out[f"rest_{ax}(1) G⁻¹ȳ−Ω⊕"] = (float(yb[i]), float(sy[i]), 1.0)
     return out

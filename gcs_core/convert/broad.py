@@ -21,10 +21,19 @@ dataset         shape        content
 The mission (docs/ground.md) is a ground mission: ``attitude_mode = "inertial"`` with the
 laboratory's ENU frame standing where GCI stands in flight, ``ground_position_km`` the
 Earth's centre seen from the laboratory (straight down), and the analysis config sets
-``field_model = "constant"``. The optical quaternion becomes an ``attitude_reference``
-sensor: BROAD's ``(w, x, y, z)`` rotates unit-frame vectors into ENU, which is GCS's
-``C_BI`` of the scalar-last quaternion ``(x, y, z, w)`` (Eq 4-8) unchanged. The optical
-position becomes the aux channels ``pos_x, pos_y, pos_z`` [m, ENU] of ``aux.csv``, measured
+``field_model = "constant"``. The laboratory's latitude (:data:`LAB_LATITUDE_DEG`, Berlin:
+the paper names the institute, not the room) is written as ``latitude_deg``, so the
+Earth's rotation is removed from the gyro exactly rather than left in its bias. The ENU
+frame of the optical system is aligned by the data's authors; if its north is the local
+magnetic north rather than the true, the Earth's rate is turned by the declination (about
+4–5° E in Berlin, 2020), an error ≤ 5e-6 rad/s (docs/ground.md). It probably is: the
+fitted field of trial 02 has no East component (−0.11 ± 0.04 of 15.1 µT north), so the
+frame's north is the room's magnetic north within 0.5°: an error of about 3.5e-6 rad/s
+(0.7 deg/h), a twentieth of the gyro bias σ a trial reaches. The optical
+quaternion becomes an ``attitude_reference`` sensor: BROAD's ``(w, x, y, z)`` rotates
+unit-frame vectors into ENU, which is GCS's ``C_BI`` of the scalar-last quaternion
+``(x, y, z, w)`` (Eq 4-8) unchanged. The optical position becomes the aux channels
+``pos_x, pos_y, pos_z`` [m, ENU] of ``aux.csv``, measured
 from the mean tracked position of the whole file (the same point for any span of it), the
 lever of the magnetometer's ``field_gradient`` effect (:mod:`gcs_core.models.magnetometer`);
 untracked samples are left out of it (the channel holds the last tracked position).
@@ -69,6 +78,12 @@ TRANSIENT_Z = 8.0
 #: the Earth's centre seen from the laboratory, in its East-North-Up frame [km]: straight
 #: down by the Earth's radius at Berlin (52.5° N, 6365 km; the value only labels a place)
 LAB_POSITION_KM = (0.0, 0.0, 6365.0)
+#: geodetic latitude of the laboratory [deg N]: the paper gives the Control Systems Group of
+#: TU Berlin (10623 Berlin) and not the coordinates of the room, so Berlin's, 52.51° N (the
+#: TU's Charlottenburg campus); a few km of error in place is < 1e-3° (nothing). Written as
+#: ``[ephemeris] latitude_deg``: the gyro then sees the Earth's rate turn with the unit
+#: (docs/ground.md), ``ω_E = Ω (0, cos φ, sin φ)`` in ENU.
+LAB_LATITUDE_DEG = 52.51
 #: the recording date is not published; the epoch only labels the times
 EPOCH = "2021-01-01T00:00:00Z"
 CITATION = (
@@ -388,6 +403,7 @@ file = "aux.csv"                  # pos_x, pos_y, pos_z [m, ENU]: the optical po
 
 [ephemeris]
 ground_position_km = [{LAB_POSITION_KM[0]:.1f}, {LAB_POSITION_KM[1]:.1f}, {LAB_POSITION_KM[2]:.1f}]   # the Earth's centre, straight down (ENU)
+latitude_deg = {LAB_LATITUDE_DEG}               # Berlin (the paper names TU Berlin, not the room): the Earth's rate in ENU
 
 [[sensor]]
 name = "GYR"                      # myon aktos-t gyro
@@ -434,6 +450,12 @@ def _source_md(source, info, rate, n_all, span, keep, transients, warnings) -> s
     ]
     if span:
         lines.append(f"Span kept: t = {span[0]:g} to {span[1]:g} s from the file's first sample.")
+    lines += [
+        "",
+        f"Laboratory latitude: {LAB_LATITUDE_DEG}° N, Berlin's (`[ephemeris] latitude_deg`, the Earth's",
+        "rate seen by the gyro). The paper gives the authors' institute (Control Systems Group,",
+        "TU Berlin, 10623 Berlin), not where the room is; the campus latitude stands for it.",
+    ]
     lines += ["", "Flagged (kept):"] + [f"- {t}" for t in transients or ["no start-up transient found"]]
     lines += ["", "Warnings:"] + [f"- {w}" for w in warnings or ["none"]]
     lines += ["", "The file's own description:", "", "```", info.strip(), "```", ""]

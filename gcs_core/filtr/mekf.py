@@ -49,6 +49,7 @@ from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q, gyro_noise
 from gcs_core.problem.attitude import BIAS_RATE_NAMES, RPY, AttitudeEval, ProviderDefaults
 from gcs_core.problem.build import Problem
+from gcs_core.problem.earth_rate import lab_attitude
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.prepare import SensorData
 
@@ -93,23 +94,34 @@ class GyroSegment:
     C0 : (3, 3) nominal attitude at τ_0.
     noise, Wy, Wb, axes : for :func:`~gcs_core.models.gyro_noise.farrenkopf_q` (axes: the
         random-walking biases).
+    earth : (3,) the Earth's rate in the lab frame of a ground mission [rad/s], or None.
+        Then the rates carry the inertial attitude ``C_in`` from ``C_0`` and the nominal is
+        the lab's, ``C = C_in exp(+[ω_E (t − τ_0)×])`` (exact;
+        :mod:`gcs_core.problem.gyro_attitude`); the error transitions are ``C_in``'s, exactly
+        (a body-frame error of ``C_in`` is the same error of ``C``).
     """
 
-    def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb, axes=()):
+    def __init__(self, knots, omega, Wg, C0, noise: GyroNoise, Wy, Wb, axes=(), earth=None):
         self.knots = np.asarray(knots, float)
         self.dt = np.diff(self.knots)
         self.omega, self.Wg, self.C0 = np.asarray(omega, float), np.asarray(Wg, float), C0
         self.noise, self.Wy, self.Wb, self.axes = noise, Wy, Wb, tuple(axes)
         self.nb = len(self.axes)
+        self.earth = None if earth is None else np.asarray(earth, float).reshape(3)
         steps = cumulative_rotations(quat_to_dcm(step_quaternions(self.omega, self.dt)))
-        self.C = np.concatenate([C0[None], steps @ C0])  # (K+1, 3, 3)
+        self.C_in = np.concatenate([C0[None], steps @ C0])  # (K+1, 3, 3)
+        self.C = self._lab(self.C_in, self.knots)
         # E_k = Σ_{j≤k} C_jᵀ W_j Δ_j
-        incr = np.swapaxes(self.C[1:], 1, 2) @ self.Wg * self.dt[:, None, None]
+        incr = np.swapaxes(self.C_in[1:], 1, 2) @ self.Wg * self.dt[:, None, None]
         self.E = np.concatenate([np.zeros((1, 3, self.Wg.shape[2])), np.cumsum(incr, axis=0)])
         Q = farrenkopf_q(self.dt, noise, Wy, Wb, self.axes)
-        dPi = self._referred(self.C[1:], self.E[1:], Q)
+        dPi = self._referred(self.C_in[1:], self.E[1:], Q)
         d = 3 + self.nb
         self.Pi = np.concatenate([np.zeros((1, d, d)), np.cumsum(dPi, axis=0)])
+
+    def _lab(self, C_in, t):
+        """The lab-frame nominal from the inertially carried one (no Earth rate: itself)."""
+        return lab_attitude(C_in, None, t, self.knots[0], self.earth)[0]
 
     def _referred(self, C, E, Q):
         """``Ψ_dd⁻¹ Q Ψ_dd⁻ᵀ`` at the given states (process noise referred to τ_0)."""
@@ -124,7 +136,7 @@ class GyroSegment:
 
     def at_knots(self):
         """``(C C_0ᵀ, C E, Π)`` at the knots τ_0..τ_K (as :meth:`at`, without re-propagating)."""
-        return self.C @ self.C0.T, self.C @ self.E, self.Pi
+        return self.C_in @ self.C0.T, self.C_in @ self.E, self.Pi
 
     def at(self, t):
         """Nominal ``C`` (N, 3, 3), rate ω (N, 3), ``Ψ_θ·`` as ``(C C_0ᵀ, C E)`` and Π (N, d, d)."""
@@ -142,11 +154,20 @@ class GyroSegment:
                 np.zeros((N, 3 + self.nb, 3 + self.nb)),
             )
         w = self.omega[k - 1]
-        C = quat_to_dcm(step_quaternions(w, s)) @ self.C[k - 1]
+        C = quat_to_dcm(step_quaternions(w, s)) @ self.C_in[k - 1]
         E = self.E[k - 1] + np.swapaxes(C, 1, 2) @ self.Wg[k - 1] * s[:, None, None]
         Q = farrenkopf_q(s, self.noise, self.Wy, self.Wb, self.axes)
         Pi = self.Pi[k - 1] + self._referred(C, E, Q)
+        if self.earth is not None:
+            C_lab = self._lab(C, t)
+            return C_lab, w - C_lab @ self.earth, C @ self.C0.T, C @ E, Pi
         return C, w, C @ self.C0.T, C @ E, Pi
+
+
+def gyro_segment(att, k_a: int, k_b: int, omega, Wg, C0, noise: GyroNoise, Wy, Wb, axes=()) -> GyroSegment:
+    """The :class:`GyroSegment` over gyro knots ``k_a..k_b`` of ``att`` (a GyroAttitude), with
+    its Earth rate (None but on a ground mission that states it)."""
+    return GyroSegment(att.knots[k_a : k_b + 1], omega, Wg, C0, noise, Wy, Wb, axes, earth=att.earth_rate)
 
 
 @dataclass(frozen=True)

@@ -243,6 +243,7 @@ def smoothed_residuals(
     edited : sensor -> (N,) frames refused by the filter's gate (or edited beforehand).
     """
     out = {}
+    earth = getattr(problem.attitude, "earth_rate", None)  # a ground mission's (problem/earth_rate.py)
     for sd in problem.sensors:
         ep = frame_epoch[sd.name]
         reached = (ep >= 0) & (ep < traj.t.size)  # frames the filter processed
@@ -252,7 +253,10 @@ def smoothed_residuals(
             hi = min(sd.n, lo + chunk)
             part = sensor_window(sd, lo, hi)
             k = np.where(reached[lo:hi], ep[lo:hi], 0)
-            geom = replace(part.geom, C_BI=traj.C_BI(k), omega_B=omega_at(part.t))
+            C, w = traj.C_BI(k), omega_at(part.t)
+            if earth is not None and w is not None:
+                w = w - C @ earth  # ω_B/lab = ω − C ω_E
+            geom = replace(part.geom, C_BI=C, omega_B=w)
             pred = sd.model.predict(geom, problem.params_of(sd.name, values))
             y_pred[lo:hi] = pred.y
             valid[lo:hi] = np.asarray(pred.valid, bool)

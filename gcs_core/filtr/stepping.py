@@ -33,11 +33,11 @@ from gcs_core.errors import EstimationError
 from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.kalman import solve_block
 from gcs_core.filtr.mekf import (
-    GyroSegment,
     assemble,
     attitude_gyro_noise,
     block_epochs,
     gyro_rates,
+    gyro_segment,
     make_layout,
 )
 from gcs_core.filtr.residuals import make_residuals
@@ -343,7 +343,7 @@ class Filtr:
             y0[:3] = dcm_to_rotvec(C @ C_a.T)  # C = exp(−[δθ×]) C_a
             y0[3:] = [self._vals[e] - nom[e] for e in lay.elements[3:]]
             omega, W, Wy, Wb = gyro_rates(att, nom, k_a, k_b)
-            seg = GyroSegment(att.knots[k_a : k_b + 1], omega, W[:, :, lay.gyro_w], C_a, noise, Wy, Wb, axes)
+            seg = gyro_segment(att, k_a, k_b, omega, W[:, :, lay.gyro_w], C_a, noise, Wy, Wb, axes)
             blk, frames = assemble(self.problem, lay, nom, seg, t_a, t_b, b == 0, self._pre_edited(), noise.sigma_e**2)
             sol = solve_block(y0, self._P, blk, edit_k=self._gates(frames), group_rows=o.group_rows, keep_epochs=True)
             # y is referred to the block start: its δθ estimates the start's attitude error,

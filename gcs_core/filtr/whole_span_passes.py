@@ -141,7 +141,7 @@ class CorrectedAttitude:
             fr.names,
             J=fr._J,
             gyro=fr._gyro,
-            C_chain=fr.C_BI,
+            C_chain=fr.C_chain,
         )
 
     def evaluate(self, values, t) -> AttitudeEval:

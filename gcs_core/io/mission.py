@@ -28,7 +28,7 @@ from typing import Any
 from gcs_core import toml_values
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
-from gcs_core.io.orbit_spec import ephemeris_or_orbit, ground_position
+from gcs_core.io.orbit_spec import earth_rate, ephemeris_or_orbit, ground_position
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
 
@@ -409,9 +409,11 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
 
     e = doc.get("ephemeris")
     ground = None
+    earth = None
     orbit: dict = {}
     if isinstance(e, dict) and "ground_position_km" in e and "file" not in e:
         ground = ground_position(ctx, e, mode, unknown)
+        earth = earth_rate(ctx, e)
         ephemeris = None
     else:
         ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
@@ -463,5 +465,6 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         onboard_file=onboard,
         unknown_keys=tuple(unknown),
         ground_position_km=ground,
+        earth_rate_rad_s=earth,
         **orbit,
     )

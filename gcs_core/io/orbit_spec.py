@@ -12,11 +12,16 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core.io.toml_fields import Ctx, existing_file, number, numbers, optional_file, string
+from gcs_core.units import OMEGA_EARTH
 
-__all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "ephemeris_or_orbit", "read_orbit_table"]
+__all__ = ["ORBIT_KEYS", "ORBIT_FRAMES", "GROUND_KEYS", "earth_rate", "ephemeris_or_orbit", "read_orbit_table"]
 
 #: keys of [orbit]
 ORBIT_KEYS = ("tle", "frame", "step_s")
+#: keys of [ephemeris] on a ground mission (docs/ground.md)
+GROUND_KEYS = ("ground_position_km", "latitude_deg", "earth_rate_rad_s")
+#: a stated Earth rate vector must have this magnitude within this fraction (a unit check)
+EARTH_RATE_TOLERANCE = 0.01
 #: frames the orbit can be given in (gcs_core.ephem.teme.ORBIT_FRAMES)
 ORBIT_FRAMES = ("teme", "j2000")
 
@@ -84,5 +89,50 @@ def ground_position(ctx: Ctx, e: dict, mode: str, unknown: list[str]) -> tuple[f
             1,
             "attitude_mode",
         )
-    unknown += [f"ephemeris.{k}" for k in e if k != "ground_position_km"]
+    unknown += [f"ephemeris.{k}" for k in e if k not in GROUND_KEYS]
     return pos[0], pos[1], pos[2]
+
+
+def earth_rate(ctx: Ctx, e: dict) -> tuple[float, float, float] | None:
+    """The Earth's rotation in the laboratory frame [rad/s] of a ground mission, or None.
+
+    ``[ephemeris] latitude_deg = φ`` for a lab frame that is East-North-Up at geodetic
+    latitude φ: ``ω_E^lab = Ω (0, cos φ, sin φ)``; or ``earth_rate_rad_s = [x, y, z]`` for
+    any other lab frame (its magnitude must be Ω within 1 %), Ω = :data:`gcs_core.units.OMEGA_EARTH`
+    (7.292115e-5 rad/s, the WGS 84 value). Not both. Absent: None (the
+    Earth's rotation is left in the gyro's bias, docs/ground.md).
+    """
+    if "latitude_deg" in e and "earth_rate_rad_s" in e:
+        raise ctx.error(
+            "give either latitude_deg (an East-North-Up lab) or earth_rate_rad_s, not both",
+            "ephemeris.earth_rate_rad_s",
+            "ephemeris",
+            1,
+            "earth_rate_rad_s",
+        )
+    if "latitude_deg" in e:
+        lat = number(ctx, e["latitude_deg"], "ephemeris.latitude_deg", "ephemeris", 1, "latitude_deg")
+        if not -90.0 <= lat <= 90.0:
+            raise ctx.error(
+                f"latitude must be in [-90, 90] deg, not {lat:g}",
+                "ephemeris.latitude_deg",
+                "ephemeris",
+                1,
+                "latitude_deg",
+            )
+        phi = math.radians(lat)
+        return 0.0, OMEGA_EARTH * math.cos(phi), OMEGA_EARTH * math.sin(phi)
+    if "earth_rate_rad_s" in e:
+        w = numbers(ctx, e["earth_rate_rad_s"], 3, "ephemeris.earth_rate_rad_s", "ephemeris", 1, "earth_rate_rad_s")
+        norm = math.sqrt(sum(v * v for v in w))
+        if abs(norm / OMEGA_EARTH - 1.0) > EARTH_RATE_TOLERANCE:
+            raise ctx.error(
+                f"|earth_rate_rad_s| = {norm:.6g} rad/s is not the Earth's rate "
+                f"{OMEGA_EARTH:.8g} rad/s within 1 % (rad/s, in the lab frame?)",
+                "ephemeris.earth_rate_rad_s",
+                "ephemeris",
+                1,
+                "earth_rate_rad_s",
+            )
+        return w[0], w[1], w[2]
+    return None

@@ -103,6 +103,9 @@ class MissionSpec:
     #: a ground (laboratory) mission: the fixed position [km] given by
     #: ``[ephemeris] ground_position_km`` instead of an ephemeris file (docs/ground.md).
     ground_position_km: tuple[float, float, float] | None = None
+    #: a ground mission's Earth rotation in the lab frame [rad/s] (``[ephemeris] latitude_deg``
+    #: or ``earth_rate_rad_s``, docs/ground.md); None: left in the gyro's bias.
+    earth_rate_rad_s: tuple[float, float, float] | None = None
     #: ``[orbit]``: two-line elements instead of an ephemeris file (gcs_core.ephem.tle)
     orbit_tle: Path | None = None
     orbit_frame: str = "teme"

@@ -248,7 +248,15 @@ def build_problem(
         g = gyros[0]
         tab = mission.telemetry[g.name]
         gyro_name = g.name
-        attitude = GyroAttitude(mode, eph, g.name, tab.t, tab.stack(("wx", "wy", "wz")), block_knots=chunk_frames)
+        attitude = GyroAttitude(
+            mode,
+            eph,
+            g.name,
+            tab.t,
+            tab.stack(("wx", "wy", "wz")),
+            block_knots=chunk_frames,
+            earth_rate=spec.earth_rate_rad_s,
+        )
     else:
         attitude = ReferenceAttitude(mode, eph)
 

@@ -6,6 +6,9 @@ respect to the attitude, the gyro's ``G`` (Eq 4-37), bias and bias rate as cumul
 sums; the derivation is in the docstring of :mod:`gcs_core.problem.attitude`, where the
 other attitude providers and their :class:`~gcs_core.problem.attitude.AttitudeProvider`
 protocol live.
+
+On a ground mission that states the Earth's rate in its lab frame, the attitude carried by
+the rates is inertial and is turned into the lab's exactly (:mod:`gcs_core.problem.earth_rate`).
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ from gcs_core.problem.attitude import (
     ReferenceAttitude,
     rpy_error_jacobian,
 )
+from gcs_core.problem.earth_rate import lab_attitude
 
 
 # ----------------------------------------------------------------------------------------
@@ -221,6 +225,8 @@ class GyroAttitude:
     t_gyro : (K,) gyro row times; row k averages the rate over ``(t_{k-1}, t_k]``.
     y_gyro : (K, 3) gyro output [rad/s].
     block_knots : rows per block of the propagation (bounded memory, below).
+    earth_rate : (3,) the Earth's rate in the lab frame of a ground mission [rad/s], or None
+        (:mod:`gcs_core.problem.earth_rate`).
 
     Memory. The propagation is computed in blocks of ``block_knots`` rows: each block
     starts from the attitude and ``E`` at its first knot (a checkpoint, 3×3 + 3×P
@@ -232,8 +238,20 @@ class GyroAttitude:
 
     kind = "three_axis"
 
-    def __init__(self, mode: str, ephemeris, gyro_name: str, t_gyro, y_gyro, *, block_knots: int = BLOCK_KNOTS):
+    def __init__(
+        self,
+        mode: str,
+        ephemeris,
+        gyro_name: str,
+        t_gyro,
+        y_gyro,
+        *,
+        block_knots: int = BLOCK_KNOTS,
+        earth_rate=None,
+    ):
         self.ref = ReferenceAttitude(mode, ephemeris)
+        #: (3,) the Earth's rate in the reference (lab) frame [rad/s], or None (module docstring)
+        self.earth_rate = None if earth_rate is None else np.asarray(earth_rate, float).reshape(3)
         self.gyro = gyro_name
         t_gyro = np.asarray(t_gyro, float)
         dt = np.diff(t_gyro)
@@ -288,6 +306,11 @@ class GyroAttitude:
     def covers(self, t) -> np.ndarray:
         t = np.asarray(t, float)
         return (t >= self.knots[0]) & (t <= self.knots[-1])
+
+    def _lab(self, C, w, t, gyro=None) -> FrameAttitude:
+        """The frames in the lab's attitude, the partials at the carried one (earth_rate.py)."""
+        C_lab, w = lab_attitude(C, w, t, self.t_ref, self.earth_rate)
+        return FrameAttitude(C_lab, None, w, self.names, gyro=gyro, C_chain=C)
 
     def _gyro_params(self, values):
         return {n.split(".", 1)[1]: values[n] for n in self.param_names}
@@ -460,8 +483,7 @@ class GyroAttitude:
         assert c is not None  # blk came from _block(), after _state()
         j, g = where.j, where.g
         if g is None:  # every frame on a knot
-            w = blk.omega[where.w]
-            return FrameAttitude(blk.C[j], None, w, self.names, gyro=(c.Ma, (blk.E, j), None))
+            return self._lab(blk.C[j], blk.omega[where.w], t, (c.Ma, (blk.E, j), None))
         C = blk.C[j].copy() if isinstance(j, slice) else blk.C[j]
         w = blk.omega[where.w]
         ig, s = where.ig, where.s
@@ -469,7 +491,7 @@ class GyroAttitude:
         C[g] = _dcm(_step_quaternions(blk.omega[ig], s)) @ blk.C[ig]
         Gy, u, tau = blk.W
         Wg = _rate_partials(c, Gy[ig], u[ig], tau[ig])
-        return FrameAttitude(C, None, w, self.names, gyro=(c.Ma, (blk.E, j), (g, Wg, s)))
+        return self._lab(C, w, t, (c.Ma, (blk.E, j), (g, Wg, s)))
 
     def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
         """The attitude at times ``t`` in factored form (:class:`FrameAttitude`); without
@@ -488,7 +510,7 @@ class GyroAttitude:
                     if isinstance(where.j, slice):
                         C = C.copy()
                     C[where.g] = _dcm(_step_quaternions(blk.omega[where.ig], where.s)) @ blk.C[where.ig]
-                return FrameAttitude(C, None, blk.omega[where.w], self.names)
+                return self._lab(C, blk.omega[where.w], t)
             return self._frames_in_block(blk, t, where)
         return FrameAttitude.of(self.evaluate(values, t))
 

@@ -14,9 +14,11 @@ import numpy as np
 import pytest
 
 from gcs_core.convert import CONVERTERS, ConversionReport, convert
+from gcs_core.convert.broad import LAB_LATITUDE_DEG
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm, rotvec_to_dcm
 from gcs_core.io.importer import load_mission
+from gcs_core.units import OMEGA_EARTH
 
 RATE_HZ = 100.0
 N = 1200
@@ -75,6 +77,10 @@ def test_converts_to_a_mission_that_imports(tmp_path):
     assert any("untracked for its first 15 samples" in t for t in rep.notes)
     m = load_mission(tmp_path / "m")
     assert m.spec.ground_position_km is not None
+    # the lab's latitude (Berlin) gives the Earth's rate in ENU: no East component
+    lat = np.radians(LAB_LATITUDE_DEG)
+    earth = OMEGA_EARTH * np.array([0.0, np.cos(lat), np.sin(lat)])
+    assert m.spec.earth_rate_rad_s is not None and np.allclose(m.spec.earth_rate_rad_s, earth, rtol=0, atol=1e-15)
     assert [s.type for s in m.spec.sensors] == ["gyro", "magnetometer", "attitude_reference"]
     assert len(m.telemetry["OPT"]) == N - 15 and m.telemetry["OPT"].dropped_nan == 15
     # µT -> nT, and the noise written is the one the telemetry shows (white here)
