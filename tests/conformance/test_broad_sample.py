@@ -27,6 +27,7 @@ from repo_paths import ROOT
 
 from gcs_core.config import load_config
 from gcs_core.diagnosis.correlation import sigma_scale
+from gcs_core.filtr.gyro_bias import gyro_bias_at
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis
 
@@ -101,20 +102,20 @@ def test_magnetometer_and_field_agree_between_halves_with_honest_sigma(halves):
 
 
 @pytest.mark.xfail(
-    reason="the second half's gyro bias_x is 0.0113 rad/s against the first "
-    "half's 0.0034 (the mean at rest): 18 σ of the fit, 3.1 σ of the sandwich's "
-    "(which, conditional on the attitude, does not see the process noise the gyro "
-    "elements are fitted under); in 22.5 s the bias_x is carried with the roll "
-    "(correlation 0.58) and the drift; the whole trial's halves agree "
-    "(docs/benchmarks.md)",
+    reason="on this 45 s sample the halves' gyro bias_x at the time they meet "
+    "(gcs_core.filtr.gyro_bias.gyro_bias_at, σ with the walk) is −2.1 against "
+    "+11.5 mrad/s, 32 σ apart (the rests' mean is 3.5); with the optical "
+    "reference weighted by its long-run noise (× 3.4, × 3.9) 2.8 against 9.5 "
+    "mrad/s, still 12 σ: in 22.5 s of hand motion the second half's bias_x is "
+    "carried with its roll and drift; on the whole trials the halves agree "
+    "within 2.8 σ that way (docs/benchmarks.md, BROAD)",
     strict=False,
 )
 def test_gyro_bias_agrees_between_halves(halves):
-    """With the gyro's noise as process noise the halves agree on its bias (the batch,
-    carrying the attitude as exact, put them tens of σ apart: docs/benchmarks.md)."""
-    (_, a), (_, b) = halves
-    for axis in "xyz":
-        name = f"GYR.bias_{axis}"
-        va, vb = a.state.values()[name], b.state.values()[name]
-        z = (va - vb) / np.hypot(a.sigma[name], b.sigma[name])
-        assert abs(z) < three_sigma, (name, va, vb, z)
+    """The halves' gyro bias where they meet (``GYR.bias`` is the bias at a span's first
+    knot: the two halves' are taken 22.5 s apart), with σ carrying the walk between."""
+    (an_a, a), (an_b, b) = halves
+    ga = gyro_bias_at(an_a.problem, a, np.array([SPLIT_S]))
+    gb = gyro_bias_at(an_b.problem, b, np.array([SPLIT_S]))
+    z = (ga.b[0] - gb.b[0]) / np.hypot(ga.sigma[0], gb.sigma[0])
+    assert np.all(np.abs(z) < three_sigma), (ga.b[0], gb.b[0], z)
