@@ -215,14 +215,19 @@ def _rms(v) -> float:
 
 
 def convert(
-    source: Path, out: Path, *, span: tuple[float, float] | None = None, name: str | None = None, **_ignored
+    source: Path,
+    out: Path,
+    *,
+    span: tuple[float, float] | None = None,
+    name: str | None = None,
+    overwrite: bool = False,
 ) -> ConversionReport:
     """Convert one BROAD trial file into the mission directory ``out`` (module docstring).
 
     Parameters
     ----------
     source : the trial's ``.hdf5`` file.
-    out : the mission directory to create (must not exist, or be empty).
+    out : the mission directory to create (refused when non-empty unless ``overwrite``).
     span : optional ``(start, end)`` [s from the file's first sample]: keep only the
         samples in it (a small extract; the report says so).
     name : mission name (default ``broad-<file stem>``).
@@ -232,8 +237,10 @@ def convert(
     InputError naming the file and dataset that do not match, or the output directory.
     """
     source, out = Path(source), Path(out)
-    if out.exists() and (not out.is_dir() or any(out.iterdir())):
-        raise InputError("output directory exists and is not empty", file=out)
+    if out.exists() and not out.is_dir():
+        raise InputError("the output exists and is not a directory", file=out)
+    if out.is_dir() and any(out.iterdir()) and not overwrite:  # before the read: fail fast
+        raise InputError("the output directory is not empty (give --force to replace it)", file=out)
     data, rate, info = _read(source)
     n_all = data["imu_gyr"].shape[0]
     t = np.arange(n_all) / rate
@@ -321,7 +328,7 @@ def convert(
     )
     notes.append(f"gyro data-book bias = mean over the rest ({int(rest0.sum())} samples)")
 
-    with staged_directory(out) as tmp:  # refused above unless empty
+    with staged_directory(out, overwrite=overwrite) as tmp:
         (tmp / "telemetry").mkdir()
         (tmp / "extra").mkdir()
         rows = {}

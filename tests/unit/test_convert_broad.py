@@ -154,11 +154,20 @@ def test_a_reference_without_noise_at_rest_gets_a_floor_and_a_warning(tmp_path, 
     load_mission(tmp_path / "m")  # every noise written is > 0
 
 
-def test_refuses_a_full_output_directory(tmp_path):
+def test_refuses_a_full_output_directory_unless_forced(tmp_path):
     (tmp_path / "m").mkdir()
     (tmp_path / "m" / "x").write_text("")
+    src = _trial(tmp_path / "t.hdf5")
     with pytest.raises(InputError, match="not empty"):
-        convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m")
+        convert("broad", src, tmp_path / "m")
+    convert("broad", src, tmp_path / "m", overwrite=True)  # gcs convert --force
+    assert not (tmp_path / "m" / "x").exists()
+    assert (tmp_path / "m" / "mission.toml").is_file()
+
+
+def test_an_option_of_another_format_is_refused(tmp_path):
+    with pytest.raises(InputError, match="'tle' does not apply to the 'broad' converter"):
+        convert("broad", _trial(tmp_path / "t.hdf5"), tmp_path / "m", tle="iss.tle")
 
 
 def test_cli_convert_import_and_noise(tmp_path, capsys):
