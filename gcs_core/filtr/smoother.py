@@ -39,7 +39,8 @@ from typing import Literal
 
 import numpy as np
 
-from gcs_core.filtr.mekf import gyro_rates, sensor_window, step_quaternions
+from gcs_core.filtr.mekf import attitude_gyro_noise, gyro_rates, sensor_window, step_quaternions
+from gcs_core.filtr.readout import row_variance
 from gcs_core.filtr.results import SensorResiduals, SmoothedTrajectory
 from gcs_core.frames.rotations import dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize
 
@@ -241,13 +242,20 @@ def smoothed_residuals(
     traj : smoothed trajectory; frame_epoch : sensor -> (N,) epoch of each frame.
     values : final element values; omega_at : ``t -> (N, 3)`` body rate at final gyro values.
     edited : sensor -> (N,) frames refused by the filter's gate (or edited beforehand).
+
+    With a gyro read-out noise σ_e the rows are normalized by their marginal σ,
+    ``sqrt(σ² + σ_e² |D|²)`` (D the row's attitude partials), as the whole-span fit's are
+    (:mod:`gcs_core.filtr.readout`): the read-out error is white per epoch, so the smoothed
+    attitude cannot follow it and the residual carries it.
     """
     out = {}
     earth = getattr(problem.attitude, "earth_rate", None)  # a ground mission's (problem/earth_rate.py)
+    sig_e2 = attitude_gyro_noise(problem).sigma_e ** 2 if problem.gyro_name is not None else 0.0
     for sd in problem.sensors:
         ep = frame_epoch[sd.name]
         reached = (ep >= 0) & (ep < traj.t.size)  # frames the filter processed
         y_pred = np.full(sd.y.shape, np.nan)
+        readout = np.zeros(sd.y.shape) if sig_e2 > 0 and sd.model.attitude_kind == "three_axis" else None
         valid = np.zeros(sd.n, bool)
         for lo in range(0, sd.n, chunk):  # bounded memory on long spans
             hi = min(sd.n, lo + chunk)
@@ -260,10 +268,15 @@ def smoothed_residuals(
             pred = sd.model.predict(geom, problem.params_of(sd.name, values))
             y_pred[lo:hi] = pred.y
             valid[lo:hi] = np.asarray(pred.valid, bool)
+            if readout is not None:
+                readout[lo:hi] = row_variance(pred.d_att, sig_e2)
         r = sd.model.residual(sd.y, y_pred)
         valid &= np.all(np.isfinite(r), axis=1) & reached
         r = np.where(valid[:, None], r, np.nan)
-        out[sd.name] = SensorResiduals.of(sd, y_pred, r, valid, edited.get(sd.name))
+        res = SensorResiduals.of(sd, y_pred, r, valid, edited.get(sd.name))
+        if readout is not None:
+            res = replace(res, normalized_=r / np.sqrt(np.asarray(sd.sigma) ** 2 + readout))
+        out[sd.name] = res
     return out
 
 

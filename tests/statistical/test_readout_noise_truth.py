@@ -139,3 +139,22 @@ def test_discovery_adds_nothing_under_read_out_noise(tmp_path):
     outside = {k: round(v, 2) for k, v in hc.calibrated_z(rec).items() if abs(v) > three_sigma}
     assert not outside, outside
     assert rec["adequate"], rec["verdict"]
+
+
+def test_kalman_residuals_are_normalized_by_the_marginal_sigma(tmp_path):
+    """The Kalman method's residuals against the same marginal σ as the whole-span fit's
+    (``sqrt(σ² + σ_e²|D|²)``, :func:`gcs_core.filtr.smoother.smoothed_residuals`): on one hour
+    at σ_e = 3× the tracker noise every sensor sits at its noise under both methods (against
+    the data book's σ alone the trackers and the FSS read 2.7–3.4)."""
+    cfg = nominal_threeaxis("sun_pointing", seed=SEED, duration_s=3600.0)
+    for s in cfg.sensors:
+        if s.type == "gyro":
+            s.book["electronic"] = 3 * TRACKER_NOISE
+    mission = write_mission(cfg, tmp_path / "mission")
+    rms = {}
+    for method in ("kalman", "whole_span"):
+        res = Analysis(AnalysisConfig(mission=mission, method=method)).fit(holdout=False)
+        rms[method] = {nm: (r.rms_normalized, r.n * len(r.components)) for nm, r in res.residuals.items()}
+    for name, (k, m) in rms["kalman"].items():
+        assert abs(k - 1.0) < 4.0 / math.sqrt(2 * m) + 0.05, (name, k)
+        assert abs(k - rms["whole_span"][name][0]) < 0.05, (name, k, rms["whole_span"][name])
