@@ -158,17 +158,17 @@ def run(
     return keep, np.array(E), np.array(Ps)
 
 
-def _nees(E: np.ndarray, Ps: np.ndarray, idx: list[int]) -> float:
-    """Σ over runs of ``eᵀ P⁻¹ e`` for the rows ``idx`` (correlations included), on the
+def _nees(E: np.ndarray, Ps: np.ndarray, idx: list[int]) -> np.ndarray:
+    """Per run ``eᵀ P⁻¹ e`` for the rows ``idx`` (correlations included), on the
     correlation matrix (scale-free: the rows span 1e-9 to 1e-1)."""
-    total = 0.0
-    for e, P in zip(E, Ps):
+    out = np.empty(len(E))
+    for k, (e, P) in enumerate(zip(E, Ps)):
         ei, Pi = e[idx], P[np.ix_(idx, idx)]
         d = np.sqrt(np.diag(Pi))
         L = np.linalg.cholesky(Pi / np.outer(d, d))
         u = np.linalg.solve(L, ei / d)
-        total += float(u @ u)
-    return total
+        out[k] = float(u @ u)
+    return out
 
 
 def table(names: list[str], E: np.ndarray, Ps: np.ndarray) -> bool:
@@ -202,13 +202,21 @@ def table(names: list[str], E: np.ndarray, Ps: np.ndarray) -> bool:
         if not idx or tuple(idx) in seen:
             continue
         seen.add(tuple(idx))
-        nees = _nees(E, Ps, idx)
-        dof = N * len(idx)
+        per_run = _nees(E, Ps, idx)
+        nees, dof = float(per_run.sum()), N * len(idx)
         lo, hi = nees_band(dof, 0.95)
         p_hi = float(stats.chi2.sf(nees, dof))
         print(
             f"NEES {label} ({len(idx)} elements × {N} runs): {nees:.1f} on {dof}, 95 % band "
             f"[{lo:.1f}, {hi:.1f}], {nees / dof:.3f} per element, P(χ² ≥) = {p_hi:.3g}"
+        )
+        # the runs' own p-values: the tail (binomial p of as many under 0.05) and uniformity
+        p_run = stats.chi2.sf(per_run, len(idx))
+        n05 = int(np.sum(p_run < 0.05))
+        print(
+            f"     runs with p < 0.05: {n05} of {N} ({0.05 * N:.1f} expected, binomial P(≥) = "
+            f"{float(stats.binom.sf(n05 - 1, N, 0.05)):.3g}); p < 0.001: {int(np.sum(p_run < 1e-3))}; "
+            f"KS p {float(stats.kstest(p_run, 'uniform').pvalue):.3g}; smallest p {float(p_run.min()):.2g}"
         )
     return ok_all
 
