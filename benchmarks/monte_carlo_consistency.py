@@ -23,8 +23,9 @@ a run flags "not determined" left out), with the truth of
 :func:`honesty_cases.truth_all` in the estimator's own form (for the whole-span fit the
 gyro's ``bias_rate`` is the simulator's deterministic drift, the walk being the knots').
 The NEES is then also printed for the gyro's ``G_*`` and ``bias_rate_*`` blocks, for both
-together, and for every row checked (correlations included). Truth and headline definitions: ``tests/statistical/test_consistency_batch.py``
-(:func:`headline`) and ``tests/statistical/test_truth_recovery.py`` (:func:`truth_values`).
+together, and for every row checked (correlations included).
+
+Truth and headline definitions: ``tests/statistical/test_consistency_batch.py`` (:func:`headline`) and ``tests/statistical/test_truth_recovery.py`` (:func:`truth_values`).
 
 Usage::
 
