@@ -25,7 +25,8 @@ gyro's ``bias_rate`` is the simulator's deterministic drift, the walk being the 
 The NEES is then also printed for the gyro's ``G_*`` and ``bias_rate_*`` blocks, for both
 together, and for every row checked (correlations included).
 
-Truth and headline definitions: ``tests/statistical/test_consistency_batch.py`` (:func:`headline`) and ``tests/statistical/test_truth_recovery.py`` (:func:`truth_values`).
+Truth and headline definitions: ``tests/statistical/test_consistency_batch.py`` (:func:`headline`)
+and ``tests/statistical/test_truth_recovery.py`` (:func:`truth_values`).
 
 Usage::
 
