@@ -97,7 +97,7 @@ def one_run(seed: int, folder: Path, minutes: float, method: str, mode: str, bia
     want = [n for n in sf if n in tv and n not in names] if "all-calibrated" in extra else list(extra)
     unknown = [n for n in want if n not in sf or n not in tv]
     if unknown:
-        raise SystemExit(f"--elements: not solve-for or without a truth: {', '.join(unknown)}")
+        raise ValueError(f"--elements: not solve-for or without a truth: {', '.join(unknown)}")
     # one selection matrix for headline and extra rows (correlations across them kept)
     Th, T_h_truth = _headline_rows(a, res, truth_values(truth, a.problem, bias_form), bias_form)
     Tx = np.zeros((len(want), len(sf)))
@@ -258,9 +258,13 @@ def main() -> int:
         f"gyro bias as in the {bias_form} form, {args.processes} processes"
     )
     extra = tuple(n.strip() for n in args.elements.split(",") if n.strip())
-    names, E, Ps = run(
-        args.runs, args.minutes, args.method, args.mode, args.processes, args.first_seed, bias_form, extra
-    )
+    try:
+        names, E, Ps = run(
+            args.runs, args.minutes, args.method, args.mode, args.processes, args.first_seed, bias_form, extra
+        )
+    except ValueError as exc:  # an unknown --elements name, raised in the worker
+        print(exc, file=sys.stderr)
+        return 2
     ok = table(names, E, Ps)
     print(
         f"\n{time.perf_counter() - t0:.1f} s; predicted σ {'matches' if ok else 'does NOT match'} "
