@@ -76,7 +76,7 @@ sys.path[:0] = [str(ROOT), *(str(p) for p in sorted((ROOT / "tests").iterdir()) 
 
 from honesty_cases import truth_all
 from scipy import stats
-from test_consistency_batch import HEADLINE, headline, nees_band
+from test_consistency_batch import HEADLINE, headline, headline_rows, nees_band
 from test_truth_recovery import simulate, threeaxis, truth_values
 
 #: a predicted σ within this fraction of the Monte-Carlo σ "matches" (issue 6)
@@ -124,7 +124,7 @@ def one_run(
     if unknown:
         raise ValueError(f"--elements: not solve-for or without a truth: {', '.join(unknown)}")
     # one selection matrix for headline and extra rows (correlations across them kept)
-    Th, T_h_truth = _headline_rows(a, res, truth_values(truth, a.problem, bias_form), bias_form)
+    Th, T_h_truth = headline_rows(a, res, truth_values(truth, a.problem, bias_form), bias_form)
     Tx = np.zeros((len(want), len(sf)))
     for r, n in enumerate(want):
         Tx[r, sf.index(n)] = 1.0
@@ -135,24 +135,6 @@ def one_run(
     P = T @ res.P @ T.T
     P[:3, :3] += readout * np.eye(3)  # the attitude rows come first (HEADLINE)
     return [*names, *want], e, P, sorted(a.not_determined())
-
-
-def _headline_rows(a, res, truth: dict, bias_form: str):
-    """The selection rows and truth of :func:`headline` (same definitions)."""
-    names = list(res.solve_for)
-    T = np.zeros((len(HEADLINE), len(names)))
-    x_true = np.array([truth[n] for n in HEADLINE])
-    for r, n in enumerate(HEADLINE):
-        T[r, names.index(n)] = 1.0
-    if bias_form == "kalman" and "IRU.bias_rate_x" in names:
-        att = a.problem.attitude
-        dt = att.t_ref - 0.5 * (att.knots[0] + att.knots[-1])
-        for r, n in enumerate(HEADLINE):
-            if n.startswith("IRU.bias_"):
-                rate = n.replace("bias_", "bias_rate_")
-                T[r, names.index(rate)] = dt
-                x_true[r] = truth[n] + dt * truth[rate]
-    return T, x_true
 
 
 def _worker(job):

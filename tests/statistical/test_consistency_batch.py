@@ -66,15 +66,11 @@ HEADLINE = (
 )
 
 
-def headline(analysis, result, truth: dict, method: str = "batch"):
-    """Headline quantities of one fit: (names, error (k,), covariance (k, k)).
-
-    ``e = T x̂ − (T x)_true`` with ``T`` selecting :data:`HEADLINE`. With the Kalman smoother
-    the gyro-bias headline is the total bias at ``t_ref``, ``bias + bias_rate (t_ref − t_mid)``
-    (the random-walk part and the linear drift are not separately meaningful there), against
-    the simulator's bias at ``t_ref``.
-    """
-    names = result.solve_for
+def headline_rows(analysis, result, truth: dict, method: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(T, (T x)_true)``: the rows selecting :data:`HEADLINE` from the solve-for vector and
+    their truth (:func:`headline`; with the Kalman smoother's bias form the gyro-bias rows
+    are the total bias at ``t_ref``)."""
+    names = list(result.solve_for)
     T = np.zeros((len(HEADLINE), len(names)))
     x_true = np.array([truth[n] for n in HEADLINE])
     for r, n in enumerate(HEADLINE):
@@ -87,6 +83,18 @@ def headline(analysis, result, truth: dict, method: str = "batch"):
                 rate = n.replace("bias_", "bias_rate_")
                 T[r, names.index(rate)] = dt
                 x_true[r] = truth[n] + dt * truth[rate]
+    return T, x_true
+
+
+def headline(analysis, result, truth: dict, method: str = "batch"):
+    """Headline quantities of one fit: (names, error (k,), covariance (k, k)).
+
+    ``e = T x̂ − (T x)_true`` with ``T`` selecting :data:`HEADLINE`. With the Kalman smoother
+    the gyro-bias headline is the total bias at ``t_ref``, ``bias + bias_rate (t_ref − t_mid)``
+    (the random-walk part and the linear drift are not separately meaningful there), against
+    the simulator's bias at ``t_ref``.
+    """
+    T, x_true = headline_rows(analysis, result, truth, method)
     e = T @ result.x - x_true
     e[:3] = (e[:3] + np.pi) % (2 * np.pi) - np.pi
     return HEADLINE, e, T @ result.P @ T.T
