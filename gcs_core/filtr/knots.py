@@ -424,13 +424,13 @@ class KnotSystem:
     @staticmethod
     def back_substitute(factors, dx: np.ndarray) -> np.ndarray:
         """(K, d) knot steps given the static step (``δz_0 = 0``)."""
-        Sinv, Bh, O = factors
+        Sinv, Bh, O = (np.ascontiguousarray(a) for a in factors)
         return _backward(Sinv, Bh, O, np.ascontiguousarray(dx))
 
     @staticmethod
     def covariance(factors, P: np.ndarray):
         """Marginal covariance of each knot (K, d, d) and with the statics (K, d, p)."""
-        Sinv, Bh, O = factors
+        Sinv, Bh, O = (np.ascontiguousarray(a) for a in factors)
         return _cov_backward(Sinv, Bh, O, np.ascontiguousarray(P))
 
 
@@ -491,7 +491,7 @@ def _backward(Sinv, Bh, O, dx):
     p = dx.shape[0]
     dz = np.zeros((K, d))
     for j in range(K - 1, 0, -1):
-        rhs = Bh[j][:, p] - Bh[j][:, :p] @ dx
+        rhs = Bh[j][:, p] - np.ascontiguousarray(Bh[j][:, :p]) @ dx
         if j < K - 1:
             rhs = rhs - O[j] @ dz[j + 1]
         dz[j] = Sinv[j] @ rhs
@@ -507,7 +507,7 @@ def _cov_backward(Sinv, Bh, O, P):
     Sig = np.zeros((K, d, d))
     X = np.zeros((K, d, p))
     for j in range(K - 1, 0, -1):
-        Bx = Bh[j][:, :p]
+        Bx = np.ascontiguousarray(Bh[j][:, :p])
         if j < K - 1:
             # L Cov(f) with f = (z_{j+1}, x), L = −S⁻¹ [O_j, B̂_j]
             LC_z = -(Sinv[j] @ (O[j] @ Sig[j + 1] + Bx @ X[j + 1].T))
