@@ -48,6 +48,12 @@ Usage::
 
 Exits with status 1 when a ratio is outside 15 %.
 
+Runs on the same seeds are not independent samples: the simulator seeds each sensor's noise
+by seed and name only, so seed ``s`` draws the same TAM and IRU noise in every mode, and a
+longer mission's first hours are the shorter one's (the attitude headline, at the first
+knot, is pinned by them). To pool modes or spans, give each its own ``--first-seed``
+(docs/benchmarks.md, "Predicted σ against Monte-Carlo scatter").
+
 References
 ----------
 Bar-Shalom, Li & Kirubarajan, *Estimation with Applications to Tracking and Navigation*,
