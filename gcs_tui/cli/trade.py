@@ -27,6 +27,18 @@ def _out(text: str = "") -> None:
     sys.stdout.write(text + "\n")
 
 
+def _engine_options(args) -> dict:
+    """The execution options ``run_study`` and ``run_montecarlo`` both take, from the
+    command line (workers, scheduler, resume, overwrite, batch)."""
+    return {
+        "workers": args.workers or None,
+        "scheduler": args.scheduler,
+        "resume": args.resume,
+        "overwrite": args.overwrite,
+        "batch": args.batch,
+    }
+
+
 def _progress(task, what: str):
     """A (done, total) callback: the bar every time, a plain line every 10 %."""
     state = {"tenth": -1}
@@ -137,11 +149,7 @@ def cmd_trade(args, prog) -> int:
             rows = run_study(
                 defn,
                 output,
-                workers=args.workers or None,
-                scheduler=args.scheduler,
-                resume=args.resume,
-                overwrite=args.overwrite,
-                batch=args.batch,
+                **_engine_options(args),
                 progress=_progress(task, "plans"),
             )
     except KeyboardInterrupt:
@@ -242,11 +250,7 @@ def cmd_montecarlo(args, prog) -> int:
             result = run_montecarlo(
                 spec,
                 output,
-                workers=args.workers or None,
-                scheduler=args.scheduler,
-                resume=args.resume,
-                overwrite=args.overwrite,
-                batch=args.batch,
+                **_engine_options(args),
                 progress=_progress(task, "runs"),
             )
     except KeyboardInterrupt:
