@@ -383,21 +383,8 @@ def convert(
         )
         mname = name or f"broad-{source.stem}"
         n_flag = (int((m_flag == 2).sum()), int((m_flag == 3).sum()))
-        toml = mission_toml(
-            mname,
-            source,
-            bias0,
-            arw,
-            rrw,
-            m_line,
-            o_line,
-            s_mag,
-            s_opt,
-            s_gyr,
-            rest0.sum(),
-            (int((m_flag == 2).sum()), int((m_flag == 3).sum())),
-            _SITE,
-        )
+        args = (bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s_gyr, rest0.sum(), n_flag, _SITE)
+        toml = mission_toml(mname, source, *args)
         (tmp / "mission.toml").write_text(toml, encoding="utf-8")
         (tmp / "SOURCE.md").write_text(
             source_md(source, info, rate, n_all, span, keep, transients, warnings, holds, _SITE), encoding="utf-8"
