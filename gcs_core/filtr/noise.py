@@ -187,8 +187,11 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
 
     A sample equal to the one before in every component is a held value (a sensor
     read more often than it updates), not a new measurement, and is skipped. On
-    irregularly spaced samples (held repeats flagged and left out by the import) only
-    triples one median interval apart are differenced: the spread of the samples used.
+    irregularly spaced samples (held repeats flagged and left out by the import) the
+    second difference of each triple is that of unequal intervals ``h1, h2`` (exact for
+    a straight line), ``(y2 − y1)/h2 − (y1 − y0)/h1``, divided by its σ for unit white
+    noise, ``sqrt(1/h1² + (1/h1 + 1/h2)² + 1/h2²)``: the spread of the samples used.
+    Triples across an interval over :data:`HOLE_FACTOR` median intervals are left out.
 
     Parameters
     ----------
@@ -204,11 +207,18 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
     if y.shape[0] > 1:
         fresh = np.concatenate([[True], np.any(np.diff(y, axis=0) != 0.0, axis=1)])
         t, y = t[fresh], y[fresh]
-    d, ok = _increments(t, y, quaternion)
-    dd = np.diff(d, axis=0)[ok[1:] & ok[:-1]]
+    d, _ = _increments(t, y, quaternion)
+    h = np.diff(t)
+    ok = (h > 0) & (h < HOLE_FACTOR * sample_interval(t))
+    both = ok[1:] & ok[:-1]
+    h1, h2 = h[:-1][both], h[1:][both]
+    # the second difference of unequally spaced samples, (y2−y1)/h2 − (y1−y0)/h1, and its σ
+    # for white noise of σ 1: sqrt(1/h1² + (1/h1 + 1/h2)² + 1/h2²) (√6/h when regular)
+    dd = d[1:][both] / h2[:, None] - d[:-1][both] / h1[:, None]
+    scale = np.sqrt(1.0 / h1**2 + (1.0 / h1 + 1.0 / h2) ** 2 + 1.0 / h2**2)
     if dd.shape[0] < 10:
         raise InputError(f"only {dd.shape[0]} runs of three consecutive samples: too few to measure the noise")
-    return _clipped_std(dd) / np.sqrt(6.0)
+    return _clipped_std(dd / scale[:, None])
 
 
 def white_level(curve: AllanCurve, dt: float) -> tuple[float, float, bool]:
