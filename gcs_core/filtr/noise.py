@@ -362,6 +362,8 @@ class SensorNoise:
     curves : one :class:`AllanCurve` per component.
     gyro : per-axis :class:`GyroTerms` (gyros only), else ().
     stated : the data book's noise figure per sample (None if it gives none).
+    mean_dt : mean interval of the samples used [s] (:func:`mean_interval`; above ``dt``
+        when they are irregularly spaced): ``line`` is per sample used at this interval.
     """
 
     name: str
@@ -375,6 +377,7 @@ class SensorNoise:
     curves: tuple[AllanCurve, ...]
     gyro: tuple[GyroTerms, ...]
     stated: float | None
+    mean_dt: float = float("nan")
 
 
 #: telemetry columns per sensor type whose noise is measured here, and their unit
@@ -420,8 +423,9 @@ def sensor_noise(
     comps = ("x", "y", "z") if quat else cols
     gyro = tuple(gyro_terms(c) for c in curves) if stype == "gyro" else ()
     dt = sample_interval(t)
-    line = np.array([white_level(c, mean_interval(t))[0] for c in curves])  # per sample used
-    return SensorNoise(name, stype, comps, unit, dt, int(t.size), white, line, curves, gyro, stated)
+    mean_dt = mean_interval(t)
+    line = np.array([white_level(c, mean_dt)[0] for c in curves])  # per sample used
+    return SensorNoise(name, stype, comps, unit, dt, int(t.size), white, line, curves, gyro, stated, mean_dt)
 
 
 def mission_noise(mission, *, start: float | None = None, end: float | None = None) -> list[SensorNoise]:
@@ -453,7 +457,11 @@ def noise_lines(results: list[SensorNoise]) -> list[str]:
         stated = "none" if r.stated is None else _fmt(r.stated)
         rms = float(np.sqrt(np.mean(r.white**2)))
         white_unit = r.unit
-        out.append(f"{r.name} ({r.type}), {r.n} samples every {r.dt:.6g} s")
+        irregular = np.isfinite(r.mean_dt) and abs(r.mean_dt / r.dt - 1.0) > 0.05
+        out.append(
+            f"{r.name} ({r.type}), {r.n} samples every {r.dt:.6g} s"
+            + (f" (median; {r.mean_dt:.6g} s on average: irregular, σ per sample used)" if irregular else "")
+        )
         lr = float(np.sqrt(np.mean(r.line**2)))
         out.append(
             f"  per-sample spread [{white_unit}] (second differences): "
