@@ -34,6 +34,19 @@ from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis
 
 
+def line(label, m, residual, unit, speed, sigma) -> None:
+    """One row: the residual's RMS over the samples ``m``, normalized, and the time-tag
+    error δt [ms] that best explains its component along the direction the field turns."""
+    rr = residual[m]
+    rms = np.sqrt(np.mean(rr**2, axis=0))
+    along = np.einsum("ij,ij->i", rr, unit[m])
+    dt_ms = 1e3 * np.sum(along * speed[m]) / np.sum(speed[m] ** 2)  # least squares
+    print(
+        f"  {label:<28} n {int(m.sum()):6d}  RMS [nT] {np.array2string(rms, precision=0)}"
+        f"  normalized {np.sqrt(np.mean(rr**2)) / sigma:.3f}  along ω×B: δt {dt_ms:+.2f} ms"
+    )
+
+
 def main() -> int:
     root = Path(sys.argv[1]) if len(sys.argv) > 1 else Path(__file__).resolve().parents[2] / "shared/real/broad"
     trials = sys.argv[2].split(",") if len(sys.argv) > 2 and sys.argv[2] else TRIALS[:2]
@@ -67,21 +80,13 @@ def main() -> int:
             unit = turn / np.maximum(speed, 1e-9)[:, None]
             print(f"{trial}: fitted in {time.perf_counter() - t0:.0f} s ({res.status}); noise {sigma:.0f} nT")
 
-            def line(label, m):
-                m = m & used
-                rr = r.residual[m]
-                rms = np.sqrt(np.mean(rr**2, axis=0))
-                along = np.einsum("ij,ij->i", rr, unit[m])
-                dt_ms = 1e3 * np.sum(along * speed[m]) / np.sum(speed[m] ** 2)  # least-squares δt
-                print(
-                    f"  {label:<28} n {int(m.sum()):6d}  RMS [nT] {np.array2string(rms, precision=0)}"
-                    f"  normalized {np.sqrt(np.mean(rr**2)) / sigma:.3f}  along ω×B: δt {dt_ms:+.2f} ms"
-                )
-
-            line("at rest", ~moving)
-            line("in motion", moving)
-            line("in motion, after 2 intervals", moving & (gap == 2))
-            line("in motion, after 4 intervals", moving & (gap == 4))
+            for label, m in (
+                ("at rest", ~moving),
+                ("in motion", moving),
+                ("in motion, after 2 intervals", moving & (gap == 2)),
+                ("in motion, after 4 intervals", moving & (gap == 4)),
+            ):
+                line(label, m & used, r.residual, unit, speed, sigma)
             v = res.state.values()
             print(
                 f"  MAG.time_offset {1e3 * v['MAG.time_offset']:.2f} ± {1e3 * res.sigma['MAG.time_offset']:.2f} ms,"
