@@ -48,16 +48,18 @@ drops and counts them), and a start-up transient (samples in the first
 :data:`TRANSIENT_Z`) is flagged in the report, never cut. ``span`` keeps only the
 samples of a time window (explicit, for a small extract).
 
-**Held repeats** (``flag = 2``, :mod:`gcs_core.convert.holds`). The bus reads every
-sensor at ``sampling_rate`` (285.7 Hz); the magnetometer updates more slowly (≈ 203 Hz,
-in bursts), so 29 % of ``imu_mag`` samples repeat the one before exactly on all three
-axes, at rest and in motion alike (values read once or three times, rarely five): with
-75-nT steps against ≈ 700 nT of noise, chance gives ~3·10⁻⁵. A held value is the earlier
-measurement under a later stamp (residual ``(ω × B)·age``, one noise draw counted twice):
-written with ``flag = 2``, kept, not used; the report gives the count, the run lengths and
-their mean age. The gyro's repeats (0.2–0.5 %, at rest only) are its quantization and stay.
-The noise figures are those of the samples used (the white-noise line per sample used of
-the irregularly spaced distinct samples, :func:`gcs_core.filtr.noise.allan_deviation`).
+**Held repeats and interpolated samples** (``flag`` 2 and 3, :mod:`gcs_core.convert.holds`).
+The bus reads every sensor at ``sampling_rate`` (285.7 Hz); the magnetometer measures at
+≈ 101 Hz, and in every trial 29 % of the ``imu_mag`` samples repeat the one before exactly
+on all three axes (held: a value read once or three times, rarely five) and 35.5 % are
+exactly the mean of their two neighbours (interpolated), at rest and in motion alike: with
+75-nT steps against ≈ 770 nT of noise, chance gives about one of either per trial. A held
+value is the earlier measurement under a later stamp (residual ``(ω × B)·age``, one noise
+draw counted twice), an interpolated one no measurement: both are written with their flag,
+kept, not used; the report gives their counts, the run lengths and the held values' mean
+age. The gyro's exact repeats (0.2–0.6 %, at rest only) are its quantization and stay. The
+noise figures are those of the samples used (the white-noise line per sample used of the
+irregularly spaced measurements, :func:`gcs_core.filtr.noise.allan_deviation`).
 """
 
 from __future__ import annotations
