@@ -190,8 +190,10 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
     irregularly spaced samples (held repeats flagged and left out by the import) the
     second difference of each triple is that of unequal intervals ``h1, h2`` (exact for
     a straight line), ``(y2 − y1)/h2 − (y1 − y0)/h1``, divided by its σ for unit white
-    noise, ``sqrt(1/h1² + (1/h1 + 1/h2)² + 1/h2²)``: the spread of the samples used.
-    Triples across an interval over :data:`HOLE_FACTOR` median intervals are left out.
+    noise, ``sqrt(1/h1² + (1/h1 + 1/h2)² + 1/h2²)``: the spread of the samples used. The
+    intervals are taken in whole median intervals (the ticks of the bus that read the
+    sensor; on regular samples this is ``Δ²y/√6``); triples across an interval over
+    :data:`HOLE_FACTOR` median intervals are left out.
 
     Parameters
     ----------
@@ -204,12 +206,16 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
     """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
+    fresh = np.ones(y.shape[0], dtype=bool)
     if y.shape[0] > 1:
-        fresh = np.concatenate([[True], np.any(np.diff(y, axis=0) != 0.0, axis=1)])
-        t, y = t[fresh], y[fresh]
+        fresh[1:] = np.any(np.diff(y, axis=0) != 0.0, axis=1)
+    kept = np.flatnonzero(fresh)
+    t, y = t[fresh], y[fresh]
     d, _ = _increments(t, y, quaternion)
-    h = np.diff(t)
-    ok = (h > 0) & (h < HOLE_FACTOR * sample_interval(t))
+    dt = sample_interval(t)
+    h = np.rint(np.diff(t) / dt) * dt  # on the grid of the median interval (a bus's ticks)
+    # unequal intervals as given, not made here by skipping a repeat
+    ok = (h > 0) & (h < HOLE_FACTOR * dt) & ((np.diff(kept) == 1) | np.isclose(h, dt))
     both = ok[1:] & ok[:-1]
     h1, h2 = h[:-1][both], h[1:][both]
     # the second difference of unequally spaced samples, (y2−y1)/h2 − (y1−y0)/h1, and its σ
