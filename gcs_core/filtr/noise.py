@@ -18,6 +18,16 @@ only as meaningful as the σ they are divided by. This module measures the noise
       σ²(τ) = Σ_{k=0}^{N−2m} (θ_{k+2m} − 2 θ_{k+m} + θ_k)² / (2 τ² (N − 2m))
 
   For white noise of per-sample σ, ``σ(τ0) = σ`` and ``σ(τ) = σ sqrt(τ0/τ)``.
+  *Irregularly spaced samples* (a sensor's held repeats flagged and left out, short
+  dropouts) are placed on the grid of their median interval τ0 with empty slots; the
+  cluster averages ``ȳ`` are the means of the samples inside each window of τ, and
+  ``σ²(τ) = ½ ⟨(ȳ_{k+m} − ȳ_k)²⟩ · τ̄/(τ h̄)`` over the pairs of non-empty windows, with
+  ``h̄ = ⟨½(1/n_k + 1/n_{k+m})⟩`` (n the samples in a window) and τ̄ the mean interval
+  of the samples used: white noise of per-sample σ then gives ``σ sqrt(τ̄/τ)`` at
+  every τ, so the white-noise line (:func:`white_level` with ``dt =``
+  :func:`mean_interval`) is the σ *per sample used*. On regular samples ``h̄ = τ0/τ``,
+  ``τ̄ = τ0``, and this is Eq C.2 exactly. Only an interval longer than
+  :data:`HOLE_FACTOR` τ0 breaks the run.
 * :func:`gyro_terms` — the angle random walk N (the −1/2 slope, read at τ = 1 s), the
   rate random walk K (the +1/2 slope, read at τ = 3 s) and the bias instability
   B (the flat minimum / 0.664), IEEE Std 952-1997 Annex C, Table C.2 / Fig C.2. N is
@@ -65,6 +75,9 @@ MAD_TO_SIGMA = 1.4826
 CLIP_SIGMA = 5.0
 #: sample pairs further apart than this multiple of the median interval are a gap
 GAP_FACTOR = 1.5
+#: intervals up to this multiple of the median are holes within one run of the Allan
+#: deviation (held repeats left out, short dropouts); longer ones break it
+HOLE_FACTOR = 8.0
 #: the Allan curve stops when fewer than this many independent clusters remain
 MIN_CLUSTERS = 4
 #: bias instability from the flat minimum: σ_min = sqrt(2 ln 2 / π) B ≈ 0.664 B (IEEE 952 C.2)
@@ -173,7 +186,14 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
     """1-σ noise per sample and component from second differences (module docstring).
 
     A sample equal to the one before in every component is a held value (a sensor
-    read more often than it updates), not a new measurement, and is skipped.
+    read more often than it updates), not a new measurement, and is skipped. On
+    irregularly spaced samples (held repeats flagged and left out by the import) the
+    second difference of each triple is that of unequal intervals ``h1, h2`` (exact for
+    a straight line), ``(y2 − y1)/h2 − (y1 − y0)/h1``, divided by its σ for unit white
+    noise, ``sqrt(1/h1² + (1/h1 + 1/h2)² + 1/h2²)``: the spread of the samples used. The
+    intervals are taken in whole median intervals (the ticks of the bus that read the
+    sensor; on regular samples this is ``Δ²y/√6``); triples across an interval over
+    :data:`HOLE_FACTOR` median intervals are left out.
 
     Parameters
     ----------
@@ -186,14 +206,25 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
     """
     t = np.asarray(t, dtype=float)
     y = np.asarray(y, dtype=float)
+    fresh = np.ones(y.shape[0], dtype=bool)
     if y.shape[0] > 1:
-        fresh = np.concatenate([[True], np.any(np.diff(y, axis=0) != 0.0, axis=1)])
-        t, y = t[fresh], y[fresh]
-    d, ok = _increments(t, y, quaternion)
-    dd = np.diff(d, axis=0)[ok[1:] & ok[:-1]]
+        fresh[1:] = np.any(np.diff(y, axis=0) != 0.0, axis=1)
+    kept = np.flatnonzero(fresh)
+    t, y = t[fresh], y[fresh]
+    d, _ = _increments(t, y, quaternion)
+    dt = sample_interval(t)
+    h = np.rint(np.diff(t) / dt) * dt  # on the grid of the median interval (a bus's ticks)
+    # unequal intervals as given, not made here by skipping a repeat
+    ok = (h > 0) & (h < HOLE_FACTOR * dt) & ((np.diff(kept) == 1) | np.isclose(h, dt))
+    both = ok[1:] & ok[:-1]
+    h1, h2 = h[:-1][both], h[1:][both]
+    # the second difference of unequally spaced samples, (y2−y1)/h2 − (y1−y0)/h1, and its σ
+    # for white noise of σ 1: sqrt(1/h1² + (1/h1 + 1/h2)² + 1/h2²) (√6/h when regular)
+    dd = d[1:][both] / h2[:, None] - d[:-1][both] / h1[:, None]
+    scale = np.sqrt(1.0 / h1**2 + (1.0 / h1 + 1.0 / h2) ** 2 + 1.0 / h2**2)
     if dd.shape[0] < 10:
         raise InputError(f"only {dd.shape[0]} runs of three consecutive samples: too few to measure the noise")
-    return _clipped_std(dd) / np.sqrt(6.0)
+    return _clipped_std(dd / scale[:, None])
 
 
 def white_level(curve: AllanCurve, dt: float) -> tuple[float, float, bool]:
@@ -226,50 +257,78 @@ def small_angles(q: np.ndarray) -> np.ndarray:
     return dcm_to_rotvec(C @ Cbar.T)
 
 
+def _runs(t: np.ndarray, dt: float) -> tuple[int, int]:
+    """``(lo, hi)`` of the longest run of ``t`` without an interval over HOLE_FACTOR·dt."""
+    breaks = np.flatnonzero(np.diff(t) >= HOLE_FACTOR * dt)
+    starts = np.concatenate([[0], breaks + 1])
+    ends = np.concatenate([breaks + 1, [t.size]])
+    k = int(np.argmax(ends - starts))
+    return int(starts[k]), int(ends[k])
+
+
+def mean_interval(t: np.ndarray) -> float:
+    """Mean interval [s] between the samples used, over the run :func:`allan_deviation`
+    takes: the ``dt`` that makes :func:`white_level` a σ per sample used (equal to
+    :func:`sample_interval` on regular samples)."""
+    t = np.asarray(t, dtype=float)
+    lo, hi = _runs(t, sample_interval(t))
+    return float((t[hi - 1] - t[lo]) / max(hi - lo - 1, 1))
+
+
 def allan_deviation(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> list[AllanCurve]:
     """Overlapping Allan deviation per component at octave τ (module docstring).
 
-    The samples are taken on their median interval τ0 over the longest run without a
-    gap. For a quaternion sensor the samples are its small angles from the mean attitude
-    (:func:`small_angles`, rad). A curve of a sensor's values (not of a rate integrated
-    by the sensor) says something about its noise over a still span only.
+    The samples are placed on the grid of their median interval τ0 over the longest run
+    without an interval over :data:`HOLE_FACTOR` τ0; missing slots (held repeats left
+    out) are empty, and the curve is normalized so that white noise gives
+    ``σ sqrt(τ̄/τ)``, τ̄ the mean interval (module docstring). For a quaternion sensor the
+    samples are its small angles from the mean attitude (:func:`small_angles`, rad). A
+    curve of a sensor's values (not of a rate integrated by the sensor) says something
+    about its noise over a still span only.
 
     Returns one :class:`AllanCurve` per component.
     """
     t = np.asarray(t, dtype=float)
     dt = sample_interval(t)
-    ok = _consecutive(t, dt)
-    # the longest run without a gap
-    breaks = np.flatnonzero(~ok)
-    starts = np.concatenate([[0], breaks + 1])
-    ends = np.concatenate([breaks + 1, [t.size]])
-    k = int(np.argmax(ends - starts))
-    lo, hi = int(starts[k]), int(ends[k])
+    lo, hi = _runs(t, dt)
     if quaternion:
-        rate = small_angles(np.asarray(y)[lo:hi])
+        vals = small_angles(np.asarray(y)[lo:hi])
     else:
-        rate = np.asarray(y, dtype=float)[lo:hi]
-    n = rate.shape[0]
+        vals = np.asarray(y, dtype=float)[lo:hi]
+    n = vals.shape[0]
     if n < 2 * MIN_CLUSTERS:
         raise InputError(f"{n} consecutive samples: too few for an Allan deviation")
-    theta = np.vstack([np.zeros((1, rate.shape[1])), np.cumsum(rate, axis=0) * dt])  # (n+1, m)
+    tt = t[lo:hi]
+    slot = np.rint((tt - tt[0]) / dt).astype(np.int64)
+    span = int(slot[-1]) + 1  # grid slots, filled or empty
+    tau_bar = float((tt[-1] - tt[0]) / (n - 1)) if n > 1 else dt
+    sums = np.zeros((span + 1, vals.shape[1]))
+    np.add.at(sums, slot + 1, vals)
+    sums = np.cumsum(sums, axis=0)
+    counts = np.zeros(span + 1)
+    np.add.at(counts, slot + 1, 1.0)
+    counts = np.cumsum(counts)
     ms = []
     m = 1
-    while n // m >= 2 * MIN_CLUSTERS:
+    while span // m >= 2 * MIN_CLUSTERS:
         ms.append(m)
         m *= 2
-    curves = []
-    for c in range(rate.shape[1]):
-        th = theta[:, c]
-        taus, adevs, counts = [], [], []
-        for m in ms:
-            tau = m * dt
-            d2 = th[2 * m :] - 2.0 * th[m:-m] + th[: -2 * m]
-            taus.append(tau)
-            adevs.append(np.sqrt(np.mean(d2 * d2) / (2.0 * tau * tau)))
-            counts.append(d2.size)
-        curves.append(AllanCurve(np.array(taus), np.array(adevs), np.array(counts)))
-    return curves
+    taus, avars, pairs = [], [], []
+    for m in ms:
+        c = counts[m:] - counts[:-m]  # samples in the window starting at each slot
+        s = sums[m:] - sums[:-m]
+        c1, c2, s1, s2 = c[:-m], c[m:], s[:-m], s[m:]
+        good = (c1 > 0) & (c2 > 0)
+        if not good.any():
+            break
+        d = s2[good] / c2[good, None] - s1[good] / c1[good, None]
+        h = float(np.mean(0.5 * (1.0 / c1[good] + 1.0 / c2[good])))
+        tau = m * dt
+        taus.append(tau)
+        avars.append(0.5 * np.mean(d * d, axis=0) * tau_bar / (tau * h))
+        pairs.append(int(good.sum()))
+    av = np.array(avars)
+    return [AllanCurve(np.array(taus), np.sqrt(av[:, c]), np.array(pairs)) for c in range(vals.shape[1])]
 
 
 def gyro_terms(curve: AllanCurve) -> GyroTerms:
@@ -309,6 +368,8 @@ class SensorNoise:
     curves : one :class:`AllanCurve` per component.
     gyro : per-axis :class:`GyroTerms` (gyros only), else ().
     stated : the data book's noise figure per sample (None if it gives none).
+    mean_dt : mean interval of the samples used [s] (:func:`mean_interval`; above ``dt``
+        when they are irregularly spaced): ``line`` is per sample used at this interval.
     """
 
     name: str
@@ -322,6 +383,7 @@ class SensorNoise:
     curves: tuple[AllanCurve, ...]
     gyro: tuple[GyroTerms, ...]
     stated: float | None
+    mean_dt: float = float("nan")
 
 
 #: telemetry columns per sensor type whose noise is measured here, and their unit
@@ -367,8 +429,9 @@ def sensor_noise(
     comps = ("x", "y", "z") if quat else cols
     gyro = tuple(gyro_terms(c) for c in curves) if stype == "gyro" else ()
     dt = sample_interval(t)
-    line = np.array([white_level(c, dt)[0] for c in curves])
-    return SensorNoise(name, stype, comps, unit, dt, int(t.size), white, line, curves, gyro, stated)
+    mean_dt = mean_interval(t)
+    line = np.array([white_level(c, mean_dt)[0] for c in curves])  # per sample used
+    return SensorNoise(name, stype, comps, unit, dt, int(t.size), white, line, curves, gyro, stated, mean_dt)
 
 
 def mission_noise(mission, *, start: float | None = None, end: float | None = None) -> list[SensorNoise]:
@@ -400,7 +463,11 @@ def noise_lines(results: list[SensorNoise]) -> list[str]:
         stated = "none" if r.stated is None else _fmt(r.stated)
         rms = float(np.sqrt(np.mean(r.white**2)))
         white_unit = r.unit
-        out.append(f"{r.name} ({r.type}), {r.n} samples every {r.dt:.6g} s")
+        irregular = np.isfinite(r.mean_dt) and abs(r.mean_dt / r.dt - 1.0) > 0.05
+        out.append(
+            f"{r.name} ({r.type}), {r.n} samples every {r.dt:.6g} s"
+            + (f" (median; {r.mean_dt:.6g} s on average: irregular, σ per sample used)" if irregular else "")
+        )
         lr = float(np.sqrt(np.mean(r.line**2)))
         out.append(
             f"  per-sample spread [{white_unit}] (second differences): "

@@ -28,7 +28,28 @@ OPT_NOISE = 1e-4  # rad per axis
 one_percent = 0.01
 
 
-def _trial(path, *, drop=None, rate=RATE_HZ, bad_quat=False):
+#: BROAD's magnetometer on the bus, one period: N a new sample, m the mean of its
+#: neighbours, h the sample before read again (docs of gcs_core.convert.holds)
+BUS_PATTERN = "NmNhhm"
+
+
+def _bus(y):
+    """The magnetometer as BROAD's bus delivers it (:data:`BUS_PATTERN`): held repeats and
+    interpolated midpoints; returns the samples and the pattern letter of each."""
+    out = np.array(y, dtype=float)
+    kind = np.array([BUS_PATTERN[k % len(BUS_PATTERN)] for k in range(len(out))])
+    for k in range(1, len(out)):
+        if kind[k] == "h":
+            out[k] = out[k - 1]
+    for k in range(1, len(out) - 1):
+        if kind[k] == "m":
+            out[k] = 0.5 * (out[k - 1] + out[k + 1])
+    if kind[-1] == "m":
+        kind[-1] = "N"
+    return out, kind
+
+
+def _trial(path, *, drop=None, rate=RATE_HZ, bad_quat=False, bus=False, gyro_step=None):
     rng = np.random.default_rng(7)
     t = np.arange(N) / rate
     moving = t > 6.0
@@ -44,7 +65,11 @@ def _trial(path, *, drop=None, rate=RATE_HZ, bad_quat=False):
         q[100] *= 2.0
     B_enu = np.array([0.5, 17.0, -45.0])
     mag = np.einsum("nij,j->ni", C, B_enu) + rng.normal(scale=MAG_NOISE_UT, size=(N, 3))
+    if bus:
+        mag = _bus(mag)[0]
     gyr = omega + 0.003 + rng.normal(scale=GYRO_NOISE, size=(N, 3))
+    if gyro_step:  # quantized: exact repeats at rest by chance
+        gyr = np.round(gyr / gyro_step) * gyro_step
     pos = np.array([0.1, -0.4, 1.5]) + 0.2 * rng.normal(size=(N, 3))
     pos[:15] = np.nan  # untracked start
     data = {
@@ -189,3 +214,35 @@ def test_cli_convert_import_and_noise(tmp_path, capsys):
     assert main(["-q", "convert", "broad", str(tmp_path / "bad.hdf5"), "--out", str(tmp_path / "n")]) == EXIT_INPUT
     err = capsys.readouterr().err
     assert "bad.hdf5" in err and "Traceback" not in err and len(err.strip().splitlines()) == 1
+
+
+def test_held_repeats_and_interpolated_samples_are_flagged_and_counted(tmp_path):
+    """The magnetometer read by a faster bus (BROAD's pattern): each held repeat written
+    with flag 2, each interpolated midpoint with flag 3, every sample kept, the import
+    leaves them out, the report counts them with the run lengths; the noise written is
+    that of the samples used. A gyro quantized coarser than its noise repeats by chance
+    at rest: counted, not flagged."""
+    step = 1.5 * GYRO_NOISE
+    src = _trial(tmp_path / "t.hdf5", bus=True, gyro_step=step)
+    rep = convert("broad", src, tmp_path / "m")
+    _, kind = _bus(np.zeros((N, 3)))
+    n_h, n_m = int((kind == "h").sum()), int((kind == "m").sum())
+    text = (tmp_path / "m/telemetry/MAG.csv").read_text().splitlines()
+    assert text[0].startswith("# flag 2 = held repeat") and text[1] == "t,bx,by,bz,flag"
+    flags = np.array([int(ln.rsplit(",", 1)[1]) for ln in text[2:]])
+    assert flags.size == N  # every sample kept
+    assert np.array_equal(flags == 2, kind == "h") and np.array_equal(flags == 3, kind == "m")
+    lines = [x for x in rep.notes if x.startswith("repeats: magnetometer")]
+    assert any(f"{n_h} of {N} samples" in x and "flagged (flag = 2)" in x for x in lines)
+    assert any(f"{n_m} of {N} samples" in x and "flagged (flag = 3)" in x for x in lines)
+    assert any("1× 600, 3× 200" in x for x in lines)  # the run lengths per NmNhhm: 1, 1, 3, 1
+    gyro = [x for x in rep.notes if x.startswith("repeats: gyro") and "repeat the sample" in x]
+    assert gyro and "quantization, kept" in gyro[0] and not gyro[0].startswith("repeats: gyro: 0 of")
+    assert (tmp_path / "m/telemetry/GYR.csv").read_text().startswith("t,wx,wy,wz\n")  # no flag column
+    toml = (tmp_path / "m/mission.toml").read_text()
+    assert f"{n_h} held repeats (flag = 2), {n_m} interpolated (flag = 3)" in toml
+    assert "held repeat" in (tmp_path / "m/SOURCE.md").read_text()
+    m = load_mission(tmp_path / "m")
+    assert len(m.telemetry["MAG"]) == N - n_h - n_m
+    # the samples used are white (σ 0.5 µT): the line per sample used is their σ
+    assert abs(m.spec.sensor("MAG").noise / (MAG_NOISE_UT * 1000.0) - 1.0) < 0.15

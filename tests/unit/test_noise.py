@@ -102,3 +102,33 @@ def test_both_converters_mark_estimated_noise_one_way(tmp_path):
     assert not noise_estimated(broad, "NOPE")
     book = broad.replace(ESTIMATED_MARK, "from the data book")
     assert not any(noise_estimated(book, s) for s in ("GYR", "MAG", "OPT"))
+
+
+def test_irregular_samples_give_the_noise_per_sample_used():
+    """A sensor measured on some ticks of a faster bus only (held repeats and interpolated
+    samples flagged and left out: BROAD's magnetometer, measurements 2 or 4 ticks apart).
+    White noise of σ per measurement: the Allan curve's white line at the mean interval
+    and the second differences over unequal intervals both give σ; on regular samples the
+    curve is Eq C.2's (the per-window means of a full grid)."""
+    rng = np.random.default_rng(12)
+    gaps = rng.choice([2, 4], p=[0.6, 0.4], size=40_000)
+    t = np.cumsum(gaps) * 0.0035  # s, the 285.7-Hz bus
+    sigma = 700.0
+    y = rng.normal(scale=sigma, size=(t.size, 3)) + 1e3 * np.sin(0.2 * t)[:, None]  # slow motion
+    curves = noise.allan_deviation(t, y)
+    tau_bar = noise.mean_interval(t)
+    assert abs(tau_bar / (np.mean(gaps) * 0.0035) - 1.0) < 1e-3
+    line = np.array([noise.white_level(c, tau_bar)[0] for c in curves])
+    assert np.all(np.abs(line / sigma - 1.0) < white_tolerance), line
+    spread = noise.white_noise(t, y)
+    assert np.all(np.abs(spread / sigma - 1.0) < white_tolerance), spread
+    # regular samples: the window means give the overlapping estimator of Eq C.2 exactly
+    tr = np.arange(4096) * DT
+    yr = rng.normal(size=(4096, 1))
+    got = noise.allan_deviation(tr, yr)[0]
+    theta = np.concatenate([[0.0], np.cumsum(yr[:, 0]) * DT])
+    for k, m in enumerate((1, 4, 32)):
+        j = int(np.log2(m))
+        d2 = theta[2 * m :] - 2.0 * theta[m:-m] + theta[: -2 * m]
+        want = np.sqrt(np.mean(d2**2) / (2.0 * (m * DT) ** 2))
+        assert abs(got.adev[j] / want - 1.0) < 1e-9, (k, m)
