@@ -33,7 +33,10 @@ sample mission)::
     block_seconds = 600.0
     edit_k = 5.0                  # 0 disables k-sigma editing
     max_iterations = 20
-    noise_weighting = "stated"    # stated | long_run (gcs_core/diagnosis/weighting.py)
+    noise_weighting = "long_run"  # stated (default) | long_run
+    noise_window = 1.0            # [s]
+    noise_passes = 2
+    noise_sensors = ["FHST1"]     # default: all
     [filter.edit_k_sensor]        # per-sensor k, 0 disables that sensor's editing
     FHST1 = 4.0
 
@@ -110,7 +113,7 @@ _ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
 
 #: field metadata: written to TOML only when it holds something (an empty table is left out)
 _OMIT_EMPTY = {"omit_empty": True}
-#: field metadata: written only when not the default (a config's digest stays)
+#: field metadata: written only when not the default
 _OMIT_DEFAULT = {"omit_default": True}
 
 
@@ -534,7 +537,8 @@ def _table_dict(table, cfg: AnalysisConfig) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in fields(table):
         v = getattr(table, f.name)
-        if v is None or (f.metadata.get("omit_empty") and not v) or (f.metadata.get("omit_default") and v == f.default):
+        m = f.metadata
+        if v is None or (m.get("omit_empty") and not v) or (m.get("omit_default") and v == f.default):
             continue
         if isinstance(v, Path):  # prediction.catalog
             try:
