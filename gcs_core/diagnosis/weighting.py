@@ -191,10 +191,15 @@ def stated_residuals(result, scale: Mapping[str, float]):
     if not scale:
         return result
     res = {
-        n: (replace(r, sigma=r.sigma / scale[n], normalized_=None) if n in scale else r)
+        n: (replace(r, sigma=r.sigma / scale[n], normalized_=_times(r.normalized_, scale[n])) if n in scale else r)
         for n, r in result.residuals.items()
     }
     return replace(result, residuals=res)
+
+
+def _times(a, k: float):
+    """``a × k``, None kept (a residual normalized by its marginal σ, readout.py, or formed when read)."""
+    return None if a is None else a * k
 
 
 def same_factors(new: Mapping[str, NoiseFactor], old: Mapping[str, NoiseFactor]) -> bool:

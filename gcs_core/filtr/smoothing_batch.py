@@ -225,10 +225,11 @@ def whole_span_fit(
             gain = float(g_red @ dx) + sysk.knot_gain
             sig = np.sqrt(np.diag(P))
             log.debug(
-                "whole-span iteration %d: cost %.6g, max |dx|/σ %.2e, predicted gain %.3g",
+                "whole-span iteration %d: cost %.6g, max |dx|/σ %.2e (%s), predicted gain %.3g",
                 it,
                 cost,
                 float(np.max(np.abs(dx) / np.maximum(sig, 1e-300))),
+                names[int(np.argmax(np.abs(dx) / np.maximum(sig, 1e-300)))],
                 gain,
             )
             # converged: the next Gauss–Newton step is negligible, below tol_step_sigma of
