@@ -338,12 +338,17 @@ class Analysis:
     def _apply(self, action: str, effect_id: str, on: bool) -> Step:
         res = self.result if self.result is not None else self.fit()
         before = self.rms()
-        chi_before, previous = res.chi2, res
+        chi_before, previous, scale_before = res.chi2, res, self._scale()
         prev_values = previous.state.values()
         self._set_effect(effect_id, on)
         # warm start from the previous solution; the a priori stays the configured one
         warm = {k: v for k, v in prev_values.items() if k in self.problem.state}
         res = self.fit(initial=warm, previous=previous)
+        scale = self._scale()
+        for name, r in previous.residuals.items():  # Δχ² at the new fit's weights (residuals: stated σ)
+            k0, k1 = scale_before.get(name, 1.0), scale.get(name, 1.0)
+            if k0 != k1:
+                chi_before += r.chi2 * (1.0 / k1**2 - 1.0 / k0**2)
         est = {}
         e = {x.id: x for x in self.catalogue()}.get(effect_id)
         if e is not None:

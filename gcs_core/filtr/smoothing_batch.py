@@ -76,6 +76,11 @@ GAIN_TOL = 1e-3
 NOISE_GAIN = 1e-6
 #: ... with the per-epoch read-out errors ε̂ (readout.py) moving by less than this, in σ_e
 EPS_TOL = 0.02
+#: a full step that lowers the cost by less than this fraction of the predicted gain has
+#: its knots re-solved at the new statics before it is shortened (:func:`_knot_correction`)
+CORRECT_BELOW = 0.5
+#: ... at most this many times (each a pass over the data), while the cost falls
+KNOT_CORRECTIONS = 3
 
 
 @dataclass(frozen=True)
@@ -252,12 +257,34 @@ def whole_span_fit(
             # factors grow with the span: tens of MB each on a week)
             del fac, N_red, A, b, sysk
             lin = trial = None
-            step = 1.0
+            step, fresh = 1.0, True  # fresh: ``trial`` holds the Jacobian at (x_try, z_try)
             for attempt in range(10):
                 x_try, z_try = x + step * dx, z + step * dz
                 trial = None
                 trial = passes.run(x_try, z_try, edits, jacobian=attempt == 0)
                 cost_t = passes.cost(x_try, trial[2], trial[4])
+                fresh = attempt == 0
+                if fresh and np.isfinite(cost_t) and cost - cost_t < CORRECT_BELOW * gain:
+                    # a curved valley: the knots' first-order compensation of the statics'
+                    # step is off at second order; re-solve the knots at the new statics
+                    at = z_try  # where ``trial`` holds the Jacobian
+                    for _ in range(KNOT_CORRECTIONS):
+                        z_c = z_try + _knot_correction(trial, x_try, x_bar, prior_info)
+                        trial = None
+                        trial, at = passes.run(x_try, z_c, edits), z_c
+                        cost_c = passes.cost(x_try, trial[2], trial[4])
+                        if not (np.isfinite(cost_c) and cost_c < cost_t):
+                            break
+                        log.debug("  knots re-solved at the new statics: Δcost %.6g", cost_c - cost)
+                        z_try, cost_t = z_c, cost_c
+                        if cost - cost_t >= CORRECT_BELOW * gain:
+                            break
+                    if at is not z_try:  # the last correction was refused
+                        if cost_t <= cost * (1 + 1e-12) + 1e-9:
+                            trial = None
+                            trial = passes.run(x_try, z_try, edits)  # linearized where it stands
+                        else:
+                            fresh = False
                 if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
                     break
                 step *= 0.5
@@ -281,7 +308,7 @@ def whole_span_fit(
                 break
             change = cost - cost_t
             x, z = x_try, z_try
-            lin = trial if attempt == 0 else passes.run(x, z, edits)
+            lin = trial if fresh else passes.run(x, z, edits)
             if passes.errors is not None:
                 # the read-out errors' conditional optimum at (x, z), when it moved (a pass
                 # re-linearizes there before the fit may stop)
@@ -366,6 +393,15 @@ def whole_span_fit(
         chi2_process=chi2_proc,
         batch_delta_sigma=None if restarted else (start_x - x) / sig,
     )
+
+
+def _knot_correction(lin, x, x_bar, prior_info) -> np.ndarray:
+    """The knots' Gauss–Newton step with the statics held at ``x`` (``δx = 0``), from the
+    linearization ``lin`` there: what the knots must add so that they compensate the
+    statics' step exactly rather than to first order."""
+    A, b, _, _, sysk, _ = lin
+    _, _, fac = sysk.eliminate(A + np.diag(prior_info), b + prior_info * (x_bar - x))
+    return kn.KnotSystem.back_substitute(fac, np.zeros(A.shape[0]))
 
 
 @dataclass(frozen=True)
