@@ -97,7 +97,7 @@ class NoiseFactor:
     note: str = ""
 
     def as_report(self) -> dict:
-        out = {
+        out: dict = {
             "factor": round(self.factor, 4),
             "measured": round(self.measured, 4) if math.isfinite(self.measured) else None,
             "sampling_error": round(self.sampling_error, 4) if math.isfinite(self.sampling_error) else None,

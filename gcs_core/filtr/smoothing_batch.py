@@ -276,9 +276,9 @@ def whole_span_fit(
                         if not (np.isfinite(cost_c) and cost_c < cost_t):
                             break
                         log.debug("  knots re-solved at the new statics: Δcost %.6g", cost_c - cost)
-                        z_try, cost_t = z_c, cost_c
-                        if cost - cost_t >= CORRECT_BELOW * gain:
-                            break
+                        z_try, cost_t, better = z_c, cost_c, cost_t - cost_c
+                        if cost - cost_t >= CORRECT_BELOW * gain or better < 0.01 * gain:
+                            break  # enough, or the knots no longer move the cost
                     if at is not z_try:  # the last correction was refused
                         if cost_t <= cost * (1 + 1e-12) + 1e-9:
                             trial = None
