@@ -264,7 +264,7 @@ def whole_span_fit(
                 trial = passes.run(x_try, z_try, edits, jacobian=attempt == 0)
                 cost_t = passes.cost(x_try, trial[2], trial[4])
                 fresh = attempt == 0
-                if fresh and np.isfinite(cost_t) and cost - cost_t < CORRECT_BELOW * gain:
+                if fresh and opts.knot_correction and np.isfinite(cost_t) and cost - cost_t < CORRECT_BELOW * gain:
                     # a curved valley: the knots' first-order compensation of the statics'
                     # step is off at second order; re-solve the knots at the new statics
                     at = z_try  # where ``trial`` holds the Jacobian
