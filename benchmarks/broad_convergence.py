@@ -54,7 +54,7 @@ def main() -> int:
             fits[corrected] = res
             print(
                 f"knots re-solved: {corrected!s:5}  {res.status:15} {res.iterations:3d} iterations "
-                f"{dt:6.0f} s  cost {res.history[-1]:.7g}  ({res.message})",
+                f"{dt:6.0f} s  cost {res.cost_history[-1]:.7g}  ({res.message})",
                 flush=True,
             )
         a_, b_ = fits[False], fits[True]
