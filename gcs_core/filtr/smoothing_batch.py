@@ -17,7 +17,19 @@ this Gauss–Newton method (Bell 1994); the minimum, covariance and residuals do
 depend on how the span is cut into blocks.
 
 The iteration starts from the batch solution (never from a one-pass filter's track),
-and a step that raises ``J`` is shortened. Data are edited on the whole-span residuals
+and a step that raises ``J`` is shortened. Before it is: a static step along a direction
+the knots can compensate (the gyro bias and its drift against the knots' walk) moves the
+gyro-carried attitude by far more than the noise, and the knots' corrections, applied as
+first-order rotations about the old trajectory, undo it only to first order. The
+directional derivative of ``J`` is then exact, but its curvature along the Gauss–Newton
+step is many times the model's (BROAD trial 02 whole: the full step raised ``J`` by 5900
+where it predicted a fall of 360, statics-only and knots-only steps each 1.4·10⁸), and
+halving the step took 60 iterations without converging. So a full step that lowers ``J``
+by less than :data:`CORRECT_BELOW` of its predicted gain first has its knots re-solved
+with the statics held at the new point (a Gauss–Newton step in ``z`` alone,
+:func:`_knot_correction`, up to :data:`KNOT_CORRECTIONS` times while ``J`` falls): the
+curved valley is followed instead of cut (``benchmarks/broad_convergence.py``). Steps the
+linearization sizes well are untouched. Data are edited on the whole-span residuals
 with the batch's robust k-σ rule (:func:`~gcs_core.filtr.batch.robust_outliers`); a
 sensor with more than ``max_edit_fraction`` of its frames beyond k σ is not edited but
 reported (the model, not the data, is wrong). With no gyro noise in the data book the
