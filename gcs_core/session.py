@@ -223,6 +223,7 @@ class Analysis:
             res = self._fit_once(start=res)
             passes += 1
         self.noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
+        log.info("%s", self.noise.summary())  # the TUI's engine log shows it
         return res
 
     def _stated_problem(self) -> Problem:
