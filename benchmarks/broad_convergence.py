@@ -21,11 +21,15 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from broad_consistency import EFFECTS, MEMS_PRIORS
+import numpy as np
+
+from broad_consistency import EFFECTS, MEMS_PRIORS, rests
 from gcs_core.config import default_config
 from gcs_core.convert import convert
+from gcs_core.filtr.gyro_bias import gyro_bias_at
 from gcs_core.filtr.smoothing_batch import fit_problem
 from gcs_core.io.importer import load_mission
+from gcs_core.models.gyro import g_matrix
 from gcs_core.session import Analysis
 
 #: the iteration limit per editing pass (the product's default is 20)
@@ -56,6 +60,19 @@ def main() -> int:
                 f"knots re-solved: {corrected!s:5}  {res.status:15} {res.iterations:3d} iterations "
                 f"{dt:6.0f} s  cost {res.cost_history[-1]:.7g}  ({res.message})",
                 flush=True,
+            )
+            # the gyro bias b(t) at each rest against the rest's own mean rate (broad_consistency)
+            vals = res.state.values()
+            Ginv = np.linalg.inv(g_matrix({n.split(".", 1)[1]: v for n, v in vals.items() if n.startswith("GYR.G_")}))
+            rest = rests(src)
+            gb = gyro_bias_at(a.problem, res, [r["t"] for r in rest])
+            z = [
+                (gb.b[k] - (Ginv @ r["y"] - r["earth"])) / np.hypot(gb.sigma[k], np.abs(Ginv) @ r["sigma"])
+                for k, r in enumerate(rest)
+            ]
+            print(
+                "    b(t) at the rests against their mean rate, z: "
+                + "; ".join(np.array2string(x, precision=2) for x in z)
             )
         a_, b_ = fits[False], fits[True]
         va, vb = a_.state.values(), b_.state.values()
