@@ -191,15 +191,11 @@ class Analysis:
             log.warning("%s", w)
         return res
 
-    def _fit_once(self, *, initial=None, previous: FitResult | None = None, start: FitResult | None = None):
+    def _fit_once(self, *, initial=None, previous: FitResult | None = None):
         """One fit of the current problem with its current weights."""
         if self.config.method == "kalman":
             return self._kalman_fit()
         kw: dict = {"previous": previous} if previous is not None and self.config.method == "whole_span" else {}
-        if start is not None:
-            dyn = getattr(start, "dynamics", None) is not None
-            kw = {"start": start} if dyn else {}
-            initial = None if dyn else start.state.values()
         return fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
 
     def _reweight(self, res: FitResult) -> FitResult:
@@ -220,7 +216,9 @@ class Analysis:
             after = self._scale()
             ratio = {n: after.get(n, 1.0) / before.get(n, 1.0) for n in set(before) | set(after)}
             self.problem = replace(self.problem, sensors=weighted_sensors(self.problem.sensors, ratio))
-            res = self._fit_once(start=res)
+            # from the solution's values, its knots laid out and its frames edited for the new
+            # weights (the whole-span grid follows the information, the editing the σ)
+            res = self._fit_once(initial=res.state.values())
             passes += 1
         self.noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
         log.info("%s", self.noise.summary())  # the TUI's engine log shows it
