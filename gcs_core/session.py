@@ -166,6 +166,9 @@ class Analysis:
         the a priori stays at the configured values. ``previous``: the solution before a step
         (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
+        if self.config.filter.noise_weighting != "long_run" and self._factors:  # switched back to stated
+            self._factors, self.noise = {}, None
+            self.problem = self._build()
         res = self._fit_once(initial=initial, previous=previous)
         if self.config.filter.noise_weighting == "long_run":
             res = self._reweight(res)
