@@ -32,8 +32,9 @@ walk (read off the unit's own rests); refitted with the σ_u the data support (m
 ``*``), the best of :data:`RRW_SCALES` by the fit's evidence
 (:mod:`gcs_core.filtr.process_likelihood`); and refitted with the optical reference
 weighted by its effective noise (marked ``†``, every element): its stated σ times the
-long-run factor of its residuals over :data:`REF_BLOCK_S` windows
-(:func:`gcs_core.diagnosis.correlation.noise_scale`), since its error in motion is
+long-run factor of its residuals over :data:`REF_BLOCK_S` windows, the product's
+``[filter] noise_weighting = "long_run"`` for the sensor ``OPT``
+(:mod:`gcs_core.diagnosis.weighting`), since its error in motion is
 correlated over 35–100 ms and a white-noise weight lets the knots follow it. Trials are
 compared on their first rest's bias less the Earth's rate there, fitted and as the rest's
 own mean. Fitting the
@@ -46,7 +47,6 @@ from __future__ import annotations
 import sys
 import tempfile
 import time
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +55,7 @@ import numpy as np
 from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
 from gcs_core.convert.broad import LAB_LATITUDE_DEG
-from gcs_core.diagnosis.correlation import noise_scale, sigma_scale
+from gcs_core.diagnosis.correlation import sigma_scale
 from gcs_core.filtr.gyro_bias import gyro_bias_at
 from gcs_core.filtr.process_likelihood import rrw_profile
 from gcs_core.filtr.smoothing_batch import SmoothedResult
@@ -109,12 +109,6 @@ SHOWN = (
 )
 
 
-def with_noise(mission, sensor: str, k: float):
-    """The mission with one sensor's stated noise multiplied by ``k``."""
-    sensors = tuple(replace(s, noise=s.noise * k) if s.name == sensor else s for s in mission.spec.sensors)
-    return replace(mission, spec=replace(mission.spec, sensors=sensors))
-
-
 def fit(source: Path, work: Path, label: str, span=None, method="whole_span", effects=EFFECTS, epochs=None):
     """Convert and fit one trial (or its span); the shown elements as name -> (x, σ, sandwich
     scale), the gyro's bias ``b(t)`` at each of ``epochs`` (label -> t [s]) as
@@ -160,13 +154,14 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
         )
         best = prof.results[int(np.argmin(prof.neg2_log_evidence))]
         # the reference weighted by its effective (long-run) noise: σ_OPT × s
-        k_ref = noise_scale(res, "OPT", block_s=REF_BLOCK_S)
-        a2 = Analysis(cfg, mission=with_noise(mission, "OPT", k_ref))
+        long_run = {"noise_weighting": "long_run", "noise_window": REF_BLOCK_S, "noise_sensors": ("OPT",)}
+        a2 = Analysis(cfg.with_changes(filter=long_run), mission=mission)
         res2 = a2.fit(holdout=False)
         sc2 = sigma_scale(a2.problem, res2, block_s=BLOCK_S).scale
         vals2 = res2.state.values()
+        assert a2.noise is not None
         print(
-            f"    the reference at its long-run noise (× {k_ref:.2f}, {REF_BLOCK_S:g} s windows): {res2.status}, "
+            f"    the reference at its long-run noise ({a2.noise.summary()}): {res2.status}, "
             f"normalized RMS { ({s: round(float(x), 3) for s, x in a2.rms().items()}) }",
             flush=True,
         )

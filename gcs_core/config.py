@@ -33,6 +33,10 @@ sample mission)::
     block_seconds = 600.0
     edit_k = 5.0                  # 0 disables k-sigma editing
     max_iterations = 20
+    noise_weighting = "long_run"  # stated (default) | long_run
+    noise_window = 1.0            # [s]
+    noise_passes = 2
+    noise_sensors = ["FHST1"]     # default: all
     [filter.edit_k_sensor]        # per-sensor k, 0 disables that sensor's editing
     FHST1 = 4.0
 
@@ -77,6 +81,7 @@ from typing import Any
 from gcs_core import toml_values
 from gcs_core.config_checks import (
     MODEL_OFF,
+    NOISE_WINDOW_S,
     _choice,
     _fail,
     _list,
@@ -86,6 +91,7 @@ from gcs_core.config_checks import (
     _table,
     _unknown,
     edit_k_sensor,
+    noise_weighting,
 )
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import write_atomic
@@ -107,6 +113,8 @@ _ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
 
 #: field metadata: written to TOML only when it holds something (an empty table is left out)
 _OMIT_EMPTY = {"omit_empty": True}
+#: field metadata: written only when not the default
+_OMIT_DEFAULT = {"omit_default": True}
 
 
 def _key(label: str, **checks) -> dict:
@@ -161,12 +169,17 @@ class FilterConfig:
     edit_k : k of the k-σ editing (batch) and innovation gate (Kalman); 0 for none.
     max_iterations : iteration limit of the batch and whole-span fits.
     edit_k_sensor : sensor -> its own k, 0 for none, overriding ``edit_k``.
+    noise_* : the sensors' weights, :mod:`gcs_core.diagnosis.weighting`.
     """
 
     block_seconds: float = 600.0
     edit_k: float = 5.0
     max_iterations: int = 20
     edit_k_sensor: dict[str, float] = field(default_factory=dict, metadata=_OMIT_EMPTY)
+    noise_weighting: str = field(default="stated", metadata=_OMIT_DEFAULT)
+    noise_window: float = field(default=NOISE_WINDOW_S, metadata=_OMIT_DEFAULT)
+    noise_passes: int = field(default=1, metadata=_OMIT_DEFAULT)
+    noise_sensors: tuple[str, ...] = field(default=(), metadata=_OMIT_EMPTY)
 
 
 @dataclass(frozen=True)
@@ -466,6 +479,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
                 fl, "max_iterations", FilterConfig.max_iterations, f, lo=1, hi=1000, integer=True, prefix="filter."
             ),
             edit_k_sensor=edit_k_sensor(fl, f),
+            **noise_weighting(fl, f),
         ),
         diagnosis=DiagnosisConfig(
             significance=_number(
@@ -523,7 +537,8 @@ def _table_dict(table, cfg: AnalysisConfig) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for f in fields(table):
         v = getattr(table, f.name)
-        if v is None or (f.metadata.get("omit_empty") and not v):
+        m = f.metadata
+        if v is None or (m.get("omit_empty") and not v) or (m.get("omit_default") and v == f.default):
             continue
         if isinstance(v, Path):  # prediction.catalog
             try:

@@ -72,6 +72,12 @@ def _pair(g: Any) -> bool:
     return isinstance(g, list) and len(g) == 2 and all(is_number(x) and math.isfinite(x) for x in g) and g[0] < g[1]
 
 
+#: ``[filter] noise_weighting``'s choices, the default window [s] of the long-run factor
+#: and the most reweighting passes (:mod:`gcs_core.diagnosis.weighting`)
+NOISE_WEIGHTINGS = ("stated", "long_run")
+NOISE_WINDOW_S = 0.5
+NOISE_MAX_PASSES = 3
+
 #: a [models] value that switches a sensor off
 MODEL_OFF = "off"
 
@@ -113,6 +119,13 @@ def check_against_mission(cfg, spec) -> None:
             f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})",
             f,
         )
+    for i, name in enumerate(cfg.filter.noise_sensors, start=1):
+        _require(
+            name in types,
+            f"filter.noise_sensors[{i}]",
+            f"no sensor named '{name}' in mission {spec.name} (sensors: {listed})",
+            f,
+        )
     for name in st.elements:
         owner = name.split(".")[0]
         _require(
@@ -128,3 +141,23 @@ def edit_k_sensor(fl: dict, f) -> dict[str, float]:
     the mission by :func:`gcs_core.config_checks.check_against_mission`)."""
     table = _table(fl, "edit_k_sensor", "filter.edit_k_sensor", f)
     return {str(name): _number(table, name, 5.0, f, lo=0.0, prefix="filter.edit_k_sensor.") for name in table}
+
+
+def noise_weighting(fl: dict, f) -> dict[str, Any]:
+    """``[filter] noise_weighting, noise_window, noise_passes, noise_sensors``
+    (:mod:`gcs_core.diagnosis.weighting`; sensor names are checked against the mission by
+    :func:`check_against_mission`)."""
+    sensors = _list(fl, "noise_sensors", "filter.noise_sensors", f)
+    for i, name in enumerate(sensors, start=1):
+        _require(
+            isinstance(name, str) and name != "",
+            f"filter.noise_sensors[{i}]",
+            f"must be a sensor name, not {show(name)}",
+            f,
+        )
+    return {
+        "noise_weighting": _choice(fl, "noise_weighting", NOISE_WEIGHTINGS, "stated", "filter.noise_weighting", f),
+        "noise_window": _number(fl, "noise_window", NOISE_WINDOW_S, f, positive=True, prefix="filter."),
+        "noise_passes": _number(fl, "noise_passes", 1, f, lo=1, hi=NOISE_MAX_PASSES, integer=True, prefix="filter."),
+        "noise_sensors": tuple(sensors),
+    }

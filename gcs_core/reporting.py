@@ -31,7 +31,10 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     ``sqrt(mean_j rms_j²)`` in the sensor's unit; the per-component values are in
     ``rms_components``. ``state`` lists every element that is not held, with whether the
     data determined it; ``physics_needed`` the always-on physics and what switching each
-    off would cost; ``remaining`` what is left per sensor against its stated noise.
+    off would cost; ``remaining`` what is left per sensor against its stated noise;
+    ``noise_weighting`` (only with ``[filter] noise_weighting = "long_run"``) each sensor's
+    long-run noise factor and window (:mod:`gcs_core.diagnosis.weighting`): the fit weighted
+    σ × factor, while normalized RMS, χ² and verdicts stay against the stated σ.
     """
     res = analysis.result
     gof = analysis.goodness()
@@ -61,6 +64,8 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     )
     if res is not None:
         out["remaining"] = remaining_summary(analysis)
+    if getattr(analysis, "noise", None) is not None:  # [filter] noise_weighting = "long_run"
+        out["noise_weighting"] = analysis.noise.as_report()
     return out
 
 

@@ -20,6 +20,7 @@ from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
+from gcs_core.diagnosis.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
 from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions
 from gcs_core.filtr.filter_options import FilterOptions
@@ -48,6 +49,8 @@ class Analysis:
     holdout_rms, holdout_chi2 : sensor -> normalized RMS and χ² test on the held-out span.
     warnings : the latest fit's honesty warnings about the method.
     stop_reason : why the latest discovery stopped ("" before one).
+    noise : with ``[filter] noise_weighting = "long_run"``, the factors the latest fit
+        weighted its sensors with (:mod:`gcs_core.diagnosis.weighting`); else None.
     """
 
     def __init__(self, config: AnalysisConfig, *, mission=None):
@@ -62,6 +65,8 @@ class Analysis:
         self.holdout_chi2: dict[str, goodness.ChiSquare] = {}  # sensor (and "all sensors") -> test
         self.warnings: list[str] = []
         self.stop_reason = ""
+        self.noise: NoiseWeighting | None = None
+        self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
         self.problem: Problem = self._build()
         self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
         self._null_at_prior: tuple | None = None  # (problem, combinations)
@@ -93,7 +98,14 @@ class Analysis:
         if off:
             mission = _without_sensors(mission, off)
         gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
-        return build_problem(mission, physics=self.physics, options=self._state_options(), use_gyro=not gyro_off)
+        problem = build_problem(mission, physics=self.physics, options=self._state_options(), use_gyro=not gyro_off)
+        if self._scale():  # long-run noise weighting: the fit's σ are the stated σ × k
+            problem.sensors = weighted_sensors(problem.sensors, self._scale())
+        return problem
+
+    def _scale(self) -> dict[str, float]:
+        """sensor -> the factor its stated σ is weighted with (only those above 1)."""
+        return {n: f.factor for n, f in self._factors.items() if f.factor != 1.0}
 
     def catalogue(self) -> list[Effect]:
         return mission_catalogue(self.problem, self.physics)
@@ -126,8 +138,19 @@ class Analysis:
         return BatchOptions(
             max_iterations=self.config.filter.max_iterations,
             edit_k=self.config.filter.edit_k or None,
-            edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()},
+            edit_k_sensor=self._edit_k_sensor(),
         )
+
+    def _edit_k_sensor(self) -> dict[str, float | None]:
+        """Per-sensor k of the k-σ editing; a sensor weighted by a long-run factor ``f`` is
+        edited at ``k / f`` of its weighted σ, i.e. still at ``k`` of its stated σ (an
+        outlier is a per-sample notion)."""
+        fl = self.config.filter
+        out = {k: (v or None) for k, v in fl.edit_k_sensor.items()}
+        for name, f in self._scale().items():
+            k = fl.edit_k_sensor.get(name, fl.edit_k)
+            out[name] = k / f if k else None
+        return out
 
     def holdout_masks(self) -> dict[str, np.ndarray]:
         """Held-out frames per sensor (True = held out): 5-min blocks spread over the span
@@ -143,31 +166,75 @@ class Analysis:
         the a priori stays at the configured values. ``previous``: the solution before a step
         (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
-        if self.config.method == "kalman":
-            res = self._kalman_fit()
-        else:
-            kw = {"previous": previous} if previous is not None and self.config.method == "whole_span" else {}
-            res = fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
+        if self.config.filter.noise_weighting != "long_run" and self._factors:  # switched back to stated
+            self._factors, self.noise = {}, None
+            self.problem = self._build()
+        res = self._fit_once(initial=initial, previous=previous)
+        if self.config.filter.noise_weighting == "long_run":
+            res = self._reweight(res)
         masks = self.holdout_masks() if holdout else {}
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
             # the whole-span training fit starts from the full fit's solution and knots
             warm = {"start": res} if getattr(res, "dynamics", None) is not None else {"initial": res.state.values()}
             res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
+            stated = self._stated_problem()  # held-out residuals against the stated σ
             self.holdout_rms = (
-                smoothed_holdout_rms(self.problem, res_train, masks)
+                smoothed_holdout_rms(stated, res_train, masks)
                 if isinstance(res_train, SmoothedResult) and res_train.dynamics is not None
-                else static_holdout_rms(self.problem, res_train, masks)
+                else static_holdout_rms(stated, res_train, masks)
             )
-            self.holdout_chi2 = goodness.holdout_tests(self.problem, res_train, masks)
+            self.holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
         else:
             self.holdout_chi2 = {}
-        self.result = res
+        self.result = stated_residuals(res, self._scale())
         self.candidates = []
         self.warnings = self._method_warnings()
         for w in self.warnings:
             log.warning("%s", w)
         return res
+
+    def _fit_once(self, *, initial=None, previous: FitResult | None = None):
+        """One fit of the current problem with its current weights."""
+        if self.config.method == "kalman":
+            return self._kalman_fit()
+        kw: dict = {"previous": previous} if previous is not None and self.config.method == "whole_span" else {}
+        return fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
+
+    def _reweight(self, res: FitResult) -> FitResult:
+        """``noise_weighting = "long_run"``: measure each sensor's long-run noise factor on
+        the fit's residuals and refit with ``σ × k`` (``noise_passes`` times at most, fewer
+        when the factors stop moving by more than their sampling error), module
+        :mod:`gcs_core.diagnosis.weighting`."""
+        fl = self.config.filter
+        sensors = [sd.name for sd in self.problem.sensors]
+        passes = 0
+        for _ in range(fl.noise_passes):
+            factors = measure(res, sensors, fl.noise_window, fl.noise_sensors)
+            if same_factors(factors, self._factors):  # the weights stand; the latest measurement is kept
+                old = self._factors
+                self._factors = {n: replace(f, factor=old[n].factor if n in old else 1.0) for n, f in factors.items()}
+                break
+            before, self._factors = self._scale(), factors
+            after = self._scale()
+            ratio = {n: after.get(n, 1.0) / before.get(n, 1.0) for n in set(before) | set(after)}
+            self.problem = replace(self.problem, sensors=weighted_sensors(self.problem.sensors, ratio))
+            # from the solution's values, its knots laid out and its frames edited for the new
+            # weights (the whole-span grid follows the information, the editing the σ)
+            res = self._fit_once(initial=res.state.values())
+            passes += 1
+        self.noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
+        log.info("%s", self.noise.summary())  # the TUI's engine log shows it
+        return res
+
+    def _stated_problem(self) -> Problem:
+        """The current problem with the stated σ (itself when nothing is reweighted)."""
+        scale = self._scale()
+        if not scale:
+            return self.problem
+        return replace(
+            self.problem, sensors=weighted_sensors(self.problem.sensors, {n: 1 / k for n, k in scale.items()})
+        )
 
     def _method_warnings(self) -> list[str]:
         """Honesty checks on the chosen method.
@@ -195,10 +262,7 @@ class Analysis:
         ]
 
     def filter_options(self) -> FilterOptions:
-        return FilterOptions(
-            edit_k=self.config.filter.edit_k or None,
-            edit_k_sensor={k: (v or None) for k, v in self.config.filter.edit_k_sensor.items()},
-        )
+        return FilterOptions(edit_k=self.config.filter.edit_k or None, edit_k_sensor=self._edit_k_sensor())
 
     def make_filter(self):
         """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""
@@ -276,12 +340,17 @@ class Analysis:
     def _apply(self, action: str, effect_id: str, on: bool) -> Step:
         res = self.result if self.result is not None else self.fit()
         before = self.rms()
-        chi_before, previous = res.chi2, res
+        chi_before, previous, scale_before = res.chi2, res, self._scale()
         prev_values = previous.state.values()
         self._set_effect(effect_id, on)
         # warm start from the previous solution; the a priori stays the configured one
         warm = {k: v for k, v in prev_values.items() if k in self.problem.state}
         res = self.fit(initial=warm, previous=previous)
+        scale = self._scale()
+        for name, r in previous.residuals.items():  # Δχ² at the new fit's weights (residuals: stated σ)
+            k0, k1 = scale_before.get(name, 1.0), scale.get(name, 1.0)
+            if k0 != k1:
+                chi_before += r.chi2 * (1.0 / k1**2 - 1.0 / k0**2)
         est = {}
         e = {x.id: x for x in self.catalogue()}.get(effect_id)
         if e is not None:

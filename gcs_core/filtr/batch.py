@@ -83,6 +83,8 @@ class BatchOptions:
         model (not the data) is wrong: that sensor is not edited, and the result says so.
     edit_k_sensor : sensor name -> its own k (0 or None: that sensor is not edited).
     rank_tol : relative eigenvalue threshold naming unobservable combinations.
+    knot_correction : whole-span fit: re-solve the knots at a step's statics when the
+        step falls short (:mod:`gcs_core.filtr.smoothing_batch`); False for comparison.
     """
 
     max_iterations: int = FilterConfig.max_iterations
@@ -93,6 +95,7 @@ class BatchOptions:
     max_edit_fraction: float = 0.05
     rank_tol: float = 1e-10
     edit_k_sensor: Mapping[str, float | None] = field(default_factory=dict)
+    knot_correction: bool = True
 
     def k_for(self, sensor: str) -> float | None:
         """The editing k of one sensor (None: not edited)."""

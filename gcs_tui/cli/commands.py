@@ -75,6 +75,8 @@ def _load(args):
     args.config_path = cfg.path
     if getattr(args, "method", None):
         cfg = cfg.with_changes(method=args.method)
+    if getattr(args, "noise_weighting", None):
+        cfg = cfg.with_changes(filter={"noise_weighting": args.noise_weighting})
     return cfg
 
 
@@ -481,6 +483,9 @@ def build_parser() -> argparse.ArgumentParser:
         target(sp)
         sp.add_argument("--report", help="write the JSON report (ICD §7) here")
         sp.add_argument("--method", choices=("whole_span", "batch", "kalman"), help="override the config's method")
+        sp.add_argument(
+            "--noise-weighting", choices=("stated", "long_run"), help="override the config's [filter] noise_weighting"
+        )
         sp.add_argument("--plots", help="export residual plots to this folder")
         sp.add_argument(
             "--plot-format",

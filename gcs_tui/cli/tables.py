@@ -50,6 +50,8 @@ def fit_table(analysis) -> list[str]:
             f"{ho:9.3f} {p_fit:>8s} {p_ho:>8s}  {comp}" + (f" [{lab}]" if lab else "")
         )
     lines.append(f"status: {res.message}; χ² {res.chi2:.1f} on {res.dof} dof")
+    if getattr(analysis, "noise", None) is not None:
+        lines.append(analysis.noise.summary())
     if gof is not None:
         lines.append(f"goodness of fit: {gof.verdict}")
         lines.append(

@@ -371,3 +371,23 @@ def test_logging_handlers_are_removed_after_a_run():
     run("effects")
     for name in cli.LOGGERS:
         assert not any(isinstance(h, LogHandler) for h in logging.getLogger(name).handlers)
+
+
+def test_batch_noise_weighting_long_run_on_a_white_noise_mission(tmp_path):
+    """``--noise-weighting long_run`` on a mission whose noise is white: every factor
+    measured within 3.5 of its sampling error of 1 and none applied, so the fit and its
+    numbers are the stated ones; the report carries the factors and says what the
+    normalized RMS is against (docs/statistics.md)."""
+    code, stdout, stderr = run(
+        "batch", CONFIGS / "nominal-sunpoint.toml", "--noise-weighting", "long_run", "--report", tmp_path / "r.json"
+    )
+    assert code == cli.EXIT_OK, stderr
+    assert "noise weighting long_run (0 refits)" in stdout
+    rep = json.loads((tmp_path / "r.json").read_text())
+    assert icd_report_problems(rep) == []
+    nw = rep["noise_weighting"]
+    assert nw["normalized_against"] == "stated sigma" and nw["passes"] == 0
+    for f in nw["sensors"].values():
+        assert f["factor"] == 1.0 and abs(f["measured"] - 1.0) < 3.5 * f["sampling_error"], f
+    code, _, stderr = run("batch", CONFIGS / "nominal-sunpoint.toml", "--noise-weighting", "white")
+    assert code != cli.EXIT_OK and "noise-weighting" in stderr

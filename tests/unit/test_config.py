@@ -71,7 +71,7 @@ def test_documented_example_loads_with_every_key(tmp_path):
     assert cfg.state.effects == ("TAM1.alignment",) and cfg.state.exclude == ()
     assert cfg.state.elements == {"TAM1.bias_x": C.ElementConfig("solve-for", 0.0, 200.0)}
     assert cfg.state.attitude_sigma_deg == 1.0
-    assert cfg.filter == C.FilterConfig(600.0, 5.0, 20, {"FHST1": 4.0})
+    assert cfg.filter == C.FilterConfig(600.0, 5.0, 20, {"FHST1": 4.0}, "long_run", 1.0, 2, ("FHST1",))
     assert (cfg.diagnosis.significance, cfg.diagnosis.holdout_fraction) == (0.001, 0.25)
     p = cfg.prediction
     assert (p.start, p.end, p.step, p.gaps) == (0.0, 7200.0, 10.0, ((1800.0, 2400.0),))
@@ -153,6 +153,11 @@ REFUSALS = [
     ("[filter]\nedit_k_sensor = 4\n", "filter.edit_k_sensor", "must be a table"),
     ("[filter]\nmax_iterations = 2.5\n", "filter.max_iterations", "must be a whole number"),
     ("[filter]\nmax_iterations = 0\n", "filter.max_iterations", "must be ≥ 1"),
+    ('[filter]\nnoise_weighting = "white"\n', "filter.noise_weighting", "must be one of stated, long_run"),
+    ("[filter]\nnoise_window = 0\n", "filter.noise_window", "must be > 0"),
+    ("[filter]\nnoise_passes = 4\n", "filter.noise_passes", "must be ≤ 3"),
+    ('[filter]\nnoise_sensors = "OPT"\n', "filter.noise_sensors", "must be a list"),
+    ("[filter]\nnoise_sensors = [3]\n", "filter.noise_sensors[1]", "must be a sensor name"),
     ("[diagnosis]\nsignificance = 0.9\n", "diagnosis.significance", "must be ≤ 0.5"),
     ('[diagnosis]\nholdout_fraction = "quarter"\n', "diagnosis.holdout_fraction", "must be a number"),
     ("[prediction]\nstep = 0\n", "prediction.step", "must be > 0"),
@@ -339,3 +344,21 @@ def test_config_for_opens_what_either_face_is_given(tmp_path):
     assert C.config_for(path).diagnosis.significance == 0.01
     with pytest.raises(ConfigError, match="no such mission directory or config file"):
         C.config_for(tmp_path / "nothing-here")
+
+
+def test_noise_weighting_round_trips_and_the_default_is_not_written(tmp_path):
+    """``[filter] noise_weighting`` (gcs_core/diagnosis/weighting.py): "long_run" and its
+    keys survive save and load; at the defaults nothing is written, so a config's digest
+    is the one it had before the keys existed."""
+    cfg = C.load_config(write(tmp_path, BASE))
+    assert cfg.filter.noise_weighting == "stated"
+    saved = C.save_config(cfg, tmp_path / "plain.toml").read_text()
+    assert "noise_" not in saved
+    on = cfg.with_changes(filter={"noise_weighting": "long_run", "noise_window": 2.0, "noise_sensors": ("TAM1",)})
+    again = C.load_config(C.save_config(on, tmp_path / "on.toml"))
+    assert again.filter == on.filter and again.digest() == on.digest() != cfg.digest()
+    spec = load_mission(MISSION).spec
+    config_checks.check_against_mission(again, spec)
+    with pytest.raises(ConfigError, match="no sensor named 'OPT'") as err:
+        config_checks.check_against_mission(on.with_changes(filter={"noise_sensors": ("OPT",)}), spec)
+    assert err.value.key == "filter.noise_sensors[1]"
