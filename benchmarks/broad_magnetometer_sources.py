@@ -136,6 +136,12 @@ def grad(v: np.ndarray) -> np.ndarray:
     return np.array([[v[0], v[2], v[3]], [v[2], v[1], v[4]], [v[3], v[4], -v[0] - v[1]]])
 
 
+def second_degree(v: np.ndarray) -> np.ndarray:
+    """(N, 5) monomials of second degree of the direction of v: n_x², n_y², n_x n_y, n_x n_z, n_y n_z."""
+    n = v / np.linalg.norm(v, axis=1)[:, None]
+    return np.column_stack([n[:, 0] ** 2, n[:, 1] ** 2, n[:, 0] * n[:, 1], n[:, 0] * n[:, 2], n[:, 1] * n[:, 2]])
+
+
 def sandwich(jac: np.ndarray, r: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(white-noise covariance, batch-means sandwich covariance); rows of jac/r at times t."""
     h_inv = np.linalg.pinv(jac.T @ jac)
@@ -390,9 +396,7 @@ def gyro_ref(
     def lin(y, x):
         v = y - x[3:6]
         if quadratic:
-            n = v / np.linalg.norm(v, axis=1)[:, None]
-            qn = np.column_stack([n[:, 0] ** 2, n[:, 1] ** 2, n[:, 0] * n[:, 1], n[:, 0] * n[:, 2], n[:, 1] * n[:, 2]])
-            v = v - qn @ x[12 + PHASES : 27 + PHASES].reshape(3, 5).T
+            v = v - second_degree(v) @ x[12 + PHASES : 27 + PHASES].reshape(3, 5).T
         return v
 
     def fun(x):
@@ -466,10 +470,18 @@ NAMES_E = ["P_xx", "P_yy", "P_zz", "P_xy", "P_xz", "P_yz", "b_x", "b_y", "b_z"]
 
 
 def zline(label: str, names: list[str], a, b, sa, sb, scale: list[float]) -> str:
-    z = (a - b) / np.sqrt(sa**2 + sb**2)
+    """One comparison: the worst |z|, and the per-fit floor s that brings every element within
+    3σ, |x_A − x_B| = 3 sqrt(σ_A² + σ_B² + 2 s²), then each element as A/B(z)."""
+    sig = np.sqrt(sa**2 + sb**2)
+    z = (a - b) / sig
     worst = int(np.argmax(np.abs(z)))
+    floor = np.sqrt(np.maximum(0.0, ((a - b) ** 2 / 9 - sig**2) / 2)) * np.asarray(scale)
+    f_worst = int(np.argmax(floor))
     cells = " ".join(f"{n}:{x * s:+.3f}/{y * s:+.3f}({zz:+.1f})" for n, x, y, zz, s in zip(names, a, b, z, scale))
-    return f"  {label:<14} worst |z| {abs(z[worst]):5.1f} ({names[worst]})  {cells}"
+    return (
+        f"  {label:<14} worst |z| {abs(z[worst]):5.1f} ({names[worst]}), 3σ floor {floor[f_worst]:.3g} "
+        f"({names[f_worst]})  {cells}"
+    )
 
 
 def compare(title: str, fits: dict[str, dict[str, Any]], sl: slice, names: list[str], scale: list[float]) -> None:
@@ -569,7 +581,8 @@ def report_trial(tr: str, o: dict[str, Any], keep_held: bool) -> None:
             print(f"          z: {fmt(qx / qs, 1, 1)}")
     pa, lp = o["per_axis"], o["lowpass"]
     print(
-        f"  whole, a δ per axis: RMS {pa['rms']:.4f} µT, δ {fmt(pa['x'][19:22], 1, 2)} ± {fmt(pa['ss'][19:22], 1, 2)} ms; "
+        f"  whole, a δ per axis: RMS {pa['rms']:.4f} µT, δ {fmt(pa['x'][19:22], 1, 2)} ± "
+        f"{fmt(pa['ss'][19:22], 1, 2)} ms; "
         f"a first-order low-pass after δ: RMS {lp['rms']:.4f} µT, δ {lp['x'][19]:.2f}, τ {lp['x'][20]:.2f} ± "
         f"{lp['ss'][20]:.2f} ms (one δ: {o['opt']['whole']['rms']:.4f} µT)"
     )
