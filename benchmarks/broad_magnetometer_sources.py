@@ -3,8 +3,9 @@
 Data: D. Laidig, M. Caruso, A. Cereatti, T. Seel, "BROAD - A Benchmark for Robust Inertial
 Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC BY 4.0), trials 02
 (slow rotation) and 09 (fast rotation with breaks) as published in ``../shared/real/broad``
-(or the folder given as the first argument). Each experiment fits the whole trial and its
-halves (t < T/2, t ≥ T/2) and compares halves and trials as
+(or the folder given as the first argument). Each experiment fits the whole trial, its
+halves (t < T/2, t ≥ T/2) and, as a check of the σ themselves, two interleaved sets of
+alternate :data:`INTERLEAVE_S` blocks (the same span and motions), and compares them as
 ``z = (x_A − x_B) / sqrt(σ_A² + σ_B²)``, with σ from the batch-means sandwich over
 contiguous :data:`BLOCK_S` windows (the residuals are correlated over seconds):
 ``cov = H⁻¹ (Σ_b g_b g_bᵀ) H⁻¹``, ``H = JᵀJ``, ``g_b = J_bᵀ r_b`` the score of window b.
@@ -19,24 +20,33 @@ position ``p``. (``M⁻¹ = R P`` is the polar decomposition of the inverse of t
 
 1. ``ellipsoid``: attitude-independent, from the magnitude alone, ``|P (y − b)| = F0 + g·(p −
    P_REF)`` (``g = Gᵀ B_0/|B_0|``, the gradient of |B|, fitted from the optical position, or
-   neglected); no optical attitude, no gyro.
+   neglected); no optical attitude, no gyro. Also with a linear bias drift ``b + ḃ (t − t_mid)``.
 2. ``optical``: the same ``P``, ``b`` plus ``R`` (against the optical body frame), ``B_0``
-   (direction), ``G`` and the time offset ``δ``, fitted against the optical attitude: the
-   whole-span fit's magnetometer part, outside GCS.
-3. ``gyro``: ``R`` (against the gyro's frame), ``b`` and ``δ`` from how the measured field
-   turns with the gyro over :data:`WINDOW_S`: ``R P (y(t₂) − b) = Φ(t₂, t₁) R P (y(t₁) − b)``,
-   ``Φ`` the gyro's integrated rotation (bias from the first rest), ``P`` from the ellipsoid;
-   no optical attitude.
+   (direction), ``G`` and the time offset ``δ``, fitted against the optical attitude, residuals
+   in the magnetometer's frame: the whole-span fit's magnetometer part, outside GCS. Variants:
+   one δ per axis, a first-order low-pass after δ, one δ per place of a sample after the last
+   held one (``phased``: the stream's time stamps step 1.5 ms off per sample), and a response
+   of second degree in the field's direction (``quadratic``).
+3. ``gyro``: ``R`` (against the gyro's frame), ``b``, ``P`` (its trace fixed: the equation is
+   homogeneous in P) and ``δ`` (or δ by place) from how the measured field turns with the gyro
+   over :data:`WINDOW_S`: ``R P (y(t₂) − b) = Φ(t₂, t₁) R P (y(t₁) − b)``, ``Φ`` the gyro's
+   integrated rotation (its bias the mean rate at rest, t = 1–6 s); no optical attitude.
 4. ``gyro→optical``: the gyro's 3×3 matrix against the optical frame from the rotation
-   vectors of the same windows, ``θ_opt = K θ_gyro`` (and the optical time offset),
-   ``K = R_og S`` by polar decomposition; the chain ``R_og R_gm`` against the optical fit's
-   ``R``.
-5. the magnetometer's bias drift: the ellipsoid with ``b(t) = b + ḃ (t − t_mid)``.
+   vectors of the same windows, ``θ_opt = K θ_gyro`` (at the best optical time offset),
+   ``K = R_og S`` by polar decomposition, σ of R_og by drawing K from its covariance (seeded).
+5. the whole-trial fit's mean residual at each rest (the offset's wander), and the per-fit
+   floor ``s`` that would bring each comparison within 3σ, ``|Δ| = 3 sqrt(σ_A² + σ_B² + 2 s²)``.
+
+The last table gives the change of each rotation between halves, interleaved sets and trials:
+if the magnetometer turns alike against the gyro and against the optical frame while the
+optical frame stands still against the gyro, the magnetometer (not the optical reference)
+is what moves.
 
 The magnetometer's exact repeats of its previous sample (29 % of ``imu_mag``: a
 sample-and-hold on the unit's bus, an old value at a new time stamp) are left out, or kept
-with a second argument ``keep_held``. Usage: ``broad_magnetometer_sources.py [FOLDER
-[keep_held]]``; under a minute per trial (numpy/scipy on the HDF5, run under ``nice``).
+with a second argument ``keep_held`` (then without the δ-by-place fits). Usage:
+``broad_magnetometer_sources.py [FOLDER [keep_held]]``; about a minute per trial
+(numpy/scipy on the HDF5, run under ``nice``).
 """
 
 from __future__ import annotations
@@ -63,6 +73,8 @@ F0 = 44.3
 P_REF = np.array([0.056, -0.46, 1.45])
 #: classes of a magnetometer sample's place after the last held sample (each its own time offset)
 PHASES = 7
+#: the interleaved split (a check of the σ themselves): alternate blocks of this length [s]
+INTERLEAVE_S = 8.0
 #: the trace that fixes the gyro-referenced P's common scale
 TRACE = 3.0
 #: a rest: the optical rate below this [rad/s] for at least REST_MIN_S
@@ -188,7 +200,8 @@ def fit(fun, x0, t_rows, bounds=None, free=None) -> dict[str, Any]:
 def segments(d: dict[str, Any]) -> dict[str, np.ndarray]:
     t = d["t"]
     half = t[-1] / 2
-    return {"whole": np.ones(len(t), bool), "h1": t < half, "h2": t >= half}
+    alt = np.floor(t / INTERLEAVE_S).astype(int) % 2 == 0
+    return {"whole": np.ones(len(t), bool), "h1": t < half, "h2": t >= half, "A": alt, "B": ~alt}
 
 
 # -- 1. attitude-independent ------------------------------------------------------------------
@@ -490,6 +503,9 @@ def compare(title: str, fits: dict[str, dict[str, Any]], sl: slice, names: list[
         if tr in fits:
             h1, h2 = fits[tr]["h1"], fits[tr]["h2"]
             print(zline(tr[:2] + " halves", names, h1["x"][sl], h2["x"][sl], h1["ss"][sl], h2["ss"][sl], scale))
+            if "A" in fits[tr]:
+                a, b = fits[tr]["A"], fits[tr]["B"]
+                print(zline(tr[:2] + " interleaved", names, a["x"][sl], b["x"][sl], a["ss"][sl], b["ss"][sl], scale))
     if all(tr in fits for tr in TRIALS):
         a, b = fits[TRIALS[0]]["whole"], fits[TRIALS[1]]["whole"]
         print(zline("02 vs 09", names, a["x"][sl], b["x"][sl], a["ss"][sl], b["ss"][sl], scale))
@@ -552,7 +568,7 @@ def report_trial(tr: str, o: dict[str, Any], keep_held: bool) -> None:
         f"{tr}: {d['held_frac']:.1%} held magnetometer samples {'kept' if keep_held else 'left out'}; "
         f"{o['seconds']:.0f} s"
     )
-    for s in ("whole", "h1", "h2"):
+    for s in ("whole", "h1", "h2", "A", "B"):
         e, e0, op, g, q = o["ell"][s], o["ell0"][s], o["opt"][s], o["gyr"][s], o["go"][s]
         keys = ["ell", "ell0", "drift", "opt", "gyr"] + (["optp", "gyrp"] if phased else [])
         bad = [k for k in keys if not o[k][s]["ok"]]
@@ -598,6 +614,7 @@ def halves_rotation(runs: dict[str, Any]) -> None:
     key_o, key_g = ("optp", "gyrp") if "optp" in runs[TRIALS[0]] else ("opt", "gyr")
     print(f"\nRotation changes [mrad] (h2 − h1; 09 − 02), {key_o}/{key_g} fits, σ the sandwich's:")
     rows = [(tr[:2] + " halves", runs[tr], "h1", runs[tr], "h2") for tr in TRIALS]
+    rows += [(tr[:2] + " B − A", runs[tr], "A", runs[tr], "B") for tr in TRIALS]
     rows.append(("09 − 02", runs[TRIALS[0]], "whole", runs[TRIALS[1]], "whole"))
     for label, ra, sa, rb, sb in rows:
         cells = []
