@@ -34,7 +34,8 @@ position ``p``. (``M⁻¹ = R P`` is the polar decomposition of the inverse of t
 4. ``gyro→optical``: the gyro's 3×3 matrix against the optical frame from the rotation
    vectors of the same windows, ``θ_opt = K θ_gyro`` (at the best optical time offset),
    ``K = R_og S`` by polar decomposition, σ of R_og by drawing K from its covariance (seeded).
-5. the whole-trial fit's mean residual at each rest (the offset's wander), and the per-fit
+5. the whole-trial fit's mean residual at each rest, the optical fit with the bias wandering
+   (``wander_s``: linear between knots every :data:`WANDER_S` s), and the per-fit
    floor ``s`` that would bring each comparison within 3σ, ``|Δ| = 3 sqrt(σ_A² + σ_B² + 2 s²)``.
 
 The last table gives the change of each rotation between halves, interleaved sets and trials:
@@ -75,6 +76,8 @@ P_REF = np.array([0.056, -0.46, 1.45])
 PHASES = 7
 #: the interleaved split (a check of the σ themselves): alternate blocks of this length [s]
 INTERLEAVE_S = 8.0
+#: the knot spacing of the bias's wander [s]
+WANDER_S = 20.0
 #: the trace that fixes the gyro-referenced P's common scale
 TRACE = 3.0
 #: a rest: the optical rate below this [rad/s] for at least REST_MIN_S
@@ -249,6 +252,7 @@ def optical(
     rotation_of: np.ndarray | None = None,
     phased: bool = False,
     quadratic: bool = False,
+    wander_s: float | None = None,
 ) -> dict[str, Any]:
     """y = (R P)⁻¹ C_BL(t + δ)(B_0 + G (p − P_REF)) + b, residuals in the magnetometer's frame
     [µT]: x = (P 6, b 3, φ 3, u 2, G 5, δ [ms]).
@@ -262,6 +266,8 @@ def optical(
     x = (P 6, b 3, φ 3, u 2, G 5, δ_1 … δ_PHASES). ``quadratic``: a response of second degree in
     the field's direction in the magnetometer's frame, y += Q q(n), n = (R P)⁻¹ C_BL B / |B|,
     q = (n_x², n_y², n_x n_y, n_x n_z, n_y n_z) (n_z² is 1 − n_x² − n_y²), Q (3×5) [µT] appended to x.
+    ``wander_s`` (with ``phased``): the bias wanders, b(t) = b + w(t), w linear between knots every
+    ``wander_s`` seconds, w = 0 at the first; the knots' w (3 each) [µT] appended to x.
     """
     tg = d["t"][(d["t"] > d["t_opt"][0] + 0.05) & (d["t"] < d["t_opt"][-1] - 0.05)]
     grid = np.isin(d["t"], tg)
@@ -278,6 +284,14 @@ def optical(
     e1 = np.cross(u0, [0, 0, 1.0])
     e1 /= np.linalg.norm(e1)
     e2 = np.cross(u0, e1)
+
+    # the bias's wander: hat functions of knots every wander_s seconds
+    n_knots = 1
+    hat = np.zeros((len(t), 1))
+    if wander_s is not None and len(t):
+        knots = np.arange(t[0], t[-1] + wander_s, wander_s)
+        n_knots = len(knots)
+        hat = np.column_stack([np.interp(t, knots, np.eye(n_knots)[k]) for k in range(n_knots)])
 
     cache: dict[float, Rotation] = {}
 
@@ -298,11 +312,9 @@ def optical(
                 sel = cls == c
                 pred[sel] = opt_at(x[19 + c])[sel].inv().apply(b_lab[sel]) @ m_inv.T
             if quadratic:
-                n = pred / np.linalg.norm(pred, axis=1)[:, None]
-                qn = np.column_stack(
-                    [n[:, 0] ** 2, n[:, 1] ** 2, n[:, 0] * n[:, 1], n[:, 0] * n[:, 2], n[:, 1] * n[:, 2]]
-                )
-                pred = pred + qn @ x[19 + PHASES : 34 + PHASES].reshape(3, 5).T
+                pred = pred + second_degree(pred) @ x[19 + PHASES : 34 + PHASES].reshape(3, 5).T
+            if wander_s is not None:
+                pred = pred + hat @ np.r_[np.zeros(3), x[len(x) - 3 * (n_knots - 1) :]].reshape(n_knots, 3)
             return (y - x[6:9] - pred).ravel()
         delays = x[19:22] if per_axis else [x[19]] * 3
         pred = np.column_stack([opt_at(delays[k]).inv().apply(b_lab) @ m_inv[k] for k in range(3)])
@@ -316,6 +328,10 @@ def optical(
         if not phased:
             raise ValueError("quadratic needs phased")
         x0 = np.r_[x0, np.zeros(15)]
+    if wander_s is not None:
+        if not phased:
+            raise ValueError("wander_s needs phased")
+        x0 = np.r_[x0, np.zeros(3 * (n_knots - 1))]
     if lowpass:
         x0[19 : 19 + (3 if per_axis else 1)] = -9.5
     if rotation_of is not None:
@@ -549,6 +565,7 @@ def run_trial(folder: Path, tr: str, keep_held: bool) -> dict[str, Any]:
         out["optp"] = {s: optical(d, m, e, phased=True) for s, m in segs.items()}
         out["gyrp"] = {s: gyro_ref(d, m, att, TRACE, phased=True) for s, m in segs.items()}
         out["optq"] = {s: optical(d, m, e, phased=True, quadratic=True) for s, m in segs.items()}
+        out["optw"] = {s: optical(d, m, e, phased=True, wander_s=WANDER_S) for s, m in segs.items()}
         out["rests"] = rest_residuals(d, out["optp"]["whole"])
     whole = segs["whole"]
     out["per_axis"] = optical(d, whole, e, per_axis=True)
@@ -592,6 +609,9 @@ def report_trial(tr: str, o: dict[str, Any], keep_held: bool) -> None:
                 f"        δ by place after a held sample [ms]: optical {fmt(o['optp'][s]['x'][19:], 1, 2)}, "
                 f"gyro {fmt(o['gyrp'][s]['x'][12:], 1, 2)}"
             )
+            wx = o["optw"][s]["x"][19 + PHASES :].reshape(-1, 3)
+            wrms = fmt(np.sqrt(np.mean(wx**2, axis=0)), 1e3, 0)
+            print(f"        the bias's wander (knots every {WANDER_S:g} s): RMS {wrms} nT")
             qx, qs = o["optq"][s]["x"][19 + PHASES :], o["optq"][s]["ss"][19 + PHASES :]
             print(f"        Q [nT] (rows x, y, z; n_x², n_y², n_x n_y, n_x n_z, n_y n_z): {fmt(qx, 1e3, 0)}")
             print(f"          z: {fmt(qx / qs, 1, 1)}")
@@ -636,7 +656,7 @@ def main() -> None:
     runs = {tr: run_trial(folder, tr, keep_held) for tr in TRIALS}
     for tr, o in runs.items():
         report_trial(tr, o, keep_held)
-    kinds = ("ell", "ell0", "drift", "opt", "gyr", "go") + (() if keep_held else ("optp", "gyrp", "optq"))
+    kinds = ("ell", "ell0", "drift", "opt", "gyr", "go") + (() if keep_held else ("optp", "gyrp", "optq", "optw"))
     fits = {k: {tr: o[k] for tr, o in runs.items()} for k in kinds}
     pscale = [1e3] * 9
     rot = ["φ_x", "φ_y", "φ_z"]
@@ -668,6 +688,9 @@ def main() -> None:
             pscale,
         )
         compare("2q. the same: R (MAG→optical)", fits["optq"], slice(9, 12), rot, [1e3] * 3)
+        title = f"2w. optical-referenced, phased δ, the bias wandering (knots every {WANDER_S:g} s): P, b(t₀)"
+        compare(title, fits["optw"], slice(0, 9), NAMES_E, pscale)
+        compare("2w. the same: R (MAG→optical)", fits["optw"], slice(9, 12), rot, [1e3] * 3)
         qn = [f"Q_{a}{k}" for a in "xyz" for k in ("xx", "yy", "xy", "xz", "yz")]
         q0 = 19 + PHASES
         compare("2q. the same: Q [nT]", fits["optq"], slice(q0, q0 + 15), qn, [1e3] * 15)
