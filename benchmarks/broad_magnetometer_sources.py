@@ -47,7 +47,9 @@ The magnetometer's exact repeats of its previous sample (29 % of ``imu_mag``: a
 sample-and-hold on the unit's bus, an old value at a new time stamp) are left out, or kept
 with a second argument ``keep_held`` (then without the δ-by-place fits). Usage:
 ``broad_magnetometer_sources.py [FOLDER [keep_held]]``; about a minute per trial
-(numpy/scipy on the HDF5, run under ``nice``).
+(numpy/scipy on the HDF5, run under ``nice``). ``broad_magnetometer_sources.py selfcheck``
+runs each estimator on simulated trials of known truth (:mod:`_broad_mag_sim`); the
+estimators are in :mod:`_broad_mag_fits`.
 """
 
 from __future__ import annotations
