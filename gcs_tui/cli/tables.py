@@ -64,9 +64,18 @@ def fit_table(analysis) -> list[str]:
         lines.append(UNOBSERVABLE_NOTE)
     if hasattr(analysis, "null_at_prior"):
         listed = set(res.unobservable)
+        sigma = res.sigma
         for u in analysis.null_at_prior():
-            if u not in listed:
-                lines.append(f"not determined at the a-priori linearization: {u}")
+            if u in listed:
+                continue
+            # an element reached only through a quantity whose a priori is 0 (an unknown
+            # field, an amplitude) is null there; say when the fit determined it anyway
+            name = u.split(" (no data", 1)[0]
+            el = analysis.problem.state[name] if name in sigma else None
+            done = el is not None and el.sigma0 > 0 and sigma[name] < 0.5 * el.sigma0
+            lines.append(
+                f"not determined at the a-priori linearization: {u}" + ("; determined at the solution" if done else "")
+            )
     return lines
 
 
