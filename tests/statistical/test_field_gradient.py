@@ -20,7 +20,6 @@ import pytest
 from test_ground_mission import (
     B_LAB,
     D_TRUE,
-    DT,
     GYRO_BIAS,
     GYRO_NOISE,
     MAG_ALIGN_RAD,
@@ -32,8 +31,8 @@ from test_ground_mission import (
     OPT_NOISE,
     Z_MAX,
     N,
-    _rate,
     _write,
+    kinematics,
 )
 
 from gcs_core.config import default_config
@@ -58,19 +57,8 @@ def _position(t):
 def _simulate(rng, hold: int = 1):
     """The truth; ``hold`` > 1 holds each magnetometer noise draw over that many samples
     (errors correlated over ``hold·DT``, which a white-noise fit undercounts)."""
-    t = np.arange(N + 1) * DT
-    w = _rate(t[1:] - 0.5 * DT)
-    C = np.empty((N + 1, 3, 3))
-    C[0] = euler123_to_dcm(0.3, -0.2, 1.0)
-    steps = rotvec_to_dcm(w * DT)
-    for k in range(N):
-        C[k + 1] = steps[k] @ C[k]
+    t, w, shifted = kinematics()
     k = np.arange(1, N)
-
-    def shifted(dt):
-        rate = w[k] if dt > 0 else w[k - 1]
-        return rotvec_to_dcm(rate * dt) @ C[k]
-
     gyro = w + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
     B_at = B_LAB + _position(t[k] + MAG_DT) @ G_TRUE.T  # the field where the unit is
     M = euler123_to_dcm(*MAG_ALIGN_RAD)

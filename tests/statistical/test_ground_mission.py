@@ -53,21 +53,28 @@ def _rate(t):
     return np.column_stack([0.9 * np.sin(0.31 * t), 0.8 * np.cos(0.23 * t + 1.0), 0.6 * np.sin(0.17 * t + 2.0) + 0.2])
 
 
-def _simulate(rng):
-    t = np.arange(N + 1) * DT
-    w = _rate(t[1:] - 0.5 * DT)  # the rate of interval (t_{k-1}, t_k]
-    C = np.empty((N + 1, 3, 3))
+def kinematics(n: int = N, dt: float = DT, scale: float = 1.0):
+    """The lab's exact kinematics: the ticks ``t`` (n + 1), the rate ``w`` (n, 3) of each
+    interval (t_{k-1}, t_k] (:func:`_rate` times ``scale``), and ``shifted(δ)``: the attitude
+    C(t_k + δ) for k = 1..n−1 and |δ| < dt, turned on at the rate of the interval δ falls in."""
+    t = np.arange(n + 1) * dt
+    w = scale * _rate(t[1:] - 0.5 * dt)
+    C = np.empty((n + 1, 3, 3))
     C[0] = euler123_to_dcm(0.3, -0.2, 1.0)
-    steps = rotvec_to_dcm(w * DT)
-    for k in range(N):
-        C[k + 1] = steps[k] @ C[k]
+    steps = rotvec_to_dcm(w * dt)
+    for i in range(n):
+        C[i + 1] = steps[i] @ C[i]
+    k = np.arange(1, n)
 
-    def shifted(dt):
-        """C(t_k + dt) for |dt| < DT, k = 1..N-1: turned on at the rate of the interval."""
-        k = np.arange(1, N)
-        rate = w[k] if dt > 0 else w[k - 1]  # interval after / before t_k
-        return rotvec_to_dcm(rate * dt) @ C[k]
+    def shifted(delta):
+        rate = w[k] if delta > 0 else w[k - 1]  # interval after / before t_k
+        return rotvec_to_dcm(rate * delta) @ C[k]
 
+    return t, w, shifted
+
+
+def _simulate(rng):
+    t, w, shifted = kinematics()
     k = np.arange(1, N)
     gyro = w + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
     M = euler123_to_dcm(*MAG_ALIGN_RAD)
@@ -77,34 +84,21 @@ def _simulate(rng):
     return t, gyro, B_S, quat_from_dcm(C_opt)
 
 
-def _write(root, t, gyro, B_S, q):
+def _write(root, t, gyro, B_S, q, flag=None):
+    """The lab as a mission directory; ``flag`` (optional, per magnetometer row) is written
+    as the telemetry's ``flag`` column (non-zero rows are kept in the file, not fitted)."""
     (root / "telemetry").mkdir(parents=True)
-    k = np.arange(1, N)
+    k = np.arange(1, t.size - 1)
+    fmt = {"delimiter": ",", "comments": "", "fmt": "%.10g"}
+    np.savetxt(root / "telemetry/GYR.csv", np.column_stack([t[1:], gyro]), header="t,wx,wy,wz", **fmt)
+    mag, header = np.column_stack([t[k], B_S]), "t,bx,by,bz"
+    if flag is not None:
+        mag, header = np.column_stack([mag, flag]), header + ",flag"
+    np.savetxt(root / "telemetry/MAG.csv", mag, header=header, **fmt)
     np.savetxt(
-        root / "telemetry/GYR.csv",
-        np.column_stack([t[1:], gyro]),
-        delimiter=",",
-        header="t,wx,wy,wz",
-        comments="",
-        fmt="%.10g",
+        root / "telemetry/OPT.csv", np.column_stack([t[k], q]), header="t,q1,q2,q3,q4", **{**fmt, "fmt": "%.12g"}
     )
-    np.savetxt(
-        root / "telemetry/MAG.csv",
-        np.column_stack([t[k], B_S]),
-        delimiter=",",
-        header="t,bx,by,bz",
-        comments="",
-        fmt="%.10g",
-    )
-    np.savetxt(
-        root / "telemetry/OPT.csv",
-        np.column_stack([t[k], q]),
-        delimiter=",",
-        header="t,q1,q2,q3,q4",
-        comments="",
-        fmt="%.12g",
-    )
-    arw = GYRO_NOISE * np.sqrt(DT)
+    arw = GYRO_NOISE * np.sqrt(t[1] - t[0])
     (root / "mission.toml").write_text(f"""
 [mission]
 name = "lab"

@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_ground_mission import B_LAB, GYRO_BIAS, GYRO_NOISE, MEMS_PRIORS, OPT_NOISE, Z_MAX, _rate
+from test_ground_mission import B_LAB, GYRO_BIAS, GYRO_NOISE, MEMS_PRIORS, OPT_NOISE, Z_MAX, _write, kinematics
 
 from gcs_core.config import default_config
 from gcs_core.convert.holds import FLAG_HELD, FLAG_INTERPOLATED, bus_check
-from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
+from gcs_core.frames.rotations import quat_from_dcm, rotvec_to_dcm
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis
 
@@ -49,19 +49,8 @@ HONEST_SCALE = 1.3
 
 
 def _simulate(rng):
-    t = np.arange(N + 1) * DT
-    w = RATE_SCALE * _rate(t[1:] - 0.5 * DT)  # up to ~4 rad/s: hand motions in the lab
-    C = np.empty((N + 1, 3, 3))
-    C[0] = euler123_to_dcm(0.3, -0.2, 1.0)
-    steps = rotvec_to_dcm(w * DT)
-    for k in range(N):
-        C[k + 1] = steps[k] @ C[k]
+    t, w, shifted = kinematics(N, DT, RATE_SCALE)  # up to ~4 rad/s: hand motions in the lab
     k = np.arange(1, N)
-
-    def shifted(dt):
-        rate = w[k] if dt > 0 else w[k - 1]
-        return rotvec_to_dcm(rate * dt) @ C[k]
-
     gyro = w + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
     B = np.einsum("ij,njk,k->ni", np.eye(3) + D_TRUE, shifted(MAG_DT), B_LAB) + MAG_BIAS
     B += rng.normal(scale=MAG_NOISE, size=B.shape)
@@ -74,48 +63,6 @@ def _simulate(rng):
         B[j] = 0.5 * (B[j - 1] + B[j + 1])
     C_opt = rotvec_to_dcm(rng.normal(scale=OPT_NOISE, size=(k.size, 3))) @ shifted(OPT_DT)
     return t, gyro, B, quat_from_dcm(C_opt), kind
-
-
-def _write(root, t, gyro, B, q, flag):
-    (root / "telemetry").mkdir(parents=True)
-    k = np.arange(1, N)
-    fmt = {"fmt": "%.12g", "delimiter": ",", "comments": ""}
-    np.savetxt(root / "telemetry/GYR.csv", np.column_stack([t[1:], gyro]), header="t,wx,wy,wz", **fmt)
-    np.savetxt(root / "telemetry/MAG.csv", np.column_stack([t[k], B, flag]), header="t,bx,by,bz,flag", **fmt)
-    np.savetxt(root / "telemetry/OPT.csv", np.column_stack([t[k], q]), header="t,q1,q2,q3,q4", **fmt)
-    (root / "mission.toml").write_text(f"""
-[mission]
-name = "lab-bus"
-epoch = "2021-01-01T00:00:00Z"
-attitude_mode = "inertial"
-
-[ephemeris]
-ground_position_km = [0.0, 0.0, 6365.0]
-
-[[sensor]]
-name = "GYR"
-type = "gyro"
-telemetry = "telemetry/GYR.csv"
-alignment_deg = [0.0, 0.0, 0.0]
-bias = [0.0, 0.0, 0.0]
-arw = {GYRO_NOISE * np.sqrt(DT):.6g}
-rrw = 0.0
-
-[[sensor]]
-name = "MAG"
-type = "magnetometer"
-telemetry = "telemetry/MAG.csv"
-alignment_deg = [0.0, 0.0, 0.0]
-noise = {MAG_NOISE}
-bias = [0.0, 0.0, 0.0]
-
-[[sensor]]
-name = "OPT"
-type = "attitude_reference"
-telemetry = "telemetry/OPT.csv"
-alignment_deg = [0.0, 0.0, 0.0]
-noise = {OPT_NOISE}
-""")
 
 
 def _fit(root):
