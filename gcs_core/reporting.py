@@ -69,7 +69,7 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     if res is not None:
         out["remaining"] = remaining_summary(analysis)
         sc = analysis.sigma_scale() if hasattr(analysis, "sigma_scale") else None
-        out["sigma_scale"] = sigma_scale_report(sc, res.sigma) if sc is not None else None
+        out["sigma_scale"] = sigma_scale_report(sc, res.sigma, res) if sc is not None else None
     if getattr(analysis, "noise", None) is not None:  # [filter] noise_weighting = "long_run"
         out["noise_weighting"] = analysis.noise.as_report()
     return out

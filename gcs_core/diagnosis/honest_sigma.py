@@ -79,15 +79,29 @@ def flagged(sc: SigmaScale | None) -> dict[str, float]:
     return {n: s for n, s in sc.scale.items() if s > lim}
 
 
-def sigma_scale_report(sc: SigmaScale, sigma: Mapping[str, float]) -> dict[str, Any]:
-    """The report's ``sigma_scale`` field: window, windows, threshold and per element the
-    scale and the σ with it (``σ × max(1, s)``), in the element's unit."""
+def frames_per_window(sc: SigmaScale, result) -> dict[str, float]:
+    """Sensor -> used frames per window. Below 2 a window holds about one sample: the scale
+    then measures residuals larger than the stated noise (the heteroskedastic sandwich),
+    not their correlation, which needs a window longer than the sampling interval."""
+    return {
+        n: float(np.count_nonzero(result.residuals[n].used)) / max(sc.n_blocks, 1)
+        for n in sc.sensors
+        if n in result.residuals
+    }
+
+
+def sigma_scale_report(sc: SigmaScale, sigma: Mapping[str, float], result=None) -> dict[str, Any]:
+    """The report's ``sigma_scale`` field: window, windows, used frames per window (with
+    ``result``), threshold and per element the scale and the σ with it (``σ × max(1, s)``),
+    in the element's unit."""
     honest = sc.honest_sigma({n: sigma[n] for n in sc.scale if n in sigma})
+    per = frames_per_window(sc, result) if result is not None else {}
     return {
         "method": "batch-means sandwich, conditional on the attitude",
         "window_s": sc.block_s,
         "n_windows": sc.n_blocks,
         "sensors": list(sc.sensors),
+        "frames_per_window": {n: round(v, 2) for n, v in per.items()},
         "flag_above": round(threshold(sc), 4),
         "elements": {
             n: {"scale": round(s, 4), "sigma": float(sigma[n]), "sigma_with_correlation": honest[n]}

@@ -120,9 +120,10 @@ def state_table(analysis) -> list[str]:
 
 #: what the correlation-robust σ block means, said once under it
 SIGMA_SCALE_NOTE = (
-    "(the residuals are correlated over times the fit's σ assume white, so these elements are "
-    "less certain than their σ above by the scale shown; not listed: scales up to {limit:.2f}, "
-    "within their sampling error of 1, and elements the a priori set)"
+    "(the residuals carry less information than the fit's σ assume: correlated within the "
+    "windows, or larger than the stated noise; these elements are less certain than their σ "
+    "above by the scale shown; not listed: scales up to {limit:.2f}, within their sampling "
+    "error of 1, and elements the a priori set)"
 )
 
 
@@ -131,7 +132,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
     (:mod:`gcs_core.diagnosis.honest_sigma`), with the σ that counts the residuals'
     correlation; nothing when none does (white residuals) or the scale was not estimated.
     ``skip``: elements not listed (those the data did not determine: their σ is the a priori's)."""
-    from gcs_core.diagnosis.honest_sigma import flagged, threshold
+    from gcs_core.diagnosis.honest_sigma import flagged, frames_per_window, threshold
 
     sc = analysis.sigma_scale() if hasattr(analysis, "sigma_scale") else None
     big = {n: s for n, s in flagged(sc).items() if n not in set(skip)}
@@ -146,6 +147,13 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
         e = res.state[n]
         lines.append(f"  {n:26s} scale {s:5.2f}   {display.estimate(e.value, honest[n], e.unit)}")
     lines.extend(textwrap.wrap(SIGMA_SCALE_NOTE.format(limit=threshold(sc)), 100))
+    sparse = [n for n, v in frames_per_window(sc, res).items() if v < 2.0]
+    if sparse:
+        text = (
+            f"({', '.join(sparse)}: about one sample per {sc.block_s:g}-s window, so the scale shows "
+            "residuals larger than the noise, not their correlation; a longer --sigma-window sees that)"
+        )
+        lines.extend(textwrap.wrap(text, 100))
     return lines
 
 

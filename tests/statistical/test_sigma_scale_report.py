@@ -53,6 +53,7 @@ def test_report_gives_each_element_its_scale_and_sigma(batch):
     hold, _, rep = batch
     sc = rep["sigma_scale"]
     assert (sc["window_s"], sc["n_windows"], sc["sensors"]) == (WINDOW_S, 60, ["MAG", "OPT"])
+    assert min(sc["frames_per_window"].values()) > 2  # samples at 50 Hz: each window sees the correlation
     elements = sc["elements"]
     expected = np.sqrt(hold)
     for n in MAG_ELEMENTS:
@@ -76,6 +77,7 @@ def test_table_lists_the_correlated_elements_only(batch):
     for n in MAG_ELEMENTS:
         assert listed[n] == pytest.approx(rep["sigma_scale"]["elements"][n]["scale"], abs=0.006)
     assert "OPT.time_offset" not in listed  # the optical reference's noise is white
+    assert "sample per" not in out  # many samples per window
 
 
 def test_short_span_and_off_skip_quietly(tmp_path, caplog):
@@ -95,3 +97,23 @@ def test_window_option_refuses_bad_values():
     for bad in ("-1", "inf", "nan", "four"):
         with pytest.raises(argparse.ArgumentTypeError):
             seconds_or_zero(bad)
+
+
+def test_one_sample_per_window_is_said():
+    """Windows shorter than the sampling interval see no correlation: the table says so."""
+    from types import SimpleNamespace
+
+    from gcs_core.diagnosis.correlation import SigmaScale
+    from gcs_tui.cli.tables import sigma_scale_lines
+
+    sc = SigmaScale(("MAG",), 4.0, 100, {"MAG.bias_x": 7.0, "MAG.bias_y": 1.1})
+    res = SimpleNamespace(
+        residuals={"MAG": SimpleNamespace(used=np.ones(100, bool))},
+        sigma={"MAG.bias_x": 5.0, "MAG.bias_y": 5.0},
+        state={n: SimpleNamespace(value=1.0, unit="nT") for n in sc.scale},
+    )
+    lines = sigma_scale_lines(SimpleNamespace(result=res, sigma_scale=lambda: sc))
+    assert lines[0].startswith(HEADER) and "4-s windows, 100 windows" in lines[0]
+    assert [ln.split()[0] for ln in lines[1:] if ln.startswith("  ")] == ["MAG.bias_x"]
+    assert "35 nT" in lines[1]  # σ 5 × scale 7
+    assert "one sample per 4-s window" in " ".join(lines)
