@@ -150,7 +150,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
     sparse = [n for n, v in frames_per_window(sc, res).items() if v < 2.0]
     if sparse:
         text = (
-            f"({', '.join(sparse)}: about one sample per {sc.block_s:g}-s window, so the scale shows "
+            f"({', '.join(sparse)}: fewer than two samples per {sc.block_s:g}-s window, so its scales show "
             "residuals larger than the noise, not their correlation; a longer --sigma-window sees that)"
         )
         lines.extend(textwrap.wrap(text, 100))

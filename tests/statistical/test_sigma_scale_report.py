@@ -77,7 +77,7 @@ def test_table_lists_the_correlated_elements_only(batch):
     for n in MAG_ELEMENTS:
         assert listed[n] == pytest.approx(rep["sigma_scale"]["elements"][n]["scale"], abs=0.006)
     assert "OPT.time_offset" not in listed  # the optical reference's noise is white
-    assert "sample per" not in out  # many samples per window
+    assert "samples per" not in out  # many samples per window
 
 
 def test_short_span_and_off_skip_quietly(tmp_path, caplog):
@@ -116,4 +116,4 @@ def test_one_sample_per_window_is_said():
     assert lines[0].startswith(HEADER) and "4-s windows, 100 windows" in lines[0]
     assert [ln.split()[0] for ln in lines[1:] if ln.startswith("  ")] == ["MAG.bias_x"]
     assert "35 nT" in lines[1]  # σ 5 × scale 7
-    assert "one sample per 4-s window" in " ".join(lines)
+    assert "fewer than two samples per 4-s window" in " ".join(lines)
