@@ -118,6 +118,8 @@ def state_table(analysis) -> list[str]:
     return lines + sigma_scale_lines(analysis, skip=set(loose) | set(prior))
 
 
+#: the first words of the correlation-robust σ block
+HEADER_SIGMA_SCALE = "σ with the residuals' correlation"
 #: what the correlation-robust σ block means, said once under it
 SIGMA_SCALE_NOTE = (
     "(the residuals carry less information than the fit's σ assume: correlated within the "
@@ -140,9 +142,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
         return []
     res = analysis.result
     honest = sc.honest_sigma({n: res.sigma[n] for n in big})
-    lines = [
-        f"σ with the residuals' correlation (batch-means sandwich, {sc.block_s:g}-s windows, {sc.n_blocks} windows):"
-    ]
+    lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:g}-s windows, {sc.n_blocks} windows):"]
     for n, s in big.items():
         e = res.state[n]
         lines.append(f"  {n:26s} scale {s:5.2f}   {display.estimate(e.value, honest[n], e.unit)}")

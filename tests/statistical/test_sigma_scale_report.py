@@ -26,10 +26,10 @@ from test_sigma_scale import HOLD, MAG_ELEMENTS, SCALE_SCATTER
 from gcs_core.config import default_config, save_config
 from gcs_tui.cli.arguments import seconds_or_zero
 from gcs_tui.cli.commands import EXIT_OK, main
+from gcs_tui.cli.tables import HEADER_SIGMA_SCALE as HEADER
 
 #: 1-s windows: 60 over the 60-s span
 WINDOW_S = 1.0
-HEADER = "σ with the residuals' correlation"
 
 
 @pytest.fixture(scope="module", params=[1, HOLD], ids=["white", "held"])
