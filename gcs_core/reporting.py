@@ -16,6 +16,7 @@ from typing import Any
 
 import numpy as np
 
+from gcs_core.diagnosis.honest_sigma import sigma_scale_report
 from gcs_core.fileperm import write_atomic
 from gcs_core.json_values import json_default
 from gcs_core.problem.state import HELD, SOLVE_FOR
@@ -34,7 +35,10 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     off would cost; ``remaining`` what is left per sensor against its stated noise;
     ``noise_weighting`` (only with ``[filter] noise_weighting = "long_run"``) each sensor's
     long-run noise factor and window (:mod:`gcs_core.diagnosis.weighting`): the fit weighted
-    σ × factor, while normalized RMS, χ² and verdicts stay against the stated σ.
+    σ × factor, while normalized RMS, χ² and verdicts stay against the stated σ;
+    ``sigma_scale`` the batch-means sandwich σ scale of each solve-for element and its σ with
+    the residuals' correlation (:mod:`gcs_core.diagnosis.honest_sigma`), null when off or
+    not estimable (too few windows).
     """
     res = analysis.result
     gof = analysis.goodness()
@@ -64,6 +68,8 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     )
     if res is not None:
         out["remaining"] = remaining_summary(analysis)
+        sc = analysis.sigma_scale() if hasattr(analysis, "sigma_scale") else None
+        out["sigma_scale"] = sigma_scale_report(sc, res.sigma, res) if sc is not None else None
     if getattr(analysis, "noise", None) is not None:  # [filter] noise_weighting = "long_run"
         out["noise_weighting"] = analysis.noise.as_report()
     return out

@@ -18,6 +18,7 @@ from gcs_core.diagnosis import aliases, determination, discovery, goodness, phys
 from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
+from gcs_core.diagnosis.honest_sigma import SIGMA_WINDOW, fit_sigma_scale
 from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.diagnosis.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
@@ -72,6 +73,8 @@ class Analysis:
         self._null_at_prior: tuple | None = None  # (problem, combinations)
         self._physics_needed: tuple | None = None  # (result it was scored on, rows)
         self._aliases: tuple | None = None  # (result it was formed for, aliases)
+        self.sigma_window = SIGMA_WINDOW  # [s] of sigma_scale(); 0 = off
+        self._sigma_scale: tuple | None = None  # (result, window, SigmaScale | None)
 
     # ------------------------------------------------------------------ set-up
     @property
@@ -394,6 +397,21 @@ class Analysis:
             )
             self._goodness = (res, g)
         return self._goodness[1]
+
+    def sigma_scale(self):
+        """The latest fit's correlation-robust σ scales over windows of ``sigma_window``
+        (:mod:`gcs_core.diagnosis.honest_sigma`), once per result; None when off, before a
+        fit, or not estimable (too few windows: logged)."""
+        res, c = self.result, self._sigma_scale
+        if res is None:
+            return None
+        if c is None or c[0] is not res or c[1] != self.sigma_window:
+            c = self._sigma_scale = (
+                res,
+                self.sigma_window,
+                fit_sigma_scale(self.problem, res, self._scale(), self.sigma_window),
+            )
+        return c[2]
 
     def set_by_prior(self) -> dict[str, str]:
         """Solve-for elements the a priori set rather than the data (prior share of the

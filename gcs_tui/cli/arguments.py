@@ -18,3 +18,14 @@ def whole_number(minimum: int):
         return v
 
     return parse
+
+
+def seconds_or_zero(text: str) -> float:
+    """An argparse type: a finite number of seconds ≥ 0 (0 turns the option's feature off)."""
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number of seconds: {text!r}") from None
+    if not (v >= 0 and v != float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a finite number ≥ 0, not {text}")
+    return v

@@ -45,7 +45,7 @@ from pathlib import Path
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
-from gcs_tui.cli.arguments import whole_number
+from gcs_tui.cli.arguments import seconds_or_zero, whole_number
 from gcs_tui.cli.progress import MODES, LogHandler, Progress
 
 log = logging.getLogger("gcs")
@@ -99,7 +99,10 @@ def _analysis(args, prog: Progress):
 
     cfg, mission = _setup(args, prog)
     with prog.task("building the state"):
-        return Analysis(cfg, mission=mission)
+        a = Analysis(cfg, mission=mission)
+    if getattr(args, "sigma_window", None) is not None:
+        a.sigma_window = args.sigma_window
+    return a
 
 
 def _fit(a, prog: Progress, **kw):
@@ -485,6 +488,11 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--method", choices=("whole_span", "batch", "kalman"), help="override the config's method")
         sp.add_argument(
             "--noise-weighting", choices=("stated", "long_run"), help="override the config's [filter] noise_weighting"
+        )
+        sp.add_argument(
+            "--sigma-window",
+            type=seconds_or_zero,
+            help="window [s] of the correlation-robust σ (default 4; 0 = off)",
         )
         sp.add_argument("--plots", help="export residual plots to this folder")
         sp.add_argument(

@@ -115,6 +115,45 @@ def state_table(analysis) -> list[str]:
                 "set by the a priori (the data give less information than the a priori; "
                 "posterior σ / a-priori σ): " + ", ".join(shown)
             )
+    return lines + sigma_scale_lines(analysis, skip=set(loose) | set(prior))
+
+
+#: the first words of the correlation-robust σ block
+HEADER_SIGMA_SCALE = "σ with the residuals' correlation"
+#: what the correlation-robust σ block means, said once under it
+SIGMA_SCALE_NOTE = (
+    "(the residuals carry less information than the fit's σ assume: correlated within the "
+    "windows, or larger than the stated noise; these elements are less certain than their σ "
+    "above by the scale shown; not listed: scales up to {limit:.2f}, within their sampling "
+    "error of 1, and elements the a priori set)"
+)
+
+
+def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
+    """The elements whose batch-means sandwich σ scale clearly exceeds 1
+    (:mod:`gcs_core.diagnosis.honest_sigma`), with the σ that counts the residuals'
+    correlation; nothing when none does (white residuals) or the scale was not estimated.
+    ``skip``: elements not listed (those the data did not determine: their σ is the a priori's)."""
+    from gcs_core.diagnosis.honest_sigma import flagged, frames_per_window, threshold
+
+    sc = analysis.sigma_scale() if hasattr(analysis, "sigma_scale") else None
+    big = {n: s for n, s in flagged(sc).items() if n not in set(skip)}
+    if sc is None or not big:
+        return []
+    res = analysis.result
+    honest = sc.honest_sigma({n: res.sigma[n] for n in big})
+    lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:g}-s windows, {sc.n_blocks} windows):"]
+    for n, s in big.items():
+        e = res.state[n]
+        lines.append(f"  {n:26s} scale {s:5.2f}   {display.estimate(e.value, honest[n], e.unit)}")
+    lines.extend(textwrap.wrap(SIGMA_SCALE_NOTE.format(limit=threshold(sc)), 100))
+    sparse = [n for n, v in frames_per_window(sc, res).items() if v < 2.0]
+    if sparse:
+        text = (
+            f"({', '.join(sparse)}: fewer than two samples per {sc.block_s:g}-s window, so its scales show "
+            "residuals larger than the noise, not their correlation; a longer --sigma-window sees that)"
+        )
+        lines.extend(textwrap.wrap(text, 100))
     return lines
 
 
