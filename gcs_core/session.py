@@ -73,7 +73,7 @@ class Analysis:
         self._null_at_prior: tuple | None = None  # (problem, combinations)
         self._physics_needed: tuple | None = None  # (result it was scored on, rows)
         self._aliases: tuple | None = None  # (result it was formed for, aliases)
-        self.sigma_window = SIGMA_WINDOW  # [s] of sigma_scale(); 0 = off
+        self.sigma_window = SIGMA_WINDOW  # [s] of sigma_scale(); 0 = off, None = chosen
         self._sigma_scale: tuple | None = None  # (result, window, SigmaScale | None)
 
     # ------------------------------------------------------------------ set-up

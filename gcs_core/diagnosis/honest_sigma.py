@@ -4,9 +4,9 @@
 batch-means sandwich scale ``s_i`` (``Cov = A⁻¹ B A⁻¹``; Newey & West 1987, Conway 1963;
 read that module's docstring: the scale is conditional on the attitude, and below 1 it is
 the method's blind spot, so a σ is never scaled down). This module runs it once after the
-final fit of ``gcs batch`` and ``gcs discover`` with the default window
-(:data:`~gcs_core.diagnosis.correlation.BLOCK_S`, 4 s), skips it quietly (one log line)
-when it cannot be estimated, and says which elements the residuals' correlation makes
+final fit of ``gcs batch`` and ``gcs discover`` (the window: given, or chosen by
+:func:`auto_window`), skips it quietly (one log line) when it cannot be estimated, and
+says which elements the residuals' correlation makes
 clearly less certain than the fit's σ claim:
 
     flagged ⇔  s_i > FLAG_SCALE  and  s_i > 1 + FLAG_SIGMAS / sqrt(2 n_b)
@@ -31,31 +31,70 @@ from typing import Any
 
 import numpy as np
 
-from gcs_core.diagnosis.correlation import BLOCK_S, SigmaScale, sigma_scale
+from gcs_core.diagnosis.correlation import BLOCK_S, MIN_BLOCKS, SigmaScale, sigma_scale
 from gcs_core.diagnosis.weighting import stated_residuals
 from gcs_core.errors import InputError
 
 log = logging.getLogger(__name__)
 
-#: default window [s] of the headless runs (0 = off)
-SIGMA_WINDOW = BLOCK_S
+#: default window of the headless runs: None = :func:`auto_window` (a number [s]: that
+#: window; 0 = off)
+SIGMA_WINDOW: float | None = None
+#: an automatic window holds at least this many samples of the sparsest sensor
+SAMPLES_PER_WINDOW = 10
 #: a scale is reported beside the σ only above this ...
 FLAG_SCALE = 1.5
 #: ... and above 1 by this many of its sampling errors 1/sqrt(2 n_b)
 FLAG_SIGMAS = 3.0
 
 
-def fit_sigma_scale(problem, result, weights: Mapping[str, float], window: float = SIGMA_WINDOW) -> SigmaScale | None:
+def auto_window(result) -> float | None:
+    """The default window [s]: :data:`~gcs_core.diagnosis.correlation.BLOCK_S` (several
+    times the hand motions' time scale), lengthened to hold :data:`SAMPLES_PER_WINDOW`
+    samples of the sparsest sensor (a window of one sample sees no correlation, only
+    residuals above the noise), shortened to leave ``MIN_BLOCKS + 1`` windows in a short
+    span (correlation longer than the window is then not seen: logged); None when the
+    span cannot hold that many windows of that many samples."""
+    lo, hi, dt = np.inf, -np.inf, 0.0
+    for r in result.residuals.values():
+        t = np.asarray(r.t, float)[np.asarray(r.used, bool)]
+        if t.size < 2:
+            continue
+        lo, hi = min(lo, t[0]), max(hi, t[-1])
+        dt = max(dt, float(np.median(np.diff(t))))
+    if not dt:
+        return None
+    floor = SAMPLES_PER_WINDOW * dt
+    window = max(BLOCK_S, floor)
+    span = hi - lo
+    if span / window < MIN_BLOCKS + 1:
+        window = span / (MIN_BLOCKS + 1)
+        if window < floor:
+            log.info(
+                "no correlation-robust σ: a %.3g-s span holds too few windows of %d samples", span, SAMPLES_PER_WINDOW
+            )
+            return None
+        log.info("correlation-robust σ over %.3g-s windows (a short span); longer correlation is not seen", window)
+    return window
+
+
+def fit_sigma_scale(
+    problem, result, weights: Mapping[str, float], window: float | None = SIGMA_WINDOW
+) -> SigmaScale | None:
     """The sandwich σ scale of a finished fit, or None (logged) when off or not estimable.
 
     Parameters
     ----------
     problem : the fitted problem; result : its result with residuals against the stated σ.
     weights : sensor -> the factor the fit weighted its stated σ with (absent: 1).
-    window : window [s]; 0 turns it off.
+    window : window [s]; 0 turns it off; None chooses it (:func:`auto_window`).
     """
     if window == 0:
         return None
+    if window is None:
+        window = auto_window(result)
+        if window is None:
+            return None
     res = stated_residuals(result, {n: 1.0 / k for n, k in weights.items()}) if weights else result
     try:
         return sigma_scale(problem, res, block_s=window)

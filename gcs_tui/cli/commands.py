@@ -492,7 +492,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument(
             "--sigma-window",
             type=seconds_or_zero,
-            help="window [s] of the correlation-robust σ (default 4; 0 = off)",
+            help="window [s] of the correlation-robust σ (default: 4, or 10 samples, fewer on short spans; 0 = off)",
         )
         sp.add_argument("--plots", help="export residual plots to this folder")
         sp.add_argument(

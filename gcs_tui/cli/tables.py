@@ -142,7 +142,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
         return []
     res = analysis.result
     honest = sc.honest_sigma({n: res.sigma[n] for n in big})
-    lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:g}-s windows, {sc.n_blocks} windows):"]
+    lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:.3g}-s windows, {sc.n_blocks} windows):"]
     for n, s in big.items():
         e = res.state[n]
         lines.append(f"  {n:26s} scale {s:5.2f}   {display.estimate(e.value, honest[n], e.unit)}")
@@ -150,7 +150,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
     sparse = [n for n, v in frames_per_window(sc, res).items() if v < 2.0]
     if sparse:
         text = (
-            f"({', '.join(sparse)}: fewer than two samples per {sc.block_s:g}-s window, so its scales show "
+            f"({', '.join(sparse)}: fewer than two samples per {sc.block_s:.3g}-s window, so its scales show "
             "residuals larger than the noise, not their correlation; a longer --sigma-window sees that)"
         )
         lines.extend(textwrap.wrap(text, 100))

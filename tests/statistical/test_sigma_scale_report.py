@@ -80,16 +80,32 @@ def test_table_lists_the_correlated_elements_only(batch):
     assert "samples per" not in out  # many samples per window
 
 
-def test_short_span_and_off_skip_quietly(tmp_path, caplog):
+def test_the_default_window_fits_the_span_and_the_sampling(tmp_path, caplog):
+    """The default window: 4 s leaves 15 windows on the 60-s span, so it is shortened to
+    leave MIN_BLOCKS + 1 (logged: longer correlation is not seen); one of 4 s is refused
+    (too few windows); 0 is off; a span too short for windows of ten samples has none."""
+    from types import SimpleNamespace
+
+    from gcs_core.diagnosis.correlation import MIN_BLOCKS
+    from gcs_core.diagnosis.honest_sigma import SAMPLES_PER_WINDOW, auto_window
+
     root = write_mission(tmp_path, np.random.default_rng(8))
     a, _ = fit(root, EFFECTS)
     with caplog.at_level(logging.INFO, logger="gcs_core.diagnosis.honest_sigma"):
-        assert a.sigma_scale() is None  # 4-s windows: 15 < MIN_BLOCKS
-    assert [r.getMessage() for r in caplog.records if "correlation-robust" in r.getMessage()]
+        sc = a.sigma_scale()
+    assert sc is not None and sc.n_blocks >= MIN_BLOCKS and sc.block_s < 4.0, sc
+    assert [r.getMessage() for r in caplog.records if "a short span" in r.getMessage()]
+    a.sigma_window = 4.0
+    assert a.sigma_scale() is None  # 15 < MIN_BLOCKS
     a.sigma_window = 0.0
     assert a.sigma_scale() is None
     a.sigma_window = WINDOW_S
     assert a.sigma_scale().n_blocks == 60
+    # sparse sampling: the window holds SAMPLES_PER_WINDOW samples (5-s samples: 50 s)
+    sparse = SimpleNamespace(residuals={"MAG": SimpleNamespace(t=np.arange(0.0, 36000.0, 5.0), used=np.ones(7200))})
+    assert auto_window(sparse) == SAMPLES_PER_WINDOW * 5.0
+    short = SimpleNamespace(residuals={"MAG": SimpleNamespace(t=np.arange(0.0, 500.0, 5.0), used=np.ones(100))})
+    assert auto_window(short) is None
 
 
 def test_window_option_refuses_bad_values():
