@@ -18,6 +18,7 @@ from textual.widgets import DataTable, Label, Static
 from textual.widgets.data_table import RowDoesNotExist
 
 from gcs_core import display as fmt
+from gcs_core.diagnosis.honest_sigma import flagged
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen
 from gcs_tui.tui.screens.dialogs import Field, FormScreen
@@ -117,6 +118,10 @@ class StateScreen(GcsScreen):
         if res is not None and not wb.stale and name in res.solve_for:
             i = res.solve_for.index(name)
             lines.append(f"  estimate {fmt.estimate(res.x[i], res.sigma[name], e.unit)}")
+            s = flagged(wb.analysis.sigma_scale()).get(name)
+            if s is not None:  # the residuals' correlation clearly inflates this σ
+                lines.append(f"  with the residuals' correlation (×{s:.2f}):")
+                lines.append(f"    {fmt.estimate(res.x[i], res.sigma[name] * s, e.unit)}")
             why = wb.not_determined().get(name) or wb.set_by_prior().get(name)
             if why:
                 lines += textwrap.wrap(why, width=44, initial_indent="  ", subsequent_indent="    ")
