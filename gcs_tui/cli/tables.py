@@ -143,10 +143,17 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
     res = analysis.result
     honest = sc.honest_sigma({n: res.sigma[n] for n in big})
     lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:.3g}-s windows, {sc.n_blocks} windows):"]
+    # a gyro's elements fitted under its process noise (the whole-span knots): the sandwich
+    # does not see that noise, so their scale is indicative (docs/ground.md)
+    gyro = getattr(analysis.problem, "gyro_name", None) if getattr(res, "dynamics", None) is not None else None
+    marked = {n for n in big if gyro is not None and res.state[n].sensor == gyro}
     for n, s in big.items():
         e = res.state[n]
-        lines.append(f"  {n:26s} scale {s:5.2f}   {display.estimate(e.value, honest[n], e.unit)}")
+        mark = "*" if n in marked else " "
+        lines.append(f"  {n:26s} scale {s:5.2f}{mark}  {display.estimate(e.value, honest[n], e.unit)}")
     lines.extend(textwrap.wrap(SIGMA_SCALE_NOTE.format(limit=threshold(sc)), 100))
+    if marked:
+        lines.append("(* the gyro's, fitted under its process noise, which the sandwich does not see: indicative)")
     sparse = [n for n, v in frames_per_window(sc, res).items() if v < 2.0]
     if sparse:
         text = (
