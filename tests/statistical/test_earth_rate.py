@@ -18,27 +18,25 @@ import numpy as np
 import pytest
 from test_ground_mission import (
     B_LAB,
-    D_TRUE,
     DT,
     GYRO_BIAS,
-    GYRO_NOISE,
     MAG_ALIGN_RAD,
     MAG_BIAS,
     MAG_DT,
-    MAG_NOISE,
     MEMS_PRIORS,
     OPT_DT,
-    OPT_NOISE,
+    RPY0,
     Z_MAX,
     N,
-    _rate,
+    _simulate,
     _write,
+    kinematics,
 )
 
 from gcs_core.config import default_config
 from gcs_core.errors import InputError
 from gcs_core.filtr.mekf import GyroSegment
-from gcs_core.frames.rotations import dcm_to_rotvec, euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
+from gcs_core.frames.rotations import dcm_to_rotvec, rotvec_to_dcm
 from gcs_core.io.importer import load_mission
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.problem.gyro_attitude import GyroAttitude
@@ -49,7 +47,6 @@ LATITUDE_DEG = 52.5
 PHI = np.radians(LATITUDE_DEG)
 #: the Earth's rate in the lab's East-North-Up frame [rad/s]
 W_EARTH = OMEGA_EARTH * np.array([0.0, np.cos(PHI), np.sin(PHI)])
-RPY0 = (0.3, -0.2, 1.0)
 EFFECTS = ("MAG.scale", "MAG.nonorthogonality", "MAG.alignment", "MAG.time_offset", "OPT.time_offset")
 #: exact propagation: round-off over 3000 steps
 ROUND_OFF_RAD = 1e-10
@@ -59,33 +56,17 @@ THREE_SIGMA = 3.0
 
 
 def _truth():
-    """Lab attitude at the knots and the noise-free inertial gyro rates (module docstring)."""
-    t = np.arange(N + 1) * DT
-    w = _rate(t[1:] - 0.5 * DT)  # ω_B/lab of interval (t_{k-1}, t_k]
-    C = np.empty((N + 1, 3, 3))
-    C[0] = euler123_to_dcm(*RPY0)
-    steps = rotvec_to_dcm(w * DT)
-    for k in range(N):
-        C[k + 1] = steps[k] @ C[k]
+    """Lab attitude at the ticks, its rate, ``shifted`` (``test_ground_mission.kinematics``)
+    and the noise-free inertial gyro rates (module docstring)."""
+    t, w, C, shifted = kinematics()  # ω_B/lab of interval (t_{k-1}, t_k]
     turn = rotvec_to_dcm(W_EARTH * DT)  # the lab against inertial space over one interval
     phi = dcm_to_rotvec(C[1:] @ turn @ np.swapaxes(C[:-1], 1, 2))
-    return t, w, C, phi / DT
+    return t, w, C, shifted, phi / DT
 
 
-def _simulate(rng):
-    t, w, C, w_in = _truth()
-    k = np.arange(1, N)
-
-    def shifted(dt):
-        rate = w[k] if dt > 0 else w[k - 1]
-        return rotvec_to_dcm(rate * dt) @ C[k]
-
-    gyro = w_in + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
-    M = euler123_to_dcm(*MAG_ALIGN_RAD)
-    B_S = np.einsum("ij,njk,k->ni", (np.eye(3) + D_TRUE) @ M, shifted(MAG_DT), B_LAB) + MAG_BIAS
-    B_S += rng.normal(scale=MAG_NOISE, size=B_S.shape)
-    C_opt = rotvec_to_dcm(rng.normal(scale=OPT_NOISE, size=(k.size, 3))) @ shifted(OPT_DT)
-    return t, gyro, B_S, quat_from_dcm(C_opt)
+def _simulate_inertial(rng):
+    """The lab's telemetry with the gyro sensing its inertial rate (module docstring)."""
+    return _simulate(rng, gyro_rate=_truth()[4])
 
 
 def _set_latitude(root, line):
@@ -122,7 +103,7 @@ def _z(res):
 
 @pytest.fixture(scope="module")
 def missions(tmp_path_factory):
-    sim = _simulate(np.random.default_rng(2056))
+    sim = _simulate_inertial(np.random.default_rng(2056))
     with_lat = tmp_path_factory.mktemp("lab-earth")
     _write(with_lat, *sim)
     _set_latitude(with_lat, f"latitude_deg = {LATITUDE_DEG}")
@@ -134,7 +115,7 @@ def missions(tmp_path_factory):
 def test_the_propagation_is_exact_against_truth():
     """Noise-free rates: both propagations (batch provider, filter segment) land on the
     lab attitude to round-off; without the Earth's rate they are 4 mrad off by the end."""
-    t, _, C, w_in = _truth()
+    t, w_lab, C, _, w_in = _truth()
     att = GyroAttitude("inertial", None, "IRU", t[1:], w_in, block_knots=512, earth_rate=W_EARTH)
     values = {n: 0.0 for n in att.names}
     values.update(dict(zip(("att.roll", "att.pitch", "att.yaw"), RPY0)))
@@ -143,7 +124,6 @@ def test_the_propagation_is_exact_against_truth():
     assert err < ROUND_OFF_RAD
     mid = t[1:] - 0.3 * DT  # between knots: turned on at the lab rate of the interval
     fr = att.frames(values, mid, partials=False)
-    w_lab = _rate(t[1:] - 0.5 * DT)
     assert (
         fr.omega_B is not None and np.abs(fr.omega_B - w_lab).max() < 2e-6
     )  # ω_in − C ω_E against the interval's mean
@@ -199,7 +179,7 @@ def test_the_filter_and_the_whole_span_fit_too(missions, method):
     ],
 )
 def test_a_bad_earth_rate_is_one_clear_line(tmp_path, line, complaint):
-    _write(tmp_path, *_simulate(np.random.default_rng(1)))
+    _write(tmp_path, *_simulate_inertial(np.random.default_rng(1)))
     _set_latitude(tmp_path, line)
     with pytest.raises(InputError, match=complaint) as e:
         load_mission(tmp_path)
@@ -207,7 +187,7 @@ def test_a_bad_earth_rate_is_one_clear_line(tmp_path, line, complaint):
 
 
 def test_a_general_vector_is_the_latitude_form(tmp_path):
-    _write(tmp_path, *_simulate(np.random.default_rng(1)))
+    _write(tmp_path, *_simulate_inertial(np.random.default_rng(1)))
     _set_latitude(tmp_path, f"earth_rate_rad_s = [{float(W_EARTH[0])!r}, {float(W_EARTH[1])!r}, {float(W_EARTH[2])!r}]")
     general = load_mission(tmp_path).spec.earth_rate_rad_s
     assert general is not None and np.allclose(general, W_EARTH, rtol=0, atol=1e-18)

@@ -57,7 +57,7 @@ def _position(t):
 def _simulate(rng, hold: int = 1):
     """The truth; ``hold`` > 1 holds each magnetometer noise draw over that many samples
     (errors correlated over ``hold·DT``, which a white-noise fit undercounts)."""
-    t, w, shifted = kinematics()
+    t, w, _, shifted = kinematics()
     k = np.arange(1, N)
     gyro = w + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
     B_at = B_LAB + _position(t[k] + MAG_DT) @ G_TRUE.T  # the field where the unit is

@@ -36,6 +36,8 @@ D_TRUE = np.array([[0.01, 0.004, -0.006], [0.004, -0.004, 0.002], [-0.006, 0.002
 MAG_ALIGN_RAD = np.array([0.01, -0.02, 0.015])
 MAG_DT = -0.012  # s: the magnetometer samples 12 ms early
 OPT_DT = 0.004  # s
+#: the lab attitude at t = 0 (roll, pitch, yaw [rad], Euler 1-2-3)
+RPY0 = (0.3, -0.2, 1.0)
 #: a-priori σ of a MEMS unit (the flight defaults, 1e-5 rad/s of gyro bias and 1e-3 of its
 #: matrix, are those of a navigation-grade IRU): the gyro bias and matrix free, the
 #: magnetometer's non-orthogonality a few percent
@@ -55,12 +57,13 @@ def _rate(t):
 
 def kinematics(n: int = N, dt: float = DT, scale: float = 1.0):
     """The lab's exact kinematics: the ticks ``t`` (n + 1), the rate ``w`` (n, 3) of each
-    interval (t_{k-1}, t_k] (:func:`_rate` times ``scale``), and ``shifted(δ)``: the attitude
-    C(t_k + δ) for k = 1..n−1 and |δ| < dt, turned on at the rate of the interval δ falls in."""
+    interval (t_{k-1}, t_k] (:func:`_rate` times ``scale``), the attitude ``C`` (n + 1, 3, 3)
+    at the ticks, and ``shifted(δ)``: C(t_k + δ) for k = 1..n−1 and |δ| < dt, turned on at
+    the rate of the interval δ falls in."""
     t = np.arange(n + 1) * dt
     w = scale * _rate(t[1:] - 0.5 * dt)
     C = np.empty((n + 1, 3, 3))
-    C[0] = euler123_to_dcm(0.3, -0.2, 1.0)
+    C[0] = euler123_to_dcm(*RPY0)
     steps = rotvec_to_dcm(w * dt)
     for i in range(n):
         C[i + 1] = steps[i] @ C[i]
@@ -70,13 +73,15 @@ def kinematics(n: int = N, dt: float = DT, scale: float = 1.0):
         rate = w[k] if delta > 0 else w[k - 1]  # interval after / before t_k
         return rotvec_to_dcm(rate * delta) @ C[k]
 
-    return t, w, shifted
+    return t, w, C, shifted
 
 
-def _simulate(rng):
-    t, w, shifted = kinematics()
+def _simulate(rng, gyro_rate=None):
+    """The lab's telemetry; ``gyro_rate`` (n, 3): what the gyro senses, if not the lab rate
+    (the inertial rate, with the Earth's turn, in ``test_earth_rate``)."""
+    t, w, _, shifted = kinematics()
     k = np.arange(1, N)
-    gyro = w + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
+    gyro = (w if gyro_rate is None else gyro_rate) + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
     M = euler123_to_dcm(*MAG_ALIGN_RAD)
     B_S = np.einsum("ij,njk,k->ni", (np.eye(3) + D_TRUE) @ M, shifted(MAG_DT), B_LAB) + MAG_BIAS
     B_S += rng.normal(scale=MAG_NOISE, size=B_S.shape)

@@ -49,7 +49,7 @@ HONEST_SCALE = 1.3
 
 
 def _simulate(rng):
-    t, w, shifted = kinematics(N, DT, RATE_SCALE)  # up to ~4 rad/s: hand motions in the lab
+    t, w, _, shifted = kinematics(N, DT, RATE_SCALE)  # up to ~4 rad/s: hand motions in the lab
     k = np.arange(1, N)
     gyro = w + GYRO_BIAS + rng.normal(scale=GYRO_NOISE, size=w.shape)
     B = np.einsum("ij,njk,k->ni", np.eye(3) + D_TRUE, shifted(MAG_DT), B_LAB) + MAG_BIAS
