@@ -75,7 +75,7 @@ def _pair(g: Any) -> bool:
 #: ``[filter] noise_weighting``'s choices, the default window [s] of the long-run factor
 #: and the most reweighting passes (:mod:`gcs_core.diagnosis.weighting`)
 NOISE_WEIGHTINGS = ("stated", "long_run")
-NOISE_WINDOW_S = 0.5
+NOISE_WINDOW_S = 0.5  # longer than the BROAD optical error's 35–100 ms, short against hand motions
 NOISE_MAX_PASSES = 3
 
 #: a [models] value that switches a sensor off

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from gcs_core.diagnosis.correlation import BLOCK_S, MIN_BLOCKS, SigmaScale, sigma_scale
-from gcs_core.diagnosis.weighting import stated_residuals
+from gcs_core.diagnosis.weighting import MIN_SAMPLES, stated_residuals
 from gcs_core.errors import InputError
 
 log = logging.getLogger(__name__)
@@ -40,8 +40,6 @@ log = logging.getLogger(__name__)
 #: default window of the headless runs: None = :func:`auto_window` (a number [s]: that
 #: window; 0 = off)
 SIGMA_WINDOW: float | None = None
-#: an automatic window holds at least this many samples of the sparsest sensor
-SAMPLES_PER_WINDOW = 10
 #: a scale is reported beside the σ only above this ...
 FLAG_SCALE = 1.5
 #: ... and above 1 by this many of its sampling errors 1/sqrt(2 n_b)
@@ -50,7 +48,7 @@ FLAG_SIGMAS = 3.0
 
 def auto_window(result) -> float | None:
     """The default window [s]: :data:`~gcs_core.diagnosis.correlation.BLOCK_S` (several
-    times the hand motions' time scale), lengthened to hold :data:`SAMPLES_PER_WINDOW`
+    times the hand motions' time scale), lengthened to hold :data:`~gcs_core.diagnosis.weighting.MIN_SAMPLES`
     samples of the sparsest sensor (a window of one sample sees no correlation, only
     residuals above the noise), shortened to leave ``MIN_BLOCKS + 1`` windows in a short
     span (correlation longer than the window is then not seen: logged); None when the
@@ -64,15 +62,13 @@ def auto_window(result) -> float | None:
         dt = max(dt, float(np.median(np.diff(t))))
     if not dt:
         return None
-    floor = SAMPLES_PER_WINDOW * dt
+    floor = MIN_SAMPLES * dt
     window = max(BLOCK_S, floor)
     span = hi - lo
     if span / window < MIN_BLOCKS + 1:
         window = span / (MIN_BLOCKS + 1)
         if window < floor:
-            log.info(
-                "no correlation-robust σ: a %.3g-s span holds too few windows of %d samples", span, SAMPLES_PER_WINDOW
-            )
+            log.info("no correlation-robust σ: a %.3g-s span holds too few windows of %d samples", span, MIN_SAMPLES)
             return None
         log.info("correlation-robust σ over %.3g-s windows (a short span); longer correlation is not seen", window)
     return window

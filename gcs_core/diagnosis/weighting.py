@@ -19,8 +19,9 @@ over ``n`` samples gives ``s = √n``; white residuals ``s ≈ 1``. The sequence
 
 1. fit with the current weights (at the first fit: the stated σ);
 2. measure ``s`` of every measurement sensor over windows of ``L`` = ``noise_window``
-   seconds (at least :data:`MIN_SAMPLES` sample intervals, and :data:`MIN_WINDOWS`
-   windows in the span, else the sensor keeps its stated σ and says why);
+   seconds (at least :data:`MIN_SAMPLES` sample intervals, and
+   :data:`~gcs_core.diagnosis.correlation.MIN_BLOCKS` windows in the span, else the sensor
+   keeps its stated σ and says why);
 3. refit with ``σ · k``; ``noise_passes`` = 2 measures again on the refit (its knots no
    longer follow the sensor's error, which the first fit's residuals hid) and refits.
 
@@ -55,24 +56,13 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gcs_core.config_checks import NOISE_MAX_PASSES, NOISE_WEIGHTINGS, NOISE_WINDOW_S
-from gcs_core.diagnosis.correlation import noise_scale
+from gcs_core.diagnosis.correlation import MIN_BLOCKS, noise_scale
 
-#: the choices of ``[filter] noise_weighting``
-WEIGHTINGS = NOISE_WEIGHTINGS
-#: default window of the long-run factor [s]: longer than the BROAD optical reference's
-#: error correlation (35–100 ms), short against the motions the knots must follow
-WINDOW_S = NOISE_WINDOW_S
 #: a window spans at least this many of the sensor's sample intervals (a window of one
 #: sample measures nothing)
 MIN_SAMPLES = 10
-#: fewer windows than this in the span: the factor is not measured (its own scatter
-#: 1/sqrt(2 n_b) would exceed 16 %)
-MIN_WINDOWS = 20
 #: a factor is applied only when ``s − 1`` exceeds this many of its sampling errors
 SIGNIFICANCE = 3.0
-#: the most passes a config may ask for
-MAX_PASSES = NOISE_MAX_PASSES
 
 
 @dataclass(frozen=True)
@@ -124,10 +114,6 @@ class NoiseWeighting:
     passes: int
     factors: Mapping[str, NoiseFactor]
 
-    def scale(self) -> dict[str, float]:
-        """sensor -> ``k`` (only sensors whose σ changed)."""
-        return {n: f.factor for n, f in self.factors.items() if f.factor != 1.0}
-
     def as_report(self) -> dict:
         """The ``noise_weighting`` field of the ICD §7 report (docs/icd_extensions.md)."""
         return {
@@ -168,8 +154,8 @@ def measure(result, sensors: Sequence[str], window_s: float, only: Sequence[str]
         window = float(max(float(window_s), MIN_SAMPLES * dt))
         used = np.asarray(res.used, bool)
         n_b = int(np.unique(np.floor((t[used] - t[0]) / window)).size) if used.any() else 0
-        if n_b < MIN_WINDOWS:
-            note = f"{n_b} windows of {window:g} s; {MIN_WINDOWS} needed"
+        if n_b < MIN_BLOCKS:
+            note = f"{n_b} windows of {window:g} s; {MIN_BLOCKS} needed"
             out[name] = NoiseFactor(name, window, n_b, math.nan, math.nan, 1.0, note)
             continue
         s = noise_scale(result, name, block_s=window)

@@ -87,7 +87,8 @@ def test_the_default_window_fits_the_span_and_the_sampling(tmp_path, caplog):
     from types import SimpleNamespace
 
     from gcs_core.diagnosis.correlation import MIN_BLOCKS
-    from gcs_core.diagnosis.honest_sigma import SAMPLES_PER_WINDOW, auto_window
+    from gcs_core.diagnosis.honest_sigma import auto_window
+    from gcs_core.diagnosis.weighting import MIN_SAMPLES
 
     root = write_mission(tmp_path, np.random.default_rng(8))
     a, _ = fit(root, EFFECTS)
@@ -101,9 +102,9 @@ def test_the_default_window_fits_the_span_and_the_sampling(tmp_path, caplog):
     assert a.sigma_scale() is None
     a.sigma_window = WINDOW_S
     assert a.sigma_scale().n_blocks == 60
-    # sparse sampling: the window holds SAMPLES_PER_WINDOW samples (5-s samples: 50 s)
+    # sparse sampling: the window holds MIN_SAMPLES samples (5-s samples: 50 s)
     sparse = SimpleNamespace(residuals={"MAG": SimpleNamespace(t=np.arange(0.0, 36000.0, 5.0), used=np.ones(7200))})
-    assert auto_window(sparse) == SAMPLES_PER_WINDOW * 5.0
+    assert auto_window(sparse) == MIN_SAMPLES * 5.0
     short = SimpleNamespace(residuals={"MAG": SimpleNamespace(t=np.arange(0.0, 500.0, 5.0), used=np.ones(100))})
     assert auto_window(short) is None
 
