@@ -73,8 +73,6 @@ from gcs_core.frames.rotations import dcm_to_rotvec, quat_normalize, quat_to_dcm
 MAD_TO_SIGMA = 1.4826
 #: second differences further than this many σ from their median are left out (hits)
 CLIP_SIGMA = 5.0
-#: sample pairs further apart than this multiple of the median interval are a gap
-GAP_FACTOR = 1.5
 #: intervals up to this multiple of the median are holes within one run of the Allan
 #: deviation (held repeats left out, short dropouts); longer ones break it
 HOLE_FACTOR = 8.0
@@ -148,21 +146,13 @@ def sample_interval(t: np.ndarray) -> float:
     return float(np.median(np.diff(t)))
 
 
-def _consecutive(t: np.ndarray, dt: float) -> np.ndarray:
-    """(N−1,) True where sample k+1 follows sample k after one interval (no gap)."""
-    return np.diff(np.asarray(t, dtype=float)) < GAP_FACTOR * dt
-
-
-def _increments(t: np.ndarray, y: np.ndarray, quaternion: bool) -> tuple[np.ndarray, np.ndarray]:
-    """First differences (N−1, m) and the mask of those without a gap."""
-    dt = sample_interval(t)
-    ok = _consecutive(t, dt)
+def _increments(y: np.ndarray, quaternion: bool) -> np.ndarray:
+    """First differences (N−1, m): of the values, or the rotation vectors between
+    consecutive attitudes of a quaternion sensor."""
     if quaternion:
         C = quat_to_dcm(quat_normalize(np.asarray(y, dtype=float)))
-        d = dcm_to_rotvec(C[1:] @ np.swapaxes(C[:-1], -1, -2))
-    else:
-        d = np.diff(np.asarray(y, dtype=float), axis=0)
-    return d, ok
+        return dcm_to_rotvec(C[1:] @ np.swapaxes(C[:-1], -1, -2))
+    return np.diff(np.asarray(y, dtype=float), axis=0)
 
 
 def _clipped_std(x: np.ndarray) -> np.ndarray:
@@ -211,7 +201,7 @@ def white_noise(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -> np
         fresh[1:] = np.any(np.diff(y, axis=0) != 0.0, axis=1)
     kept = np.flatnonzero(fresh)
     t, y = t[fresh], y[fresh]
-    d, _ = _increments(t, y, quaternion)
+    d = _increments(y, quaternion)
     dt = sample_interval(t)
     h = np.rint(np.diff(t) / dt) * dt  # on the grid of the median interval (a bus's ticks)
     # unequal intervals as given, not made here by skipping a repeat
@@ -301,7 +291,7 @@ def allan_deviation(t: np.ndarray, y: np.ndarray, *, quaternion: bool = False) -
     tt = t[lo:hi]
     slot = np.rint((tt - tt[0]) / dt).astype(np.int64)
     span = int(slot[-1]) + 1  # grid slots, filled or empty
-    tau_bar = float((tt[-1] - tt[0]) / (n - 1)) if n > 1 else dt
+    tau_bar = mean_interval(t)
     sums = np.zeros((span + 1, vals.shape[1]))
     np.add.at(sums, slot + 1, vals)
     sums = np.cumsum(sums, axis=0)
