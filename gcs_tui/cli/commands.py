@@ -44,6 +44,7 @@ from pathlib import Path
 # by 10-50x on a loaded 2-core machine. Set before numpy loads; the user's value wins.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+from gcs_core.config_checks import NOISE_WEIGHTINGS
 from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
 from gcs_tui.cli.arguments import seconds_or_zero, whole_number
 from gcs_tui.cli.progress import MODES, LogHandler, Progress
@@ -487,7 +488,7 @@ def build_parser() -> argparse.ArgumentParser:
         sp.add_argument("--report", help="write the JSON report (ICD §7) here")
         sp.add_argument("--method", choices=("whole_span", "batch", "kalman"), help="override the config's method")
         sp.add_argument(
-            "--noise-weighting", choices=("stated", "long_run"), help="override the config's [filter] noise_weighting"
+            "--noise-weighting", choices=NOISE_WEIGHTINGS, help="override the config's [filter] noise_weighting"
         )
         sp.add_argument(
             "--sigma-window",
