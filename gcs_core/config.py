@@ -98,6 +98,7 @@ from gcs_core.fileperm import write_atomic
 from gcs_core.io.types import SENSOR_TYPES
 from gcs_core.problem.prepare import PhysicsOptions
 from gcs_core.problem.state import ROLES
+from gcs_core.suggest import did_you_mean_path
 from gcs_core.toml_values import quote as _quote
 from gcs_core.toml_values import show as _show
 
@@ -319,7 +320,7 @@ def load_config(path: str | Path) -> AnalysisConfig:
     if path.is_dir():
         _fail(None, "is a directory, not a config file", path)
     if not path.is_file():
-        _fail(None, "config file not found", path)
+        _fail(None, f"config file not found{did_you_mean_path(path)}", path)
     try:
         raw = path.read_bytes()
     except OSError as err:
@@ -588,4 +589,4 @@ def config_for(target: str | Path) -> AnalysisConfig:
         return default_config(p.parent)
     if p.suffix == ".toml" or p.is_file():
         return load_config(p)
-    raise ConfigError("no such mission directory or config file", file=p)
+    raise ConfigError(f"no such mission directory or config file{did_you_mean_path(p)}", file=p)

@@ -3,11 +3,11 @@
 
 from __future__ import annotations
 
-import difflib
 import math
 from typing import Any
 
 from gcs_core.errors import ConfigError
+from gcs_core.suggest import did_you_mean
 from gcs_core.toml_values import is_number, number_complaint, quote, show
 
 
@@ -63,8 +63,7 @@ def _choice(table: dict, key: str, choices, default, full: str, file):
 def _unknown(table: dict, known, prefix: str, file) -> None:
     extra = sorted(str(k) for k in set(table) - set(known))
     if extra:
-        close = difflib.get_close_matches(extra[0], list(known), n=1)
-        hint = f"; did you mean '{close[0]}'?" if close else ""
+        hint = did_you_mean(extra[0], known)
         _fail(f"{prefix}{quote(extra[0])}", f"unknown key{hint} (known: {', '.join(sorted(known))})", file)
 
 

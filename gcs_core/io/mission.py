@@ -28,9 +28,10 @@ from typing import Any
 from gcs_core import toml_values
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
-from gcs_core.io.orbit_spec import earth_rate, ephemeris_or_orbit, ground_position
+from gcs_core.io.orbit_spec import GROUND_KEYS, ORBIT_KEYS, earth_rate, ephemeris_or_orbit, ground_position
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
+from gcs_core.suggest import closest, did_you_mean, did_you_mean_path
 
 log = logging.getLogger(__name__)
 
@@ -186,6 +187,22 @@ def _plain(value: Any) -> Any:
 # --- tables ---------------------------------------------------------------------------
 
 
+def unknown_key_hint(key: str) -> str:
+    """``; did you mean 'X'?`` for an unknown top-level table or key of ``[mission]``,
+    ``[orbit]``, ``[ephemeris]``, ``[aux]`` or ``[onboard_attitude]`` (dotted as in
+    :attr:`MissionSpec.unknown_keys`), ``''`` when nothing known is close."""
+    table, _, last = key.rpartition(".")
+    known = {
+        "": _TOP_TABLES,
+        "mission": _MISSION_KEYS,
+        "orbit": ORBIT_KEYS,
+        "ephemeris": ("file", *GROUND_KEYS),
+        "aux": ("file",),
+        "onboard_attitude": ("file",),
+    }.get(table, ())
+    return did_you_mean(last, known)
+
+
 def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> SensorSpec:
     base = f"sensor[{index}]"
     if not isinstance(raw, dict):
@@ -275,8 +292,10 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
         if key in raw:
             book[key] = _book_value(ctx, spec, raw[key], f"{base}.{key}", index, key)
         elif spec.required:
+            typo = closest(key, [k for k in raw if k not in COMMON_KEYS and k not in known])
+            hint = f"; '{typo}' is not a {stype} key: did you mean '{key}'?" if typo else ""
             raise ctx.error(
-                f"missing key '{key}' for {stype} sensor {name!r} [{spec.unit}] (ICD §5)",
+                f"missing key '{key}' for {stype} sensor {name!r} [{spec.unit}] (ICD §5){hint}",
                 f"{base}.{key}",
                 "sensor",
                 index,
@@ -286,7 +305,15 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
     unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known)
     for k in unknown:
         book[k] = _plain(raw[k])
-        log.warning("%s: unknown key '%s.%s' (sensor %r, type %s) kept but not used", ctx.file, base, k, name, stype)
+        log.warning(
+            "%s: unknown key '%s.%s' (sensor %r, type %s) kept but not used%s",
+            ctx.file,
+            base,
+            k,
+            name,
+            stype,
+            did_you_mean(k, (*COMMON_KEYS, *known)),
+        )
     noise = book.pop("noise") if "noise" in known else None
     return SensorSpec(
         name=name,
@@ -349,7 +376,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     elif given.name == MISSION_FILE or given.suffix == ".toml":
         root, path = given.parent, given
     else:
-        raise InputError("mission directory not found", file=given)
+        raise InputError(f"mission directory not found{did_you_mean_path(given, want_dir=True)}", file=given)
     if not path.is_file():
         raise InputError(
             f"{MISSION_FILE} not found: a mission directory holds "
@@ -452,7 +479,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
                     "type",
                 )
     for k in unknown:
-        log.warning("%s: unknown key '%s' kept but not used", path, k)
+        log.warning("%s: unknown key '%s' kept but not used%s", path, k, unknown_key_hint(k))
     return MissionSpec(
         root=root,
         name=name,

@@ -411,10 +411,9 @@ def _effect_elements(state: StateVector, effect_id: str) -> list[str]:
 
 def _did_you_mean(name: str, known) -> str:
     """``; did you mean 'X'?`` for the closest known name, '' when none is close."""
-    import difflib
+    from gcs_core.suggest import did_you_mean
 
-    close = difflib.get_close_matches(name, list(known), n=1, cutoff=0.75)
-    return f"; did you mean '{close[0]}'?" if close else ""
+    return did_you_mean(name, known, cutoff=0.75)
 
 
 def _subset(sd: SensorData, mask: np.ndarray) -> SensorData:

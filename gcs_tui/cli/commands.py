@@ -85,11 +85,13 @@ def _setup(args, prog: Progress):
     """(config, imported mission), the config checked against the mission."""
     from gcs_core.config_checks import check_against_mission
     from gcs_core.io.importer import load_mission
+    from gcs_core.suggest import did_you_mean_path
 
     cfg = _load(args)
     with prog.task(f"reading mission {cfg.mission}"):
         if cfg.path is not None and not Path(cfg.mission).is_dir():
-            raise ConfigError(f"no mission directory at {cfg.mission}", key="analysis.mission", file=cfg.path)
+            hint = did_you_mean_path(cfg.mission, want_dir=True)
+            raise ConfigError(f"no mission directory at {cfg.mission}{hint}", key="analysis.mission", file=cfg.path)
         mission = load_mission(cfg.mission)
     check_against_mission(cfg, mission.spec)
     return cfg, mission
