@@ -1,4 +1,4 @@
-""""Did you mean": the closest known name to a typed one, in one wording everywhere a
+""" "Did you mean": the closest known name to a typed one, in one wording everywhere a
 name is typed (config keys, mission.toml keys and tables, effect ids, mission paths).
 
 :func:`did_you_mean` gives the clause a message ends with; :func:`close_path` finds the

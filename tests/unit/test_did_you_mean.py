@@ -1,4 +1,4 @@
-""""Did you mean" wherever a name is typed: mission.toml keys and tables, mission and
+""" "Did you mean" wherever a name is typed: mission.toml keys and tables, mission and
 config paths, config keys (issue 22 item 7; :mod:`gcs_core.suggest`)."""
 
 from __future__ import annotations
@@ -52,7 +52,7 @@ def test_required_key_misspelt_names_the_typo(mission):
 
 
 def test_optional_key_misspelt_gets_the_suggestion(mission, caplog):
-    edit(mission, 'arw = 3.162278e-07', 'arw = 3.162278e-07\nelectronc = 0.0')
+    edit(mission, "arw = 3.162278e-07", "arw = 3.162278e-07\nelectronc = 0.0")
     with caplog.at_level(logging.WARNING):
         spec = read_mission_spec(mission)
     assert spec.sensor("IRU").unknown_keys == ("electronc",)
