@@ -32,7 +32,7 @@ a few tens of bytes per frame beyond the measurements.
 from __future__ import annotations
 
 from collections.abc import Iterator, Mapping
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, field, fields, replace
 from typing import Any
 
 import numpy as np
@@ -47,6 +47,9 @@ from gcs_core.models.base import Geometry, ObservationModel
 from gcs_core.models.horizon import FLATTENING as WGS84_FLATTENING
 from gcs_core.units import DEG
 
+#: ``[physics] field_model``: IGRF, a tilted dipole, or an unknown constant field (a lab)
+FIELD_MODELS = ("igrf", "dipole", "constant")
+
 
 @dataclass(frozen=True)
 class PhysicsOptions:
@@ -56,11 +59,19 @@ class PhysicsOptions:
     (:mod:`gcs_core.config`), the session and the predictor take theirs from it.
     """
 
-    stellar_aberration: bool = True
-    solar_aberration: bool = True
-    sun_parallax: bool = True
-    earth_oblateness: bool = True
-    field_model: str = "igrf"
+    stellar_aberration: bool = field(default=True, metadata={"doc": "stellar aberration of star directions"})
+    solar_aberration: bool = field(default=True, metadata={"doc": "aberration of the Sun's direction"})
+    sun_parallax: bool = field(default=True, metadata={"doc": "the Sun seen from the spacecraft, not the Earth"})
+    earth_oblateness: bool = field(
+        default=True, metadata={"doc": "WGS-84 horizon for horizon scanners (docs/horizon.md)"}
+    )
+    field_model: str = field(
+        default="igrf",
+        metadata={
+            "doc": "IGRF-14, a dipole, or a constant unknown field (a lab, docs/ground.md)",
+            "choices": FIELD_MODELS,
+        },
+    )
 
     def as_dict(self) -> dict:
         return {f.name: getattr(self, f.name) for f in fields(self)}
