@@ -14,7 +14,7 @@ SAMPLE ?= sample_data/missions/hidden-tam-contamination
 # Lint, format and type checks cover these
 CODE   := gcs_core gcs_tui tests benchmarks
 
-.PHONY: run test quick check fix bench clean-venv browser constraints
+.PHONY: run test quick check fix bench clean-venv browser constraints shared-note
 
 # Every package at the version in constraints.txt (the versions the SVG snapshots and the
 # documented numbers were made with); pyproject.toml states only the compatible ranges.
@@ -53,13 +53,18 @@ fix: $(STAMP)
 	$(BIN)/python -m ruff check --fix $(CODE)
 	$(BIN)/python -m ruff format $(CODE)
 
-# NO_COLOR breaks the SVG snapshots, so it is removed from the environment here.
-test: check browser
-	env -u NO_COLOR OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 $(PYTEST_ARGS)
+# NO_COLOR breaks the SVG snapshots, so it is removed from the environment here. -rs lists
+# why each test was skipped: the conformance checks run only with the independent example
+# missions in ../shared/examples beside the checkout.
+test: check browser shared-note
+	env -u NO_COLOR OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -rs -n 2 $(PYTEST_ARGS)
 
 # The developer loop: every test not marked slow, no checks first.
-quick: $(STAMP)
-	env -u NO_COLOR OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -n 2 -m "not slow" $(PYTEST_ARGS)
+quick: $(STAMP) shared-note
+	env -u NO_COLOR OPENBLAS_NUM_THREADS=1 $(BIN)/python -m pytest -q -rs -n 2 -m "not slow" $(PYTEST_ARGS)
+
+shared-note:
+	@test -d ../shared/examples || echo "make: ../shared/examples is not beside this checkout: the conformance checks will be skipped (reasons at the end)"
 
 bench: $(STAMP)
 	for f in benchmarks/*.py; do echo "== $$f"; $(BIN)/python $$f || exit 1; done

@@ -21,6 +21,22 @@ for _folder in ("conformance", "tui", "unit", "reference", "statistical", "helpe
 import pytest  # noqa: E402 — after the helpers' folders are on sys.path
 from repo_paths import SHARED_EXAMPLES  # noqa: E402 — found on the path set above
 
+#: why a test that needs the independent example missions is skipped
+NEEDS_SHARED = (
+    f"conformance: needs the independent example missions in {SHARED_EXAMPLES} (../shared/examples beside the checkout)"
+)
+
+
+def pytest_collection_modifyitems(config, items):
+    """Without ../shared/examples, mark every test that needs them skipped up front, so that
+    ``-rs`` gives one line per file with the reason rather than one per test."""
+    if SHARED_EXAMPLES.is_dir():
+        return
+    skip = pytest.mark.skip(reason=NEEDS_SHARED)
+    for item in items:
+        if "shared_example" in getattr(item, "fixturenames", ()):
+            item.add_marker(skip)
+
 
 @pytest.fixture(scope="session")
 def shared_example():
@@ -31,7 +47,10 @@ def shared_example():
     def find(name: str = "sunpoint-nominal") -> Path:
         path = SHARED_EXAMPLES / name
         if not path.is_dir():
-            pytest.skip(f"the shared example mission {name!r} is not beside this checkout")
+            pytest.skip(
+                f"conformance: needs the independent example mission {name!r} in {SHARED_EXAMPLES} "
+                "(../shared/examples beside the checkout)"
+            )
         return path
 
     return find
