@@ -73,27 +73,28 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import re
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from pathlib import Path
 from typing import Any
 
 from gcs_core import toml_values
 from gcs_core.config_checks import (
+    AXES,
     MODEL_OFF,
     NOISE_MAX_PASSES,
     NOISE_WEIGHTINGS,
     NOISE_WINDOW_S,
+    STAR_MODELS,
     _choice,
     _fail,
-    _list,
     _number,
-    _pair,
     _require,
     _table,
     _unknown,
     edit_k_sensor,
     noise_weighting,
+    read_prediction,
+    read_state,
 )
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import write_atomic
@@ -105,13 +106,7 @@ from gcs_core.toml_values import quote as _quote
 from gcs_core.toml_values import show as _show
 
 METHODS = ("whole_span", "batch", "kalman")
-AXES = ("roll", "pitch", "yaw")
-#: the predictor's star models for tracker frames (:mod:`gcs_core.predictor.stars`)
-STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")
 #: value of ``[models]`` that drops a sensor from the analysis
-ELEMENT_KEYS = ("role", "value", "sigma")
-MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
-_ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
 
 #: field metadata: written to TOML only when it holds something (an empty table is left out)
 _OMIT_EMPTY = {"omit_empty": True}
@@ -392,6 +387,11 @@ TABLES: dict[str, tuple[str, ...]] = {
 }
 
 
+DIAGNOSIS_KEYS = ("significance", "holdout_fraction")
+#: table dataclass -> its table's name
+_TABLE_OF = {FilterConfig: "filter", DiagnosisConfig: "diagnosis", VerificationConfig: "verification"}
+
+
 def fit_key(cfg: AnalysisConfig) -> str:
     """Digest of the settings that change a fit: every attribute but those marked as not
     (the path, the data plan, the requirement, the planning tables), which take their
@@ -468,36 +468,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
 
     st = tables["state"]
     _unknown(st, TABLES["state"], "state.", f)
-    lists = {}
-    for key in ("effects", "exclude"):
-        lst = _list(st, key, f"state.{key}", f)
-        for i, e in enumerate(lst, start=1):
-            _require(
-                isinstance(e, str) and _ID.match(e) is not None,
-                f"state.{key}[{i}]",
-                f'must be an effect id like "TAM1.alignment" (see gcs effects), not {_show(e)}',
-                f,
-            )
-        lists[key] = tuple(lst)
-    elements = {}
-    for name_e, ov in _table(st, "elements", "state.elements", f).items():
-        pre = f"state.elements.{_quote(name_e)}."
-        _require("." in name_e, pre[:-1], 'must be an element name like "TAM1.bias_x"', f)
-        _require(isinstance(ov, dict), pre[:-1], f"must be a table (role, value, sigma), not {_show(ov)}", f)
-        _unknown(ov, ELEMENT_KEYS, pre, f)
-        role = ov.get("role")
-        _require(
-            role is None or (isinstance(role, str) and role in ROLES),
-            pre + "role",
-            f"must be one of {', '.join(ROLES)}, not {_show(role)}",
-            f,
-        )
-        elements[name_e] = ElementConfig(
-            role,
-            _number(ov, "value", None, f, prefix=pre),
-            _number(ov, "sigma", None, f, positive=True, prefix=pre, allow_inf=True),
-        )
-    att_sig = _number(st, "attitude_sigma_deg", 1.0, f, positive=True, hi=180.0, prefix="state.")
+    state = read_state(st, f)
 
     fl = tables["filter"]
     _unknown(fl, TABLES["filter"], "filter.", f)
@@ -505,49 +476,7 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _unknown(dg, TABLES["diagnosis"], "diagnosis.", f)
     pr = tables["prediction"]
     _unknown(pr, TABLES["prediction"], "prediction.", f)
-    gaps = _list(pr, "gaps", "prediction.gaps", f)
-    for i, g in enumerate(gaps, start=1):
-        _require(
-            _pair(g),
-            f"prediction.gaps[{i}]",
-            f"must be a [start, end] pair of numbers with start < end, not {_show(g)}",
-            f,
-        )
-    mans = []
-    for i, m in enumerate(_list(pr, "maneuvers", "prediction.maneuvers", f), start=1):
-        pre = f"prediction.maneuvers[{i}]."
-        _require(isinstance(m, dict), pre[:-1], f"must be a table ([[prediction.maneuvers]]), not {_show(m)}", f)
-        _unknown(m, MANEUVER_KEYS, pre, f)
-        for k in MANEUVER_KEYS:
-            _require(k in m, pre + k, "missing: a maneuver needs start, duration, axis and rate_deg_s", f)
-        mans.append(
-            Maneuver(
-                _number(m, "start", 0.0, f, prefix=pre),
-                _number(m, "duration", 0.0, f, positive=True, prefix=pre),
-                _choice(m, "axis", AXES, None, pre + "axis", f),
-                _number(m, "rate_deg_s", 0.0, f, lo=-180.0, hi=180.0, prefix=pre),
-            )
-        )
-    pred_start = _number(pr, "start", None, f, prefix="prediction.")
-    pred_end = _number(pr, "end", None, f, prefix="prediction.")
-    if pred_start is not None and pred_end is not None:
-        _require(
-            pred_end > pred_start,
-            "prediction.end",
-            f"must be later than prediction.start ({pred_start}), not {pred_end}",
-            f,
-        )
-    pred_stars = _choice(pr, "stars", STAR_MODELS, None, "prediction.stars", f) if "stars" in pr else None
-    pred_catalog = None
-    if "catalog" in pr:
-        cat = pr["catalog"]  # a file beside any stars but "catalog": DataPlan refuses it
-        _require(
-            isinstance(cat, str) and cat.strip() != "" and "\0" not in cat,
-            "prediction.catalog",
-            f"must be a string, not {_show(cat)}",
-            f,
-        )
-        pred_catalog = Path(os.path.normpath(mission / cat))
+    prediction = read_prediction(pr, mission, f)
     vf = tables["verification"]
     _unknown(vf, TABLES["verification"], "verification.", f)
     for extra, keys in PLANNING_TABLES.items():
@@ -560,40 +489,34 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
         physics=PhysicsOptions(**ph),
         models=dict(models),
         state=StateConfig(
-            effects=lists["effects"], exclude=lists["exclude"], attitude_sigma_deg=att_sig, elements=elements
+            effects=state["effects"],
+            exclude=state["exclude"],
+            attitude_sigma_deg=state["attitude_sigma_deg"],
+            elements={k: ElementConfig(*v) for k, v in state["elements"].items()},
         ),
         filter=FilterConfig(
-            block_seconds=_number(fl, "block_seconds", FilterConfig.block_seconds, f, positive=True, prefix="filter."),
-            edit_k=_number(fl, "edit_k", FilterConfig.edit_k, f, lo=0.0, prefix="filter."),
-            max_iterations=_number(
-                fl, "max_iterations", FilterConfig.max_iterations, f, lo=1, hi=1000, integer=True, prefix="filter."
-            ),
+            **{k: _read(fl, FilterConfig, k, f) for k in ("block_seconds", "edit_k", "max_iterations")},
             edit_k_sensor=edit_k_sensor(fl, f),
             **noise_weighting(fl, f),
         ),
         diagnosis=DiagnosisConfig(
-            significance=_number(
-                dg, "significance", DiagnosisConfig.significance, f, lo=1e-12, hi=0.5, prefix="diagnosis."
-            ),
-            holdout_fraction=_number(
-                dg, "holdout_fraction", DiagnosisConfig.holdout_fraction, f, lo=0.0, hi=0.9, prefix="diagnosis."
-            ),
+            **{k: _read(dg, DiagnosisConfig, k, f) for k in ("significance", "holdout_fraction")}
         ),
         prediction=PredictionConfig(
-            step=_number(pr, "step", 10.0, f, positive=True, prefix="prediction."),
-            gaps=tuple((float(a), float(b)) for a, b in gaps),
-            maneuvers=tuple(mans),
-            start=pred_start,
-            end=pred_end,
-            stars=pred_stars,
-            catalog=pred_catalog,
+            **{**prediction, "maneuvers": tuple(Maneuver(*m) for m in prediction["maneuvers"])}
         ),
-        verification=VerificationConfig(
-            requirement_deg=_number(vf, "requirement_deg", 0.01, f, positive=True, hi=180.0, prefix="verification.")
-        ),
+        verification=VerificationConfig(requirement_deg=_read(vf, VerificationConfig, "requirement_deg", f)),
         trade=dict(tables["trade"]),
         montecarlo=dict(tables["montecarlo"]),
     )
+
+
+def _read(table: dict, cls, key: str, f):
+    """A number of table ``cls`` within its field's documented bounds (one source with the reference)."""
+    fld = next(x for x in fields(cls) if x.name == key)
+    m = fld.metadata
+    bounds = {b: m[b] for b in ("positive", "lo", "hi", "integer") if b in m}
+    return _number(table, key, fld.default, f, prefix=f"{_TABLE_OF[cls]}.", **bounds)
 
 
 # ---------------------------------------------------------------------------- writing

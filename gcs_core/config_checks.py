@@ -4,9 +4,13 @@
 from __future__ import annotations
 
 import math
+import os
+import re
+from pathlib import Path
 from typing import Any
 
 from gcs_core.errors import ConfigError
+from gcs_core.problem.state import ROLES
 from gcs_core.suggest import did_you_mean
 from gcs_core.toml_values import is_number, number_complaint, quote, show
 
@@ -159,4 +163,106 @@ def noise_weighting(fl: dict, f) -> dict[str, Any]:
         "noise_window": _number(fl, "noise_window", NOISE_WINDOW_S, f, positive=True, prefix="filter."),
         "noise_passes": _number(fl, "noise_passes", 1, f, lo=1, hi=NOISE_MAX_PASSES, integer=True, prefix="filter."),
         "noise_sensors": tuple(sensors),
+    }
+
+
+#: ``prediction.maneuvers[i].axis``: the reference axes (Eq 4-36)
+AXES = ("roll", "pitch", "yaw")
+#: the predictor's star models for tracker frames (:mod:`gcs_core.predictor.stars`)
+STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")
+ELEMENT_KEYS = ("role", "value", "sigma")
+MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
+_ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
+
+
+def read_state(st: dict, f) -> dict[str, Any]:
+    """``[state]``'s values: ``effects``, ``exclude`` (effect ids), ``attitude_sigma_deg`` and
+    ``elements`` (element name -> (role, value, sigma)); unknown keys are checked by the caller."""
+    lists = {}
+    for key in ("effects", "exclude"):
+        lst = _list(st, key, f"state.{key}", f)
+        for i, e in enumerate(lst, start=1):
+            _require(
+                isinstance(e, str) and _ID.match(e) is not None,
+                f"state.{key}[{i}]",
+                f'must be an effect id like "TAM1.alignment" (see gcs effects), not {show(e)}',
+                f,
+            )
+        lists[key] = tuple(lst)
+    elements = {}
+    for name_e, ov in _table(st, "elements", "state.elements", f).items():
+        pre = f"state.elements.{quote(name_e)}."
+        _require("." in name_e, pre[:-1], 'must be an element name like "TAM1.bias_x"', f)
+        _require(isinstance(ov, dict), pre[:-1], f"must be a table (role, value, sigma), not {show(ov)}", f)
+        _unknown(ov, ELEMENT_KEYS, pre, f)
+        role = ov.get("role")
+        _require(
+            role is None or (isinstance(role, str) and role in ROLES),
+            pre + "role",
+            f"must be one of {', '.join(ROLES)}, not {show(role)}",
+            f,
+        )
+        elements[name_e] = (
+            role,
+            _number(ov, "value", None, f, prefix=pre),
+            _number(ov, "sigma", None, f, positive=True, prefix=pre, allow_inf=True),
+        )
+    att_sig = _number(st, "attitude_sigma_deg", 1.0, f, positive=True, hi=180.0, prefix="state.")
+    return {**lists, "attitude_sigma_deg": att_sig, "elements": elements}
+
+
+def read_prediction(pr: dict, mission: Path, f) -> dict[str, Any]:
+    """``[prediction]``'s values, the keys of :class:`~gcs_core.config.PredictionConfig` (each
+    maneuver as a (start, duration, axis, rate_deg_s) tuple; the catalog resolved against the
+    ``mission`` directory); unknown keys are checked by the caller."""
+    gaps = _list(pr, "gaps", "prediction.gaps", f)
+    for i, g in enumerate(gaps, start=1):
+        _require(
+            _pair(g),
+            f"prediction.gaps[{i}]",
+            f"must be a [start, end] pair of numbers with start < end, not {show(g)}",
+            f,
+        )
+    mans = []
+    for i, m in enumerate(_list(pr, "maneuvers", "prediction.maneuvers", f), start=1):
+        pre = f"prediction.maneuvers[{i}]."
+        _require(isinstance(m, dict), pre[:-1], f"must be a table ([[prediction.maneuvers]]), not {show(m)}", f)
+        _unknown(m, MANEUVER_KEYS, pre, f)
+        for k in MANEUVER_KEYS:
+            _require(k in m, pre + k, "missing: a maneuver needs start, duration, axis and rate_deg_s", f)
+        mans.append(
+            (
+                _number(m, "start", 0.0, f, prefix=pre),
+                _number(m, "duration", 0.0, f, positive=True, prefix=pre),
+                _choice(m, "axis", AXES, None, pre + "axis", f),
+                _number(m, "rate_deg_s", 0.0, f, lo=-180.0, hi=180.0, prefix=pre),
+            )
+        )
+    pred_start = _number(pr, "start", None, f, prefix="prediction.")
+    pred_end = _number(pr, "end", None, f, prefix="prediction.")
+    if pred_start is not None and pred_end is not None:
+        _require(
+            pred_end > pred_start,
+            "prediction.end",
+            f"must be later than prediction.start ({pred_start}), not {pred_end}",
+            f,
+        )
+    pred_catalog = None
+    if "catalog" in pr:
+        cat = pr["catalog"]  # a file beside any stars but "catalog": DataPlan refuses it
+        _require(
+            isinstance(cat, str) and cat.strip() != "" and "\0" not in cat,
+            "prediction.catalog",
+            f"must be a string, not {show(cat)}",
+            f,
+        )
+        pred_catalog = Path(os.path.normpath(mission / cat))
+    return {
+        "step": _number(pr, "step", 10.0, f, positive=True, prefix="prediction."),
+        "gaps": tuple((float(a), float(b)) for a, b in gaps),
+        "maneuvers": tuple(mans),
+        "start": pred_start,
+        "end": pred_end,
+        "stars": _choice(pr, "stars", STAR_MODELS, None, "prediction.stars", f) if "stars" in pr else None,
+        "catalog": pred_catalog,
     }

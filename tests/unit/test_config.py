@@ -100,8 +100,8 @@ def test_documented_example_names_every_key_the_loader_knows():
         assert table in doc, table
         for k in keys:
             assert k in doc[table], f"{table}.{k} is not in the docstring example"
-    assert set(doc["prediction"]["maneuvers"][0]) == set(C.MANEUVER_KEYS)
-    assert set(doc["state"]["elements"]["TAM1.bias_x"]) == set(C.ELEMENT_KEYS)
+    assert set(doc["prediction"]["maneuvers"][0]) == set(config_checks.MANEUVER_KEYS)
+    assert set(doc["state"]["elements"]["TAM1.bias_x"]) == set(config_checks.ELEMENT_KEYS)
 
 
 def test_infinite_sigma_and_label_round_trip(tmp_path):

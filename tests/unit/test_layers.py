@@ -42,7 +42,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("mission files", ("gcs_core.io",)),
     ("models", ("gcs_core.models",)),
     ("problem", ("gcs_core.problem",)),
-    ("analysis config", ("gcs_core.config", "gcs_core.config_checks")),
+    ("analysis config", ("gcs_core.config", "gcs_core.config_checks", "gcs_core.config_reference")),
     ("estimators", ("gcs_core.filtr",)),
     ("predictor", ("gcs_core.predictor",)),
     ("diagnosis", ("gcs_core.diagnosis",)),
