@@ -1,4 +1,4 @@
-"""The seed's SMM conclusions (§2.1–§2.3) from the trade study: the README table.
+"""The seed's SMM conclusions (§2.1–§2.3) from the trade study: the table of docs/case_studies/smm.md.
 
 Runs the studies of ``sample_data/trade/smm-*.toml`` (the tests in
 ``tests/reference/test_trade_smm.py`` assert the same statements on the same studies) and prints

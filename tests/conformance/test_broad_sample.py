@@ -9,7 +9,7 @@ benchmark found to hold: the magnetometer's time offset (against the gyro-carrie
 attitude) agrees between the halves within 3σ and lies 3 to 5 samples early (the config's
 method, ``whole_span``, carries the attitude with the gyro's own angle and rate random
 walks); the magnetometer then sits at its noise (normalized RMS near 1: its held repeats
-and interpolated samples flagged, the samples used are nearly white, README); the optical
+and interpolated samples flagged, the samples used are nearly white, docs/case_studies/broad.md); the optical
 reference lags the gyro by 1 to 4 ms; and the magnetometer's bias and matrix, the field
 and its gradient agree between the halves within 3σ once the σ carry the residuals'
 correlation (the batch-means sandwich, :mod:`gcs_core.diagnosis.correlation`, in windows

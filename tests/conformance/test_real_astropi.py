@@ -1,7 +1,7 @@
 """The real Astro Pi mission (``sample_data/missions/real-astropi-iss``, Raspberry Pi
 Foundation, CC BY-SA 4.0): discovery runs to its end, every addition lowers the held-out
-RMS, and the report says what remains against the estimated noise. The numbers are the
-README's ("Real data")."""
+RMS, and the report says what remains against the estimated noise. The numbers are those
+of docs/case_studies/astropi.md."""
 
 from __future__ import annotations
 
@@ -47,7 +47,7 @@ def test_report_says_what_remains_against_the_estimated_noise(discovered):
     rep = analysis_report(discovered, command="discover")
     rem = rep["remaining"]["MAG"]
     assert rem["noise_estimated"] and not rem["consistent_with_noise"]
-    # README: 1.185 µT per component left, 8.0 times the 148.9 nT the sensor shows
+    # docs/case_studies/astropi.md: 1.185 µT per component left, 8.0 times the 148.9 nT the sensor shows
     assert rem["rms"] == pytest.approx(1.185 * one_uT, rel=0.02)
     assert rem["rms_normalized"] == pytest.approx(7.98, abs=0.1)
 

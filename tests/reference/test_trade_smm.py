@@ -2,8 +2,8 @@
 
 Each test runs the trade study of one ``sample_data/trade/smm-*.toml`` (the
 nominal Sun-pointing sample mission, SMM-like: 520 km, 28.5°, TAM, gyro, two FHSTs, fine
-Sun sensor) and checks the seed's statement against the predicted σ. The README table
-(``benchmarks/trade_smm.py``) prints the same numbers.
+Sun sensor) and checks the seed's statement against the predicted σ. The table of
+docs/case_studies/smm.md (``benchmarks/trade_smm.py``) prints the same numbers.
 
 * §2.1.1 (1), (2) and §2.1.2 (2): "the magnetometer bias determined from a short interval
   can be totally unreliable"; "accurately determined by processing either a full orbit of
