@@ -212,6 +212,7 @@ def read_manifest(path: str | Path) -> Manifest:
     path = Path(path).expanduser()
     if not path.is_file():
         raise ConfigError("no such fleet manifest", file=path)
+    path = path.resolve()  # the data, template and output resolve against its folder
     doc = toml_values.loads(toml_values.decode(path.read_bytes(), path, ConfigError), path, ConfigError)
     for k in doc:
         if k not in TOP_KEYS:
