@@ -213,7 +213,9 @@ def read_oem_table(path: str | Path, epoch: datetime) -> Table:
     except OSError as err:
         raise InputError(f"cannot read the OEM ({err.strerror or err})", file=path) from None
     except Exception as err:  # noqa: BLE001 — the library's parse errors vary; one line naming the file
-        raise InputError(f"not a readable CCSDS OEM ({type(err).__name__}: {' '.join(str(err).split())})", file=path) from None
+        raise InputError(
+            f"not a readable CCSDS OEM ({type(err).__name__}: {' '.join(str(err).split())})", file=path
+        ) from None
     if type(msg).__name__.lower() != "oem":
         raise InputError(f"a CCSDS {type(msg).__name__.upper()}, not an OEM", file=path)
     epochs, rows = [], []

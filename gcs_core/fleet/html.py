@@ -129,8 +129,10 @@ def _status_table(report: dict) -> list[str]:
 def _distribution_tables(report: dict) -> list[str]:
     out = []
     for stype, kinds in report["distributions"].items():
-        out.append(f"<h3>{_e(stype)}</h3><table><tr><th>parameter</th><th>unit</th><th>n</th>"
-                   "<th>median</th><th>robust σ</th><th>outliers</th></tr>")
+        out.append(
+            f"<h3>{_e(stype)}</h3><table><tr><th>parameter</th><th>unit</th><th>n</th>"
+            "<th>median</th><th>robust σ</th><th>outliers</th></tr>"
+        )
         for kind, d in kinds.items():
             out.append(
                 f"<tr class='{'flag' if d['outliers'] else 'ok'}'><td>{_e(kind)}</td><td>{_e(d['unit'])}</td>"

@@ -144,10 +144,12 @@ def _fleet_table(doc: dict, path: Path) -> dict:
 def _days(fl: dict, path: Path) -> tuple[str, ...]:
     days = fl.get("days")
     if not isinstance(days, list) or not days:
-        raise _fail(path, "fleet.days", "missing or empty: list the days, e.g. days = [\"2024-05-14\"]")
+        raise _fail(path, "fleet.days", 'missing or empty: list the days, e.g. days = ["2024-05-14"]')
     for i, d in enumerate(days, start=1):
         if not isinstance(d, str) or not _NAME.match(d):
-            raise _fail(path, f"fleet.days[{i}]", f"must be a short name of letters, digits, -_. not {toml_values.show(d)}")
+            raise _fail(
+                path, f"fleet.days[{i}]", f"must be a short name of letters, digits, -_. not {toml_values.show(d)}"
+            )
     if len(set(days)) != len(days):
         raise _fail(path, "fleet.days", "holds a day twice")
     return tuple(days)
@@ -187,7 +189,9 @@ def _spacecraft(doc: dict, path: Path) -> tuple[Spacecraft, ...]:
             raise _fail(path, where, "must be a table (name, data, config)")
         name = t.get("name")
         if not isinstance(name, str) or not _NAME.match(name):
-            raise _fail(path, f"{where}.name", f"must be a short name of letters, digits, -_. not {toml_values.show(name)}")
+            raise _fail(
+                path, f"{where}.name", f"must be a short name of letters, digits, -_. not {toml_values.show(name)}"
+            )
         if name in seen:
             raise _fail(path, f"{where}.name", f"spacecraft '{name}' is named twice")
         seen.add(name)
@@ -196,12 +200,14 @@ def _spacecraft(doc: dict, path: Path) -> tuple[Spacecraft, ...]:
                 raise _fail(path, f"spacecraft[{name}].{k}", f"unknown key (known: {', '.join(SPACECRAFT_KEYS)})")
         data = t.get("data")
         if not isinstance(data, str) or not data.strip():
-            raise _fail(path, f"spacecraft[{name}].data", "missing: the mission directory, e.g. \"data/SC01/{day}\"")
+            raise _fail(path, f"spacecraft[{name}].data", 'missing: the mission directory, e.g. "data/SC01/{day}"')
         over = t.get("config", {})
         if not isinstance(over, dict):
             raise _fail(path, f"spacecraft[{name}].config", "must be a table of analysis-config tables")
         if isinstance(over.get("analysis"), dict) and "mission" in over["analysis"]:
-            raise _fail(path, f"spacecraft[{name}].config.analysis.mission", "the data key names the mission: leave it out")
+            raise _fail(
+                path, f"spacecraft[{name}].config.analysis.mission", "the data key names the mission: leave it out"
+            )
         out.append(Spacecraft(name, data, over))
     return tuple(out)
 

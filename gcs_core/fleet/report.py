@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import math
 from collections import defaultdict
+from collections.abc import Mapping
 from datetime import UTC, datetime
+from typing import Any
 
 import numpy as np
 
@@ -37,7 +39,7 @@ MAD_TO_SIGMA = 1.4826
 MIN_FOR_OUTLIERS = 4
 
 
-def _accepted(prov: dict) -> bool:
+def _accepted(prov: Mapping[str, Any]) -> bool:
     fleet = prov.get(FLEET_KEY) or {}
     return prov.get("status") == "converged" and fleet.get("adequate", True) is not False
 

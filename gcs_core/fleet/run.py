@@ -266,6 +266,7 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
 
             def submit(p: _Prepared) -> None:
                 job = p.job
+                assert job is not None  # only prepared jobs are submitted
                 key = f"fleet-{job.spacecraft}-{job.day}-{job.input_hash[:12]}"
                 fut = client.submit(run_job, job, key=key, pure=False, retries=1)
                 live[fut.key] = (fut, p)

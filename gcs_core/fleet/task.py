@@ -136,7 +136,7 @@ def run_job(job: Job) -> Outcome:
         out.calibration, out.attitude, out.summary = _analyse(job)
     except GcsError as err:
         out.error = one_line(err)
-    except Exception as err:  # noqa: BLE001 — one spacecraft's failure is its one line; the fleet goes on
+    except Exception as err:
         if type(err).__name__ == "LinAlgError" or isinstance(err, FloatingPointError):
             out.error = one_line(f"estimation failed: {type(err).__name__}: {err}")
         else:

@@ -39,7 +39,10 @@ def _table(report: dict) -> list[str]:
 
 def _act_on(report: dict) -> bool:
     rows = [r for sc in report["spacecraft"] for r in sc["days"]]
-    return any(r.get("error") or r.get("flag") or r.get("adequate") is False or r.get("moved") or r.get("discovered") for r in rows)
+    return any(
+        r.get("error") or r.get("flag") or r.get("adequate") is False or r.get("moved") or r.get("discovered")
+        for r in rows
+    )
 
 
 def _export_aem(m, run, out: Path) -> int:
@@ -58,17 +61,24 @@ def _export_aem(m, run, out: Path) -> int:
             f"GCS ASF solution {e.asf_solution}, SCDS version {e.scds_version}",
             f"input hash {e.input_hash}",
         )
-        write_aem(out / f"{e.spacecraft}-{e.day}.aem.xml", sol.t, sol.q, spec.epoch, object_name=e.spacecraft, comments=comments)
+        write_aem(
+            out / f"{e.spacecraft}-{e.day}.aem.xml",
+            sol.t,
+            sol.q,
+            spec.epoch,
+            object_name=e.spacecraft,
+            comments=comments,
+        )
         n += 1
     return n
 
 
 def cmd_fleet(args, prog) -> int:
+    from gcs_core.fileperm import write_atomic
     from gcs_core.fleet.html import render_html
     from gcs_core.fleet.manifest import read_manifest
     from gcs_core.fleet.report import build_report
     from gcs_core.fleet.run import run_fleet
-    from gcs_core.fileperm import write_atomic
     from gcs_core.reporting import write_json_atomic
 
     args.config_path = args.manifest
@@ -77,7 +87,9 @@ def cmd_fleet(args, prog) -> int:
         if d not in m.days:
             from gcs_core.errors import ConfigError
 
-            raise ConfigError(f"--day {d} is not one of the manifest's days ({', '.join(m.days)})", key="fleet.days", file=m.path)
+            raise ConfigError(
+                f"--day {d} is not one of the manifest's days ({', '.join(m.days)})", key="fleet.days", file=m.path
+            )
     for s in args.spacecraft or []:
         try:
             m.spacecraft_named(s)

@@ -24,11 +24,10 @@ def small_fleet(root: Path, **kw) -> tuple[Path, dict]:
 def local_cluster(workers: int = 2):
     """A LocalCluster of single-threaded worker processes on 127.0.0.1 (nannies restart a
     killed worker), and its client."""
+    import dask
     from dask.distributed import Client, LocalCluster
 
     from gcs_core.fleet.run import _pinned_env
-
-    import dask
 
     with dask.config.set({"distributed.nanny.pre-spawn-environ": _pinned_env()}):
         cluster = LocalCluster(

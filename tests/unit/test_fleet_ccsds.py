@@ -12,13 +12,13 @@ import pytest
 
 pytest.importorskip("ccsds_ndm")
 
-from gcs_core.config import AnalysisConfig  # noqa: E402 — after the optional library's check
-from gcs_core.errors import InputError  # noqa: E402
-from gcs_core.fleet.ccsds import read_aem, read_oem_table, utc_text, write_aem  # noqa: E402
-from gcs_core.io.importer import load_mission  # noqa: E402
-from gcs_core.session import Analysis  # noqa: E402
-from gcs_core.sim.scenarios import nominal_threeaxis  # noqa: E402
-from gcs_core.sim.writer import write_mission  # noqa: E402
+from gcs_core.config import AnalysisConfig
+from gcs_core.errors import InputError
+from gcs_core.fleet.ccsds import read_aem, read_oem_table, utc_text, write_aem
+from gcs_core.io.importer import load_mission
+from gcs_core.session import Analysis
+from gcs_core.sim.scenarios import nominal_threeaxis
+from gcs_core.sim.writer import write_mission
 
 #: the round trip's tolerance on a quaternion component and on a time [s]
 ROUND_TRIP = 1e-12
@@ -58,7 +58,10 @@ def _oem(eph, epoch, frame="EME2000") -> str:
         "",
     ]
     cols = ("rx", "ry", "rz", "vx", "vy", "vz")
-    rows = [utc_text(epoch, eph.t[i]) + " " + " ".join(repr(float(eph.columns[c][i])) for c in cols) for i in range(len(eph))]
+    rows = [
+        utc_text(epoch, eph.t[i]) + " " + " ".join(repr(float(eph.columns[c][i])) for c in cols)
+        for i in range(len(eph))
+    ]
     return "\n".join(head + rows) + "\n"
 
 
@@ -89,7 +92,9 @@ def test_a_mission_whose_ephemeris_is_an_oem_fits_identically_to_the_csv(mission
     a_oem = Analysis(AnalysisConfig(mission=oem_dir, method="batch").with_changes(diagnosis={"holdout_fraction": 0.0}))
     a_csv = Analysis(AnalysisConfig(mission=csv_dir, method="batch").with_changes(diagnosis={"holdout_fraction": 0.0}))
     for name in ("t", "rx", "ry", "rz", "vx", "vy", "vz", "sx", "sy", "sz"):
-        np.testing.assert_array_equal(a_oem.mission.ephemeris_table.columns[name], a_csv.mission.ephemeris_table.columns[name])
+        np.testing.assert_array_equal(
+            a_oem.mission.ephemeris_table.columns[name], a_csv.mission.ephemeris_table.columns[name]
+        )
     r_oem, r_csv = a_oem.fit(holdout=False), a_csv.fit(holdout=False)
     assert r_oem.status == r_csv.status == "converged"
     assert r_oem.state.values() == r_csv.state.values()  # bit for bit

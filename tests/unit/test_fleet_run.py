@@ -48,12 +48,26 @@ def fleet(tmp_path_factory):
         before = {sc.name: [n for n, _ in store.calibrations(sc.name)] for sc in m.spacecraft}
         again = run_fleet(m, scheduler=addr)
     report = build_report(m, full)
-    return {"root": root, "m": m, "truth": truth, "partial": partial, "full": full, "again": again,
-            "before": before, "report": report, "store": store}
+    return {
+        "root": root,
+        "m": m,
+        "truth": truth,
+        "partial": partial,
+        "full": full,
+        "again": again,
+        "before": before,
+        "report": report,
+        "store": store,
+    }
 
 
 def _malformed(truth):
-    return {(sc, day): rec["malformed"] for sc, r in truth["spacecraft"].items() for day, rec in r["days"].items() if rec["malformed"]}
+    return {
+        (sc, day): rec["malformed"]
+        for sc, r in truth["spacecraft"].items()
+        for day, rec in r["days"].items()
+        if rec["malformed"]
+    }
 
 
 def test_the_run_completes_and_lists_the_malformed_input_with_its_one_line_error(fleet):
@@ -109,7 +123,10 @@ def test_the_injected_effect_and_the_moved_bias_are_named(fleet):
             assert {"spacecraft": key[0], "day": key[1], "effect": eff} in report["discovered"]
     assert found == {k for k, v in injected.items() if v}  # and nothing on the clean ones
     moved_truth = {
-        (sc, day) for sc, r in truth["spacecraft"].items() for day, rec in r["days"].items() if any(i.get("moved") for i in rec["injected"])
+        (sc, day)
+        for sc, r in truth["spacecraft"].items()
+        for day, rec in r["days"].items()
+        if any(i.get("moved") for i in rec["injected"])
     }
     moved = {(x["spacecraft"], x["day"]): set() for x in report["moved"]}
     for x in report["moved"]:
@@ -138,7 +155,10 @@ def test_each_result_equals_gcs_batch_discover_and_verify_on_the_same_inputs(fle
     }
     facts = fleet_v.provenance["fleet"]
     rep = tmp_path / "discover.json"
-    assert main(["discover", str(cfg_path), "--max-steps", str(m.max_steps), "--report", str(rep), "--progress", "off"]) == 0
+    assert (
+        main(["discover", str(cfg_path), "--max-steps", str(m.max_steps), "--report", str(rep), "--progress", "off"])
+        == 0
+    )
     added = [s["added"] for s in json.loads(rep.read_text())["steps"] if s.get("action") == "add"]
     assert added == facts["discovered"] and added
     assert main(["verify", str(cfg_path), "--progress", "off"]) == (1 if facts["flag"] else 0)
@@ -169,8 +189,17 @@ def test_the_html_report_opens_in_headless_chromium_with_its_table_and_trends(fl
     page = tmp_path / "fleet.html"
     page.write_text(render_html(fleet["report"]))
     png = tmp_path / "fleet.png"
-    cmd = [browser, "--headless", "--no-sandbox", "--disable-gpu", "--hide-scrollbars",
-           f"--user-data-dir={tmp_path / 'profile'}", "--window-size=1200,4000", f"--screenshot={png}", page.as_uri()]
+    cmd = [
+        browser,
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--hide-scrollbars",
+        f"--user-data-dir={tmp_path / 'profile'}",
+        "--window-size=1200,4000",
+        f"--screenshot={png}",
+        page.as_uri(),
+    ]
     run = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
     assert png.is_file(), run.stderr[-2000:]
     img = np.asarray(image.open(png).convert("RGB")).astype(int)
