@@ -5,7 +5,7 @@ Everything but a run's errors is read back from the spacecraft's SCDS histories 
 ``fleet`` provenance of each version, :mod:`gcs_core.fleet.store`), so the report of a
 re-run or a resumed day is the same as the first one's.
 
-* **Moved**: element ``x`` of a day's version against the latest *accepted* earlier
+* **Moved**: a sensor's parameter ``x`` (the attitude elements are states, not calibration) of a day's version against the latest *accepted* earlier
   version (the fit converged and its goodness of fit was consistent with noise), as
   :func:`gcs_core.io.scds.diff_versions` does:
   ``z = (x_new − x_old) / √(σ_new² + σ_old²)``; moved when ``|z| > moved_sigma``.
@@ -48,10 +48,15 @@ def _finite(x: float) -> float | None:
     return float(x) if math.isfinite(x) else None
 
 
+def _sensor_element(v: scds.ScdsVersion, name: str) -> bool:
+    """A sensor's calibration parameter (not the attitude or another state element)."""
+    return name.partition(".")[0] in (v.provenance.get("models") or {})
+
+
 def _moved(new: scds.ScdsVersion, old: scds.ScdsVersion, n_sigma: float) -> list[dict]:
     out = []
     for name, (x1, s1, unit) in new.params.items():
-        if name not in old.params:
+        if name not in old.params or not _sensor_element(new, name):
             continue
         x0, s0, _ = old.params[name]
         scale = math.hypot(s0, s1)
@@ -168,7 +173,7 @@ def _trends(history: dict, days: list[str]) -> dict:
             v = per_day[day][0]
             solve = set(v.provenance.get("solve_for") or v.params)
             for name, (x, s, unit) in v.params.items():
-                if name not in solve:
+                if name not in solve or not _sensor_element(v, name):
                     continue
                 t = out.setdefault(name, {"unit": unit, "series": {}})
                 t["series"].setdefault(sc, []).append([day, x, s])

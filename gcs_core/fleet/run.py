@@ -64,11 +64,13 @@ class Entry:
 @dataclass
 class FleetRun:
     """What a run did: one :class:`Entry` per spacecraft-day, the number of workers, the
-    wall time [s], and each worker's resident and peak memory [MB] at the end."""
+    wall time [s] (``compute_s``: from the cluster being up to the last append), and each
+    worker's resident and peak memory [MB] at the end."""
 
     entries: list[Entry] = field(default_factory=list)
     workers: int = 0
     wall_s: float = 0.0
+    compute_s: float = 0.0
     worker_memory_mb: dict = field(default_factory=dict)
 
     def entry(self, spacecraft: str, day: str) -> Entry:
@@ -256,6 +258,7 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
     try:
         if on_client:
             on_client(client)
+        t_up = time.perf_counter()
         n = max(1, len(client.scheduler_info().get("workers", {})) or workers)
         run.workers = n
         window = IN_FLIGHT_PER_WORKER * n
@@ -300,6 +303,7 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
                 refill()
             for p2 in items:  # anything left (only skips and errors once the window is empty)
                 order.settle(p2.entry) if p2.job is None else order.settle(p2.entry, _not_run(p2))
+        run.compute_s = time.perf_counter() - t_up
         try:
             run.worker_memory_mb = client.run(_worker_memory)
         except Exception as err:  # noqa: BLE001 — memory figures are a nicety
