@@ -36,12 +36,12 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from dataclasses import replace  # noqa: E402 — after the repository is on the path
+from dataclasses import replace
 
-from gcs_core.fleet.manifest import read_manifest  # noqa: E402
-from gcs_core.fleet.report import build_report  # noqa: E402
-from gcs_core.fleet.run import run_fleet  # noqa: E402
-from gcs_core.fleet.simulate import simulate_fleet  # noqa: E402
+from gcs_core.fleet.manifest import read_manifest
+from gcs_core.fleet.report import build_report
+from gcs_core.fleet.run import run_fleet
+from gcs_core.fleet.simulate import simulate_fleet
 
 #: the acceptance target of the 2-worker speed-up
 TARGET = 1.7
@@ -69,7 +69,8 @@ def main() -> None:
     t = time.perf_counter()
     manifest = simulate_fleet(root, a.spacecraft, a.days, duration_s=a.span, seed=7)
     print(
-        f"simulated {a.spacecraft} spacecraft × {a.days} days of {a.span:g} s in {time.perf_counter() - t:.0f} s ({root})"
+        f"simulated {a.spacecraft} spacecraft × {a.days} days of {a.span:g} s "
+        f"in {time.perf_counter() - t:.0f} s ({root})"
     )
     m = read_manifest(manifest)
     day1 = [m.days[0]]
@@ -79,7 +80,8 @@ def main() -> None:
     two = run_fleet(replace(m, output=root / "out"), days=day1, workers=2)
     speed = one.compute_s / two.compute_s
     print(
-        f"day 1, {a.spacecraft} spacecraft: 1 worker {one.compute_s:.1f} s (+{one.wall_s - one.compute_s:.1f} s start), "
+        f"day 1, {a.spacecraft} spacecraft: 1 worker {one.compute_s:.1f} s "
+        f"(+{one.wall_s - one.compute_s:.1f} s start), "
         f"2 workers {two.compute_s:.1f} s (+{two.wall_s - two.compute_s:.1f} s start) [{_states(two)}]"
     )
     print(f"load average {os.getloadavg()[0]:.2f} after")

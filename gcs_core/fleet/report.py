@@ -5,8 +5,9 @@ Everything but a run's errors is read back from the spacecraft's SCDS histories 
 ``fleet`` provenance of each version, :mod:`gcs_core.fleet.store`), so the report of a
 re-run or a resumed day is the same as the first one's.
 
-* **Moved**: a sensor's parameter ``x`` (the attitude elements are states, not calibration) of a day's version against the latest *accepted* earlier
-  version (the fit converged and its goodness of fit was consistent with noise), as
+* **Moved**: a sensor's parameter ``x`` (the attitude elements are states, not
+  calibration) of a day's version against the latest *accepted* earlier version (the
+  fit converged and its goodness of fit was consistent with noise), as
   :func:`gcs_core.io.scds.diff_versions` does:
   ``z = (x_new − x_old) / √(σ_new² + σ_old²)``; moved when ``|z| > moved_sigma``.
 * **Distribution** of each sensor type's parameter (``bias_x`` of every magnetometer, ...)

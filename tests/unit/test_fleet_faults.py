@@ -25,7 +25,7 @@ def _alive(pid: int) -> bool:
 
 @pytest.mark.skipif(not hasattr(signal, "SIGKILL"), reason="needs POSIX signals")
 def test_a_worker_killed_mid_run_loses_and_duplicates_nothing(tmp_path):
-    manifest, truth = small_fleet(tmp_path, discover=False)
+    manifest, truth = small_fleet(tmp_path, discover=False, duration_s=600.0)
     m = read_manifest(manifest)
     killed: list[int] = []
     in_flight: list[str] = []  # the task keys the killed worker was computing
