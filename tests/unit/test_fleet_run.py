@@ -47,6 +47,11 @@ def fleet(tmp_path_factory):
         store = FleetStore(m.output)
         before = {sc.name: [n for n, _ in store.calibrations(sc.name)] for sc in m.spacecraft}
         again = run_fleet(m, scheduler=addr)
+        # a run stopped between the SCDS and the ASF appends: only the SCDS version is there
+        cut = replace(m, output=root / "cut")
+        (root / "cut" / "SC01").mkdir(parents=True)
+        shutil.copy(store.scds_path("SC01"), FleetStore(cut.output).scds_path("SC01"))
+        completed = run_fleet(cut, spacecraft=["SC01"], days=["day1"], scheduler=addr)
     report = build_report(m, full)
     return {
         "root": root,
@@ -55,6 +60,7 @@ def fleet(tmp_path_factory):
         "partial": partial,
         "full": full,
         "again": again,
+        "completed": completed,
         "before": before,
         "report": report,
         "store": store,
@@ -99,6 +105,15 @@ def test_a_partial_day_resumes_without_redoing_what_was_done(fleet):
         days = [p["fleet"]["day"] for _, p in store.calibrations(sc.name)]
         assert len(days) == len(set(days))
         assert [p["fleet"]["day"] for _, p in store.attitudes(sc.name)] == days
+
+
+def test_an_scds_version_without_its_asf_solution_gets_only_the_asf_solution(fleet):
+    (e,) = fleet["completed"].entries
+    assert e.state == "completed" and e.scds_version == 1 and e.asf_solution == 1
+    cut = FleetStore(fleet["root"] / "cut")
+    assert [n for n, _ in cut.calibrations("SC01")] == [1, 2]  # the copied history, nothing added
+    ((n, prov),) = cut.attitudes("SC01")
+    assert prov["scds_version"] == 1 and prov["fleet"]["day"] == "day1"
 
 
 def test_rerunning_a_finished_fleet_adds_no_entry(fleet):
