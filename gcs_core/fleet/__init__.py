@@ -13,8 +13,8 @@ Modules:
   workers (a ``LocalCluster`` on 127.0.0.1 or a given scheduler), appends the results;
 * :mod:`~gcs_core.fleet.report` and :mod:`~gcs_core.fleet.html` — the fleet report, JSON
   and one self-contained HTML page;
-* :mod:`~gcs_core.fleet.ccsds` — CCSDS Navigation Data Messages at the boundary: the
-  calibrated attitude history out as an AEM, an OEM in as a mission's ephemeris;
+* :mod:`~gcs_core.fleet.ccsds` — the calibrated attitude history out as a CCSDS AEM (an
+  OEM as a mission's ephemeris is read by :mod:`gcs_core.io.ccsds`);
 * :mod:`~gcs_core.fleet.simulate` — a simulated fleet (gcs_core.sim) for tests and
   benchmarks.
 """

@@ -496,7 +496,7 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     ground = spec.ground_position_km is not None
     eph = None
     if spec.ephemeris_file is not None:
-        from gcs_core.fleet.ccsds import is_oem, read_oem_table  # a CCSDS OEM as the ephemeris (docs/fleet.md)
+        from gcs_core.io.ccsds import is_oem, read_oem_table  # a CCSDS OEM as the ephemeris (docs/fleet.md)
 
         if is_oem(spec.ephemeris_file):
             eph = read_oem_table(spec.ephemeris_file, spec.epoch)

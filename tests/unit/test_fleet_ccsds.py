@@ -14,7 +14,8 @@ pytest.importorskip("ccsds_ndm")
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.errors import InputError
-from gcs_core.fleet.ccsds import read_aem, read_oem_table, utc_text, write_aem
+from gcs_core.fleet.ccsds import read_aem, write_aem
+from gcs_core.io.ccsds import read_oem_table, utc_text
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis
