@@ -2,10 +2,10 @@
 no external asset (it opens from a mail attachment or an air-gapped share).
 
 Sections: the run; one table row per spacecraft-day (state, fit status, goodness-of-fit
-verdict, §4.4 flag, moved parameters, discovered effects, error); the malformed inputs; each
-sensor type's parameters across the fleet with the outliers named; one trend plot per
-parameter (value ± 1σ per spacecraft over the days; the spacecraft named as outliers or
-moved drawn in colour and labelled).
+verdict, §4.4 flag, moved parameters, discovered effects, error); the malformed inputs; the
+effects discovered; one trend plot per parameter (value ± 1σ per spacecraft over the days;
+the spacecraft named as outliers or moved drawn in colour and labelled); each sensor type's
+parameters across the fleet with the outliers named.
 """
 
 from __future__ import annotations
@@ -186,8 +186,6 @@ def render_html(report: dict) -> str:
     parts.append("<h2>Effects discovered</h2>")
     found = sorted({(d["spacecraft"], d["effect"]) for d in report["discovered"]})
     parts.append("<p>" + (_e("; ".join(f"{s}: {e}" for s, e in found)) or "none") + "</p>")
-    parts.append("<h2>Parameters across the fleet (latest day)</h2>")
-    parts += _distribution_tables(report)
     parts.append("<h2>Trends</h2><div class='plots'>")
     marked = _marked(report)
     for name, t in report["trends"].items():
@@ -195,5 +193,8 @@ def render_html(report: dict) -> str:
             f"<figure>{trend_svg(name, t, days, marked.get(name, set()))}"
             f"<figcaption>{_e(name)} [{_e(t['unit'])}], ±1σ</figcaption></figure>"
         )
-    parts.append("</div></body></html>")
+    parts.append("</div>")
+    parts.append("<h2>Parameters across the fleet (latest day)</h2>")
+    parts += _distribution_tables(report)
+    parts.append("</body></html>")
     return "\n".join(parts)

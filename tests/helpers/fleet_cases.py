@@ -8,8 +8,8 @@ from contextlib import contextmanager
 from pathlib import Path
 
 #: a small fleet: 4 spacecraft (one with a hidden effect, one whose TAM bias moves on day 2,
-#: one with a malformed file on day 2) × 2 days of 20 min
-SMALL = {"n": 4, "days": 2, "duration_s": 1200.0}
+#: one with a malformed file on day 2) × 2 days of 15 min
+SMALL = {"n": 4, "days": 2, "duration_s": 900.0}
 
 
 def small_fleet(root: Path, **kw) -> tuple[Path, dict]:

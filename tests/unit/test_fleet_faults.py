@@ -14,6 +14,10 @@ from gcs_core.fleet.manifest import read_manifest
 from gcs_core.fleet.run import run_fleet
 from gcs_core.fleet.store import FleetStore
 
+#: a stress run (a LocalCluster, a worker killed, its tasks re-run), ~25 s on idle cores:
+#: marked slow (CI runs it; make quick skips it)
+pytestmark = pytest.mark.slow
+
 
 def _alive(pid: int) -> bool:
     try:

@@ -34,6 +34,10 @@ from gcs_core.io import scds
 from gcs_core.io.importer import load_mission
 from gcs_tui.cli.commands import main
 
+#: a LocalCluster's cold start (workers importing GCS) and eleven fits, ~25 s on idle cores:
+#: marked slow (CI runs it; make quick skips it)
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def fleet(tmp_path_factory):
@@ -227,3 +231,30 @@ def test_the_html_report_opens_in_headless_chromium_with_its_table_and_trends(fl
     # the trend plots: grey series for most spacecraft, the moved one (SC03) in colour
     assert pixels((0x9A, 0x9A, 0x9A), tol=20) > 2000
     assert pixels((0xC0, 0x39, 0x2B), tol=30) > 50
+
+
+def test_gcs_fleet_writes_its_reports_and_aems_and_exits_1_on_findings(fleet, tmp_path, capsys):
+    """The command on the finished fleet: nothing to compute (no cluster), the table, the
+    reports, one AEM per stored day that reads back to its ASF solution within 1e-12."""
+    pytest.importorskip("ccsds_ndm")
+    from gcs_core.fleet.ccsds import read_aem
+    from gcs_core.io import asf
+    from gcs_core.io.importer import load_mission
+
+    m = fleet["m"]
+    report, page, aem = tmp_path / "r.json", tmp_path / "r.html", tmp_path / "aem"
+    code = main(
+        ["fleet", str(m.path), "--report", str(report), "--html", str(page), "--aem", str(aem), "--progress", "off"]
+    )
+    out = capsys.readouterr().out
+    assert code == 1  # a malformed file, a flag, a moved bias: findings to act on
+    assert "SC04" in out and "not a number" in out and "moved TAM1.bias" in out
+    assert json.loads(report.read_text())["fleet"] == m.name and page.read_text().startswith("<!DOCTYPE html>")
+    files = sorted(aem.glob("*.aem.xml"))
+    assert len(files) == 7
+    store = fleet["store"]
+    epoch = load_mission(m.mission_dir(m.spacecraft_named("SC03"), "day2")).spec.epoch
+    n = next(n for n, p in store.attitudes("SC03") if p["fleet"]["day"] == "day2")
+    sol = asf.read_solution(store.asf_path("SC03"), n)
+    t, q = read_aem(aem / "SC03-day2.aem.xml", epoch)
+    assert np.max(np.abs(q - sol.q)) <= 1e-12 and np.max(np.abs(t - sol.t)) <= 1e-12
