@@ -189,7 +189,7 @@ class _Ordered:
                     now = self.store.append(outcome, done=had)
                     entry.state = "completed" if had.scds_version is not None else "calibrated"
                     entry.scds_version, entry.asf_solution = now.scds_version, now.asf_solution
-                except GcsError as err:
+                except (GcsError, ValueError) as err:  # a locked/corrupt file, a record the writer refuses
                     entry.state, entry.error = "error", one_line(err)
         self.run.entries.append(entry)
         if self.progress:

@@ -23,6 +23,7 @@ one line in :attr:`Outcome.error`; it stops nothing else.
 from __future__ import annotations
 
 import logging
+import math
 import os
 import socket
 import time
@@ -90,6 +91,17 @@ def one_line(text: object) -> str:
     return " ".join(str(text).split())
 
 
+def _plain(value):
+    """``value`` with every non-finite float as None (the SCDS provenance is strict JSON)."""
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
 def _verification(a) -> dict:
     from gcs_core.verif.analysis import verify_analysis
 
@@ -125,7 +137,7 @@ def _analyse(job: Job) -> tuple[dict, dict | None, dict]:
         a.discover(max_steps=job.max_steps)
         summary["discovered"] = [s.effect for s in a.steps if s.action == "add" and s.effect]
         summary["stop_reason"] = one_line(a.stop_reason)
-    return cal, att, summary
+    return cal, att, _plain(summary)
 
 
 def run_job(job: Job) -> Outcome:

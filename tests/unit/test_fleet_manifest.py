@@ -131,3 +131,13 @@ def test_the_html_page_is_self_contained_and_escapes_names():
     assert "<script" not in page and not re.search(r"(src|href)=", page)
     assert re.findall(r"https?://[^\"']+", page) == ["http://www.w3.org/2000/svg"]  # the SVG namespace only
     assert page.count("<svg") == 1 and "<polyline" in page
+
+
+def test_a_summary_with_non_finite_numbers_is_stored_as_strict_json():
+    from gcs_core.fleet.task import _plain
+
+    assert _plain({"a": [1.0, float("nan")], "b": {"c": float("inf")}, "d": "x"}) == {
+        "a": [1.0, None],
+        "b": {"c": None},
+        "d": "x",
+    }
