@@ -26,7 +26,13 @@ from gcs_core.io import asf, scds
 from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.verif.ground import covered, ground_attitude
 
-__all__ = ["save_calibration", "save_ground_attitude", "calibration_provenance"]
+__all__ = [
+    "save_calibration",
+    "save_ground_attitude",
+    "calibration_provenance",
+    "calibration_record",
+    "ground_attitude_record",
+]
 
 
 def _result(analysis):
@@ -73,6 +79,28 @@ def calibration_provenance(analysis, *, note: str = "") -> dict:
     }
 
 
+def calibration_record(analysis, *, note: str = "") -> dict:
+    """The keyword arguments :func:`gcs_core.io.scds.append_version` is given for the fitted
+    calibration of ``analysis`` (plain data: a worker process can form it and the process
+    that owns the SCDS append it, :mod:`gcs_core.fleet`)."""
+    res = _result(analysis)
+    sigma = res.sigma
+    params = {}
+    for e in res.state:
+        if e.role == HELD:
+            continue
+        s = sigma[e.name] if e.role == SOLVE_FOR else e.sigma0
+        if not math.isfinite(s):
+            raise InputError(f"element '{e.name}' has no finite sigma to store", key=f"state.{e.name}")
+        params[e.name] = (float(e.value), float(s), e.unit)
+    return {
+        "sensor_params": params,
+        "covariance": np.asarray(res.P_consider),
+        "element_names": list(res.solve_for),
+        "provenance": calibration_provenance(analysis, note=note),
+    }
+
+
 def save_calibration(analysis, scds_path, *, note: str = "") -> int:
     """Append the fitted calibration of ``analysis`` to the SCDS; return its version number.
 
@@ -86,40 +114,14 @@ def save_calibration(analysis, scds_path, *, note: str = "") -> int:
     ------
     EstimationError before a fit; DataFileError if the SCDS is locked or corrupt.
     """
-    res = _result(analysis)
-    sigma = res.sigma
-    params = {}
-    for e in res.state:
-        if e.role == HELD:
-            continue
-        s = sigma[e.name] if e.role == SOLVE_FOR else e.sigma0
-        if not math.isfinite(s):
-            raise InputError(f"element '{e.name}' has no finite sigma to store", key=f"state.{e.name}")
-        params[e.name] = (float(e.value), float(s), e.unit)
-    return scds.append_version(
-        scds_path,
-        sensor_params=params,
-        covariance=np.asarray(res.P_consider),
-        element_names=list(res.solve_for),
-        provenance=calibration_provenance(analysis, note=note),
-    )
+    return scds.append_version(scds_path, **calibration_record(analysis, note=note))
 
 
-def save_ground_attitude(
-    analysis, asf_path, *, step: float | None = None, note: str = "", scds_version: int | None = None
-) -> int:
-    """Append the fitted attitude with its 1-σ to the ASF; return the solution number.
-
-    Parameters
-    ----------
-    analysis : a fitted :class:`gcs_core.session.Analysis`.
-    asf_path : the ASF file (created if absent).
-    step : None — at every sensor frame time used by the fit; else a regular grid of
-        this spacing [s] over the fitted span.
-    note : free text; scds_version : the SCDS version holding this calibration, if saved.
-
-    The attitude and its body-axis 1-σ come from :func:`gcs_core.verif.ground.ground_attitude`.
-    """
+def ground_attitude_record(
+    analysis, *, step: float | None = None, note: str = "", scds_version: int | None = None
+) -> dict:
+    """The keyword arguments :func:`gcs_core.io.asf.append_solution` is given for the fitted
+    attitude of ``analysis`` (see :func:`save_ground_attitude`)."""
     res = _result(analysis)
     t0, t1 = _data_span(res)
     if step is None:
@@ -142,4 +144,23 @@ def save_ground_attitude(
     if scds_version is not None:
         prov["scds_version"] = int(scds_version)
     source = "filter" if analysis.config.method == "kalman" else "batch"
-    return asf.append_solution(Path(asf_path), t=g.t, q=g.q, sigma=g.sigma_body, source=source, provenance=prov)
+    return {"t": g.t, "q": g.q, "sigma": g.sigma_body, "source": source, "provenance": prov}
+
+
+def save_ground_attitude(
+    analysis, asf_path, *, step: float | None = None, note: str = "", scds_version: int | None = None
+) -> int:
+    """Append the fitted attitude with its 1-σ to the ASF; return the solution number.
+
+    Parameters
+    ----------
+    analysis : a fitted :class:`gcs_core.session.Analysis`.
+    asf_path : the ASF file (created if absent).
+    step : None — at every sensor frame time used by the fit; else a regular grid of
+        this spacing [s] over the fitted span.
+    note : free text; scds_version : the SCDS version holding this calibration, if saved.
+
+    The attitude and its body-axis 1-σ come from :func:`gcs_core.verif.ground.ground_attitude`.
+    """
+    record = ground_attitude_record(analysis, step=step, note=note, scds_version=scds_version)
+    return asf.append_solution(Path(asf_path), **record)

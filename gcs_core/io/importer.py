@@ -496,7 +496,14 @@ def load_mission(mission_dir: str | os.PathLike) -> ImportedMission:
     ground = spec.ground_position_km is not None
     eph = None
     if spec.ephemeris_file is not None:
-        eph = read(spec.ephemeris_file, EPHEMERIS_COLUMNS, "ephemeris")
+        from gcs_core.io.ccsds import is_oem, read_oem_table  # a CCSDS OEM as the ephemeris (docs/fleet.md)
+
+        if is_oem(spec.ephemeris_file):
+            eph = read_oem_table(spec.ephemeris_file, spec.epoch)
+            counts.append(FileCount(eph.path, "ephemeris (CCSDS OEM)", len(eph), 0, 0))
+            _check_times(eph, spec)
+        else:
+            eph = read(spec.ephemeris_file, EPHEMERIS_COLUMNS, "ephemeris")
         _check_ephemeris(eph)
     telemetry: dict[str, Table] = {}
     empty: list[str] = []

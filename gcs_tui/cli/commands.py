@@ -13,7 +13,9 @@ Commands (``gcs COMMAND --help`` for options):
 * ``gcs predict TARGET`` — covariance-only accuracy prediction for the data plan;
 * ``gcs verify TARGET`` — onboard against ground attitudes, §4.4 flag;
 * ``gcs trade``, ``gcs optimize``, ``gcs montecarlo`` — plan before launch
-  (:mod:`gcs_tui.cli.trade`).
+  (:mod:`gcs_tui.cli.trade`);
+* ``gcs fleet MANIFEST``, ``gcs fleet-sim OUT`` — a fleet's daily calibration on Dask
+  (:mod:`gcs_tui.cli.fleet`).
 
 ``TARGET`` is an analysis config (``.toml``, see :mod:`gcs_core.config` and
 ``sample_data/configs/``) or a mission directory (default config). ``--report R`` writes
@@ -529,6 +531,9 @@ def build_parser() -> argparse.ArgumentParser:
     from gcs_tui.cli.trade import add_commands
 
     add_commands(add, target)
+    from gcs_tui.cli.fleet import add_commands as add_fleet
+
+    add_fleet(add, target)
     return p
 
 

@@ -57,6 +57,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "gcs_core.convert",
         ),
     ),
+    ("fleet", ("gcs_core.fleet",)),  # many spacecraft over the session's engine (docs/fleet.md)
     ("faces", ("gcs_tui",)),
 )
 #: what the truth simulator may use of the engine: a shared bug must not cancel out
