@@ -15,16 +15,16 @@ gyro-propagated attitude taken as exact — describes the data (χ²/m ≈ 1). T
    of the batch σ; the ratio is taken against the faster method on the same answer;
 3. the roofline: one bare ``Hᵀ W H`` accumulation of the same size (a GEMM of a dense
    m × n matrix, every measurement row × every solve-for column), against one GCS batch
-   iteration — :func:`~gcs_core.filtr.batch.normal_equations` at a new state, with the
+   iteration — :func:`~gcs_core.estimators.batch.least_squares.normal_equations` at a new state, with the
    chunk buffers the batch keeps: the gyro propagation, every sensor's predictions and
    partials, the accumulation.
 
-4. the default estimator (:func:`~gcs_core.filtr.smoothing_batch.whole_span_fit`, the
+4. the default estimator (:func:`~gcs_core.estimators.whole_span.fit.whole_span_fit`, the
    gyro noise as process noise; it starts from the batch and includes it) on the same data
    and options, against the batch (target ≤ 3×), and without process noise (a data book
    with no gyro noise: it is then the batch) against least_squares; and the same fit
    carrying a gyro read-out noise σ_e (``--electronic``, default the trackers' noise;
-   :mod:`gcs_core.filtr.readout`), against the default fit without it.
+   :mod:`gcs_core.estimators.whole_span.readout`), against the default fit without it.
 
 Timings are the best of a few repeats (the machine may be shared). Prints the ratios.
 
@@ -50,8 +50,8 @@ sys.path.insert(0, str(REPO))
 
 from _timing import best_of
 from gcs_core.compiled import COMPILED
-from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
-from gcs_core.filtr.smoothing_batch import whole_span_fit
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit, normal_equations
+from gcs_core.estimators.whole_span.fit import whole_span_fit
 from gcs_core.io.importer import load_mission
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.problem.build import build_problem
@@ -186,7 +186,7 @@ def run(
     print(f"gcs default without process noise: {t_ws0:.2f} s (the batch's fit)")
     out.update(t_ws=t_ws, ws_over_batch=t_ws / t_gcs, ws_dx_batch=d_ws, t_ws0=t_ws0)
     if electronic > 0:
-        # the same fit carrying a gyro read-out noise σ_e (gcs_core.filtr.readout): the
+        # the same fit carrying a gyro read-out noise σ_e (gcs_core.estimators.whole_span.readout): the
         # per-epoch elimination and the passes that move the epochs' linearization point
         assert ws.dynamics is not None  # the book's gyro noise gives knots
         book = GyroNoise(ws.dynamics.grid.sigma_v, ws.dynamics.grid.sigma_u, electronic)

@@ -21,13 +21,13 @@ from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.honest_sigma import SIGMA_WINDOW, fit_sigma_scale
 from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
-from gcs_core.diagnosis.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
 from gcs_core.errors import ConfigError
-from gcs_core.filtr.batch import BatchOptions
-from gcs_core.filtr.filter_options import FilterOptions
-from gcs_core.filtr.results import BatchResult, FitResult
-from gcs_core.filtr.smoothing_batch import SmoothedResult, fit_problem
-from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
+from gcs_core.estimators.batch.least_squares import BatchOptions
+from gcs_core.estimators.kalman.options import FilterOptions
+from gcs_core.estimators.results import BatchResult, FitResult
+from gcs_core.estimators.whole_span.fit import SmoothedResult, fit_problem
+from gcs_core.estimators.whole_span.uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
+from gcs_core.noise.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.problem.state import HELD, SOLVE_FOR
@@ -51,7 +51,7 @@ class Analysis:
     warnings : the latest fit's honesty warnings about the method.
     stop_reason : why the latest discovery stopped ("" before one).
     noise : with ``[filter] noise_weighting = "long_run"``, the factors the latest fit
-        weighted its sensors with (:mod:`gcs_core.diagnosis.weighting`); else None.
+        weighted its sensors with (:mod:`gcs_core.noise.weighting`); else None.
     """
 
     def __init__(self, config: AnalysisConfig, *, mission=None):
@@ -208,7 +208,7 @@ class Analysis:
         """``noise_weighting = "long_run"``: measure each sensor's long-run noise factor on
         the fit's residuals and refit with ``σ × k`` (``noise_passes`` times at most, fewer
         when the factors stop moving by more than their sampling error), module
-        :mod:`gcs_core.diagnosis.weighting`."""
+        :mod:`gcs_core.noise.weighting`."""
         fl = self.config.filter
         sensors = [sd.name for sd in self.problem.sensors]
         passes = 0
@@ -244,7 +244,7 @@ class Analysis:
 
         The batch treats the gyro-propagated attitude as exact between its parameters.
         When the data book gives the gyro noise, what that costs on these data is computed
-        (:func:`~gcs_core.filtr.smoothing_batch.batch_wander_cost`): the batch's
+        (:func:`~gcs_core.estimators.whole_span.fit.batch_wander_cost`): the batch's
         understatement of σ and its expected error from the wander, in its own σ, from the
         reduced normal matrices with and without the process noise, and the χ² the wander
         leaves in the residuals.
@@ -269,7 +269,7 @@ class Analysis:
 
     def make_filter(self):
         """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""
-        from gcs_core.filtr.stepping import Filtr
+        from gcs_core.estimators.kalman.stepping import Filtr
 
         return Filtr(self.problem, options=self.filter_options(), block_seconds=self.config.filter.block_seconds)
 

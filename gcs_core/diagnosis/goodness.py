@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg, stats
 
-from gcs_core.filtr.smoothing_uses import smoothed_frames
+from gcs_core.estimators.whole_span.uses import smoothed_frames
 from gcs_core.problem.linearization import iter_blocks
 
 __all__ = [
@@ -295,7 +295,7 @@ def sensor_leverage(problem, result) -> dict[str, float]:
 
 def _smoothed_frames(problem, result, select: Mapping[str, np.ndarray]):
     """The ``select``-ed frames of a fit with knot corrections with their prediction
-    variance (:func:`gcs_core.filtr.smoothing_uses.smoothed_frames`)."""
+    variance (:func:`gcs_core.estimators.whole_span.uses.smoothed_frames`)."""
     return smoothed_frames(problem, result, select)
 
 
@@ -425,7 +425,7 @@ def goodness_of_fit(
 ) -> GoodnessOfFit:
     """The χ² tests of a fit and their verdict (module docstring).
 
-    ``result`` is any estimator's :class:`~gcs_core.filtr.results.FitResult`. The effective
+    ``result`` is any estimator's :class:`~gcs_core.estimators.results.FitResult`. The effective
     parameters come, in this order, from the arguments, from the result's own
     ``effective_parameters`` and ``leverage`` attributes (an estimator with process noise
     declares them), else from ``tr(P A_s)`` per sensor (:func:`sensor_leverage`). Given only

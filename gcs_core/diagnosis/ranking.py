@@ -46,10 +46,10 @@ import numpy as np
 from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
-from gcs_core.filtr.knots import KnotSystem
-from gcs_core.filtr.knots import chained_attitude as kn_chain
-from gcs_core.filtr.readout import ReadoutEpochs
-from gcs_core.filtr.results import FitResult
+from gcs_core.estimators.results import FitResult
+from gcs_core.estimators.whole_span.knots import KnotSystem
+from gcs_core.estimators.whole_span.knots import chained_attitude as kn_chain
+from gcs_core.estimators.whole_span.readout import ReadoutEpochs
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, window_geometry
 from gcs_core.problem.prepare import geometry_variants

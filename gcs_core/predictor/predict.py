@@ -28,8 +28,8 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.orbit import build_ephemeris
 from gcs_core.errors import InputError
-from gcs_core.filtr.batch import name_combinations
-from gcs_core.filtr.smoothing_uses import predicted_covariance
+from gcs_core.estimators.batch.least_squares import name_combinations
+from gcs_core.estimators.whole_span.uses import predicted_covariance
 from gcs_core.io.csvio import read_table
 from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
 from gcs_core.io.tle_table import tle_ephemeris_table
@@ -296,7 +296,7 @@ def predict(
         default from the config (``kalman`` for ``method = "kalman"``); ``"whole_span"``
         (the default fit's setting) is Eq 3-2's history whose final covariance is the
         whole-span fit's, the gyro noise carried as process noise
-        (:func:`~gcs_core.filtr.smoothing_batch.predicted_covariance`).
+        (:func:`~gcs_core.estimators.whole_span.fit.predicted_covariance`).
     ephemeris_step : tabulation step of an orbit-built ephemeris [s].
 
     Returns

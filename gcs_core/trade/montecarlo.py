@@ -26,7 +26,7 @@ bias depends on the method's model of it, ``b(t) = bias + bias_rate (t − t_mid
 whatever the method lets wander:
 
 * ``whole_span`` (the default): the wander is the knots' random walk, zero at ``t_ref``
-  (:mod:`gcs_core.filtr.knots`), so ``bias_rate`` is the simulator's deterministic drift
+  (:mod:`gcs_core.estimators.whole_span.knots`), so ``bias_rate`` is the simulator's deterministic drift
   (its data-book ``bias_rate``) and ``bias`` the simulator's bias at ``t_ref`` carried to
   ``t_mid`` by that drift;
 * ``kalman``: the walk at ``t_ref`` less the drift of the least-squares line through it;

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import EstimationError, InputError
-from gcs_core.filtr.smoothing_uses import attitude_covariance
+from gcs_core.estimators.whole_span.uses import attitude_covariance
 from gcs_core.frames.rotations import dcm_to_euler123, quat_from_dcm, quat_normalize
 from gcs_core.problem.attitude import rpy_error_jacobians
 

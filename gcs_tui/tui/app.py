@@ -296,7 +296,7 @@ class GcsApp(App):
         if not self.workbench.ready:
             self.notify("open a mission first (o)", severity="warning")
             return
-        from gcs_core.filtr.noise import mission_noise
+        from gcs_core.noise.measured import mission_noise
         from gcs_tui.tui.screens.allan import AllanScreen
 
         try:

@@ -282,7 +282,7 @@ def test_verification_speaks_one_unit_in_both_faces():
 
 
 def test_kalman_passes_and_unobservable_are_said_in_words():
-    from gcs_core.filtr.results import passes_text
+    from gcs_core.estimators.results import passes_text
 
     assert passes_text(3, "max_passes").startswith("3 passes done, as configured")
     assert passes_text(2, "converged") == "converged after 2 passes"

@@ -1,6 +1,6 @@
 """The folder tree shows the data's way, and the imports keep to it.
 
-mission files (io) → problem (state, geometry, attitude) → estimators (filtr, then the
+mission files (io) → problem (state, geometry, attitude) → noise → estimators (then the
 predictor) → diagnosis → reports and the session → the faces (gcs_tui). Every module's
 imports, at any depth of the file (function-level imports included), are read with
 ``ast``; nothing is imported, so the test is fast and sees imports that never run.
@@ -43,7 +43,8 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("models", ("gcs_core.models",)),
     ("problem", ("gcs_core.problem",)),
     ("analysis config", ("gcs_core.config", "gcs_core.config_checks")),
-    ("estimators", ("gcs_core.filtr",)),
+    ("noise characterisation", ("gcs_core.noise",)),
+    ("estimators", ("gcs_core.estimators",)),
     ("predictor", ("gcs_core.predictor",)),
     ("diagnosis", ("gcs_core.diagnosis",)),
     (
@@ -174,7 +175,7 @@ def _cycles(nodes, edges) -> list[list[str]]:
 
 
 def _package(module: str) -> str:
-    """The package a module belongs to (``gcs_core.filtr.batch`` -> ``gcs_core.filtr``;
+    """The package a module belongs to (``gcs_core.estimators.batch.least_squares`` -> ``gcs_core.estimators``;
     a top-level module is its own package)."""
     parts = module.split(".")
     return module if MODULES[module][1] or len(parts) <= 2 else ".".join(parts[:2])

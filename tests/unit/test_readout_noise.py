@@ -1,4 +1,4 @@
-"""The gyro's read-out noise σ_e in the whole-span normal equations (gcs_core.filtr.readout).
+"""The gyro's read-out noise σ_e in the whole-span normal equations (gcs_core.estimators.whole_span.readout).
 
 Checked against a dense form: every row of the pass formed explicitly (static partials,
 knot partials, residual, attitude partials D), grouped by epoch, and each epoch's rows
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from test_filter_consistency import sim_problem, simulate
 
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr import smoothing_batch as sb
-from gcs_core.filtr import whole_span_passes as wsp
-from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.mekf import attitude_gyro_noise
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
+from gcs_core.estimators.whole_span import fit as sb
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span import passes as wsp
 from gcs_core.problem.linearization import iter_blocks
 
 NO_EDIT = BatchOptions(edit_k=None)
@@ -106,7 +106,7 @@ def test_epoch_elimination_synthetic_rows_both_forms(monkeypatch):
     compiled and numpy forms of the elimination give the dense per-epoch weighting."""
     from types import SimpleNamespace
 
-    from gcs_core.filtr import readout
+    from gcs_core.estimators.whole_span import readout
 
     rng = np.random.default_rng(11)
     p = 5

@@ -1,4 +1,4 @@
-"""The whole-span estimator with gyro process noise (gcs_core.filtr.smoothing_batch, knots).
+"""The whole-span estimator with gyro process noise (gcs_core.estimators.whole_span.fit, knots).
 
 Checked against:
 
@@ -26,11 +26,11 @@ from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_e
 from test_truth_recovery import ONE_HOUR, fit_and_compare, threeaxis
 
 from gcs_core.compiled import COMPILED
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr import smoothing_batch as sb
-from gcs_core.filtr import whole_span_passes as wsp
-from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.mekf import attitude_gyro_noise
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
+from gcs_core.estimators.whole_span import fit as sb
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span import passes as wsp
 from gcs_core.models.gyro_noise import GyroNoise
 
 NO_EDIT = BatchOptions(edit_k=None)

@@ -50,11 +50,11 @@ class FiltrScreen(GcsScreen):
         state.clear(columns=True)
         sensors.clear(columns=True)
         if run is None or not run.reports:
-            available = jobs.available("gcs_core.filtr.stepping", "Filtr")
+            available = jobs.available("gcs_core.estimators.kalman.stepping", "Filtr")
             info.update(
                 self.app.job_errors.get("filtr", EMPTY)
                 if available
-                else "FILTR stepping is not available in this installation (gcs_core.filtr.stepping)."
+                else "FILTR stepping is not available in this installation (gcs_core.estimators.kalman.stepping)."
             )
             bar.update(total=1, progress=0)
             plot.paint(None, empty="no blocks yet")

@@ -15,7 +15,7 @@ the noise floor the step adds the Newton terms of the models' parameter pairs
 (:mod:`~gcs_core.problem.curvature`) and, after a step that lands there and moves a
 sensor's own non-linear parameters (the FSS transfer function), minimizes over those
 with everything else held before the next linearization
-(:mod:`~gcs_core.filtr.local_refine`). Both only shorten the path: the fixed point is
+(:mod:`~gcs_core.estimators.batch.local_refine`). Both only shorten the path: the fixed point is
 Eq 3-1's, and the covariance is Eq 3-2's (the Gauss–Newton information). The iteration
 stops when the next step is below ``tol_step_sigma`` of every σ (the solution is then the
 last linearization point, whose residuals and covariance are those reported) or the cost
@@ -55,11 +55,12 @@ from scipy import linalg
 
 from gcs_core.config import FilterConfig
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr import local_refine, stopping
-from gcs_core.filtr.noise import MAD_TO_SIGMA
-from gcs_core.filtr.residuals import Residuals, residuals_from
-from gcs_core.filtr.results import BatchResult
+from gcs_core.estimators import stopping
+from gcs_core.estimators.batch import local_refine
+from gcs_core.estimators.residuals import Residuals, residuals_from
+from gcs_core.estimators.results import BatchResult
 from gcs_core.linalg import sparse_basis
+from gcs_core.noise.measured import MAD_TO_SIGMA
 from gcs_core.problem import curvature
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks
@@ -84,7 +85,7 @@ class BatchOptions:
     edit_k_sensor : sensor name -> its own k (0 or None: that sensor is not edited).
     rank_tol : relative eigenvalue threshold naming unobservable combinations.
     knot_correction : whole-span fit: re-solve the knots at a step's statics when the
-        step falls short (:mod:`gcs_core.filtr.smoothing_batch`); False for comparison.
+        step falls short (:mod:`gcs_core.estimators.whole_span.fit`); False for comparison.
     """
 
     max_iterations: int = FilterConfig.max_iterations

@@ -1,4 +1,4 @@
-"""The whole-span fit's moving parts (module docstring of :mod:`gcs_core.filtr.smoothing_batch`):
+"""The whole-span fit's moving parts (module docstring of :mod:`gcs_core.estimators.whole_span.fit`):
 the knot corrections as an attitude provider (:class:`CorrectedAttitude`), their state
 (:class:`Dynamics`), the drift-bias axes at the knots (:func:`mid_rotations`) and one
 Gauss–Newton pass over the data (:class:`Passes`: linearize, accumulate per knot, eliminate)."""
@@ -11,10 +11,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gcs_core.compiled import COMPILED
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr.knot_kernels import correct_attitude
-from gcs_core.filtr.readout import EpochErrors, ReadoutEpochs, row_variance
-from gcs_core.filtr.residuals import Residuals
+from gcs_core.estimators.residuals import Residuals
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.knot_kernels import correct_attitude
+from gcs_core.estimators.whole_span.readout import EpochErrors, ReadoutEpochs, row_variance
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
 from gcs_core.problem.build import Problem
@@ -38,7 +38,7 @@ class Dynamics:
     names : the static columns of ``factors`` and ``P``; factors : the elimination at the
     solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics; sig_e2 : the
     gyro's read-out noise σ_e² [rad²] the fit carried and errors its per-epoch estimates
-    ε̂ at the solution (:mod:`gcs_core.filtr.readout`).
+    ε̂ at the solution (:mod:`gcs_core.estimators.whole_span.readout`).
     """
 
     grid: kn.KnotGrid
@@ -77,7 +77,7 @@ class Dynamics:
 
 class CorrectedAttitude:
     """The gyro-carried attitude with the knot corrections applied exactly:
-    ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.filtr.knots`).
+    ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.estimators.whole_span.knots`).
     Partials stay factored as the base provider's (chained through the corrected C)."""
 
     def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray, errors: EpochErrors | None = None):

@@ -1,10 +1,10 @@
 """Whole-span least squares with gyro process noise: the default estimator (seed §3.2.1).
 
-The batch (:mod:`gcs_core.filtr.batch`, Eq 3-1/3-2) carries the attitude with the
+The batch (:mod:`gcs_core.estimators.batch.least_squares`, Eq 3-1/3-2) carries the attitude with the
 gyros and takes that propagation as exact. Here the gyro's angle and rate random walks
 (σ_v, σ_u, ICD §5 ``arw``, ``rrw``) enter as process noise: dynamic attitude and
 drift-bias corrections at knots along the span, tied together by Farrenkopf's Q on their
-increments (:mod:`gcs_core.filtr.knots`), estimated jointly with the static elements.
+increments (:mod:`gcs_core.estimators.whole_span.knots`), estimated jointly with the static elements.
 The problem is one maximum a posteriori fit over the whole span::
 
     J(x, z) = Σ ‖R^-1/2 (y − h(x, z))‖² + ‖x − x̄‖²_{P̄⁻¹} + Σ_j ‖z_{j+1} − Φ_j z_j‖²_{Q_j⁻¹}
@@ -30,7 +30,7 @@ with the statics held at the new point (a Gauss–Newton step in ``z`` alone,
 :func:`_knot_correction`, up to :data:`KNOT_CORRECTIONS` times while ``J`` falls): the
 curved valley is followed instead of cut (``benchmarks/broad_convergence.py``). Steps the
 linearization sizes well are untouched. Data are edited on the whole-span residuals
-with the batch's robust k-σ rule (:func:`~gcs_core.filtr.batch.robust_outliers`); a
+with the batch's robust k-σ rule (:func:`~gcs_core.estimators.batch.least_squares.robust_outliers`); a
 sensor with more than ``max_edit_fraction`` of its frames beyond k σ is not edited but
 reported (the model, not the data, is wrong). With no gyro noise in the data book the
 knots are empty and the fit is the batch's.
@@ -41,7 +41,7 @@ bring as many equations as knot unknowns.
 
 The gyro's read-out (electronic) noise σ_e (ICD §5 ``electronic``) does not accumulate:
 it is a white attitude error ``ε_k ~ N(0, σ_e² I)`` at every epoch, shared by the rows of
-every sensor sampled then (:mod:`gcs_core.filtr.readout`), so ``J`` gains
+every sensor sampled then (:mod:`gcs_core.estimators.whole_span.readout`), so ``J`` gains
 ``Σ_k ‖ε_k‖²/σ_e²`` and the rows of one epoch the covariance ``R + σ_e² D Dᵀ``. Each pass
 eliminates ε_k per epoch in closed form (Woodbury, three pseudo-rows per epoch) about its
 current estimate ε̂_k, which follows the solution (the gyro-carried attitude is a noisy
@@ -67,13 +67,20 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr import stopping
-from gcs_core.filtr.batch import BatchOptions, _solve_normal, batch_fit, edit_frames, name_combinations, suspect_note
-from gcs_core.filtr.mekf import attitude_gyro_noise
-from gcs_core.filtr.residuals import residuals_from
-from gcs_core.filtr.results import BatchResult, FitResult
-from gcs_core.filtr.whole_span_passes import Dynamics, Passes
+from gcs_core.estimators import stopping
+from gcs_core.estimators.batch.least_squares import (
+    BatchOptions,
+    _solve_normal,
+    batch_fit,
+    edit_frames,
+    name_combinations,
+    suspect_note,
+)
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
+from gcs_core.estimators.residuals import residuals_from
+from gcs_core.estimators.results import BatchResult, FitResult
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.passes import Dynamics, Passes
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.problem.attitude import RPY
 from gcs_core.problem.build import Problem

@@ -14,12 +14,12 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr.batch import _solve_normal
-from gcs_core.filtr.readout import row_variance
-from gcs_core.filtr.results import BatchResult
-from gcs_core.filtr.smoothing_batch import SmoothedResult, make_knots, process_noise
-from gcs_core.filtr.whole_span_passes import Dynamics, Passes
+from gcs_core.estimators.batch.least_squares import _solve_normal
+from gcs_core.estimators.results import BatchResult
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.fit import SmoothedResult, make_knots, process_noise
+from gcs_core.estimators.whole_span.passes import Dynamics, Passes
+from gcs_core.estimators.whole_span.readout import row_variance
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, linearize
 
@@ -65,7 +65,7 @@ def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, 
     """(sensor, residual (k, m), noise variance (k, m), prediction variance (k, m)) of the
     ``select``-ed valid frames of a whole-span fit, chunk by chunk: the noise variance
     ``σ² + σ_e² |D|²`` (the data book's σ plus the gyro's read-out error the fit carried,
-    :mod:`gcs_core.filtr.readout`), the prediction variance
+    :mod:`gcs_core.estimators.whole_span.readout`), the prediction variance
     ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of the static elements and the knots."""
     dyn = res.dynamics
     assert dyn is not None  # a whole-span fit with knots (callers check)
@@ -153,7 +153,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
 def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarray) -> np.ndarray:
     """(N, 3, 3) body-frame attitude error covariance added by the knots at times ``t``:
     ``δθ = C [I | Γ_j(t)] z_j`` with ``J`` (N, 3, n) the static partials over ``dyn.names``,
-    plus the gyro's read-out error ``σ_e² I`` the fit carried (:mod:`gcs_core.filtr.readout`)."""
+    plus the gyro's read-out error ``σ_e² I`` the fit carried (:mod:`gcs_core.estimators.whole_span.readout`)."""
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     j = dyn.grid.index(t)
     U = kn.knot_rows(
