@@ -56,7 +56,6 @@ from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
 from gcs_core.convert.broad import LAB_LATITUDE_DEG
 from gcs_core.estimators.gyro_bias import gyro_bias_at
-from gcs_core.estimators.whole_span.fit import SmoothedResult
 from gcs_core.estimators.whole_span.process_likelihood import rrw_profile
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.io.importer import load_mission
@@ -143,7 +142,7 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
         for n in SHOWN
         if n in vals
     }
-    if epochs and isinstance(res, SmoothedResult) and res.dynamics is not None:
+    if epochs and res.carries_process_noise:
         t1 = time.perf_counter()
         prof = rrw_profile(a.problem, res, RRW_SCALES)
         v = prof.neg2_log_evidence - prof.neg2_log_evidence.min()

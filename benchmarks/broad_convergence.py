@@ -27,7 +27,7 @@ from broad_consistency import EFFECTS, MEMS_PRIORS, rests
 from gcs_core.config import default_config
 from gcs_core.convert import convert
 from gcs_core.estimators.gyro_bias import gyro_bias_at
-from gcs_core.estimators.whole_span.fit import fit_problem
+from gcs_core.estimators.whole_span.fit import whole_span_fit
 from gcs_core.io.importer import load_mission
 from gcs_core.models.gyro import g_matrix
 from gcs_core.session import Analysis
@@ -53,7 +53,7 @@ def main() -> int:
         for corrected in (False, True):
             opts = replace(a.batch_options(), knot_correction=corrected)
             t0 = time.perf_counter()
-            res = fit_problem(a.problem, "whole_span", opts)
+            res = whole_span_fit(a.problem, opts)
             dt = time.perf_counter() - t0
             fits[corrected] = res
             print(

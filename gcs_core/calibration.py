@@ -141,5 +141,5 @@ def save_ground_attitude(
     }
     if scds_version is not None:
         prov["scds_version"] = int(scds_version)
-    source = "filter" if analysis.config.method == "kalman" else "batch"
+    source = analysis.estimator.attitude_source
     return asf.append_solution(Path(asf_path), t=g.t, q=g.q, sigma=g.sigma_body, source=source, provenance=prov)

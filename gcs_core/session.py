@@ -24,9 +24,8 @@ from gcs_core.diagnosis.ranking import Candidate, rank_candidates
 from gcs_core.errors import ConfigError
 from gcs_core.estimators.batch.least_squares import BatchOptions
 from gcs_core.estimators.kalman.options import FilterOptions
-from gcs_core.estimators.results import BatchResult, FitResult
-from gcs_core.estimators.whole_span.fit import SmoothedResult, fit_problem
-from gcs_core.estimators.whole_span.uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
+from gcs_core.estimators.registry import Estimator, FitSettings, KalmanEstimator, estimator
+from gcs_core.estimators.results import FitResult
 from gcs_core.noise.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
@@ -177,16 +176,11 @@ class Analysis:
             res = self._reweight(res)
         masks = self.holdout_masks() if holdout else {}
         if masks:
-            method = "batch" if self.config.method == "kalman" else self.config.method
-            # the whole-span training fit starts from the full fit's solution and knots
-            warm = {"start": res} if getattr(res, "dynamics", None) is not None else {"initial": res.state.values()}
-            res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
+            # the training fit starts from the full fit's solution (a whole-span fit's: knots too)
+            training = estimator(self.estimator.training)
+            res_train = training.fit(self.problem, self.fit_settings(), edited=masks, **res.warm_start())
             stated = self._stated_problem()  # held-out residuals against the stated σ
-            self.holdout_rms = (
-                smoothed_holdout_rms(stated, res_train, masks)
-                if isinstance(res_train, SmoothedResult) and res_train.dynamics is not None
-                else static_holdout_rms(stated, res_train, masks)
-            )
+            self.holdout_rms = res_train.holdout_rms(stated, masks)
             self.holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
         else:
             self.holdout_chi2 = {}
@@ -197,12 +191,17 @@ class Analysis:
             log.warning("%s", w)
         return res
 
+    @property
+    def estimator(self) -> Estimator:
+        """The configured estimation method (:mod:`gcs_core.estimators.registry`)."""
+        return estimator(self.config.method)
+
+    def fit_settings(self) -> FitSettings:
+        return FitSettings(self.batch_options(), self.filter_options(), self.config.filter.block_seconds)
+
     def _fit_once(self, *, initial=None, previous: FitResult | None = None):
         """One fit of the current problem with its current weights."""
-        if self.config.method == "kalman":
-            return self._kalman_fit()
-        kw: dict = {"previous": previous} if previous is not None and self.config.method == "whole_span" else {}
-        return fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
+        return self.estimator.fit(self.problem, self.fit_settings(), initial=initial, previous=previous)
 
     def _reweight(self, res: FitResult) -> FitResult:
         """``noise_weighting = "long_run"``: measure each sensor's long-run noise factor on
@@ -240,45 +239,18 @@ class Analysis:
         )
 
     def _method_warnings(self) -> list[str]:
-        """Honesty checks on the chosen method.
-
-        The batch treats the gyro-propagated attitude as exact between its parameters.
-        When the data book gives the gyro noise, what that costs on these data is computed
-        (:func:`~gcs_core.estimators.whole_span.fit.batch_wander_cost`): the batch's
-        understatement of σ and its expected error from the wander, in its own σ, from the
-        reduced normal matrices with and without the process noise, and the χ² the wander
-        leaves in the residuals.
-        """
-        if self.config.method != "batch" or self.problem.gyro_name is None or self.result is None:
+        """Honesty checks on the chosen method, computed on these data (the estimator's
+        :meth:`~gcs_core.estimators.registry.Estimator.warnings`)."""
+        if self.result is None:
             return []
-        assert isinstance(self.result, BatchResult)  # method "batch": fit() ran fit_problem
-        cost = batch_wander_cost(self.problem, self.result)
-        if cost is None or cost["worst_bias_sigma"] < 0.5:
-            return []
-        worst = ", ".join(f"{k} ×{v:.2f}" for k, v in cost["sigma_ratio"][:4])
-        return [
-            f"batch method: the gyro noise (not modelled by the batch) makes its σ too small "
-            f"(σ with the process noise / batch σ: {worst}); the expected error of those "
-            f"elements from the wander reaches {cost['worst_bias_sigma']:.1f} batch σ, and the "
-            f"wander leaves Δχ² = {cost['delta_chi2']:.1f} in the residuals. Use method = "
-            '"whole_span" (the default) for honest σ and p-values.'
-        ]
+        return self.estimator.warnings(self.problem, self.result)
 
     def filter_options(self) -> FilterOptions:
         return FilterOptions(edit_k=self.config.filter.edit_k or None, edit_k_sensor=self._edit_k_sensor())
 
     def make_filter(self):
         """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""
-        from gcs_core.estimators.kalman.stepping import Filtr
-
-        return Filtr(self.problem, options=self.filter_options(), block_seconds=self.config.filter.block_seconds)
-
-    def _kalman_fit(self, progress=None, cancel=None) -> FitResult:
-        """Kalman filter + smoother (Eq 3-3, 3-4); its result is a :class:`FitResult` like the
-        batch's, so the diagnosis and reports read either. The ranking then linearizes
-        about the smoothed solution."""
-        fr = self.make_filter().run(progress=progress, cancel=cancel)
-        return replace(fr, message=f"Kalman filter + smoother: {fr.message}")
+        return KalmanEstimator.make_filter(self.problem, self.fit_settings())
 
     def rank(self) -> list[Candidate]:
         res = self.result if self.result is not None else self.fit()
@@ -287,7 +259,7 @@ class Analysis:
             res,
             self.candidate_effects(),
             alpha=self.config.diagnosis.significance,
-            smoothed=self.config.method == "kalman",
+            smoothed=res.scores_own_residuals,
         )
         return self.candidates
 
@@ -296,22 +268,24 @@ class Analysis:
         (:func:`gcs_core.diagnosis.physics.physics_needed`), once per fit."""
         if self.result is None:
             self.fit()
-        if self._physics_needed is not None and self._physics_needed[0] is self.result:
+        res = self.result
+        assert res is not None  # fitted above
+        if self._physics_needed is not None and self._physics_needed[0] is res:
             return self._physics_needed[1]
         on_ids = set(self.effects_in_state())
         phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
         out = (
             physics.physics_needed(
                 self.problem,
-                self.result,
+                res,
                 phys,
                 alpha=self.config.diagnosis.significance,
-                smoothed=self.config.method == "kalman",
+                smoothed=res.scores_own_residuals,
             )
             if phys
             else []
         )
-        self._physics_needed = (self.result, out)  # one score pass per fit
+        self._physics_needed = (res, out)  # one score pass per fit
         return out
 
     def rms(self) -> dict[str, float]:

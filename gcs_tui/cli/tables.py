@@ -145,7 +145,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
     lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:.3g}-s windows, {sc.n_blocks} windows):"]
     # a gyro's elements fitted under its process noise (the whole-span knots): the sandwich
     # does not see that noise, so their scale is indicative (docs/ground.md)
-    gyro = getattr(analysis.problem, "gyro_name", None) if getattr(res, "dynamics", None) is not None else None
+    gyro = getattr(analysis.problem, "gyro_name", None) if res.carries_process_noise else None
     marked = {n for n in big if gyro is not None and res.state[n].sensor == gyro}
     for n, s in big.items():
         e = res.state[n]

@@ -44,7 +44,7 @@ from test_truth_recovery import _angle_diff, truth_values
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.goodness import goodness_of_fit
 from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
-from gcs_core.estimators.whole_span.fit import fit_problem
+from gcs_core.estimators.whole_span.fit import whole_span_fit
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis
@@ -112,7 +112,7 @@ def test_whole_span_fit_carries_the_read_out_noise(ratio, tmp_path):
 
     # the same data, the read-out noise ignored: residuals above the noise, σ optimistic
     book = attitude_gyro_noise(a.problem)
-    blind = fit_problem(a.problem, "whole_span", a.batch_options(), noise=GyroNoise(book.sigma_v, book.sigma_u, 0.0))
+    blind = whole_span_fit(a.problem, a.batch_options(), noise=GyroNoise(book.sigma_v, book.sigma_u, 0.0))
     assert blind.dynamics is not None and blind.dynamics.sig_e2 == 0.0
     gof_blind = goodness_of_fit(a.problem, blind)
     assert gof_blind.fit.p_value < tiny_p, gof_blind.verdict

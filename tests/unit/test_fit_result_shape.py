@@ -10,7 +10,7 @@ import typing
 import pytest
 
 from gcs_core.estimators import results
-from gcs_core.estimators.whole_span.fit import SmoothedResult
+from gcs_core.estimators.whole_span.result import SmoothedResult
 
 
 def protocol_members() -> set[str]:

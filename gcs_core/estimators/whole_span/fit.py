@@ -66,7 +66,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gcs_core.errors import EstimationError, UnobservableError
+from gcs_core.errors import UnobservableError
 from gcs_core.estimators import stopping
 from gcs_core.estimators.batch.least_squares import (
     BatchOptions,
@@ -76,13 +76,13 @@ from gcs_core.estimators.batch.least_squares import (
     name_combinations,
     suspect_note,
 )
-from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
 from gcs_core.estimators.residuals import residuals_from
 from gcs_core.estimators.results import BatchResult, FitResult
 from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.grid import make_knots, process_noise
 from gcs_core.estimators.whole_span.passes import Dynamics, Passes
+from gcs_core.estimators.whole_span.result import SmoothedResult
 from gcs_core.models.gyro_noise import GyroNoise
-from gcs_core.problem.attitude import RPY
 from gcs_core.problem.build import Problem
 from gcs_core.problem.gyro_attitude import GyroAttitude
 
@@ -100,48 +100,6 @@ EPS_TOL = 0.02
 CORRECT_BELOW = 0.5
 #: ... at most this many times (each a pass over the data), while the cost falls
 KNOT_CORRECTIONS = 3
-
-
-@dataclass(frozen=True)
-class SmoothedResult(BatchResult):
-    """A :class:`BatchResult` of the whole-span fit, with its knot corrections.
-
-    dynamics : the knots (None when there is no process noise); chi2_process : the
-    process term of ``chi2``; batch_delta_sigma : (n,) the batch solution's distance from
-    this one in this fit's σ.
-    """
-
-    dynamics: Dynamics | None = None
-    chi2_process: float = 0.0
-    batch_delta_sigma: np.ndarray | None = None
-
-
-def process_noise(problem: Problem) -> GyroNoise | None:
-    """The gyro noise of the data book when the attitude is gyro-carried and noisy."""
-    if problem.gyro_name is None or not isinstance(problem.attitude, GyroAttitude):
-        return None
-    noise = attitude_gyro_noise(problem)
-    return noise if noise.process else None
-
-
-def make_knots(
-    problem: Problem, noise: GyroNoise, information: np.ndarray, names, *, spacing: float | None = None
-) -> kn.KnotGrid:
-    """Knots over the span of the gyro knots, spaced by :func:`knots.knot_spacing` from the
-    information per second the data give the attitude (the batch's roll/pitch/yaw block)."""
-    att = problem.gyro_attitude
-    t0, t1 = float(att.knots[0]), float(att.knots[-1])
-    for sd in problem.sensors:
-        if sd.n:
-            t1 = max(t1, float(sd.t[-1]))
-    dt = float(np.median(att.dt)) if att.dt.size else 1.0
-    if spacing is None:
-        ix = [names.index(nm) for nm in RPY if nm in names]
-        rate = float(np.linalg.eigvalsh(information[np.ix_(ix, ix)])[-1]) / max(t1 - t0, 1.0) if ix else 0.0
-        spacing = kn.knot_spacing(
-            noise.sigma_v if noise.sigma_v > 0 else noise.sigma_u * 1e3, rate, dt_min=max(dt, 1e-3)
-        )
-    return kn.make_grid(t0, t1, spacing, noise.sigma_v, noise.sigma_u, min_step=max(dt, 1e-3))
 
 
 def whole_span_fit(
@@ -445,12 +403,3 @@ def _restart(problem: Problem, previous: FitResult, dyn: Dynamics) -> _Restart:
     pv = previous.state.values()
     x = np.array([float(pv[nm]) if nm in before and nm in pv else float(state[nm].value) for nm in names])
     return _Restart(names, cons, x, previous.residuals, Dynamics(dyn.grid, dyn.z.copy(), dyn.R))
-
-
-def fit_problem(problem: Problem, method: str, options: BatchOptions | None = None, **kw) -> BatchResult:
-    """``batch`` or ``whole_span`` fit of a problem (the Kalman method lives in FILTR)."""
-    if method == "batch":
-        return batch_fit(problem, options, **kw)
-    if method == "whole_span":
-        return whole_span_fit(problem, options, **kw)
-    raise EstimationError(f"unknown method {method!r}")

@@ -1,4 +1,5 @@
-"""What the knots of a whole-span fit give the rest of GCS (:mod:`.smoothing_batch`).
+"""What the knots of a whole-span fit give the rest of GCS (:mod:`.fit`), through its result
+(:class:`.result.SmoothedResult`) and the predictor.
 
 * :func:`smoothed_holdout_rms` — held-out residuals standardized by noise, static and knot
   uncertainty together;
@@ -11,17 +12,21 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from gcs_core.estimators.batch.least_squares import _solve_normal
-from gcs_core.estimators.results import BatchResult
+from gcs_core.estimators.results import FitResult
 from gcs_core.estimators.whole_span import knots as kn
-from gcs_core.estimators.whole_span.fit import SmoothedResult, make_knots, process_noise
+from gcs_core.estimators.whole_span.grid import make_knots, process_noise
 from gcs_core.estimators.whole_span.passes import Dynamics, Passes
 from gcs_core.estimators.whole_span.readout import row_variance
 from gcs_core.problem.build import Problem
-from gcs_core.problem.linearization import iter_blocks, linearize
+from gcs_core.problem.linearization import iter_blocks
+
+if TYPE_CHECKING:  # the result reads its algebra from here
+    from gcs_core.estimators.whole_span.result import SmoothedResult
 
 
 def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | None = None, cols=None) -> np.ndarray:
@@ -37,27 +42,6 @@ def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | 
     if HJ is not None and HJ.shape[2]:
         Xc = X[j][:, :, np.asarray(cols, int)]
         out += 2.0 * np.einsum("nma,nak,nmk->nm", U, Xc, HJ, optimize=True)
-    return out
-
-
-def static_holdout_rms(problem: Problem, res, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
-    """Normalized RMS of the held-out frames of a fit without process noise, each residual standardized by its full
-    prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
-    training fit carried to that frame), so 1.0 is the expected value for a right model."""
-    lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
-    out = {}
-    for name, r in res.residuals.items():
-        m = masks.get(name)
-        lin = lins.get(name)
-        if m is None or lin is None:
-            continue
-        sel = m & r.valid
-        if not np.any(sel):
-            continue
-        H = lin.H[sel]
-        var_pred = np.einsum("kmn,np,kmp->km", H, res.P, H, optimize=True)
-        z = r.residual[sel] / np.sqrt(lin.sigma[None, :] ** 2 + var_pred)
-        out[name] = float(np.sqrt(np.mean(z**2)))
     return out
 
 
@@ -111,7 +95,7 @@ def smoothed_holdout_rms(problem: Problem, res: SmoothedResult, masks: Mapping[s
     return {k: float(np.sqrt(v[0] / v[1])) for k, v in sums.items() if v[1]}
 
 
-def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
+def batch_wander_cost(problem: Problem, res: FitResult) -> dict | None:
     """What ignoring the gyro noise costs a batch solution on these data (one pass).
 
     At the batch solution the knots of the whole-span problem are added and eliminated:
@@ -123,7 +107,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     residual signature of the wander the batch leaves to the diagnosis).
     """
     noise = process_noise(problem)
-    if noise is None or not res.solve_for:
+    if noise is None or not res.solve_for or res.information is None:
         return None
     state = problem.state
     names = tuple(res.solve_for)
