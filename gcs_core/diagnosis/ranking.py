@@ -73,6 +73,7 @@ class Candidate:
     aliases_state : elements the signature aliases with.
     aliases_candidates : (candidate id, canonical correlation) pairs above ALIAS_TOL.
     identifiable : not absorbed by the state and not aliased with a stronger candidate.
+    significant : ``p_adjusted`` below the family-wise level α it was ranked at.
     sensors : sensor -> Δχ² share seen in that sensor's residuals.
     explanation : a paragraph for the analyst.
     """
@@ -91,10 +92,17 @@ class Candidate:
     identifiable: bool
     sensors: Mapping[str, float] = field(default_factory=dict)
     explanation: str = ""
+    significant: bool = False
 
     @property
     def id(self) -> str:
         return self.effect.id
+
+    @property
+    def passes(self) -> bool:
+        """The verdict: identifiable and significant (``p_adjusted < α``), so discovery may
+        add it."""
+        return self.identifiable and self.significant
 
     def as_report(self) -> dict:
         return {
@@ -191,15 +199,7 @@ def rank_candidates(
     cols = x_names + c_names
     k_all = len(c_names) + len(phys)
     K = n + k_all
-    exclude: dict[str, np.ndarray] = {}
-    for sd in problem.sensors:
-        ex = np.zeros(sd.n, bool)
-        res = result.residuals.get(sd.name)
-        if res is not None:
-            ex |= res.edited
-        if exclude_frames and sd.name in exclude_frames:
-            ex |= exclude_frames[sd.name]
-        exclude[sd.name] = ex
+    exclude = _excluded(problem, result, exclude_frames)
     # accumulate over used frames: A = [H_x H_c]ᵀ W [H_x H_c], g = [.]ᵀ W r
     A = np.zeros((K, K))
     g = np.zeros(K)
@@ -283,6 +283,27 @@ def rank_candidates(
             if np.any(gsc):
                 shares[sname] = float(np.abs(gsc @ (est if est.size else gsc)))
         raw.append([e, dchi, dof, est, sigma, mdb, absorbed, aliases, shares])
+    return _verdicts(raw, effects, idx_of, S_all, result, alpha)
+
+
+def _excluded(problem: Problem, result: FitResult, exclude_frames) -> dict[str, np.ndarray]:
+    """Sensor -> frames left out of the scores: those the fit edited, and ``exclude_frames``."""
+    exclude: dict[str, np.ndarray] = {}
+    for sd in problem.sensors:
+        ex = np.zeros(sd.n, bool)
+        res = result.residuals.get(sd.name)
+        if res is not None:
+            ex |= res.edited
+        if exclude_frames and sd.name in exclude_frames:
+            ex |= exclude_frames[sd.name]
+        exclude[sd.name] = ex
+    return exclude
+
+
+def _verdicts(raw, effects, idx_of, S_all, result: FitResult, alpha: float) -> list[Candidate]:
+    """The ranked candidates from their scores ``raw``: p-values adjusted for the number of
+    candidates (Bonferroni), aliases between candidates, and whether each is identifiable;
+    most significant first, each with its explanation."""
     m = max(len(raw), 1)
     n_meas = sum(int(np.count_nonzero(r.used)) * r.residual.shape[1] for r in result.residuals.values())
     log_n = float(np.log(max(n_meas, 2)))
@@ -323,6 +344,7 @@ def rank_candidates(
                 tuple((a[0], a[1]) for a in cand_alias),
                 identifiable,
                 {k: v / tot for k, v in shares.items()},
+                significant=min(1.0, p * m) < alpha,
             )
         )
     out.sort(key=lambda c: (c.p_value, -c.delta_chi2))
@@ -432,7 +454,7 @@ def explain(c: Candidate, alpha: float) -> str:
         f"{c.id}: adding it would remove Δχ² = {c.delta_chi2:.1f} on {c.dof} degree"
         f"{'s' if c.dof != 1 else ''} of freedom ({_p_text(c.p_value)}; corrected for the "
         f"candidates tried, {_p_text(c.p_adjusted, 'p adj')}, "
-        f"{'significant' if c.p_adjusted < alpha else 'not significant'} at family-wise "
+        f"{'significant' if c.significant else 'not significant'} at family-wise "
         f"α = {alpha:g}); the signature is seen in {seen}."
     )
     if not c.identifiable:

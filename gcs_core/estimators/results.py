@@ -9,7 +9,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from scipy import special
@@ -87,6 +87,12 @@ class FitResult(Protocol):
 
     # ---- the result's own algebra: what the diagnosis, VERIF and the reports ask of a fit
     @property
+    def dynamics(self) -> Any:
+        """The estimator's own dynamic corrections (a whole-span fit's knots, read by that
+        estimator when it starts from this result), or None."""
+        ...
+
+    @property
     def carries_process_noise(self) -> bool:
         """True when the fit estimated the gyro's wander (its σ of gyro elements count it)."""
         ...
@@ -135,6 +141,11 @@ class StaticAlgebra:
     @property
     def carries_process_noise(self) -> bool:
         return False
+
+    @property
+    def dynamics(self) -> Any:
+        """A static fit has no dynamic corrections (a whole-span fit's knots)."""
+        return None
 
     @property
     def scores_own_residuals(self) -> bool:

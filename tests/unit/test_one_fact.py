@@ -191,7 +191,7 @@ def test_robust_scale_is_the_noise_estimators():
     """The batch's editing and the noise estimator use one MAD-to-σ constant."""
     import inspect
 
-    from gcs_core.estimators.batch import least_squares as batch
+    from gcs_core.estimators.batch import editing as batch
     from gcs_core.noise import measured as noise
 
     assert batch.MAD_TO_SIGMA is noise.MAD_TO_SIGMA

@@ -162,6 +162,24 @@ def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
     return out
 
 
+@dataclass
+class SpanLinearization:
+    """One pass of the whole-span problem linearized at (x, z) (:meth:`Passes.run`).
+
+    A : (n, n) the statics' data information ``Hᵀ R⁻¹ H``; b : (n,) ``Hᵀ R⁻¹ r``;
+    chi2 : the data χ² (generalized with the read-out noise, :mod:`.readout`); m_used :
+    measurement components used; system : the knot rows accumulated, ready to be
+    eliminated (:class:`.knots.KnotSystem`); R : (K−1, 3, 3) the knots' drift-bias axes.
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    chi2: float
+    m_used: int
+    system: kn.KnotSystem
+    R: np.ndarray
+
+
 class Passes:
     """Linearization passes of the whole-span problem at (x, z)."""
 
@@ -189,8 +207,8 @@ class Passes:
         for j, nm in enumerate(self.names if names is None else names):
             self.values[nm] = x[j]
 
-    def run(self, x, z, edits, *, columns=None, jacobian=True):
-        """One pass: (A, b, χ², m, system) at (x, z); the residual buffers are filled."""
+    def run(self, x, z, edits, *, columns=None, jacobian=True) -> SpanLinearization:
+        """One pass at (x, z) (:class:`SpanLinearization`); the residual buffers are filled."""
         cols = tuple(columns or self.names)
         self.set_x(x)
         if self.R_fixed is None:
@@ -253,7 +271,7 @@ class Passes:
             passed(sd, blk.hi)
         if ro is not None:
             chi2 -= ro.finish()
-        return A, b, chi2, m_used, sysk, R
+        return SpanLinearization(A, b, chi2, m_used, sysk, R)
 
     def _knot_rows(self, blk, sysk, rw, R) -> np.ndarray | None:
         """The block's rows in the knot columns, added to the knot system; returns the

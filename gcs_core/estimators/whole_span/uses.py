@@ -119,7 +119,8 @@ def batch_wander_cost(problem: Problem, res: FitResult) -> dict | None:
     passes.keep = False
     edits = {nm: r.edited for nm, r in res.residuals.items()}
     x = np.asarray(res.x, float)
-    A, b, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), edits)
+    lin = passes.run(x, np.zeros((grid.K, grid.d)), edits)
+    A, b, sysk = lin.A, lin.b, lin.system
     N_red, g_red, _ = sysk.eliminate(A + np.diag(prior_info), b + prior_info * (x_bar - x))
     dx, P_q = _solve_normal(N_red, g_red)
     pb = np.clip(np.diag(res.P), 1e-300, None)
@@ -181,7 +182,8 @@ def predicted_covariance(
     passes.values = dict(values)
     passes.keep = False
     x = np.array([values[nm] for nm in names])
-    A, _, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), exclude, columns=names + cons)
+    lin = passes.run(x, np.zeros((grid.K, grid.d)), exclude, columns=names + cons)
+    A, sysk = lin.A, lin.system
     N = A + np.diag(np.concatenate([prior, np.zeros(len(cons))]))
     N_red, _, _ = sysk.eliminate(N, np.zeros(N.shape[0]))
     _, P = _solve_normal(N_red[:n, :n], np.zeros(n))
