@@ -9,12 +9,14 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gcs_core import stepwise
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
+from gcs_core.config_problem import problem_from_config
+from gcs_core.diagnosis import aliases, determination, goodness, physics
 from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
@@ -27,12 +29,31 @@ from gcs_core.estimators.kalman.options import FilterOptions
 from gcs_core.estimators.registry import Estimator, FitSettings, KalmanEstimator, estimator
 from gcs_core.estimators.results import FitResult
 from gcs_core.noise.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
-from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
+from gcs_core.problem.build import Problem
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.problem.state import HELD, SOLVE_FOR
-from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FitRecord:
+    """One fit of a session, as the session stores it (and :meth:`Analysis.fit` returns its
+    ``result``).
+
+    result : the fit, its residuals normalized by the stated σ (under long-run weighting
+        the fit weighted its sensors by ``σ × k``: :mod:`gcs_core.noise.weighting`);
+    holdout_rms, holdout_chi2 : sensor -> normalized RMS and χ² test on the held-out span
+        ({} when none was held out);
+    warnings : the estimator's honesty warnings about its method on these data;
+    noise : with ``noise_weighting = "long_run"``, the factors the fit was weighted with.
+    """
+
+    result: FitResult
+    holdout_rms: Mapping[str, float]
+    holdout_chi2: Mapping[str, goodness.ChiSquare]
+    warnings: tuple[str, ...]
+    noise: NoiseWeighting | None
 
 
 class Analysis:
@@ -58,14 +79,10 @@ class Analysis:
 
         self.config = config
         self.mission = mission if mission is not None else load_mission(config.mission)
-        self.result: FitResult | None = None
+        self.record: FitRecord | None = None  # the latest fit, as stored
         self.candidates: list[Candidate] = []
         self.steps: list[Step] = []
-        self.holdout_rms: dict[str, float] = {}
-        self.holdout_chi2: dict[str, goodness.ChiSquare] = {}  # sensor (and "all sensors") -> test
-        self.warnings: list[str] = []
         self.stop_reason = ""
-        self.noise: NoiseWeighting | None = None
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
         self.problem: Problem = self._build()
         self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
@@ -80,28 +97,12 @@ class Analysis:
     def physics(self) -> PhysicsOptions:
         return self.config.physics
 
-    def _state_options(self) -> StateOptions:
-        ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in self.config.state.elements.items()}
-        return StateOptions(
-            effects=self.config.state.effects,
-            exclude=self.config.state.exclude,
-            overrides=ov,
-            attitude_sigma=self.config.state.attitude_sigma_deg * DEG,
-        )
-
     def _build(self) -> Problem:
-        """The state definition and prepared sensors of the current config."""
-        spec = self.mission.spec
-        off = {name for name, m in self.config.models.items() if m == "off"}
-        for name in self.config.models:
-            if name not in {s.name for s in spec.sensors}:
-                raise ConfigError(f"no sensor named '{name}' in the mission", key=f"models.{name}")
-        mission = self.mission
-        if off:
-            mission = _without_sensors(mission, off)
-        gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
-        problem = build_problem(mission, physics=self.physics, options=self._state_options(), use_gyro=not gyro_off)
-        if self._scale():  # long-run noise weighting: the fit's σ are the stated σ × k
+        """The state definition and prepared sensors of the current config
+        (:func:`gcs_core.config_problem.problem_from_config`), weighted by the long-run
+        noise factors when the fit is (the fit's σ are then the stated σ × k)."""
+        problem = problem_from_config(self.config, self.mission)
+        if self._scale():
             problem.sensors = weighted_sensors(problem.sensors, self._scale())
         return problem
 
@@ -169,27 +170,51 @@ class Analysis:
         (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
         if self.config.filter.noise_weighting != "long_run" and self._factors:  # switched back to stated
-            self._factors, self.noise = {}, None
+            self._factors = {}
             self.problem = self._build()
         res = self._fit_once(initial=initial, previous=previous)
+        noise = None
         if self.config.filter.noise_weighting == "long_run":
-            res = self._reweight(res)
+            res, noise = self._reweight(res)
+        holdout_rms: dict[str, float] = {}
+        holdout_chi2: dict[str, goodness.ChiSquare] = {}
         masks = self.holdout_masks() if holdout else {}
         if masks:
             # the training fit starts from the full fit's solution (a whole-span fit's: knots too)
             training = estimator(self.estimator.training)
             res_train = training.fit(self.problem, self.fit_settings(), edited=masks, **res.warm_start())
             stated = self._stated_problem()  # held-out residuals against the stated σ
-            self.holdout_rms = res_train.holdout_rms(stated, masks)
-            self.holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
-        else:
-            self.holdout_chi2 = {}
-        self.result = stated_residuals(res, self._scale())
+            holdout_rms = res_train.holdout_rms(stated, masks)
+            holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
+        result = stated_residuals(res, self._scale())
+        warnings = tuple(self.estimator.warnings(self.problem, result))
+        self.record = FitRecord(result, holdout_rms, holdout_chi2, warnings, noise)
         self.candidates = []
-        self.warnings = self._method_warnings()
-        for w in self.warnings:
+        for w in warnings:
             log.warning("%s", w)
-        return res
+        return result
+
+    # the latest fit's parts (read-only: a fit replaces its record whole)
+    @property
+    def result(self) -> FitResult | None:
+        """The latest fit, its residuals against the stated σ (None before the first)."""
+        return self.record.result if self.record is not None else None
+
+    @property
+    def holdout_rms(self) -> Mapping[str, float]:
+        return self.record.holdout_rms if self.record is not None else {}
+
+    @property
+    def holdout_chi2(self) -> Mapping[str, goodness.ChiSquare]:
+        return self.record.holdout_chi2 if self.record is not None else {}
+
+    @property
+    def warnings(self) -> list[str]:
+        return list(self.record.warnings) if self.record is not None else []
+
+    @property
+    def noise(self) -> NoiseWeighting | None:
+        return self.record.noise if self.record is not None else None
 
     @property
     def estimator(self) -> Estimator:
@@ -203,7 +228,7 @@ class Analysis:
         """One fit of the current problem with its current weights."""
         return self.estimator.fit(self.problem, self.fit_settings(), initial=initial, previous=previous)
 
-    def _reweight(self, res: FitResult) -> FitResult:
+    def _reweight(self, res: FitResult) -> tuple[FitResult, NoiseWeighting]:
         """``noise_weighting = "long_run"``: measure each sensor's long-run noise factor on
         the fit's residuals and refit with ``σ × k`` (``noise_passes`` times at most, fewer
         when the factors stop moving by more than their sampling error), module
@@ -225,9 +250,9 @@ class Analysis:
             # weights (the whole-span grid follows the information, the editing the σ)
             res = self._fit_once(initial=res.state.values())
             passes += 1
-        self.noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
-        log.info("%s", self.noise.summary())  # the TUI's engine log shows it
-        return res
+        noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
+        log.info("%s", noise.summary())  # the TUI's engine log shows it
+        return res, noise
 
     def _stated_problem(self) -> Problem:
         """The current problem with the stated σ (itself when nothing is reweighted)."""
@@ -237,13 +262,6 @@ class Analysis:
         return replace(
             self.problem, sensors=weighted_sensors(self.problem.sensors, {n: 1 / k for n, k in scale.items()})
         )
-
-    def _method_warnings(self) -> list[str]:
-        """Honesty checks on the chosen method, computed on these data (the estimator's
-        :meth:`~gcs_core.estimators.registry.Estimator.warnings`)."""
-        if self.result is None:
-            return []
-        return self.estimator.warnings(self.problem, self.result)
 
     def filter_options(self) -> FilterOptions:
         return FilterOptions(edit_k=self.config.filter.edit_k or None, edit_k_sensor=self._edit_k_sensor())
@@ -350,10 +368,10 @@ class Analysis:
 
     # ------------------------------------------------------------------ discovery
     def discover(self, *, max_steps: int = 10, progress: Callable[[str], None] | None = None) -> list[Step]:
-        """Stepwise discovery (:func:`gcs_core.diagnosis.discovery.discover`): add the most
+        """Stepwise discovery (:func:`gcs_core.stepwise.discover`): add the most
         significant identifiable candidate while one passes the Bonferroni-corrected level;
         ``stop_reason`` says why it stopped."""
-        self.stop_reason = discovery.discover(self, max_steps=max_steps, progress=progress)
+        self.stop_reason = stepwise.discover(self, max_steps=max_steps, progress=progress)
         return self.steps
 
     # ------------------------------------------------------------------ honesty
@@ -432,11 +450,3 @@ class Analysis:
         if self._aliases is None or self._aliases[0] is not res:
             self._aliases = (res, aliases.problem_aliases(self.problem, res))
         return self._aliases[1]
-
-
-def _without_sensors(mission, names: set):
-    from dataclasses import replace as dc_replace
-
-    spec = dc_replace(mission.spec, sensors=tuple(s for s in mission.spec.sensors if s.name not in names))
-    tel = {k: v for k, v in mission.telemetry.items() if k not in names}
-    return dc_replace(mission, spec=spec, telemetry=tel)

@@ -51,7 +51,8 @@ class Estimator(Protocol):
 
     name : its config name; training : the name of the estimator that fits the training span
     of the held-out test (its own, or a cheaper one with the same model); attitude_source :
-    what the ground attitude it writes is called in the attitude history (ASF ``source``).
+    what the ground attitude it writes is called in the attitude history (ASF ``source``);
+    prediction : the predictor's method for its covariance without data.
     """
 
     @property
@@ -62,6 +63,12 @@ class Estimator(Protocol):
 
     @property
     def attitude_source(self) -> str: ...
+
+    @property
+    def prediction(self) -> str:
+        """The predictor's method that forms this estimator's covariance without data
+        (:data:`gcs_core.predictor.predict.METHODS`)."""
+        ...
 
     def fit(
         self,
@@ -96,6 +103,7 @@ class BatchEstimator:
     name: str = "batch"
     training: str = "batch"
     attitude_source: str = "batch"
+    prediction: str = "information"
 
     def fit(
         self, problem, settings, *, initial=None, previous=None, edited=None, start=None, progress=None, cancel=None
@@ -132,6 +140,7 @@ class WholeSpanEstimator:
     name: str = "whole_span"
     training: str = "whole_span"
     attitude_source: str = "batch"
+    prediction: str = "whole_span"
 
     def fit(
         self, problem, settings, *, initial=None, previous=None, edited=None, start=None, progress=None, cancel=None
@@ -155,6 +164,7 @@ class KalmanEstimator:
     name: str = "kalman"
     training: str = "batch"
     attitude_source: str = "filter"
+    prediction: str = "kalman"
 
     def fit(
         self, problem, settings, *, initial=None, previous=None, edited=None, start=None, progress=None, cancel=None

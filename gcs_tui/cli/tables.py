@@ -214,7 +214,7 @@ def candidate_table(candidates: Iterable, *, alpha: float, limit: int | None = 1
     cands = list(candidates)
     lines = [f"{'candidate':38s} {'Δχ²':>10s} {'dof':>3s} {'p':>9s} {'p adj':>9s}  identifiable"]
     for c in cands[:limit] if limit else cands:
-        mark = " *" if c.identifiable and c.p_adjusted < alpha else ""
+        mark = " *" if c.passes else ""
         lines.append(
             f"{c.id:38s} {c.delta_chi2:10.1f} {c.dof:3d} {display.pvalue(c.p_value):>9s} "
             f"{display.pvalue(c.p_adjusted):>9s}  {'yes' if c.identifiable else 'no'}{mark}"

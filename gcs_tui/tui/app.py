@@ -513,7 +513,7 @@ def poor_choice(c, alpha: float) -> str:
     from gcs_core import display as fmt
 
     reasons = []
-    if not c.p_adjusted < alpha:
+    if not c.significant:
         reasons.append(
             f"It is not significant: {fmt.p_text(c.p_adjusted, 'p adj')} is not below the family-wise "
             f"α = {alpha:g}, so its Δχ² = {fmt.sig(c.delta_chi2, 3)} is what noise alone often gives "
