@@ -86,7 +86,7 @@ def gyro_bias_at(problem: Problem, result: FitResult, t) -> GyroBias:
     b = bias[None, :] + (t - t_mid)[:, None] * rate[None, :]
     P = np.asarray(result.P, dtype=float)
     cov = np.einsum("nia,ab,njb->nij", J, P, J)
-    dyn = getattr(result, "dynamics", None)
+    dyn = result.dynamics
     if dyn is not None and dyn.grid.d == 6:
         M, _ = model_common.alignment_matrix(
             {k.split(".", 1)[1]: v for k, v in values.items() if k.startswith(gyro + ".")}

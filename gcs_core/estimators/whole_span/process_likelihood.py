@@ -44,7 +44,7 @@ from gcs_core.problem.build import Problem
 
 
 def _dynamics(result: FitResult):
-    dyn = getattr(result, "dynamics", None)
+    dyn = result.dynamics
     if dyn is None or dyn.factors is None or dyn.grid.d != 6:
         raise InputError("the evidence over σ_u needs a whole-span fit with a gyro rate random walk (rrw > 0)")
     return dyn
