@@ -91,6 +91,13 @@ class Estimator(Protocol):
         """Honesty warnings about what the method leaves out, computed on these data."""
         ...
 
+    def bias_elements(self, line_mid, line_slope, walk_ref, book_slope, t_ref: float, t_mid: float):
+        """What this estimator's static gyro bias elements (``bias`` at ``t_mid``,
+        ``bias_rate``) are of a true bias history: ``line_mid``, ``line_slope`` its
+        least-squares line over the span, ``walk_ref`` its value at ``t_ref``, ``book_slope``
+        the data book's drift (Monte Carlo's truth, :mod:`gcs_core.trade.montecarlo`)."""
+        ...
+
 
 def _warm(initial, start) -> dict:
     return {"initial": initial} if start is None else {"start": start}
@@ -132,6 +139,10 @@ class BatchEstimator:
             '"whole_span" (the default) for honest σ and p-values.'
         ]
 
+    def bias_elements(self, line_mid, line_slope, walk_ref, book_slope, t_ref: float, t_mid: float):
+        """The batch's bias and drift are the least-squares line through the span."""
+        return line_mid, line_slope
+
 
 @dataclass(frozen=True)
 class WholeSpanEstimator:
@@ -154,6 +165,13 @@ class WholeSpanEstimator:
 
     def warnings(self, problem: Problem, result: FitResult) -> list[str]:
         return []
+
+    def bias_elements(self, line_mid, line_slope, walk_ref, book_slope, t_ref: float, t_mid: float):
+        """The whole-span fit's bias is ``b(t) = bias + bias_rate (t − t_mid) + β(t)`` with
+        ``β(t_ref) = 0`` (knots.py: ``z_0 = 0``): its static bias is the walk at ``t_ref``
+        carried to ``t_mid`` by the deterministic drift (the data book's), and ``bias_rate``
+        is that drift; the walk after ``t_ref`` is the knots' β."""
+        return walk_ref + book_slope * (t_mid - t_ref), book_slope
 
 
 @dataclass(frozen=True)
@@ -179,6 +197,10 @@ class KalmanEstimator:
 
     def warnings(self, problem: Problem, result: FitResult) -> list[str]:
         return []
+
+    def bias_elements(self, line_mid, line_slope, walk_ref, book_slope, t_ref: float, t_mid: float):
+        """The smoother's bias element is the random walk at ``t_ref``, less the drift line."""
+        return walk_ref - line_slope * (t_ref - t_mid), line_slope
 
 
 #: method name -> estimator

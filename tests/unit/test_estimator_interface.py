@@ -22,11 +22,9 @@ from gcs_core.estimators.registry import ESTIMATORS
 ALLOWED = {"gcs_core/estimators/registry.py", "gcs_core/config.py", "gcs_core/config_checks.py"}
 #: result types no downstream code may test for
 RESULT_TYPES = {"BatchResult", "SmoothedResult", "FilterResult", "FitResult"}
-#: module -> offences still there (the predictor's own methods share the estimators' names;
-#: Monte Carlo's truth of the gyro bias depends on each estimator's model of it)
+#: module -> offences still there (the predictor's own methods share the estimators' names)
 PENDING = {
     "gcs_core/predictor/predict.py": 3,
-    "gcs_core/trade/montecarlo.py": 2,
 }
 
 
