@@ -125,6 +125,7 @@ def test_one_sample_per_window_is_said():
 
     sc = SigmaScale(("MAG",), 4.0, 100, {"MAG.bias_x": 7.0, "MAG.bias_y": 1.1})
     res = SimpleNamespace(
+        carries_process_noise=False,
         residuals={"MAG": SimpleNamespace(used=np.ones(100, bool))},
         sigma={"MAG.bias_x": 5.0, "MAG.bias_y": 5.0},
         state={n: SimpleNamespace(value=1.0, unit="nT") for n in sc.scale},
