@@ -36,7 +36,7 @@ from gcs_core.config import default_config, load_config
 from gcs_core.convert.astropi import procrustes_mounting
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.geomag import GeomagField
-from gcs_core.filtr.batch import batch_fit
+from gcs_core.estimators.batch.least_squares import batch_fit
 from gcs_core.frames.reference import reference_dcm
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis

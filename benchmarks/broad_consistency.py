@@ -17,12 +17,12 @@ The residuals are not white on the time scale of the hand motions (the magnetome
 slow wander, ≈0.1 µT over seconds at rest; the optical reference interpolated between its
 camera frames), so σ computed for white noise of the stated σ are optimistic. Each table
 also gives ``z_s``: the σ of the magnetometer's, the field's and the optical reference's
-elements scaled by the batch-means sandwich of :mod:`gcs_core.diagnosis.correlation`
+elements scaled by the batch-means sandwich of :mod:`gcs_core.noise.correlation`
 (windows of :data:`BLOCK_S`), which measures from the residuals how much information they
 really carry.
 
 The gyro's bias is not a constant in the whole-span fit: ``b(t) = bias + ḃ (t − t_mid) + β(t)``
-with the knots' random walk β (:mod:`gcs_core.filtr.gyro_bias`), and the static ``bias`` is
+with the knots' random walk β (:mod:`gcs_core.estimators.gyro_bias`), and the static ``bias`` is
 its value at the span's first knot carried to the middle by the drift. Two halves' static
 biases are therefore at different epochs; the halves are compared at the epoch where they
 meet (``GYR.b_*(T/2)``, each σ with the walk the data leave open there), and each whole
@@ -30,11 +30,11 @@ trial's ``b(t)`` at its rests against the rest's own mean rate ``G⁻¹ ȳ`` (an
 measurement: at rest the lab-relative rate is zero). Three times: with the book's rate random
 walk (read off the unit's own rests); refitted with the σ_u the data support (marked
 ``*``), the best of :data:`RRW_SCALES` by the fit's evidence
-(:mod:`gcs_core.filtr.process_likelihood`); and refitted with the optical reference
+(:mod:`gcs_core.estimators.whole_span.process_likelihood`); and refitted with the optical reference
 weighted by its effective noise (marked ``†``, every element): its stated σ times the
 long-run factor of its residuals over :data:`REF_BLOCK_S` windows, the product's
 ``[filter] noise_weighting = "long_run"`` for the sensor ``OPT``
-(:mod:`gcs_core.diagnosis.weighting`), since its error in motion is
+(:mod:`gcs_core.noise.weighting`), since its error in motion is
 correlated over 35–100 ms and a white-noise weight lets the knots follow it. Trials are
 compared on their first rest's bias less the Earth's rate there, fitted and as the rest's
 own mean. Fitting the
@@ -55,13 +55,12 @@ import numpy as np
 from gcs_core.config import ElementConfig, default_config
 from gcs_core.convert import convert
 from gcs_core.convert.broad import LAB_LATITUDE_DEG
-from gcs_core.diagnosis.correlation import sigma_scale
-from gcs_core.filtr.gyro_bias import gyro_bias_at
-from gcs_core.filtr.process_likelihood import rrw_profile
-from gcs_core.filtr.smoothing_batch import SmoothedResult
+from gcs_core.estimators.gyro_bias import gyro_bias_at
+from gcs_core.estimators.whole_span.process_likelihood import rrw_profile
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.io.importer import load_mission
 from gcs_core.models.gyro import g_matrix
+from gcs_core.noise.correlation import sigma_scale
 from gcs_core.session import Analysis
 from gcs_core.units import OMEGA_EARTH
 
@@ -112,9 +111,9 @@ SHOWN = (
 def fit(source: Path, work: Path, label: str, span=None, method="whole_span", effects=EFFECTS, epochs=None):
     """Convert and fit one trial (or its span); the shown elements as name -> (x, σ, sandwich
     scale), the gyro's bias ``b(t)`` at each of ``epochs`` (label -> t [s]) as
-    ``GYR.b_<axis>(<label>)`` (σ with the walk, :mod:`gcs_core.filtr.gyro_bias`), the same
+    ``GYR.b_<axis>(<label>)`` (σ with the walk, :mod:`gcs_core.estimators.gyro_bias`), the same
     refitted with the rate random walk the data support (the evidence over :data:`RRW_SCALES`,
-    :mod:`gcs_core.filtr.process_likelihood`) as ``GYR.b_<axis>(<label>)*``, and the fitted
+    :mod:`gcs_core.estimators.whole_span.process_likelihood`) as ``GYR.b_<axis>(<label>)*``, and the fitted
     gyro matrix ``G`` under ``"_G"``."""
     out = work / label
     convert("broad", source, out, span=span)
@@ -143,7 +142,7 @@ def fit(source: Path, work: Path, label: str, span=None, method="whole_span", ef
         for n in SHOWN
         if n in vals
     }
-    if epochs and isinstance(res, SmoothedResult) and res.dynamics is not None:
+    if epochs and res.carries_process_noise:
         t1 = time.perf_counter()
         prof = rrw_profile(a.problem, res, RRW_SCALES)
         v = prof.neg2_log_evidence - prof.neg2_log_evidence.min()

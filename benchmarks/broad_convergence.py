@@ -1,6 +1,6 @@
 """Whole-span convergence on a whole BROAD trial: iterations, wall time and final cost with
 and without the knots re-solved at a step's statics (``BatchOptions.knot_correction``,
-:mod:`gcs_core.filtr.smoothing_batch`).
+:mod:`gcs_core.estimators.whole_span.fit`).
 
 Data: D. Laidig, M. Caruso, A. Cereatti, T. Seel, "BROAD - A Benchmark for Robust Inertial
 Orientation Estimation", Data 6(7), 2021, doi:10.3390/data6070072 (CC BY 4.0), as published
@@ -26,8 +26,8 @@ import numpy as np
 from broad_consistency import EFFECTS, MEMS_PRIORS, rests
 from gcs_core.config import default_config
 from gcs_core.convert import convert
-from gcs_core.filtr.gyro_bias import gyro_bias_at
-from gcs_core.filtr.smoothing_batch import fit_problem
+from gcs_core.estimators.gyro_bias import gyro_bias_at
+from gcs_core.estimators.whole_span.fit import whole_span_fit
 from gcs_core.io.importer import load_mission
 from gcs_core.models.gyro import g_matrix
 from gcs_core.session import Analysis
@@ -53,7 +53,7 @@ def main() -> int:
         for corrected in (False, True):
             opts = replace(a.batch_options(), knot_correction=corrected)
             t0 = time.perf_counter()
-            res = fit_problem(a.problem, "whole_span", opts)
+            res = whole_span_fit(a.problem, opts)
             dt = time.perf_counter() - t0
             fits[corrected] = res
             print(

@@ -49,7 +49,7 @@ Usage::
         [--processes 1] [--records out.jsonl] [--electronic 3.9e-5]
 
 ``--electronic σ_e`` [rad] gives the gyro a read-out noise (in its data book, so the fit
-carries it: :mod:`gcs_core.filtr.readout`). ``--method`` is passed through to the analysis
+carries it: :mod:`gcs_core.estimators.whole_span.readout`). ``--method`` is passed through to the analysis
 config (``batch``, ``kalman`` or the estimator a config names). ``--records`` keeps one
 JSON line per run (and re-uses the runs it already holds, so a long sweep can be resumed).
 

@@ -10,9 +10,9 @@ measurement with diagonal R per frame. n = 15 states by default (as the brief's 
 Both filters get the same Φ_k, Q_k, H_k, R, z_k: filterpy as explicit matrices (built
 outside its timed loop) running ``predict(F, Q)`` + ``update(z, R, H)`` per frame; GCS
 from the rates and partials through its own transitions (timed), in block-start
-coordinates, through :func:`gcs_core.filtr.kalman.solve_block` exactly as the MEKF calls
+coordinates, through :func:`gcs_core.estimators.kalman.linear.solve_block` exactly as the MEKF calls
 it: by default the compiled frame-by-frame kernel (numba, Joseph update, per-frame ν, S,
-NIS and gain norm kept; :mod:`gcs_core.filtr.kalman_kernels`), ``--engine numpy`` the
+NIS and gain norm kept; :mod:`gcs_core.estimators.kalman.kernels`), ``--engine numpy`` the
 lifted-group numpy core. The kernel's JIT compile (or its load from the on-disk cache) is
 paid by a warm-up call outside the timing and printed. The script checks that
 innovations, final state and covariance agree, then prints CPU microseconds per frame
@@ -33,8 +33,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gcs_core.filtr.kalman import ENGINE, LinearBlock, solve_block
-from gcs_core.filtr.mekf import GyroSegment
+from gcs_core.estimators.kalman.linear import ENGINE, LinearBlock, solve_block
+from gcs_core.estimators.kalman.mekf import GyroSegment
 from gcs_core.frames.rotations import quat_from_dcm, quat_to_dcm
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 

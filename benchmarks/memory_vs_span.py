@@ -2,7 +2,7 @@
 
 For each span, one child process imports the three-axis sample mission (every sensor:
 TAM, IRU, two FHSTs, FSS, CSS; ``nominal_threeaxis("sun_pointing", duration_s=span)``),
-fits it with the default estimator (:func:`~gcs_core.filtr.smoothing_batch.whole_span_fit`:
+fits it with the default estimator (:func:`~gcs_core.estimators.whole_span.fit.whole_span_fit`:
 the batch, then the whole-span fit with the gyro noise as process noise, whose knots are
 eliminated as the data pass them; default options: k-σ editing on) and
 diagnoses it (:func:`~gcs_core.diagnosis.ranking.rank_candidates` over every candidate
@@ -59,8 +59,8 @@ def child(mission_dir: str) -> None:
 
     from gcs_core.diagnosis.catalogue import mission_catalogue
     from gcs_core.diagnosis.ranking import rank_candidates
-    from gcs_core.filtr.batch import BatchOptions
-    from gcs_core.filtr.smoothing_batch import whole_span_fit
+    from gcs_core.estimators.batch.least_squares import BatchOptions
+    from gcs_core.estimators.whole_span.fit import whole_span_fit
     from gcs_core.io.importer import load_mission
     from gcs_core.problem.build import build_problem
     from gcs_core.problem.prepare import PHYSICS_EFFECTS

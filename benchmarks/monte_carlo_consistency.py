@@ -32,7 +32,7 @@ and ``tests/statistical/test_truth_recovery.py`` (:func:`truth_values`).
 book; ``--ignore-electronic`` fits as if the book said 0 (the estimator's σ then leave the
 read-out error out). The attitude headline's truth is the simulator's attitude at ``t_ref``,
 which differs from the gyro-carried trajectory's reference by that epoch's read-out error:
-its predicted covariance gets ``σ_e² I`` (:mod:`gcs_core.filtr.readout`).
+its predicted covariance gets ``σ_e² I`` (:mod:`gcs_core.estimators.whole_span.readout`).
 
 Usage::
 

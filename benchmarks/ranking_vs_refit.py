@@ -17,7 +17,7 @@ fit, one run:
    from the solution, as :meth:`~gcs_core.session.Analysis.add_effect` does, without
    its held-out refit), and read the χ² it removed (likelihood-ratio form).
 
-Both are timed against one batch iteration (:func:`~gcs_core.filtr.batch.normal_equations`
+Both are timed against one batch iteration (:func:`~gcs_core.estimators.batch.least_squares.normal_equations`
 at the solution, the gyro propagation not cached, as in ``batch_vs_least_squares.py``)
 and one full fit. ``--method`` chooses the estimator: the default whole-span fit (gyro
 noise as process noise; the candidates' partials go through the same knot elimination, and
@@ -42,7 +42,7 @@ Usage: ``python benchmarks/ranking_vs_refit.py [--hours 2] [--seed 11] [--repeat
 [--refit-repeats 1] [--top 0] [--cache DIR] [--electronic 3.9e-5]`` (``--cache`` keeps the
 simulated mission between runs; ``--top N`` prints only the N strongest candidates;
 ``--electronic`` gives the gyro a read-out noise σ_e, carried by the fit, its score tests and
-refits alike: :mod:`gcs_core.filtr.readout`).
+refits alike: :mod:`gcs_core.estimators.whole_span.readout`).
 """
 
 from __future__ import annotations
@@ -67,7 +67,7 @@ sys.path.insert(0, str(REPO))
 
 from _timing import best_of
 from gcs_core.config import AnalysisConfig
-from gcs_core.filtr.batch import normal_equations
+from gcs_core.estimators.batch.least_squares import normal_equations
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission

@@ -143,7 +143,7 @@ def ground_attitude_record(
     }
     if scds_version is not None:
         prov["scds_version"] = int(scds_version)
-    source = "filter" if analysis.config.method == "kalman" else "batch"
+    source = analysis.estimator.attitude_source
     return {"t": g.t, "q": g.q, "sigma": g.sigma_body, "source": source, "provenance": prov}
 
 

@@ -190,7 +190,7 @@ class FilterConfig:
     edit_k : k of the k-σ editing (batch) and innovation gate (Kalman); 0 for none.
     max_iterations : iteration limit of the batch and whole-span fits.
     edit_k_sensor : sensor -> its own k, 0 for none, overriding ``edit_k``.
-    noise_* : the sensors' weights, :mod:`gcs_core.diagnosis.weighting`.
+    noise_* : the sensors' weights, :mod:`gcs_core.noise.weighting`.
     """
 
     block_seconds: float = field(default=600.0, metadata=_doc("the FILTR stepping block", "s", positive=True))
@@ -301,7 +301,7 @@ class AnalysisConfig:
     mission : mission directory.
     name : an optional label (not part of :meth:`digest`).
     method : ``whole_span`` (the default: whole-span least squares with the gyro noise
-        as process noise on the attitude and drift bias, :mod:`gcs_core.filtr.smoothing_batch`),
+        as process noise on the attitude and drift bias, :mod:`gcs_core.estimators.whole_span.fit`),
         ``batch`` (static states, gyro-propagated attitude with Q = 0) or ``kalman``
         (one-pass filter and smoother with gyro process noise, the FILTR stepping engine).
     physics : always-on physics switches (:class:`~gcs_core.problem.prepare.PhysicsOptions`).

@@ -76,7 +76,7 @@ def _pair(g: Any) -> bool:
 
 
 #: ``[filter] noise_weighting``'s choices, the default window [s] of the long-run factor
-#: and the most reweighting passes (:mod:`gcs_core.diagnosis.weighting`)
+#: and the most reweighting passes (:mod:`gcs_core.noise.weighting`)
 NOISE_WEIGHTINGS = ("stated", "long_run")
 NOISE_WINDOW_S = 0.5  # longer than the BROAD optical error's 35–100 ms, short against hand motions
 NOISE_MAX_PASSES = 3
@@ -148,7 +148,7 @@ def edit_k_sensor(fl: dict, f) -> dict[str, float]:
 
 def noise_weighting(fl: dict, f) -> dict[str, Any]:
     """``[filter] noise_weighting, noise_window, noise_passes, noise_sensors``
-    (:mod:`gcs_core.diagnosis.weighting`; sensor names are checked against the mission by
+    (:mod:`gcs_core.noise.weighting`; sensor names are checked against the mission by
     :func:`check_against_mission`)."""
     sensors = _list(fl, "noise_sensors", "filter.noise_sensors", f)
     for i, name in enumerate(sensors, start=1):

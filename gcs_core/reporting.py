@@ -34,7 +34,7 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     data determined it; ``physics_needed`` the always-on physics and what switching each
     off would cost; ``remaining`` what is left per sensor against its stated noise;
     ``noise_weighting`` (only with ``[filter] noise_weighting = "long_run"``) each sensor's
-    long-run noise factor and window (:mod:`gcs_core.diagnosis.weighting`): the fit weighted
+    long-run noise factor and window (:mod:`gcs_core.noise.weighting`): the fit weighted
     σ × factor, while normalized RMS, χ² and verdicts stay against the stated σ;
     ``sigma_scale`` the batch-means sandwich σ scale of each solve-for element and its σ with
     the residuals' correlation (:mod:`gcs_core.diagnosis.honest_sigma`), null when off or
@@ -196,8 +196,8 @@ def remaining_summary(analysis) -> dict[str, dict[str, Any]]:
 
 def _noise_estimated(spec, name: str) -> bool:
     """True when mission.toml marks the sensor's noise as estimated from the data (the
-    converters' one marker, :func:`gcs_core.filtr.noise.noise_estimated`)."""
-    from gcs_core.filtr.noise import noise_estimated
+    converters' one marker, :func:`gcs_core.noise.measured.noise_estimated`)."""
+    from gcs_core.noise.measured import noise_estimated
 
     try:
         text = (spec.root / "mission.toml").read_text(encoding="utf-8")

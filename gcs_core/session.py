@@ -9,31 +9,51 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable, Mapping
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gcs_core import stepwise
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
+from gcs_core.config_problem import problem_from_config
+from gcs_core.diagnosis import aliases, determination, goodness, physics
 from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.honest_sigma import SIGMA_WINDOW, fit_sigma_scale
 from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
-from gcs_core.diagnosis.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
 from gcs_core.errors import ConfigError
-from gcs_core.filtr.batch import BatchOptions
-from gcs_core.filtr.filter_options import FilterOptions
-from gcs_core.filtr.results import BatchResult, FitResult
-from gcs_core.filtr.smoothing_batch import SmoothedResult, fit_problem
-from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
-from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
+from gcs_core.estimators.batch.least_squares import BatchOptions
+from gcs_core.estimators.kalman.options import FilterOptions
+from gcs_core.estimators.registry import Estimator, FitSettings, KalmanEstimator, estimator
+from gcs_core.estimators.results import FitResult
+from gcs_core.noise.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
+from gcs_core.problem.build import Problem
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.problem.state import HELD, SOLVE_FOR
-from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FitRecord:
+    """One fit of a session, as the session stores it (and :meth:`Analysis.fit` returns its
+    ``result``).
+
+    result : the fit, its residuals normalized by the stated σ (under long-run weighting
+        the fit weighted its sensors by ``σ × k``: :mod:`gcs_core.noise.weighting`);
+    holdout_rms, holdout_chi2 : sensor -> normalized RMS and χ² test on the held-out span
+        ({} when none was held out);
+    warnings : the estimator's honesty warnings about its method on these data;
+    noise : with ``noise_weighting = "long_run"``, the factors the fit was weighted with.
+    """
+
+    result: FitResult
+    holdout_rms: Mapping[str, float]
+    holdout_chi2: Mapping[str, goodness.ChiSquare]
+    warnings: tuple[str, ...]
+    noise: NoiseWeighting | None
 
 
 class Analysis:
@@ -51,7 +71,7 @@ class Analysis:
     warnings : the latest fit's honesty warnings about the method.
     stop_reason : why the latest discovery stopped ("" before one).
     noise : with ``[filter] noise_weighting = "long_run"``, the factors the latest fit
-        weighted its sensors with (:mod:`gcs_core.diagnosis.weighting`); else None.
+        weighted its sensors with (:mod:`gcs_core.noise.weighting`); else None.
     """
 
     def __init__(self, config: AnalysisConfig, *, mission=None):
@@ -59,14 +79,10 @@ class Analysis:
 
         self.config = config
         self.mission = mission if mission is not None else load_mission(config.mission)
-        self.result: FitResult | None = None
+        self.record: FitRecord | None = None  # the latest fit, as stored
         self.candidates: list[Candidate] = []
         self.steps: list[Step] = []
-        self.holdout_rms: dict[str, float] = {}
-        self.holdout_chi2: dict[str, goodness.ChiSquare] = {}  # sensor (and "all sensors") -> test
-        self.warnings: list[str] = []
         self.stop_reason = ""
-        self.noise: NoiseWeighting | None = None
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
         self.problem: Problem = self._build()
         self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
@@ -81,28 +97,12 @@ class Analysis:
     def physics(self) -> PhysicsOptions:
         return self.config.physics
 
-    def _state_options(self) -> StateOptions:
-        ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in self.config.state.elements.items()}
-        return StateOptions(
-            effects=self.config.state.effects,
-            exclude=self.config.state.exclude,
-            overrides=ov,
-            attitude_sigma=self.config.state.attitude_sigma_deg * DEG,
-        )
-
     def _build(self) -> Problem:
-        """The state definition and prepared sensors of the current config."""
-        spec = self.mission.spec
-        off = {name for name, m in self.config.models.items() if m == "off"}
-        for name in self.config.models:
-            if name not in {s.name for s in spec.sensors}:
-                raise ConfigError(f"no sensor named '{name}' in the mission", key=f"models.{name}")
-        mission = self.mission
-        if off:
-            mission = _without_sensors(mission, off)
-        gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
-        problem = build_problem(mission, physics=self.physics, options=self._state_options(), use_gyro=not gyro_off)
-        if self._scale():  # long-run noise weighting: the fit's σ are the stated σ × k
+        """The state definition and prepared sensors of the current config
+        (:func:`gcs_core.config_problem.problem_from_config`), weighted by the long-run
+        noise factors when the fit is (the fit's σ are then the stated σ × k)."""
+        problem = problem_from_config(self.config, self.mission)
+        if self._scale():
             problem.sensors = weighted_sensors(problem.sensors, self._scale())
         return problem
 
@@ -170,45 +170,69 @@ class Analysis:
         (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
         if self.config.filter.noise_weighting != "long_run" and self._factors:  # switched back to stated
-            self._factors, self.noise = {}, None
+            self._factors = {}
             self.problem = self._build()
         res = self._fit_once(initial=initial, previous=previous)
+        noise = None
         if self.config.filter.noise_weighting == "long_run":
-            res = self._reweight(res)
+            res, noise = self._reweight(res)
+        holdout_rms: dict[str, float] = {}
+        holdout_chi2: dict[str, goodness.ChiSquare] = {}
         masks = self.holdout_masks() if holdout else {}
         if masks:
-            method = "batch" if self.config.method == "kalman" else self.config.method
-            # the whole-span training fit starts from the full fit's solution and knots
-            warm = {"start": res} if getattr(res, "dynamics", None) is not None else {"initial": res.state.values()}
-            res_train = fit_problem(self.problem, method, self.batch_options(), edited=masks, **warm)
+            # the training fit starts from the full fit's solution (a whole-span fit's: knots too)
+            training = estimator(self.estimator.training)
+            res_train = training.fit(self.problem, self.fit_settings(), edited=masks, **res.warm_start())
             stated = self._stated_problem()  # held-out residuals against the stated σ
-            self.holdout_rms = (
-                smoothed_holdout_rms(stated, res_train, masks)
-                if isinstance(res_train, SmoothedResult) and res_train.dynamics is not None
-                else static_holdout_rms(stated, res_train, masks)
-            )
-            self.holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
-        else:
-            self.holdout_chi2 = {}
-        self.result = stated_residuals(res, self._scale())
+            holdout_rms = res_train.holdout_rms(stated, masks)
+            holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
+        result = stated_residuals(res, self._scale())
+        warnings = tuple(self.estimator.warnings(self.problem, result))
+        self.record = FitRecord(result, holdout_rms, holdout_chi2, warnings, noise)
         self.candidates = []
-        self.warnings = self._method_warnings()
-        for w in self.warnings:
+        for w in warnings:
             log.warning("%s", w)
-        return res
+        return result
+
+    # the latest fit's parts (read-only: a fit replaces its record whole)
+    @property
+    def result(self) -> FitResult | None:
+        """The latest fit, its residuals against the stated σ (None before the first)."""
+        return self.record.result if self.record is not None else None
+
+    @property
+    def holdout_rms(self) -> Mapping[str, float]:
+        return self.record.holdout_rms if self.record is not None else {}
+
+    @property
+    def holdout_chi2(self) -> Mapping[str, goodness.ChiSquare]:
+        return self.record.holdout_chi2 if self.record is not None else {}
+
+    @property
+    def warnings(self) -> list[str]:
+        return list(self.record.warnings) if self.record is not None else []
+
+    @property
+    def noise(self) -> NoiseWeighting | None:
+        return self.record.noise if self.record is not None else None
+
+    @property
+    def estimator(self) -> Estimator:
+        """The configured estimation method (:mod:`gcs_core.estimators.registry`)."""
+        return estimator(self.config.method)
+
+    def fit_settings(self) -> FitSettings:
+        return FitSettings(self.batch_options(), self.filter_options(), self.config.filter.block_seconds)
 
     def _fit_once(self, *, initial=None, previous: FitResult | None = None):
         """One fit of the current problem with its current weights."""
-        if self.config.method == "kalman":
-            return self._kalman_fit()
-        kw: dict = {"previous": previous} if previous is not None and self.config.method == "whole_span" else {}
-        return fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
+        return self.estimator.fit(self.problem, self.fit_settings(), initial=initial, previous=previous)
 
-    def _reweight(self, res: FitResult) -> FitResult:
+    def _reweight(self, res: FitResult) -> tuple[FitResult, NoiseWeighting]:
         """``noise_weighting = "long_run"``: measure each sensor's long-run noise factor on
         the fit's residuals and refit with ``σ × k`` (``noise_passes`` times at most, fewer
         when the factors stop moving by more than their sampling error), module
-        :mod:`gcs_core.diagnosis.weighting`."""
+        :mod:`gcs_core.noise.weighting`."""
         fl = self.config.filter
         sensors = [sd.name for sd in self.problem.sensors]
         passes = 0
@@ -226,9 +250,9 @@ class Analysis:
             # weights (the whole-span grid follows the information, the editing the σ)
             res = self._fit_once(initial=res.state.values())
             passes += 1
-        self.noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
-        log.info("%s", self.noise.summary())  # the TUI's engine log shows it
-        return res
+        noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
+        log.info("%s", noise.summary())  # the TUI's engine log shows it
+        return res, noise
 
     def _stated_problem(self) -> Problem:
         """The current problem with the stated σ (itself when nothing is reweighted)."""
@@ -239,46 +263,12 @@ class Analysis:
             self.problem, sensors=weighted_sensors(self.problem.sensors, {n: 1 / k for n, k in scale.items()})
         )
 
-    def _method_warnings(self) -> list[str]:
-        """Honesty checks on the chosen method.
-
-        The batch treats the gyro-propagated attitude as exact between its parameters.
-        When the data book gives the gyro noise, what that costs on these data is computed
-        (:func:`~gcs_core.filtr.smoothing_batch.batch_wander_cost`): the batch's
-        understatement of σ and its expected error from the wander, in its own σ, from the
-        reduced normal matrices with and without the process noise, and the χ² the wander
-        leaves in the residuals.
-        """
-        if self.config.method != "batch" or self.problem.gyro_name is None or self.result is None:
-            return []
-        assert isinstance(self.result, BatchResult)  # method "batch": fit() ran fit_problem
-        cost = batch_wander_cost(self.problem, self.result)
-        if cost is None or cost["worst_bias_sigma"] < 0.5:
-            return []
-        worst = ", ".join(f"{k} ×{v:.2f}" for k, v in cost["sigma_ratio"][:4])
-        return [
-            f"batch method: the gyro noise (not modelled by the batch) makes its σ too small "
-            f"(σ with the process noise / batch σ: {worst}); the expected error of those "
-            f"elements from the wander reaches {cost['worst_bias_sigma']:.1f} batch σ, and the "
-            f"wander leaves Δχ² = {cost['delta_chi2']:.1f} in the residuals. Use method = "
-            '"whole_span" (the default) for honest σ and p-values.'
-        ]
-
     def filter_options(self) -> FilterOptions:
         return FilterOptions(edit_k=self.config.filter.edit_k or None, edit_k_sensor=self._edit_k_sensor())
 
     def make_filter(self):
         """A stepping FILTR machine on the current problem (the TUI steps it block by block)."""
-        from gcs_core.filtr.stepping import Filtr
-
-        return Filtr(self.problem, options=self.filter_options(), block_seconds=self.config.filter.block_seconds)
-
-    def _kalman_fit(self, progress=None, cancel=None) -> FitResult:
-        """Kalman filter + smoother (Eq 3-3, 3-4); its result is a :class:`FitResult` like the
-        batch's, so the diagnosis and reports read either. The ranking then linearizes
-        about the smoothed solution."""
-        fr = self.make_filter().run(progress=progress, cancel=cancel)
-        return replace(fr, message=f"Kalman filter + smoother: {fr.message}")
+        return KalmanEstimator.make_filter(self.problem, self.fit_settings())
 
     def rank(self) -> list[Candidate]:
         res = self.result if self.result is not None else self.fit()
@@ -287,7 +277,7 @@ class Analysis:
             res,
             self.candidate_effects(),
             alpha=self.config.diagnosis.significance,
-            smoothed=self.config.method == "kalman",
+            smoothed=res.scores_own_residuals,
         )
         return self.candidates
 
@@ -296,22 +286,24 @@ class Analysis:
         (:func:`gcs_core.diagnosis.physics.physics_needed`), once per fit."""
         if self.result is None:
             self.fit()
-        if self._physics_needed is not None and self._physics_needed[0] is self.result:
+        res = self.result
+        assert res is not None  # fitted above
+        if self._physics_needed is not None and self._physics_needed[0] is res:
             return self._physics_needed[1]
         on_ids = set(self.effects_in_state())
         phys = [e for e in self.catalogue() if e.physics and e.id in on_ids]
         out = (
             physics.physics_needed(
                 self.problem,
-                self.result,
+                res,
                 phys,
                 alpha=self.config.diagnosis.significance,
-                smoothed=self.config.method == "kalman",
+                smoothed=res.scores_own_residuals,
             )
             if phys
             else []
         )
-        self._physics_needed = (self.result, out)  # one score pass per fit
+        self._physics_needed = (res, out)  # one score pass per fit
         return out
 
     def rms(self) -> dict[str, float]:
@@ -376,10 +368,10 @@ class Analysis:
 
     # ------------------------------------------------------------------ discovery
     def discover(self, *, max_steps: int = 10, progress: Callable[[str], None] | None = None) -> list[Step]:
-        """Stepwise discovery (:func:`gcs_core.diagnosis.discovery.discover`): add the most
+        """Stepwise discovery (:func:`gcs_core.stepwise.discover`): add the most
         significant identifiable candidate while one passes the Bonferroni-corrected level;
         ``stop_reason`` says why it stopped."""
-        self.stop_reason = discovery.discover(self, max_steps=max_steps, progress=progress)
+        self.stop_reason = stepwise.discover(self, max_steps=max_steps, progress=progress)
         return self.steps
 
     # ------------------------------------------------------------------ honesty
@@ -458,11 +450,3 @@ class Analysis:
         if self._aliases is None or self._aliases[0] is not res:
             self._aliases = (res, aliases.problem_aliases(self.problem, res))
         return self._aliases[1]
-
-
-def _without_sensors(mission, names: set):
-    from dataclasses import replace as dc_replace
-
-    spec = dc_replace(mission.spec, sensors=tuple(s for s in mission.spec.sensors if s.name not in names))
-    tel = {k: v for k, v in mission.telemetry.items() if k not in names}
-    return dc_replace(mission, spec=spec, telemetry=tel)

@@ -17,9 +17,9 @@ Output (ICD §1, with the ``[orbit] tle`` extension of :mod:`gcs_core.ephem.tle`
 What the data book cannot know is estimated from the data and said so in mission.toml
 and PROVENANCE.md:
 
-- **noise**: white noise from second differences (:func:`gcs_core.filtr.noise.white_noise`,
+- **noise**: white noise from second differences (:func:`gcs_core.noise.measured.white_noise`,
   which also removes the field's slope along the orbit, ≈ 0.1 µT per 5 s), the RMS over
-  the three axes, marked :data:`gcs_core.filtr.noise.ESTIMATED_MARK`;
+  the three axes, marked :data:`gcs_core.noise.measured.ESTIMATED_MARK`;
 - **the start-up transient**: the leading samples before the second differences settle and
   while they lie more than 3σ from the steady field extrapolated back
   (:func:`~gcs_core.convert.common.leading_transient`), written with ``flag = 1``;
@@ -50,7 +50,7 @@ import numpy as np
 from gcs_core.convert import ConversionReport
 from gcs_core.convert.common import leading_transient, read_named_csv, sha256, staged_directory, write_csv
 from gcs_core.errors import InputError
-from gcs_core.filtr.noise import ESTIMATED_MARK, white_noise
+from gcs_core.noise.measured import ESTIMATED_MARK, white_noise
 
 __all__ = ["convert", "SENSOR", "procrustes_mounting"]
 
@@ -214,7 +214,7 @@ def convert(
             medians[c] = float(np.median(aux[AUX_COLUMNS[c]]))
             aux[AUX_COLUMNS[c]] = aux[AUX_COLUMNS[c]] - medians[c]
 
-    # white noise from the data (gcs_core.filtr.noise, the one estimator of both converters);
+    # white noise from the data (gcs_core.noise.measured, the one estimator of both converters);
     # measured again without the start-up transient it helped to find
     sigma = white_noise(t, B)
     n_tr = leading_transient(B, sigma, t=t)

@@ -39,7 +39,7 @@ lever of the magnetometer's ``field_gradient`` effect (:mod:`gcs_core.models.mag
 untracked samples are left out of it (the channel holds the last tracked position).
 
 Noise figures are not published with the data; each sensor's is estimated from its own
-telemetry (:mod:`gcs_core.filtr.noise`) and written with a comment saying so. The gyro's
+telemetry (:mod:`gcs_core.noise.measured`) and written with a comment saying so. The gyro's
 data-book bias is its mean at rest (the middle half of the longest run outside the motion
 phase; written likewise).
 Every sample is kept: untracked optical samples are written as ``nan`` (the import
@@ -59,7 +59,7 @@ draw counted twice), an interpolated one no measurement: both are written with t
 kept, not used; the report gives their counts, the run lengths and the held values' mean
 age. The gyro's exact repeats (0.2–0.6 %, at rest only) are its quantization and stay. The
 noise figures are those of the samples used (the white-noise line per sample used of the
-irregularly spaced measurements, :func:`gcs_core.filtr.noise.allan_deviation`).
+irregularly spaced measurements, :func:`gcs_core.noise.measured.allan_deviation`).
 """
 
 from __future__ import annotations
@@ -75,7 +75,7 @@ from gcs_core.convert.broad_text import mission_toml, source_md
 from gcs_core.convert.common import staged_directory
 from gcs_core.convert.holds import FLAG_NOTE, bus_check, held_repeats, hold_runs
 from gcs_core.errors import InputError
-from gcs_core.filtr import noise as noise_mod
+from gcs_core.noise import measured as noise_mod
 
 #: the datasets a BROAD trial must hold: name -> (columns, unit)
 DATASETS = {
@@ -305,7 +305,7 @@ def convert(
             f"optical reference: {untracked} untracked samples written as nan (the import drops and counts them)"
         )
 
-    # noise from the data (gcs_core.filtr.noise), of the samples the fit uses
+    # noise from the data (gcs_core.noise.measured), of the samples the fit uses
     s_opt = noise_mod.white_noise(t[tracked], q_gcs[tracked], quaternion=True)
     if rest0.sum() < 64:
         raise InputError(

@@ -8,7 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_core.convert.holds import FLAG_HELD, FLAG_INTERPOLATED
-from gcs_core.filtr import noise as noise_mod
+from gcs_core.noise import measured as noise_mod
 
 
 def _rms(v) -> float:

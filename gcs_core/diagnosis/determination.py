@@ -45,7 +45,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from gcs_core.filtr.batch import name_combinations, normal_equations
+from gcs_core.estimators.batch.least_squares import name_combinations, normal_equations
 
 #: an amplitude within this many σ of zero is "consistent with zero" (two-sided 95 %)
 #: when its frequency is not searched (held, or without data information)
@@ -173,7 +173,7 @@ def null_at_prior(problem, names, rank_tol: float = 1e-7) -> list[str]:
     """Combinations of ``names`` the data do not determine when linearized at the a priori
     (the configured values): eigen-directions of the equilibrated data information with
     eigenvalue below ``rank_tol`` of the largest, and elements no data depend on there
-    (:func:`~gcs_core.filtr.batch.name_combinations`). A parameter that reaches the data
+    (:func:`~gcs_core.estimators.batch.least_squares.name_combinations`). A parameter that reaches the data
     only through an amplitude whose a priori is 0 (the FSS frequency ``k`` of Eq 4-23)
     is null here though a fitted amplitude's noise gives it curvature at the solution."""
     names = tuple(names)

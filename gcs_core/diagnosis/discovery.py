@@ -1,22 +1,14 @@
-"""Discovery: fit, rank the candidate effects, add the most significant identifiable one,
-refit, until none passes the family-wise level (seed §3.3, the add/refit loop).
+"""Discovery's record: each change of the add/refit loop (seed §3.3) as a :class:`Step`.
 
-The loop drives a session (:class:`gcs_core.session.Analysis`: ``fit``, ``rank``,
-``add_effect``, ``goodness``) and records each change as a :class:`Step`; which of a group
-of aliased candidates is added is :func:`gcs_core.diagnosis.policy.parsimonious`.
+The loop itself drives a session and lives beside it (:mod:`gcs_core.stepwise`); which of a
+group of aliased candidates it adds is :func:`gcs_core.diagnosis.policy.parsimonious`.
 """
 
 from __future__ import annotations
 
-import logging
 import math
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-
-from gcs_core.diagnosis import policy
-from gcs_core.display import p_text
-
-log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -56,44 +48,3 @@ class Step:
 def rounded(d: Mapping[str, float]) -> dict:
     """Normalized RMS values for a report: 4 decimals, None where not finite."""
     return {k: (round(v, 4) if math.isfinite(v) else None) for k, v in d.items()}
-
-
-def discover(analysis, *, max_steps: int = 10, progress: Callable[[str], None] | None = None) -> str:
-    """Stepwise: add the most significant identifiable candidate while one passes the
-    Bonferroni-corrected level ``diagnosis.significance``; returns why it stopped (with
-    the goodness-of-fit verdict of what remains). ``analysis.steps`` gets one
-    :class:`Step` per effect added."""
-    say = progress or (lambda msg: log.info(msg))
-    alpha = analysis.config.diagnosis.significance
-    if analysis.result is None:
-        analysis.fit()
-    if not analysis.steps:
-        analysis.first_step()
-    for _ in range(max_steps):
-        cands = analysis.rank()
-        ok = [c for c in cands if c.identifiable and c.p_adjusted < alpha]
-        if not ok:
-            best = cands[0] if cands else None
-            reason = f"no candidate is significant at family-wise α = {alpha:g}" + (
-                f" (best: {best.id}, {p_text(best.p_adjusted, 'p adj')}"
-                + ("" if best.identifiable else ", not identifiable")
-                + ")"
-                if best
-                else ""
-            )
-            break
-        top = policy.parsimonious(ok[0], cands, analysis.result, analysis.problem.state, alpha)
-        say(
-            f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
-            f"{p_text(top.p_adjusted, 'p adj')})"
-        )
-        analysis.add_effect(top.id)
-    else:
-        reason = f"stopped after {max_steps} steps"
-    analysis.rank()
-    g = analysis.goodness()
-    if g is not None:
-        # a converged fit of an inadequate model must not read as success
-        reason += "; what remains: " + g.verdict
-    say(reason)
-    return reason

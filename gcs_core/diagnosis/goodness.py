@@ -65,18 +65,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import linalg, stats
+from scipy import stats
 
-from gcs_core.filtr.smoothing_uses import smoothed_frames
-from gcs_core.problem.linearization import iter_blocks
+from gcs_core.estimators.static_algebra import STATIC_SOURCE
 
 __all__ = [
     "ChiSquare",
     "GoodnessOfFit",
     "goodness_of_fit",
-    "sensor_leverage",
     "holdout_tests",
-    "effective_parameters",
     "FAMILY_ALPHA",
 ]
 
@@ -260,156 +257,24 @@ def _fmt_p(p: float) -> str:
     return "= nan" if not math.isfinite(p) else (f"= {p:.2g}" if p >= 1e-300 else "< 1e-300")
 
 
-# ------------------------------------------------------------------------- effective dof
-def effective_parameters(P: np.ndarray, A: np.ndarray) -> float:
-    """``tr(P A)``: the effective number of parameters of a static-state fit (module
-    docstring); ``P`` (n, n) the posterior covariance, ``A`` (n, n) the data information."""
-    return float(np.sum(np.asarray(P) * np.asarray(A).T))
-
-
-def sensor_leverage(problem, result) -> dict[str, float]:
-    """Sensor -> ``tr(P A_s)``, its share of the fit's effective parameters.
-
-    ``A_s = Σ Hᵀ R⁻¹ H`` over the sensor's used frames at the fitted state, one
-    streaming pass (:func:`~gcs_core.problem.linearization.iter_blocks`); ``P`` the fit's
-    noise-only covariance over ``result.solve_for``.
-    """
-    names = tuple(result.solve_for)
-    n = len(names)
-    if not n:
-        return {name: 0.0 for name in result.residuals}
-    P = np.asarray(result.P)
-    edited = {k: np.asarray(r.edited, bool) for k, r in result.residuals.items()}
-    A = {sd.name: np.zeros((n, n)) for sd in problem.sensors}
-    for blk in iter_blocks(
-        problem, result.state.values(), names, exclude=edited, weighted=True, augmented=True, gram=True
-    ):
-        if not np.any(blk.used):
-            continue
-        c = blk.cols
-        k = c.size
-        G = blk.gram()
-        A[blk.name][np.ix_(c, c)] += G[:k, :k]
-    return {name: effective_parameters(P, As) for name, As in A.items()}
-
-
-def _smoothed_frames(problem, result, select: Mapping[str, np.ndarray]):
-    """The ``select``-ed frames of a fit with knot corrections with their prediction
-    variance (:func:`gcs_core.filtr.smoothing_uses.smoothed_frames`)."""
-    return smoothed_frames(problem, result, select)
-
-
-def smoothed_leverage(problem, result) -> dict[str, float] | None:
-    """Sensor -> ``Σ_k tr(R⁻¹ Cov(ŷ_k))`` for a fit with process noise (a result carrying
-    the knot corrections of the whole-span estimator, ``result.dynamics``); None for a
-    static fit.
-
-    For a linear Gaussian smoother the influence of a measurement on its own prediction is
-    ``∂ŷ_k/∂y_k = H_k P H_kᵀ R_k⁻¹`` with ``P`` the joint posterior of the static elements
-    and the knot corrections, i.e. the prediction's variance over the noise variance (the
-    same terms that standardize the held-out residuals). Summed over the used frames it is
-    the sensor's effective parameters (Hastie et al. §7.6).
-    """
-    if getattr(result, "dynamics", None) is None:
-        return None
-    used = {k: np.asarray(r.used, bool) for k, r in result.residuals.items()}
-    out = {k: 0.0 for k in used}
-    for name, _, noise, var in _smoothed_frames(problem, result, used):
-        out[name] += float(np.sum(var / noise))
-    return out
-
-
-def _smoothed_holdout(problem, train, masks) -> dict[str, ChiSquare]:
-    """Held-out χ² of a fit with knot corrections: each residual standardized by its full
-    prediction variance, summed (``Σ z²`` on the held-out measurements). The correlation
-    between held-out frames through common errors is neglected here (no joint covariance
-    of the knots across a held-out block is formed), so the test is exact only where the
-    prediction variance is small against the noise."""
-    acc: dict[str, list] = {}
-    for name, r, noise, var in _smoothed_frames(problem, train, masks):
-        a = acc.setdefault(name, [0.0, 0])
-        a[0] += float(np.sum(r**2 / (noise + var)))
-        a[1] += r.size
-    out = {k: ChiSquare(k, v[0], v[1], float(v[1])) for k, v in acc.items() if v[1]}
-    if out:
-        out[ALL] = ChiSquare(
-            ALL,
-            sum(t.chi2 for t in out.values()),
-            sum(t.n for t in out.values()),
-            float(sum(t.n for t in out.values())),
-        )
-    return out
-
-
 # ------------------------------------------------------------------------- held-out span
 def holdout_tests(problem, train, masks: Mapping[str, np.ndarray]) -> dict[str, ChiSquare]:
     """χ² of the held-out frames under the training fit ``train`` (module docstring),
     per sensor and for all sensors together (key :data:`ALL`); {} without held-out frames.
 
     ``masks``: sensor -> (N,) True where the frame was held out of ``train``. Every valid
-    held-out frame is tested (none was edited: the training fit never saw them).
+    held-out frame is tested (none was edited: the training fit never saw them). The sums
+    are the fit's own (:meth:`~gcs_core.estimators.results.FitResult.holdout_chi2`).
     """
-    names = tuple(train.solve_for)
-    n = len(names)
     sel = {k: np.asarray(v, bool) for k, v in masks.items() if np.any(v)}
     if not sel:
         return {}
-    if getattr(train, "dynamics", None) is not None:
-        return _smoothed_holdout(problem, train, sel)
-    exclude = {sd.name: ~sel.get(sd.name, np.zeros(sd.n, bool)) for sd in problem.sensors}
-    acc: dict[str, list] = {}
-    for blk in iter_blocks(
-        problem,
-        train.state.values(),
-        names,
-        sensors=list(sel),
-        exclude=exclude,
-        weighted=True,
-        augmented=True,
-        gram=True,
-    ):
-        nu = int(np.count_nonzero(blk.used))
-        if not nu:
-            continue
-        a = acc.setdefault(blk.name, [np.zeros((n, n)), np.zeros(n), 0.0, 0])
-        c = blk.cols
-        k = c.size
-        G = blk.gram()
-        a[0][np.ix_(c, c)] += G[:k, :k]
-        a[1][c] += G[:k, k]
-        a[2] += float(G[k, k])
-        a[3] += nu * blk.r.shape[1]
-    if not acc:
+    sums = train.holdout_chi2(problem, sel)
+    if sums is None:
         return {}
-    L = _chol_cov(np.asarray(train.P))
-    out = {name: ChiSquare(name, _woodbury_chi2(L, *v[:3]), v[3], float(v[3])) for name, v in acc.items()}
-    tot = [sum(v[i] for v in acc.values()) for i in range(4)]
-    out[ALL] = ChiSquare(ALL, _woodbury_chi2(L, *tot[:3]), tot[3], float(tot[3]))
+    out = {name: ChiSquare(name, chi2, m, float(m)) for name, (chi2, m) in sums.per_sensor.items()}
+    out[ALL] = ChiSquare(ALL, sums.total[0], sums.total[1], float(sums.total[1]))
     return out
-
-
-def _chol_cov(P: np.ndarray) -> np.ndarray:
-    """A factor ``L`` with ``L Lᵀ = P`` (equilibrated Cholesky; eigen-factor if P is
-    only semi-definite)."""
-    if P.size == 0:
-        return P
-    d = np.sqrt(np.clip(np.diag(P), 1e-300, None))
-    Ps = P / np.outer(d, d)
-    try:
-        return d[:, None] * linalg.cholesky(Ps, lower=True, check_finite=False)
-    except linalg.LinAlgError:
-        w, V = np.linalg.eigh(0.5 * (Ps + Ps.T))
-        return d[:, None] * (V * np.sqrt(np.clip(w, 0.0, None)))
-
-
-def _woodbury_chi2(L: np.ndarray, A_h: np.ndarray, g: np.ndarray, c: float) -> float:
-    """``c − gᵀ (P⁻¹ + A_h)⁻¹ g`` with ``P = L Lᵀ``: ``(P⁻¹ + A_h)⁻¹ = L (I + Lᵀ A_h L)⁻¹ Lᵀ``,
-    whose middle matrix has every eigenvalue ≥ 1 (well conditioned whatever P is)."""
-    if L.size == 0:
-        return float(c)
-    S = np.eye(L.shape[1]) + L.T @ A_h @ L
-    u = L.T @ g
-    return float(c - u @ linalg.solve(0.5 * (S + S.T), u, assume_a="pos", check_finite=False))
 
 
 # ------------------------------------------------------------------------- the verdict
@@ -425,32 +290,32 @@ def goodness_of_fit(
 ) -> GoodnessOfFit:
     """The χ² tests of a fit and their verdict (module docstring).
 
-    ``result`` is any estimator's :class:`~gcs_core.filtr.results.FitResult`. The effective
-    parameters come, in this order, from the arguments, from the result's own
-    ``effective_parameters`` and ``leverage`` attributes (an estimator with process noise
-    declares them), else from ``tr(P A_s)`` per sensor (:func:`sensor_leverage`). Given only
-    a total, it is shared among the sensors in proportion to ``tr(P A_s)``. ``holdout`` is
+    ``result`` is any estimator's :class:`~gcs_core.estimators.results.FitResult`. The effective
+    parameters come from the arguments, else from the result's own influence
+    (:meth:`~gcs_core.estimators.results.FitResult.influence`: ``tr(P A_s)`` per sensor for a
+    static fit, the influence matrix's trace with the knots for a whole-span fit). Given
+    only a total, it is shared among the sensors in proportion to ``tr(P A_s)``. ``holdout`` is
     :func:`holdout_tests` of the training fit.
     """
-    p_eff = effective_parameters if effective_parameters is not None else getattr(result, "effective_parameters", None)
-    lev = leverage if leverage is not None else getattr(result, "leverage", None)
-    src = "the estimator" if (p_eff is not None or lev is not None) else "trace of P A"
+    p_eff = effective_parameters
+    lev = leverage
+    src = "the estimator" if (p_eff is not None or lev is not None) else STATIC_SOURCE
     if lev is None:
-        lev = smoothed_leverage(problem, result)
-        if lev is not None:
-            src = "trace of the influence matrix (static elements and knots)"
-    if lev is None:
-        lev = sensor_leverage(problem, result)
-        n = len(result.solve_for)
-        if p_eff is None and sum(lev.values()) > n * (1 + 1e-6):
-            # tr(P A) ≤ n for a static fit; above n, P is not the static posterior of these
-            # partials (a smoother's covariance at t_ref under process noise, whose freedom
-            # is not in A): count the static elements only, an underestimate of p_eff
-            p_eff = float(n)
-            src = "static elements only (the estimator's process noise not counted)"
-        if p_eff is not None:
-            tot = sum(lev.values())
-            lev = {k: (v / tot * p_eff if tot > 0 else p_eff / max(1, len(lev))) for k, v in lev.items()}
+        influence = result.influence(problem)
+        lev = influence.per_sensor
+        if not influence.static:
+            src = influence.source
+        else:
+            n = len(result.solve_for)
+            if p_eff is None and sum(lev.values()) > n * (1 + 1e-6):
+                # tr(P A) ≤ n for a static fit; above n, P is not the static posterior of these
+                # partials (a smoother's covariance at t_ref under process noise, whose freedom
+                # is not in A): count the static elements only, an underestimate of p_eff
+                p_eff = float(n)
+                src = "static elements only (the estimator's process noise not counted)"
+            if p_eff is not None:
+                tot = sum(lev.values())
+                lev = {k: (v / tot * p_eff if tot > 0 else p_eff / max(1, len(lev))) for k, v in lev.items()}
     if p_eff is None:
         p_eff = float(sum(lev.values()))
     per = {}

@@ -1,6 +1,6 @@
 """The correlation-robust σ of a finished fit, as the headless runs report it.
 
-:func:`gcs_core.diagnosis.correlation.sigma_scale` gives each solve-for element the
+:func:`gcs_core.noise.correlation.sigma_scale` gives each solve-for element the
 batch-means sandwich scale ``s_i`` (``Cov = A⁻¹ B A⁻¹``; Newey & West 1987, Conway 1963;
 read that module's docstring: the scale is conditional on the attitude, and below 1 it is
 the method's blind spot, so a σ is never scaled down). This module runs it once after the
@@ -31,9 +31,9 @@ from typing import Any
 
 import numpy as np
 
-from gcs_core.diagnosis.correlation import BLOCK_S, MIN_BLOCKS, SigmaScale, sigma_scale
-from gcs_core.diagnosis.weighting import MIN_SAMPLES, stated_residuals
 from gcs_core.errors import InputError
+from gcs_core.noise.correlation import BLOCK_S, MIN_BLOCKS, SigmaScale, sigma_scale
+from gcs_core.noise.weighting import MIN_SAMPLES, stated_residuals
 
 log = logging.getLogger(__name__)
 
@@ -47,8 +47,8 @@ FLAG_SIGMAS = 3.0
 
 
 def auto_window(result) -> float | None:
-    """The default window [s]: :data:`~gcs_core.diagnosis.correlation.BLOCK_S` (several
-    times the hand motions' time scale), lengthened to hold :data:`~gcs_core.diagnosis.weighting.MIN_SAMPLES`
+    """The default window [s]: :data:`~gcs_core.noise.correlation.BLOCK_S` (several
+    times the hand motions' time scale), lengthened to hold :data:`~gcs_core.noise.weighting.MIN_SAMPLES`
     samples of the sparsest sensor (a window of one sample sees no correlation, only
     residuals above the noise), shortened to leave ``MIN_BLOCKS + 1`` windows in a short
     span (correlation longer than the window is then not seen: logged); None when the

@@ -22,9 +22,7 @@ def parsimonious(top: Candidate, cands: list[Candidate], result, state, alpha: f
     with the same signature (the WGS-84 flattening over a fitted κ); the report names
     the aliases either way."""
     n = max(2, sum(r.n * len(r.components) for r in result.residuals.values()))
-    group = [top] + [
-        c for c in cands if c.id in {a for a, _ in top.aliases_candidates} and c.p_adjusted < alpha and c.dof > 0
-    ]
+    group = [top] + [c for c in cands if c.id in {a for a, _ in top.aliases_candidates} and c.significant and c.dof > 0]
     bic = {c.id: c.delta_chi2 - c.dof * math.log(n) for c in group}
     best = max(bic.values())
     close = [c for c in group if bic[c.id] >= best - BIC_TIE]

@@ -46,10 +46,7 @@ import numpy as np
 from scipy import stats
 
 from gcs_core.diagnosis.catalogue import Effect
-from gcs_core.filtr.knots import KnotSystem
-from gcs_core.filtr.knots import chained_attitude as kn_chain
-from gcs_core.filtr.readout import ReadoutEpochs
-from gcs_core.filtr.results import FitResult
+from gcs_core.estimators.results import FitResult
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import iter_blocks, window_geometry
 from gcs_core.problem.prepare import geometry_variants
@@ -76,6 +73,7 @@ class Candidate:
     aliases_state : elements the signature aliases with.
     aliases_candidates : (candidate id, canonical correlation) pairs above ALIAS_TOL.
     identifiable : not absorbed by the state and not aliased with a stronger candidate.
+    significant : ``p_adjusted`` below the family-wise level α it was ranked at.
     sensors : sensor -> Δχ² share seen in that sensor's residuals.
     explanation : a paragraph for the analyst.
     """
@@ -94,10 +92,17 @@ class Candidate:
     identifiable: bool
     sensors: Mapping[str, float] = field(default_factory=dict)
     explanation: str = ""
+    significant: bool = False
 
     @property
     def id(self) -> str:
         return self.effect.id
+
+    @property
+    def passes(self) -> bool:
+        """The verdict: identifiable and significant (``p_adjusted < α``), so discovery may
+        add it."""
+        return self.identifiable and self.significant
 
     def as_report(self) -> dict:
         return {
@@ -194,36 +199,22 @@ def rank_candidates(
     cols = x_names + c_names
     k_all = len(c_names) + len(phys)
     K = n + k_all
-    exclude: dict[str, np.ndarray] = {}
-    for sd in problem.sensors:
-        ex = np.zeros(sd.n, bool)
-        res = result.residuals.get(sd.name)
-        if res is not None:
-            ex |= res.edited
-        if exclude_frames and sd.name in exclude_frames:
-            ex |= exclude_frames[sd.name]
-        exclude[sd.name] = ex
+    exclude = _excluded(problem, result, exclude_frames)
     # accumulate over used frames: A = [H_x H_c]ᵀ W [H_x H_c], g = [.]ᵀ W r
     A = np.zeros((K, K))
     g = np.zeros(K)
     per_sensor_g: dict[str, np.ndarray] = {}
     work: dict = {}  # chunk buffers, reused from chunk to chunk
-    # a whole-span fit with gyro process noise: linearize at its corrected attitude and
-    # take out what its knot corrections absorb (smoothing_batch, knots)
-    dyn = getattr(result, "dynamics", None)
-    knots = KnotSystem(dyn.grid, K, dyn.R, dyn.z, stream=True, keep=False) if dyn is not None else None
-    if knots is not None:
-        knots.track(problem.sensors)
-    # ... and the gyro's read-out error it eliminated per epoch (readout.py): the same rows
-    # (about the fit's ε̂, as the fit linearizes)
-    ro = ReadoutEpochs(dyn.sig_e2, A, g, knots, problem.sensors, dyn.errors) if dyn is not None and dyn.sig_e2 else None
-    src = dyn.problem(problem, readout=True) if dyn is not None else problem
+    # nuisance columns the fit carries besides the state (a whole-span fit's knots and
+    # read-out errors): the candidates are linearized as the fit was, and what those absorb
+    # is taken out (the result's own algebra, FitResult.candidate_elimination)
+    elim = result.candidate_elimination(problem, K, A, g)
+    src = elim.problem
     for blk in iter_blocks(src, values, cols, exclude=exclude, weighted=True, chunk=chunk, work=work):
         if not np.any(blk.used):
             continue
         sd = blk.sensor
-        if ro is not None:
-            ro.visit(sd)
+        elim.visit(sd)
         H, c = blk.H, blk.cols
         assert H is not None  # rows stored (not gram-only blocks)
         extra = _physics_block(problem, blk, values, phys_ids) if phys_ids else []
@@ -238,49 +229,26 @@ def rank_candidates(
             rw = (np.where(blk.used[:, None], np.nan_to_num(rr), 0.0) / sd.sigma).reshape(-1)
         A[np.ix_(c, c)] += Hm.T @ Hm
         gs = Hm.T @ rw
-        D = getattr(blk.pred, "d_att", None)
-        if knots is not None and D is not None and blk.geom.C_BI is not None:
-            assert dyn is not None  # the knot system is built from it
-            t_blk = sd.t[blk.lo : blk.hi]
-            C = np.ascontiguousarray(kn_chain(blk.geom.C_BI, dyn.grid, dyn.z, dyn.R, t_blk))
-            knots.add_rows(
-                D,
-                C,
-                blk.used[:, None] / sd.sigma[None, :],
-                t_blk,
-                np.ascontiguousarray(Hm),
-                np.ascontiguousarray(rw),
-                c,
-            )
-            if ro is not None:
-                ro.add(t_blk, D, blk.used[:, None] / sd.sigma[None, :], C, Hm, rw, c)
-        if ro is not None:
-            ro.passed(sd, blk.hi)
-        elif knots is not None:
-            knots.passed(sd, blk.hi)
+        elim.add(blk, Hm, rw, c)
+        elim.passed(sd, blk.hi)
         g[c] += gs
         acc = per_sensor_g.setdefault(sd.name, np.zeros(K))
         acc[c] += gs
-    if ro is not None:
-        ro.finish()
+    elim.finish()
     s0 = np.array([state[nm].sigma0 for nm in x_names])
     prior = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
     Nxx = A[:n, :n] + np.diag(prior)
-    Axc = A[:n, n:]
     # the state's gradient at the solution is ~0 (converged); include it for honesty:
     # the score of c given x re-optimized is g_c − A_cx N⁻¹ g_x'
     gx = g[:n] + prior * (
         np.array([state[nm].value for nm in x_names]) - np.array([result.state[nm].value for nm in x_names])
     )
-    A_c, g_c = A[n:, n:], g[n:]
-    if knots is not None:
-        # the knots eliminated from [x c] together: what they absorb is projected out
-        N_all = A.copy()
-        N_all[:n, :n] = Nxx
-        g_full = np.concatenate([gx, g[n:]])
-        N_red, g_red, _ = knots.eliminate(N_all, g_full)
-        Nxx, Axc, A_c = N_red[:n, :n], N_red[:n, n:], N_red[n:, n:]
-        gx, g_c = g_red[:n], g_red[n:]
+    # the nuisance columns eliminated from [x c] together: what they absorb is projected out
+    N_all = A.copy()
+    N_all[:n, :n] = Nxx
+    N_red, g_red = elim.eliminate(N_all, np.concatenate([gx, g[n:]]))
+    Nxx, Axc, A_c = N_red[:n, :n], N_red[:n, n:], N_red[n:, n:]
+    gx, g_c = g_red[:n], g_red[n:]
     B = np.linalg.solve(Nxx, np.column_stack([Axc, gx]))
     Bc, bx = B[:, :-1], B[:, -1]
     S_all = A_c - Axc.T @ Bc  # conditional information, all candidates
@@ -315,6 +283,27 @@ def rank_candidates(
             if np.any(gsc):
                 shares[sname] = float(np.abs(gsc @ (est if est.size else gsc)))
         raw.append([e, dchi, dof, est, sigma, mdb, absorbed, aliases, shares])
+    return _verdicts(raw, effects, idx_of, S_all, result, alpha)
+
+
+def _excluded(problem: Problem, result: FitResult, exclude_frames) -> dict[str, np.ndarray]:
+    """Sensor -> frames left out of the scores: those the fit edited, and ``exclude_frames``."""
+    exclude: dict[str, np.ndarray] = {}
+    for sd in problem.sensors:
+        ex = np.zeros(sd.n, bool)
+        res = result.residuals.get(sd.name)
+        if res is not None:
+            ex |= res.edited
+        if exclude_frames and sd.name in exclude_frames:
+            ex |= exclude_frames[sd.name]
+        exclude[sd.name] = ex
+    return exclude
+
+
+def _verdicts(raw, effects, idx_of, S_all, result: FitResult, alpha: float) -> list[Candidate]:
+    """The ranked candidates from their scores ``raw``: p-values adjusted for the number of
+    candidates (Bonferroni), aliases between candidates, and whether each is identifiable;
+    most significant first, each with its explanation."""
     m = max(len(raw), 1)
     n_meas = sum(int(np.count_nonzero(r.used)) * r.residual.shape[1] for r in result.residuals.values())
     log_n = float(np.log(max(n_meas, 2)))
@@ -355,6 +344,7 @@ def rank_candidates(
                 tuple((a[0], a[1]) for a in cand_alias),
                 identifiable,
                 {k: v / tot for k, v in shares.items()},
+                significant=min(1.0, p * m) < alpha,
             )
         )
     out.sort(key=lambda c: (c.p_value, -c.delta_chi2))
@@ -464,7 +454,7 @@ def explain(c: Candidate, alpha: float) -> str:
         f"{c.id}: adding it would remove Δχ² = {c.delta_chi2:.1f} on {c.dof} degree"
         f"{'s' if c.dof != 1 else ''} of freedom ({_p_text(c.p_value)}; corrected for the "
         f"candidates tried, {_p_text(c.p_adjusted, 'p adj')}, "
-        f"{'significant' if c.p_adjusted < alpha else 'not significant'} at family-wise "
+        f"{'significant' if c.significant else 'not significant'} at family-wise "
         f"α = {alpha:g}); the signature is seen in {seen}."
     )
     if not c.identifiable:

@@ -14,7 +14,7 @@ the integrated angle at each sample, which telescopes in the integral: it does n
 accumulate, so it is not process noise but a white attitude error seen by the
 measurements (the Kalman filter and the predictor add ``σ_e² H_θ H_θᵀ`` to the
 measurement covariance of one epoch; the whole-span fit eliminates it per epoch,
-:mod:`gcs_core.filtr.readout`).
+:mod:`gcs_core.estimators.whole_span.readout`).
 
 Rule for a missing key (a mission file always holds ``arw`` and ``rrw``,
 :mod:`gcs_core.io.mission`; a data book built in memory may not): without ``arw`` the

@@ -17,7 +17,7 @@ event times the gyro carries the error (first order, :mod:`gcs_core.problem.atti
 batch estimator uses; with zero process noise the recursion reproduces the information
 form (Eq 3-2) mapped to the current time. The process noise is the filter's:
 Farrenkopf's gyro model from the data book (:func:`~gcs_core.models.gyro_noise.gyro_noise`
-read as the filter reads it, :func:`~gcs_core.filtr.mekf.attitude_gyro_noise`) in
+read as the filter reads it, :func:`~gcs_core.estimators.kalman.mekf.attitude_gyro_noise`) in
 :func:`~gcs_core.models.gyro_noise.farrenkopf_q` with the filter's maps ``W_y = Mᵀ G⁻¹``,
 ``W_b = −Mᵀ``::
 
@@ -48,7 +48,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from gcs_core.filtr.mekf import attitude_gyro_noise
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
 from gcs_core.frames.rotations import dcm_to_euler123
 from gcs_core.models import common
 from gcs_core.models.gyro import G_NAMES, g_matrix

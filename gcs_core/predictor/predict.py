@@ -25,11 +25,13 @@ from typing import Any, Protocol, runtime_checkable
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
+from gcs_core.config_problem import sensors_off, state_options
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.orbit import build_ephemeris
 from gcs_core.errors import InputError
-from gcs_core.filtr.batch import name_combinations
-from gcs_core.filtr.smoothing_uses import predicted_covariance
+from gcs_core.estimators.batch.least_squares import name_combinations
+from gcs_core.estimators.registry import estimator
+from gcs_core.estimators.whole_span.uses import predicted_covariance
 from gcs_core.io.csvio import read_table
 from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
 from gcs_core.io.tle_table import tle_ephemeris_table
@@ -39,11 +41,10 @@ from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
 from gcs_core.problem.attitude import RPY
-from gcs_core.problem.build import ElementOverride, Problem, StateOptions
+from gcs_core.problem.build import Problem
 from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.prepare import PhysicsOptions
-from gcs_core.units import DEG
 
 log = logging.getLogger(__name__)
 
@@ -185,26 +186,9 @@ class PredictionResult:
 
 
 # ----------------------------------------------------------------------------------------
-def state_options(cfg: AnalysisConfig | None) -> StateOptions:
-    """SODL options of an analysis config (as :class:`gcs_core.session.Analysis` builds them)."""
-    if cfg is None:
-        return StateOptions()
-    ov = {k: ElementOverride(v.role, v.value, v.sigma) for k, v in cfg.state.elements.items()}
-    return StateOptions(
-        effects=cfg.state.effects,
-        exclude=cfg.state.exclude,
-        overrides=ov,
-        attitude_sigma=cfg.state.attitude_sigma_deg * DEG,
-    )
-
-
 def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
     if method is None:
-        method = (
-            "information"
-            if cfg is None
-            else {"kalman": "kalman", "whole_span": "whole_span"}.get(cfg.method, "information")
-        )
+        method = "information" if cfg is None else estimator(cfg.method).prediction
     if method not in METHODS:
         raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}", key="prediction.method")
     return method
@@ -296,7 +280,7 @@ def predict(
         default from the config (``kalman`` for ``method = "kalman"``); ``"whole_span"``
         (the default fit's setting) is Eq 3-2's history whose final covariance is the
         whole-span fit's, the gyro noise carried as process noise
-        (:func:`~gcs_core.filtr.smoothing_batch.predicted_covariance`).
+        (:func:`~gcs_core.estimators.whole_span.fit.predicted_covariance`).
     ephemeris_step : tabulation step of an orbit-built ephemeris [s].
 
     Returns
@@ -319,10 +303,7 @@ def predict(
             plan = DataPlan(*span)
         else:
             raise InputError("no data plan: give DataPlan(start, end, ...)", key="prediction.start")
-    off = {k for k, v in (cfg.models.items() if cfg is not None else ()) if v == "off"}
-    for name in off:
-        if name not in {s.name for s in spec.sensors}:
-            raise InputError(f"no sensor named '{name}' in the mission", key=f"models.{name}")
+    off = sensors_off(cfg, spec)
     gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
     if off:
         from dataclasses import replace

@@ -26,7 +26,7 @@ bias depends on the method's model of it, ``b(t) = bias + bias_rate (t − t_mid
 whatever the method lets wander:
 
 * ``whole_span`` (the default): the wander is the knots' random walk, zero at ``t_ref``
-  (:mod:`gcs_core.filtr.knots`), so ``bias_rate`` is the simulator's deterministic drift
+  (:mod:`gcs_core.estimators.whole_span.knots`), so ``bias_rate`` is the simulator's deterministic drift
   (its data-book ``bias_rate``) and ``bias`` the simulator's bias at ``t_ref`` carried to
   ``t_mid`` by that drift;
 * ``kalman``: the walk at ``t_ref`` less the drift of the least-squares line through it;
@@ -47,6 +47,7 @@ from typing import Any
 import numpy as np
 
 from gcs_core.errors import GcsError, InputError
+from gcs_core.estimators.registry import estimator
 from gcs_core.trade import engine, store
 
 #: the acceptance band of predicted against Monte-Carlo σ
@@ -173,19 +174,12 @@ def _truth(truth: dict, problem, values_book: dict, method: str = "batch") -> di
         sel = (h[:, 0] >= t0 - 1e-9) & (h[:, 0] <= t1 + 1e-9)
         A = np.column_stack([np.ones(int(sel.sum())), h[sel, 0] - 0.5 * (t0 + t1)])
         coef, *_ = np.linalg.lstsq(A, h[sel, 1:], rcond=None)
-        b_mid, slope = coef[0], coef[1]
-        if method == "whole_span":
-            # the whole-span fit's bias is b(t) = bias + bias_rate (t − t_mid) + β(t) with
-            # β(t_ref) = 0 (knots.py: z_0 = 0): its static bias is the walk at t_ref carried
-            # to t_mid by the deterministic drift (the data book's, the simulator's bias_rate),
-            # and bias_rate is that drift; the walk after t_ref is the knots' β
-            slope = np.array([float(values_book.get(f"{gyro}.bias_rate_{c}", 0.0)) for c in "xyz"])
-            b_ref = np.array([np.interp(att.t_ref, h[:, 0], h[:, 1 + i]) for i in range(3)])
-            b_mid = b_ref + slope * (0.5 * (t0 + t1) - att.t_ref)
-        elif method == "kalman":
-            # the smoother's bias element is the random walk at t_ref, less the drift line
-            b_ref = np.array([np.interp(att.t_ref, h[:, 0], h[:, 1 + i]) for i in range(3)])
-            b_mid = b_ref - slope * (att.t_ref - 0.5 * (t0 + t1))
+        b_ref = np.array([np.interp(att.t_ref, h[:, 0], h[:, 1 + i]) for i in range(3)])
+        book_slope = np.array([float(values_book.get(f"{gyro}.bias_rate_{c}", 0.0)) for c in "xyz"])
+        # what the estimator's static bias elements are of the true walk (its own model)
+        b_mid, slope = estimator(method).bias_elements(
+            coef[0], coef[1], b_ref, book_slope, float(att.t_ref), 0.5 * (t0 + t1)
+        )
         for i, c in enumerate("xyz"):
             out[f"{gyro}.bias_{c}"] = float(b_mid[i])
             out[f"{gyro}.bias_rate_{c}"] = float(slope[i])

@@ -19,7 +19,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import EstimationError, InputError
-from gcs_core.filtr.smoothing_uses import attitude_covariance
 from gcs_core.frames.rotations import dcm_to_euler123, quat_from_dcm, quat_normalize
 from gcs_core.problem.attitude import rpy_error_jacobians
 
@@ -70,8 +69,7 @@ def ground_attitude(analysis, t) -> GroundAttitude:
     ref = _reference(att_provider)
     t = np.asarray(t, dtype=float)
     values = res.state.values()
-    dyn = getattr(res, "dynamics", None)
-    att = (dyn.attitude(att_provider) if dyn is not None else att_provider).evaluate(values, t)
+    att = res.attitude_provider(att_provider).evaluate(values, t)
     names = list(res.solve_for)
     col = {nm: j for j, nm in enumerate(names)}
     J = np.zeros((t.size, 3, len(names)))
@@ -79,8 +77,7 @@ def ground_attitude(analysis, t) -> GroundAttitude:
         if nm in col:
             J[:, :, col[nm]] = att.J[:, :, a]
     S_body = np.einsum("nia,ab,njb->nij", J, res.P_consider, J)
-    if dyn is not None:  # the gyro wander the knots carry
-        S_body = S_body + attitude_covariance(dyn, att.C_BI, t, J)
+    S_body = S_body + res.attitude_wander_covariance(att.C_BI, t, J)  # e.g. the gyro wander of knots
     A = np.asarray(ref.reference(t))
     rpy = np.column_stack(dcm_to_euler123(att.C_BI @ np.swapaxes(A, -1, -2)))
     Jr_inv = np.linalg.solve(rpy_error_jacobians(rpy), np.broadcast_to(np.eye(3), (t.size, 3, 3)))

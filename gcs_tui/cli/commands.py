@@ -242,8 +242,8 @@ def cmd_convert(args, prog: Progress) -> int:
 
 
 def cmd_noise(args, prog: Progress) -> int:
-    from gcs_core.filtr.noise import mission_noise, noise_lines
     from gcs_core.io.importer import load_mission
+    from gcs_core.noise.measured import mission_noise, noise_lines
 
     with prog.task(f"reading mission {args.mission}"):
         m = load_mission(args.mission)

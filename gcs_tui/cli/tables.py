@@ -145,7 +145,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
     lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:.3g}-s windows, {sc.n_blocks} windows):"]
     # a gyro's elements fitted under its process noise (the whole-span knots): the sandwich
     # does not see that noise, so their scale is indicative (docs/ground.md)
-    gyro = getattr(analysis.problem, "gyro_name", None) if getattr(res, "dynamics", None) is not None else None
+    gyro = getattr(analysis.problem, "gyro_name", None) if res.carries_process_noise else None
     marked = {n for n in big if gyro is not None and res.state[n].sensor == gyro}
     for n, s in big.items():
         e = res.state[n]
@@ -214,7 +214,7 @@ def candidate_table(candidates: Iterable, *, alpha: float, limit: int | None = 1
     cands = list(candidates)
     lines = [f"{'candidate':38s} {'Δχ²':>10s} {'dof':>3s} {'p':>9s} {'p adj':>9s}  identifiable"]
     for c in cands[:limit] if limit else cands:
-        mark = " *" if c.identifiable and c.p_adjusted < alpha else ""
+        mark = " *" if c.passes else ""
         lines.append(
             f"{c.id:38s} {c.delta_chi2:10.1f} {c.dof:3d} {display.pvalue(c.p_value):>9s} "
             f"{display.pvalue(c.p_adjusted):>9s}  {'yes' if c.identifiable else 'no'}{mark}"

@@ -296,7 +296,7 @@ class GcsApp(App):
         if not self.workbench.ready:
             self.notify("open a mission first (o)", severity="warning")
             return
-        from gcs_core.filtr.noise import mission_noise
+        from gcs_core.noise.measured import mission_noise
         from gcs_tui.tui.screens.allan import AllanScreen
 
         try:
@@ -513,7 +513,7 @@ def poor_choice(c, alpha: float) -> str:
     from gcs_core import display as fmt
 
     reasons = []
-    if not c.p_adjusted < alpha:
+    if not c.significant:
         reasons.append(
             f"It is not significant: {fmt.p_text(c.p_adjusted, 'p adj')} is not below the family-wise "
             f"α = {alpha:g}, so its Δχ² = {fmt.sig(c.delta_chi2, 3)} is what noise alone often gives "

@@ -1,8 +1,8 @@
 """FILTR for the screen: the engine's stepping filter, its block reports and a view of them.
 
-:class:`FiltrRun` wraps :class:`gcs_core.filtr.stepping.Filtr` (one block per
+:class:`FiltrRun` wraps :class:`gcs_core.estimators.kalman.stepping.Filtr` (one block per
 :meth:`~FiltrRun.step`, several passes when the iterated smoother is on) and keeps
-every :class:`~gcs_core.filtr.results.BlockReport`; :meth:`FiltrRun.view` turns them
+every :class:`~gcs_core.estimators.results.BlockReport`; :meth:`FiltrRun.view` turns them
 into the plain numbers the FILTR screen draws. No Textual here.
 """
 
@@ -13,7 +13,6 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 
 from gcs_tui.tui.derive import chi2_band
-from gcs_tui.tui.jobs import engine
 
 
 @dataclass(frozen=True)
@@ -57,7 +56,6 @@ class FiltrRun:
     """A FILTR run on the workbench's current problem, every block report kept."""
 
     def __init__(self, wb) -> None:
-        engine("gcs_core.filtr.stepping", "Filtr")  # Unavailable, naming what is missing
         self.units = {e.name: e.unit for e in wb.analysis.problem.state}
         # the session's filter: [filter] block, k and per-sensor k as `gcs batch --method kalman`
         self.filtr = wb.analysis.make_filter()

@@ -2,46 +2,24 @@
 
 Each function takes the workbench, a ``progress(done, total, text)`` callback and a
 ``cancelled()`` predicate, stores its result on the workbench and returns it. They
-are plain functions (no Textual) so tests can call them directly. Engine packages that
-may be absent from an installation are imported here, lazily, and a missing one is
-reported as an :class:`~gcs_core.errors.GcsError` the status line can show.
+are plain functions (no Textual) so tests can call them directly. They import the engine
+plainly (inside each function, so that starting the TUI does not load what a view may never
+use), where the type checker and the layer test see them.
 """
 
 from __future__ import annotations
 
-import importlib
 import logging
 from pathlib import Path
 
-from gcs_core.errors import GcsError
-
 log = logging.getLogger(__name__)
-
-
-class Unavailable(GcsError):
-    """An engine module this view needs is not installed."""
-
-
-def engine(module: str, name: str):
-    """``module.name`` from gcs_core, or :class:`Unavailable` naming what is missing."""
-    try:
-        return getattr(importlib.import_module(module), name)
-    except (ImportError, AttributeError) as err:
-        raise Unavailable(f"{module}.{name} is not available ({err})") from None
-
-
-def available(module: str, name: str) -> bool:
-    try:
-        engine(module, name)
-        return True
-    except Unavailable:
-        return False
 
 
 # ---------------------------------------------------------------------------- predictor
 def predict(wb, progress=None, cancelled=None):
     """σ of every solve-for element along the config's data plan (gcs_core.predictor)."""
-    run = engine("gcs_core.predictor.predict", "predict")
+    from gcs_core.predictor.predict import predict as run
+
     if progress:
         progress(0, None, "accumulating information")
     result = run(wb.analysis)
@@ -54,7 +32,8 @@ def predict(wb, progress=None, cancelled=None):
 # ---------------------------------------------------------------------------- verification
 def verify(wb, progress=None, cancelled=None):
     """Onboard against ground attitude (gcs_core.verif.verify_analysis); fits first if needed."""
-    run = engine("gcs_core.verif.analysis", "verify_analysis")
+    from gcs_core.verif.analysis import verify_analysis as run
+
     if wb.result is None:
         if progress:
             progress(0, 2, "fitting first")
@@ -81,7 +60,8 @@ def scds_path(wb) -> Path:
 def save_calibration(wb, path=None, note: str = "", progress=None, cancelled=None) -> int:
     """Append the latest fit to the SCDS at ``path`` (default :func:`scds_path`);
     returns the new version number and remembers the file on the workbench."""
-    save = engine("gcs_core.calibration", "save_calibration")
+    from gcs_core.calibration import save_calibration as save
+
     if progress:
         progress(0, None, "writing the SCDS")
     path = Path(path) if path else scds_path(wb)
@@ -94,12 +74,18 @@ def scds_versions(path: Path):
     """Version summaries of an SCDS file (empty when the file does not exist)."""
     if path is None or not Path(path).exists():
         return []
-    return engine("gcs_core.io.scds", "list_versions")(path)
+    from gcs_core.io.scds import list_versions
+
+    return list_versions(path)
 
 
 def scds_diff(path: Path, a: int, b: int):
-    return engine("gcs_core.io.scds", "diff_versions")(path, a, b)
+    from gcs_core.io.scds import diff_versions
+
+    return diff_versions(path, a, b)
 
 
 def scds_version(path: Path, n: int | None = None):
-    return engine("gcs_core.io.scds", "read_version")(path, n)
+    from gcs_core.io.scds import read_version
+
+    return read_version(path, n)

@@ -12,7 +12,7 @@ walks); the magnetometer then sits at its noise (normalized RMS near 1: its held
 and interpolated samples flagged, the samples used are nearly white, docs/case_studies/broad.md); the optical
 reference lags the gyro by 1 to 4 ms; and the magnetometer's bias and matrix, the field
 and its gradient agree between the halves within 3σ once the σ carry the residuals'
-correlation (the batch-means sandwich, :mod:`gcs_core.diagnosis.correlation`, in windows
+correlation (the batch-means sandwich, :mod:`gcs_core.noise.correlation`, in windows
 of :data:`WINDOW_S`: 23 per half); with the fit's white-noise σ they do not.
 """
 
@@ -26,9 +26,9 @@ import pytest
 from repo_paths import ROOT
 
 from gcs_core.config import load_config
-from gcs_core.diagnosis.correlation import sigma_scale
-from gcs_core.filtr.gyro_bias import gyro_bias_at
+from gcs_core.estimators.gyro_bias import gyro_bias_at
 from gcs_core.io.importer import load_mission
+from gcs_core.noise.correlation import sigma_scale
 from gcs_core.session import Analysis
 
 CONFIG = ROOT / "sample_data" / "configs" / "real-broad-02-slow-rotation.toml"
@@ -104,7 +104,7 @@ def test_magnetometer_and_field_agree_between_halves_with_honest_sigma(halves):
 
 @pytest.mark.xfail(
     reason="on this 45 s sample the halves' gyro bias_x at the time they meet "
-    "(gcs_core.filtr.gyro_bias.gyro_bias_at, σ with the walk), with the config's "
+    "(gcs_core.estimators.gyro_bias.gyro_bias_at, σ with the walk), with the config's "
     "long-run weighting of the optical reference, is 2.8 against 9.6 mrad/s, 12 σ "
     "apart (the rests' mean is 3.5; with white weights −2.1 against +11.5, 32 σ): "
     "in 22.5 s of hand motion the second half's bias_x is carried with its roll "

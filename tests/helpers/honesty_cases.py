@@ -43,7 +43,7 @@ import numpy as np
 from test_truth_recovery import _angle_diff, truth_values
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.filtr.mekf import attitude_gyro_noise
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
@@ -170,7 +170,7 @@ def z_scores(result, truth: Mapping[str, float], readout_var: float = 0.0) -> di
     """Solve-for element -> ``(x̂ − x)/σ`` (σ from the fit's noise covariance). The attitude
     elements are the gyro-carried trajectory's reference: with a gyro read-out noise
     (``readout_var`` = σ_e²) the simulator's attitude at ``t_ref`` differs from it by that
-    epoch's read-out error, whose variance is added (:mod:`gcs_core.filtr.readout`)."""
+    epoch's read-out error, whose variance is added (:mod:`gcs_core.estimators.whole_span.readout`)."""
     z = {}
     for i, name in enumerate(result.solve_for):
         if name not in truth:

@@ -35,7 +35,7 @@ from test_ground_mission import (
 
 from gcs_core.config import default_config
 from gcs_core.errors import InputError
-from gcs_core.filtr.mekf import GyroSegment
+from gcs_core.estimators.kalman.mekf import GyroSegment
 from gcs_core.frames.rotations import dcm_to_rotvec, rotvec_to_dcm
 from gcs_core.io.importer import load_mission
 from gcs_core.models.gyro_noise import GyroNoise

@@ -26,8 +26,8 @@ import pytest
 from scipy import stats
 
 from gcs_core import units
-from gcs_core.filtr.filter_options import FilterOptions
-from gcs_core.filtr.stepping import Filtr
+from gcs_core.estimators.kalman.options import FilterOptions
+from gcs_core.estimators.kalman.stepping import Filtr
 from gcs_core.frames.rotations import T1, T2, T3, dcm_to_rotvec, euler123_to_dcm, rotvec_to_dcm
 from gcs_core.io.importer import ImportedMission
 from gcs_core.io.types import MissionSpec, SensorSpec, Table

@@ -1,5 +1,5 @@
-"""The gyro's bias along the span (gcs_core.filtr.gyro_bias) and the rate random walk the
-data support (gcs_core.filtr.process_likelihood), against the simulator's truth.
+"""The gyro's bias along the span (gcs_core.estimators.gyro_bias) and the rate random walk the
+data support (gcs_core.estimators.whole_span.process_likelihood), against the simulator's truth.
 
 In-memory inertial missions of ``test_filter_consistency`` (two star trackers, a 1 Hz gyro
 whose bias walks with σ_u = 3e-7 rad/s^1.5: 7.3e-6 rad/s over the 10 minutes, four times
@@ -20,10 +20,10 @@ import pytest
 from test_filter_consistency import PHYSICS, chi2_band, sim_problem, simulate
 
 from gcs_core.errors import InputError
-from gcs_core.filtr import smoothing_batch as sb
-from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.gyro_bias import gyro_bias_at
-from gcs_core.filtr.process_likelihood import neg2_log_evidence, rrw_profile
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit
+from gcs_core.estimators.gyro_bias import gyro_bias_at
+from gcs_core.estimators.whole_span import fit as sb
+from gcs_core.estimators.whole_span.process_likelihood import neg2_log_evidence, rrw_profile
 from gcs_core.problem.build import build_problem
 
 #: a MEMS-like rate random walk for a 10-minute span [rad/s^1.5]
@@ -107,7 +107,7 @@ def test_batch_bias_is_the_static_line_and_needs_a_gyro():
 
 
 def test_rrw_evidence_recovers_the_simulated_walk():
-    """The evidence over σ_u (gcs_core.filtr.process_likelihood), summed over 6 seeded runs,
+    """The evidence over σ_u (gcs_core.estimators.whole_span.process_likelihood), summed over 6 seeded runs,
     is smallest at the simulated σ_u among factors 0.5–2 of it (the book holds the truth),
     and each run's best is within a factor 1.5 of it."""
     scales = (0.5, 0.7, 1.0, 1.4, 2.0)

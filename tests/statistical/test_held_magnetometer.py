@@ -130,9 +130,9 @@ def test_held_samples_fitted_at_their_stamp_bias_the_time_offset(fits):
 def test_held_samples_make_the_sigma_optimistic(fits):
     """A held repeat counts one noise draw two or three times: the unflagged fit's residuals
     are correlated and the batch-means sandwich scales its magnetometer σ up by 1.5–2
-    (:mod:`gcs_core.diagnosis.correlation`); flagged, the residuals are white and the
+    (:mod:`gcs_core.noise.correlation`); flagged, the residuals are white and the
     scales sit at 1 within the estimator's own scatter (0.8–1.2 over seeds)."""
-    from gcs_core.diagnosis.correlation import sigma_scale
+    from gcs_core.noise.correlation import sigma_scale
 
     scales = {}
     for name in ("flagged", "held"):

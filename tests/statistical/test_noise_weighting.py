@@ -1,5 +1,5 @@
 """Weighting a sensor by its long-run noise (``[filter] noise_weighting = "long_run"``,
-gcs_core/diagnosis/weighting.py) against truth.
+gcs_core/noise/weighting.py) against truth.
 
 The laboratory mission of ``test_field_gradient`` (exact kinematics, a field gradient) with
 each magnetometer noise draw held over :data:`HOLD` samples (errors correlated over 0.2 s):

@@ -4,7 +4,7 @@ A 4 h Sun-pointing mission of ``gcs_core.sim`` with a flight-typical IRU (σ_v =
 rad/√s, σ_u = 3.162e-10 rad/s^1.5) whose integrated angle is read with a white error σ_e
 (ICD §5 ``electronic``): the simulator adds ``(e_k − e_{k−1})/Δ`` to the rates, so the
 attitude the gyro carries is off by a white ``e_k`` at every sample, shared by every
-sensor's rows of that epoch (:mod:`gcs_core.filtr.readout`). Two levels: σ_e equal to
+sensor's rows of that epoch (:mod:`gcs_core.estimators.whole_span.readout`). Two levels: σ_e equal to
 the star trackers' noise (3.88e-5 rad) and three times it, where the read-out error
 dominates every tracker row.
 
@@ -43,8 +43,8 @@ from test_truth_recovery import _angle_diff, truth_values
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.goodness import goodness_of_fit
-from gcs_core.filtr.mekf import attitude_gyro_noise
-from gcs_core.filtr.smoothing_batch import fit_problem
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
+from gcs_core.estimators.whole_span.fit import whole_span_fit
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis
@@ -112,7 +112,7 @@ def test_whole_span_fit_carries_the_read_out_noise(ratio, tmp_path):
 
     # the same data, the read-out noise ignored: residuals above the noise, σ optimistic
     book = attitude_gyro_noise(a.problem)
-    blind = fit_problem(a.problem, "whole_span", a.batch_options(), noise=GyroNoise(book.sigma_v, book.sigma_u, 0.0))
+    blind = whole_span_fit(a.problem, a.batch_options(), noise=GyroNoise(book.sigma_v, book.sigma_u, 0.0))
     assert blind.dynamics is not None and blind.dynamics.sig_e2 == 0.0
     gof_blind = goodness_of_fit(a.problem, blind)
     assert gof_blind.fit.p_value < tiny_p, gof_blind.verdict
@@ -143,7 +143,7 @@ def test_discovery_adds_nothing_under_read_out_noise(tmp_path):
 
 def test_kalman_residuals_are_normalized_by_the_marginal_sigma(tmp_path):
     """The Kalman method's residuals against the same marginal σ as the whole-span fit's
-    (``sqrt(σ² + σ_e²|D|²)``, :func:`gcs_core.filtr.smoother.smoothed_residuals`): on one hour
+    (``sqrt(σ² + σ_e²|D|²)``, :func:`gcs_core.estimators.kalman.smoother.smoothed_residuals`): on one hour
     at σ_e = 3× the tracker noise every sensor sits at its noise under both methods (against
     the data book's σ alone the trackers and the FSS read 2.7–3.4)."""
     cfg = nominal_threeaxis("sun_pointing", seed=SEED, duration_s=3600.0)

@@ -1,4 +1,4 @@
-"""The batch-means sandwich σ scale (gcs_core/diagnosis/correlation.py) against truth.
+"""The batch-means sandwich σ scale (gcs_core/noise/correlation.py) against truth.
 
 On the laboratory mission of ``test_field_gradient`` (exact kinematics, a field gradient):
 with white magnetometer noise of the stated σ the scales sit at 1 within their own
@@ -15,8 +15,8 @@ import pytest
 from test_field_gradient import EFFECTS, GRADIENT, fit, write_mission
 from test_ground_mission import B_LAB, MAG_BIAS, Z_MAX
 
-from gcs_core.diagnosis.correlation import sigma_scale
 from gcs_core.errors import InputError
+from gcs_core.noise.correlation import sigma_scale
 
 HOLD = 10
 #: windows of 1 s: 60 over the span, so each scale scatters by about 1/sqrt(2·60) = 9 %;

@@ -86,9 +86,9 @@ def test_the_default_window_fits_the_span_and_the_sampling(tmp_path, caplog):
     (too few windows); 0 is off; a span too short for windows of ten samples has none."""
     from types import SimpleNamespace
 
-    from gcs_core.diagnosis.correlation import MIN_BLOCKS
     from gcs_core.diagnosis.honest_sigma import auto_window
-    from gcs_core.diagnosis.weighting import MIN_SAMPLES
+    from gcs_core.noise.correlation import MIN_BLOCKS
+    from gcs_core.noise.weighting import MIN_SAMPLES
 
     root = write_mission(tmp_path, np.random.default_rng(8))
     a, _ = fit(root, EFFECTS)
@@ -120,11 +120,12 @@ def test_one_sample_per_window_is_said():
     """Windows shorter than the sampling interval see no correlation: the table says so."""
     from types import SimpleNamespace
 
-    from gcs_core.diagnosis.correlation import SigmaScale
+    from gcs_core.noise.correlation import SigmaScale
     from gcs_tui.cli.tables import sigma_scale_lines
 
     sc = SigmaScale(("MAG",), 4.0, 100, {"MAG.bias_x": 7.0, "MAG.bias_y": 1.1})
     res = SimpleNamespace(
+        carries_process_noise=False,
         residuals={"MAG": SimpleNamespace(used=np.ones(100, bool))},
         sigma={"MAG.bias_x": 5.0, "MAG.bias_y": 5.0},
         state={n: SimpleNamespace(value=1.0, unit="nT") for n in sc.scale},

@@ -18,7 +18,7 @@ Truth of each element (:func:`truth_values`):
   parametrizes it: ``b(t) = bias + bias_rate (t − t_mid)`` in a batch fit, and in the Kalman
   smoother the random-walk part at ``t_ref``, ``b(t_ref) − bias_rate (t_ref − t_mid)``. The
   whole-span fit carries ``b(t) = bias + bias_rate (t − t_mid) + β(t)`` with the knots'
-  random walk ``β(t_ref) = 0`` (:mod:`gcs_core.filtr.knots`): its ``bias_rate`` is the
+  random walk ``β(t_ref) = 0`` (:mod:`gcs_core.estimators.whole_span.knots`): its ``bias_rate`` is the
   simulator's deterministic drift (0 unless hidden), not the slope of the walk, which ``β``
   carries and the fit's σ counts, and its ``bias`` is ``b(t_ref) − bias_rate (t_ref − t_mid)``
   with that drift (as :mod:`gcs_core.trade.montecarlo` reads it).

@@ -8,7 +8,7 @@ import pytest
 from repo_paths import ROOT
 from textual.app import App
 
-from gcs_core.filtr.noise import sensor_noise
+from gcs_core.noise.measured import sensor_noise
 from gcs_tui.tui.screens.allan import AllanScreen, summary
 from gcs_tui.tui.theme import VARIABLES
 

@@ -208,7 +208,9 @@ def test_rows_with_similar_sigma_share_a_unit():
 
 
 def test_no_p_of_zero_in_the_cli_table():
-    cand = SimpleNamespace(id="TAM1.scale", delta_chi2=5000.0, dof=3, p_value=0.0, p_adjusted=0.0, identifiable=True)
+    cand = SimpleNamespace(
+        id="TAM1.scale", delta_chi2=5000.0, dof=3, p_value=0.0, p_adjusted=0.0, identifiable=True, passes=True
+    )
     lines = tables.candidate_table([cand], alpha=0.001)
     assert "< 1e-16" in lines[1] and " 0 " not in lines[1]
     assert any("ranked by p" in ln for ln in lines)
@@ -282,7 +284,7 @@ def test_verification_speaks_one_unit_in_both_faces():
 
 
 def test_kalman_passes_and_unobservable_are_said_in_words():
-    from gcs_core.filtr.results import passes_text
+    from gcs_core.estimators.results import passes_text
 
     assert passes_text(3, "max_passes").startswith("3 passes done, as configured")
     assert passes_text(2, "converged") == "converged after 2 passes"

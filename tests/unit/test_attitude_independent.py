@@ -8,7 +8,10 @@ import numpy as np
 import pytest
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.filtr.attitude_independent import magnetometer_bias_from_magnitude, star_tracker_scales_from_separations
+from gcs_core.estimators.batch.attitude_independent import (
+    magnetometer_bias_from_magnitude,
+    star_tracker_scales_from_separations,
+)
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission

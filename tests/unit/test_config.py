@@ -347,7 +347,7 @@ def test_config_for_opens_what_either_face_is_given(tmp_path):
 
 
 def test_noise_weighting_round_trips_and_the_default_is_not_written(tmp_path):
-    """``[filter] noise_weighting`` (gcs_core/diagnosis/weighting.py): "long_run" and its
+    """``[filter] noise_weighting`` (gcs_core/noise/weighting.py): "long_run" and its
     keys survive save and load; at the defaults nothing is written, so a config's digest
     is the one it had before the keys existed."""
     cfg = C.load_config(write(tmp_path, BASE))

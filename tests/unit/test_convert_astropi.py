@@ -20,9 +20,9 @@ from gcs_core.convert import CONVERTERS, convert, converter
 from gcs_core.convert.astropi import procrustes_mounting
 from gcs_core.convert.common import leading_transient
 from gcs_core.errors import InputError
-from gcs_core.filtr.noise import white_noise
 from gcs_core.frames.rotations import euler123_to_dcm
 from gcs_core.io.importer import load_mission
+from gcs_core.noise.measured import white_noise
 from gcs_tui.cli import commands as cli
 
 DATA = TEST_DATA / "astropi"

@@ -1,4 +1,4 @@
-"""Every estimator's result is read through one shape (gcs_core.filtr.results.FitResult):
+"""Every estimator's result is read through one shape (gcs_core.estimators.results.FitResult):
 the batch, the whole-span fit and the Kalman filter + smoother each give every member the
 diagnosis and the reports read, with no conversion between them."""
 
@@ -9,8 +9,8 @@ import typing
 
 import pytest
 
-from gcs_core.filtr import results
-from gcs_core.filtr.smoothing_batch import SmoothedResult
+from gcs_core.estimators import results
+from gcs_core.estimators.whole_span.result import SmoothedResult
 
 
 def protocol_members() -> set[str]:

@@ -1,4 +1,4 @@
-"""How a fit stops, and refits that start at the previous minimum (gcs_core.filtr.stopping).
+"""How a fit stops, and refits that start at the previous minimum (gcs_core.estimators.stopping).
 
 * A fit whose steps are accepted only when they lower the cost cannot rise: when no step
   lowers it, the status is ``stalled`` with the relative change and the gain the
@@ -17,8 +17,10 @@ import numpy as np
 import pytest
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.filtr import smoothing_batch, stopping, whole_span_passes
-from gcs_core.filtr.batch import BatchOptions
+from gcs_core.estimators import stopping
+from gcs_core.estimators.batch.least_squares import BatchOptions
+from gcs_core.estimators.whole_span import fit as smoothing_batch
+from gcs_core.estimators.whole_span import passes as whole_span_passes
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission

@@ -18,6 +18,7 @@ from repo_paths import SAMPLE_MISSIONS
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import determination, goodness
+from gcs_core.estimators import static_algebra
 from gcs_core.reporting import analysis_report, icd_report_problems
 from gcs_core.session import Analysis
 from gcs_tui.cli.tables import (
@@ -44,8 +45,8 @@ def test_holdout_chi2_is_the_quadratic_form_it_stands_for():
     r = rng.standard_normal(H.shape[0]) * sigma
     Hw, rw = H / sigma[:, None], r / sigma
     direct = r @ np.linalg.solve(np.diag(sigma**2) + H @ P @ H.T, r)
-    L = goodness._chol_cov(P)
-    woodbury = goodness._woodbury_chi2(L, Hw.T @ Hw, Hw.T @ rw, float(rw @ rw))
+    L = static_algebra.chol_cov(P)
+    woodbury = static_algebra.woodbury_chi2(L, Hw.T @ Hw, Hw.T @ rw, float(rw @ rw))
     assert woodbury == pytest.approx(direct, rel=round_off)
 
 
@@ -54,7 +55,7 @@ def test_holdout_chi2_has_its_degrees_of_freedom():
     rng = np.random.default_rng(11)
     H, sigma, s0, A, P = _linear_problem(rng)
     Hh, sh = rng.standard_normal((30, H.shape[1])), rng.uniform(0.5, 2.0, 30)
-    L = goodness._chol_cov(P)
+    L = static_algebra.chol_cov(P)
     Hw = Hh / sh[:, None]
     vals = []
     for _ in range(2000):
@@ -62,7 +63,7 @@ def test_holdout_chi2_has_its_degrees_of_freedom():
         y = H @ x + rng.standard_normal(H.shape[0]) * sigma
         x_hat = P @ ((H / sigma[:, None] ** 2).T @ y)  # prior mean 0
         rh = (Hh @ x + rng.standard_normal(30) * sh - Hh @ x_hat) / sh
-        vals.append(goodness._woodbury_chi2(L, Hw.T @ Hw, Hw.T @ rh, float(rh @ rh)))
+        vals.append(static_algebra.woodbury_chi2(L, Hw.T @ Hw, Hw.T @ rh, float(rh @ rh)))
     vals = np.array(vals)
     assert abs(vals.mean() - 30) < 4 * np.sqrt(2 * 30 / len(vals))
 
@@ -71,7 +72,7 @@ def test_effective_parameters_are_the_data_share_of_the_elements():
     rng = np.random.default_rng(3)
     _, _, s0, A, P = _linear_problem(rng)
     shares = determination.prior_shares([f"x{i}" for i in range(len(s0))], P, s0)
-    assert goodness.effective_parameters(P, A) == pytest.approx(len(s0) - sum(shares.values()), rel=1e-9)
+    assert static_algebra.effective_parameters(P, A) == pytest.approx(len(s0) - sum(shares.values()), rel=1e-9)
 
 
 def test_verdict_reads_inadequate_only_past_the_family_level():

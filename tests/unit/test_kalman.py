@@ -1,6 +1,6 @@
 """The Kalman filter of FILTR: its core, recursive least squares = batch, long spans, the API.
 
-* Both engines of :func:`gcs_core.filtr.kalman.solve_block` (the compiled frame-by-frame
+* Both engines of :func:`gcs_core.estimators.kalman.linear.solve_block` (the compiled frame-by-frame
   kernel and the lifted-group numpy core) equal a textbook frame-by-frame Kalman filter
   (Eq 3-3, 3-4, Joseph form) to round-off, gate included, and each other to 1e-10
   (read-out noise, per-epoch posteriors and a static-only state included); the kernel is
@@ -26,13 +26,13 @@ from test_filter_consistency import sim_problem, simulate
 
 from gcs_core.compiled import COMPILED
 from gcs_core.errors import EstimationError
-from gcs_core.filtr import kalman_kernels
-from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.filter_options import FilterOptions
-from gcs_core.filtr.kalman import LinearBlock, referred_transitions, solve_block
-from gcs_core.filtr.mekf import gyro_rates
-from gcs_core.filtr.results import BlockReport
-from gcs_core.filtr.stepping import Filtr
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit
+from gcs_core.estimators.kalman import kernels as kalman_kernels
+from gcs_core.estimators.kalman.linear import LinearBlock, referred_transitions, solve_block
+from gcs_core.estimators.kalman.mekf import gyro_rates
+from gcs_core.estimators.kalman.options import FilterOptions
+from gcs_core.estimators.kalman.stepping import Filtr
+from gcs_core.estimators.results import BlockReport
 from gcs_core.frames.rotations import rotvec_to_dcm
 
 #: tolerances: round-off of the lifted core, and agreement of two converged estimators
@@ -206,7 +206,7 @@ def test_numpy_engine_without_numba():
     code = (
         "import sys; sys.modules['numba'] = None\n"
         "from gcs_core import compiled\n"
-        "from gcs_core.filtr import kalman\n"
+        "from gcs_core.estimators.kalman import linear as kalman\n"
         "from gcs_core.models import common\n"
         "assert not compiled.COMPILED and kalman.ENGINE == 'numpy'\n"
         "assert common._jit(len) is len\n"

@@ -1,6 +1,6 @@
 """The folder tree shows the data's way, and the imports keep to it.
 
-mission files (io) → problem (state, geometry, attitude) → estimators (filtr, then the
+mission files (io) → problem (state, geometry, attitude) → noise → estimators (then the
 predictor) → diagnosis → reports and the session → the faces (gcs_tui). Every module's
 imports, at any depth of the file (function-level imports included), are read with
 ``ast``; nothing is imported, so the test is fast and sees imports that never run.
@@ -42,8 +42,9 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("mission files", ("gcs_core.io",)),
     ("models", ("gcs_core.models",)),
     ("problem", ("gcs_core.problem",)),
-    ("analysis config", ("gcs_core.config", "gcs_core.config_checks", "gcs_core.config_reference")),
-    ("estimators", ("gcs_core.filtr",)),
+    ("analysis config", ("gcs_core.config", "gcs_core.config_checks", "gcs_core.config_problem", "gcs_core.config_reference")),
+    ("noise characterisation", ("gcs_core.noise",)),
+    ("estimators", ("gcs_core.estimators",)),
     ("predictor", ("gcs_core.predictor",)),
     ("diagnosis", ("gcs_core.diagnosis",)),
     (
@@ -53,6 +54,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "gcs_core.calibration",
             "gcs_core.reporting",
             "gcs_core.session",
+            "gcs_core.stepwise",
             "gcs_core.trade",
             "gcs_core.convert",
         ),
@@ -175,7 +177,7 @@ def _cycles(nodes, edges) -> list[list[str]]:
 
 
 def _package(module: str) -> str:
-    """The package a module belongs to (``gcs_core.filtr.batch`` -> ``gcs_core.filtr``;
+    """The package a module belongs to (``gcs_core.estimators.batch.least_squares`` -> ``gcs_core.estimators``;
     a top-level module is its own package)."""
     parts = module.split(".")
     return module if MODULES[module][1] or len(parts) <= 2 else ".".join(parts[:2])

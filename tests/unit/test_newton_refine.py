@@ -9,7 +9,7 @@ cost still bends along ``A3·k``. Checked here:
   least-squares Hessian is the Gauss–Newton matrix plus the residual-weighted second
   derivatives);
 * the model's held evaluation (geometry held) equals its full prediction;
-* the refinement (:mod:`gcs_core.filtr.local_refine`) leaves the refined elements at the
+* the refinement (:mod:`gcs_core.estimators.batch.local_refine`) leaves the refined elements at the
   minimum of the cost with everything else held;
 * the batch with both reaches the same minimum as plain Gauss–Newton iterated to the end,
   in fewer linearizations.
@@ -21,9 +21,9 @@ import numpy as np
 import pytest
 from model_fixtures import fine_sun_case
 
-from gcs_core.filtr import batch as batch_mod
-from gcs_core.filtr import local_refine
-from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
+from gcs_core.estimators.batch import least_squares as batch_mod
+from gcs_core.estimators.batch import local_refine
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit, normal_equations
 from gcs_core.io.importer import load_mission
 from gcs_core.models import common
 from gcs_core.problem.build import ElementOverride, StateOptions, build_problem

@@ -1,4 +1,4 @@
-"""Noise from the data (gcs_core.filtr.noise) against simulated noise of known strength.
+"""Noise from the data (gcs_core.noise.measured) against simulated noise of known strength.
 
 The reference relations are IEEE Std 952-1997, Annex C: for a rate carrying white noise
 of density N (angle random walk) and a random walk of strength K (rate random walk),
@@ -13,7 +13,7 @@ import pytest
 from repo_paths import TEST_DATA
 
 from gcs_core.errors import InputError
-from gcs_core.filtr import noise
+from gcs_core.noise import measured as noise
 
 DT = 0.01  # s
 N_ARW = 1e-3  # rad/s^0.5
@@ -88,7 +88,7 @@ def test_both_converters_mark_estimated_noise_one_way(tmp_path):
     from test_convert_broad import _trial
 
     from gcs_core.convert import convert
-    from gcs_core.filtr.noise import ESTIMATED_MARK, noise_estimated
+    from gcs_core.noise.measured import ESTIMATED_MARK, noise_estimated
 
     data = TEST_DATA / "astropi"
     convert("astropi", data / "astropi_extract.csv", tmp_path / "a", tle=data / "iss-2022-01-31.tle")

@@ -1,4 +1,4 @@
-"""The long-run noise factor of a sensor's residuals (gcs_core.diagnosis.correlation.noise_scale).
+"""The long-run noise factor of a sensor's residuals (gcs_core.noise.correlation.noise_scale).
 
 Seeded synthetic residuals: white noise of the stated σ gives 1 within its batch-means
 scatter (about 1/sqrt(2 n_b) for n_b windows); each draw held over ten samples gives √10
@@ -12,8 +12,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gcs_core.diagnosis.correlation import noise_scale
 from gcs_core.errors import InputError
+from gcs_core.noise.correlation import noise_scale
 
 RATE_HZ = 100.0
 N = 60_000

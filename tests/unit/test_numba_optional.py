@@ -1,6 +1,6 @@
 """numba is optional (the ``fast`` extra): without it the numpy forms give the same fits.
 
-The compiled kernels (``gcs_core/filtr/*_kernels.py``, the knot accumulation) and their
+The compiled kernels (``gcs_core/estimators/*/*kernels.py``, the knot accumulation) and their
 numpy forms are two codings of the same sums. Here one simulated mission is fitted three
 ways (the batch, the whole-span fit with the gyro noise as process noise, the Kalman filter
 and smoother, Eq 3-3/3-4) in this process, with the compiled kernels when numba imports,
@@ -34,9 +34,9 @@ import json, sys
 import numpy as np
 sys.path.insert(0, "tests/statistical")
 from gcs_core import compiled
-from gcs_core.filtr.batch import batch_fit
-from gcs_core.filtr.smoothing_batch import whole_span_fit
-from gcs_core.filtr.stepping import Filtr
+from gcs_core.estimators.batch.least_squares import batch_fit
+from gcs_core.estimators.whole_span.fit import whole_span_fit
+from gcs_core.estimators.kalman.stepping import Filtr
 from test_filter_consistency import sim_problem, simulate
 
 mission, _ = simulate(7, duration_s=600.0)

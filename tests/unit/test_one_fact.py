@@ -19,10 +19,10 @@ from repo_paths import ROOT
 from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_error
 
 from gcs_core.errors import InputError
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr import mekf
-from gcs_core.filtr.filter_options import FilterOptions
-from gcs_core.filtr.stepping import Filtr
+from gcs_core.estimators.kalman import mekf
+from gcs_core.estimators.kalman.options import FilterOptions
+from gcs_core.estimators.kalman.stepping import Filtr
+from gcs_core.estimators.whole_span import knots as kn
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.io.types import SensorSpec
 from gcs_core.models import make_model
@@ -191,7 +191,8 @@ def test_robust_scale_is_the_noise_estimators():
     """The batch's editing and the noise estimator use one MAD-to-σ constant."""
     import inspect
 
-    from gcs_core.filtr import batch, noise
+    from gcs_core.estimators.batch import editing as batch
+    from gcs_core.noise import measured as noise
 
     assert batch.MAD_TO_SIGMA is noise.MAD_TO_SIGMA
     assert "1.4826 *" not in inspect.getsource(batch)

@@ -1,4 +1,4 @@
-"""The gyro's read-out noise σ_e in the whole-span normal equations (gcs_core.filtr.readout).
+"""The gyro's read-out noise σ_e in the whole-span normal equations (gcs_core.estimators.whole_span.readout).
 
 Checked against a dense form: every row of the pass formed explicitly (static partials,
 knot partials, residual, attitude partials D), grouped by epoch, and each epoch's rows
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 from test_filter_consistency import sim_problem, simulate
 
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr import smoothing_batch as sb
-from gcs_core.filtr import whole_span_passes as wsp
-from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.mekf import attitude_gyro_noise
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
+from gcs_core.estimators.whole_span import fit as sb
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span import passes as wsp
 from gcs_core.problem.linearization import iter_blocks
 
 NO_EDIT = BatchOptions(edit_k=None)
@@ -74,7 +74,8 @@ def test_epoch_elimination_equals_the_dense_covariance():
     z = np.zeros((grid.K, grid.d))
     z[1:, :3] = rng.normal(0, 1e-5, (grid.K - 1, 3))
     z[1:, 3:] = rng.normal(0, 1e-8, (grid.K - 1, 3))
-    A, b, chi2, _, sysk, R = passes.run(x, z, {})
+    lin = passes.run(x, z, {})
+    A, b, chi2, sysk, R = lin.A, lin.b, lin.chi2, lin.system, lin.R
     n = x.size
     A_d, b_d, chi_d = np.zeros((n, n)), np.zeros(n), 0.0
     Dk, Bk = np.zeros_like(sysk.Dk), np.zeros_like(sysk.Bk)
@@ -98,7 +99,7 @@ def test_epoch_elimination_equals_the_dense_covariance():
     np.testing.assert_allclose(sysk.Dk, Dk, rtol=ROUND_OFF, atol=ROUND_OFF * np.abs(Dk).max())
     np.testing.assert_allclose(sysk.Bk, Bk, rtol=1e-6, atol=ROUND_OFF * np.abs(Bk).max())
     # the line search's χ² (no Jacobian) is the same generalized χ²
-    assert abs(passes.run(x, z, {}, jacobian=False)[2] - chi_d) < ROUND_OFF * chi_d
+    assert abs(passes.run(x, z, {}, jacobian=False).chi2 - chi_d) < ROUND_OFF * chi_d
 
 
 def test_epoch_elimination_synthetic_rows_both_forms(monkeypatch):
@@ -106,7 +107,7 @@ def test_epoch_elimination_synthetic_rows_both_forms(monkeypatch):
     compiled and numpy forms of the elimination give the dense per-epoch weighting."""
     from types import SimpleNamespace
 
-    from gcs_core.filtr import readout
+    from gcs_core.estimators.whole_span import readout
 
     rng = np.random.default_rng(11)
     p = 5

@@ -15,7 +15,7 @@ import pytest
 
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.ranking import rank_candidates
-from gcs_core.filtr.batch import BatchOptions, batch_fit, normal_equations
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit, normal_equations
 from gcs_core.problem.linearization import chunk_windows, iter_blocks, linearize
 from gcs_core.problem.prepare import HeldChannels, hold_channels
 from gcs_core.session import Analysis

@@ -1,4 +1,4 @@
-"""The whole-span estimator with gyro process noise (gcs_core.filtr.smoothing_batch, knots).
+"""The whole-span estimator with gyro process noise (gcs_core.estimators.whole_span.fit, knots).
 
 Checked against:
 
@@ -26,11 +26,11 @@ from test_filter_consistency import chi2_band, sim_problem, simulate, smoothed_e
 from test_truth_recovery import ONE_HOUR, fit_and_compare, threeaxis
 
 from gcs_core.compiled import COMPILED
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr import smoothing_batch as sb
-from gcs_core.filtr import whole_span_passes as wsp
-from gcs_core.filtr.batch import BatchOptions, batch_fit
-from gcs_core.filtr.mekf import attitude_gyro_noise
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
+from gcs_core.estimators.whole_span import fit as sb
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span import passes as wsp
 from gcs_core.models.gyro_noise import GyroNoise
 
 NO_EDIT = BatchOptions(edit_k=None)
@@ -93,7 +93,8 @@ def test_elimination_equals_dense_solve():
     z = np.zeros((grid.K, grid.d))
     z[1:, :3] = rng.normal(0, 2e-5, (grid.K - 1, 3))
     z[1:, 3:] = rng.normal(0, 2e-8, (grid.K - 1, 3))
-    A, b, _, _, sysk, _ = passes.run(x, z, {})
+    lin = passes.run(x, z, {})
+    A, b, sysk = lin.A, lin.b, lin.system
     N, g = _dense(A, b, prior, x, x_bar, sysk)
     N_red, g_red, fac = sysk.eliminate(A + np.diag(prior), b + prior * (x_bar - x))
     dx, P = sb._solve_normal(N_red, g_red)
@@ -101,7 +102,7 @@ def test_elimination_equals_dense_solve():
     Sig, X = kn.KnotSystem.covariance(fac, P)
     # streaming (knots eliminated while the data pass) gives the same reduced system
     passes.stream = True
-    _, _, _, _, streamed, _ = passes.run(x, z, {})
+    streamed = passes.run(x, z, {}).system
     N_s, g_s, _ = streamed.eliminate(A + np.diag(prior), b + prior * (x_bar - x))
     np.testing.assert_allclose(N_s, N_red, rtol=1e-10, atol=1e-12 * np.abs(N_red).max())
     np.testing.assert_allclose(g_s, g_red, rtol=1e-8, atol=1e-10 * np.abs(g_red).max())
@@ -129,13 +130,13 @@ def test_knot_partials_against_finite_differences():
     z = np.zeros((grid.K, grid.d))
     z[1:, :3] = 3e-5
     z[1:, 3:] = -2e-8
-    _, _, _, _, sysk, _ = passes.run(x, z, {})
+    sysk = passes.run(x, z, {}).system
     for j, a, eps in ((1, 0, 1e-6), (2, 2, 1e-6), (2, 4, 1e-9), (grid.K - 1, 5, 1e-9)):
         zp, zm = z.copy(), z.copy()
         zp[j, a] += eps
         zm[j, a] -= eps
-        chi_p = passes.run(x, zp, {}, jacobian=False)[2]
-        chi_m = passes.run(x, zm, {}, jacobian=False)[2]
+        chi_p = passes.run(x, zp, {}, jacobian=False).chi2
+        chi_m = passes.run(x, zm, {}, jacobian=False).chi2
         fd = -0.25 * (chi_p - chi_m) / eps
         assert sysk.Bk[j, a, -1] == pytest.approx(fd, rel=2e-3, abs=1e-6 * abs(fd) + 1e-3), (j, a)
 
@@ -150,10 +151,10 @@ def test_compiled_and_numpy_forms_agree(monkeypatch):
     z[1:, :3] = 1e-4
     z[1:, 3:] = 1e-7
     x = np.asarray(batch.x)
-    _, _, _, _, fast, _ = passes.run(x, z, {})
+    fast = passes.run(x, z, {}).system
     C_fast = wsp.CorrectedAttitude(problem.attitude, grid, z, fast.R).evaluate(passes.values, problem.sensors[0].t).C_BI
     monkeypatch.setattr(kn, "COMPILED", False)
-    _, _, _, _, slow, _ = passes.run(x, z, {})
+    slow = passes.run(x, z, {}).system
     C_slow = wsp.CorrectedAttitude(problem.attitude, grid, z, slow.R).evaluate(passes.values, problem.sensors[0].t).C_BI
     np.testing.assert_allclose(fast.Dk, slow.Dk, rtol=1e-10, atol=1e-12 * np.abs(slow.Dk).max())
     np.testing.assert_allclose(fast.Bk, slow.Bk, rtol=1e-10, atol=1e-12 * np.abs(slow.Bk).max())

@@ -6,7 +6,7 @@ is only as good as its partials there; checked against central differences of χ
 corrections of 0.1 rad (5.7°):
 
 * the knot columns chain through the left Jacobian of the exp map
-  (:func:`gcs_core.filtr.knots.chained_attitude`), not the corrected attitude alone
+  (:func:`gcs_core.estimators.whole_span.knots.chained_attitude`), not the corrected attitude alone
   (off by |α|/2);
 * the statics' columns are the gyro-carried attitude's (``FrameAttitude.C_chain``): a
   body-frame perturbation of ``C_gyro`` moves ``C = C_gyro exp(−[α×])`` by the same
@@ -23,9 +23,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gcs_core.filtr import smoothing_batch as sb
-from gcs_core.filtr import whole_span_passes as wsp
-from gcs_core.filtr.batch import BatchOptions, batch_fit
+from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit
+from gcs_core.estimators.whole_span import fit as sb
+from gcs_core.estimators.whole_span import passes as wsp
 from gcs_core.io.importer import load_mission
 from gcs_core.problem.build import build_problem
 from gcs_core.sim.scenarios import nominal_threeaxis
@@ -56,14 +56,15 @@ def setup(tmp_path_factory):
 
 
 def _chi2_slope(passes, x, z, edits, dx, dz):
-    up = passes.run(x + dx, z + dz, edits, jacobian=False)[2]
-    down = passes.run(x - dx, z - dz, edits, jacobian=False)[2]
+    up = passes.run(x + dx, z + dz, edits, jacobian=False).chi2
+    down = passes.run(x - dx, z - dz, edits, jacobian=False).chi2
     return (up - down) / 2.0
 
 
 def test_partials_match_differences_at_large_corrections(setup):
     passes, x, sig, z, edits, rng = setup
-    A, b, chi2, _, sysk, _ = passes.run(x, z, edits)
+    lin = passes.run(x, z, edits)
+    b, sysk = lin.b, lin.system
     g_knots = sysk.Bk[:, :, -1].copy()  # Σ uᵀ r/σ per knot = −½ ∂χ²/∂z
     zero_x, zero_z = np.zeros_like(x), np.zeros_like(z)
     for part in (slice(0, 3), slice(3, z.shape[1])):

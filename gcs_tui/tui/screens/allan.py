@@ -1,7 +1,7 @@
 """Allan deviation of each sensor's telemetry, a modal plot (palette ``noise: allan deviation``).
 
-Fed by the list of :class:`~gcs_core.filtr.noise.SensorNoise` that
-:func:`~gcs_core.filtr.noise.mission_noise` returns: one log-log chart per sensor, a line
+Fed by the list of :class:`~gcs_core.noise.measured.SensorNoise` that
+:func:`~gcs_core.noise.measured.mission_noise` returns: one log-log chart per sensor, a line
 per component, and under it the white noise the telemetry shows against the data book's
 figure and, for gyros, the angle random walk N, rate random walk K and bias instability B
 read off the curve (IEEE Std 952-1997 Annex C). Escape closes it.

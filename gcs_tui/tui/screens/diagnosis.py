@@ -54,7 +54,6 @@ class DiagnosisScreen(GcsScreen):
     # ------------------------------------------------------------------ drawing
     def refresh_view(self) -> None:
         a = self.wb.analysis
-        alpha = a.config.diagnosis.significance
         table = self.query_one("#candidates", DataTable)
         labels = [
             Text("#", justify="right"),
@@ -68,8 +67,7 @@ class DiagnosisScreen(GcsScreen):
         ]
         rows = []
         for i, c in enumerate(a.candidates):
-            signif = c.p_adjusted < alpha
-            style = f"bold {color('gcs-warn')}" if signif and c.identifiable else ""
+            style = f"bold {color('gcs-warn')}" if c.passes else ""
             names = list(c.aliases_state) + [x for x, _ in c.aliases_candidates]
             aliases = ", ".join(names) if names else "—"
             cells = [
@@ -110,10 +108,10 @@ class DiagnosisScreen(GcsScreen):
         alpha = self.wb.analysis.config.diagnosis.significance
         verdict = (
             "significant and identifiable: a good candidate to add (a)"
-            if c.identifiable and c.p_adjusted < alpha
+            if c.passes
             else "not significant"
             if c.identifiable
-            else "not identifiable" + ("" if c.p_adjusted < alpha else ", not significant")
+            else "not identifiable" + ("" if c.significant else ", not significant")
         )
         lines = [
             f"{c.id} — {verdict}",

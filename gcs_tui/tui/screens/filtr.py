@@ -12,7 +12,7 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, ProgressBar, Static
 
 from gcs_core import display as fmt
-from gcs_tui.tui import filtr_run, jobs
+from gcs_tui.tui import filtr_run
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.messages import FiltrBlock
 from gcs_tui.tui.screens.base import GcsScreen
@@ -50,12 +50,7 @@ class FiltrScreen(GcsScreen):
         state.clear(columns=True)
         sensors.clear(columns=True)
         if run is None or not run.reports:
-            available = jobs.available("gcs_core.filtr.stepping", "Filtr")
-            info.update(
-                self.app.job_errors.get("filtr", EMPTY)
-                if available
-                else "FILTR stepping is not available in this installation (gcs_core.filtr.stepping)."
-            )
+            info.update(self.app.job_errors.get("filtr", EMPTY))
             bar.update(total=1, progress=0)
             plot.paint(None, empty="no blocks yet")
             return

@@ -6,7 +6,7 @@ the same. Each :meth:`Filtr.step` processes one block of ``block_seconds`` and r
 with its χ² p-value, frames used and gated); :meth:`Filtr.run` goes to the end, smooths,
 and returns a :class:`FilterResult` carrying post-fit residuals of the whole span.
 
-* With a gyro: the multiplicative EKF of :mod:`gcs_core.filtr.mekf` (Eq 3-3, 3-4, 4-38),
+* With a gyro: the multiplicative EKF of :mod:`gcs_core.estimators.kalman.mekf` (Eq 3-3, 3-4, 4-38),
   the attitude elements reinterpreted as the current attitude error δθ.
 * Without a gyro (reference-pointing or spinning missions): the same blocks with Q = 0,
   i.e. recursive least squares (the seed: "a Kalman filter reduces to a recursive
@@ -16,7 +16,7 @@ Passes. The first pass is an EKF (re-linearized at each block start). Further pa
 (``FilterOptions.max_passes``) re-linearize every block about the previous pass's
 smoothed trajectory from the a priori: the iterated Kalman smoother, Gauss–Newton on
 the whole span (Bell 1994). With Q = 0 it converges to the
-batch least-squares solution of :func:`~gcs_core.filtr.batch.batch_fit` (same a priori);
+batch least-squares solution of :func:`~gcs_core.estimators.batch.least_squares.batch_fit` (same a priori);
 ``tests/unit/test_kalman.py`` checks it.
 
 Consider elements are not carried by the filter (they stay at their values, as held).
@@ -30,9 +30,8 @@ from collections.abc import Callable, Mapping
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.filtr.filter_options import FilterOptions
-from gcs_core.filtr.kalman import solve_block
-from gcs_core.filtr.mekf import (
+from gcs_core.estimators.kalman.linear import solve_block
+from gcs_core.estimators.kalman.mekf import (
     assemble,
     attitude_gyro_noise,
     block_epochs,
@@ -40,8 +39,17 @@ from gcs_core.filtr.mekf import (
     gyro_segment,
     make_layout,
 )
-from gcs_core.filtr.residuals import make_residuals
-from gcs_core.filtr.results import (
+from gcs_core.estimators.kalman.options import FilterOptions
+from gcs_core.estimators.kalman.smoother import (
+    EpochStore,
+    SmoothedStates,
+    block_records,
+    gyro_residuals,
+    rts_smooth,
+    trajectory,
+)
+from gcs_core.estimators.residuals import make_residuals
+from gcs_core.estimators.results import (
     BlockReport,
     FilterResult,
     FrameDiagnostics,
@@ -50,7 +58,6 @@ from gcs_core.filtr.results import (
     nis_p_value,
     passes_text,
 )
-from gcs_core.filtr.smoother import EpochStore, SmoothedStates, block_records, gyro_residuals, rts_smooth, trajectory
 from gcs_core.frames.rotations import dcm_to_rotvec, euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
 from gcs_core.problem.attitude import RPY, rpy_error_jacobian
 from gcs_core.problem.build import Problem

@@ -14,13 +14,13 @@ averaging it. ``[filter] noise_weighting = "long_run"`` weights each such sensor
 
 ``s`` is the batch-means ratio of the long-run to the short-run variance of the sensor's
 own post-fit residuals (``1 + 2 Σ_j ρ_j`` for a stationary error; Conway, Operations
-Research 11(1), 1963; :func:`gcs_core.diagnosis.correlation.noise_scale`). Each draw held
+Research 11(1), 1963; :func:`gcs_core.noise.correlation.noise_scale`). Each draw held
 over ``n`` samples gives ``s = √n``; white residuals ``s ≈ 1``. The sequence, per fit:
 
 1. fit with the current weights (at the first fit: the stated σ);
 2. measure ``s`` of every measurement sensor over windows of ``L`` = ``noise_window``
    seconds (at least :data:`MIN_SAMPLES` sample intervals, and
-   :data:`~gcs_core.diagnosis.correlation.MIN_BLOCKS` windows in the span, else the sensor
+   :data:`~gcs_core.noise.correlation.MIN_BLOCKS` windows in the span, else the sensor
    keeps its stated σ and says why);
 3. refit with ``σ · k``; ``noise_passes`` = 2 measures again on the refit (its knots no
    longer follow the sensor's error, which the first fit's residuals hid) and refits.
@@ -56,7 +56,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from gcs_core.diagnosis.correlation import MIN_BLOCKS, noise_scale
+from gcs_core.noise.correlation import MIN_BLOCKS, noise_scale
 
 #: a window spans at least this many of the sensor's sample intervals (a window of one
 #: sample measures nothing)

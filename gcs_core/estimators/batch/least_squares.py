@@ -15,7 +15,7 @@ the noise floor the step adds the Newton terms of the models' parameter pairs
 (:mod:`~gcs_core.problem.curvature`) and, after a step that lands there and moves a
 sensor's own non-linear parameters (the FSS transfer function), minimizes over those
 with everything else held before the next linearization
-(:mod:`~gcs_core.filtr.local_refine`). Both only shorten the path: the fixed point is
+(:mod:`~gcs_core.estimators.batch.local_refine`). Both only shorten the path: the fixed point is
 Eq 3-1's, and the covariance is Eq 3-2's (the Gauss–Newton information). The iteration
 stops when the next step is below ``tol_step_sigma`` of every σ (the solution is then the
 last linearization point, whose residuals and covariance are those reported) or the cost
@@ -34,7 +34,7 @@ Consider elements ``c`` (not estimated, uncertainty carried) add
 Data editing: after convergence, frames whose normalized residual lies more than
 ``edit_k`` robust σ from its median in any component are flagged (never deleted) and the
 fit is repeated, until the set of flagged frames stops changing (k-σ editing, iterated;
-:func:`robust_outliers`). The robust σ keeps gross errors from hiding themselves and a
+:func:`.editing.robust_outliers`). The robust σ keeps gross errors from hiding themselves and a
 missing physical effect from being edited away.
 
 References
@@ -55,10 +55,11 @@ from scipy import linalg
 
 from gcs_core.config import FilterConfig
 from gcs_core.errors import EstimationError, UnobservableError
-from gcs_core.filtr import local_refine, stopping
-from gcs_core.filtr.noise import MAD_TO_SIGMA
-from gcs_core.filtr.residuals import Residuals, residuals_from
-from gcs_core.filtr.results import BatchResult
+from gcs_core.estimators import stopping
+from gcs_core.estimators.batch import local_refine
+from gcs_core.estimators.batch.editing import edit_frames, suspect_note
+from gcs_core.estimators.residuals import Residuals, residuals_from
+from gcs_core.estimators.results import BatchResult
 from gcs_core.linalg import sparse_basis
 from gcs_core.problem import curvature
 from gcs_core.problem.build import Problem
@@ -84,7 +85,7 @@ class BatchOptions:
     edit_k_sensor : sensor name -> its own k (0 or None: that sensor is not edited).
     rank_tol : relative eigenvalue threshold naming unobservable combinations.
     knot_correction : whole-span fit: re-solve the knots at a step's statics when the
-        step falls short (:mod:`gcs_core.filtr.smoothing_batch`); False for comparison.
+        step falls short (:mod:`gcs_core.estimators.whole_span.fit`); False for comparison.
     """
 
     max_iterations: int = FilterConfig.max_iterations
@@ -222,6 +223,9 @@ def batch_fit(
 
     ``edited`` pre-flags frames (e.g. a held-out span); ``initial`` starts the iteration
     from other values than the a priori (a warm start) without moving the prior mean.
+    The steps: the passes over the data (:class:`_Passes`), the damped Gauss–Newton
+    iterations of each editing pass (:func:`_iterate`, :func:`_damped_step`) and the
+    solution (:func:`_solution`).
     """
     opts = options or BatchOptions()
     state = problem.state
@@ -229,152 +233,204 @@ def batch_fit(
     cons = tuple(state.consider)
     if not names:
         raise EstimationError("nothing to estimate: every state element is held or consider")
-    n = len(names)
-    x_bar = np.array([state[nm].value for nm in names])
-    s0 = np.array([state[nm].sigma0 for nm in names])
-    prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
-    values = state.values()
-    preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
-    edits = {k: v.copy() for k, v in preflag.items()}
-    x = x_bar.copy()
+    ev = _Passes(problem, names, edited)
+    x = ev.x_bar.copy()
     if initial:
-        x = np.array([float(initial.get(nm, x_bar[j])) for j, nm in enumerate(names)])
-    history: list[float] = []
-    status, message = "max_iterations", ""
-    change = 0.0  # the cost's fall in the last accepted iteration
-    suspect_all: set[str] = set()
-    it_total = 0
-    counts = [0]
-    buffers = Residuals().ensure(problem)
-    work: dict = {}  # chunk buffers, reused by every pass
-    stored: list[tuple | None] = [None]  # (x, edits, A, χ², m) of the pass the buffers hold
+        x = np.array([float(initial.get(nm, ev.x_bar[j])) for j, nm in enumerate(names)])
+    rec = _Record()
+    groups = local_refine.own_nonlinear(problem, names)  # a sensor's own non-linear elements
+    edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
+    for edit_pass in range(opts.edit_passes if edits_on else 1):
+        x = _iterate(ev, opts, x, rec, groups)
+        ev.set_x(x)
+        if not edits_on:
+            break
+        if not _stored_at(ev.stored, x, ev.edits):
+            ev.evaluate(x)
+        ev.edits, suspect, changed = edit_frames(problem, ev.buffers, ev.preflag, opts, ev.edits)
+        rec.suspect |= suspect
+        if not changed:
+            break
+        log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in ev.edits.values()))
+    ev.set_x(x)
+    message = rec.message + suspect_note(rec.suspect, opts)
+    final = ev.stored if not cons and _stored_at(ev.stored, x, ev.edits) else None
+    return _solution(
+        problem,
+        opts,
+        ev.values,
+        x,
+        ev.prior_info,
+        ev.edits,
+        ev.buffers,
+        ev.work,
+        final,
+        tuple(rec.history),
+        rec.it_total,
+        rec.status,
+        message,
+    )
 
-    def evaluate(x_eval, with_jacobian=True):
-        for j, nm in enumerate(names):
-            values[nm] = x_eval[j]
-        # the Newton terms of the models' parameter pairs (used near the noise floor)
+
+@dataclass
+class _Record:
+    """What a batch fit reports of its iterations: the cost per iteration, the count, the
+    cost's fall in the last accepted one, the outcome and the sensors too bad to edit."""
+
+    history: list[float] = field(default_factory=list)
+    it_total: int = 0
+    change: float = 0.0
+    status: str = "max_iterations"
+    message: str = ""
+    suspect: set[str] = field(default_factory=set)
+
+
+class _Passes:
+    """Passes of the batch over the data at a point ``x``: the normal equations and the cost
+    (Eq 3-1, 3-2), the residuals in ``buffers``; the last pass with the Jacobian is kept
+    (``stored``: ``(x, edits, A, χ², m)``) so that the solution need not repeat it."""
+
+    def __init__(self, problem: Problem, names: tuple[str, ...], edited):
+        state = problem.state
+        self.problem, self.names = problem, names
+        self.x_bar = np.array([state[nm].value for nm in names])
+        s0 = np.array([state[nm].sigma0 for nm in names])
+        self.prior_info = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
+        self.values = state.values()
+        self.preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
+        self.edits = {k: v.copy() for k, v in self.preflag.items()}
+        self.count = 0  # measurement components of the last pass
+        self.buffers = Residuals().ensure(problem)
+        self.work: dict = {}  # chunk buffers, reused by every pass
+        self.stored: tuple | None = None
+
+    def set_x(self, x) -> None:
+        for j, nm in enumerate(self.names):
+            self.values[nm] = x[j]
+
+    def evaluate(self, x_eval, with_jacobian=True):
+        """(A, b, cost, x̄ − x, K) at ``x_eval``; ``K`` the Newton terms of the models'
+        parameter pairs (used near the noise floor), None without the Jacobian."""
+        self.set_x(x_eval)
+        n = len(self.names)
         K_ = np.zeros((n, n)) if with_jacobian else None
         A_, b_, chi2_, m_ = normal_equations(
-            problem,
-            values,
-            names,
-            edits,
+            self.problem,
+            self.values,
+            self.names,
+            self.edits,
             jacobian=with_jacobian,
-            store=buffers if with_jacobian else None,
-            work=work,
+            store=self.buffers if with_jacobian else None,
+            work=self.work,
             second_order=K_,
         )
         if with_jacobian:
-            stored[0] = (x_eval.copy(), edits, A_, chi2_, m_)
-        counts[0] = m_
-        d_ = x_bar - x_eval
-        cost_ = chi2_ + float(np.sum(prior_info * d_**2))
+            self.stored = (x_eval.copy(), self.edits, A_, chi2_, m_)
+        self.count = m_
+        d_ = self.x_bar - x_eval
+        cost_ = chi2_ + float(np.sum(self.prior_info * d_**2))
         return A_, b_, cost_, d_, K_
 
-    edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
-    groups = local_refine.own_nonlinear(problem, names)  # a sensor's own non-linear elements
-    for edit_pass in range(opts.edit_passes if edits_on else 1):
-        A, b, cost, dx_prior, K = evaluate(x)
-        lam_state = 0.0
-        if not np.isfinite(cost):
-            raise EstimationError("the initial state gives non-finite residuals; check the a-priori values")
-        history.append(cost)
-        for it in range(opts.max_iterations):
-            it_total += 1
-            Nmat = A + np.diag(prior_info)
-            try:
-                step, P = _solve_normal(Nmat, b + prior_info * dx_prior)
-            except np.linalg.LinAlgError:
-                combos = name_combinations(A, names, opts.rank_tol)
-                raise UnobservableError(
-                    "the normal matrix is singular: the data cannot separate "
-                    + "; ".join(combos or ["(unidentified)"]),
-                    combos,
-                ) from None
-            sig = np.sqrt(np.diag(P))
-            N_newton = None if K is None else curvature.newton_matrix(Nmat, K, cost, counts[0])
-            if N_newton is not None:  # near the noise floor: the Newton step (curvature.py)
-                Nmat = N_newton
-                step = _solve_normal(Nmat, b + prior_info * dx_prior)[0]
-            if it and np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)):
-                # converged: the next step is negligible against σ; the solution is this
-                # point, whose residuals and covariance the last pass already holds
-                status, message = "converged", f"converged after {it} iterations"
-                it_total -= 1
-                break
-            # Levenberg–Marquardt safeguard: a Gauss–Newton step that raises the cost (a
-            # model far from the data, or a nearly unobservable non-linear direction such
-            # as an FSS frequency k with amplitude A3 ≈ 0) is re-solved with the normal
-            # matrix's diagonal inflated by λ until the cost falls; λ relaxes after success.
-            # The first trial point is linearized at once (it is usually accepted, and the
-            # pass that gives its cost gives its Jacobian too); later trials need the cost only.
-            lam = lam_state
-            rhs = b + prior_info * dx_prior
-            trial = None
-            for attempt in range(14):
-                if lam > 0:
-                    step, _ = _solve_normal(Nmat + lam * np.diag(np.diag(Nmat)), rhs)
-                x_try = x + step
-                # a step expected to land near the noise floor (the Gauss–Newton prediction
-                # cost − rhsᵀ step) that moves a sensor's own non-linear elements: minimize
-                # over those first (local_refine)
-                if (
-                    attempt == 0
-                    and groups
-                    and curvature.near_floor(cost - float(rhs @ step), counts[0])
-                    and local_refine.worth(step, sig, names, groups)
-                ):
-                    x_try = local_refine.refine_local(
-                        problem, values, names, x_try, x_bar, prior_info, edits, groups, opts.tol_step_sigma
-                    )
-                trial = evaluate(x_try, with_jacobian=attempt == 0)
-                cost_t = trial[2]
-                if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
-                    break
-                lam = max(lam * 10.0, 1e-4)
-            else:
-                # the cost is finite and never rose (steps are accepted only when they lower
-                # it): a stall, reported with its numbers (stopping.py)
-                status, message = stopping.stalled(
-                    it_total - 1, cost, change, float(rhs @ step), "no damped step lowers the cost"
-                )
-                break
-            frac = 1.0 if lam == 0 else 0.0
-            lam_state = lam / 10.0 if lam > 1e-4 else 0.0
-            change = cost - cost_t
-            A, b, cost, dx_prior, K = trial if attempt == 0 else evaluate(x_try)
-            m_meas = counts[0]
-            x = x_try
-            history.append(cost)
-            # converged: steps negligible against σ, or the cost no longer moves (absolutely,
-            # or relatively for a model far from the data, whose χ² is huge)
-            # a model far from the data (χ² > 2 per measurement) crawls along flat valleys;
-            # its precise minimum is meaningless, so it stops at a relative change of 1e-4
-            tol = opts.tol_chi2 if cost < 2.0 * max(m_meas, 1) else max(opts.tol_chi2, 1e-4 * cost)
-            if (frac == 1.0 or it >= 2) and change < tol:
-                status, message = "converged", f"converged after {it + 1} iterations"
-                break
-        else:
-            status, message = stopping.iteration_limit(opts.max_iterations, cost, change)
-        for j, nm in enumerate(names):
-            values[nm] = x[j]
-        if not edits_on:
-            break
-        if not _stored_at(stored[0], x, edits):
-            evaluate(x)
-        edits, suspect, changed = edit_frames(problem, buffers, preflag, opts, edits)
-        suspect_all |= suspect
-        if not changed:
-            break
-        log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in edits.values()))
 
-    for j, nm in enumerate(names):
-        values[nm] = x[j]
-    message += suspect_note(suspect_all, opts)
-    final = stored[0] if not cons and _stored_at(stored[0], x, edits) else None
-    return _solution(
-        problem, opts, values, x, prior_info, edits, buffers, work, final, tuple(history), it_total, status, message
-    )
+def _iterate(ev: _Passes, opts: BatchOptions, x: np.ndarray, rec: _Record, groups) -> np.ndarray:
+    """Damped Gauss–Newton iterations from ``x`` with the current edits until converged,
+    stalled or at the limit (the outcome in ``rec``); returns the last accepted point."""
+    names, prior_info = ev.names, ev.prior_info
+    A, b, cost, dx_prior, K = ev.evaluate(x)
+    lam_state = 0.0
+    if not np.isfinite(cost):
+        raise EstimationError("the initial state gives non-finite residuals; check the a-priori values")
+    rec.history.append(cost)
+    for it in range(opts.max_iterations):
+        rec.it_total += 1
+        Nmat = A + np.diag(prior_info)
+        try:
+            step, P = _solve_normal(Nmat, b + prior_info * dx_prior)
+        except np.linalg.LinAlgError:
+            combos = name_combinations(A, names, opts.rank_tol)
+            raise UnobservableError(
+                "the normal matrix is singular: the data cannot separate " + "; ".join(combos or ["(unidentified)"]),
+                combos,
+            ) from None
+        sig = np.sqrt(np.diag(P))
+        N_newton = None if K is None else curvature.newton_matrix(Nmat, K, cost, ev.count)
+        if N_newton is not None:  # near the noise floor: the Newton step (curvature.py)
+            Nmat = N_newton
+            step = _solve_normal(Nmat, b + prior_info * dx_prior)[0]
+        if it and np.all(np.abs(step) <= opts.tol_step_sigma * np.maximum(sig, 1e-300)):
+            # converged: the next step is negligible against σ; the solution is this
+            # point, whose residuals and covariance the last pass already holds
+            rec.status, rec.message = "converged", f"converged after {it} iterations"
+            rec.it_total -= 1
+            break
+        rhs = b + prior_info * dx_prior
+        found, step = _damped_step(ev, opts, x, cost, Nmat, rhs, step, sig, lam_state, groups)
+        if found is None:
+            # the cost is finite and never rose (steps are accepted only when they lower
+            # it): a stall, reported with its numbers (stopping.py)
+            rec.status, rec.message = stopping.stalled(
+                rec.it_total - 1, cost, rec.change, float(rhs @ step), "no damped step lowers the cost"
+            )
+            break
+        x_try, trial, lam, first = found
+        frac = 1.0 if lam == 0 else 0.0
+        lam_state = lam / 10.0 if lam > 1e-4 else 0.0
+        rec.change = cost - trial[2]
+        A, b, cost, dx_prior, K = trial if first else ev.evaluate(x_try)
+        m_meas = ev.count
+        x = x_try
+        rec.history.append(cost)
+        # converged: steps negligible against σ, or the cost no longer moves (absolutely,
+        # or relatively for a model far from the data, whose χ² is huge)
+        # a model far from the data (χ² > 2 per measurement) crawls along flat valleys;
+        # its precise minimum is meaningless, so it stops at a relative change of 1e-4
+        tol = opts.tol_chi2 if cost < 2.0 * max(m_meas, 1) else max(opts.tol_chi2, 1e-4 * cost)
+        if (frac == 1.0 or it >= 2) and rec.change < tol:
+            rec.status, rec.message = "converged", f"converged after {it + 1} iterations"
+            break
+    else:
+        rec.status, rec.message = stopping.iteration_limit(opts.max_iterations, cost, rec.change)
+    return x
+
+
+def _damped_step(ev: _Passes, opts: BatchOptions, x, cost, Nmat, rhs, step, sig, lam, groups):
+    """Levenberg–Marquardt safeguard: a Gauss–Newton step that raises the cost (a model far
+    from the data, or a nearly unobservable non-linear direction such as an FSS frequency k
+    with amplitude A3 ≈ 0) is re-solved with the normal matrix's diagonal inflated by λ
+    until the cost falls; λ relaxes after success (the caller's). The first trial point is
+    linearized at once (it is usually accepted, and the pass that gives its cost gives its
+    Jacobian too); later trials need the cost only. Returns ((x, the pass there, λ, whether
+    it was the first trial) or None when 14 tries do not lower the cost, the last step)."""
+    names = ev.names
+    for attempt in range(14):
+        if lam > 0:
+            step, _ = _solve_normal(Nmat + lam * np.diag(np.diag(Nmat)), rhs)
+        x_try = x + step
+        # a step expected to land near the noise floor (the Gauss–Newton prediction
+        # cost − rhsᵀ step) that moves a sensor's own non-linear elements: minimize
+        # over those first (local_refine)
+        if (
+            attempt == 0
+            and groups
+            and curvature.near_floor(cost - float(rhs @ step), ev.count)
+            and local_refine.worth(step, sig, names, groups)
+        ):
+            x_try = local_refine.refine_local(
+                ev.problem,
+                ev.values,
+                names,
+                x_try,
+                ev.x_bar,
+                ev.prior_info,
+                ev.edits,
+                groups,
+                opts.tol_step_sigma,
+            )
+        trial = ev.evaluate(x_try, with_jacobian=attempt == 0)
+        if np.isfinite(trial[2]) and trial[2] <= cost * (1 + 1e-12) + 1e-9:
+            return (x_try, trial, lam, attempt == 0), step
+        lam = max(lam * 10.0, 1e-4)
+    return None, step
 
 
 def _solution(
@@ -438,82 +494,6 @@ def _solution(
         unobs,
         budget,
     )
-
-
-def edit_frames(
-    problem: Problem,
-    buffers,
-    preflag: Mapping[str, np.ndarray],
-    opts: BatchOptions,
-    previous: Mapping[str, np.ndarray],
-    scale: Mapping[str, np.ndarray] | None = None,
-):
-    """k-σ editing of every sensor's residuals by the robust rule (:func:`robust_outliers`),
-    on top of the frames flagged before the fit (``preflag``); ``scale`` gives a sensor's
-    (N, m) σ per row where it is not the data book's (the whole-span fit's marginal σ under
-    the gyro's read-out noise).
-
-    A sensor that would lose more than ``opts.max_edit_fraction`` of its frames is not
-    edited: that many outliers is a model error to report and rank, not outliers. Returns
-    (sensor -> edited mask, names of such sensors, whether the masks differ from ``previous``).
-    """
-    new_edits, suspect = {}, set()
-    for sd in problem.sensors:
-        valid = buffers.valid[sd.name]
-        pre = preflag.get(sd.name, np.zeros(valid.shape, bool))
-        k = opts.k_for(sd.name)
-        if k is None:
-            new_edits[sd.name] = pre
-            continue
-        sig = sd.sigma if scale is None or sd.name not in scale else scale[sd.name]
-        out = robust_outliers(buffers.r[sd.name] / sig, valid & ~pre, k)
-        n_valid = max(1, int(np.count_nonzero(valid & ~pre)))
-        if np.count_nonzero(out) > opts.max_edit_fraction * n_valid:
-            suspect.add(sd.name)
-            out[:] = False
-        new_edits[sd.name] = pre | out
-    changed = any(not np.array_equal(m, previous.get(k, np.zeros_like(m))) for k, m in new_edits.items())
-    return new_edits, suspect, changed
-
-
-def suspect_note(suspect, opts: BatchOptions) -> str:
-    """What a fit's message adds for the sensors :func:`edit_frames` left unedited ('' for none)."""
-    if not suspect:
-        return ""
-    return (
-        "; not edited (more than "
-        f"{100 * opts.max_edit_fraction:g}% of frames beyond their k σ, the model "
-        "is suspect): " + ", ".join(sorted(suspect))
-    )
-
-
-def robust_outliers(z: np.ndarray, candidates: np.ndarray, k: float) -> np.ndarray:
-    """Frames whose normalized residual ``z`` (N, m) is an outlier, among ``candidates``.
-
-    A frame is flagged when any component lies more than ``k · max(1, s)`` from the
-    component's median, ``s`` being the robust scale of the normalized residuals
-    (1.4826 × the median absolute deviation, pooled over components; 1.0 at the noise
-    floor for Gaussian noise). Scaling the threshold by ``s`` keeps the editing for
-    isolated gross errors (a misidentified star, a telemetry hit): a model that misses a
-    physical effect widens the whole distribution, ``s`` grows with it, and the signature
-    the diagnosis needs is not edited away. Gross outliers cannot mask themselves
-    either, since the median and MAD ignore up to half of the frames.
-
-    References
-    ----------
-    Hampel, Ronchetti, Rousseeuw & Stahel, *Robust Statistics*, Wiley 1986, §2.6
-    (the MAD and its 1.4826 consistency factor for the normal law).
-    """
-    out = np.zeros(candidates.shape, bool)
-    if not np.any(candidates):
-        return out
-    zc = z[candidates]
-    with np.errstate(invalid="ignore"):
-        dev = np.abs(zc - np.nanmedian(zc, axis=0))
-        s = MAD_TO_SIGMA * float(np.nanmedian(dev))
-        big = np.any(dev > k * max(1.0, s if np.isfinite(s) else 1.0), axis=1)
-    out[np.flatnonzero(candidates)[big]] = True
-    return out
 
 
 def _stored_at(stored, x, edits) -> bool:

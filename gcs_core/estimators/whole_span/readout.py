@@ -7,7 +7,7 @@ sample (Farrenkopf 1978; Markley & Crassidis 2014 §6.2) gives rates that carry
     δθ(t_k) = w(t_k) + e_k − e_ref
 
 ``w`` the random walk of the angle and rate noise (σ_v, σ_u: the knots of
-:mod:`gcs_core.filtr.knots`), ``e_k − e_ref`` the read-out noise, which telescopes and does
+:mod:`gcs_core.estimators.whole_span.knots`), ``e_k − e_ref`` the read-out noise, which telescopes and does
 not accumulate. ``e_ref`` is one constant rotation: the static roll/pitch/yaw take it up
 (they are the gyro-carried trajectory's reference, which differs from the true attitude
 at ``t_ref`` by ``e_ref``). What remains is a white body-frame attitude error ``ε_k = e_k``
@@ -52,7 +52,7 @@ cost with ``‖ε̂_k‖²/σ_e²``: Gauss–Newton on the joint problem in ``(x
 minimum is the known-variance functional errors-in-variables estimate (Deming's), consistent
 where the ``ε = 0`` form is not. After each accepted step ``ε̂`` moves to its conditional
 optimum ``ε̂ + M⁻¹ g_ε`` at the new ``(x, z)``; the fit converges when that move is below
-:data:`~gcs_core.filtr.smoothing_batch.EPS_TOL` σ_e as well. The reported residuals are at
+:data:`~gcs_core.estimators.whole_span.fit.EPS_TOL` σ_e as well. The reported residuals are at
 ``ε = 0`` (``r + D ε̂`` to first order): the marginal residuals, of variance
 ``σ² + σ_e² |D|²`` less the prediction's.
 
@@ -81,7 +81,7 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_core.compiled import COMPILED, jit
-from gcs_core.filtr import knots as kn
+from gcs_core.estimators.whole_span import knots as kn
 
 _jit = jit()
 

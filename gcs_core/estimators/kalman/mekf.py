@@ -1,6 +1,6 @@
 """The multiplicative EKF of FILTR: gyro kinematics and filter blocks (Eq 3-3, 3-4, 4-38).
 
-Two kinds of problem, one block format (:class:`~gcs_core.filtr.kalman.LinearBlock`):
+Two kinds of problem, one block format (:class:`~gcs_core.estimators.kalman.linear.LinearBlock`):
 
 * **With a gyro** (``problem.gyro_name`` set, ``problem.attitude`` a GyroAttitude): the
   multiplicative EKF. The filter state is laid out ``(δθ, b, s)`` (:class:`Layout`): the
@@ -42,7 +42,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gcs_core.errors import EstimationError
-from gcs_core.filtr.kalman import LinearBlock
+from gcs_core.estimators.kalman.linear import LinearBlock
 from gcs_core.frames.rotations import quat_to_dcm
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix

@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.compiled import COMPILED, jit
-from gcs_core.filtr.knot_kernels import _accumulate, _accumulate_fused, _accumulate_numpy
+from gcs_core.estimators.whole_span.knot_kernels import _accumulate, _accumulate_fused, _accumulate_numpy
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 
 _jit = jit()

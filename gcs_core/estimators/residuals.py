@@ -1,6 +1,6 @@
 """Per-sensor residuals of a pass (seed Eq 3-1, 3-2): the buffers a streaming pass fills,
 the normal-equation accumulation over a whole-span linearization and the
-:class:`~gcs_core.filtr.results.SensorResiduals` built from either.
+:class:`~gcs_core.estimators.results.SensorResiduals` built from either.
 """
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from gcs_core.filtr.results import SensorResiduals
+from gcs_core.estimators.results import SensorResiduals
 from gcs_core.models.base import ObservationModel
 from gcs_core.problem.build import Problem
 from gcs_core.problem.linearization import Linearization

@@ -1,7 +1,7 @@
 """Linear Kalman-filter core of FILTR (seed §3.2.1, Eq 3-3 and 3-4).
 
 The state is split into a dynamic part ``d`` (the attitude error δθ and random-walking
-gyro biases in the MEKF of :mod:`gcs_core.filtr.mekf`) and a static part ``s`` (Φ = I,
+gyro biases in the MEKF of :mod:`gcs_core.estimators.kalman.mekf`) and a static part ``s`` (Φ = I,
 Q = 0). Between times the filter propagates (Eq 3-4)::
 
     x_k = Φ_k x_{k−1} + w_k,   P_k⁻ = Φ_k P_{k−1} Φ_kᵀ + Q_k                     (Eq 3-4)
@@ -38,7 +38,7 @@ round-off (``tests/unit/test_kalman.py``).
 Two engines, one answer
 -----------------------
 :func:`solve_block` runs the compiled frame-by-frame kernel of
-:mod:`gcs_core.filtr.kalman_kernels` (numba; the same Eq 3-3, 3-4 and Joseph update, one
+:mod:`gcs_core.estimators.kalman.kernels` (numba; the same Eq 3-3, 3-4 and Joseph update, one
 frame at a time, O(n² m) per frame) when numba imports, and the lifted-group numpy core
 above otherwise (:data:`ENGINE`, chosen once from :data:`gcs_core.compiled.COMPILED`). Both give
 the same state, covariance, per-frame diagnostics and gate decisions to round-off
@@ -60,7 +60,7 @@ import numpy as np
 from scipy.linalg import lapack
 
 from gcs_core.compiled import COMPILED
-from gcs_core.filtr import kalman_kernels
+from gcs_core.estimators.kalman import kernels
 
 __all__ = ["LinearBlock", "BlockSolution", "solve_block", "referred_transitions", "group_partition", "ENGINE"]
 
@@ -181,7 +181,7 @@ def solve_block(
     else:
         gates = np.broadcast_to(np.asarray(edit_k, float), (F,)).copy()
     if engine == "compiled":
-        return BlockSolution(*kalman_kernels.run_block(y0, P0, blk, gates, keep_epochs))
+        return BlockSolution(*kernels.run_block(y0, P0, blk, gates, keep_epochs))
     if engine != "numpy":
         raise ValueError(f"unknown Kalman engine {engine!r} (compiled, numpy)")
     n, d = blk.n, blk.d

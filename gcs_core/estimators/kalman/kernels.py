@@ -1,7 +1,7 @@
 """Compiled frame-by-frame Kalman pass of FILTR (seed §3.2.1, Eq 3-3 and 3-4), with numba.
 
-:func:`filter_frames` runs one :class:`~gcs_core.filtr.kalman.LinearBlock` frame after
-frame, in the block-start coordinates ``y`` of :mod:`gcs_core.filtr.kalman` (there
+:func:`filter_frames` runs one :class:`~gcs_core.estimators.kalman.linear.LinearBlock` frame after
+frame, in the block-start coordinates ``y`` of :mod:`gcs_core.estimators.kalman.linear` (there
 ``Φ = I``: propagation only adds the process noise entering at each epoch)::
 
     P⁻ = P + ΔΠ_k                                                                (Eq 3-4)
@@ -22,7 +22,7 @@ epoch ``e`` is marginalized out (its rows and columns dropped) and re-introduced
 ``e ~ N(0, σ_e² I)``.
 
 Engine selection is :data:`gcs_core.compiled.COMPILED`: when it holds,
-:mod:`gcs_core.filtr.kalman` runs this kernel, otherwise its pure-numpy lifted-group core
+:mod:`gcs_core.estimators.kalman.linear` runs this kernel, otherwise its pure-numpy lifted-group core
 (same answer to round-off). Without numba the functions below are plain Python (correct,
 slow: tests only).
 

@@ -1,4 +1,5 @@
-"""What the knots of a whole-span fit give the rest of GCS (:mod:`.smoothing_batch`).
+"""What the knots of a whole-span fit give the rest of GCS (:mod:`.fit`), through its result
+(:class:`.result.SmoothedResult`) and the predictor.
 
 * :func:`smoothed_holdout_rms` — held-out residuals standardized by noise, static and knot
   uncertainty together;
@@ -11,17 +12,21 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr.batch import _solve_normal
-from gcs_core.filtr.readout import row_variance
-from gcs_core.filtr.results import BatchResult
-from gcs_core.filtr.smoothing_batch import SmoothedResult, make_knots, process_noise
-from gcs_core.filtr.whole_span_passes import Dynamics, Passes
+from gcs_core.estimators.batch.least_squares import _solve_normal
+from gcs_core.estimators.results import FitResult
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.grid import make_knots, process_noise
+from gcs_core.estimators.whole_span.passes import Dynamics, Passes
+from gcs_core.estimators.whole_span.readout import row_variance
 from gcs_core.problem.build import Problem
-from gcs_core.problem.linearization import iter_blocks, linearize
+from gcs_core.problem.linearization import iter_blocks
+
+if TYPE_CHECKING:  # the result reads its algebra from here
+    from gcs_core.estimators.whole_span.result import SmoothedResult
 
 
 def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | None = None, cols=None) -> np.ndarray:
@@ -40,32 +45,11 @@ def knot_variance(dyn: Dynamics, U: np.ndarray, j: np.ndarray, HJ: np.ndarray | 
     return out
 
 
-def static_holdout_rms(problem: Problem, res, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
-    """Normalized RMS of the held-out frames of a fit without process noise, each residual standardized by its full
-    prediction uncertainty ``sqrt(σ² + (H P Hᵀ)_ii)`` (noise plus the uncertainty of the
-    training fit carried to that frame), so 1.0 is the expected value for a right model."""
-    lins = {l.name: l for l in linearize(problem, res.state.values(), res.solve_for)}
-    out = {}
-    for name, r in res.residuals.items():
-        m = masks.get(name)
-        lin = lins.get(name)
-        if m is None or lin is None:
-            continue
-        sel = m & r.valid
-        if not np.any(sel):
-            continue
-        H = lin.H[sel]
-        var_pred = np.einsum("kmn,np,kmp->km", H, res.P, H, optimize=True)
-        z = r.residual[sel] / np.sqrt(lin.sigma[None, :] ** 2 + var_pred)
-        out[name] = float(np.sqrt(np.mean(z**2)))
-    return out
-
-
 def smoothed_frames(problem: Problem, res: SmoothedResult, select: Mapping[str, np.ndarray]):
     """(sensor, residual (k, m), noise variance (k, m), prediction variance (k, m)) of the
     ``select``-ed valid frames of a whole-span fit, chunk by chunk: the noise variance
     ``σ² + σ_e² |D|²`` (the data book's σ plus the gyro's read-out error the fit carried,
-    :mod:`gcs_core.filtr.readout`), the prediction variance
+    :mod:`gcs_core.estimators.whole_span.readout`), the prediction variance
     ``h P hᵀ + u Σ_j uᵀ + 2 u Cov(z_j, x) hᵀ`` of the static elements and the knots."""
     dyn = res.dynamics
     assert dyn is not None  # a whole-span fit with knots (callers check)
@@ -111,7 +95,7 @@ def smoothed_holdout_rms(problem: Problem, res: SmoothedResult, masks: Mapping[s
     return {k: float(np.sqrt(v[0] / v[1])) for k, v in sums.items() if v[1]}
 
 
-def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
+def batch_wander_cost(problem: Problem, res: FitResult) -> dict | None:
     """What ignoring the gyro noise costs a batch solution on these data (one pass).
 
     At the batch solution the knots of the whole-span problem are added and eliminated:
@@ -123,7 +107,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     residual signature of the wander the batch leaves to the diagnosis).
     """
     noise = process_noise(problem)
-    if noise is None or not res.solve_for:
+    if noise is None or not res.solve_for or res.information is None:
         return None
     state = problem.state
     names = tuple(res.solve_for)
@@ -135,7 +119,8 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
     passes.keep = False
     edits = {nm: r.edited for nm, r in res.residuals.items()}
     x = np.asarray(res.x, float)
-    A, b, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), edits)
+    lin = passes.run(x, np.zeros((grid.K, grid.d)), edits)
+    A, b, sysk = lin.A, lin.b, lin.system
     N_red, g_red, _ = sysk.eliminate(A + np.diag(prior_info), b + prior_info * (x_bar - x))
     dx, P_q = _solve_normal(N_red, g_red)
     pb = np.clip(np.diag(res.P), 1e-300, None)
@@ -153,7 +138,7 @@ def batch_wander_cost(problem: Problem, res: BatchResult) -> dict | None:
 def attitude_covariance(dyn: Dynamics, C: np.ndarray, t: np.ndarray, J: np.ndarray) -> np.ndarray:
     """(N, 3, 3) body-frame attitude error covariance added by the knots at times ``t``:
     ``δθ = C [I | Γ_j(t)] z_j`` with ``J`` (N, 3, n) the static partials over ``dyn.names``,
-    plus the gyro's read-out error ``σ_e² I`` the fit carried (:mod:`gcs_core.filtr.readout`)."""
+    plus the gyro's read-out error ``σ_e² I`` the fit carried (:mod:`gcs_core.estimators.whole_span.readout`)."""
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     j = dyn.grid.index(t)
     U = kn.knot_rows(
@@ -197,7 +182,8 @@ def predicted_covariance(
     passes.values = dict(values)
     passes.keep = False
     x = np.array([values[nm] for nm in names])
-    A, _, _, _, sysk, _ = passes.run(x, np.zeros((grid.K, grid.d)), exclude, columns=names + cons)
+    lin = passes.run(x, np.zeros((grid.K, grid.d)), exclude, columns=names + cons)
+    A, sysk = lin.A, lin.system
     N = A + np.diag(np.concatenate([prior, np.zeros(len(cons))]))
     N_red, _, _ = sysk.eliminate(N, np.zeros(N.shape[0]))
     _, P = _solve_normal(N_red[:n, :n], np.zeros(n))

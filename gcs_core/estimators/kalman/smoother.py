@@ -39,9 +39,9 @@ from typing import Literal
 
 import numpy as np
 
-from gcs_core.filtr.mekf import attitude_gyro_noise, gyro_rates, sensor_window, step_quaternions
-from gcs_core.filtr.readout import row_variance
-from gcs_core.filtr.results import SensorResiduals, SmoothedTrajectory
+from gcs_core.estimators.kalman.mekf import attitude_gyro_noise, gyro_rates, sensor_window, step_quaternions
+from gcs_core.estimators.results import SensorResiduals, SmoothedTrajectory
+from gcs_core.estimators.whole_span.readout import row_variance
 from gcs_core.frames.rotations import dcm_to_rotvec, quat_from_dcm, quat_multiply, quat_normalize
 
 log = logging.getLogger(__name__)
@@ -245,7 +245,7 @@ def smoothed_residuals(
 
     With a gyro read-out noise σ_e the rows are normalized by their marginal σ,
     ``sqrt(σ² + σ_e² |D|²)`` (D the row's attitude partials), as the whole-span fit's are
-    (:mod:`gcs_core.filtr.readout`): the read-out error is white per epoch, so the smoothed
+    (:mod:`gcs_core.estimators.whole_span.readout`): the read-out error is white per epoch, so the smoothed
     attitude cannot follow it and the residual carries it.
     """
     out = {}

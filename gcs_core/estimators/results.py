@@ -9,12 +9,16 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Protocol
+from typing import Any, Protocol
 
 import numpy as np
 from scipy import special
 
+from gcs_core.estimators import static_algebra
+from gcs_core.estimators.static_algebra import Elimination, HoldoutChi2, Influence, NoElimination
 from gcs_core.frames.rotations import quat_to_dcm
+from gcs_core.problem.attitude import AttitudeProvider
+from gcs_core.problem.build import Problem
 from gcs_core.problem.state import StateVector
 
 
@@ -80,6 +84,93 @@ class FitResult(Protocol):
 
     @property
     def consider_budget(self) -> Mapping[str, np.ndarray]: ...
+
+    # ---- the result's own algebra: what the diagnosis, VERIF and the reports ask of a fit
+    @property
+    def dynamics(self) -> Any:
+        """The estimator's own dynamic corrections (a whole-span fit's knots, read by that
+        estimator when it starts from this result), or None."""
+        ...
+
+    @property
+    def carries_process_noise(self) -> bool:
+        """True when the fit estimated the gyro's wander (its σ of gyro elements count it)."""
+        ...
+
+    @property
+    def scores_own_residuals(self) -> bool:
+        """True when the score tests read the result's own residuals (a smoother's, at the
+        smoothed attitude) rather than the deterministic linearization's."""
+        ...
+
+    def warm_start(self) -> dict:
+        """Keyword arguments that start a refit of the same data at this solution."""
+        ...
+
+    def attitude_provider(self, provider: AttitudeProvider) -> AttitudeProvider:
+        """The fitted attitude, from the problem's attitude provider."""
+        ...
+
+    def attitude_wander_covariance(self, C: np.ndarray, t: np.ndarray, J: np.ndarray) -> np.ndarray:
+        """(N, 3, 3) attitude error covariance at ``t`` beyond that of the static elements."""
+        ...
+
+    def holdout_rms(self, problem: Problem, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+        """Sensor -> normalized RMS of the held-out frames ``masks``, each residual over its
+        prediction's σ (noise and the fit's uncertainty carried there)."""
+        ...
+
+    def holdout_chi2(self, problem: Problem, sel: Mapping[str, np.ndarray]) -> HoldoutChi2 | None:
+        """χ² sums of the held-out frames ``sel`` under this (training) fit."""
+        ...
+
+    def influence(self, problem: Problem) -> Influence:
+        """Each sensor's share of the fit's effective parameters (goodness of fit)."""
+        ...
+
+    def candidate_elimination(self, problem: Problem, K: int, A: np.ndarray, g: np.ndarray) -> Elimination:
+        """What the score tests of candidate columns must eliminate besides the state
+        (normal equations ``A``, ``g`` over ``K`` columns, accumulated by the caller)."""
+        ...
+
+
+class StaticAlgebra:
+    """The result protocol's algebra for a fit whose state is static between its parameters
+    (:mod:`gcs_core.estimators.static_algebra`); the batch's and the filter's results."""
+
+    @property
+    def carries_process_noise(self) -> bool:
+        return False
+
+    @property
+    def dynamics(self) -> Any:
+        """A static fit has no dynamic corrections (a whole-span fit's knots)."""
+        return None
+
+    @property
+    def scores_own_residuals(self) -> bool:
+        return False
+
+    def warm_start(self) -> dict:
+        return {"initial": self.state.values()}  # type: ignore[attr-defined]
+
+    def attitude_provider(self, provider: AttitudeProvider) -> AttitudeProvider:
+        return provider
+
+    def attitude_wander_covariance(self, C: np.ndarray, t: np.ndarray, J: np.ndarray) -> np.ndarray:
+        return np.zeros((np.size(t), 3, 3))
+
+    def holdout_rms(self, problem: Problem, masks: Mapping[str, np.ndarray]) -> dict[str, float]:
+        return static_algebra.holdout_rms(problem, self, masks)
+
+    def holdout_chi2(self, problem: Problem, sel: Mapping[str, np.ndarray]) -> HoldoutChi2 | None:
+        return static_algebra.holdout_chi2(problem, self, sel)
+
+    def influence(self, problem: Problem) -> Influence:
+        return static_algebra.leverage(problem, self)
+
+    def candidate_elimination(self, problem: Problem, K: int, A: np.ndarray, g: np.ndarray) -> Elimination:
+        return NoElimination(problem)
 
 
 @dataclass(frozen=True)
@@ -189,7 +280,7 @@ class SensorResiduals:
 
 
 @dataclass(frozen=True)
-class BatchResult:
+class BatchResult(StaticAlgebra):
     """Outcome of a batch fit, with its diagnostics.
 
     Attributes
@@ -330,7 +421,7 @@ class BlockReport:
 
 
 @dataclass(frozen=True)
-class FilterResult:
+class FilterResult(StaticAlgebra):
     """Outcome of a filter + smoother run, with its diagnostics (a :class:`FitResult`).
 
     Attributes
@@ -364,6 +455,13 @@ class FilterResult:
     nis_p_value: float
     consider: tuple[str, ...] = ()
     unobservable: tuple[str, ...] = ()
+
+    @property
+    def scores_own_residuals(self) -> bool:
+        """True: the score tests read the smoother's residuals. It has removed the attitude
+        wander of the gyro noise, which the deterministic residuals would offer as a
+        signature (:func:`gcs_core.diagnosis.ranking.rank_candidates`)."""
+        return True
 
     @property
     def P_consider(self) -> np.ndarray:

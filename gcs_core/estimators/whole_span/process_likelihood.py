@@ -1,9 +1,9 @@
 """The gyro's rate random walk from the data: the whole-span fit's evidence over σ_u.
 
-The whole-span fit (:mod:`gcs_core.filtr.smoothing_batch`) takes the gyro's σ_v, σ_u from
+The whole-span fit (:mod:`gcs_core.estimators.whole_span.fit`) takes the gyro's σ_v, σ_u from
 its data book. A book read off the unit's own rest (the Allan deviation of a short rest,
-:mod:`gcs_core.filtr.noise`) can miss how much the drift bias really wanders in use, and
-every σ of the bias along the span (:mod:`gcs_core.filtr.gyro_bias`) rests on σ_u. The
+:mod:`gcs_core.noise.measured`) can miss how much the drift bias really wanders in use, and
+every σ of the bias along the span (:mod:`gcs_core.estimators.gyro_bias`) rests on σ_u. The
 data themselves say which σ_u they support: the marginal likelihood of the measurements
 given the process noise, with the statics and the knot corrections ``w = (x, z)``
 integrated out. For the linearized problem at the MAP solution (Laplace's approximation;
@@ -11,7 +11,7 @@ exact for a linear model)::
 
     −2 log p(y | σ_u) = J(ŵ) + log det N + Σ_j log det Q_j + const
     log det N = −log det P − Σ_j log det S_j⁻¹
-    det Q_j = (a_j e_j − c_j²)³   (Farrenkopf's Q of :mod:`gcs_core.filtr.knots`)
+    det Q_j = (a_j e_j − c_j²)³   (Farrenkopf's Q of :mod:`gcs_core.estimators.whole_span.knots`)
 
 ``J`` the whole cost (data χ², static prior, process term), ``N`` the normal matrix of
 ``w``: its determinant is the product of the knot pivots ``S_j`` of the forward
@@ -36,15 +36,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.filtr.batch import BatchOptions
-from gcs_core.filtr.results import BatchResult, FitResult
-from gcs_core.filtr.smoothing_batch import whole_span_fit
+from gcs_core.estimators.batch.least_squares import BatchOptions
+from gcs_core.estimators.results import BatchResult, FitResult
+from gcs_core.estimators.whole_span.fit import whole_span_fit
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.problem.build import Problem
 
 
 def _dynamics(result: FitResult):
-    dyn = getattr(result, "dynamics", None)
+    dyn = result.dynamics
     if dyn is None or dyn.factors is None or dyn.grid.d != 6:
         raise InputError("the evidence over σ_u needs a whole-span fit with a gyro rate random walk (rrw > 0)")
     return dyn

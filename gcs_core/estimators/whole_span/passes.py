@@ -1,4 +1,4 @@
-"""The whole-span fit's moving parts (module docstring of :mod:`gcs_core.filtr.smoothing_batch`):
+"""The whole-span fit's moving parts (module docstring of :mod:`gcs_core.estimators.whole_span.fit`):
 the knot corrections as an attitude provider (:class:`CorrectedAttitude`), their state
 (:class:`Dynamics`), the drift-bias axes at the knots (:func:`mid_rotations`) and one
 Gauss–Newton pass over the data (:class:`Passes`: linearize, accumulate per knot, eliminate)."""
@@ -11,10 +11,10 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from gcs_core.compiled import COMPILED
-from gcs_core.filtr import knots as kn
-from gcs_core.filtr.knot_kernels import correct_attitude
-from gcs_core.filtr.readout import EpochErrors, ReadoutEpochs, row_variance
-from gcs_core.filtr.residuals import Residuals
+from gcs_core.estimators.residuals import Residuals
+from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.knot_kernels import correct_attitude
+from gcs_core.estimators.whole_span.readout import EpochErrors, ReadoutEpochs, row_variance
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
 from gcs_core.problem.build import Problem
@@ -38,7 +38,7 @@ class Dynamics:
     names : the static columns of ``factors`` and ``P``; factors : the elimination at the
     solution (:meth:`KnotSystem.eliminate`); P : covariance of the statics; sig_e2 : the
     gyro's read-out noise σ_e² [rad²] the fit carried and errors its per-epoch estimates
-    ε̂ at the solution (:mod:`gcs_core.filtr.readout`).
+    ε̂ at the solution (:mod:`gcs_core.estimators.whole_span.readout`).
     """
 
     grid: kn.KnotGrid
@@ -77,7 +77,7 @@ class Dynamics:
 
 class CorrectedAttitude:
     """The gyro-carried attitude with the knot corrections applied exactly:
-    ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.filtr.knots`).
+    ``C(t) = exp(−[δθ×]) C_gyro(t)``, ``δθ = C_gyro α(t)`` (:mod:`gcs_core.estimators.whole_span.knots`).
     Partials stay factored as the base provider's (chained through the corrected C)."""
 
     def __init__(self, base, grid: kn.KnotGrid, z: np.ndarray, R: np.ndarray, errors: EpochErrors | None = None):
@@ -162,6 +162,24 @@ def mid_rotations(att: GyroAttitude, values, t: np.ndarray) -> np.ndarray:
     return out
 
 
+@dataclass
+class SpanLinearization:
+    """One pass of the whole-span problem linearized at (x, z) (:meth:`Passes.run`).
+
+    A : (n, n) the statics' data information ``Hᵀ R⁻¹ H``; b : (n,) ``Hᵀ R⁻¹ r``;
+    chi2 : the data χ² (generalized with the read-out noise, :mod:`.readout`); m_used :
+    measurement components used; system : the knot rows accumulated, ready to be
+    eliminated (:class:`.knots.KnotSystem`); R : (K−1, 3, 3) the knots' drift-bias axes.
+    """
+
+    A: np.ndarray
+    b: np.ndarray
+    chi2: float
+    m_used: int
+    system: kn.KnotSystem
+    R: np.ndarray
+
+
 class Passes:
     """Linearization passes of the whole-span problem at (x, z)."""
 
@@ -189,8 +207,8 @@ class Passes:
         for j, nm in enumerate(self.names if names is None else names):
             self.values[nm] = x[j]
 
-    def run(self, x, z, edits, *, columns=None, jacobian=True):
-        """One pass: (A, b, χ², m, system) at (x, z); the residual buffers are filled."""
+    def run(self, x, z, edits, *, columns=None, jacobian=True) -> SpanLinearization:
+        """One pass at (x, z) (:class:`SpanLinearization`); the residual buffers are filled."""
         cols = tuple(columns or self.names)
         self.set_x(x)
         if self.R_fixed is None:
@@ -253,7 +271,7 @@ class Passes:
             passed(sd, blk.hi)
         if ro is not None:
             chi2 -= ro.finish()
-        return A, b, chi2, m_used, sysk, R
+        return SpanLinearization(A, b, chi2, m_used, sysk, R)
 
     def _knot_rows(self, blk, sysk, rw, R) -> np.ndarray | None:
         """The block's rows in the knot columns, added to the knot system; returns the

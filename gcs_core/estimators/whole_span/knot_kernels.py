@@ -1,4 +1,4 @@
-"""Compiled loops of the knot corrections (:mod:`gcs_core.filtr.knots`), with numba.
+"""Compiled loops of the knot corrections (:mod:`gcs_core.estimators.whole_span.knots`), with numba.
 
 * :func:`_accumulate_fused` — per knot ``Σ uᵀu`` and ``Σ uᵀ [H | r]`` over a block's
   weighted rows, the knot rows ``u = w D C [I | Γ_j(t)]`` formed on the fly (one pass);

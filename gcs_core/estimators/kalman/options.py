@@ -1,6 +1,6 @@
 """The options of the stepping filter (FILTR, seed §3.2.2,
-:class:`gcs_core.filtr.stepping.Filtr`); what it gives back is in
-:mod:`gcs_core.filtr.results`."""
+:class:`gcs_core.estimators.kalman.stepping.Filtr`); what it gives back is in
+:mod:`gcs_core.estimators.results`."""
 
 from __future__ import annotations
 

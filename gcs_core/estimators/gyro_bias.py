@@ -7,7 +7,7 @@ The estimators model the gyro's drift bias (in the gyro's frame) as::
 ``b``, ``ḃ`` the static ``<GYRO>.bias_*`` and (when the bias-instability effect is in the
 state) ``<GYRO>.bias_rate_*``, ``t_mid`` the middle of the gyro's span, ``M`` the gyro's
 alignment (Eq 4-32, ``ω = Mᵀ (G⁻¹ y − b(t))``) and ``β`` the whole-span fit's body-axis
-drift-bias correction (:mod:`gcs_core.filtr.knots`): piecewise constant, ``β_j`` from knot
+drift-bias correction (:mod:`gcs_core.estimators.whole_span.knots`): piecewise constant, ``β_j`` from knot
 ``τ_j`` to the next, a random walk with ``β(τ_0) = 0``. The static ``b`` alone is therefore
 the bias at the first knot carried to ``t_mid`` by the drift, not a mean over the span:
 two fits of different spans (halves of a trial) have their static biases at different
@@ -34,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.filtr.results import FitResult
+from gcs_core.estimators.results import FitResult
 from gcs_core.models import common as model_common
 from gcs_core.problem.attitude import BIAS_RATE_NAMES
 from gcs_core.problem.build import Problem
@@ -86,7 +86,7 @@ def gyro_bias_at(problem: Problem, result: FitResult, t) -> GyroBias:
     b = bias[None, :] + (t - t_mid)[:, None] * rate[None, :]
     P = np.asarray(result.P, dtype=float)
     cov = np.einsum("nia,ab,njb->nij", J, P, J)
-    dyn = getattr(result, "dynamics", None)
+    dyn = result.dynamics
     if dyn is not None and dyn.grid.d == 6:
         M, _ = model_common.alignment_matrix(
             {k.split(".", 1)[1]: v for k, v in values.items() if k.startswith(gyro + ".")}

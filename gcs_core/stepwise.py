@@ -1,0 +1,66 @@
+"""Stepwise discovery: fit, rank the candidate effects, add the most significant
+identifiable one, refit, until none passes the family-wise level (seed §3.3, the add/refit
+loop).
+
+The loop drives a session (:class:`gcs_core.session.Analysis`: ``fit``, ``rank``,
+``add_effect``, ``goodness``) from the session's own level: the diagnosis below it scores
+and judges the candidates (each :class:`~gcs_core.diagnosis.ranking.Candidate` carries its
+verdict, ``passes``), and each change is recorded as a
+:class:`~gcs_core.diagnosis.discovery.Step`. Which of a group of aliased candidates is added
+is :func:`gcs_core.diagnosis.policy.parsimonious`.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import TYPE_CHECKING
+
+from gcs_core.diagnosis import policy
+from gcs_core.display import p_text
+
+if TYPE_CHECKING:  # the session calls this loop; the loop only reads the session
+    from gcs_core.session import Analysis
+
+log = logging.getLogger(__name__)
+
+
+def discover(analysis: Analysis, *, max_steps: int = 10, progress: Callable[[str], None] | None = None) -> str:
+    """Stepwise: add the most significant identifiable candidate while one passes the
+    Bonferroni-corrected level ``diagnosis.significance``; returns why it stopped (with
+    the goodness-of-fit verdict of what remains). ``analysis.steps`` gets one
+    :class:`Step` per effect added."""
+    say = progress or (lambda msg: log.info(msg))
+    alpha = analysis.config.diagnosis.significance
+    if analysis.result is None:
+        analysis.fit()
+    if not analysis.steps:
+        analysis.first_step()
+    for _ in range(max_steps):
+        cands = analysis.rank()
+        ok = [c for c in cands if c.passes]
+        if not ok:
+            best = cands[0] if cands else None
+            reason = f"no candidate is significant at family-wise α = {alpha:g}" + (
+                f" (best: {best.id}, {p_text(best.p_adjusted, 'p adj')}"
+                + ("" if best.identifiable else ", not identifiable")
+                + ")"
+                if best
+                else ""
+            )
+            break
+        top = policy.parsimonious(ok[0], cands, analysis.result, analysis.problem.state, alpha)
+        say(
+            f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
+            f"{p_text(top.p_adjusted, 'p adj')})"
+        )
+        analysis.add_effect(top.id)
+    else:
+        reason = f"stopped after {max_steps} steps"
+    analysis.rank()
+    g = analysis.goodness()
+    if g is not None:
+        # a converged fit of an inadequate model must not read as success
+        reason += "; what remains: " + g.verdict
+    say(reason)
+    return reason

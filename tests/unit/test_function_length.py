@@ -1,0 +1,67 @@
+"""No engine function is over 100 lines (CONTRIBUTING: "engine functions at most ~100 lines").
+
+Every function and method of ``gcs_core`` is read with ``ast`` (nothing is imported). Its
+length is the lines from its first statement after the docstring to its last, so a full
+docstring costs nothing. :data:`KNOWN_LONG` lists the functions that were longer when the
+rule was first checked, each to be split by the area that owns it; the list may only shrink
+(an entry that is no longer long, or no longer exists, fails the test until removed).
+"""
+
+from __future__ import annotations
+
+import ast
+
+from repo_paths import ROOT
+
+#: the most lines of code a function of the engine may have (docstring not counted)
+MAX_LINES = 100
+
+#: module path -> functions over MAX_LINES when the check was introduced (to be split)
+KNOWN_LONG: dict[str, set[str]] = {
+    "gcs_core/config.py": {"config_from_dict"},
+    "gcs_core/convert/astropi.py": {"convert"},
+    "gcs_core/convert/broad.py": {"convert"},
+    "gcs_core/io/mission.py": {"read_mission_spec", "_read_sensor"},
+    "gcs_core/io/sdf.py": {"write_sdf"},
+    "gcs_core/predictor/kalman.py": {"kalman_history"},
+    "gcs_core/problem/build.py": {"build_problem"},
+    "gcs_core/estimators/kalman/kernels.py": {"_frame"},
+}
+
+
+def _body_lines(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
+    body = fn.body
+    first = body[0]
+    if (
+        isinstance(first, ast.Expr)
+        and isinstance(first.value, ast.Constant)
+        and isinstance(first.value.value, str)
+        and len(body) > 1
+    ):
+        first = body[1]
+    return (fn.end_lineno or fn.lineno) - first.lineno + 1
+
+
+def long_functions() -> dict[str, dict[str, int]]:
+    """Module path -> {function name: its length} over :data:`MAX_LINES`."""
+    out: dict[str, dict[str, int]] = {}
+    for path in sorted((ROOT / "gcs_core").rglob("*.py")):
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                n = _body_lines(node)
+                if n > MAX_LINES:
+                    out.setdefault(str(path.relative_to(ROOT)), {})[node.name] = n
+    return out
+
+
+def test_no_engine_function_is_over_100_lines():
+    found = long_functions()
+    new = {p: {f: n for f, n in fns.items() if f not in KNOWN_LONG.get(p, set())} for p, fns in found.items()}
+    assert {p: fns for p, fns in new.items() if fns} == {}, "split these functions (at most 100 lines each)"
+
+
+def test_the_list_of_known_long_functions_only_shrinks():
+    found = long_functions()
+    stale = {p: sorted(fns - set(found.get(p, {}))) for p, fns in KNOWN_LONG.items()}
+    assert {p: fns for p, fns in stale.items() if fns} == {}, "remove these from KNOWN_LONG: they are short now"
