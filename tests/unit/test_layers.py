@@ -42,7 +42,10 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("mission files", ("gcs_core.io",)),
     ("models", ("gcs_core.models",)),
     ("problem", ("gcs_core.problem",)),
-    ("analysis config", ("gcs_core.config", "gcs_core.config_checks", "gcs_core.config_problem", "gcs_core.config_reference")),
+    (
+        "analysis config",
+        ("gcs_core.config", "gcs_core.config_checks", "gcs_core.config_problem", "gcs_core.config_reference"),
+    ),
     ("noise characterisation", ("gcs_core.noise",)),
     ("estimators", ("gcs_core.estimators",)),
     ("predictor", ("gcs_core.predictor",)),
