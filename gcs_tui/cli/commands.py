@@ -201,7 +201,9 @@ def cmd_tui(args, prog: Progress) -> int:
         raise InputError(problem)
     from gcs_tui.tui.app import run_tui
 
-    run_tui(args.target, work_dir=args.out)
+    app = run_tui(args.target, work_dir=args.out)
+    if app.crash_line:  # an unhandled error in the app: one line (the traceback is in a log)
+        return _error(prog, app.crash_line, EXIT_INTERNAL)
     return EXIT_OK
 
 

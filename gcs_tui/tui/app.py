@@ -113,6 +113,21 @@ class GcsApp(App):
         """Every warning the engine logged while the app ran, ``(level, text)``, whole (palette:
         "app: messages")."""
         self._log_handler: AppLogHandler | None = None
+        self.crash_line = ""
+        """One line naming an unhandled error and the log holding its traceback ('' if none)."""
+
+    def _handle_exception(self, error: Exception) -> None:
+        """An unhandled error: its traceback to a log file, one line for the CLI, exit 4
+        (:mod:`gcs_tui.tui.crash`) — never a traceback on the terminal."""
+        from gcs_tui.tui import crash
+
+        if not self.crash_line:
+            self.crash_line = crash.record(error)
+        self._return_code = crash.EXIT_INTERNAL
+        if self._exception is None:  # Pilot re-raises it, so tests see the error
+            self._exception = error
+            self._exception_event.set()
+        self._close_messages_no_wait()
 
     # ------------------------------------------------------------------ theme
     def get_theme_variable_defaults(self) -> dict[str, str]:
@@ -363,33 +378,16 @@ class GcsApp(App):
         return str(out)
 
     def action_save_config(self) -> None:
-        wb = self.workbench
-        if not wb.ready:
-            return
-        default = str(wb.save_path) if wb.save_path else "gcs.toml"
-        self.push_screen(
-            FormScreen(
-                "Save the analysis config",
-                [Field("path", "File", default, kind="text")],
-                note="Paths inside are written relative to the file.",
-            ),
-            self._save_chosen,
-        )
+        """ctrl+s: the save dialog (:mod:`gcs_tui.tui.saving`: asks before replacing a file)."""
+        from gcs_tui.tui import saving
 
-    def _save_chosen(self, v: dict | None) -> None:
-        if v:
-            self.save_config_to(v["path"])
+        saving.open_dialog(self)
 
     def save_config_to(self, path: str | Path) -> Path | None:
-        try:
-            out = self.workbench.save_config(path)
-        except (GcsError, OSError) as err:
-            self.notify(str(err), title="config not saved", severity="error")
-            return None
-        self.last_notice = f"config saved to {out.name}"
-        self.notify(self.last_notice)
-        self.changed()
-        return out
+        """Save the config to ``path`` now, without asking (tests, embedding)."""
+        from gcs_tui.tui import saving
+
+        return saving.save_to(self, Path(path))
 
     def change_effect(self, effect_id: str, add: bool) -> None:
         verb = "adding" if add else "removing"
@@ -573,14 +571,16 @@ def detached_terminal_logging() -> Iterator[None]:
             lg.addHandler(h)
 
 
-def run_tui(path: str | Path | None = None, *, work_dir: str | Path | None = None) -> None:
+def run_tui(path: str | Path | None = None, *, work_dir: str | Path | None = None) -> GcsApp:
     """Run the TUI on a mission directory or analysis config (the CLI's ``gcs tui``);
-    files it writes unasked go to ``work_dir`` (default: beside the config or mission)."""
+    files it writes unasked go to ``work_dir`` (default: beside the config or mission).
+    Returns the app: its ``crash_line`` is set when it stopped on an unhandled error."""
     app = GcsApp(path)
     if work_dir is not None:
         app.workbench.out_dir = Path(work_dir)
     with detached_terminal_logging():
         app.run()
+    return app
 
 
 __all__ = ["GcsApp", "run_tui", "detached_terminal_logging", "poor_choice", "VIEWS"]

@@ -3,15 +3,27 @@
 Screens hand :meth:`GcsPlot.paint` a function ``painter(plt)`` that draws with the
 plotext API; the widget clears the figure, calls it and builds the text at the
 widget's current size, so a resize redraws the same data at the new resolution.
+
+A plot never brings the app down: a plot that is hidden (``display: none`` on it or a
+parent) or smaller than :data:`MIN_WIDTH` × :data:`MIN_HEIGHT` is not built, and an
+error while painting or building (plotext fails on some tiny or degenerate data) is
+logged with its traceback and shown as one line in the plot's frame.
 """
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 
+from rich.text import Text
 from textual_plotext import PlotextPlot
 
+log = logging.getLogger(__name__)
+
 Painter = Callable[[object], None]
+
+#: below this many columns or rows a plot is not drawn (axes and title leave no room for data)
+MIN_WIDTH, MIN_HEIGHT = 16, 5
 
 
 class GcsPlot(PlotextPlot):
@@ -29,16 +41,30 @@ class GcsPlot(PlotextPlot):
             self._empty_title = empty
         self.refresh()
 
+    @property
+    def shown(self) -> bool:
+        """False when this plot or a parent is hidden (``display: none``)."""
+        return all(node.display for node in self.ancestors_with_self if hasattr(node, "display"))
+
     def render(self):
+        if not self.shown:
+            return Text("")
+        w, h = self.size.width, self.size.height
+        if w < MIN_WIDTH or h < MIN_HEIGHT:
+            return Text(self._empty_title[: max(w, 0)] if h else "", no_wrap=True, overflow="ellipsis")
         plt = self.plt
-        plt.clear_figure()
-        if self._painter is not None:
-            self._painter(plt)
-        else:
-            plt.title(self._empty_title)
-            plt.xticks([])
-            plt.yticks([])
-        return super().render()
+        try:
+            plt.clear_figure()
+            if self._painter is not None:
+                self._painter(plt)
+            else:
+                plt.title(self._empty_title)
+                plt.xticks([])
+                plt.yticks([])
+            return super().render()
+        except Exception as err:  # noqa: BLE001 — a plot must never bring the app down
+            log.debug("plot %s not drawn", self.id, exc_info=True)
+            return Text(f"plot not drawn ({type(err).__name__}: {err})", no_wrap=True, overflow="ellipsis")
 
 
 def nice_y(plt, lo: float, hi: float, n: int = 5) -> None:
