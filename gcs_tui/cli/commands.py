@@ -581,7 +581,8 @@ def main(argv=None) -> int:
     try:
         code = args.func(args, prog)
         sys.stdout.flush()
-        prog.finish()
+        if code != EXIT_INTERNAL:  # the TUI's crash line stays the only line
+            prog.finish()
         return code
     except InputError as err:
         if err.file is None and err.key and getattr(args, "config_path", None) is not None:
