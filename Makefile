@@ -24,6 +24,8 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[fast,test,dev,bench]'
+	@echo "make: compiling the numerical kernels once, so the first fit takes seconds (gcs warmup, about 30 s)"
+	$(BIN)/gcs warmup
 	touch $(STAMP)
 	@echo "make: $(VENV) is ready"
 

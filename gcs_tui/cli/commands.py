@@ -207,6 +207,19 @@ def cmd_tui(args, prog: Progress) -> int:
     return EXIT_OK
 
 
+def cmd_warmup(args, prog: Progress) -> int:
+    """Compile the numerical kernels now, so that the first fit does not (gcs_core.warmup)."""
+    from gcs_core.warmup import warm_up
+
+    _out("gcs warmup: compiling the numerical kernels once (about 30 s; the first fit then takes seconds)")
+    seconds, left = warm_up(say=lambda text: _out(f"  {text}"))
+    _out(
+        f"gcs warmup: done in {seconds:.1f} s"
+        + (f" ({len(left)} rarely used kernels compile on first use)" if left else "")
+    )
+    return EXIT_OK
+
+
 def cmd_import(args, prog: Progress) -> int:
     from gcs_core.io.importer import load_mission
     from gcs_tui.cli.tables import import_table
@@ -455,6 +468,8 @@ def build_parser() -> argparse.ArgumentParser:
         help="folder for the files the TUI writes unasked (config, SCDS, screenshots); "
         "default: beside the config, else beside the mission directory",
     )
+
+    add("warmup", cmd_warmup, "compile the numerical kernels now (once per install; make run does it)")
 
     sp = add("import", cmd_import, "validate a mission directory, show what was read, write the SDF")
     sp.add_argument("mission", help="mission directory (ICD §1)")

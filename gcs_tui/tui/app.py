@@ -15,6 +15,7 @@ import logging
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ from textual.app import App
 from textual.screen import Screen
 from textual.worker import get_current_worker
 
+from gcs_core.cancel import Cancelled, cancellable
 from gcs_core.errors import GcsError
 from gcs_core.fileperm import make_usual
 from gcs_tui.tui import jobs
@@ -138,6 +140,7 @@ class GcsApp(App):
         self._log_handler = AppLogHandler(self)
         for name in LOGGERS:
             logging.getLogger(name).addHandler(self._log_handler)
+        self.set_interval(1.0, self._tick)  # a running job's elapsed time, every second
         self.switch_mode(self.start_view)
         if self.source is not None and not self.workbench.ready:
             self.open_path(self.source)
@@ -178,7 +181,7 @@ class GcsApp(App):
         if self.busy:
             self.notify(f"busy: {self.job.label} — esc cancels", severity="warning")
             return False
-        self.job = JobState(label, 0.0, None, "")
+        self.job = JobState(label, 0.0, None, "", started=time.monotonic())
         if on_done is not None:
             self._done[job] = on_done
         self.post_message(JobStarted(job, label))
@@ -196,7 +199,10 @@ class GcsApp(App):
             return worker.is_cancelled
 
         try:
-            result = fn(progress, cancelled)
+            with cancellable(cancelled):  # the engine's checkpoints stop it within a second
+                result = fn(progress, cancelled)
+        except Cancelled:
+            self.post_message(JobFinished(job, label, False, cancelled=True))
         except GcsError as err:
             self.post_message(JobFinished(job, label, False, error=str(err)))
         except Exception as err:  # the UI must survive an engine bug; the log keeps the traceback
@@ -207,12 +213,16 @@ class GcsApp(App):
                 JobFinished(job, label, not worker.is_cancelled, cancelled=worker.is_cancelled, result=result)
             )
 
+    def _tick(self) -> None:
+        if self.busy:
+            self._update_status()
+
     def on_job_started(self, message: JobStarted) -> None:
         self._update_status()
 
     def on_job_progress(self, message: JobProgress) -> None:
         if self.job.busy:
-            self.job = JobState(self.job.label, message.done, message.total, message.text)
+            self.job = replace(self.job, done=message.done, total=message.total, text=message.text)
             self._update_status()
 
     def on_job_finished(self, message: JobFinished) -> None:
@@ -303,7 +313,7 @@ class GcsApp(App):
         if not self.busy:
             return
         self.workers.cancel_group(self, "engine")
-        self.job = JobState(self.job.label, self.job.done, self.job.total, "cancelling…")
+        self.job = replace(self.job, text="cancelling…")
         self._update_status()
 
     def action_noise(self) -> None:
@@ -328,9 +338,10 @@ class GcsApp(App):
         self.push_screen(MessagesScreen("Warnings from the engine", self.messages))
 
     async def action_quit(self) -> None:
-        """Quit; with unsaved config edits, ask first (saving is ctrl+s)."""
+        """Quit; with unsaved config edits, ask first (saving is ctrl+s). A running job is
+        cancelled first (it stops at its next checkpoint, within a second)."""
         if not self.workbench.unsaved:
-            self.exit()
+            self._quit_now()
             return
         self.push_screen(
             ConfirmScreen(
@@ -345,7 +356,12 @@ class GcsApp(App):
 
     def _quit_if(self, ok: bool | None) -> None:
         if ok:
-            self.exit()
+            self._quit_now()
+
+    def _quit_now(self) -> None:
+        if self.busy:
+            self.workers.cancel_group(self, "engine")
+        self.exit()
 
     def work_dir(self) -> Path:
         """Where the app writes what the user did not name: beside the analysis config the

@@ -60,13 +60,22 @@ def ask_then_save(app: GcsApp, path: Path) -> None:
         )
         app.push_screen(
             ConfirmScreen("Keep the existing file?", why, yes=f"save as {other.name}", no="cancel"),
-            lambda ok: save_to(app, other) if ok else _kept(app, path),
+            lambda ok: _answer(app, ok, other, path),
         )
         return
     app.push_screen(
-        ConfirmScreen(f"Replace {path.name}?", f"{path} exists. Replace it with this config?", yes="replace", no="cancel"),
-        lambda ok: save_to(app, path) if ok else _kept(app, path),
+        ConfirmScreen(
+            f"Replace {path.name}?", f"{path} exists. Replace it with this config?", yes="replace", no="cancel"
+        ),
+        lambda ok: _answer(app, ok, path, path),
     )
+
+
+def _answer(app: GcsApp, ok: bool | None, target: Path, existing: Path) -> None:
+    if ok:
+        save_to(app, target)
+    else:
+        _kept(app, existing)
 
 
 def _kept(app: GcsApp, path: Path) -> None:

@@ -367,21 +367,22 @@ class Workbench:
         say = progress or (lambda *a: None)
         stop = cancelled or (lambda: False)
         old = self.current
-        say(0, 3, "building the state")
+        say(0, 4, "building the state")
         fresh = Analysis(old.config, mission=old.mission)
         fresh.steps = list(old.steps)
-        say(1, 3, "fitting")
+        say(1, 4, fit_stage(fresh))
         fresh.fit()
         if not fresh.steps:
             fresh.first_step()
         if stop():
             return None
-        say(2, 3, "ranking candidates")
+        say(2, 4, f"ranking {len(fresh.candidate_effects())} candidate effects")
         fresh.rank()
+        say(3, 4, "goodness of fit")
         fresh.goodness()  # the χ² tests, formed here rather than on the UI thread
         if stop():
             return None
-        say(3, 3, "done")
+        say(4, 4, "done")
         self.fitted_config = fit_key(fresh.config)
         self._replace(fresh, keep_steps=False)
         return fresh
@@ -440,6 +441,18 @@ class Workbench:
             return {}
         sig = res.sigma
         return {n: (res.state[n].value, sig[n]) for n in res.solve_for}
+
+
+def fit_stage(a: Analysis) -> str:
+    """What the progress line says while ``a`` fits: the method, the state's size and, on a
+    cold start, that the numerical kernels are compiling (once; ``gcs warmup`` does it)."""
+    from gcs_core.warmup import cold_start
+
+    n = len(a.problem.state.solve_for)
+    text = f"fitting ({a.config.method}, {n} solve-for elements)"
+    if cold_start():
+        text += " — first use: compiling the numerical kernels, about 30 s once (gcs warmup does it ahead)"
+    return text
 
 
 def analysis_key(cfg: AnalysisConfig) -> str:

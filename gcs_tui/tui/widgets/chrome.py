@@ -6,6 +6,7 @@ about the engine.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -76,10 +77,24 @@ class JobState:
     done: float = 0.0
     total: float | None = None
     text: str = ""
+    started: float | None = None
+    """``time.monotonic()`` when the job started (None: not timed)."""
 
     @property
     def busy(self) -> bool:
         return bool(self.label)
+
+    @property
+    def elapsed(self) -> str:
+        """``12 s`` since the job started ('' when not timed)."""
+        if self.started is None:
+            return ""
+        return f"{time.monotonic() - self.started:.0f} s"
+
+    def line(self) -> str:
+        """``label: stage · 12 s`` (the status line while the job runs)."""
+        head = f"{self.label}: {self.text}" if self.text and self.text != self.label else self.label
+        return " · ".join(p for p in (head, self.elapsed) if p)
 
 
 class StatusBar(Horizontal):
@@ -91,7 +106,7 @@ class StatusBar(Horizontal):
 
     def show(self, text: str, job: JobState) -> None:
         """Update the line: ``text`` on the left, ``job`` on the right when busy."""
-        line = f"{job.label}: {job.text}" if job.busy and job.text else (job.label or text)
+        line = job.line() if job.busy else text
         self.query_one("#status-text", Static).update(Text(line))
         self.set_class(job.busy, "-busy")
         bar = self.query_one("#status-progress", ProgressBar)

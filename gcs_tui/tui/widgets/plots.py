@@ -62,7 +62,7 @@ class GcsPlot(PlotextPlot):
                 plt.xticks([])
                 plt.yticks([])
             return super().render()
-        except Exception as err:  # noqa: BLE001 — a plot must never bring the app down
+        except Exception as err:
             log.debug("plot %s not drawn", self.id, exc_info=True)
             return Text(f"plot not drawn ({type(err).__name__}: {err})", no_wrap=True, overflow="ellipsis")
 
