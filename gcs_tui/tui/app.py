@@ -268,7 +268,11 @@ class GcsApp(App):
             return "no mission open (o)"
         parts = [wb.mission.name]
         res = wb.result
-        if res is None:
+        run = wb.filtr
+        if res is None and run is not None and run.reports:  # FILTR stepped without a fit
+            v = run.view()
+            parts.append(f"FILTR {'finished' if v.finished else f'at block {v.done}/{v.total}'} (no batch fit: f)")
+        elif res is None:
             parts.append("not fitted (f)")
         else:
             red = res.chi2 / res.dof if res.dof > 0 else float("nan")

@@ -24,7 +24,8 @@ def argument_of_latitude(r_I: np.ndarray, v_I: np.ndarray) -> np.ndarray:
     r = np.asarray(r_I, dtype=float)
     v = np.asarray(v_I, dtype=float)
     h = np.cross(r, v)
-    h_hat = h / np.linalg.norm(h, axis=1, keepdims=True)
+    hn = np.linalg.norm(h, axis=1, keepdims=True)
+    h_hat = h / np.where(hn > 0, hn, np.nan)  # no orbit (a ground mission): NaN, silently
     n = np.column_stack([-h[:, 1], h[:, 0], np.zeros(len(h))])
     nn = np.linalg.norm(n, axis=1, keepdims=True)
     n_hat = np.where(
@@ -175,10 +176,9 @@ def binned_means(x: np.ndarray, y: np.ndarray, sigma: float, *, bins: int = 24, 
 
 
 #: units of auxiliary channels by name (ICD §6: torquer dipoles in A m², temperatures in °C)
-AUX_UNITS = (("mtb", "A m²"), ("temp", "°C"))
-
-
 def aux_unit(name: str) -> str:
-    """The unit of auxiliary channel ``name`` by the ICD's naming ('' when unknown)."""
-    low = name.lower()
-    return next((u for key, u in AUX_UNITS if key in low), "")
+    """The unit of auxiliary channel ``name`` by the ICD's naming ('' when unknown;
+    the rule is :func:`gcs_core.display.aux_unit`)."""
+    from gcs_core.display import aux_unit as rule
+
+    return rule(name)

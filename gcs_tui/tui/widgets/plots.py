@@ -13,6 +13,7 @@ logged with its traceback and shown as one line in the plot's frame.
 from __future__ import annotations
 
 import logging
+import textwrap
 from collections.abc import Callable
 
 from rich.text import Text
@@ -61,10 +62,36 @@ class GcsPlot(PlotextPlot):
                 plt.title(self._empty_title)
                 plt.xticks([])
                 plt.yticks([])
-            return super().render()
+            return self._build(w, h)
         except Exception as err:
             log.debug("plot %s not drawn", self.id, exc_info=True)
             return Text(f"plot not drawn ({type(err).__name__}: {err})", no_wrap=True, overflow="ellipsis")
+
+
+    def _build(self, w: int, h: int) -> Text:
+        """The plot with its title (and the legend it carries) above it, wrapped to the
+        width on at most :data:`TITLE_LINES` lines: plotext drops a title that does not fit
+        on one line, which at 80×24 was every title and every legend."""
+        fig = self._plot
+        monitor = fig.monitor
+        title = monitor.title or ""
+        monitor.title = None
+        lines = textwrap.wrap(title, w, break_on_hyphens=False)[:TITLE_LINES] if title else []
+        if lines and len(textwrap.wrap(title, w, break_on_hyphens=False)) > TITLE_LINES:
+            lines[-1] = lines[-1][: max(w - 1, 0)] + "…"
+        rows = max(h - len(lines), 1)
+        fig.plotsize(w, rows)
+        fig._set_size(w, rows)  # as textual_plotext's render does (its issue 5)
+        fig.theme(self._get_plotext_theme_name(self.app.theme))
+        body = Text.from_ansi(fig.build())
+        if not lines:
+            return body
+        head = Text("\n".join(lines), style="bold", no_wrap=True)
+        return Text("\n").join([head, body])
+
+
+#: a plot's title and legend take at most this many lines above it
+TITLE_LINES = 2
 
 
 def nice_y(plt, lo: float, hi: float, n: int = 5) -> None:
