@@ -198,7 +198,9 @@ class ResidualsScreen(GcsScreen):
         b = derive.binned_means(x[ok], y[ok], sigma)
         channel = xlabel.split(" [")[0]
         lines = [f"mean ± s.e. [{unit}]" if unit else "mean ± s.e.", f"per bin of {channel}:"]
-        lines += [f"{fmt.sig(c, 3):>7} {fmt.fixed(m, 1):>6} ± {fmt.fixed(e, 1)}" for c, m, e in zip(b.centers, b.mean, b.err)]
+        for c, m, e in zip(b.centers, b.mean, b.err):
+            vs, ss = fmt.value_sigma(float(m), float(e))  # digits from the standard error
+            lines.append(f"{fmt.sig(float(c), 3):>7} {vs:>6} ± {ss}")
         self.query_one("#res-bins", Static).update("\n".join(lines))
 
     def _verdict(self, res) -> tuple:

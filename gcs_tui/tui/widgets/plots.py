@@ -67,7 +67,6 @@ class GcsPlot(PlotextPlot):
             log.debug("plot %s not drawn", self.id, exc_info=True)
             return Text(f"plot not drawn ({type(err).__name__}: {err})", no_wrap=True, overflow="ellipsis")
 
-
     def _build(self, w: int, h: int) -> Text:
         """The plot with its title (and the legend it carries) above it, wrapped to the
         width on at most :data:`TITLE_LINES` lines: plotext drops a title that does not fit
