@@ -15,6 +15,7 @@ from __future__ import annotations
 import logging
 import textwrap
 from collections.abc import Callable
+from typing import Any
 
 from rich.text import Text
 from textual_plotext import PlotextPlot
@@ -71,7 +72,7 @@ class GcsPlot(PlotextPlot):
         """The plot with its title (and the legend it carries) above it, wrapped to the
         width on at most :data:`TITLE_LINES` lines: plotext drops a title that does not fit
         on one line, which at 80×24 was every title and every legend."""
-        fig = self._plot
+        fig: Any = self._plot  # plotext's figure (its monitor holds the title)
         monitor = fig.monitor
         title = monitor.title or ""
         monitor.title = None
