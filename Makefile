@@ -30,6 +30,8 @@ $(STAMP): pyproject.toml constraints.txt
 	@echo "make: $(VENV) is ready"
 
 run: $(STAMP)
+	@$(BIN)/python -c "from gcs_core.warmup import cold_start; raise SystemExit(cold_start())" || \
+	  { echo "make: compiling the numerical kernels once (gcs warmup, about 30 s)"; $(BIN)/gcs warmup; }
 	$(BIN)/gcs tui $(SAMPLE)
 
 # The exported-plot test opens the HTML in a real headless browser: install Chromium from

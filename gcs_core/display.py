@@ -273,13 +273,18 @@ def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
         return [lo] if math.isfinite(lo) else []
     raw = (hi - lo) / max(n - 1, 1)
     p10 = 10.0 ** math.floor(math.log10(raw))
-    step = next(m * p10 for m in (1, 2, 2.5, 5, 10) if m * p10 >= raw)
-    first = math.ceil(lo / step - 1e-9) * step
-    out, k = [], 0
-    while first + k * step <= hi + 1e-9 * step:
-        out.append(round(first + k * step, 12))
-        k += 1
-    return out
+    steps = [m * p10 for m in (0.5, 1, 2, 2.5, 5, 10)]
+    i = next(i for i, step in enumerate(steps) if step >= raw)
+    while True:  # a range that just misses two ticks at this step takes the next finer step
+        step = steps[i]
+        first = math.ceil(lo / step - 1e-9) * step
+        out, k = [], 0
+        while first + k * step <= hi + 1e-9 * step:
+            out.append(round(first + k * step, 12))
+            k += 1
+        if len(out) >= 2 or i == 0:
+            return out
+        i -= 1
 
 
 def tick_labels(ticks: list[float]) -> list[str]:

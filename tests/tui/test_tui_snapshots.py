@@ -80,3 +80,15 @@ def test_residuals_against_a_torquer_channel(snap_compare, workbench):
     """Residual against the channel mtb_x: binned means with error bars, the channel's unit."""
     app = GcsApp(workbench=workbench, start_view="residuals")
     assert snap_compare(app, terminal_size=SIZES["160x48"], run_before=settle, press=["x"] * 5)
+
+
+def test_diagnosis_charts_at_80x24(snap_compare, workbench):
+    """At 80×24 `g` shows the RMS-per-step charts: titles, round ticks, the legend line."""
+    app = GcsApp(workbench=workbench, start_view="diagnosis")
+    assert snap_compare(app, terminal_size=SIZES["80x24"], run_before=settle, press=["g"])
+
+
+def test_residuals_against_a_torquer_channel_at_80x24(snap_compare, workbench):
+    """At 80×24 the binned means are printed as numbers beside the channel plot."""
+    app = GcsApp(workbench=workbench, start_view="residuals")
+    assert snap_compare(app, terminal_size=SIZES["80x24"], run_before=settle, press=["x"] * 5)

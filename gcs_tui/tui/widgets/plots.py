@@ -4,10 +4,11 @@ Screens hand :meth:`GcsPlot.paint` a function ``painter(plt)`` that draws with t
 plotext API; the widget clears the figure, calls it and builds the text at the
 widget's current size, so a resize redraws the same data at the new resolution.
 
-A plot never brings the app down: a plot that is hidden (``display: none`` on it or a
-parent) or smaller than :data:`MIN_WIDTH` × :data:`MIN_HEIGHT` is not built, and an
-error while painting or building (plotext fails on some tiny or degenerate data) is
-logged with its traceback and shown as one line in the plot's frame.
+A plot never brings the app down: a plot that is hidden (``display: none``) or smaller
+than :data:`MIN_WIDTH` × :data:`MIN_HEIGHT` is not built, and an error while painting or
+building (plotext fails on some tiny or degenerate data) is logged with its traceback and
+shown as one line in the plot's frame. The title (which carries the legend) is drawn
+above the plot, wrapped to its width.
 """
 
 from __future__ import annotations
@@ -43,13 +44,11 @@ class GcsPlot(PlotextPlot):
             self._empty_title = empty
         self.refresh()
 
-    @property
-    def shown(self) -> bool:
-        """False when this plot or a parent is hidden (``display: none``)."""
-        return all(node.display for node in self.ancestors_with_self if hasattr(node, "display"))
-
     def render(self):
-        if not self.shown:
+        # hidden (``display: none``): not built. A plot inside a hidden parent has no size,
+        # which the size check below catches; its own flag is the one to ask, as a parent's
+        # may still read hidden at the first render after it is shown (nothing would redraw).
+        if not self.display:
             return Text("")
         w, h = self.size.width, self.size.height
         if w < MIN_WIDTH or h < MIN_HEIGHT:
