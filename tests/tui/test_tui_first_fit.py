@@ -90,3 +90,13 @@ def test_gcs_warmup_compiles_the_kernels(capsys):
     out = capsys.readouterr().out
     assert "gcs warmup: done in" in out
     assert not cold_start()
+
+
+def test_status_after_a_filtr_run_is_not_not_fitted():
+    from gcs_tui.tui import filtr_run
+    from gcs_tui.tui.workbench import Workbench
+
+    wb = Workbench.open(mission())
+    filtr_run.advance(wb, 1)
+    text = GcsApp(workbench=wb).status_text()
+    assert "FILTR at block 1/" in text and "not fitted" not in text
