@@ -20,7 +20,7 @@ from gcs_core.units import ARCSEC, DEG
     [
         (12.3456, 0.0234, "nT", "12.346 ± 0.023 nT"),
         (2e-5, 1.1e-5, "rad", "4.1 ± 2.3 arcsec"),  # 4.125″ ± 2.269″
-        (math.pi / 2 + 1e-5, 1.32e-5, "rad", "324002.1 ± 2.7 arcsec"),  # unit from σ, not from the value
+        (math.pi / 2 + 1e-5, 1.32e-5, "rad", "90.00057 ± 0.00076 deg"),  # from 1° in degrees (issue 22)
         (0.99996, 4.3e-5, "1", "0.999960 ± 0.000043"),
         (1.23e-5, 1.1e-6, "1", "(1.23 ± 0.11)e-5"),
         (-0.0647, 0.0299, "s", "-0.065 ± 0.030 s"),
