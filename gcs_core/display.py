@@ -6,8 +6,9 @@ that rows of one table with similar σ share a unit whatever their values:
 * an angle (internal ``rad``) is in arcsec while its σ is below 1°, in degrees from 1°
   (``rad/count`` likewise: arcsec/count or deg/count);
 * a rate (``rad/s``) is always in deg/h, an angular acceleration (``rad/s2``) in deg/h²;
-* an angle whose value reaches 1° is in degrees whatever its σ (``31.78856 ± 0.00023 deg``,
-  not ``114436.9 ± 8.2 arcsec``);
+* an angle whose value reaches 10° is in degrees whatever its σ (``31.78856 ± 0.00023 deg``,
+  not ``114436.9 ± 8.2 arcsec``); below 10° (at most 5 digits of arcsec) rows with similar σ
+  keep sharing a unit;
 * a coefficient per unit of an auxiliary channel is in its channel's unit, by the ICD's
   naming (:func:`aux_unit`, :func:`per_channel`): ``nT/(A m²)`` for a torquer ``mtb_*``;
 * every other unit is shown as it is; a dimensionless quantity (``1``) has no unit.
@@ -79,15 +80,16 @@ def common_unit(unit: str, *arrays) -> str:
 
 def shown_unit(unit: str, value: float, sigma: float | None = None) -> str:
     """The display unit :func:`estimate` picks for ``value ± sigma``: from σ when it is
-    finite and positive, from ``|value|`` otherwise; an angle of 1° or more in degrees."""
+    finite and positive, from ``|value|`` otherwise; an angle of 10° or more in degrees."""
     usable = sigma is not None and math.isfinite(sigma) and sigma > 0
     if unit == "rad" and math.isfinite(value) and abs(value) >= LARGE_ANGLE:
         return "deg"
     return display_unit(unit, sigma if usable and sigma is not None else abs(value))
 
 
-#: an angle (rad) from this value on is shown in degrees whatever its σ
-LARGE_ANGLE = 1.0 * DEG
+#: an angle (rad) from this value on is shown in degrees whatever its σ (36 000 arcsec: beyond
+#: five digits of arcsec a number stops being read at a glance)
+LARGE_ANGLE = 10.0 * DEG
 
 #: auxiliary channels' units by the ICD's naming: (part of the channel's name, unit)
 AUX_UNITS = (("mtb", "A m²"), ("temp", "°C"))
