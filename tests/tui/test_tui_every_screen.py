@@ -86,3 +86,20 @@ async def test_every_screen_at_80x24(name, cut, tmp_path):
         await settle(pilot)
     # Pilot re-raises anything the app met; an unhandled error would also set crash_line
     assert app.crash_line == ""
+
+
+async def test_the_reported_crash_at_80x24():
+    """Issue 22's reproducer as typed: ``gcs tui sample_data/missions/spinner-hidden-horizon``,
+    ``f``, ``6`` at 80×24 (default config) raised in plotext from the hidden histogram."""
+    mission = SAMPLE_MISSIONS / "spinner-hidden-horizon"
+    if not (mission / "mission.toml").is_file():
+        pytest.skip("sample_data/missions/spinner-hidden-horizon is not generated")
+    app = GcsApp(mission)
+    async with app.run_test(size=(80, 24)) as pilot:
+        await settle(pilot)
+        await pilot.press("f")
+        await settle(pilot)
+        await pilot.press("6")
+        await settle(pilot)
+        assert app.current_mode == "residuals" and app.workbench.result is not None
+    assert app.crash_line == ""
