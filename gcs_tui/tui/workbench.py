@@ -448,11 +448,9 @@ def fit_stage(a: Analysis) -> str:
     cold start, that the numerical kernels are compiling (once; ``gcs warmup`` does it)."""
     from gcs_core.warmup import cold_start
 
-    n = len(a.problem.state.solve_for)
-    text = f"fitting ({a.config.method}, {n} solve-for elements)"
     if cold_start():
-        text += " — first use: compiling the numerical kernels, about 30 s once (gcs warmup does it ahead)"
-    return text
+        return "first use: compiling the numerical kernels (about 30 s, once; gcs warmup does it ahead), then fitting"
+    return f"fitting ({a.config.method}, {len(a.problem.state.solve_for)} solve-for elements)"
 
 
 def analysis_key(cfg: AnalysisConfig) -> str:

@@ -104,9 +104,10 @@ class JobState:
         return f"{time.monotonic() - self.started:.0f} s"
 
     def line(self) -> str:
-        """``label: stage · 12 s`` (the status line while the job runs)."""
-        head = f"{self.label}: {self.text}" if self.text and self.text != self.label else self.label
-        return " · ".join(p for p in (head, self.elapsed) if p)
+        """``label · 12 s · stage`` (the status line while the job runs; the time first, so
+        that a narrow terminal cuts the stage, not the clock)."""
+        stage = self.text if self.text != self.label else ""
+        return " · ".join(p for p in (self.label, self.elapsed, stage) if p)
 
 
 class StatusBar(Horizontal):
