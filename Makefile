@@ -24,10 +24,14 @@ $(STAMP): pyproject.toml constraints.txt
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -c constraints.txt -e '.[fast,test,dev,bench]'
+	@echo "make: compiling the numerical kernels once, so the first fit takes seconds (gcs warmup, about 30 s)"
+	$(BIN)/gcs warmup
 	touch $(STAMP)
 	@echo "make: $(VENV) is ready"
 
 run: $(STAMP)
+	@$(BIN)/python -c "from gcs_core.warmup import cold_start; raise SystemExit(cold_start())" || \
+	  { echo "make: compiling the numerical kernels once (gcs warmup, about 30 s)"; $(BIN)/gcs warmup; }
 	$(BIN)/gcs tui $(SAMPLE)
 
 # The exported-plot test opens the HTML in a real headless browser: install Chromium from

@@ -6,6 +6,11 @@ that rows of one table with similar σ share a unit whatever their values:
 * an angle (internal ``rad``) is in arcsec while its σ is below 1°, in degrees from 1°
   (``rad/count`` likewise: arcsec/count or deg/count);
 * a rate (``rad/s``) is always in deg/h, an angular acceleration (``rad/s2``) in deg/h²;
+* an angle whose value reaches 10° is in degrees whatever its σ (``31.78856 ± 0.00023 deg``,
+  not ``114436.9 ± 8.2 arcsec``); below 10° (at most 5 digits of arcsec) rows with similar σ
+  keep sharing a unit;
+* a coefficient per unit of an auxiliary channel is in its channel's unit, by the ICD's
+  naming (:func:`aux_unit`, :func:`per_channel`): ``nT/(A m²)`` for a torquer ``mtb_*``;
 * every other unit is shown as it is; a dimensionless quantity (``1``) has no unit.
 
 Where there is no σ (an RMS, a plotted series, a threshold), the spread of the numbers
@@ -75,9 +80,34 @@ def common_unit(unit: str, *arrays) -> str:
 
 def shown_unit(unit: str, value: float, sigma: float | None = None) -> str:
     """The display unit :func:`estimate` picks for ``value ± sigma``: from σ when it is
-    finite and positive, from ``|value|`` otherwise."""
+    finite and positive, from ``|value|`` otherwise; an angle of 10° or more in degrees."""
     usable = sigma is not None and math.isfinite(sigma) and sigma > 0
+    if unit == "rad" and math.isfinite(value) and abs(value) >= LARGE_ANGLE:
+        return "deg"
     return display_unit(unit, sigma if usable and sigma is not None else abs(value))
+
+
+#: an angle (rad) from this value on is shown in degrees whatever its σ (36 000 arcsec: beyond
+#: five digits of arcsec a number stops being read at a glance)
+LARGE_ANGLE = 10.0 * DEG
+
+#: auxiliary channels' units by the ICD's naming: (part of the channel's name, unit)
+AUX_UNITS = (("mtb", "A m²"), ("temp", "°C"))
+
+
+def aux_unit(channel: str) -> str:
+    """The unit of auxiliary channel ``channel`` by the ICD's naming ('' when unknown)."""
+    low = channel.lower()
+    return next((u for key, u in AUX_UNITS if key in low), "")
+
+
+def per_channel(unit: str, channel: str) -> str:
+    """The unit of a coefficient in ``unit`` per unit of auxiliary ``channel``:
+    ``nT/(A m²)`` for ``mtb_x``, ``nT/°C`` for ``tam_temp``, ``nT/aux`` when unknown."""
+    cu = aux_unit(channel)
+    if not cu:
+        return f"{unit}/aux"
+    return f"{unit}/({cu})" if (" " in cu or "/" in cu) else f"{unit}/{cu}"
 
 
 def scale(unit: str, shown: str) -> float:
@@ -245,13 +275,18 @@ def nice_ticks(lo: float, hi: float, n: int = 5) -> list[float]:
         return [lo] if math.isfinite(lo) else []
     raw = (hi - lo) / max(n - 1, 1)
     p10 = 10.0 ** math.floor(math.log10(raw))
-    step = next(m * p10 for m in (1, 2, 2.5, 5, 10) if m * p10 >= raw)
-    first = math.ceil(lo / step - 1e-9) * step
-    out, k = [], 0
-    while first + k * step <= hi + 1e-9 * step:
-        out.append(round(first + k * step, 12))
-        k += 1
-    return out
+    steps = [m * p10 for m in (0.5, 1, 2, 2.5, 5, 10)]
+    i = next(i for i, step in enumerate(steps) if step >= raw)
+    while True:  # a range that just misses two ticks at this step takes the next finer step
+        step = steps[i]
+        first = math.ceil(lo / step - 1e-9) * step
+        out, k = [], 0
+        while first + k * step <= hi + 1e-9 * step:
+            out.append(round(first + k * step, 12))
+            k += 1
+        if len(out) >= 2 or i == 0:
+            return out
+        i -= 1
 
 
 def tick_labels(ticks: list[float]) -> list[str]:

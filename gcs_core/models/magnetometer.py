@@ -54,6 +54,7 @@ from collections.abc import Mapping
 
 import numpy as np
 
+from gcs_core.display import per_channel
 from gcs_core.errors import InputError
 from gcs_core.models import common
 from gcs_core.models.base import Geometry, ObservationModel, ParamSpec, Prediction
@@ -161,7 +162,7 @@ class MagnetometerModel(ObservationModel):
             specs += [
                 ParamSpec(
                     f"contam_{ch}_{ax}",
-                    "nT/aux",
+                    per_channel("nT", ch),  # nT/(A m²) for a torquer channel (gcs_core.display)
                     0.0,
                     10.0,
                     seed=False,

@@ -14,6 +14,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from gcs_core.cancel import checkpoint
 from gcs_core.models.base import Geometry, Prediction
 from gcs_core.problem.build import Problem
 from gcs_core.problem.curvature import block_curvature
@@ -232,6 +233,7 @@ def iter_blocks(
     att_names = tuple(problem.attitude.names)
     layout = {sd.name: _sensor_columns(problem, sd, att_names, col_index) for sd in sds}
     for window in chunk_windows(problem, sds, chunk):
+        checkpoint()  # esc in the TUI stops a fit or a ranking here (gcs_core.cancel)
         for sd, (lo, hi) in zip(sds, window):
             if hi <= lo:
                 continue

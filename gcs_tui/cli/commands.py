@@ -205,7 +205,22 @@ def cmd_tui(args, prog: Progress) -> int:
         raise InputError(problem)
     from gcs_tui.tui.app import run_tui
 
-    run_tui(args.target, work_dir=args.out)
+    app = run_tui(args.target, work_dir=args.out)
+    if app.crash_line:  # an unhandled error in the app: one line (the traceback is in a log)
+        return _error(prog, app.crash_line, EXIT_INTERNAL)
+    return EXIT_OK
+
+
+def cmd_warmup(args, prog: Progress) -> int:
+    """Compile the numerical kernels now, so that the first fit does not (gcs_core.warmup)."""
+    from gcs_core.warmup import warm_up
+
+    _out("gcs warmup: compiling the numerical kernels once (about 30 s; the first fit then takes seconds)")
+    seconds, left = warm_up(say=lambda text: _out(f"  {text}"))
+    _out(
+        f"gcs warmup: done in {seconds:.1f} s"
+        + (f" ({len(left)} rarely used kernels compile on first use)" if left else "")
+    )
     return EXIT_OK
 
 
@@ -458,6 +473,8 @@ def build_parser() -> argparse.ArgumentParser:
         "default: beside the config, else beside the mission directory",
     )
 
+    add("warmup", cmd_warmup, "compile the numerical kernels now (once per install; make run does it)")
+
     sp = add("import", cmd_import, "validate a mission directory, show what was read, write the SDF")
     sp.add_argument("mission", help="mission directory (ICD §1)")
     sp.add_argument("--sdf", help="write the Standard Data File (HDF5) here")
@@ -586,7 +603,8 @@ def main(argv=None) -> int:
     try:
         code = args.func(args, prog)
         sys.stdout.flush()
-        prog.finish()
+        if code != EXIT_INTERNAL:  # the TUI's crash line stays the only line
+            prog.finish()
         return code
     except InputError as err:
         if err.file is None and err.key and getattr(args, "config_path", None) is not None:

@@ -1,6 +1,7 @@
 """Residual plots exported for reports: plain text (plotext) or one self-contained HTML page.
 
-Each sensor and component gets one plot of its residuals against time, in the display
+Each sensor and component gets one plot of its residuals against time (and, in the HTML
+page, one against each auxiliary channel with its binned means), in the display
 unit chosen from σ (:mod:`gcs_core.display`), with the ±3σ band; edited frames are drawn
 apart (red ×). The HTML page holds inline SVG only — no script, no external file — so a
 colleague can open it anywhere: every plot has a title, axes with round ticks, axis
@@ -19,6 +20,10 @@ import plotext as plt
 
 from gcs_core import display
 from gcs_core.fileperm import write_atomic
+from gcs_tui.binning import Binned, binned_means, envelope
+
+#: at most this many used (and as many edited) points are drawn in one SVG plot
+MAX_SVG_POINTS = 1500
 
 #: terminal escape sequences (plotext adds colour resets even with the "clear" theme)
 _ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
@@ -43,18 +48,43 @@ def text_plot(t, y, edited, sigma: float, title: str, unit: str, width: int = 10
     return _ANSI.sub("", plt.build()).rstrip() + "\n"
 
 
-def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 900, height: int = 300) -> str:
+def svg_plot(
+    t,
+    y,
+    edited,
+    sigma: float,
+    title: str,
+    unit: str,
+    *,
+    width: int = 900,
+    height: int = 300,
+    xlabel: str = "mission time t [s]",
+    binned: Binned | None = None,
+    max_points: int = MAX_SVG_POINTS,
+) -> str:
     """One residual plot as inline SVG: title, axes, round ticks, labels with units, the
-    shaded ±3σ band and a legend to the right of the data. ``y``, ``sigma`` in ``unit``."""
+    shaded ±3σ band and a legend to the right of the data. ``y``, ``sigma`` in ``unit``;
+    ``t`` the x values (time, or a channel named by ``xlabel``); ``binned``: the binned
+    means with their standard errors, drawn over the points. At most ``max_points`` used
+    and ``max_points`` edited points are drawn (their envelope, :func:`gcs_tui.binning.envelope`),
+    which bounds the plot's size; the statistics in the title use every point."""
     esc = html.escape
     if t.size == 0:
         return f"<h2>{esc(title)}</h2><p>no data</p>"
+    t, y, edited = np.asarray(t, dtype=float), np.asarray(y, dtype=float), np.asarray(edited, dtype=bool)
+    for mask in (~edited, edited):  # decimate for display only
+        idx = np.nonzero(mask)[0]
+        drop = np.setdiff1d(idx, idx[envelope(idx.size, y[idx], max_points)])
+        if drop.size:
+            keep = np.ones(t.size, bool)
+            keep[drop] = False
+            t, y, edited = t[keep], y[keep], edited[keep]
     left, right, top, bottom = 80, 170, 20, 50  # margins: ticks left, legend right
     pw, ph = width - left - right, height - top - bottom
     finite = np.isfinite(y)
     spread = float(np.max(np.abs(y[finite & ~edited]))) if np.any(finite & ~edited) else 0.0
     lim = max(4.0 * sigma, 1.05 * spread, 1e-300)
-    x0, x1 = float(np.min(t)), float(np.max(t))
+    x0, x1 = float(np.nanmin(t)), float(np.nanmax(t))
     if x1 <= x0:
         x1 = x0 + 1.0
     sx = lambda v: left + (v - x0) / (x1 - x0) * pw
@@ -72,6 +102,7 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
             'stroke-dasharray="6 3"/>'
         )
     parts.append(f'<line x1="{left}" x2="{left + pw}" y1="{sy(0):.1f}" y2="{sy(0):.1f}" stroke="#999"/>')
+    finite = np.isfinite(y) & np.isfinite(t)
     yc = np.clip(y, -lim, lim)
     for ti, yi in zip(t[~edited & finite], yc[~edited & finite]):
         parts.append(f'<circle cx="{sx(ti):.1f}" cy="{sy(yi):.1f}" r="1.3" fill="#1f4e79"/>')
@@ -81,6 +112,13 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
             f'<path d="M{a - 3:.1f},{b - 3:.1f}L{a + 3:.1f},{b + 3:.1f}M{a - 3:.1f},{b + 3:.1f}'
             f'L{a + 3:.1f},{b - 3:.1f}" stroke="#c0392b" stroke-width="1.5"/>'
         )
+    if binned is not None:
+        for c, m, e in zip(binned.centers, np.clip(binned.mean, -lim, lim), binned.err):
+            parts.append(
+                f'<line x1="{sx(c):.1f}" x2="{sx(c):.1f}" y1="{sy(min(m + e, lim)):.1f}" '
+                f'y2="{sy(max(m - e, -lim)):.1f}" stroke="#117a65" stroke-width="2"/>'
+                f'<circle cx="{sx(c):.1f}" cy="{sy(m):.1f}" r="4" fill="#117a65"/>'
+            )
     # axes, ticks and labels
     parts.append(
         f'<rect x="{left}" y="{top}" width="{pw}" height="{ph}" fill="none" stroke="#222" '
@@ -98,7 +136,7 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
             f'<line x1="{left - 5}" x2="{left}" y1="{sy(v):.1f}" y2="{sy(v):.1f}" stroke="#333"/>'
             f'<text x="{left - 8}" y="{sy(v) + 4:.1f}" text-anchor="end">{esc(lab)}</text>'
         )
-    parts.append(f'<text x="{left + pw / 2}" y="{height - 10}" text-anchor="middle">mission time t [s]</text>')
+    parts.append(f'<text x="{left + pw / 2}" y="{height - 10}" text-anchor="middle">{esc(xlabel)}</text>')
     ylab = f"residual [{unit}]" if unit else "residual"
     parts.append(f'<text transform="translate(18,{top + ph / 2}) rotate(-90)" text-anchor="middle">{esc(ylab)}</text>')
     # legend, outside the data (right margin)
@@ -112,8 +150,35 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
         f'stroke-dasharray="3 2"/><text x="{lx + 16}" y="{ly + 42}">±3σ band</text>'
         f'<text x="{lx}" y="{ly + 62}">σ = {esc(display.sig(sigma, 2))} {esc(unit)}</text>'
     )
+    if binned is not None:
+        parts.append(
+            f'<circle cx="{lx + 6}" cy="{ly + 80}" r="4" fill="#117a65"/>'
+            f'<text x="{lx + 16}" y="{ly + 84}">bin mean ± s.e.</text>'
+        )
     parts.append("</svg>")
     return f"<h2>{esc(title)}</h2>\n<figure>{''.join(parts)}</figure>"
+
+
+def channel_plots(analysis, name: str, comp: str, sel, y, edited, sigma: float, unit: str) -> list[str]:
+    """The residual of ``name`` ``comp`` against each auxiliary channel, with its binned means
+    (a dependence hidden under the scatter shows as a trend of the means)."""
+    try:
+        aux = analysis.problem.sensor(name).geom.aux
+    except (AttributeError, KeyError):
+        return []
+    out = []
+    for channel, values in sorted(aux.items()):
+        x = np.asarray(values, dtype=float)
+        if x.shape[0] != np.asarray(sel).shape[0]:
+            continue
+        x = x[sel]
+        ok = ~edited & np.isfinite(x) & np.isfinite(y)
+        binned = binned_means(x[ok], y[ok], sigma)
+        cu = display.aux_unit(channel)
+        title = f"{name} {comp}: residual against {channel} (binned means ± standard error)"
+        xlabel = f"{channel} [{cu}]" if cu else f"{channel} (unit as in aux.csv)"
+        out.append(svg_plot(x, y, edited, sigma, title, unit, xlabel=xlabel, binned=binned))
+    return out
 
 
 def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[Path]:
@@ -142,6 +207,7 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
                 out.append(p)
             else:
                 sections.append(svg_plot(t, y, ed, sigma, title, unit))
+                sections += channel_plots(analysis, name, comp, sel, y, ed, sigma, unit)
     if fmt == "html":
         p = folder / "residuals.html"
         name = html.escape(analysis.mission.spec.name)

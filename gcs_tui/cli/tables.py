@@ -302,8 +302,11 @@ def remaining_lines(analysis) -> list[str]:
     lines = []
     for name, d in remaining_summary(analysis).items():
         noise = d["noise"]
+        # the unit of the tables (arcsec for a tracker's rad), one rule: gcs_core.display
+        shown = display.display_unit(d["unit"], max(abs(d["rms"] or 0.0), abs(noise or 0.0)))
+        k, lab = display.scale(d["unit"], shown), display.unit_label(shown)
         what = "estimated from the data" if d["noise_estimated"] else "of the data book"
-        src = f" {noise:.4g} {d['unit']} noise ({what})" if noise else " noise"
+        src = f" {noise * k:.4g} {lab} noise ({what})" if noise else " noise"
         verdict = (
             "consistent with the noise"
             if d["consistent_with_noise"]
@@ -311,7 +314,7 @@ def remaining_lines(analysis) -> list[str]:
             f"1 ± {d['consistency_bound']:.2g} expected): something is left unexplained"
         )
         lines.append(
-            f"{name}: residual {d['rms']:.4g} {d['unit']} RMS, {d['rms_normalized']:.3g}× "
+            f"{name}: residual {d['rms'] * k:.4g} {lab} RMS, {d['rms_normalized']:.3g}× "
             f"the{src}, held-out {d['holdout_rms_normalized']:.3g}×; {verdict}"
         )
     return lines

@@ -15,6 +15,7 @@ import logging
 import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -23,6 +24,7 @@ from textual.app import App
 from textual.screen import Screen
 from textual.worker import get_current_worker
 
+from gcs_core.cancel import Cancelled, cancellable
 from gcs_core.errors import GcsError
 from gcs_core.fileperm import make_usual
 from gcs_tui.tui import jobs
@@ -113,6 +115,21 @@ class GcsApp(App):
         """Every warning the engine logged while the app ran, ``(level, text)``, whole (palette:
         "app: messages")."""
         self._log_handler: AppLogHandler | None = None
+        self.crash_line = ""
+        """One line naming an unhandled error and the log holding its traceback ('' if none)."""
+
+    def _handle_exception(self, error: Exception) -> None:
+        """An unhandled error: its traceback to a log file, one line for the CLI, exit 4
+        (:mod:`gcs_tui.tui.crash`) — never a traceback on the terminal."""
+        from gcs_tui.tui import crash
+
+        if not self.crash_line:
+            self.crash_line = crash.record(error)
+        self._return_code = crash.EXIT_INTERNAL
+        if self._exception is None:  # Pilot re-raises it, so tests see the error
+            self._exception = error
+            self._exception_event.set()
+        self._close_messages_no_wait()
 
     # ------------------------------------------------------------------ theme
     def get_theme_variable_defaults(self) -> dict[str, str]:
@@ -123,6 +140,7 @@ class GcsApp(App):
         self._log_handler = AppLogHandler(self)
         for name in LOGGERS:
             logging.getLogger(name).addHandler(self._log_handler)
+        self.set_interval(1.0, self._tick)  # a running job's elapsed time, every second
         self.switch_mode(self.start_view)
         if self.source is not None and not self.workbench.ready:
             self.open_path(self.source)
@@ -163,7 +181,7 @@ class GcsApp(App):
         if self.busy:
             self.notify(f"busy: {self.job.label} — esc cancels", severity="warning")
             return False
-        self.job = JobState(label, 0.0, None, "")
+        self.job = JobState(label, 0.0, None, "", started=time.monotonic())
         if on_done is not None:
             self._done[job] = on_done
         self.post_message(JobStarted(job, label))
@@ -181,7 +199,10 @@ class GcsApp(App):
             return worker.is_cancelled
 
         try:
-            result = fn(progress, cancelled)
+            with cancellable(cancelled):  # the engine's checkpoints stop it within a second
+                result = fn(progress, cancelled)
+        except Cancelled:
+            self.post_message(JobFinished(job, label, False, cancelled=True))
         except GcsError as err:
             self.post_message(JobFinished(job, label, False, error=str(err)))
         except Exception as err:  # the UI must survive an engine bug; the log keeps the traceback
@@ -192,12 +213,16 @@ class GcsApp(App):
                 JobFinished(job, label, not worker.is_cancelled, cancelled=worker.is_cancelled, result=result)
             )
 
+    def _tick(self) -> None:
+        if self.busy:
+            self._update_status()
+
     def on_job_started(self, message: JobStarted) -> None:
         self._update_status()
 
     def on_job_progress(self, message: JobProgress) -> None:
         if self.job.busy:
-            self.job = JobState(self.job.label, message.done, message.total, message.text)
+            self.job = replace(self.job, done=message.done, total=message.total, text=message.text)
             self._update_status()
 
     def on_job_finished(self, message: JobFinished) -> None:
@@ -243,7 +268,11 @@ class GcsApp(App):
             return "no mission open (o)"
         parts = [wb.mission.name]
         res = wb.result
-        if res is None:
+        run = wb.filtr
+        if res is None and run is not None and run.reports:  # FILTR stepped without a fit
+            v = run.view()
+            parts.append(f"FILTR {'finished' if v.finished else f'at block {v.done}/{v.total}'} (no batch fit: f)")
+        elif res is None:
             parts.append("not fitted (f)")
         else:
             red = res.chi2 / res.dof if res.dof > 0 else float("nan")
@@ -288,7 +317,7 @@ class GcsApp(App):
         if not self.busy:
             return
         self.workers.cancel_group(self, "engine")
-        self.job = JobState(self.job.label, self.job.done, self.job.total, "cancelling…")
+        self.job = replace(self.job, text="cancelling…")
         self._update_status()
 
     def action_noise(self) -> None:
@@ -313,9 +342,10 @@ class GcsApp(App):
         self.push_screen(MessagesScreen("Warnings from the engine", self.messages))
 
     async def action_quit(self) -> None:
-        """Quit; with unsaved config edits, ask first (saving is ctrl+s)."""
+        """Quit; with unsaved config edits, ask first (saving is ctrl+s). A running job is
+        cancelled first (it stops at its next checkpoint, within a second)."""
         if not self.workbench.unsaved:
-            self.exit()
+            self._quit_now()
             return
         self.push_screen(
             ConfirmScreen(
@@ -330,7 +360,12 @@ class GcsApp(App):
 
     def _quit_if(self, ok: bool | None) -> None:
         if ok:
-            self.exit()
+            self._quit_now()
+
+    def _quit_now(self) -> None:
+        if self.busy:
+            self.workers.cancel_group(self, "engine")
+        self.exit()
 
     def work_dir(self) -> Path:
         """Where the app writes what the user did not name: beside the analysis config the
@@ -363,33 +398,16 @@ class GcsApp(App):
         return str(out)
 
     def action_save_config(self) -> None:
-        wb = self.workbench
-        if not wb.ready:
-            return
-        default = str(wb.save_path) if wb.save_path else "gcs.toml"
-        self.push_screen(
-            FormScreen(
-                "Save the analysis config",
-                [Field("path", "File", default, kind="text")],
-                note="Paths inside are written relative to the file.",
-            ),
-            self._save_chosen,
-        )
+        """ctrl+s: the save dialog (:mod:`gcs_tui.tui.saving`: asks before replacing a file)."""
+        from gcs_tui.tui import saving
 
-    def _save_chosen(self, v: dict | None) -> None:
-        if v:
-            self.save_config_to(v["path"])
+        saving.open_dialog(self)
 
     def save_config_to(self, path: str | Path) -> Path | None:
-        try:
-            out = self.workbench.save_config(path)
-        except (GcsError, OSError) as err:
-            self.notify(str(err), title="config not saved", severity="error")
-            return None
-        self.last_notice = f"config saved to {out.name}"
-        self.notify(self.last_notice)
-        self.changed()
-        return out
+        """Save the config to ``path`` now, without asking (tests, embedding)."""
+        from gcs_tui.tui import saving
+
+        return saving.save_to(self, Path(path))
 
     def change_effect(self, effect_id: str, add: bool) -> None:
         verb = "adding" if add else "removing"
@@ -573,14 +591,16 @@ def detached_terminal_logging() -> Iterator[None]:
             lg.addHandler(h)
 
 
-def run_tui(path: str | Path | None = None, *, work_dir: str | Path | None = None) -> None:
+def run_tui(path: str | Path | None = None, *, work_dir: str | Path | None = None) -> GcsApp:
     """Run the TUI on a mission directory or analysis config (the CLI's ``gcs tui``);
-    files it writes unasked go to ``work_dir`` (default: beside the config or mission)."""
+    files it writes unasked go to ``work_dir`` (default: beside the config or mission).
+    Returns the app: its ``crash_line`` is set when it stopped on an unhandled error."""
     app = GcsApp(path)
     if work_dir is not None:
         app.workbench.out_dir = Path(work_dir)
     with detached_terminal_logging():
         app.run()
+    return app
 
 
 __all__ = ["GcsApp", "run_tui", "detached_terminal_logging", "poor_choice", "VIEWS"]

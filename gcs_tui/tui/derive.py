@@ -11,6 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats
 
+from gcs_tui.binning import Binned, binned_means  # noqa: F401 — the screens read them here
+
 
 def argument_of_latitude(r_I: np.ndarray, v_I: np.ndarray) -> np.ndarray:
     """(N,) argument of latitude u [deg, 0..360) from (N, 3) position and velocity.
@@ -24,7 +26,8 @@ def argument_of_latitude(r_I: np.ndarray, v_I: np.ndarray) -> np.ndarray:
     r = np.asarray(r_I, dtype=float)
     v = np.asarray(v_I, dtype=float)
     h = np.cross(r, v)
-    h_hat = h / np.linalg.norm(h, axis=1, keepdims=True)
+    hn = np.linalg.norm(h, axis=1, keepdims=True)
+    h_hat = h / np.where(hn > 0, hn, np.nan)  # no orbit (a ground mission): NaN, silently
     n = np.column_stack([-h[:, 1], h[:, 0], np.zeros(len(h))])
     nn = np.linalg.norm(n, axis=1, keepdims=True)
     n_hat = np.where(
@@ -124,61 +127,9 @@ def spread(values: np.ndarray, *, floor: float = 1e-300) -> float:
     return float(v.max()) if v.size else floor
 
 
-@dataclass(frozen=True)
-class Binned:
-    """Binned means of a residual against a channel.
-
-    Attributes
-    ----------
-    centers : (B,) the bin's mean x; mean : (B,) mean residual; err : (B,) standard error of
-    the mean (the residuals' scatter in the bin / √n; σ/√n when a bin has one point);
-    n : (B,) points per bin.
-    """
-
-    centers: np.ndarray
-    mean: np.ndarray
-    err: np.ndarray
-    n: np.ndarray
-
-
-def binned_means(x: np.ndarray, y: np.ndarray, sigma: float, *, bins: int = 24, distinct: int = 24) -> Binned:
-    """Mean of ``y`` (N,) in bins of ``x`` (N,) with its standard error.
-
-    A channel with at most ``distinct`` distinct values (a torquer at −60, 0, +60) gets one
-    bin per value; otherwise ``bins`` equal-count bins. Non-finite pairs are dropped;
-    ``sigma`` is the per-point σ used when a bin's own scatter is undefined.
-    """
-    x = np.asarray(x, dtype=float)
-    y = np.asarray(y, dtype=float)
-    ok = np.isfinite(x) & np.isfinite(y)
-    x, y = x[ok], y[ok]
-    if x.size == 0:
-        e = np.zeros(0)
-        return Binned(e, e, e, e.astype(int))
-    values = np.unique(x)
-    if values.size <= distinct:
-        idx = np.searchsorted(values, x)
-        nb = values.size
-    else:
-        edges = np.unique(np.quantile(x, np.linspace(0.0, 1.0, bins + 1)))
-        idx = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, edges.size - 2)
-        nb = edges.size - 1
-    n = np.bincount(idx, minlength=nb)
-    sx = np.bincount(idx, weights=x, minlength=nb)
-    sy = np.bincount(idx, weights=y, minlength=nb)
-    syy = np.bincount(idx, weights=y * y, minlength=nb)
-    keep = n > 0
-    n, sx, sy, syy = n[keep], sx[keep], sy[keep], syy[keep]
-    mean = sy / n
-    var = np.where(n > 1, np.clip(syy - n * mean**2, 0.0, None) / np.maximum(n - 1, 1), sigma**2)
-    return Binned(sx / n, mean, np.sqrt(var / n), n)
-
-
-#: units of auxiliary channels by name (ICD §6: torquer dipoles in A m², temperatures in °C)
-AUX_UNITS = (("mtb", "A m²"), ("temp", "°C"))
-
-
 def aux_unit(name: str) -> str:
-    """The unit of auxiliary channel ``name`` by the ICD's naming ('' when unknown)."""
-    low = name.lower()
-    return next((u for key, u in AUX_UNITS if key in low), "")
+    """The unit of auxiliary channel ``name`` by the ICD's naming ('' when unknown;
+    the rule is :func:`gcs_core.display.aux_unit`)."""
+    from gcs_core.display import aux_unit as rule
+
+    return rule(name)

@@ -12,6 +12,8 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+from gcs_tui.tui import paths
+
 log = logging.getLogger(__name__)
 
 
@@ -54,7 +56,7 @@ def scds_path(wb) -> Path:
     mission directory; :meth:`~gcs_tui.tui.workbench.Workbench.work_dir`)."""
     if wb.scds_path is not None:
         return Path(wb.scds_path)
-    return wb.work_dir() / f"{wb.mission.name}.scds.h5"
+    return paths.inside(wb.work_dir(), wb.mission.name, ".scds.h5")
 
 
 def save_calibration(wb, path=None, note: str = "", progress=None, cancelled=None) -> int:
@@ -64,7 +66,8 @@ def save_calibration(wb, path=None, note: str = "", progress=None, cancelled=Non
 
     if progress:
         progress(0, None, "writing the SCDS")
-    path = Path(path) if path else scds_path(wb)
+    path = Path(path).expanduser() if path else scds_path(wb)
+    path.parent.mkdir(parents=True, exist_ok=True)  # gcs tui --out to a folder not made yet
     version = save(wb.analysis, path, note=note or "")
     wb.scds_path = path
     return version

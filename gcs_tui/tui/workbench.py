@@ -29,6 +29,7 @@ from gcs_core.errors import ConfigError
 from gcs_core.problem.prepare import PHYSICS_EFFECTS
 from gcs_core.problem.state import ROLES
 from gcs_core.session import Analysis
+from gcs_tui.tui import paths
 from gcs_tui.tui.derive import segments
 
 log = logging.getLogger(__name__)
@@ -126,8 +127,6 @@ class Workbench:
         self.fitted_config = ""
         self._replace(analysis, keep_steps=False)  # a new mission: a new history
         self._saved = analysis_key(cfg)
-        if self.save_path is None:
-            self.save_path = cfg.path if cfg.path is not None else self.work_dir() / f"{analysis.mission.name}.toml"
 
     def _replace(self, analysis: Analysis, *, keep_steps: bool = True) -> None:
         if keep_steps and self.analysis is not None:
@@ -168,15 +167,34 @@ class Workbench:
 
     def work_dir(self) -> Path:
         """Where files the user did not name go (config, SCDS, screenshots): :attr:`out_dir`
-        if set, else the folder of the analysis config that was opened or saved, else the
-        folder that holds the mission directory — never the working directory by accident."""
+        (``gcs tui --out``) if set, else the folder of the analysis config that was opened
+        or saved, else the folder that holds the mission directory; when that folder is
+        bundled with GCS (``sample_data/``), ``./out`` instead, so that nothing is written
+        among the bundled files."""
         if self.out_dir is not None:
-            return Path(self.out_dir)
+            return Path(self.out_dir).expanduser().resolve()
+        folder = Path.cwd()
         if self.ready and self.config.path is not None:
-            return Path(self.config.path).resolve().parent
-        if self.ready:
-            return Path(self.mission.spec.root).resolve().parent
-        return Path.cwd()
+            folder = Path(self.config.path).resolve().parent
+        elif self.ready:
+            folder = Path(self.mission.spec.root).resolve().parent
+        return Path.cwd().resolve() / "out" if paths.protected(folder) else folder
+
+    def default_save_path(self) -> Path:
+        """Where ``ctrl+s`` proposes to save: the file saved to before in this session, else
+        the config that was opened (in :meth:`work_dir`), else the mission's name made safe
+        (:func:`~gcs_tui.tui.paths.safe_stem`) — never a file bundled with GCS or tracked by
+        git (a free ``<stem>-N.toml`` beside it then)."""
+        if self.save_path is not None:
+            return self.save_path.expanduser().resolve()
+        cfg_path = self.config.path if self.ready else None
+        if cfg_path is not None:
+            target = self.work_dir() / paths.inside(Path("."), Path(cfg_path).stem, ".toml").name
+        else:
+            target = paths.inside(self.work_dir(), self.mission.name if self.ready else "gcs", ".toml")
+        if target.exists() and paths.protected(target):
+            target = paths.free_name(target)
+        return target
 
     @property
     def stale(self) -> bool:
@@ -330,9 +348,9 @@ class Workbench:
         )
 
     def save_config(self, path: str | Path | None = None) -> Path:
-        path = Path(path) if path else self.save_path
-        if path is None:
-            raise ConfigError("no file to save the config to")
+        """Write the config to ``path`` (default :meth:`default_save_path`; its folder is
+        created). The caller asks before replacing a file (the app does)."""
+        path = Path(path).expanduser() if path else self.default_save_path()
         out = save_config(self.config, path)
         self.save_path = out
         self.current.config = replace(self.config, path=out)
@@ -349,21 +367,22 @@ class Workbench:
         say = progress or (lambda *a: None)
         stop = cancelled or (lambda: False)
         old = self.current
-        say(0, 3, "building the state")
+        say(0, 4, "building the state")
         fresh = Analysis(old.config, mission=old.mission)
         fresh.steps = list(old.steps)
-        say(1, 3, "fitting")
+        say(1, 4, fit_stage(fresh))
         fresh.fit()
         if not fresh.steps:
             fresh.first_step()
         if stop():
             return None
-        say(2, 3, "ranking candidates")
+        say(2, 4, f"ranking {len(fresh.candidate_effects())} candidate effects")
         fresh.rank()
+        say(3, 4, "goodness of fit")
         fresh.goodness()  # the χ² tests, formed here rather than on the UI thread
         if stop():
             return None
-        say(3, 3, "done")
+        say(4, 4, "done")
         self.fitted_config = fit_key(fresh.config)
         self._replace(fresh, keep_steps=False)
         return fresh
@@ -422,6 +441,16 @@ class Workbench:
             return {}
         sig = res.sigma
         return {n: (res.state[n].value, sig[n]) for n in res.solve_for}
+
+
+def fit_stage(a: Analysis) -> str:
+    """What the progress line says while ``a`` fits: the method, the state's size and, on a
+    cold start, that the numerical kernels are compiling (once; ``gcs warmup`` does it)."""
+    from gcs_core.warmup import cold_start
+
+    if cold_start():
+        return "first use: compiling the numerical kernels (about 30 s, once; gcs warmup does it ahead), then fitting"
+    return f"fitting ({a.config.method}, {len(a.problem.state.solve_for)} solve-for elements)"
 
 
 def analysis_key(cfg: AnalysisConfig) -> str:

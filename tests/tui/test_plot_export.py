@@ -173,3 +173,37 @@ def test_html_plots_render_in_a_real_browser(tmp_path):
     assert rows_with_frame >= 4, rows_with_frame
     # text (title, tick labels, axis labels) left of the data: dark pixels in the tick column
     assert dark[:, 20:75].sum() > 300
+
+
+def test_html_has_the_plots_against_channels_with_binned_means(tmp_path):
+    """A torquer channel of three levels: the TAM residual steps with it; the page shows the
+    residual against the channel, with one bin mean per level."""
+    a = fake_analysis()
+    tam = a.result.residuals["TAM1"]
+    mtb = np.resize([-60.0, 0.0, 60.0], tam.t.size)
+    tam.residual[:, 0] += 0.4 * mtb
+    a.problem = SimpleNamespace(
+        sensor=lambda name: SimpleNamespace(geom=SimpleNamespace(aux={"mtb_x": mtb} if name == "TAM1" else {}))
+    )
+    (page,) = export_residual_plots(a, tmp_path, fmt="html")
+    text = page.read_text(encoding="utf-8")
+    assert text.count("<svg") == 4
+    assert "TAM1 bx: residual against mtb_x" in text and "mtb_x [A m²]" in text
+    assert text.count('r="4" fill="#117a65"') == 3 + 1  # three bin means and the legend's
+
+
+def test_a_plot_is_bounded_however_many_points():
+    """Decimation for display only: 200 000 points draw at most MAX_SVG_POINTS (the envelope:
+    the extreme point stays)."""
+    from gcs_tui.cli.export import MAX_SVG_POINTS, svg_plot
+
+    rng = np.random.default_rng(3)
+    n = 200_000
+    t, y = np.arange(n, dtype=float), rng.normal(0.0, 1.0, n)
+    y[123_457] = 3.9
+    svg = svg_plot(t, y, np.zeros(n, bool), 1.0, "big", "nT")
+    assert svg.count("<circle") <= MAX_SVG_POINTS + 1
+    assert len(svg) < 200_000
+    from gcs_tui.binning import envelope
+
+    assert 123_457 in envelope(n, y, MAX_SVG_POINTS)  # the outlier is drawn

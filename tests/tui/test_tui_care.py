@@ -146,7 +146,7 @@ async def test_session_at_80x24_keeps_the_terminal_clean_and_asks_first(mission_
                 assert isinstance(app.screen, ConfirmScreen)  # asks, does not quit
                 await pilot.press("escape")
                 await pilot.pause()
-                out = app.save_config_to(app.workbench.save_path)
+                out = app.save_config_to(app.workbench.default_save_path())
                 assert out.parent == mission_copy.parent  # beside the mission, not the cwd
                 assert (os.stat(out).st_mode & 0o777) == 0o666 & ~_umask()
                 assert not app.workbench.unsaved

@@ -79,3 +79,35 @@ def test_residuals_against_a_torquer_channel(snap_compare, workbench):
     """Residual against the channel mtb_x: binned means with error bars, the channel's unit."""
     app = GcsApp(workbench=workbench, start_view="residuals")
     assert snap_compare(app, terminal_size=SIZES["160x48"], run_before=settle, press=["x"] * 5)
+
+
+def test_diagnosis_charts_at_80x24(snap_compare, workbench):
+    """At 80×24 `g` shows the RMS-per-step charts: titles, round ticks, the legend line."""
+    app = GcsApp(workbench=workbench, start_view="diagnosis")
+    assert snap_compare(app, terminal_size=SIZES["80x24"], run_before=settle, press=["g"])
+
+
+def test_residuals_against_a_torquer_channel_at_80x24(snap_compare, workbench):
+    """At 80×24 the binned means are printed as numbers beside the channel plot."""
+    app = GcsApp(workbench=workbench, start_view="residuals")
+    assert snap_compare(app, terminal_size=SIZES["80x24"], run_before=settle, press=["x"] * 5)
+
+
+@pytest.mark.parametrize("view", [mode for mode, *_ in VIEWS])
+async def test_titles_legends_and_tab_names_at_80x24(workbench, view):
+    """At 80×24 every tab name is in the bar and every plot drawn shows its title (which
+    carries its legend) on its first line — plotext used to drop a title wider than the plot."""
+    from gcs_tui.tui.widgets.chrome import NavBar
+    from gcs_tui.tui.widgets.plots import MIN_HEIGHT, MIN_WIDTH, GcsPlot
+
+    app = GcsApp(workbench=workbench, start_view=view)
+    async with app.run_test(size=SIZES["80x24"]) as pilot:
+        await settle(pilot)
+        bar = app.screen.query_one(NavBar).render().plain
+        for _, key, _, short in VIEWS:
+            assert f"{key} {short}" in bar, bar
+        for plot in app.screen.query(GcsPlot):
+            if not plot.display or plot.size.width < MIN_WIDTH or plot.size.height < MIN_HEIGHT:
+                continue
+            first = plot.render().plain.splitlines()[0]
+            assert first.strip() and not first.lstrip().startswith(("┌", "│")), (plot.id, first)

@@ -27,6 +27,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
         (
             "gcs_core",
             "gcs_core.errors",
+            "gcs_core.cancel",
             "gcs_core.units",
             "gcs_core.fileperm",
             "gcs_core.compiled",
@@ -58,6 +59,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "gcs_core.reporting",
             "gcs_core.session",
             "gcs_core.stepwise",
+            "gcs_core.warmup",
             "gcs_core.trade",
             "gcs_core.convert",
         ),

@@ -58,7 +58,7 @@ class PredictorScreen(GcsScreen):
                 (" method ", "bold"),
                 p.method,
                 f" · {fmt.span(float(p.times[0]), float(p.times[-1]))}",
-                " · final attitude σ ",
+                " · attitude σ at the plan's end (body x / y / z) ",
                 (
                     " / ".join(
                         fmt.quantity(v, "rad", digits=2, shown=fmt.display_unit("rad", float(np.nanmax(att))))
@@ -119,7 +119,7 @@ class PredictorScreen(GcsScreen):
         table.clear(columns=True)
         undetermined = set(p.undetermined)
         table.add_column("element" + (" (dim: not determined by the plan)" if undetermined else ""))
-        table.add_column(Text("σ final", justify="right"))
+        table.add_column(Text("σ (all data)", justify="right"))
         table.add_column(Text("noise only", justify="right"))
         cons = list(p.consider)
         for c in cons:

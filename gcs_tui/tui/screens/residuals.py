@@ -17,7 +17,7 @@ import math
 import numpy as np
 from rich.text import Text
 from textual.app import ComposeResult
-from textual.containers import Horizontal, Vertical
+from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Static
 
 from gcs_core import display as fmt
@@ -97,7 +97,10 @@ class ResidualsScreen(GcsScreen):
 
     def compose_body(self) -> ComposeResult:
         yield Static("", id="res-info", markup=False)
-        yield GcsPlot(id="res-main", title="residuals")
+        with Horizontal(id="res-top"):
+            yield GcsPlot(id="res-main", title="residuals")
+            with VerticalScroll(id="res-bins-box"):
+                yield Static("", id="res-bins", markup=False)
         with Horizontal(id="res-lower"):
             yield GcsPlot(id="res-hist", title="histogram")
             yield GcsPlot(id="res-acf", title="autocorrelation")
@@ -156,6 +159,7 @@ class ResidualsScreen(GcsScreen):
         lab = fmt.unit_label(shown)
         title = f"{name} {r.components[j]}" + (f" [{lab}]" if lab else "")
         main = self.query_one("#res-main", GcsPlot)
+        self._bins(kind == "residual" and xname != "time", xvals, resid, sigma, r.used, xlabel, lab)
         if kind == "residual":
             cands = {c.id: c for c in self.wb.analysis.candidates}
             line = candidate_line(cands.get(self.app.selected_candidate), name, r.components[j], xname, r.unit, shown)
@@ -182,6 +186,22 @@ class ResidualsScreen(GcsScreen):
         self.query_one("#res-hist", GcsPlot).paint(lambda plt: self._hist(plt, z[r.used], "histogram (z)"))
         self.query_one("#res-acf", GcsPlot).paint(lambda plt: self._acf(plt, z[r.used], "autocorrelation (z)"))
         self._table()
+
+    def _bins(self, show: bool, x, y, sigma: float, used, xlabel: str, unit: str) -> None:
+        """The binned means as numbers beside the plot (a step of a few units on a wide
+        axis is one row of the plot; the numbers show it whatever the size)."""
+        box = self.query_one("#res-bins-box", VerticalScroll)
+        box.display = show
+        if not show:
+            return
+        ok = used & np.isfinite(y) & np.isfinite(x)
+        b = derive.binned_means(x[ok], y[ok], sigma)
+        channel = xlabel.split(" [")[0]
+        lines = [f"mean ± s.e. [{unit}]" if unit else "mean ± s.e.", f"per bin of {channel}:"]
+        for c, m, e in zip(b.centers, b.mean, b.err):
+            vs, ss = fmt.value_sigma(float(m), float(e))  # digits from the standard error
+            lines.append(f"{fmt.sig(float(c), 3):>7} {vs:>6} ± {ss}")
+        self.query_one("#res-bins", Static).update("\n".join(lines))
 
     def _verdict(self, res) -> tuple:
         """The fit's χ² per dof and its goodness-of-fit verdict, short (gcs_core.diagnosis.goodness)."""
@@ -238,17 +258,17 @@ class ResidualsScreen(GcsScreen):
         if ed.size:
             plt.scatter(x[ed].tolist(), np.clip(y[ed], -lim, lim).tolist(), marker="x", color=rgb("gcs-edited"))
             legend.append("x edited")
-        if binned and all_used.size:
-            b = derive.binned_means(x[all_used], y[all_used], sigma)
-            plt.error(b.centers.tolist(), b.mean.tolist(), yerr=b.err.tolist(), color=rgb("gcs-holdout"))
-            plt.scatter(b.centers.tolist(), b.mean.tolist(), marker="●", color=rgb("gcs-holdout"))
-            legend.append("● mean ± s.e.")
         if line is not None and all_used.size:
             slope, label = line
             x0, x1 = float(np.min(x[all_used])), float(np.max(x[all_used]))
             xs = np.linspace(x0, x1, 41)
             marked_line(plt, xs.tolist(), (slope * xs).tolist(), rgb("gcs-warn"), "■", marks=6)
             xlabel = f"{xlabel} · ■ {label}"
+        if binned and all_used.size:
+            b = derive.binned_means(x[all_used], y[all_used], sigma)
+            plt.error(b.centers.tolist(), b.mean.tolist(), yerr=b.err.tolist(), color=rgb("gcs-holdout"))
+            plt.scatter(b.centers.tolist(), b.mean.tolist(), marker="●", color=rgb("gcs-holdout"))
+            legend.append("● mean ± s.e.")
         if idx.size or ed.size:
             plt.horizontal_line(3 * sigma, color=rgb("gcs-band"))
             plt.horizontal_line(-3 * sigma, color=rgb("gcs-band"))

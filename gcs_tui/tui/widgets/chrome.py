@@ -6,6 +6,7 @@ about the engine.
 
 from __future__ import annotations
 
+import time
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -40,32 +41,44 @@ class NavBar(Widget):
         super().__init__(**kw)
         self.set_reactive(NavBar.current, current)
 
-    def _entries(self, width: int) -> list[tuple[str, str]]:
-        """``(mode, label)`` per screen at the densest form that fits ``width``."""
-        for form in ("full", "short"):
-            entries = [(mode, f"{key} {title if form == 'full' else short}") for mode, key, title, short in VIEWS]
-            if 5 + sum(len(label) + 2 for _, label in entries) <= width:
-                return entries
-        return [(mode, f"{key} {title}" if mode == self.current else key) for mode, key, title, _ in VIEWS]
+    def _layout(self, width: int) -> tuple[bool, int, list[tuple[str, str]]]:
+        """``(GCS badge shown, padding each side, [(mode, label)])``: the roomiest form that
+        fits ``width`` — full titles, short titles, short titles packed without the badge
+        (80 columns), and only as a last resort keys with the current screen's title."""
+        full = [(mode, f"{key} {title}") for mode, key, title, _ in VIEWS]
+        short = [(mode, f"{key} {s}") for mode, key, _, s in VIEWS]
+        for badge, pad, entries in ((True, 1, full), (True, 1, short), (False, 0, short)):
+            used = (5 if badge else 0) + sum(len(label) + 2 * pad + (0 if pad else 1) for _, label in entries)
+            if used <= width:
+                return badge, pad, entries
+        return True, 1, [(mode, f"{key} {title}" if mode == self.current else key) for mode, key, title, _ in VIEWS]
+
+    def _spans(self, width: int) -> list[tuple[str, str, int]]:
+        """``(mode, label, first column)`` of every entry."""
+        badge, pad, entries = self._layout(width)
+        pos, out = (5 if badge else 0), []
+        for mode, label in entries:
+            out.append((mode, label, pos + pad))
+            pos += len(label) + 2 * pad + (0 if pad else 1)
+        return out
 
     def render(self) -> Text:
         width = self.size.width or 80
+        badge, _, _ = self._layout(width)
         out = Text()
-        out.append(" GCS ", style="bold reverse")
-        for mode, label in self._entries(width):
-            out.append(" ")
+        if badge:
+            out.append(" GCS ", style="bold reverse")
+        for mode, label, col in self._spans(width):
+            out.append(" " * (col - len(out.plain)))
             out.append(label, style="bold reverse" if mode == self.current else "")
-            out.append(" ")
         out.truncate(width)
         return out
 
     def on_click(self, event) -> None:
-        pos = 5
-        for mode, label in self._entries(self.size.width or 80):
-            if pos <= event.x < pos + len(label) + 2:
+        for mode, label, col in self._spans(self.size.width or 80):
+            if col - 1 <= event.x <= col + len(label):
                 self.app.action_view(mode)
                 return
-            pos += len(label) + 2
 
 
 @dataclass(frozen=True)
@@ -76,10 +89,25 @@ class JobState:
     done: float = 0.0
     total: float | None = None
     text: str = ""
+    started: float | None = None
+    """``time.monotonic()`` when the job started (None: not timed)."""
 
     @property
     def busy(self) -> bool:
         return bool(self.label)
+
+    @property
+    def elapsed(self) -> str:
+        """``12 s`` since the job started ('' when not timed)."""
+        if self.started is None:
+            return ""
+        return f"{time.monotonic() - self.started:.0f} s"
+
+    def line(self) -> str:
+        """``label · 12 s · stage`` (the status line while the job runs; the time first, so
+        that a narrow terminal cuts the stage, not the clock)."""
+        stage = self.text if self.text != self.label else ""
+        return " · ".join(p for p in (self.label, self.elapsed, stage) if p)
 
 
 class StatusBar(Horizontal):
@@ -91,7 +119,7 @@ class StatusBar(Horizontal):
 
     def show(self, text: str, job: JobState) -> None:
         """Update the line: ``text`` on the left, ``job`` on the right when busy."""
-        line = f"{job.label}: {job.text}" if job.busy and job.text else (job.label or text)
+        line = job.line() if job.busy else text
         self.query_one("#status-text", Static).update(Text(line))
         self.set_class(job.busy, "-busy")
         bar = self.query_one("#status-progress", ProgressBar)
