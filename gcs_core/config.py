@@ -33,7 +33,7 @@ sample mission)::
     block_seconds = 600.0
     edit_k = 5.0                  # 0 disables k-sigma editing
     max_iterations = 20
-    noise_weighting = "long_run"  # stated (default) | long_run
+    noise_weighting = "long_run"  # correlated (default) | stated | long_run
     noise_window = 1.0            # [s]
     noise_passes = 2
     noise_sensors = ["FHST1"]     # default: all
@@ -81,6 +81,7 @@ from typing import Any
 from gcs_core import toml_values
 from gcs_core.config_checks import (
     MODEL_OFF,
+    DEFAULT_NOISE_WEIGHTING,
     NOISE_WINDOW_S,
     _choice,
     _fail,
@@ -176,7 +177,7 @@ class FilterConfig:
     edit_k: float = 5.0
     max_iterations: int = 20
     edit_k_sensor: dict[str, float] = field(default_factory=dict, metadata=_OMIT_EMPTY)
-    noise_weighting: str = field(default="stated", metadata=_OMIT_DEFAULT)
+    noise_weighting: str = field(default=DEFAULT_NOISE_WEIGHTING, metadata=_OMIT_DEFAULT)
     noise_window: float = field(default=NOISE_WINDOW_S, metadata=_OMIT_DEFAULT)
     noise_passes: int = field(default=1, metadata=_OMIT_DEFAULT)
     noise_sensors: tuple[str, ...] = field(default=(), metadata=_OMIT_EMPTY)

@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
+from gcs_core.diagnosis import aliases, determination, discovery, goodness, noise_correlation, physics
 from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
@@ -50,8 +50,11 @@ class Analysis:
     holdout_rms, holdout_chi2 : sensor -> normalized RMS and χ² test on the held-out span.
     warnings : the latest fit's honesty warnings about the method.
     stop_reason : why the latest discovery stopped ("" before one).
-    noise : with ``[filter] noise_weighting = "long_run"``, the factors the latest fit
-        weighted its sensors with (:mod:`gcs_core.diagnosis.weighting`); else None.
+    noise : with ``[filter] noise_weighting = "correlated"`` (the default) or ``"long_run"``,
+        the factors the latest fit weighted its sensors with (:mod:`gcs_core.diagnosis.weighting`);
+        else None.
+    correlation : sensor -> its noise correlation on the latest fit's residuals, declared or
+        measured (:mod:`gcs_core.diagnosis.noise_correlation`); {} with other weightings.
     """
 
     def __init__(self, config: AnalysisConfig, *, mission=None):
@@ -68,6 +71,8 @@ class Analysis:
         self.stop_reason = ""
         self.noise: NoiseWeighting | None = None
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
+        self._factors_mode = config.filter.noise_weighting  # the weighting the factors come from
+        self.correlation: dict[str, noise_correlation.SensorCorrelation] = {}
         self.problem: Problem = self._build()
         self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
         self._null_at_prior: tuple | None = None  # (problem, combinations)
@@ -169,11 +174,12 @@ class Analysis:
         the a priori stays at the configured values. ``previous``: the solution before a step
         (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
-        if self.config.filter.noise_weighting != "long_run" and self._factors:  # switched back to stated
-            self._factors, self.noise = {}, None
+        mode = self.config.filter.noise_weighting
+        if self._factors_mode != mode:  # switched weighting: start again from the stated σ
+            self._factors, self.noise, self.correlation, self._factors_mode = {}, None, {}, mode
             self.problem = self._build()
         res = self._fit_once(initial=initial, previous=previous)
-        if self.config.filter.noise_weighting == "long_run":
+        if mode in ("long_run", "correlated"):
             res = self._reweight(res)
         masks = self.holdout_masks() if holdout else {}
         if masks:
@@ -205,15 +211,22 @@ class Analysis:
         return fit_problem(self.problem, self.config.method, self.batch_options(), initial=initial, **kw)
 
     def _reweight(self, res: FitResult) -> FitResult:
-        """``noise_weighting = "long_run"``: measure each sensor's long-run noise factor on
-        the fit's residuals and refit with ``σ × k`` (``noise_passes`` times at most, fewer
-        when the factors stop moving by more than their sampling error), module
-        :mod:`gcs_core.diagnosis.weighting`."""
+        """``noise_weighting = "long_run"`` or ``"correlated"``: measure each sensor's noise
+        factor on the fit's residuals (the batch-means ratio, or ``√κ`` of its Gauss–Markov
+        correlation, declared or significant) and refit with ``σ × k`` (``noise_passes``
+        times at most, at least twice when correlated, fewer when the factors stop moving by
+        more than their sampling error), module :mod:`gcs_core.diagnosis.weighting`."""
         fl = self.config.filter
-        sensors = [sd.name for sd in self.problem.sensors]
+        sensors = [sd.name for sd in self.problem.sensors if sd.name != self.problem.gyro_name]
+        correlated = fl.noise_weighting == "correlated"
+        declared = noise_correlation.declared_correlation(self.mission.spec) if correlated else {}
         passes = 0
-        for _ in range(fl.noise_passes):
-            factors = measure(res, sensors, fl.noise_window, fl.noise_sensors)
+        for _ in range(max(fl.noise_passes, 2) if correlated else fl.noise_passes):
+            if correlated:
+                self.correlation = noise_correlation.measure(res, sensors, declared)
+                factors = {n: c.factor() for n, c in self.correlation.items()}
+            else:
+                factors = measure(res, sensors, fl.noise_window, fl.noise_sensors)
             if same_factors(factors, self._factors):  # the weights stand; the latest measurement is kept
                 old = self._factors
                 self._factors = {n: replace(f, factor=old[n].factor if n in old else 1.0) for n, f in factors.items()}
@@ -226,7 +239,10 @@ class Analysis:
             # weights (the whole-span grid follows the information, the editing the σ)
             res = self._fit_once(initial=res.state.values())
             passes += 1
-        self.noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
+        if correlated and passes:  # the correlation the final residuals show (reported)
+            self.correlation = noise_correlation.measure(res, sensors, declared)
+        window = float("nan") if correlated else fl.noise_window
+        self.noise = NoiseWeighting(window, passes, dict(self._factors), fl.noise_weighting)
         log.info("%s", self.noise.summary())  # the TUI's engine log shows it
         return res
 
@@ -392,8 +408,13 @@ class Analysis:
         if res is None:
             return None
         if self._goodness is None or self._goodness[0] is not res:
+            infl = noise_correlation.chi2_inflations(self.correlation)  # correlated sensors' κ₂
             g = goodness.goodness_of_fit(
-                self.problem, res, holdout=self.holdout_chi2, alpha=self.config.diagnosis.significance
+                self.problem,
+                res,
+                holdout=noise_correlation.inflated_tests(self.holdout_chi2, infl),
+                alpha=self.config.diagnosis.significance,
+                inflation=infl,
             )
             self._goodness = (res, g)
         return self._goodness[1]

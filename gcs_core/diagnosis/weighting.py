@@ -105,20 +105,24 @@ class NoiseWeighting:
 
     Attributes
     ----------
-    window_s : the configured window [s]; passes : refits run with new factors (0: the
-        measured factors agreed with the weights the fit had).
+    window_s : the configured window [s] (NaN for ``correlated``); passes : refits run with
+        new factors (0: the measured factors agreed with the weights the fit had).
     factors : sensor -> :class:`NoiseFactor` of the last pass (the weights of the fit).
+    mode : ``long_run`` (batch-means ratio) or ``correlated`` (``√κ`` of the sensor's
+        Gauss–Markov correlation, :mod:`gcs_core.diagnosis.noise_correlation`): one
+        mechanism, two measures of the same long-run variance ratio.
     """
 
     window_s: float
     passes: int
     factors: Mapping[str, NoiseFactor]
+    mode: str = "long_run"
 
     def as_report(self) -> dict:
         """The ``noise_weighting`` field of the ICD §7 report (docs/icd_extensions.md)."""
         return {
-            "mode": "long_run",
-            "window_s": self.window_s,
+            "mode": self.mode,
+            "window_s": self.window_s if math.isfinite(self.window_s) else None,
             "passes": self.passes,
             "normalized_against": "stated sigma",
             "weights": "stated sigma x factor",
@@ -129,12 +133,14 @@ class NoiseWeighting:
         """One line for a fit summary."""
         parts = []
         for n, f in self.factors.items():
-            if math.isfinite(f.measured):
+            if math.isfinite(f.measured) and not math.isfinite(f.window_s):  # correlated: √κ
+                parts.append(f"{n} × {f.factor:.2f} (√κ {f.measured:.2f} ± {f.sampling_error:.2g})")
+            elif math.isfinite(f.measured):
                 parts.append(f"{n} × {f.factor:.2f} (s {f.measured:.2f} ± {f.sampling_error:.2f}, {f.window_s:g} s)")
             else:
                 parts.append(f"{n} × 1 ({f.note})")
         return (
-            f"noise weighting long_run ({self.passes} refit{'' if self.passes == 1 else 's'}): σ × "
+            f"noise weighting {self.mode} ({self.passes} refit{'' if self.passes == 1 else 's'}): σ × "
             + "; ".join(parts)
             + "; normalized RMS and χ² tests against the stated σ"
         )
