@@ -80,8 +80,8 @@ from typing import Any
 
 from gcs_core import toml_values
 from gcs_core.config_checks import (
-    MODEL_OFF,
     DEFAULT_NOISE_WEIGHTING,
+    MODEL_OFF,
     NOISE_WINDOW_S,
     _choice,
     _fail,

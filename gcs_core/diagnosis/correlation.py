@@ -46,6 +46,7 @@ scales longer than its correlation, for weighting a reference whose errors are c
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -54,10 +55,16 @@ import numpy as np
 from gcs_core.errors import InputError
 from gcs_core.problem.linearization import iter_blocks
 
+log = logging.getLogger(__name__)
+
 #: default window [s]: several times the hand motions' time scale on the BROAD trials
 BLOCK_S = 4.0
 #: fewer windows than this: the scale is not estimated (its own scatter exceeds ~16 %)
 MIN_BLOCKS = 20
+#: a scale above this (or not finite) is a numerical failure of the sandwich, not a finding
+SCALE_MAX = 1e3
+#: relative cut of the equilibrated information's pseudo-inverse
+PINV_RCOND = 1e-12
 
 
 @dataclass(frozen=True)
@@ -69,12 +76,15 @@ class SigmaScale:
     sensors : the sensors whose residuals entered; block_s : window [s]; n_blocks :
         windows holding used frames.
     scale : element -> ``s_i`` (module docstring); multiply the fit's σ by it.
+    failed : elements whose scale was not finite or above :data:`SCALE_MAX` (a numerical
+        failure of the sandwich, guarded: left out of ``scale`` and reported).
     """
 
     sensors: tuple[str, ...]
     block_s: float
     n_blocks: int
     scale: Mapping[str, float]
+    failed: tuple[str, ...] = ()
 
     def honest_sigma(self, sigma: Mapping[str, float]) -> dict[str, float]:
         """``σ_i max(1, s_i)`` (elements without a scale unchanged; a scale below 1 is the
@@ -142,10 +152,20 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
         [1.0 / state[n].sigma0 ** 2 if np.isfinite(state[n].sigma0) and state[n].sigma0 > 0 else 0.0 for n in names]
     )
     G = G[:, idx]
-    Ainv = np.linalg.pinv(A)
-    honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)
+    # equilibrated (s_i is invariant to each element's unit): the raw A spans elements in nT
+    # and in rad, and its pseudo-inverse overflowed into scales of 1e130 (issue 27)
+    d = np.sqrt(np.diag(A))
+    d = np.where(np.isfinite(d) & (d > 0), d, 1.0)
+    Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=PINV_RCOND, hermitian=True)
+    Gs = G / d
+    honest = np.einsum("ij,jk,ki->i", Ainv, Gs.T @ Gs, Ainv)
     scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
-    return SigmaScale(sensors, float(block_s), n_blocks, dict(zip(names, map(float, scale))))
+    ok = np.isfinite(scale) & (scale < SCALE_MAX) & (np.diag(Ainv) > 0)
+    failed = tuple(n for n, good in zip(names, ok) if not good)
+    if failed:
+        log.warning("σ scale not estimable (numerically) for %s: left out", ", ".join(failed))
+    kept = {n: float(x) for n, x, good in zip(names, scale, ok) if good}
+    return SigmaScale(sensors, float(block_s), n_blocks, kept, failed)
 
 
 def noise_scale(result, sensor: str, *, block_s: float) -> float:

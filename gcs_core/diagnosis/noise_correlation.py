@@ -122,9 +122,7 @@ class SensorCorrelation:
         k = math.sqrt(self.inflation) if math.isfinite(self.inflation) else math.nan
         err = self.inflation_sigma / (2.0 * k) if k and math.isfinite(k) else math.nan
         note = "" if self.significant else (self.note or "correlation not significant")
-        return NoiseFactor(
-            self.sensor, window_s, self.n_pairs, k, err, math.sqrt(self.applied_inflation), note
-        )
+        return NoiseFactor(self.sensor, window_s, self.n_pairs, k, err, math.sqrt(self.applied_inflation), note)
 
     def as_report(self) -> dict:
         def num(v: float, nd: int = 4):
@@ -154,11 +152,7 @@ class SensorCorrelation:
         if not math.isfinite(self.rho):
             return f"{self.sensor}: not measured ({self.note})"
         tau = f"τ {self.tau_s:.3g} ± {self.tau_sigma:.2g} s" if math.isfinite(self.tau_s) else "τ –"
-        use = (
-            f"σ × {math.sqrt(self.inflation):.2f} in the fit"
-            if self.significant
-            else "white (not significant)"
-        )
+        use = f"σ × {math.sqrt(self.inflation):.2f} in the fit" if self.significant else "white (not significant)"
         return (
             f"{self.sensor}: {self.source} ρ₁ {self.rho:.3f} ± {self.rho_sigma:.3f} at {self.dt_s:.3g} s, "
             f"{tau}, κ {self.inflation:.3g} ± {self.inflation_sigma:.2g}; {use}"
@@ -283,4 +277,21 @@ def inflated_tests(tests: Mapping, infl: Mapping[str, float]) -> dict:
     dof = sum(t.dof for t in parts)
     if "all sensors" in out and dof > 0:
         out["all sensors"] = replace(out["all sensors"], inflation=sum(t.dof * t.inflation for t in parts) / dof)
+    return out
+
+
+def lines(corr: Mapping[str, SensorCorrelation]) -> list[str]:
+    """The CLI's and the TUI's lines: one per sensor whose correlation is applied (declared or
+    significant), one naming the sensors found white."""
+    if not corr:
+        return []
+    out = ["noise correlation (first-order Gauss–Markov; ρ₁ lag-1 autocorrelation, κ variance inflation):"]
+    out += ["  " + c.line() for c in corr.values() if c.significant or not math.isfinite(c.rho)]
+    white = [
+        f"{c.sensor} (ρ₁ {c.rho:+.3f} ± {c.rho_sigma:.3f})"
+        for c in corr.values()
+        if not c.significant and math.isfinite(c.rho)
+    ]
+    if white:
+        out.append("  white within the test: " + ", ".join(white))
     return out

@@ -304,7 +304,11 @@ class GcsApp(App):
         except GcsError as err:
             self.notify(str(err), severity="error")
             return
-        self.push_screen(AllanScreen(results, f"Allan deviation · {self.workbench.mission.spec.name}"))
+        from gcs_core.diagnosis.noise_correlation import lines as correlation_lines
+
+        corr = getattr(getattr(self.workbench, "analysis", None), "correlation", None) or {}
+        title = f"Allan deviation · {self.workbench.mission.spec.name}"
+        self.push_screen(AllanScreen(results, title, correlation_lines(corr)))
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen(self.current_mode))
