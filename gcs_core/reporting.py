@@ -75,7 +75,8 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     if getattr(analysis, "noise", None) is not None:  # [filter] noise_weighting = "long_run" / "correlated"
         out["noise_weighting"] = analysis.noise.as_report()
     if getattr(analysis, "correlation", None):  # each sensor's noise correlation (docs/icd_extensions.md)
-        out["noise_correlation"] = noise_correlation.report(analysis.correlation)
+        carried = analysis.config.filter.noise_weighting == "correlated"
+        out["noise_correlation"] = noise_correlation.report(analysis.correlation, carried)
     return out
 
 

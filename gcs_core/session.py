@@ -181,6 +181,9 @@ class Analysis:
         res = self._fit_once(initial=initial, previous=previous)
         if mode in ("long_run", "correlated"):
             res = self._reweight(res)
+        if mode != "correlated":  # measured and reported; the weights stay the configured ones
+            names = [sd.name for sd in self.problem.sensors if sd.name != self.problem.gyro_name]
+            self.correlation = noise_correlation.measure(res, names)
         masks = self.holdout_masks() if holdout else {}
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
@@ -408,7 +411,8 @@ class Analysis:
         if res is None:
             return None
         if self._goodness is None or self._goodness[0] is not res:
-            infl = noise_correlation.chi2_inflations(self.correlation)  # correlated sensors' κ₂
+            carried = self.config.filter.noise_weighting == "correlated"
+            infl = noise_correlation.chi2_inflations(self.correlation) if carried else {}  # κ₂
             g = goodness.goodness_of_fit(
                 self.problem,
                 res,

@@ -147,12 +147,17 @@ class SensorCorrelation:
             out["note"] = self.note
         return out
 
-    def line(self) -> str:
-        """One line for the CLI and the TUI."""
+    def line(self, applied: bool = True) -> str:
+        """One line for the CLI and the TUI (``applied``: the fit carries the correlation)."""
         if not math.isfinite(self.rho):
             return f"{self.sensor}: not measured ({self.note})"
         tau = f"τ {self.tau_s:.3g} ± {self.tau_sigma:.2g} s" if math.isfinite(self.tau_s) else "τ –"
-        use = f"σ × {math.sqrt(self.inflation):.2f} in the fit" if self.significant else "white (not significant)"
+        if not self.significant:
+            use = "white (not significant)"
+        elif applied:
+            use = f"σ × {math.sqrt(self.inflation):.2f} in the fit"
+        else:
+            use = "significant; not carried (noise_weighting is not 'correlated')"
         return (
             f"{self.sensor}: {self.source} ρ₁ {self.rho:.3f} ± {self.rho_sigma:.3f} at {self.dt_s:.3g} s, "
             f"{tau}, κ {self.inflation:.3g} ± {self.inflation_sigma:.2g}; {use}"
@@ -256,10 +261,12 @@ def chi2_inflations(corr: Mapping[str, SensorCorrelation] | None) -> dict[str, f
     return {n: c.chi2_inflation for n, c in (corr or {}).items() if c.significant and c.chi2_inflation > 1.0}
 
 
-def report(corr: Mapping[str, SensorCorrelation]) -> dict:
-    """The ICD §7 report's ``noise_correlation`` field (docs/icd_extensions.md)."""
+def report(corr: Mapping[str, SensorCorrelation], applied: bool = True) -> dict:
+    """The ICD §7 report's ``noise_correlation`` field (docs/icd_extensions.md); ``applied``:
+    the fit carries it (``noise_weighting = "correlated"``)."""
     return {
         "model": "first-order Gauss-Markov (AR(1) at the sample interval)",
+        "carried_by_the_fit": applied,
         "significance": {"sigmas": SIGNIFICANCE, "rho_min": RHO_MIN},
         "sensors": {n: c.as_report() for n, c in corr.items()},
     }
@@ -280,13 +287,13 @@ def inflated_tests(tests: Mapping, infl: Mapping[str, float]) -> dict:
     return out
 
 
-def lines(corr: Mapping[str, SensorCorrelation]) -> list[str]:
-    """The CLI's and the TUI's lines: one per sensor whose correlation is applied (declared or
-    significant), one naming the sensors found white."""
+def lines(corr: Mapping[str, SensorCorrelation], applied: bool = True) -> list[str]:
+    """The CLI's and the TUI's lines: one per sensor whose correlation is significant or
+    declared, one naming the sensors found white. ``applied``: the fit carries it."""
     if not corr:
         return []
     out = ["noise correlation (first-order Gauss–Markov; ρ₁ lag-1 autocorrelation, κ variance inflation):"]
-    out += ["  " + c.line() for c in corr.values() if c.significant or not math.isfinite(c.rho)]
+    out += ["  " + c.line(applied) for c in corr.values() if c.significant or not math.isfinite(c.rho)]
     white = [
         f"{c.sensor} (ρ₁ {c.rho:+.3f} ± {c.rho_sigma:.3f})"
         for c in corr.values()

@@ -53,7 +53,9 @@ def fit_table(analysis) -> list[str]:
     lines.append(f"status: {res.message}; χ² {res.chi2:.1f} on {res.dof} dof")
     if getattr(analysis, "noise", None) is not None:
         lines.append(analysis.noise.summary())
-    lines.extend(noise_correlation.lines(getattr(analysis, "correlation", None) or {}))
+    carried = getattr(getattr(analysis, "config", None), "filter", None)
+    carried = getattr(carried, "noise_weighting", "") == "correlated"
+    lines.extend(noise_correlation.lines(getattr(analysis, "correlation", None) or {}, carried))
     if gof is not None:
         lines.append(f"goodness of fit: {gof.verdict}")
         lines.append(

@@ -306,9 +306,10 @@ class GcsApp(App):
             return
         from gcs_core.diagnosis.noise_correlation import lines as correlation_lines
 
-        corr = getattr(getattr(self.workbench, "analysis", None), "correlation", None) or {}
+        an = getattr(self.workbench, "analysis", None)
+        carried = an is not None and an.config.filter.noise_weighting == "correlated"
         title = f"Allan deviation · {self.workbench.mission.spec.name}"
-        self.push_screen(AllanScreen(results, title, correlation_lines(corr)))
+        self.push_screen(AllanScreen(results, title, correlation_lines(getattr(an, "correlation", {}), carried)))
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen(self.current_mode))
