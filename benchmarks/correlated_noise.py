@@ -42,9 +42,9 @@ from scipy import stats
 
 sys.path[:0] = [str(Path(__file__).resolve().parents[1] / p) for p in ("", "tests/helpers", "tests/statistical")]
 
-import honesty_cases as hc  # noqa: E402
+import honesty_cases as hc
 
-from gcs_core.sim.gauss_markov import with_gauss_markov  # noqa: E402
+from gcs_core.sim.gauss_markov import with_gauss_markov
 
 POWER_CASES = (
     "TAM1.matrix_1pct",
@@ -71,7 +71,8 @@ def _run(cfg, method: str = "whole_span", **kw) -> dict:
 
 
 def alarms(args) -> None:
-    print("| τ [s] | span [h] | mode | seeds | no effect added | CP95 lower | ideal | pooled z sd | NEES / dof (95 % band) | s/run |")
+    head = ("τ [s]", "span [h]", "mode", "seeds", "no effect added", "CP95 lower", "ideal", "pooled z sd")
+    print("| " + " | ".join(head) + " | NEES / dof (95 % band) | s/run |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for it, tau in enumerate(args.taus):
         zs_tau: list[float] = []
@@ -126,8 +127,9 @@ def montecarlo(args) -> None:
                     sig.setdefault(n, []).append(float(math.sqrt(a.result.P[i, i])))
     n_runs = args.mc_runs
     err = 1.0 / math.sqrt(2.0 * max(n_runs - 1, 1))
-    print(f"Monte Carlo: τ = {args.mc_tau:g} s, {args.spans[0]:g} h Sun-pointing, {n_runs} runs "
-          f"({(time.perf_counter() - t0) / n_runs:.1f} s/run); predicted/scatter, ideal 1 ± {err:.3f} (1σ)")  # fmt: skip
+    per_run = (time.perf_counter() - t0) / n_runs
+    print(f"Monte Carlo: τ = {args.mc_tau:g} s, {args.spans[0]:g} h Sun-pointing, {n_runs} runs ({per_run:.1f} s/run);")
+    print(f"predicted σ / scatter about truth per element, ideal 1 ± {err:.3f} (1σ sampling error)")
     ratios = []
     for n in sorted(est):
         e = np.asarray(est[n])

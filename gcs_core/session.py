@@ -14,7 +14,15 @@ from dataclasses import replace
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import aliases, determination, discovery, goodness, noise_correlation, physics
+from gcs_core.diagnosis import (
+    aliases,
+    correlated_sigma,
+    determination,
+    discovery,
+    goodness,
+    noise_correlation,
+    physics,
+)
 from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
@@ -199,6 +207,11 @@ class Analysis:
             self.holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
         else:
             self.holdout_chi2 = {}
+        if mode == "correlated" and self._scale():  # σ of fast signatures: the sandwich with C
+            ratios = correlated_sigma.sigma_ratios(
+                self.problem, res, noise_correlation.carried(self.correlation, self._scale())
+            )
+            res = correlated_sigma.rescaled(res, ratios)
         self.result = stated_residuals(res, self._scale())
         self.candidates = []
         self.warnings = self._method_warnings()

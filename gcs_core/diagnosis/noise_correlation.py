@@ -91,6 +91,7 @@ class SensorCorrelation:
     inflation, inflation_sigma : ``κ`` and its error; chi2_inflation : ``κ₂``.
     significant : measured and significant, or declared: the fit and its tests use it.
     batch_means : window [s] -> measured ``s(L)`` (the long-run check).
+    share : the correlated share ``a`` of the variance (1 when measured).
     """
 
     sensor: str
@@ -107,6 +108,7 @@ class SensorCorrelation:
     significant: bool
     batch_means: Mapping[float, float] = field(default_factory=dict)
     note: str = ""
+    share: float = 1.0
 
     @property
     def applied_inflation(self) -> float:
@@ -218,6 +220,7 @@ def measure_sensor(result, name: str, declared: Declared | None = None) -> Senso
         return SensorCorrelation(
             name, "declared", dt, n, rho, se, declared.tau_s, 0.0, k, 0.0, k2, True, bm,
             "declared in mission.toml" + (f"; measured ρ₁ {rho:.3f} ± {se:.3f}" if math.isfinite(rho) else ""),
+            declared.share,
         )  # fmt: skip
     if not math.isfinite(rho):
         return SensorCorrelation(
@@ -301,4 +304,15 @@ def lines(corr: Mapping[str, SensorCorrelation], applied: bool = True) -> list[s
     ]
     if white:
         out.append("  white within the test: " + ", ".join(white))
+    return out
+
+
+def carried(corr: Mapping[str, SensorCorrelation], scale: Mapping[str, float]) -> dict[str, tuple[float, float, float]]:
+    """Sensor -> ``(τ, a, κ)`` of the sensors a fit weighted by ``σ √κ`` (``scale``: the
+    factors ``√κ`` it used), for :func:`gcs_core.diagnosis.correlated_sigma.sigma_ratios`."""
+    out = {}
+    for n, k in scale.items():
+        c = corr.get(n)
+        if c is not None and c.significant and math.isfinite(c.tau_s) and c.tau_s > 0 and k > 1.0:
+            out[n] = (c.tau_s, c.share, k * k)
     return out
