@@ -154,6 +154,11 @@ class SensorCorrelation:
         if not math.isfinite(self.rho):
             return f"{self.sensor}: not measured ({self.note})"
         tau = f"τ {self.tau_s:.3g} ± {self.tau_sigma:.2g} s" if math.isfinite(self.tau_s) else "τ –"
+        if self.source == "declared":
+            tau = f"τ {self.tau_s:.3g} s and κ {self.inflation:.3g} as declared; residuals' ρ₁ {self.rho:.3f}"
+            return f"{self.sensor}: {tau} ± {self.rho_sigma:.3f} at {self.dt_s:.3g} s; " + (
+                f"σ × {math.sqrt(self.inflation):.2f} in the fit" if applied else "not carried"
+            )
         if not self.significant:
             use = "white (not significant)"
         elif applied:

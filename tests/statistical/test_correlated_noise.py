@@ -166,3 +166,42 @@ def test_tau_60_on_4h_sun_pointing_adds_nothing_and_sigma_hold(gm_mission):
     assert Z_SD_BOUNDS[0] < zs.std() < Z_SD_BOUNDS[1], zs.std()
     assert np.all(np.abs(zs) < 4.0)
     assert a.goodness().adequate
+
+
+def test_declare_writes_tau_into_mission_toml_and_keeps_the_rest(shared_example, tmp_path):
+    from gcs_core.errors import InputError
+    from gcs_core.io.noise_declaration import declare
+
+    root = tmp_path / "m"
+    shutil.copytree(shared_example("sunpoint-nominal"), root)
+    path = root / "mission.toml"
+    before = path.read_text()
+    declare(path, {"FHST2": 48.3, "TAM1": 60.0}, note="measured")
+    declare(path, {"FHST2": 50.0})  # replaced, not repeated
+    after = path.read_text()
+    assert after.count("noise_correlation_s") == 2 and "noise_correlation_s = 50" in after
+    assert [ln for ln in after.splitlines() if "noise_correlation_s" not in ln] == before.splitlines()
+    assert nc.declared_correlation(load_mission(root).spec) == {
+        "FHST2": nc.Declared(50.0, 1.0),
+        "TAM1": nc.Declared(60.0, 1.0),
+    }
+    with pytest.raises(InputError, match="NOPE"):
+        declare(path, {"NOPE": 1.0})
+
+
+def test_too_good_is_flagged_when_the_stated_sigma_is_too_large(tmp_path):
+    """A tracker whose data book states twice its true (white) noise: its residuals sit at
+    half the stated σ, the verdict says so and names the likely cause."""
+    cfg = hc.nominal("sun_pointing", 4, 1.0)
+    for s in cfg.sensors:
+        if s.name == "FHST1":
+            s.true["noise"] = s.book["noise"]
+            s.book["noise"] = 2.0 * s.book["noise"]
+    m = write_mission(cfg, tmp_path / "mission", truth_path=tmp_path / "truth.json")
+    a = Analysis(AnalysisConfig(mission=m, method="whole_span"))
+    a.fit(holdout=False)
+    g = a.goodness()
+    low = {t.label for _, t in g.below_noise()}
+    assert "FHST1" in low and not a.correlation["FHST1"].significant
+    assert "too good" in g.verdict and "stated σ is likely too large" in g.verdict
+    assert any(x["sensor"] == "FHST1" for x in g.as_report()["too_good"])
