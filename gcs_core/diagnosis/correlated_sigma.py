@@ -34,6 +34,7 @@ from dataclasses import fields, replace
 
 import numpy as np
 
+from gcs_core.diagnosis.correlation import equilibrated_inverse
 from gcs_core.problem.linearization import iter_blocks
 
 log = logging.getLogger(__name__)
@@ -109,7 +110,7 @@ def sigma_ratios(problem, result, carried: Mapping[str, tuple[float, float, floa
     A += np.diag(prior)
     d = np.sqrt(np.diag(A))
     d = np.where(np.isfinite(d) & (d > 0), d, 1.0)
-    Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=1e-12, hermitian=True)
+    Ainv = equilibrated_inverse(A / np.outer(d, d))
     Bd = B / np.outer(d, d) + np.diag(np.asarray(prior) / d**2)  # the a priori's share is as stated
     cov = np.einsum("ij,jk,ki->i", Ainv, Bd, Ainv)
     s = np.sqrt(np.maximum(cov, 0.0) / np.maximum(np.diag(Ainv), 1e-300))

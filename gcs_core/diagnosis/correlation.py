@@ -63,7 +63,7 @@ BLOCK_S = 4.0
 MIN_BLOCKS = 20
 #: a scale above this (or not finite) is a numerical failure of the sandwich, not a finding
 SCALE_MAX = 1e3
-#: relative cut of the equilibrated information's pseudo-inverse
+#: relative cut of the equilibrated information's pseudo-inverse (when not positive definite)
 PINV_RCOND = 1e-12
 
 
@@ -152,20 +152,30 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
         [1.0 / state[n].sigma0 ** 2 if np.isfinite(state[n].sigma0) and state[n].sigma0 > 0 else 0.0 for n in names]
     )
     G = G[:, idx]
-    # equilibrated (s_i is invariant to each element's unit): the raw A spans elements in nT
-    # and in rad, and its pseudo-inverse overflowed into scales of 1e130 (issue 27)
-    d = np.sqrt(np.diag(A))
-    d = np.where(np.isfinite(d) & (d > 0), d, 1.0)
-    Ainv = np.linalg.pinv(A / np.outer(d, d), rcond=PINV_RCOND, hermitian=True)
-    Gs = G / d
-    honest = np.einsum("ij,jk,ki->i", Ainv, Gs.T @ Gs, Ainv)
-    scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
+    Ainv = np.linalg.pinv(A)
+    with np.errstate(all="ignore"):
+        honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)
+        scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
+    # a pseudo-inverse of an information matrix spanning nT and rad can keep a direction it
+    # should have cut, and the scale explodes (issue 27: TAM1.bias_y at 1.6e130): not a finding
     ok = np.isfinite(scale) & (scale < SCALE_MAX) & (np.diag(Ainv) > 0)
     failed = tuple(n for n, good in zip(names, ok) if not good)
     if failed:
         log.warning("σ scale not estimable (numerically) for %s: left out", ", ".join(failed))
     kept = {n: float(x) for n, x, good in zip(names, scale, ok) if good}
     return SigmaScale(sensors, float(block_s), n_blocks, kept, failed)
+
+
+def equilibrated_inverse(As: np.ndarray) -> np.ndarray:
+    """Inverse of an information matrix scaled to a unit diagonal: the exact inverse when
+    it is positive definite (a direction only the a priori sets is kept, however small its
+    eigenvalue), else the pseudo-inverse at :data:`PINV_RCOND`."""
+    try:
+        c = np.linalg.cholesky(As)
+        ci = np.linalg.inv(c)
+        return ci.T @ ci
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(As, rcond=PINV_RCOND, hermitian=True)
 
 
 def noise_scale(result, sensor: str, *, block_s: float) -> float:

@@ -205,3 +205,27 @@ def test_too_good_is_flagged_when_the_stated_sigma_is_too_large(tmp_path):
     assert "FHST1" in low and not a.correlation["FHST1"].significant
     assert "too good" in g.verdict and "stated σ is likely too large" in g.verdict
     assert any(x["sensor"] == "FHST1" for x in g.as_report()["too_good"])
+
+
+def test_a_numerically_failed_sandwich_is_caught_and_reported(tmp_path, monkeypatch):
+    """Issue 27's ``TAM1.bias_y scale 1.6e130``: a scale that is not finite or absurd is left
+    out, named in ``failed`` and in the report, never printed as a σ."""
+    from test_field_gradient import EFFECTS, fit
+    from test_field_gradient import write_mission as lab_mission
+
+    from gcs_core.diagnosis import correlation
+    from gcs_core.diagnosis.honest_sigma import sigma_scale_report
+
+    a, res = fit(lab_mission(tmp_path, np.random.default_rng(7), hold=1), EFFECTS)
+    pinv = np.linalg.pinv
+
+    def broken(A, *args, **kw):
+        M = pinv(A, *args, **kw)
+        M[0, 0] = 1e-300  # the overflow's signature: a variance far below what its row carries
+        return M
+
+    monkeypatch.setattr(correlation.np.linalg, "pinv", broken)
+    sc = correlation.sigma_scale(a.problem, res, block_s=1.0)
+    assert sc.failed and sc.failed[0] not in sc.scale
+    assert all(np.isfinite(v) and v < correlation.SCALE_MAX for v in sc.scale.values())
+    assert sigma_scale_report(sc, res.sigma, res)["not_estimable"] == list(sc.failed)
