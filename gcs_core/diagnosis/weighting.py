@@ -1,5 +1,12 @@
 """Weighting a sensor by the noise it really shows: the long-run noise factor in the fit.
 
+One mechanism, two measures of the same long-run variance ratio. The session weights a
+sensor by ``σ × k`` (:class:`NoiseFactor`, its ``_reweight`` loop, :func:`stated_residuals`)
+whichever way ``k`` was found: ``noise_weighting = "correlated"`` (the default) takes
+``k = √κ`` of the sensor's first-order Gauss–Markov correlation, declared in mission.toml
+or measured where significant (:mod:`gcs_core.diagnosis.noise_correlation`); ``"long_run"``
+takes the model-free batch-means ratio ``s`` below, over a configured window.
+
 A fit weights each sensor as white noise of its stated σ (seed §4.3: ``R`` diagonal). When
 a sensor's errors are correlated over a time ``τ`` longer than its sample interval (an
 optical reference interpolated between its camera frames, a magnetometer that repeats
