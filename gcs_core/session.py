@@ -191,7 +191,7 @@ class Analysis:
             res = self._reweight(res)
         if mode != "correlated":  # measured and reported; the weights stay the configured ones
             names = [sd.name for sd in self.problem.sensors if sd.name != self.problem.gyro_name]
-            self.correlation = noise_correlation.measure(res, names)
+            self.correlation = noise_correlation.measure(res, names, weights=self._scale())
         masks = self.holdout_masks() if holdout else {}
         if masks:
             method = "batch" if self.config.method == "kalman" else self.config.method
@@ -239,7 +239,7 @@ class Analysis:
         passes = 0
         for _ in range(max(fl.noise_passes, 2) if correlated else fl.noise_passes):
             if correlated:
-                self.correlation = noise_correlation.measure(res, sensors, declared)
+                self.correlation = noise_correlation.measure(res, sensors, declared, self._scale())
                 factors = {n: c.factor() for n, c in self.correlation.items()}
             else:
                 factors = measure(res, sensors, fl.noise_window, fl.noise_sensors)
@@ -256,7 +256,7 @@ class Analysis:
             res = self._fit_once(initial=res.state.values())
             passes += 1
         if correlated and passes:  # the correlation the final residuals show (reported)
-            self.correlation = noise_correlation.measure(res, sensors, declared)
+            self.correlation = noise_correlation.measure(res, sensors, declared, self._scale())
         window = float("nan") if correlated else fl.noise_window
         self.noise = NoiseWeighting(window, passes, dict(self._factors), fl.noise_weighting)
         log.info("%s", self.noise.summary())  # the TUI's engine log shows it

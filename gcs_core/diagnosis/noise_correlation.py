@@ -30,8 +30,13 @@ pairs), with ``a = 1``::
 
 (the AR(1) estimator's large-sample error; Box & Jenkins, *Time Series Analysis*, §6.3),
 ``τ̂ = −Δt/ln ρ̂₁``, ``κ̂``, ``κ̂₂`` and their errors by the delta method. It is *significant*
-when ``ρ̂₁ > SIGNIFICANCE·se`` and ``ρ̂₁ > RHO_MIN``; a sensor whose correlation is not
-significant is treated as white and nothing about it changes. Residuals are the fit's own:
+when ``ρ̂₁ > SIGNIFICANCE·se`` and ``ρ̂₁ > RHO_MIN`` and neighbours' differences are
+smaller than the stated noise's: ``d = mean((x_k − x_{k−1})²)/2`` (against the stated σ)
+is ``1 − φ`` for Gauss–Markov noise at its stated σ and ``≈ 1`` for white noise plus a slow
+model error, which raises ``ρ̂₁`` but not the differences; so ``1 − d`` must exceed
+``max(RHO_MIN, SIGNIFICANCE·sqrt(2/n))`` too. A sensor whose correlation is not
+significant is treated as white and nothing about it changes (a missing effect is left to
+discovery, which the stated weights serve best). Residuals are the fit's own:
 what the fit's freedom absorbed (the whole-span knots soak up a slow tracker error) is not
 in them, so ``ρ̂₁`` is a lower bound at the first fit; the weighting measures again on its
 refit. A slow model error raises ``ρ̂₁`` like correlated noise does, but only by its share
@@ -205,11 +210,13 @@ def _batch_means(result, name: str, dt: float) -> dict[float, float]:
     return out
 
 
-def measure_sensor(result, name: str, declared: Declared | None = None) -> SensorCorrelation:
-    """The noise correlation of one sensor's residuals in ``result`` (module docstring)."""
+def measure_sensor(result, name: str, declared: Declared | None = None, weight: float = 1.0) -> SensorCorrelation:
+    """The noise correlation of one sensor's residuals in ``result`` (module docstring);
+    ``weight``: the factor its σ in ``result`` carries over the stated σ."""
     res = result.residuals[name]
     dt, a, b = _pairs(res)
     n = int(a.size)
+    smooth = 1.0 - float(np.mean((b - a) ** 2)) * weight**2 / 2.0 if n else 0.0  # 1 − d, stated σ
     if n < MIN_PAIRS or not math.isfinite(dt):
         rho = se = math.nan
         note = f"{n} residual pairs one sample interval apart; {MIN_PAIRS} needed"
@@ -231,7 +238,11 @@ def measure_sensor(result, name: str, declared: Declared | None = None) -> Senso
         return SensorCorrelation(
             name, "measured", dt, n, rho, se, math.nan, math.nan, 1.0, math.nan, 1.0, False, bm, note
         )
-    sig = rho > SIGNIFICANCE * se and rho > RHO_MIN
+    # correlated noise also makes neighbours' differences smaller than the stated noise's;
+    # a slow model error does not (module docstring)
+    sig = rho > SIGNIFICANCE * se and rho > RHO_MIN and smooth > max(RHO_MIN, SIGNIFICANCE * math.sqrt(2.0 / n))
+    if rho > SIGNIFICANCE * se and rho > RHO_MIN and not sig:
+        note = f"neighbours' differences at the stated noise (1 − d = {smooth:.3f}): a slow residual, not noise"
     k, k2 = inflations(rho)
     if 0.0 < rho < 1.0:
         tau = -dt / math.log(rho)
@@ -243,11 +254,17 @@ def measure_sensor(result, name: str, declared: Declared | None = None) -> Senso
 
 
 def measure(
-    result, sensors: Sequence[str], declared: Mapping[str, Declared] | None = None
+    result,
+    sensors: Sequence[str],
+    declared: Mapping[str, Declared] | None = None,
+    weights: Mapping[str, float] | None = None,
 ) -> dict[str, SensorCorrelation]:
-    """:func:`measure_sensor` for every named sensor with residuals."""
-    declared = declared or {}
-    return {n: measure_sensor(result, n, declared.get(n)) for n in sensors if n in result.residuals}
+    """:func:`measure_sensor` for every named sensor with residuals (``weights``: sensor ->
+    the factor its σ in ``result`` carries over the stated σ)."""
+    declared, weights = declared or {}, weights or {}
+    return {
+        n: measure_sensor(result, n, declared.get(n), weights.get(n, 1.0)) for n in sensors if n in result.residuals
+    }
 
 
 def declared_correlation(spec) -> dict[str, Declared]:

@@ -229,3 +229,20 @@ def test_a_numerically_failed_sandwich_is_caught_and_reported(tmp_path, monkeypa
     assert sc.failed and sc.failed[0] not in sc.scale
     assert all(np.isfinite(v) and v < correlation.SCALE_MAX for v in sc.scale.values())
     assert sigma_scale_report(sc, res.sigma, res)["not_estimable"] == list(sc.failed)
+
+
+def test_a_hidden_effect_on_white_noise_changes_nothing(tmp_path):
+    """A missing effect makes the residuals slow, not the noise correlated: neighbours'
+    differences stay at the stated noise, nothing is carried, and discovery's answer is the
+    stated-σ one exactly (issue 10's TAM time offset; the six of them: docs/statistics.md)."""
+    h = hc.HIDDEN_BY_ID["TAM1.time_offset"]
+    m = write_mission(h.build("sun_pointing", 1, 2.0), tmp_path / "mission", truth_path=tmp_path / "truth.json")
+    out = {}
+    for w in ("stated", "correlated"):
+        a = Analysis(AnalysisConfig(mission=m, method="whole_span").with_changes(filter={"noise_weighting": w}))
+        a.fit()
+        a.discover(max_steps=3)
+        out[w] = a
+    a, b = out["correlated"], out["stated"]
+    assert [s.effect for s in a.steps] == [s.effect for s in b.steps] == [None, "TAM1.time_offset"]
+    assert a.noise.passes == 0 and np.array_equal(a.result.x, b.result.x) and np.array_equal(a.result.P, b.result.P)
