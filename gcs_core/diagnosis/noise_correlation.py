@@ -54,6 +54,7 @@ sample interval and ``a = σ_c²/σ²``; used as is, and the measurement is repo
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 
@@ -325,7 +326,9 @@ def lines(corr: Mapping[str, SensorCorrelation], applied: bool = True) -> list[s
         if not c.significant and math.isfinite(c.rho)
     ]
     if white:
-        out.append("  white within the test: " + ", ".join(white))
+        out += textwrap.wrap(
+            "white within the test: " + ", ".join(white), 100, initial_indent="  ", subsequent_indent="    "
+        )
     return out
 
 

@@ -51,8 +51,9 @@ def fit_table(analysis) -> list[str]:
             f"{ho:9.3f} {p_fit:>8s} {p_ho:>8s}  {comp}" + (f" [{lab}]" if lab else "")
         )
     lines.append(f"status: {res.message}; χ² {res.chi2:.1f} on {res.dof} dof")
-    if getattr(analysis, "noise", None) is not None:
-        lines.append(analysis.noise.summary())
+    nw = getattr(analysis, "noise", None)
+    if nw is not None and (nw.mode != "correlated" or any(f.factor != 1.0 for f in nw.factors.values())):
+        lines.append(nw.summary())  # (correlated and all white: the correlation lines say so)
     carried = getattr(getattr(analysis, "config", None), "filter", None)
     carried = getattr(carried, "noise_weighting", "") == "correlated"
     lines.extend(noise_correlation.lines(getattr(analysis, "correlation", None) or {}, carried))
