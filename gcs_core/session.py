@@ -14,22 +14,14 @@ from dataclasses import replace
 import numpy as np
 
 from gcs_core.config import AnalysisConfig
-from gcs_core.diagnosis import (
-    aliases,
-    correlated_sigma,
-    determination,
-    discovery,
-    goodness,
-    noise_correlation,
-    physics,
-)
+from gcs_core.diagnosis import aliases, correlated_sigma, determination, discovery, goodness, noise_correlation, physics
 from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.honest_sigma import SIGMA_WINDOW, fit_sigma_scale
 from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
-from gcs_core.diagnosis.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
+from gcs_core.diagnosis.weighting import NoiseWeighting, same_factors, stated_residuals, weighted_sensors
 from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions
 from gcs_core.filtr.filter_options import FilterOptions
@@ -208,10 +200,7 @@ class Analysis:
         else:
             self.holdout_chi2 = {}
         if mode == "correlated" and self._scale():  # σ of fast signatures: the sandwich with C
-            ratios = correlated_sigma.sigma_ratios(
-                self.problem, res, noise_correlation.carried(self.correlation, self._scale())
-            )
-            res = correlated_sigma.rescaled(res, ratios)
+            res = correlated_sigma.honest(self.problem, res, self.correlation, self._scale())
         self.result = stated_residuals(res, self._scale())
         self.candidates = []
         self.warnings = self._method_warnings()
@@ -238,11 +227,8 @@ class Analysis:
         declared = noise_correlation.declared_correlation(self.mission.spec) if correlated else {}
         passes = 0
         for _ in range(max(fl.noise_passes, 2) if correlated else fl.noise_passes):
-            if correlated:
-                self.correlation = noise_correlation.measure(res, sensors, declared, self._scale())
-                factors = {n: c.factor() for n, c in self.correlation.items()}
-            else:
-                factors = measure(res, sensors, fl.noise_window, fl.noise_sensors)
+            factors, corr = noise_correlation.factors(res, sensors, fl, declared, self._scale())
+            self.correlation = corr if correlated else self.correlation
             if same_factors(factors, self._factors):  # the weights stand; the latest measurement is kept
                 old = self._factors
                 self._factors = {n: replace(f, factor=old[n].factor if n in old else 1.0) for n, f in factors.items()}

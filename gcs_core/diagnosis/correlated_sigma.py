@@ -129,3 +129,15 @@ def rescaled(result, ratios: Mapping[str, float]):
     names = {f.name for f in fields(result)}
     ch = {key: getattr(result, key) * np.outer(d, d) for key in ("P", "P_consider") if key in names}
     return replace(result, **ch)
+
+
+def honest(problem, result, corr, scale: Mapping[str, float]):
+    """``result`` with the σ of its elements from the sandwich with each carried sensor's
+    Gauss–Markov correlation (``corr``: sensor -> its correlation, with ``tau_s``, ``share``,
+    ``significant``; ``scale``: the factors ``√κ`` the fit weighted with)."""
+    carried = {}
+    for n, k in scale.items():
+        c = corr.get(n)
+        if c is not None and c.significant and math.isfinite(c.tau_s) and c.tau_s > 0 and k > 1.0:
+            carried[n] = (c.tau_s, c.share, k * k)
+    return rescaled(result, sigma_ratios(problem, result, carried))

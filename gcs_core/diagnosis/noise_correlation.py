@@ -60,6 +60,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from gcs_core.diagnosis import weighting
 from gcs_core.diagnosis.correlation import noise_scale
 from gcs_core.diagnosis.weighting import MIN_SAMPLES, NoiseFactor
 
@@ -332,12 +333,14 @@ def lines(corr: Mapping[str, SensorCorrelation], applied: bool = True) -> list[s
     return out
 
 
-def carried(corr: Mapping[str, SensorCorrelation], scale: Mapping[str, float]) -> dict[str, tuple[float, float, float]]:
-    """Sensor -> ``(τ, a, κ)`` of the sensors a fit weighted by ``σ √κ`` (``scale``: the
-    factors ``√κ`` it used), for :func:`gcs_core.diagnosis.correlated_sigma.sigma_ratios`."""
-    out = {}
-    for n, k in scale.items():
-        c = corr.get(n)
-        if c is not None and c.significant and math.isfinite(c.tau_s) and c.tau_s > 0 and k > 1.0:
-            out[n] = (c.tau_s, c.share, k * k)
-    return out
+def factors(
+    result, sensors: Sequence[str], fl, declared: Mapping[str, Declared], scale: Mapping[str, float]
+) -> tuple[dict[str, NoiseFactor], dict[str, SensorCorrelation]]:
+    """The weighting's factors by ``fl.noise_weighting`` (``fl`` the ``[filter]`` table):
+    ``correlated``, ``√κ`` of each sensor's correlation (returned too); ``long_run``, the
+    batch-means ratio (:func:`gcs_core.diagnosis.weighting.measure`; no correlation).
+    ``scale``: the factors ``result`` was weighted with."""
+    if fl.noise_weighting == "correlated":
+        corr = measure(result, sensors, declared, scale)
+        return {n: c.factor() for n, c in corr.items()}, corr
+    return weighting.measure(result, sensors, fl.noise_window, fl.noise_sensors), {}
