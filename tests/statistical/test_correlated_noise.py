@@ -2,12 +2,15 @@
 declared correlation (gcs_core/diagnosis/noise_correlation.py), the χ² tests on their
 effective dof and the "too good" flag, and a seeded slice of ``benchmarks/correlated_noise.py``.
 
-The slice (marked slow): a 4-h Sun-pointing mission whose trackers and magnetometer carry
+The slice (seconds: one seed): a 4-h Sun-pointing mission whose trackers and magnetometer carry
 Gauss–Markov noise of τ = 60 s at their stated σ, nothing else wrong. With the default
 ``noise_weighting = "correlated"`` discovery adds nothing, the measured τ covers the truth,
 and the calibrated elements' z against truth scatter by at most :data:`Z_SD_BOUNDS`
 (one seed: ~35 correlated z; the sweep's pooled band is 0.9–1.15). White noise: nothing is
-significant and the fit is the stated-σ fit exactly.
+significant and the fit is the stated-σ fit exactly, on a nominal example and with a
+hidden effect (a slow residual is not correlated noise). Too good: a tracker whose data
+book states twice its noise is flagged with the cause. A numerically failed sandwich is
+caught. The sweep's numbers: docs/benchmarks.md, "Correlated sensor noise".
 """
 
 from __future__ import annotations
