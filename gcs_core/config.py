@@ -33,7 +33,7 @@ sample mission)::
     block_seconds = 600.0
     edit_k = 5.0                  # 0 disables k-sigma editing
     max_iterations = 20
-    noise_weighting = "long_run"  # stated (default) | long_run
+    noise_weighting = "long_run"  # correlated (default) | stated | long_run
     noise_window = 1.0            # [s]
     noise_passes = 2
     noise_sensors = ["FHST1"]     # default: all
@@ -80,6 +80,7 @@ from typing import Any
 from gcs_core import toml_values
 from gcs_core.config_checks import (
     AXES,
+    DEFAULT_NOISE_WEIGHTING,
     MODEL_OFF,
     NOISE_MAX_PASSES,
     NOISE_WEIGHTINGS,
@@ -205,10 +206,14 @@ class FilterConfig:
         metadata={**_OMIT_EMPTY, **_doc("sensor -> its own k, overriding `edit_k` (0: no editing)", lo=0.0)},
     )
     noise_weighting: str = field(
-        default="stated",
+        default=DEFAULT_NOISE_WEIGHTING,
         metadata={
             **_OMIT_DEFAULT,
-            **_doc("weights: the stated σ, or σ times the residuals' long-run noise factor", choices=NOISE_WEIGHTINGS),
+            **_doc(
+                "weights: each sensor's Gauss–Markov correlation where declared or significant"
+                " (correlated), the stated σ, or σ times the residuals' long-run noise factor",
+                choices=NOISE_WEIGHTINGS,
+            ),
         },
     )
     noise_window: float = field(

@@ -77,7 +77,10 @@ def _pair(g: Any) -> bool:
 
 #: ``[filter] noise_weighting``'s choices, the default window [s] of the long-run factor
 #: and the most reweighting passes (:mod:`gcs_core.noise.weighting`)
-NOISE_WEIGHTINGS = ("stated", "long_run")
+#: ("correlated", the default: each sensor's Gauss–Markov correlation, declared or measured
+#: where significant, gcs_core/noise/correlated.py; white sensors keep their σ)
+NOISE_WEIGHTINGS = ("correlated", "stated", "long_run")
+DEFAULT_NOISE_WEIGHTING = "correlated"
 NOISE_WINDOW_S = 0.5  # longer than the BROAD optical error's 35–100 ms, short against hand motions
 NOISE_MAX_PASSES = 3
 
@@ -159,7 +162,9 @@ def noise_weighting(fl: dict, f) -> dict[str, Any]:
             f,
         )
     return {
-        "noise_weighting": _choice(fl, "noise_weighting", NOISE_WEIGHTINGS, "stated", "filter.noise_weighting", f),
+        "noise_weighting": _choice(
+            fl, "noise_weighting", NOISE_WEIGHTINGS, DEFAULT_NOISE_WEIGHTING, "filter.noise_weighting", f
+        ),
         "noise_window": _number(fl, "noise_window", NOISE_WINDOW_S, f, positive=True, prefix="filter."),
         "noise_passes": _number(fl, "noise_passes", 1, f, lo=1, hi=NOISE_MAX_PASSES, integer=True, prefix="filter."),
         "noise_sensors": tuple(sensors),

@@ -19,6 +19,7 @@ import numpy as np
 from gcs_core.diagnosis.honest_sigma import sigma_scale_report
 from gcs_core.fileperm import write_atomic
 from gcs_core.json_values import json_default
+from gcs_core.noise import correlated as noise_correlation
 from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.toml_values import is_number
 
@@ -38,7 +39,8 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     σ × factor, while normalized RMS, χ² and verdicts stay against the stated σ;
     ``sigma_scale`` the batch-means sandwich σ scale of each solve-for element and its σ with
     the residuals' correlation (:mod:`gcs_core.diagnosis.honest_sigma`), null when off or
-    not estimable (too few windows).
+    not estimable (too few windows); ``noise_correlation`` each sensor's first-order
+    Gauss–Markov correlation, measured or declared (:mod:`gcs_core.noise.correlated`).
     """
     res = analysis.result
     gof = analysis.goodness()
@@ -70,8 +72,11 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
         out["remaining"] = remaining_summary(analysis)
         sc = analysis.sigma_scale() if hasattr(analysis, "sigma_scale") else None
         out["sigma_scale"] = sigma_scale_report(sc, res.sigma, res) if sc is not None else None
-    if getattr(analysis, "noise", None) is not None:  # [filter] noise_weighting = "long_run"
+    if getattr(analysis, "noise", None) is not None:  # [filter] noise_weighting = "long_run" / "correlated"
         out["noise_weighting"] = analysis.noise.as_report()
+    if getattr(analysis, "correlation", None):  # each sensor's noise correlation (docs/icd_extensions.md)
+        carried = analysis.config.filter.noise_weighting == "correlated"
+        out["noise_correlation"] = noise_correlation.report(analysis.correlation, carried)
     return out
 
 

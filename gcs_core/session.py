@@ -28,7 +28,9 @@ from gcs_core.estimators.batch.least_squares import BatchOptions
 from gcs_core.estimators.kalman.options import FilterOptions
 from gcs_core.estimators.registry import Estimator, FitSettings, KalmanEstimator, estimator
 from gcs_core.estimators.results import FitResult
-from gcs_core.noise.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
+from gcs_core.noise import correlated as noise_correlation
+from gcs_core.noise import correlated_sigma
+from gcs_core.noise.weighting import NoiseWeighting, same_factors, stated_residuals, weighted_sensors
 from gcs_core.problem.build import Problem
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
 from gcs_core.problem.state import HELD, SOLVE_FOR
@@ -46,7 +48,9 @@ class FitRecord:
     holdout_rms, holdout_chi2 : sensor -> normalized RMS and χ² test on the held-out span
         ({} when none was held out);
     warnings : the estimator's honesty warnings about its method on these data;
-    noise : with ``noise_weighting = "long_run"``, the factors the fit was weighted with.
+    noise : with ``noise_weighting = "long_run"`` or ``"correlated"``, the factors the fit was
+        weighted with;
+    correlation : sensor -> its noise correlation, declared or measured on the residuals.
     """
 
     result: FitResult
@@ -54,6 +58,7 @@ class FitRecord:
     holdout_chi2: Mapping[str, goodness.ChiSquare]
     warnings: tuple[str, ...]
     noise: NoiseWeighting | None
+    correlation: Mapping[str, noise_correlation.SensorCorrelation]
 
 
 class Analysis:
@@ -70,8 +75,11 @@ class Analysis:
     holdout_rms, holdout_chi2 : sensor -> normalized RMS and χ² test on the held-out span.
     warnings : the latest fit's honesty warnings about the method.
     stop_reason : why the latest discovery stopped ("" before one).
-    noise : with ``[filter] noise_weighting = "long_run"``, the factors the latest fit
-        weighted its sensors with (:mod:`gcs_core.noise.weighting`); else None.
+    noise : with ``[filter] noise_weighting = "correlated"`` (the default) or ``"long_run"``,
+        the factors the latest fit weighted its sensors with (:mod:`gcs_core.noise.weighting`);
+        else None.
+    correlation : sensor -> its noise correlation on the latest fit's residuals, declared or
+        measured (:mod:`gcs_core.noise.correlated`).
     """
 
     def __init__(self, config: AnalysisConfig, *, mission=None):
@@ -84,6 +92,7 @@ class Analysis:
         self.steps: list[Step] = []
         self.stop_reason = ""
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
+        self._factors_mode = config.filter.noise_weighting  # the weighting the factors come from
         self.problem: Problem = self._build()
         self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
         self._null_at_prior: tuple | None = None  # (problem, combinations)
@@ -169,13 +178,18 @@ class Analysis:
         the a priori stays at the configured values. ``previous``: the solution before a step
         (whole-span: the refit starts at it, knots and edits included, and ends at or below it).
         """
-        if self.config.filter.noise_weighting != "long_run" and self._factors:  # switched back to stated
-            self._factors = {}
+        mode = self.config.filter.noise_weighting
+        if self._factors_mode != mode:  # switched weighting: start again from the stated σ
+            self._factors, self._factors_mode = {}, mode
             self.problem = self._build()
         res = self._fit_once(initial=initial, previous=previous)
-        noise = None
-        if self.config.filter.noise_weighting == "long_run":
-            res, noise = self._reweight(res)
+        noise: NoiseWeighting | None = None
+        correlation: dict[str, noise_correlation.SensorCorrelation] = {}
+        if mode in ("long_run", "correlated"):
+            res, noise, correlation = self._reweight(res)
+        if mode != "correlated":  # measured and reported; the weights stay the configured ones
+            names = [sd.name for sd in self.problem.sensors if sd.name != self.problem.gyro_name]
+            correlation = noise_correlation.measure(res, names, weights=self._scale())
         holdout_rms: dict[str, float] = {}
         holdout_chi2: dict[str, goodness.ChiSquare] = {}
         masks = self.holdout_masks() if holdout else {}
@@ -186,9 +200,11 @@ class Analysis:
             stated = self._stated_problem()  # held-out residuals against the stated σ
             holdout_rms = res_train.holdout_rms(stated, masks)
             holdout_chi2 = goodness.holdout_tests(stated, res_train, masks)
+        if mode == "correlated" and self._scale():  # σ of fast signatures: the sandwich with C
+            res = correlated_sigma.honest(self.problem, res, correlation, self._scale())
         result = stated_residuals(res, self._scale())
         warnings = tuple(self.estimator.warnings(self.problem, result))
-        self.record = FitRecord(result, holdout_rms, holdout_chi2, warnings, noise)
+        self.record = FitRecord(result, holdout_rms, holdout_chi2, warnings, noise, correlation)
         self.candidates = []
         for w in warnings:
             log.warning("%s", w)
@@ -217,6 +233,10 @@ class Analysis:
         return self.record.noise if self.record is not None else None
 
     @property
+    def correlation(self) -> Mapping[str, noise_correlation.SensorCorrelation]:
+        return self.record.correlation if self.record is not None else {}
+
+    @property
     def estimator(self) -> Estimator:
         """The configured estimation method (:mod:`gcs_core.estimators.registry`)."""
         return estimator(self.config.method)
@@ -228,16 +248,24 @@ class Analysis:
         """One fit of the current problem with its current weights."""
         return self.estimator.fit(self.problem, self.fit_settings(), initial=initial, previous=previous)
 
-    def _reweight(self, res: FitResult) -> tuple[FitResult, NoiseWeighting]:
-        """``noise_weighting = "long_run"``: measure each sensor's long-run noise factor on
-        the fit's residuals and refit with ``σ × k`` (``noise_passes`` times at most, fewer
-        when the factors stop moving by more than their sampling error), module
-        :mod:`gcs_core.noise.weighting`."""
+    def _reweight(
+        self, res: FitResult
+    ) -> tuple[FitResult, NoiseWeighting, dict[str, noise_correlation.SensorCorrelation]]:
+        """``noise_weighting = "long_run"`` or ``"correlated"``: measure each sensor's noise
+        factor on the fit's residuals (the batch-means ratio, or ``√κ`` of its Gauss–Markov
+        correlation, declared or significant) and refit with ``σ × k`` (``noise_passes``
+        times at most, at least twice when correlated, fewer when the factors stop moving by
+        more than their sampling error), module :mod:`gcs_core.noise.weighting`; returns the
+        refit, the weighting and each sensor's correlation."""
         fl = self.config.filter
-        sensors = [sd.name for sd in self.problem.sensors]
+        sensors = [sd.name for sd in self.problem.sensors if sd.name != self.problem.gyro_name]
+        correlated = fl.noise_weighting == "correlated"
+        declared = noise_correlation.declared_correlation(self.mission.spec) if correlated else {}
         passes = 0
-        for _ in range(fl.noise_passes):
-            factors = measure(res, sensors, fl.noise_window, fl.noise_sensors)
+        correlation: dict[str, noise_correlation.SensorCorrelation] = {}
+        for _ in range(max(fl.noise_passes, 2) if correlated else fl.noise_passes):
+            factors, corr = noise_correlation.factors(res, sensors, fl, declared, self._scale())
+            correlation = corr if correlated else correlation
             if same_factors(factors, self._factors):  # the weights stand; the latest measurement is kept
                 old = self._factors
                 self._factors = {n: replace(f, factor=old[n].factor if n in old else 1.0) for n, f in factors.items()}
@@ -250,9 +278,12 @@ class Analysis:
             # weights (the whole-span grid follows the information, the editing the σ)
             res = self._fit_once(initial=res.state.values())
             passes += 1
-        noise = NoiseWeighting(fl.noise_window, passes, dict(self._factors))
+        if correlated and passes:  # the correlation the final residuals show (reported)
+            correlation = noise_correlation.measure(res, sensors, declared, self._scale())
+        window = float("nan") if correlated else fl.noise_window
+        noise = NoiseWeighting(window, passes, dict(self._factors), fl.noise_weighting)
         log.info("%s", noise.summary())  # the TUI's engine log shows it
-        return res, noise
+        return res, noise, correlation
 
     def _stated_problem(self) -> Problem:
         """The current problem with the stated σ (itself when nothing is reweighted)."""
@@ -384,8 +415,14 @@ class Analysis:
         if res is None:
             return None
         if self._goodness is None or self._goodness[0] is not res:
+            carried = self.config.filter.noise_weighting == "correlated"
+            infl = noise_correlation.chi2_inflations(self.correlation) if carried else {}  # κ₂
             g = goodness.goodness_of_fit(
-                self.problem, res, holdout=self.holdout_chi2, alpha=self.config.diagnosis.significance
+                self.problem,
+                res,
+                holdout=noise_correlation.inflated_tests(self.holdout_chi2, infl),
+                alpha=self.config.diagnosis.significance,
+                inflation=infl,
             )
             self._goodness = (res, g)
         return self._goodness[1]

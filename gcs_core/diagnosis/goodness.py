@@ -91,26 +91,32 @@ class ChiSquare:
     chi2 : Σ rᵀ R⁻¹ r over the measurements tested.
     n : measurements (frames × components) tested.
     dof : effective degrees of freedom, ``n − p_eff`` (may be fractional).
+    inflation : ``κ₂``, the variance inflation of the χ² sum by the residuals' correlation
+        (1: white; :mod:`gcs_core.noise.correlated`). The tails are read on the
+        correlation's effective dof, ``χ²/κ₂ ~ χ²_{dof/κ₂}`` (Satterthwaite 1946).
     """
 
     label: str
     chi2: float
     n: int
     dof: float
+    inflation: float = 1.0
 
     @property
     def p_value(self) -> float:
-        """Upper tail ``P(χ²_dof ≥ chi2)``: small when the residuals exceed the noise."""
+        """Upper tail ``P(χ²_ν ≥ χ²/κ₂)``, ``ν = dof/κ₂``: small when the residuals exceed the noise."""
         if not (self.dof > 0 and math.isfinite(self.chi2)):
             return float("nan")
-        return float(stats.chi2.sf(self.chi2, self.dof))
+        k = self.inflation
+        return float(stats.chi2.sf(self.chi2 / k, self.dof / k))
 
     @property
     def p_lower(self) -> float:
-        """Lower tail ``P(χ²_dof ≤ chi2)``: small when the residuals are below the noise."""
+        """Lower tail ``P(χ²_ν ≤ χ²/κ₂)``: small when the residuals are below the noise."""
         if not (self.dof > 0 and math.isfinite(self.chi2)):
             return float("nan")
-        return float(stats.chi2.cdf(self.chi2, self.dof))
+        k = self.inflation
+        return float(stats.chi2.cdf(self.chi2 / k, self.dof / k))
 
     @property
     def reduced(self) -> float:
@@ -118,7 +124,7 @@ class ChiSquare:
         return self.chi2 / self.dof if self.dof > 0 else float("nan")
 
     def as_report(self) -> dict:
-        return {
+        out = {
             "chi2": round(float(self.chi2), 3),
             "n": int(self.n),
             "dof": round(float(self.dof), 2),
@@ -126,6 +132,10 @@ class ChiSquare:
             "p_value": _p(self.p_value),
             "p_lower": _p(self.p_lower),
         }
+        if self.inflation != 1.0:
+            out["chi2_inflation"] = _r(self.inflation, 4)
+            out["effective_dof"] = _r(self.dof / self.inflation, 2)
+        return out
 
 
 @dataclass(frozen=True)
@@ -190,10 +200,9 @@ class GoodnessOfFit:
             low = self.below_noise()
             text = f"consistent with noise: {head}"
             if low:
-                text += (
-                    "; residuals below the noise in "
-                    + ", ".join(f"{t.label} ({s})" for s, t in low)
-                    + ": the data-book σ may be too large"
+                text += "; residuals significantly below the noise (too good) in " + "; ".join(
+                    f"{t.label} ({s}, χ²/dof {t.reduced:.3f}, p lower {_fmt_p(t.p_lower)}): {too_good_cause(t)}"
+                    for s, t in low
                 )
             return text
         sensors = [(s, t) for s, t in bad if t.label != ALL]
@@ -204,6 +213,14 @@ class GoodnessOfFit:
             f"{where} (χ²/dof {t.reduced:.3f} on {t.dof:.0f} dof); whole fit {head}; "
             f"family-wise α = {self.alpha:g} over {len(self.tests)} tests"
         )
+
+    def too_good(self) -> list[dict]:
+        """The below-noise tests with their likely cause, for the report."""
+        return [
+            {"sensor": t.label, "span": s, "chi2_per_dof": _r(t.reduced, 4), "p_lower": _p(t.p_lower),
+             "cause": too_good_cause(t)}
+            for s, t in self.below_noise()
+        ]  # fmt: skip
 
     def sensor_report(self, name: str) -> dict:
         """A sensor's χ² fields for the ICD §7 ``sensors`` entry: ``chi2``, ``dof``,
@@ -232,6 +249,7 @@ class GoodnessOfFit:
             if worst is None
             else {"sensor": worst[1].label, "span": worst[0], "p_value": _p(worst[1].p_value)},
             "sensors": {k: v.as_report() for k, v in self.sensors.items()},
+            "too_good": self.too_good(),
         }
         if self.holdout is not None:
             out["holdout"] = {
@@ -242,6 +260,17 @@ class GoodnessOfFit:
 
 
 ALL = "all sensors"
+
+
+def too_good_cause(t: ChiSquare) -> str:
+    """The likely cause of residuals significantly below the noise: a correlated sensor
+    (``κ₂ > 1``) whose slow error the attitude's freedom absorbed, else a stated σ too large."""
+    if t.inflation > 1.0:
+        return (
+            "correlated noise absorbed by the attitude (the attitude's freedom follows the sensor's slow "
+            "error; its σ and the elements it carries are less certain than the fit says)"
+        )
+    return "the stated σ is likely too large (every σ and p-value of the fit is then pessimistic)"
 
 
 def _r(v: float, nd: int):
@@ -287,6 +316,7 @@ def goodness_of_fit(
     effective_parameters: float | None = None,
     leverage: Mapping[str, float] | None = None,
     sensors: Sequence[str] | None = None,
+    inflation: Mapping[str, float] | None = None,
 ) -> GoodnessOfFit:
     """The χ² tests of a fit and their verdict (module docstring).
 
@@ -295,7 +325,8 @@ def goodness_of_fit(
     (:meth:`~gcs_core.estimators.results.FitResult.influence`: ``tr(P A_s)`` per sensor for a
     static fit, the influence matrix's trace with the knots for a whole-span fit). Given
     only a total, it is shared among the sensors in proportion to ``tr(P A_s)``. ``holdout`` is
-    :func:`holdout_tests` of the training fit.
+    :func:`holdout_tests` of the training fit. ``inflation``: sensor -> ``κ₂`` of its
+    correlated noise (absent: white); the whole fit's is the dof-weighted mean.
     """
     p_eff = effective_parameters
     lev = leverage
@@ -323,10 +354,12 @@ def goodness_of_fit(
         if sensors is not None and name not in sensors:
             continue
         m = int(r.n) * len(r.components)
-        per[name] = ChiSquare(name, r.chi2, m, m - float(lev.get(name, 0.0)))
+        per[name] = ChiSquare(name, r.chi2, m, m - float(lev.get(name, 0.0)), float((inflation or {}).get(name, 1.0)))
     m_all = sum(t.n for t in per.values())
     chi_all = float(sum(t.chi2 for t in per.values()))
-    fit = ChiSquare(ALL, chi_all, m_all, m_all - float(p_eff))
+    dof_all = sum(max(t.dof, 0.0) for t in per.values())
+    k_all = sum(max(t.dof, 0.0) * t.inflation for t in per.values()) / dof_all if dof_all > 0 else 1.0
+    fit = ChiSquare(ALL, chi_all, m_all, m_all - float(p_eff), k_all if inflation else 1.0)
     ho = dict(holdout or {})
     ho_all = ho.pop(ALL, None)
     return GoodnessOfFit(fit, per, ho_all, ho, alpha, float(p_eff), src)

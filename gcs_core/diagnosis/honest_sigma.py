@@ -138,6 +138,7 @@ def sigma_scale_report(sc: SigmaScale, sigma: Mapping[str, float], result=None) 
         "sensors": list(sc.sensors),
         "frames_per_window": {n: round(v, 2) for n, v in per.items()},
         "flag_above": round(threshold(sc), 4),
+        "not_estimable": list(sc.failed),
         "elements": {
             n: {"scale": round(s, 4), "sigma": float(sigma[n]), "sigma_with_correlation": honest[n]}
             for n, s in sc.scale.items()

@@ -148,6 +148,16 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
         "noise": BookKey(0, "rad", check=_positive),
     },
 }
+#: a sensor's noise declared correlated (first-order Gauss–Markov; docs/icd_extensions.md,
+#: gcs_core/noise/correlated.py): the correlation time τ [s] and the σ of the
+#: correlated part (default: all of ``noise``), in the sensor's telemetry units
+NOISE_CORRELATION_KEYS = {
+    "noise_correlation_s": BookKey(0, "s", required=False, default=None, check=_positive),
+    "noise_correlated": BookKey(0, "telemetry units", required=False, default=None, check=_positive),
+}
+for _keys in BOOK_KEYS.values():
+    if "noise" in _keys:
+        _keys.update(NOISE_CORRELATION_KEYS)
 #: keys every [[sensor]] table may hold besides its type's data-book keys.
 COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
@@ -300,7 +310,7 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
                 "sensor",
                 index,
             )
-        else:
+        elif key not in NOISE_CORRELATION_KEYS:  # absent: white noise, nothing stored
             book[key] = spec.default
     unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known)
     for k in unknown:

@@ -46,6 +46,7 @@ scales longer than its correlation, for weighting a reference whose errors are c
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -54,10 +55,16 @@ import numpy as np
 from gcs_core.errors import InputError
 from gcs_core.problem.linearization import iter_blocks
 
+log = logging.getLogger(__name__)
+
 #: default window [s]: several times the hand motions' time scale on the BROAD trials
 BLOCK_S = 4.0
 #: fewer windows than this: the scale is not estimated (its own scatter exceeds ~16 %)
 MIN_BLOCKS = 20
+#: a scale above this (or not finite) is a numerical failure of the sandwich, not a finding
+SCALE_MAX = 1e3
+#: relative cut of the equilibrated information's pseudo-inverse (when not positive definite)
+PINV_RCOND = 1e-12
 
 
 @dataclass(frozen=True)
@@ -69,12 +76,15 @@ class SigmaScale:
     sensors : the sensors whose residuals entered; block_s : window [s]; n_blocks :
         windows holding used frames.
     scale : element -> ``s_i`` (module docstring); multiply the fit's σ by it.
+    failed : elements whose scale was not finite or above :data:`SCALE_MAX` (a numerical
+        failure of the sandwich, guarded: left out of ``scale`` and reported).
     """
 
     sensors: tuple[str, ...]
     block_s: float
     n_blocks: int
     scale: Mapping[str, float]
+    failed: tuple[str, ...] = ()
 
     def honest_sigma(self, sigma: Mapping[str, float]) -> dict[str, float]:
         """``σ_i max(1, s_i)`` (elements without a scale unchanged; a scale below 1 is the
@@ -143,9 +153,29 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
     )
     G = G[:, idx]
     Ainv = np.linalg.pinv(A)
-    honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)
-    scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
-    return SigmaScale(sensors, float(block_s), n_blocks, dict(zip(names, map(float, scale))))
+    with np.errstate(all="ignore"):
+        honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)
+        scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
+    # a pseudo-inverse of an information matrix spanning nT and rad can keep a direction it
+    # should have cut, and the scale explodes (issue 27: TAM1.bias_y at 1.6e130): not a finding
+    ok = np.isfinite(scale) & (scale < SCALE_MAX) & (np.diag(Ainv) > 0)
+    failed = tuple(n for n, good in zip(names, ok) if not good)
+    if failed:
+        log.warning("σ scale not estimable (numerically) for %s: left out", ", ".join(failed))
+    kept = {n: float(x) for n, x, good in zip(names, scale, ok) if good}
+    return SigmaScale(sensors, float(block_s), n_blocks, kept, failed)
+
+
+def equilibrated_inverse(As: np.ndarray) -> np.ndarray:
+    """Inverse of an information matrix scaled to a unit diagonal: the exact inverse when
+    it is positive definite (a direction only the a priori sets is kept, however small its
+    eigenvalue), else the pseudo-inverse at :data:`PINV_RCOND`."""
+    try:
+        c = np.linalg.cholesky(As)
+        ci = np.linalg.inv(c)
+        return ci.T @ ci
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(As, rcond=PINV_RCOND, hermitian=True)
 
 
 def noise_scale(result, sensor: str, *, block_s: float) -> float:

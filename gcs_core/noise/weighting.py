@@ -1,5 +1,12 @@
 """Weighting a sensor by the noise it really shows: the long-run noise factor in the fit.
 
+One mechanism, two measures of the same long-run variance ratio. The session weights a
+sensor by ``σ × k`` (:class:`NoiseFactor`, its ``_reweight`` loop, :func:`stated_residuals`)
+whichever way ``k`` was found: ``noise_weighting = "correlated"`` (the default) takes
+``k = √κ`` of the sensor's first-order Gauss–Markov correlation, declared in mission.toml
+or measured where significant (:mod:`gcs_core.noise.correlated`); ``"long_run"``
+takes the model-free batch-means ratio ``s`` below, over a configured window.
+
 A fit weights each sensor as white noise of its stated σ (seed §4.3: ``R`` diagonal). When
 a sensor's errors are correlated over a time ``τ`` longer than its sample interval (an
 optical reference interpolated between its camera frames, a magnetometer that repeats
@@ -105,20 +112,24 @@ class NoiseWeighting:
 
     Attributes
     ----------
-    window_s : the configured window [s]; passes : refits run with new factors (0: the
-        measured factors agreed with the weights the fit had).
+    window_s : the configured window [s] (NaN for ``correlated``); passes : refits run with
+        new factors (0: the measured factors agreed with the weights the fit had).
     factors : sensor -> :class:`NoiseFactor` of the last pass (the weights of the fit).
+    mode : ``long_run`` (batch-means ratio) or ``correlated`` (``√κ`` of the sensor's
+        Gauss–Markov correlation, :mod:`gcs_core.noise.correlated`): one
+        mechanism, two measures of the same long-run variance ratio.
     """
 
     window_s: float
     passes: int
     factors: Mapping[str, NoiseFactor]
+    mode: str = "long_run"
 
     def as_report(self) -> dict:
         """The ``noise_weighting`` field of the ICD §7 report (docs/icd_extensions.md)."""
         return {
-            "mode": "long_run",
-            "window_s": self.window_s,
+            "mode": self.mode,
+            "window_s": self.window_s if math.isfinite(self.window_s) else None,
             "passes": self.passes,
             "normalized_against": "stated sigma",
             "weights": "stated sigma x factor",
@@ -129,12 +140,14 @@ class NoiseWeighting:
         """One line for a fit summary."""
         parts = []
         for n, f in self.factors.items():
-            if math.isfinite(f.measured):
+            if math.isfinite(f.measured) and not math.isfinite(f.window_s):  # correlated: √κ
+                parts.append(f"{n} × {f.factor:.2f} (√κ {f.measured:.2f} ± {f.sampling_error:.2g})")
+            elif math.isfinite(f.measured):
                 parts.append(f"{n} × {f.factor:.2f} (s {f.measured:.2f} ± {f.sampling_error:.2f}, {f.window_s:g} s)")
             else:
                 parts.append(f"{n} × 1 ({f.note})")
         return (
-            f"noise weighting long_run ({self.passes} refit{'' if self.passes == 1 else 's'}): σ × "
+            f"noise weighting {self.mode} ({self.passes} refit{'' if self.passes == 1 else 's'}): σ × "
             + "; ".join(parts)
             + "; normalized RMS and χ² tests against the stated σ"
         )

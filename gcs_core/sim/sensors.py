@@ -12,7 +12,9 @@ offset; zero in the data book).
 
 Noise (ICD ``noise``: 1-sigma per component, quantization included): for integer-count
 sensors the Gaussian part is ``σ_g = sqrt(noise² − 1/12)`` before rounding to an integer,
-so that Gaussian plus rounding has the data-book total; other sensors add ``N(0, noise²)``.
+so that Gaussian plus rounding has the data-book total; other sensors add ``N(0, noise²)``,
+or, for the magnetometer and the star tracker with ``noise_correlation_s`` set, first-order
+Gauss–Markov noise of that stationary σ (:mod:`gcs_core.sim.gauss_markov`).
 
 Magnetometer (Eq 4-27), with the hidden response matrix ``K`` (scale and
 non-orthogonality, ``I`` in the book) and contamination by auxiliary channels::
@@ -46,6 +48,7 @@ from gcs_core.sim import astro
 from gcs_core.sim._rot import rpy_to_dcm, unit
 from gcs_core.sim.config import SensorConfig
 from gcs_core.sim.field import igrf_gci
+from gcs_core.sim.gauss_markov import correlated_noise
 
 __all__ = ["MagnetometerSim", "FineSunSim", "CoarseSunSim", "sun_unit_from_sc"]
 
@@ -87,6 +90,7 @@ class MagnetometerSim:
             ch: np.asarray(k, dtype=float) for ch, k in dict(sensor.value("contamination", {}) or {}).items()
         }
         self.quantum = float(sensor.value("quantum", 0.0) or 0.0)
+        self.white, self.gm = correlated_noise(sensor, self.noise, 3, rng)
 
     def run(self, t_rows: np.ndarray) -> dict[str, np.ndarray]:
         w = self.world
@@ -97,7 +101,10 @@ class MagnetometerSim:
         B_S = np.einsum("ij,njk,nk->ni", self.K @ self.M, C, B_I) + self.bias
         for ch, k in self.contamination.items():
             B_S = B_S + self.aux.value(ch, tt)[:, None] * k[None, :]
-        B_S = B_S + self.rng.standard_normal(B_S.shape) * self.noise
+        if self.gm is None:
+            B_S = B_S + self.rng.standard_normal(B_S.shape) * self.noise
+        else:  # Gauss–Markov noise (gauss_markov.py), exact at the sample times
+            B_S = B_S + self.gm.draw(t_rows) + self.rng.standard_normal(B_S.shape) * self.white
         if self.quantum > 0:
             B_S = np.round(B_S / self.quantum) * self.quantum
         return {"t": t_rows, "bx": B_S[:, 0], "by": B_S[:, 1], "bz": B_S[:, 2]}

@@ -10,7 +10,8 @@ Tracker, per frame at ``t`` (``t' = t + time_offset``)::
     F_S  = M C_BI(t') F_I'                                           (Eq 4-30)
     h = asin(F_Sz) / S_H + n_h,   v = atan2(F_Sy, F_Sx) / S_V + n_v  (Eq 4-29)
 
-with the true ``M`` and ``S_H, S_V``. A star is trackable when ``|asin F_Sz|`` and
+with the true ``M`` and ``S_H, S_V``; ``n_h, n_v`` white, or first-order Gauss–Markov
+with ``noise_correlation_s`` (:mod:`gcs_core.sim.gauss_markov`). A star is trackable when ``|asin F_Sz|`` and
 ``|atan2(F_Sy, F_Sx)|`` are within ``fov_deg`` (half width). One star is reported per frame,
 drawn among the trackable ones with probability ∝ brightness ``10^(−0.4 m)``; the row gives
 its catalog (J2000) ``ra, dec`` and ``mag``. With a misidentification fraction ``f``, that
@@ -30,6 +31,7 @@ from scipy.spatial import cKDTree
 from gcs_core.sim import astro
 from gcs_core.sim._rot import rpy_to_dcm, unit
 from gcs_core.sim.config import SensorConfig
+from gcs_core.sim.gauss_markov import correlated_noise
 
 __all__ = ["StarCatalog", "StarTrackerSim", "aberrate"]
 
@@ -84,6 +86,7 @@ class StarTrackerSim:
         self.scale = np.asarray(sensor.value("scale", (1.0, 1.0)), dtype=float)
         self.fov = np.radians(float(sensor.value("fov_deg")))
         self.noise = float(sensor.value("noise"))
+        self.white, self.gm = correlated_noise(sensor, self.noise, 2, self.rng)
         self.tau = float(sensor.value("time_offset_s", 0.0))
         self.sun_excl = np.radians(float(sensor.value("sun_exclusion_deg", 30.0)))
         self.earth_excl = np.radians(float(sensor.value("earth_exclusion_deg", 10.0)))
@@ -138,7 +141,10 @@ class StarTrackerSim:
         h = np.array([x[1] for x in rows]) / self.scale[0]
         vv = np.array([x[2] for x in rows]) / self.scale[1]
         star = np.array([x[3] for x in rows], dtype=int)
-        e = self.rng.standard_normal((h.size, 2)) * self.noise
+        if self.gm is None:
+            e = self.rng.standard_normal((h.size, 2)) * self.noise
+        else:  # Gauss–Markov noise at the frame times (gauss_markov.py)
+            e = self.gm.draw(t_out) + self.rng.standard_normal((h.size, 2)) * self.white
         h, vv = h + e[:, 0], vv + e[:, 1]
         return {
             "t": t_out,

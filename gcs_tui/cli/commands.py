@@ -169,6 +169,29 @@ def _print_fit(a) -> None:
     _lines(state_table(a))
 
 
+def _write_noise_correlation(args, a) -> None:
+    """``--write-noise-correlation``: each significant measured correlation time into the
+    mission's mission.toml (:mod:`gcs_core.io.noise_declaration`)."""
+    if not getattr(args, "write_noise_correlation", False):
+        return
+    from gcs_core.io.noise_declaration import declare
+
+    taus = {
+        n: c.tau_s
+        for n, c in getattr(a, "correlation", {}).items()
+        if c.significant and c.source == "measured" and c.tau_s > 0
+    }
+    if not taus:
+        _out("no measured noise correlation is significant: mission.toml left as it was")
+        return
+    path = a.mission.spec.root / "mission.toml"
+    if not path.is_file():
+        _out(f"no mission.toml at {a.mission.spec.root} to declare the noise correlation in")
+        return
+    declare(path, taus, note="measured from the residuals by gcs")
+    _out(f"declared in {path}: " + ", ".join(f"{n} noise_correlation_s = {t:.4g}" for n, t in taus.items()))
+
+
 # ---------------------------------------------------------------------------- commands
 def terminal_problem() -> str:
     """Why the TUI cannot run here ('' when it can): it needs a terminal on stdin, stdout and stderr."""
@@ -288,6 +311,7 @@ def cmd_batch(args, prog: Progress) -> int:
             v = save_calibration(a, _output(args.scds), note=args.note or "")
         _out(f"calibration saved as version {v} in {args.scds}")
     _write_json(args.report, lambda: analysis_report(a, command="batch"))
+    _write_noise_correlation(args, a)
     _export_plots(args, a)
     return EXIT_ESTIMATION if _fit_failed(a) else EXIT_OK
 
@@ -326,6 +350,7 @@ def cmd_discover(args, prog: Progress) -> int:
         _out("")
         _lines(candidate_table(a.candidates, alpha=a.config.diagnosis.significance, limit=5))
     _write_json(args.report, lambda: analysis_report(a, command="discover"))
+    _write_noise_correlation(args, a)
     _export_plots(args, a)
     if _fit_failed(a):
         return EXIT_ESTIMATION
@@ -515,6 +540,11 @@ def build_parser() -> argparse.ArgumentParser:
             "--sigma-window",
             type=seconds_or_zero,
             help="window [s] of the correlation-robust σ (default: 4, or 10 samples, fewer on short spans; 0 = off)",
+        )
+        sp.add_argument(
+            "--write-noise-correlation",
+            action="store_true",
+            help="declare each sensor's significant measured noise correlation time in mission.toml",
         )
         sp.add_argument("--plots", help="export residual plots to this folder")
         sp.add_argument(

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core import display
+from gcs_core.noise import correlated as noise_correlation
 from gcs_core.reporting import remaining_summary
 
 #: what "unobservable" means, said once under the list
@@ -50,8 +51,12 @@ def fit_table(analysis) -> list[str]:
             f"{ho:9.3f} {p_fit:>8s} {p_ho:>8s}  {comp}" + (f" [{lab}]" if lab else "")
         )
     lines.append(f"status: {res.message}; χ² {res.chi2:.1f} on {res.dof} dof")
-    if getattr(analysis, "noise", None) is not None:
-        lines.append(analysis.noise.summary())
+    nw = getattr(analysis, "noise", None)
+    if nw is not None and (nw.mode != "correlated" or any(f.factor != 1.0 for f in nw.factors.values())):
+        lines.append(nw.summary())  # (correlated and all white: the correlation lines say so)
+    carried = getattr(getattr(analysis, "config", None), "filter", None)
+    carried = getattr(carried, "noise_weighting", "") == "correlated"
+    lines.extend(noise_correlation.lines(getattr(analysis, "correlation", None) or {}, carried))
     if gof is not None:
         lines.append(f"goodness of fit: {gof.verdict}")
         lines.append(
@@ -138,8 +143,13 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
 
     sc = analysis.sigma_scale() if hasattr(analysis, "sigma_scale") else None
     big = {n: s for n, s in flagged(sc).items() if n not in set(skip)}
+    failed = (
+        [f"σ scale not estimable (the sandwich failed numerically, guarded): {', '.join(sc.failed)}"]
+        if sc and sc.failed
+        else []
+    )
     if sc is None or not big:
-        return []
+        return failed
     res = analysis.result
     honest = sc.honest_sigma({n: res.sigma[n] for n in big})
     lines = [f"{HEADER_SIGMA_SCALE} (batch-means sandwich, {sc.block_s:.3g}-s windows, {sc.n_blocks} windows):"]
@@ -155,6 +165,7 @@ def sigma_scale_lines(analysis, skip: Iterable[str] = ()) -> list[str]:
     if marked:
         lines.append("(* the gyro's, fitted under its process noise, which the sandwich does not see: indicative)")
     sparse = [n for n, v in frames_per_window(sc, res).items() if v < 2.0]
+    lines.extend(failed)
     if sparse:
         text = (
             f"({', '.join(sparse)}: fewer than two samples per {sc.block_s:.3g}-s window, so its scales show "

@@ -333,7 +333,12 @@ class GcsApp(App):
         except GcsError as err:
             self.notify(str(err), severity="error")
             return
-        self.push_screen(AllanScreen(results, f"Allan deviation · {self.workbench.mission.spec.name}"))
+        from gcs_core.noise.correlated import lines as correlation_lines
+
+        an = getattr(self.workbench, "analysis", None)
+        carried = an is not None and an.config.filter.noise_weighting == "correlated"
+        title = f"Allan deviation · {self.workbench.mission.spec.name}"
+        self.push_screen(AllanScreen(results, title, correlation_lines(getattr(an, "correlation", {}), carried)))
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen(self.current_mode))

@@ -96,6 +96,7 @@ def fit(root, effects):
     cfg = cfg.with_changes(
         physics={"field_model": "constant"},
         state={"attitude_sigma_deg": 10.0, "effects": effects, "elements": MEMS_PRIORS},
+        filter={"noise_weighting": "stated"},  # the white-noise fit whose σ the sandwich tests judge
     )
     a = Analysis(cfg, mission=load_mission(root))
     return a, a.fit(holdout=False)

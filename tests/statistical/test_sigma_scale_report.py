@@ -40,6 +40,7 @@ def batch(request, tmp_path_factory):
     cfg = default_config(root).with_changes(
         physics={"field_model": "constant"},
         state={"attitude_sigma_deg": 10.0, "effects": EFFECTS + ("MAG.field_gradient",), "elements": MEMS_PRIORS},
+        filter={"noise_weighting": "stated"},  # the sandwich judges the white-noise fit's σ
     )
     path = save_config(cfg, tmp / "lab.toml")
     out = io.StringIO()

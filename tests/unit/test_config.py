@@ -153,7 +153,7 @@ REFUSALS = [
     ("[filter]\nedit_k_sensor = 4\n", "filter.edit_k_sensor", "must be a table"),
     ("[filter]\nmax_iterations = 2.5\n", "filter.max_iterations", "must be a whole number"),
     ("[filter]\nmax_iterations = 0\n", "filter.max_iterations", "must be ≥ 1"),
-    ('[filter]\nnoise_weighting = "white"\n', "filter.noise_weighting", "must be one of stated, long_run"),
+    ('[filter]\nnoise_weighting = "white"\n', "filter.noise_weighting", "must be one of correlated, stated, long_run"),
     ("[filter]\nnoise_window = 0\n", "filter.noise_window", "must be > 0"),
     ("[filter]\nnoise_passes = 4\n", "filter.noise_passes", "must be ≤ 3"),
     ('[filter]\nnoise_sensors = "OPT"\n', "filter.noise_sensors", "must be a list"),
@@ -351,7 +351,7 @@ def test_noise_weighting_round_trips_and_the_default_is_not_written(tmp_path):
     keys survive save and load; at the defaults nothing is written, so a config's digest
     is the one it had before the keys existed."""
     cfg = C.load_config(write(tmp_path, BASE))
-    assert cfg.filter.noise_weighting == "stated"
+    assert cfg.filter.noise_weighting == "correlated"  # the default (issue 27)
     saved = C.save_config(cfg, tmp_path / "plain.toml").read_text()
     assert "noise_" not in saved
     on = cfg.with_changes(filter={"noise_weighting": "long_run", "noise_window": 2.0, "noise_sensors": ("TAM1",)})

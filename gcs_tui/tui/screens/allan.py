@@ -4,7 +4,9 @@ Fed by the list of :class:`~gcs_core.noise.measured.SensorNoise` that
 :func:`~gcs_core.noise.measured.mission_noise` returns: one log-log chart per sensor, a line
 per component, and under it the white noise the telemetry shows against the data book's
 figure and, for gyros, the angle random walk N, rate random walk K and bias instability B
-read off the curve (IEEE Std 952-1997 Annex C). Escape closes it.
+read off the curve (IEEE Std 952-1997 Annex C). After a fit, a block above the charts gives
+each sensor's noise correlation in its residuals (correlation time, variance inflation,
+declared or measured: :mod:`gcs_core.noise.correlated`). Escape closes it.
 """
 
 from __future__ import annotations
@@ -52,15 +54,18 @@ class AllanScreen(ModalScreen[None]):
     CSS_PATH = "allan.tcss"
     BINDINGS = [Binding("escape", "dismiss", "Close")]
 
-    def __init__(self, results, title: str = "Allan deviation") -> None:
+    def __init__(self, results, title: str = "Allan deviation", correlation: list[str] | None = None) -> None:
         super().__init__()
         self.results = list(results)
         self.title_text = title
+        self.correlation = list(correlation or [])  # lines of noise_correlation.lines()
 
     def compose(self) -> ComposeResult:
         with Vertical(id="dialog"):
             yield Static(f"{self.title_text} (overlapping, IEEE 952 Annex C) · esc closes", id="dialog-title")
             with VerticalScroll(id="allan-charts"):
+                if self.correlation:
+                    yield Static("\n".join(self.correlation), classes="dialog-note", markup=False)
                 if not self.results:
                     yield Static("no sensor with measured values in this mission", classes="dialog-note")
                 for k, r in enumerate(self.results):
