@@ -21,7 +21,6 @@ KNOWN_LONG: dict[str, set[str]] = {
     "gcs_core/convert/astropi.py": {"convert"},
     "gcs_core/convert/broad.py": {"convert"},
     "gcs_core/io/mission.py": {"read_mission_spec", "_read_sensor"},
-    "gcs_core/estimators/kalman/kernels.py": {"_frame"},
 }
 
 
