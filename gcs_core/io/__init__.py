@@ -10,7 +10,8 @@ No physics here: what the files say, checked, as plain objects.
 * :mod:`~gcs_core.io.tle_table` — a TLE file tabulated as an ephemeris table;
 * :mod:`~gcs_core.io.h5store` — the one place HDF5 files are opened (atomic, locked,
   checksummed);
-* :mod:`~gcs_core.io.sdf` — the Standard Data File (seed Table 3-2);
+* :mod:`~gcs_core.io.sdf` — the Standard Data File (seed Table 3-2), read;
+  :mod:`~gcs_core.io.sdf_write` writes it;
 * :mod:`~gcs_core.io.scds` — the Sensor Calibration Data Set (append-only versions);
 * :mod:`~gcs_core.io.asf` — the Attitude Status File (append-only solutions).
 """

@@ -22,17 +22,17 @@ HDF5 layout (see docs/formats.md)::
     /aux, /onboard         the auxiliary channels and onboard quaternions, if any
 
 Blocks are cut on a grid of ``block_seconds`` aligned to the epoch; in each window the
-observation block comes before the transition block.
+observation block comes before the transition block. :mod:`gcs_core.io.sdf_write` writes
+the file; this module holds its layout and reads it.
 """
 
 from __future__ import annotations
 
 import json
-import math
 import os
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
-from datetime import UTC, datetime
+from datetime import datetime
 from pathlib import Path
 from typing import Any
 
@@ -42,7 +42,6 @@ import numpy as np
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import DataFileError
 from gcs_core.io import h5store
-from gcs_core.io.importer import COLUMN_UNITS, ImportedMission
 
 FORMAT = "SDF"
 VERSION = 1
@@ -160,178 +159,6 @@ class SdfContents:
     @property
     def n_blocks(self) -> int:
         return len(self.blocks)
-
-
-# --- writing --------------------------------------------------------------------------
-
-
-def _epoch_text(epoch: datetime) -> str:
-    text = epoch.astimezone(UTC).strftime("%Y-%m-%dT%H:%M:%S")
-    if epoch.microsecond:
-        text += f".{epoch.microsecond:06d}"
-    return text + "Z"
-
-
-def _json(value: Any) -> str:
-    return json.dumps(value, default=str, allow_nan=False)
-
-
-def _hold(aux_t: np.ndarray, aux_values: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """Zero-order hold of the aux channels at times t (ICD §6); NaN before the first row."""
-    if aux_t.size == 0:
-        return np.full((t.size, aux_values.shape[1]), np.nan)
-    idx = np.searchsorted(aux_t, t, side="right") - 1
-    out = aux_values[np.clip(idx, 0, None)].astype(np.float64, copy=True)
-    out[idx < 0] = np.nan
-    return out
-
-
-def write_sdf(
-    path: str | os.PathLike,
-    imported_mission: ImportedMission,
-    *,
-    block_seconds: float = 600.0,
-    headers_only: bool = False,
-) -> Path:
-    """Write the Standard Data File of an imported mission (seed Table 3-2), atomically.
-
-    Parameters
-    ----------
-    path : destination ``.h5`` file (replaced atomically if it exists).
-    imported_mission : from :func:`~gcs_core.io.importer.load_mission` (or any object
-        with the same ``spec``, ``telemetry``, ``ephemeris_table``, ``aux``, ``onboard``).
-    block_seconds : width of the block windows [s], > 0.
-    headers_only : write file type 2 (times and counts only) for the predictor.
-    """
-    if not (isinstance(block_seconds, (int, float)) and math.isfinite(block_seconds) and block_seconds > 0):
-        raise ValueError(f"block_seconds must be a positive number, not {block_seconds!r}")
-    path = Path(path)
-    m = imported_mission
-    spec = m.spec
-    names = [s.name for s in spec.sensors if s.name in m.telemetry]
-    index_of = {n: i for i, n in enumerate(names)}
-    kinds = {s.name: TRANSITION if s.type in TRANSITION_TYPES else OBSERVATION for s in spec.sensors}
-    tables = {n: m.telemetry[n] for n in names}
-    nonempty = [tables[n].t for n in names if len(tables[n])]
-    t_start = math.floor(min(float(t[0]) for t in nonempty) / block_seconds) * block_seconds if nonempty else 0.0
-    window_of = {n: np.floor((tables[n].t - t_start) / block_seconds).astype(np.int64) for n in names}
-    windows = sorted(set().union(*(np.unique(w).tolist() for w in window_of.values())))
-    aux = m.aux
-    aux_columns = tuple(c for c in aux.columns if c != "t") if aux is not None else ()
-    aux_values = aux.stack(aux_columns) if aux is not None else None
-
-    with h5store.atomic_create(path, FORMAT, VERSION) as f:
-        f.attrs.update(
-            {
-                "file_type": np.int64(FILE_TYPE_HEADERS if headers_only else FILE_TYPE_DATA),
-                "mission": spec.name,
-                "epoch": _epoch_text(spec.epoch),
-                "attitude_mode": spec.attitude_mode,
-                "source_dir": str(spec.root),
-                "block_seconds": float(block_seconds),
-                "sensor_names": _json(names),
-            }
-        )
-        frames_t: list[np.ndarray] = []
-        frames_block: list[np.ndarray] = []
-        frames_points: list[np.ndarray] = []
-        blocks = f.create_group("blocks")
-        n_blocks = 0
-        for w in windows:
-            t0 = t_start + w * block_seconds
-            for kind in (OBSERVATION, TRANSITION):
-                members = {n: window_of[n] == w for n in names if kinds[n] == kind}
-                members = {n: sel for n, sel in members.items() if sel.any()}
-                if not members:
-                    continue
-                times = {n: tables[n].t[sel] for n, sel in members.items()}
-                frame_t = np.unique(np.concatenate(list(times.values())))
-                points = np.zeros((frame_t.size, len(names)), dtype=np.int32)
-                g = blocks.create_group(f"{n_blocks:05d}")
-                g.attrs.update(
-                    {
-                        "kind": kind,
-                        "block_id": np.int64(BLOCK_IDS[kind]),
-                        "t0": float(t0),
-                        "t1": float(t0 + block_seconds),
-                        "n_frames": np.int64(frame_t.size),
-                        "frame_start": np.int64(sum(a.size for a in frames_t)),
-                        "sensors": _json(list(members)),
-                    }
-                )
-                for n, sel in members.items():
-                    t = times[n]
-                    frame = np.searchsorted(frame_t, t).astype(np.int32)
-                    points[frame, index_of[n]] += 1
-                    sg = g.create_group(n)
-                    cols = tuple(c for c in tables[n].columns if c != "t")
-                    sg.attrs.update({"n": np.int64(t.size), "columns": _json(cols), "aux_columns": _json(aux_columns)})
-                    h5store.write_array(sg, "t", t, attrs={"unit": "s"})
-                    h5store.write_array(sg, "frame", frame)
-                    if not headers_only:
-                        h5store.write_array(sg, "data", tables[n].stack(cols)[sel])
-                        if aux is not None and aux_values is not None and aux_columns:
-                            h5store.write_array(sg, "aux", _hold(aux.t, aux_values, t))
-                frames_t.append(frame_t)
-                frames_block.append(np.full(frame_t.size, n_blocks, dtype=np.int32))
-                frames_points.append(points)
-                n_blocks += 1
-        f.attrs["n_blocks"] = np.int64(n_blocks)
-        fr = f.create_group("frames")
-        cat = lambda xs, shape, dt: np.concatenate(xs) if xs else np.zeros(shape, dt)
-        points_all = cat(frames_points, (0, len(names)), np.int32)
-        h5store.write_array(fr, "t", cat(frames_t, (0,), np.float64), attrs={"unit": "s"})
-        h5store.write_array(fr, "block", cat(frames_block, (0,), np.int32))
-        h5store.write_array(fr, "n_records", (points_all > 0).sum(axis=1).astype(np.int32))
-        h5store.write_array(fr, "n_points", points_all, attrs={"sensors": _json(names)})
-
-        sg = f.create_group("sensors")
-        for s in spec.sensors:
-            if s.name not in tables:
-                continue
-            g = sg.create_group(s.name)
-            g.attrs.update(
-                {
-                    "type": s.type,
-                    "kind": kinds[s.name],
-                    "telemetry": str(s.telemetry),
-                    "alignment_deg": _json(list(s.alignment_deg) if s.alignment_deg else None),
-                    "noise": _json(s.noise),
-                    "book": _json(dict(s.book)),
-                    "unknown_keys": _json(list(s.unknown_keys)),
-                    "columns": _json([c for c in tables[s.name].columns if c != "t"]),
-                    "units": _json([COLUMN_UNITS.get(c, "") for c in tables[s.name].columns if c != "t"]),
-                    "n_samples": np.int64(len(tables[s.name])),
-                    "dropped_nan": np.int64(tables[s.name].dropped_nan),
-                    "dropped_duplicates": np.int64(tables[s.name].dropped_duplicates),
-                }
-            )
-        eph = m.ephemeris_table
-        eg = f.create_group("ephemeris")
-        eg.attrs["source"] = str(eph.path)
-        h5store.write_array(eg, "t", eph.t, attrs={"unit": "s"})
-        h5store.write_array(eg, "r_I_km", eph.stack(("rx", "ry", "rz")), attrs={"unit": "km"})
-        h5store.write_array(eg, "v_I_km_s", eph.stack(("vx", "vy", "vz")), attrs={"unit": "km/s"})
-        h5store.write_array(eg, "sun_I_km", eph.stack(("sx", "sy", "sz")), attrs={"unit": "km"})
-        if aux is not None:
-            ag = f.create_group("aux")
-            ag.attrs.update({"source": str(aux.path), "columns": _json(aux_columns)})
-            h5store.write_array(ag, "t", aux.t, attrs={"unit": "s"})
-            h5store.write_array(ag, "values", aux_values)
-        if m.onboard is not None:
-            og = f.create_group("onboard")
-            og.attrs["source"] = str(m.onboard.path)
-            h5store.write_array(og, "t", m.onboard.t, attrs={"unit": "s"})
-            h5store.write_array(
-                og,
-                "q",
-                m.onboard.stack(("q1", "q2", "q3", "q4")),
-                attrs={"convention": "q1, q2, q3, q4 (scalar last), GCI to body"},
-            )
-    return path
-
-
-# --- reading --------------------------------------------------------------------------
 
 
 def _loads(text: Any) -> Any:

@@ -240,15 +240,46 @@ def build_problem(
     sensors = prepare_sensors(spec, mission.telemetry, builder)
     mode = spec.attitude_mode
     gyros = [s for s in spec.sensors if s.type == "gyro"]
-    gyro_name = None
-    attitude: AttitudeProvider
+    attitude = _attitude_provider(mission, eph, gyros, use_gyro, chunk_frames)
+    gyro_name = attitude.gyro
+    types = {s.name: s.type for s in spec.sensors}
+    tables = {sd.name: _slim_table(mission.telemetry[sd.name], sd, types[sd.name]) for sd in sensors}
+    sensors = _reachable_frames(sensors, tables, attitude)
+
+    elements = _attitude_elements(initial_attitude(mission, attitude, mode), mode, options)
+    models = {sd.name: sd.model for sd in sensors}
+    for g in gyros:
+        models.setdefault(g.name, make_model(g))
+    param_map = _sensor_elements(spec, models, elements, use_gyro, gyro_name)
+    elements = _link_sun_sensor_tilt(spec, elements, param_map)
+    state = StateVector(tuple(elements))
+    unavailable = {f"{name}.{eid}": why for name, m in models.items() for eid, why in m.unavailable_effects().items()}
+    state = apply_state_options(state, options, unavailable)
+    return Problem(
+        state=state,
+        attitude=attitude,
+        sensors=sensors,
+        param_map=param_map,
+        builder=builder,
+        tables=tables,
+        mode=mode,
+        gyro_name=gyro_name,
+        chunk_frames=max(1, int(chunk_frames)),
+    )
+
+
+def _attitude_provider(mission, eph: Ephemeris, gyros: list, use_gyro: bool, chunk_frames: int) -> AttitudeProvider:
+    """SIDP's attitude provider: the spin axis (Eq 4-2) on a spinning mission, the first gyro
+    carrying the attitude (seed §4.2.7, Eq 4-32, 4-38) when there is one and ``use_gyro``, else constant
+    roll/pitch/yaw from the reference frame (Eq 4-6)."""
+    spec = mission.spec
+    mode = spec.attitude_mode
     if mode == "spinning":
-        attitude = SpinAttitude()
-    elif gyros and use_gyro:
+        return SpinAttitude()
+    if gyros and use_gyro:
         g = gyros[0]
         tab = mission.telemetry[g.name]
-        gyro_name = g.name
-        attitude = GyroAttitude(
+        return GyroAttitude(
             mode,
             eph,
             g.name,
@@ -257,29 +288,33 @@ def build_problem(
             block_knots=chunk_frames,
             earth_rate=spec.earth_rate_rad_s,
         )
-    else:
-        attitude = ReferenceAttitude(mode, eph)
+    return ReferenceAttitude(mode, eph)
 
-    # drop frames the attitude provider cannot reach (before the first gyro interval)
-    types = {s.name: s.type for s in spec.sensors}
-    tables = {sd.name: _slim_table(mission.telemetry[sd.name], sd, types[sd.name]) for sd in sensors}
-    if attitude.gyro is not None:
-        kept = []
-        for sd in sensors:
-            m = attitude.covers(sd.t)
-            if not np.all(m):
-                sd = _subset(sd, m)
-                tab = tables[sd.name]
-                tables[sd.name] = replace(
-                    tab,
-                    t=tab.t[m],
-                    lines=np.asarray(tab.lines)[m],
-                    columns={k: np.asarray(v)[m] for k, v in tab.columns.items()},
-                )
-            kept.append(sd)
-        sensors = kept
 
-    att0 = initial_attitude(mission, attitude, mode)
+def _reachable_frames(sensors: list[SensorData], tables: dict, attitude: AttitudeProvider) -> list[SensorData]:
+    """The sensors without the frames the attitude provider cannot reach (before the first
+    gyro interval); ``tables`` (sensor -> slim telemetry table) is cut to match, in place."""
+    if attitude.gyro is None:
+        return sensors
+    kept = []
+    for sd in sensors:
+        m = attitude.covers(sd.t)
+        if not np.all(m):
+            sd = _subset(sd, m)
+            tab = tables[sd.name]
+            tables[sd.name] = replace(
+                tab,
+                t=tab.t[m],
+                lines=np.asarray(tab.lines)[m],
+                columns={k: np.asarray(v)[m] for k, v in tab.columns.items()},
+            )
+        kept.append(sd)
+    return kept
+
+
+def _attitude_elements(att0: Mapping[str, float], mode: str, options: StateOptions) -> list[Element]:
+    """The attitude elements, solved for from ``att0``: spin-axis RA and Dec (Eq 4-2) on a
+    spinning mission, else roll, pitch and yaw from the reference frame (Eq 4-6)."""
     elements: list[Element] = []
     if mode == "spinning":
         for n in RADEC:
@@ -302,11 +337,17 @@ def build_problem(
         roll, pitch, yaw = (att0[n] for n in RPY)
         for spec_ in rpy_specs(roll, pitch, yaw, sigma=options.attitude_sigma):
             elements.append(_element_from_spec(None, spec_, SOLVE_FOR, kind="attitude"))
+    return elements
 
+
+def _sensor_elements(
+    spec, models: Mapping, elements: list[Element], use_gyro: bool, gyro_name: str | None
+) -> dict[str, dict[str, str]]:
+    """SODL (seed §3.2.2, Table 3-1): every parameter of every sensor's model becomes an
+    element of ``elements`` (extended in place) with its default role; returns the param
+    map, sensor -> {local param name -> element name}. Gyros other than the one carrying
+    the attitude are held."""
     param_map: dict[str, dict[str, str]] = {}
-    models = {sd.name: sd.model for sd in sensors}
-    for g in gyros:
-        models.setdefault(g.name, make_model(g))
     for s in spec.sensors:
         model = models[s.name]
         pmap = {}
@@ -327,21 +368,7 @@ def build_problem(
                 # model) takes its data-book value from the sensor that owns it
                 elements[names_now.index(el.name)] = el
         param_map[s.name] = pmap
-    elements = _link_sun_sensor_tilt(spec, elements, param_map)
-    state = StateVector(tuple(elements))
-    unavailable = {f"{name}.{eid}": why for name, m in models.items() for eid, why in m.unavailable_effects().items()}
-    state = apply_state_options(state, options, unavailable)
-    return Problem(
-        state=state,
-        attitude=attitude,
-        sensors=sensors,
-        param_map=param_map,
-        builder=builder,
-        tables=tables,
-        mode=mode,
-        gyro_name=gyro_name,
-        chunk_frames=max(1, int(chunk_frames)),
-    )
+    return param_map
 
 
 def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> list[Element]:

@@ -255,7 +255,7 @@ def cmd_import(args, prog: Progress) -> int:
         m = load_mission(args.mission)
     _lines(import_table(m))
     if args.sdf:
-        from gcs_core.io.sdf import write_sdf
+        from gcs_core.io.sdf_write import write_sdf
 
         with prog.task(f"writing the SDF {args.sdf}"):
             path = write_sdf(_output(args.sdf), m)

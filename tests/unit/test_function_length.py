@@ -21,10 +21,6 @@ KNOWN_LONG: dict[str, set[str]] = {
     "gcs_core/convert/astropi.py": {"convert"},
     "gcs_core/convert/broad.py": {"convert"},
     "gcs_core/io/mission.py": {"read_mission_spec", "_read_sensor"},
-    "gcs_core/io/sdf.py": {"write_sdf"},
-    "gcs_core/predictor/kalman.py": {"kalman_history"},
-    "gcs_core/problem/build.py": {"build_problem"},
-    "gcs_core/estimators/kalman/kernels.py": {"_frame"},
 }
 
 

@@ -15,7 +15,8 @@ from repo_paths import ROOT
 from gcs_core.errors import DataFileError
 from gcs_core.io import asf, h5store, scds
 from gcs_core.io.importer import load_mission
-from gcs_core.io.sdf import iter_blocks, read_sdf, write_sdf
+from gcs_core.io.sdf import iter_blocks, read_sdf
+from gcs_core.io.sdf_write import write_sdf
 
 one_nT = 1.0
 

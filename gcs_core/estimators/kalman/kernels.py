@@ -66,19 +66,21 @@ def _cholesky(S, m, L):
 
 
 @_jit
-def _frame(
-    f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, ep, edit_k, Bt, Kt, AN, Nm, Sw, L, v, e, nu, S, nis, knorm, gated
-):
-    """Update with frame ``f`` (rows ``Af[:m]``, whitened); False if S is not PD."""
-    # Bt = A P⁻  (m, N), i.e. (P⁻ Aᵀ)ᵀ
+def _rows_times(Af, X, m, N, out):
+    """``out[:m] = A X`` for the rows ``Af[:m]`` and an (N, N) ``X``, row by row (axpy)."""
     for a in range(m):
         for k in range(N):
-            Bt[a, k] = 0.0
+            out[a, k] = 0.0
         for j in range(N):
             c = Af[a, j]
             for k in range(N):
-                Bt[a, k] += c * Pa[j, k]
-    # ν = r − A y⁻ ;  S = A P⁻ Aᵀ + R  (R = I after whitening; lower triangle mirrored)
+                out[a, k] += c * X[j, k]
+
+
+@_jit
+def _innovation(Af, ya, r, s0, Bt, m, N, v, Sw):
+    """Eq 3-3: ``ν = r − A y⁻`` into ``v``, ``S = A P⁻ Aᵀ + R`` into ``Sw`` (``R = I`` after
+    whitening; lower triangle mirrored), from ``Bt = A P⁻``."""
     for a in range(m):
         t = r[s0 + a]
         for j in range(N):
@@ -91,9 +93,12 @@ def _frame(
             Sw[a, b] = t
             Sw[b, a] = t
         Sw[a, a] += 1.0
-    if not _cholesky(Sw, m, L):
-        return False
-    # diagnostics in telemetry units: ν, S = L Lᵀ, NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
+
+
+@_jit
+def _diagnose(f, m, v, L, Sw, sigma, s0, edit_k, e, nu, S, nis):
+    """Frame ``f``'s diagnostics in telemetry units: ν, S = L Lᵀ, NIS = νᵀ S⁻¹ ν = |L⁻¹ ν|²
+    (``e = L⁻¹ ν``); True if the k-σ gate ``|ν_i| / sqrt(S_ii) > k`` holds on a component."""
     q = 0.0
     bad = False
     for a in range(m):
@@ -108,11 +113,12 @@ def _frame(
         if abs(v[a]) / np.sqrt(Sw[a, a]) > edit_k:  # k-σ gate on every component
             bad = True
     nis[f] = q
-    if bad:
-        gated[f] = True
-        knorm[f] = np.nan
-        return True
-    # Kᵀ = S⁻¹ A P⁻ = L⁻ᵀ L⁻¹ Bt  (row operations)
+    return bad
+
+
+@_jit
+def _gain(Bt, L, m, N, Kt):
+    """Eq 3-3 gain, transposed: ``Kᵀ = S⁻¹ A P⁻ = L⁻ᵀ L⁻¹ Bt`` (row operations)."""
     for a in range(m):
         for k in range(N):
             Kt[a, k] = Bt[a, k]
@@ -131,12 +137,11 @@ def _frame(
         c = 1.0 / L[a, a]
         for k in range(N):
             Kt[a, k] *= c
-    # y = y⁻ + K ν
-    for a in range(m):
-        c = v[a]
-        for k in range(N):
-            ya[k] += Kt[a, k] * c
-    # |K| in telemetry units (÷σ), rows of δθ, b in current-time coordinates (Ψ_d K)
+
+
+@_jit
+def _gain_norm(Kt, sigma, s0, Psi_d, ep, m, n):
+    """|K| in telemetry units (÷σ), rows of δθ, b in current-time coordinates (Ψ_d K)."""
     q = 0.0
     dq = Psi_d.shape[1]
     for a in range(m):
@@ -148,8 +153,14 @@ def _frame(
             q += t * t * w
         for i in range(dq, n):
             q += Kt[a, i] * Kt[a, i] * w
-    knorm[f] = np.sqrt(q)
-    # Joseph: N = P⁻ (I − K A)ᵀ = P⁻ − Bᵀ Kᵀ
+    return np.sqrt(q)
+
+
+@_jit
+def _joseph(Pa, Af, Bt, Kt, m, N, AN, Nm):
+    """Joseph form (module docstring) as two rank-m corrections, in place on ``Pa``:
+    ``N = P⁻ (I − K A)ᵀ = P⁻ − Bᵀ Kᵀ``, then ``P = (I − K A) N + K R Kᵀ = N + K (Kᵀ − A N)``
+    (``R = I``), symmetrized."""
     for i in range(N):
         for k in range(N):
             Nm[i, k] = Pa[i, k]
@@ -157,15 +168,7 @@ def _frame(
             c = Bt[a, i]
             for k in range(N):
                 Nm[i, k] -= c * Kt[a, k]
-    # A N  (m, N)
-    for a in range(m):
-        for k in range(N):
-            AN[a, k] = 0.0
-        for j in range(N):
-            c = Af[a, j]
-            for k in range(N):
-                AN[a, k] += c * Nm[j, k]
-    # P = (I − K A) N + K R Kᵀ = N + K (Kᵀ − A N)     (R = I)
+    _rows_times(Af, Nm, m, N, AN)  # A N  (m, N)
     for a in range(m):
         for k in range(N):
             AN[a, k] = Kt[a, k] - AN[a, k]
@@ -183,6 +186,30 @@ def _frame(
             t = 0.5 * (Pa[i, k] + Pa[k, i])
             Pa[i, k] = t
             Pa[k, i] = t
+
+
+@_jit
+def _frame(
+    f, Pa, ya, Af, m, n, N, r, sigma, s0, Psi_d, ep, edit_k, Bt, Kt, AN, Nm, Sw, L, v, e, nu, S, nis, knorm, gated
+):
+    """Update with frame ``f`` (rows ``Af[:m]``, whitened; Eq 3-3, Joseph form); False if
+    S is not PD."""
+    _rows_times(Af, Pa, m, N, Bt)  # Bt = A P⁻  (m, N), i.e. (P⁻ Aᵀ)ᵀ
+    _innovation(Af, ya, r, s0, Bt, m, N, v, Sw)
+    if not _cholesky(Sw, m, L):
+        return False
+    if _diagnose(f, m, v, L, Sw, sigma, s0, edit_k, e, nu, S, nis):
+        gated[f] = True
+        knorm[f] = np.nan
+        return True
+    _gain(Bt, L, m, N, Kt)
+    # y = y⁻ + K ν
+    for a in range(m):
+        c = v[a]
+        for k in range(N):
+            ya[k] += Kt[a, k] * c
+    knorm[f] = _gain_norm(Kt, sigma, s0, Psi_d, ep, m, n)
+    _joseph(Pa, Af, Bt, Kt, m, N, AN, Nm)
     return True
 
 
