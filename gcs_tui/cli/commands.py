@@ -46,6 +46,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from gcs_core.config_checks import NOISE_WEIGHTINGS
 from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
+from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import seconds_or_zero, whole_number
 from gcs_tui.cli.progress import MODES, LogHandler, Progress
 
@@ -59,7 +60,8 @@ LOGGERS = ("gcs", "gcs_core", "gcs_tui")
 
 
 def _out(text: str = "") -> None:
-    sys.stdout.write(text + "\n")
+    """One result line (or several), control characters from files shown escaped."""
+    sys.stdout.write(terminal_safe(text) + "\n")
 
 
 def _lines(lines) -> None:
@@ -114,7 +116,7 @@ def _fit(a, prog: Progress, **kw):
 def _fit_failed(a) -> bool:
     res = a.result
     if res is not None and res.status in FAILED_STATUSES:
-        sys.stderr.write(f"gcs: estimation failed: {res.message}\n")
+        sys.stderr.write(f"gcs: estimation failed: {terminal_safe(res.message, one_line=True)}\n")
         return True
     return False
 
@@ -558,7 +560,7 @@ def _one_line(text: str) -> str:
 
 def _error(prog: Progress, text: str, code: int) -> int:
     prog.close()
-    sys.stderr.write(f"gcs: {_one_line(text)}\n")
+    sys.stderr.write(f"gcs: {terminal_safe(_one_line(text), one_line=True)}\n")
     return code
 
 

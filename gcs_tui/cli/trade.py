@@ -18,13 +18,14 @@ import sys
 from pathlib import Path
 
 from gcs_core.errors import InputError
+from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import whole_number
 
 EXIT_OK, EXIT_FLAG, EXIT_INTERRUPT = 0, 1, 130
 
 
 def _out(text: str = "") -> None:
-    sys.stdout.write(text + "\n")
+    sys.stdout.write(terminal_safe(text) + "\n")
 
 
 def _engine_options(args) -> dict:

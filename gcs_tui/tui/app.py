@@ -25,6 +25,7 @@ from textual.worker import get_current_worker
 
 from gcs_core.errors import GcsError
 from gcs_core.fileperm import make_usual
+from gcs_core.textsafe import terminal_safe
 from gcs_tui.tui import jobs
 from gcs_tui.tui.commands import GcsCommands
 from gcs_tui.tui.keys import APP, VIEWS, bindings
@@ -241,7 +242,7 @@ class GcsApp(App):
         wb = self.workbench
         if not wb.ready:
             return "no mission open (o)"
-        parts = [wb.mission.name]
+        parts = [terminal_safe(wb.mission.name, one_line=True)]
         res = wb.result
         if res is None:
             parts.append("not fitted (f)")
@@ -304,7 +305,7 @@ class GcsApp(App):
         except GcsError as err:
             self.notify(str(err), severity="error")
             return
-        self.push_screen(AllanScreen(results, f"Allan deviation · {self.workbench.mission.spec.name}"))
+        self.push_screen(AllanScreen(results, f"Allan deviation · {terminal_safe(self.workbench.mission.spec.name, one_line=True)}"))
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen(self.current_mode))
