@@ -81,8 +81,11 @@ def _unlink(path) -> None:
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` to write; it replaces ``path`` on a clean exit
-    (module docstring). The folder must exist."""
+    (module docstring). The folder must exist. A symbolic link is written through: the
+    file it names is replaced and the link stays."""
     path = Path(path)
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:
