@@ -92,4 +92,7 @@ def convert(fmt: str, source, out, **options) -> ConversionReport:
                 del options[key]
             else:
                 raise InputError(f"option '{key}' does not apply to the {fmt!r} converter", key=key)
+    from gcs_core.convert.common import check_destination
+
+    check_destination(Path(source), Path(out), overwrite=bool(options.get("overwrite")))  # before any work
     return func(Path(source), Path(out), **options)

@@ -230,7 +230,7 @@ def convert(
     align = np.degrees(np.array(dcm_to_euler123(M), dtype=float))
 
     name = name or out.name
-    with staged_directory(out, overwrite=overwrite) as stage:
+    with staged_directory(out, overwrite=overwrite, source=source) as stage:
         (stage / "telemetry").mkdir()
         write_csv(
             stage / "telemetry" / f"{SENSOR}.csv",

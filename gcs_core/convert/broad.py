@@ -72,7 +72,7 @@ import numpy as np
 
 from gcs_core.convert import ConversionReport
 from gcs_core.convert.broad_text import mission_toml, source_md
-from gcs_core.convert.common import staged_directory
+from gcs_core.convert.common import check_destination, staged_directory
 from gcs_core.convert.holds import FLAG_NOTE, bus_check, held_repeats, hold_runs
 from gcs_core.errors import InputError
 from gcs_core.filtr import noise as noise_mod
@@ -253,10 +253,7 @@ def convert(
     InputError naming the file and dataset that do not match, or the output directory.
     """
     source, out = Path(source), Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("the output exists and is not a directory", file=out)
-    if out.is_dir() and any(out.iterdir()) and not overwrite:  # before the read: fail fast
-        raise InputError("the output directory is not empty (give --force to replace it)", file=out)
+    check_destination(source, out, overwrite=overwrite)  # before the read: fail fast
     data, rate, info = _read(source)
     n_all = data["imu_gyr"].shape[0]
     t = np.arange(n_all) / rate
@@ -352,7 +349,7 @@ def convert(
     )
     notes.append(f"gyro data-book bias = mean over the rest ({int(rest0.sum())} samples)")
 
-    with staged_directory(out, overwrite=overwrite) as tmp:
+    with staged_directory(out, overwrite=overwrite, source=source) as tmp:
         (tmp / "telemetry").mkdir()
         (tmp / "extra").mkdir()
         rows = {}

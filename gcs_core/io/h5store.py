@@ -44,7 +44,7 @@ import numpy as np
 from gcs_core.errors import DataFileError
 from gcs_core.fileperm import atomic_path
 from gcs_core.io.locks import locked, resolved
-from gcs_core.io.outputs import APPEND_ONLY, KIND_NAMES, file_kind, special_kind
+from gcs_core.io.outputs import APPEND_ONLY, KIND_NAMES, file_kind, kind_name, special_kind
 
 log = logging.getLogger(__name__)
 
@@ -368,8 +368,8 @@ def _refuse_replacing(path: Path, fmt: str, appending: bool) -> None:
     if found is None or (found == fmt and (appending or fmt not in APPEND_ONLY)):
         return
     if found == fmt:
-        raise DataFileError(f"is {KIND_NAMES[found]}, which GCS only appends to: not replaced", file=path)
-    raise DataFileError(f"is {KIND_NAMES[found]}; a GCS {fmt} file would replace it: not written", file=path)
+        raise DataFileError(f"is {kind_name(found)}, which GCS only appends to: not replaced", file=path)
+    raise DataFileError(f"is {kind_name(found)}; a GCS {fmt} file would replace it: not written", file=path)
 
 
 def append_group(

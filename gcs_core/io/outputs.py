@@ -72,7 +72,8 @@ def _stat(path: Path) -> os.stat_result | None:
 def file_kind(path: str | os.PathLike) -> str | None:
     """What GCS recognises at ``path``, links followed (None: nothing, or an ordinary file).
 
-    'SCDS', 'ASF', 'SDF' (or 'GCS' for another GCS format) from the GCS header block;
+    'SCDS', 'ASF', 'SDF', 'TRADE', … (the format named in the GCS header block, 'GCS' when
+    it names none);
     'HDF5' for any other HDF5 file (a signature at byte 0 or after the user block);
     'mission' for a directory holding ``mission.toml``, 'directory' for another;
     'fifo', 'device', 'socket'. Never blocks on a FIFO (it is not opened).
@@ -95,11 +96,24 @@ def file_kind(path: str | os.PathLike) -> str | None:
         for line in head[:USERBLOCK].split(b"\n")[1:4]:
             if line.startswith(b"format "):
                 fmt = line[7:].strip(b"\0 ").decode("ascii", "replace")
-                return fmt if fmt in ("SCDS", "ASF", "SDF") else "GCS"
+                return fmt if fmt.isascii() and fmt.isalnum() else "GCS"
         return "GCS"
     if head.startswith(HDF5_SIGNATURE) or head[USERBLOCK:].startswith(HDF5_SIGNATURE):
         return "HDF5"
     return None
+
+
+def kind_name(found: str) -> str:
+    """``found`` (:func:`file_kind`) in words, for messages."""
+    return KIND_NAMES.get(found, f"a GCS {found} file")
+
+
+def refuse_other_kind(path: str | os.PathLike, fmt: str, what: str) -> None:
+    """Refuse to replace ``path`` with a GCS ``fmt`` file when it holds something else GCS
+    recognises (an SCDS, a mission directory, a vendor's HDF5, …)."""
+    found = file_kind(path)
+    if found is not None and found != fmt:
+        raise InputError(f"is {kind_name(found)}; writing {what} would replace it: choose another path", file=path)
 
 
 def _probe_folder(folder: Path, *, shown: Path) -> None:
@@ -155,7 +169,7 @@ def check_output_dir(path: str | os.PathLike, *, what: str) -> Path:
     path = Path(path)
     found = file_kind(path)
     if found is not None and found not in ("directory", "mission"):
-        raise InputError(f"is {KIND_NAMES[found]}, not a folder: cannot write {what} there", file=path)
+        raise InputError(f"is {kind_name(found)}, not a folder: cannot write {what} there", file=path)
     if _stat(path) is not None and not path.is_dir():
         raise InputError(f"is a file, not a folder: cannot write {what} there", file=path)
     probe = Path(os.path.realpath(path))

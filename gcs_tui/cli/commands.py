@@ -48,6 +48,7 @@ from gcs_core.config_checks import NOISE_WEIGHTINGS
 from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
 from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import seconds_or_zero, whole_number
+from gcs_tui.cli.outputs import check_outputs
 from gcs_tui.cli.progress import MODES, LogHandler, Progress
 
 log = logging.getLogger("gcs")
@@ -264,14 +265,17 @@ def cmd_batch(args, prog: Progress) -> int:
     if args.rank:
         _out("")
         _lines(candidate_table(a.candidates, alpha=a.config.diagnosis.significance))
+    problem = ""
     if args.scds:
-        from gcs_core.calibration import save_calibration
+        from gcs_tui.cli.outputs import save_calibration_kept
 
         with prog.task(f"appending the calibration to {args.scds}"):
-            v = save_calibration(a, _output(args.scds), note=args.note or "")
-        _out(f"calibration saved as version {v} in {args.scds}")
+            v, where, problem = save_calibration_kept(a, _output(args.scds), args.note or "")
+        _out(f"calibration saved as version {v} in {where}")
     _write_json(args.report, lambda: analysis_report(a, command="batch"))
     _export_plots(args, a)
+    if problem:  # the fit is kept beside; the SCDS asked for did not take it
+        return _error(prog, f"error: {args.scds}: {problem}; the calibration is saved in {where} instead", EXIT_INPUT)
     return EXIT_ESTIMATION if _fit_failed(a) else EXIT_OK
 
 
@@ -579,6 +583,7 @@ def main(argv=None) -> int:
     handler = LogHandler(prog)
     saved = _install_logging(handler, verbose=args.verbose, quiet=args.quiet)
     try:
+        check_outputs(args)  # before any work: a bad output path costs no fitting time
         code = args.func(args, prog)
         sys.stdout.flush()
         prog.finish()

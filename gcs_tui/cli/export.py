@@ -18,7 +18,7 @@ import numpy as np
 import plotext as plt
 
 from gcs_core import display
-from gcs_core.fileperm import write_atomic
+from gcs_core.fileperm import write_atomic_set
 
 #: terminal escape sequences (plotext adds colour resets even with the "clear" theme)
 _ANSI = re.compile(r"\x1b\[[0-9;?]*[A-Za-z]")
@@ -117,10 +117,11 @@ def svg_plot(t, y, edited, sigma: float, title: str, unit: str, *, width: int = 
 
 
 def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[Path]:
-    """Write one plot per sensor component (txt) or one HTML page (html); returns paths."""
+    """Write one plot per sensor component (txt) or one HTML page (html); returns paths.
+    The plots are written as a set (:func:`gcs_core.fileperm.write_atomic_set`)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    out: list[Path] = []
+    files: list[tuple[Path, str]] = []
     sections = []
     for name, r in analysis.result.residuals.items():
         sel = r.valid
@@ -137,9 +138,7 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
                 f"n {int(np.count_nonzero(~ed))}, edited {int(np.count_nonzero(ed))})"
             )
             if fmt == "txt":
-                p = folder / f"residuals_{name}_{comp}.txt"
-                write_atomic(p, text_plot(t, y, ed, sigma, title, unit))
-                out.append(p)
+                files.append((folder / f"residuals_{name}_{comp}.txt", text_plot(t, y, ed, sigma, title, unit)))
             else:
                 sections.append(svg_plot(t, y, ed, sigma, title, unit))
     if fmt == "html":
@@ -156,6 +155,5 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
             + "\n".join(sections)
             + "\n</body></html>\n"
         )
-        write_atomic(p, page)
-        out.append(p)
-    return out
+        files.append((p, page))
+    return write_atomic_set(files)  # all or none: a full disk leaves no partial set

@@ -109,7 +109,9 @@ class Progress:
 
             shown = escape(handle.text)  # a name holding "[red]" is text, not markup
             live.console.print(
-                f"[green]{mark}[/] {shown} [dim]{time.monotonic() - start:.1f} s[/]" if ok else f"[red]{mark}[/] {shown}",
+                f"[green]{mark}[/] {shown} [dim]{time.monotonic() - start:.1f} s[/]"
+                if ok
+                else f"[red]{mark}[/] {shown}",
                 highlight=False,
             )
 

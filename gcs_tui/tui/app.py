@@ -305,7 +305,8 @@ class GcsApp(App):
         except GcsError as err:
             self.notify(str(err), severity="error")
             return
-        self.push_screen(AllanScreen(results, f"Allan deviation · {terminal_safe(self.workbench.mission.spec.name, one_line=True)}"))
+        name = terminal_safe(self.workbench.mission.spec.name, one_line=True)
+        self.push_screen(AllanScreen(results, f"Allan deviation · {name}"))
 
     def action_help(self) -> None:
         self.push_screen(HelpScreen(self.current_mode))
