@@ -72,6 +72,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 import os
 import re
 from dataclasses import dataclass, field, fields, is_dataclass, replace
@@ -109,6 +110,9 @@ AXES = ("roll", "pitch", "yaw")
 STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")
 #: value of ``[models]`` that drops a sensor from the analysis
 ELEMENT_KEYS = ("role", "value", "sigma")
+#: an element's a-priori value and finite σ, internal units (rad, nT, ...): within ±1e12, σ ≥ 1e-15
+ELEMENT_LIMIT = 1e12
+ELEMENT_SIGMA_MIN = 1e-15
 MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
 _ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
 
@@ -404,10 +408,14 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
             f"must be one of {', '.join(ROLES)}, not {_show(role)}",
             f,
         )
+        sigma = _number(ov, "sigma", None, f, positive=True, prefix=pre, allow_inf=True)
+        if sigma is not None and sigma != math.inf:  # 1/σ² and σ² must stay far from overflow
+            _require(sigma >= ELEMENT_SIGMA_MIN, pre + "sigma", f"must be ≥ {ELEMENT_SIGMA_MIN}, not {sigma}", f)
+            _require(sigma <= ELEMENT_LIMIT, pre + "sigma", f"must be ≤ {ELEMENT_LIMIT}, not {sigma}", f)
         elements[name_e] = ElementConfig(
             role,
-            _number(ov, "value", None, f, prefix=pre),
-            _number(ov, "sigma", None, f, positive=True, prefix=pre, allow_inf=True),
+            _number(ov, "value", None, f, lo=-ELEMENT_LIMIT, hi=ELEMENT_LIMIT, prefix=pre),
+            sigma,
         )
     att_sig = _number(st, "attitude_sigma_deg", 1.0, f, positive=True, hi=180.0, prefix="state.")
 

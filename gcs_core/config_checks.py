@@ -103,6 +103,12 @@ def check_against_mission(cfg, spec) -> None:
             f'sensor {name} is a {types[name]}: use "{types[name]}" or "off", not {show(model)}',
             f,
         )
+    _require(
+        any(cfg.models.get(name, kind) != MODEL_OFF for name, kind in types.items()),
+        "models",
+        "every sensor's model is off: there is nothing to fit (turn one on)",
+        f,
+    )
     for key, ids in (("state.effects", st.effects), ("state.exclude", st.exclude)):
         for i, e in enumerate(ids, start=1):
             owner = e.split(".")[0]

@@ -158,7 +158,11 @@ def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
                     raise DataFileError("has a damaged GCS header block", file=path)
                 raise DataFileError("is not an HDF5 file (no HDF5 signature)", file=path)
             fields = {}
-            for line in head.rstrip(b"\0").decode("ascii", "replace").splitlines()[1:]:
+            text, nul, padding = head.partition(b"\0")
+            first = text.split(b"\n", 1)[0]
+            if padding.strip(b"\0") or not nul or not (first[len(GCS_MAGIC) : len(GCS_MAGIC) + 1] == b" "):
+                raise DataFileError("has a damaged GCS header block", file=path)
+            for line in text.decode("ascii", "replace").splitlines()[1:]:
                 key, _, value = line.partition(" ")
                 fields[key] = value.strip()
             try:
@@ -337,7 +341,8 @@ def _remove_stale_temps(path: Path) -> None:
 def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending: bool = False) -> Iterator[h5py.File]:
     """Write a new GCS HDF5 file atomically, under the exclusive lock.
 
-    Yields an ``h5py.File`` open on a temporary file in the destination directory,
+    Yields an ``h5py.File`` built in memory (written to a temporary file in the
+    destination directory on a clean exit, by Python: a full disk is one clean error),
     with ``gcs_format``, ``gcs_format_version``, ``created_utc`` and ``gcs_version``
     already set. On a clean exit the file is closed, synced and renamed over ``path``;
     on an exception it is removed and ``path`` is untouched. A file of another kind GCS
@@ -352,12 +357,32 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending:
         _remove_stale_temps(path)
         try:
             with atomic_path(path) as tmp:
-                with h5py.File(tmp, "w", libver=LIBVER, locking=False, userblock_size=USERBLOCK) as f:
+                # built in memory (HDF5's core driver), written out by Python: a full disk
+                # is one OSError here, never an HDF5 write failure (destructor noise, a crash)
+                f = h5py.File(
+                    tmp,
+                    "w",
+                    driver="core",
+                    backing_store=False,
+                    libver=LIBVER,
+                    locking=False,
+                    userblock_size=USERBLOCK,
+                )
+                try:
                     f.attrs[FORMAT_ATTR] = fmt
                     f.attrs[VERSION_ATTR] = np.int64(version)
                     f.attrs[CREATED_ATTR] = utc_now()
                     f.attrs[GCS_VERSION_ATTR] = gcs_version()
                     yield f
+                    f.flush()
+                    image = f.id.get_file_image()
+                finally:
+                    f.close()
+                with open(tmp, "wb") as fh:
+                    if image.startswith(HDF5_SIGNATURE):  # the image leaves the user block out
+                        fh.write(bytes(USERBLOCK))
+                    fh.write(image)
+                del image
                 _write_header(tmp, fmt, version)  # hashed and written; atomic_path syncs it
         except OSError as err:  # disk full, read-only directory, ...
             raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None

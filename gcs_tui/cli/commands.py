@@ -38,6 +38,7 @@ import logging
 import os
 import sys
 import traceback
+import warnings
 from pathlib import Path
 
 # GCS's matrices are small (tens of columns): threaded BLAS only contends for the cores,
@@ -568,6 +569,15 @@ def _error(prog: Progress, text: str, code: int) -> int:
     return code
 
 
+def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A Python warning as one log line: numpy's RuntimeWarnings (an all-NaN slice, an
+    overflow the code then handles) at debug level (``-v``), others as warnings."""
+    if issubclass(category, RuntimeWarning):
+        log.debug("%s:%s: %s: %s", filename, lineno, category.__name__, message)
+    else:
+        log.warning("%s", message)
+
+
 def _numeric_failure(err: BaseException) -> bool:
     """numpy's LinAlgError or a floating-point trap: the estimation failed, not GCS."""
     return type(err).__name__ == "LinAlgError" or isinstance(err, FloatingPointError)
@@ -582,6 +592,8 @@ def main(argv=None) -> int:
     prog = Progress(sys.stderr, mode="off" if args.quiet else args.progress)
     handler = LogHandler(prog)
     saved = _install_logging(handler, verbose=args.verbose, quiet=args.quiet)
+    saved_show = warnings.showwarning
+    warnings.showwarning = _warning_line  # no numpy source lines on stderr
     try:
         check_outputs(args)  # before any work: a bad output path costs no fitting time
         code = args.func(args, prog)
@@ -619,6 +631,7 @@ def main(argv=None) -> int:
         )
     finally:
         prog.close()
+        warnings.showwarning = saved_show
         _restore_logging(handler, saved)
 
 

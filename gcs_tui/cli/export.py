@@ -126,7 +126,8 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
     for name, r in analysis.result.residuals.items():
         sel = r.valid
         sig_all = np.atleast_1d(np.asarray(r.sigma, dtype=float))
-        shown = display.display_unit(r.unit, float(np.nanmax(sig_all)) if sig_all.size else float("nan"))
+        finite = sig_all[np.isfinite(sig_all)]
+        shown = display.display_unit(r.unit, float(np.max(finite)) if finite.size else float("nan"))
         k = display.scale(r.unit, shown)
         unit = display.unit_label(shown)
         for j, comp in enumerate(r.components):
