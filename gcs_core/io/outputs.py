@@ -154,7 +154,7 @@ def check_output_file(path: str | os.PathLike, *, kind: str, what: str, append: 
     if st is not None and found is None and kind not in ("text",) and st.st_size > 0:
         raise InputError(f"is a file but not a GCS {kind} file; writing {what} would replace it", file=path)
     real = Path(os.path.realpath(path))
-    if st is not None and not os.access(real, os.W_OK):
+    if st is not None and (not st.st_mode & 0o222 or not os.access(real, os.W_OK)):  # root too: no w bits
         raise InputError(f"is read-only: cannot write {what}", file=path)
     _make_folder(real.parent, path)
     _probe_folder(real.parent, shown=path)
