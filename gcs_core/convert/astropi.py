@@ -137,10 +137,11 @@ def _lvlh_field(tle_file: Path, epoch: datetime, t: np.ndarray) -> tuple[np.ndar
     warning = ""
     if far > STALE_DAYS:
         warning = (
-            f"warning: the data lie {far:.1f} days from the epoch of {tle_file.name} (SGP4's error grows by "
+            f"the data lie {far:.1f} days from the epoch of {tle_file.name} (SGP4's error grows by "
             "1-3 km a day in low orbit): use elements of the data's days"
         )
         log.warning("%s", warning)
+        warning = "warning: " + warning
     r, v, _ = tle_states(orbit, epoch, t, "teme")
     B_I = GeomagField(epoch).field_I(t, r)
     return np.einsum("nij,nj->ni", reference_dcm("earth_pointing", r, v), B_I), warning
