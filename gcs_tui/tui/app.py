@@ -242,7 +242,7 @@ class GcsApp(App):
         wb = self.workbench
         if not wb.ready:
             return "no mission open (o)"
-        parts = [terminal_safe(wb.mission.name, one_line=True)]
+        parts = [wb.mission.name]
         res = wb.result
         if res is None:
             parts.append("not fitted (f)")
@@ -261,7 +261,7 @@ class GcsApp(App):
             parts.append(f"added: {', '.join(added)}")
         if self.last_notice:
             parts.append(self.last_notice)
-        return " · ".join(parts)
+        return terminal_safe(" · ".join(parts), one_line=True)  # names and notices come from files
 
     # ------------------------------------------------------------------ actions
     def action_view(self, mode: str) -> None:
