@@ -4,11 +4,10 @@
 from __future__ import annotations
 
 import difflib
-import math
 from typing import Any
 
 from gcs_core.errors import ConfigError
-from gcs_core.toml_values import is_number, number_complaint, quote, show
+from gcs_core.toml_values import number_complaint, quote, show
 
 
 def _fail(key: str | None, message: str, file) -> None:
@@ -69,7 +68,7 @@ def _unknown(table: dict, known, prefix: str, file) -> None:
 
 
 def _pair(g: Any) -> bool:
-    return isinstance(g, list) and len(g) == 2 and all(is_number(x) and math.isfinite(x) for x in g) and g[0] < g[1]
+    return isinstance(g, list) and len(g) == 2 and all(number_complaint(x) is None for x in g) and g[0] < g[1]
 
 
 #: ``[filter] noise_weighting``'s choices, the default window [s] of the long-run factor
