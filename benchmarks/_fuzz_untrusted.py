@@ -311,8 +311,8 @@ def _craft_broad(src: Path, rng: random.Random) -> None:
             del f.attrs["sampling_rate"]
 
 
-def run_untrusted(cases: int, seed: int, work: Path) -> dict[str, dict[str, int]]:
-    """``cases`` cases of each reader; returns the counts per reader (and keeps examples)."""
+def run_untrusted(cases: int, seed: int, work: Path) -> tuple[dict[str, dict[str, int]], list[str]]:
+    """``cases`` cases of each reader; returns the counts per reader and the unhandled cases."""
     fz = Fuzzer(work, seed)
     step = {
         "config": fz.config_case,
@@ -325,5 +325,4 @@ def run_untrusted(cases: int, seed: int, work: Path) -> dict[str, dict[str, int]
     for reader in READERS:
         for _ in range(cases):
             step[reader]()
-    run_untrusted.examples = fz.examples  # type: ignore[attr-defined]
-    return fz.counts
+    return fz.counts, fz.examples

@@ -19,13 +19,13 @@ from types import ModuleType
 
 def _writable(folder: str) -> bool:
     """A file can be created in ``folder`` (created if missing): tried, not guessed."""
+    from gcs_core.fileperm import probe_folder
+
     try:
         os.makedirs(folder, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".gcs-probe.")
+        probe_folder(folder)
     except OSError:
         return False
-    os.close(fd)
-    os.unlink(tmp)
     return True
 
 

@@ -170,6 +170,14 @@ def write_atomic_set(files: list[tuple[Path, str | bytes]]) -> list[Path]:
     return [path for _, path in staged]
 
 
+def probe_folder(folder: str | os.PathLike) -> None:
+    """Create and remove a temporary file in ``folder``: raises the OSError a write there
+    would meet (read-only, permissions, missing), so that it is met before the work."""
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".gcs-probe.", suffix=".tmp")
+    os.close(fd)
+    _unlink(tmp)
+
+
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
 

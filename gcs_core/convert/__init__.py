@@ -92,11 +92,4 @@ def convert(fmt: str, source, out, **options) -> ConversionReport:
                 del options[key]
             else:
                 raise InputError(f"option '{key}' does not apply to the {fmt!r} converter", key=key)
-    from gcs_core.convert.common import check_destination
-    from gcs_core.io.inputs import refuse_unreadable
-
-    kind = refuse_unreadable(source, f"{fmt} source")  # a FIFO, a device, a loop of links
-    if kind != "file":
-        raise InputError(f"{fmt} source {'is a directory, not a file' if kind == 'dir' else 'not found'}", file=source)
-    check_destination(Path(source), Path(out), overwrite=bool(options.get("overwrite")))  # before any work
     return func(Path(source), Path(out), **options)

@@ -49,7 +49,15 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core.convert import ConversionReport
-from gcs_core.convert.common import leading_transient, read_named_csv, sha256, staged_directory, write_csv
+from gcs_core.convert.common import (
+    check_destination,
+    check_source,
+    leading_transient,
+    read_named_csv,
+    sha256,
+    staged_directory,
+    write_csv,
+)
 from gcs_core.errors import InputError
 from gcs_core.filtr.noise import ESTIMATED_MARK, white_noise
 
@@ -237,6 +245,8 @@ def convert(
     if tle is None:
         raise InputError("the Astro Pi converter needs the station's two-line elements (--tle FILE)", key="tle")
     tle = Path(tle)
+    check_source(source, "astropi")
+    check_destination(source, out, overwrite=overwrite)  # before the work: fail fast
     read_tle(tle)
     table = read_named_csv(source, (TIME_COLUMN, *FIELD_COLUMNS))
     epoch, t = _times(table)

@@ -72,7 +72,7 @@ import numpy as np
 
 from gcs_core.convert import ConversionReport
 from gcs_core.convert.broad_text import mission_toml, source_md
-from gcs_core.convert.common import check_destination, staged_directory
+from gcs_core.convert.common import check_destination, check_source, staged_directory
 from gcs_core.convert.holds import FLAG_NOTE, bus_check, held_repeats, hold_runs
 from gcs_core.errors import InputError
 from gcs_core.filtr import noise as noise_mod
@@ -280,6 +280,7 @@ def convert(
     InputError naming the file and dataset that do not match, or the output directory.
     """
     source, out = Path(source), Path(out)
+    check_source(source, "broad")
     check_destination(source, out, overwrite=overwrite)  # before the read: fail fast
     data, rate, info = _read(source)
     n_all = data["imu_gyr"].shape[0]

@@ -145,6 +145,15 @@ def write_csv(
 MARKER = ".gcs-converted"
 
 
+def check_source(source: Path, fmt: str) -> None:
+    """The source is a regular file (a FIFO would block, ``/dev/zero`` never end)."""
+    from gcs_core.io.inputs import refuse_unreadable
+
+    kind = refuse_unreadable(source, f"{fmt} source")
+    if kind != "file":
+        raise InputError(f"{fmt} source {'is a directory, not a file' if kind == 'dir' else 'not found'}", file=source)
+
+
 def check_destination(source: Path | None, out: Path, *, overwrite: bool) -> Path:
     """Check the mission directory to write before any work; returns it, links resolved.
 

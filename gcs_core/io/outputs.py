@@ -22,10 +22,10 @@ from __future__ import annotations
 import errno
 import os
 import stat
-import tempfile
 from pathlib import Path
 
 from gcs_core.errors import InputError
+from gcs_core.fileperm import probe_folder
 
 GCS_MAGIC = b"GCS-HDF5"
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
@@ -119,11 +119,9 @@ def refuse_other_kind(path: str | os.PathLike, fmt: str, what: str) -> None:
 def _probe_folder(folder: Path, *, shown: Path) -> None:
     """Create and remove a temporary file in ``folder`` (InputError if that fails)."""
     try:
-        fd, tmp = tempfile.mkstemp(dir=folder, prefix=".gcs-probe.", suffix=".tmp")
+        probe_folder(folder)
     except OSError as err:
         raise InputError(f"cannot write in folder {folder} ({err.strerror or err})", file=shown) from None
-    os.close(fd)
-    os.unlink(tmp)
 
 
 def _make_folder(folder: Path, shown: Path) -> None:

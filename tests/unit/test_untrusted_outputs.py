@@ -118,14 +118,14 @@ def test_one_file_for_two_outputs_is_refused(tmp_path, capsys, no_work):
 def test_unwritable_outputs_are_refused_before_any_work(tmp_path, monkeypatch, capsys, no_work):
     ro = tmp_path / "ro"
     ro.mkdir()
-    real = outputs.tempfile.mkstemp
+    real = fileperm.tempfile.mkstemp
 
     def mkstemp(*a, dir=None, **k):  # root ignores chmod: refuse as a read-only folder would
         if dir is not None and Path(dir) == ro:
             raise PermissionError(13, "Permission denied")
         return real(*a, dir=dir, **k)
 
-    monkeypatch.setattr(outputs.tempfile, "mkstemp", mkstemp)
+    monkeypatch.setattr(fileperm.tempfile, "mkstemp", mkstemp)
     for option, name in (("--report", "r.json"), ("--scds", "c.h5"), ("--plots", "plots")):
         assert cli.main(["-q", "batch", str(MISSION), option, str(ro / name)]) == 2
         assert "cannot write in folder" in _err(capsys)
