@@ -33,7 +33,7 @@ import os
 import shutil
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO
 
@@ -145,7 +145,7 @@ def write_atomic(
     return path
 
 
-def write_atomic_set(files: list[tuple[Path, str | bytes]]) -> list[Path]:
+def write_atomic_set(files: Sequence[tuple[Path, str | bytes]]) -> list[Path]:
     """Write several files as a set: every one to a temporary beside it first (fsync-ed);
     only when all are written are they renamed into place. A failure (disk full) removes
     the temporaries and leaves no partial set behind."""

@@ -22,6 +22,7 @@ from __future__ import annotations
 import errno
 import os
 import stat
+from collections.abc import Mapping
 from pathlib import Path
 
 from gcs_core.errors import InputError
@@ -179,7 +180,7 @@ def check_output_dir(path: str | os.PathLike, *, what: str) -> Path:
     return path
 
 
-def check_distinct(outputs: dict[str, str | os.PathLike | None]) -> None:
+def check_distinct(outputs: Mapping[str, str | os.PathLike | None]) -> None:
     """Refuse one file named by two outputs (``{"--report": path, "--scds": path}``)."""
     seen: dict[str, str] = {}
     for option, p in outputs.items():
