@@ -26,12 +26,10 @@ wrong format, locked) becomes one ``DataFileError(message, file=path)``.
 
 from __future__ import annotations
 
-import errno
 import glob
 import hashlib
 import logging
 import os
-import stat
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
@@ -44,7 +42,7 @@ import numpy as np
 from gcs_core.errors import DataFileError
 from gcs_core.fileperm import atomic_path
 from gcs_core.io.locks import locked, resolved
-from gcs_core.io.outputs import APPEND_ONLY, KIND_NAMES, file_kind, kind_name, special_kind
+from gcs_core.io.outputs import refuse_not_a_file, refuse_replacing
 
 log = logging.getLogger(__name__)
 
@@ -210,7 +208,7 @@ def open_read(
     headers, missing groups) are turned into :class:`DataFileError` as well.
     """
     path = Path(path)
-    _check_is_file(path, fmt)
+    refuse_not_a_file(path, fmt)  # missing, a directory, a FIFO, a loop of links: refused unopened
     ctx = locked(path, exclusive=False) if lock else _nothing()
     with ctx:
         if check:
@@ -260,23 +258,6 @@ def open_read(
 @contextmanager
 def _nothing() -> Iterator[None]:
     yield
-
-
-def _check_is_file(path: Path, fmt: str) -> None:
-    """Missing, a directory, a FIFO or device, a loop of links: refused before opening."""
-    try:
-        st = os.stat(path)
-    except OSError as err:
-        if err.errno == errno.ELOOP:
-            raise DataFileError("is a loop of symbolic links", file=path) from None
-        if err.errno in (errno.ENOENT, errno.ENOTDIR):
-            raise DataFileError(f"{fmt} file not found", file=path) from None
-        raise DataFileError(f"cannot be read ({err.strerror})", file=path) from None
-    if stat.S_ISDIR(st.st_mode):
-        raise DataFileError(f"{fmt} file is a directory", file=path)
-    special = special_kind(st.st_mode)
-    if special is not None:
-        raise DataFileError(f"is {KIND_NAMES[special]}", file=path)
 
 
 def refuse_links(f: h5py.File, path: Path) -> None:
@@ -353,7 +334,7 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending:
     if not path.parent.is_dir():
         raise DataFileError("directory does not exist", file=path.parent)
     with locked(path, exclusive=True):
-        _refuse_replacing(path, fmt, appending)
+        refuse_replacing(path, fmt, appending)
         _remove_stale_temps(path)
         try:
             with atomic_path(path) as tmp:
@@ -386,15 +367,6 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending:
                 _write_header(tmp, fmt, version)  # hashed and written; atomic_path syncs it
         except OSError as err:  # disk full, read-only directory, ...
             raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
-
-
-def _refuse_replacing(path: Path, fmt: str, appending: bool) -> None:
-    found = file_kind(path)
-    if found is None or (found == fmt and (appending or fmt not in APPEND_ONLY)):
-        return
-    if found == fmt:
-        raise DataFileError(f"is {kind_name(found)}, which GCS only appends to: not replaced", file=path)
-    raise DataFileError(f"is {kind_name(found)}; a GCS {fmt} file would replace it: not written", file=path)
 
 
 def append_group(

@@ -25,7 +25,7 @@ import stat
 from collections.abc import Mapping
 from pathlib import Path
 
-from gcs_core.errors import InputError
+from gcs_core.errors import DataFileError, InputError
 from gcs_core.fileperm import probe_folder
 
 GCS_MAGIC = b"GCS-HDF5"
@@ -190,3 +190,32 @@ def check_distinct(outputs: Mapping[str, str | os.PathLike | None]) -> None:
         if key in seen:
             raise InputError(f"named by both {seen[key]} and {option}: give each output its own file", file=p)
         seen[key] = option
+
+
+def refuse_not_a_file(path: Path, fmt: str) -> None:
+    """Refuse, before opening, a GCS ``fmt`` file that is missing, a directory, a FIFO, a
+    device, a socket or a loop of links (``DataFileError``)."""
+    try:
+        st = os.stat(path)
+    except OSError as err:
+        if err.errno == errno.ELOOP:
+            raise DataFileError("is a loop of symbolic links", file=path) from None
+        if err.errno in (errno.ENOENT, errno.ENOTDIR):
+            raise DataFileError(f"{fmt} file not found", file=path) from None
+        raise DataFileError(f"cannot be read ({err.strerror})", file=path) from None
+    if stat.S_ISDIR(st.st_mode):
+        raise DataFileError(f"{fmt} file is a directory", file=path)
+    special = special_kind(st.st_mode)
+    if special is not None:
+        raise DataFileError(f"is {KIND_NAMES[special]}", file=path)
+
+
+def refuse_replacing(path: Path, fmt: str, appending: bool) -> None:
+    """Refuse to replace a file of another kind GCS recognises with a GCS ``fmt`` file, or
+    an SCDS/ASF unless ``appending`` (``DataFileError``)."""
+    found = file_kind(path)
+    if found is None or (found == fmt and (appending or fmt not in APPEND_ONLY)):
+        return
+    if found == fmt:
+        raise DataFileError(f"is {kind_name(found)}, which GCS only appends to: not replaced", file=path)
+    raise DataFileError(f"is {kind_name(found)}; a GCS {fmt} file would replace it: not written", file=path)

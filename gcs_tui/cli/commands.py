@@ -50,7 +50,7 @@ from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
 from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import seconds_or_zero, whole_number
 from gcs_tui.cli.outputs import check_outputs
-from gcs_tui.cli.progress import MODES, LogHandler, Progress
+from gcs_tui.cli.progress import MODES, LogHandler, Progress, warning_line
 
 log = logging.getLogger("gcs")
 
@@ -569,15 +569,6 @@ def _error(prog: Progress, text: str, code: int) -> int:
     return code
 
 
-def _warning_line(message, category, filename, lineno, file=None, line=None) -> None:
-    """A Python warning as one log line: numpy's RuntimeWarnings (an all-NaN slice, an
-    overflow the code then handles) at debug level (``-v``), others as warnings."""
-    if issubclass(category, RuntimeWarning):
-        log.debug("%s:%s: %s: %s", filename, lineno, category.__name__, message)
-    else:
-        log.warning("%s", message)
-
-
 def _numeric_failure(err: BaseException) -> bool:
     """numpy's LinAlgError or a floating-point trap: the estimation failed, not GCS."""
     return type(err).__name__ == "LinAlgError" or isinstance(err, FloatingPointError)
@@ -593,7 +584,7 @@ def main(argv=None) -> int:
     handler = LogHandler(prog)
     saved = _install_logging(handler, verbose=args.verbose, quiet=args.quiet)
     saved_show = warnings.showwarning
-    warnings.showwarning = _warning_line  # no numpy source lines on stderr
+    warnings.showwarning = warning_line  # no numpy source lines on stderr
     try:
         check_outputs(args)  # before any work: a bad output path costs no fitting time
         code = args.func(args, prog)

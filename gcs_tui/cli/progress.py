@@ -203,3 +203,15 @@ def _count(done, total) -> str:
 def _short(text: str, width: int = 50) -> str:
     text = terminal_safe(text, one_line=True)
     return text if len(text) <= width else text[: width - 1] + "…"
+
+
+_log = logging.getLogger("gcs")
+
+
+def warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A Python warning as one log line: numpy's RuntimeWarnings (an all-NaN slice, an
+    overflow the code then handles) at debug level (``-v``), others as warnings."""
+    if issubclass(category, RuntimeWarning):
+        _log.debug("%s:%s: %s: %s", filename, lineno, category.__name__, message)
+    else:
+        _log.warning("%s", message)
