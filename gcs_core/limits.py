@@ -15,5 +15,8 @@ MAX_OUTPUT_TIMES = 1_000_000
 MAX_PLAN_FRAMES = 20_000_000
 #: length of a planned span [min] (a trade study's span_min, a pass plan's total): one year
 MAX_SPAN_MIN = 366 * 24 * 60.0
+#: knots of a whole-span fit (span / knot spacing; the spacing is at least the gyro's
+#: sample interval, so real data stay far below)
+MAX_KNOTS = 2_000_000
 #: runs of one Monte Carlo study
 MAX_MONTECARLO_RUNS = 100_000
