@@ -368,6 +368,20 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending:
             raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
 
 
+def check_appendable(path: str | os.PathLike, fmt: str, collection: str, *, max_version: int) -> None:
+    """Refuse to append to ``path`` unless every check holds: the whole-file SHA-256, then
+    every object's own checksum, no links, numbered groups as GCS writes them. Run by
+    :func:`append_group`, and by the ``gcs`` command before a fit whose result it appends."""
+    try:
+        verify(path, fmt, max_version=max_version)
+        with open_read(path, fmt, max_version=max_version) as src:
+            numbered_names(src, collection)
+    except DataFileError as err:
+        raise DataFileError(
+            f"{err.message}; refusing to append to it (the earlier versions would be at risk)", file=path
+        ) from None
+
+
 def append_group(
     path: str | os.PathLike,
     fmt: str,
@@ -389,14 +403,7 @@ def append_group(
     with locked(path, exclusive=True):
         existing: list[int] = []
         if path.exists():
-            try:  # the whole-file SHA-256, then every object's own checksum, links refused
-                verify(path, fmt, max_version=max_version)
-                with open_read(path, fmt, max_version=max_version) as src:
-                    numbered_names(src, collection)
-            except DataFileError as err:
-                raise DataFileError(
-                    f"{err.message}; refusing to append to it (the earlier versions would be at risk)", file=path
-                ) from None
+            check_appendable(path, fmt, collection, max_version=max_version)
         with atomic_create(path, fmt, version, appending=True) as dst:
             if path.exists():
                 with open_read(path, fmt, max_version=max_version) as src:

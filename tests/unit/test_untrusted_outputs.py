@@ -260,7 +260,7 @@ def test_crafted_scds_is_refused_in_one_line(tmp_path, craft):
     assert path.read_bytes() == before
 
 
-def test_cli_exit_2_on_a_versions_dataset(tmp_path, capsys):
+def test_cli_exit_2_on_a_versions_dataset_before_the_fit(tmp_path, capsys, no_work):
     path = scds_with_versions(tmp_path / "c.h5", 1)
     craft_scds(path, "versions_dataset")
     assert cli.main(["-q", "batch", str(MISSION), "--scds", str(path)]) == 2
