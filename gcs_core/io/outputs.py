@@ -147,9 +147,9 @@ def check_output_file(path: str | os.PathLike, *, kind: str, what: str, append: 
     if found in ("mission", "directory", "fifo", "device", "socket"):
         raise InputError(f"is {KIND_NAMES[found]}: cannot write {what} there", file=path)
     if found is not None and found != kind:
-        raise InputError(f"is {KIND_NAMES[found]}; writing {what} would replace it: choose another path", file=path)
+        raise InputError(f"is {kind_name(found)}; writing {what} would replace it: choose another path", file=path)
     if found in APPEND_ONLY and not append:
-        raise InputError(f"is {KIND_NAMES[found]}, which GCS only appends to: choose another path", file=path)
+        raise InputError(f"is {kind_name(found)}, which GCS only appends to: choose another path", file=path)
     if st is not None and found is None and kind not in ("text",) and st.st_size > 0:
         raise InputError(f"is a file but not a GCS {kind} file; writing {what} would replace it", file=path)
     real = Path(os.path.realpath(path))

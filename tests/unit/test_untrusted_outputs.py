@@ -108,6 +108,16 @@ def test_other_kinds_gcs_recognises_are_refused(tmp_path, capsys, no_work):
     assert "not a folder" in _err(capsys)
 
 
+def test_a_gcs_file_of_a_format_without_a_name_is_refused_too(tmp_path, capsys, no_work):
+    from gcs_core.trade import store
+
+    results = tmp_path / "study.h5"
+    store.append_batch(results, store.TRADE, study="{}", digest="d", records=[{"index": 0}])
+    assert outputs.file_kind(results) == "TRADE"
+    assert cli.main(["-q", "import", str(MISSION), "--report", str(results)]) == 2
+    assert "a GCS TRADE file" in _err(capsys)
+
+
 def test_one_file_for_two_outputs_is_refused(tmp_path, capsys, no_work):
     r = tmp_path / "x.json"
     assert cli.main(["-q", "import", str(MISSION), "--sdf", str(r), "--report", str(r)]) == 2
