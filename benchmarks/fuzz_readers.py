@@ -4,8 +4,15 @@ Each case mutates a valid CSV table, a valid mission.toml or a whole copied miss
 directory (a CSV of it) and reads it. The reader must return its object or raise one
 ``InputError`` whose message is one line; anything else counts as *unhandled*.
 
-Run: ``python benchmarks/fuzz_readers.py [--cases N] [--seed S]``; exits 1 if any case
-was unhandled. Prints the counts and the first few unhandled cases.
+With ``--suite untrusted`` (or ``all``, the default) it also fuzzes the readers of issue 23,
+``N`` cases each (:mod:`_fuzz_untrusted`): the analysis config, mission.toml, SCDS files
+(damaged bytes, links, datasets for groups, long version numbers), the BROAD and Astro Pi
+converters (random corruption, crafted types and shapes) and names holding control
+characters (nothing a terminal would obey may be printed). It prints per reader the
+outcomes, accepted, refused (one-line ``GcsError``: exit 2) and unhandled (exit 4).
+
+Run: ``python benchmarks/fuzz_readers.py [--cases N] [--seed S] [--suite all|readers|untrusted]``;
+exits 1 if any case was unhandled. Prints the counts and the first few unhandled cases.
 """
 
 from __future__ import annotations
@@ -22,6 +29,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from gcs_core.errors import InputError
 from gcs_core.io.csvio import read_table
@@ -298,14 +306,58 @@ def run(cases: int, seed: int) -> int:
     return counts["unhandled"]
 
 
+def run_untrusted(cases: int, seed: int) -> int:
+    """The issue-23 readers (``benchmarks/_fuzz_untrusted.py``), ``cases`` cases each;
+    prints one line per reader and returns the unhandled (exit-4) count."""
+    import warnings
+
+    from _fuzz_untrusted import READERS
+    from _fuzz_untrusted import run_untrusted as fuzz
+
+    previous = logging.root.manager.disable
+    logging.disable(logging.WARNING)
+    work = Path(tempfile.mkdtemp(prefix="gcs-fuzz-untrusted-"))
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # numpy's overflow warnings on crafted values (the CLI logs them)
+            counts, examples = fuzz(cases, seed, work)
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
+        logging.disable(previous)
+    elapsed = time.perf_counter() - start
+    print(f"fuzz_readers --untrusted: {cases} cases per reader (seed {seed}) in {elapsed:.1f} s")
+    print(f"  {'reader':14s} {'outcomes':>9s} {'accepted':>9s} {'refused':>9s} {'unhandled':>9s} {'exit 4':>7s}")
+    total = 0
+    for reader in READERS:
+        c = counts[reader]
+        n = sum(c.values())
+        total += c["unhandled"]
+        print(f"  {reader:14s} {n:9d} {c['accepted']:9d} {c['refused']:9d} {c['unhandled']:9d} {c['unhandled']:7d}")
+    for text in examples[:5]:
+        print(text)
+    return total
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--cases", type=int, default=12_000)
     parser.add_argument("--seed", type=int, default=20240320)
+    parser.add_argument(
+        "--suite",
+        choices=("all", "readers", "untrusted"),
+        default="all",
+        help="the CSV/mission readers, the issue-23 readers (config, mission.toml, SCDS, converters, names), or both",
+    )
     args = parser.parse_args()
     if args.cases < 10_000:
         print("note: fewer than the 10,000 cases the benchmark promises")
-    return 1 if run(args.cases, args.seed) else 0
+    bad = 0
+    if args.suite in ("all", "readers"):
+        bad += run(args.cases, args.seed)
+    if args.suite in ("all", "untrusted"):
+        bad += run_untrusted(args.cases, args.seed)
+    return 1 if bad else 0
 
 
 if __name__ == "__main__":

@@ -99,6 +99,7 @@ from gcs_core.config_checks import (
 )
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import write_atomic
+from gcs_core.io.inputs import refuse_unreadable
 from gcs_core.io.types import SENSOR_TYPES
 from gcs_core.problem.prepare import FIELD_MODELS, PhysicsOptions
 from gcs_core.problem.state import ROLES
@@ -411,9 +412,10 @@ def fit_key(cfg: AnalysisConfig) -> str:
 def load_config(path: str | Path) -> AnalysisConfig:
     """Read and validate an analysis config; errors name the key (or the line and column)."""
     path = Path(path)
-    if path.is_dir():
+    kind = refuse_unreadable(path, "config file", error=ConfigError)
+    if kind == "dir":
         _fail(None, "is a directory, not a config file", path)
-    if not path.is_file():
+    if kind != "file":
         _fail(None, f"config file not found{did_you_mean_path(path)}", path)
     try:
         raw = path.read_bytes()
@@ -600,7 +602,7 @@ def config_for(target: str | Path) -> AnalysisConfig:
     directory (or its ``mission.toml``) with every key at its default. The TUI and the
     headless commands both open what they are given through here."""
     p = Path(target).expanduser()
-    if p.is_dir():
+    if refuse_unreadable(p, "mission directory or config file", error=ConfigError) == "dir":
         return default_config(p)
     if p.name == "mission.toml" and p.is_file():  # the mission's own file: its directory
         return default_config(p.parent)

@@ -12,7 +12,7 @@ from typing import Any
 from gcs_core.errors import ConfigError
 from gcs_core.problem.state import ROLES
 from gcs_core.suggest import did_you_mean
-from gcs_core.toml_values import is_number, number_complaint, quote, show
+from gcs_core.toml_values import number_complaint, quote, show
 
 
 def _fail(key: str | None, message: str, file) -> None:
@@ -72,7 +72,7 @@ def _unknown(table: dict, known, prefix: str, file) -> None:
 
 
 def _pair(g: Any) -> bool:
-    return isinstance(g, list) and len(g) == 2 and all(is_number(x) and math.isfinite(x) for x in g) and g[0] < g[1]
+    return isinstance(g, list) and len(g) == 2 and all(number_complaint(x) is None for x in g) and g[0] < g[1]
 
 
 #: ``[filter] noise_weighting``'s choices, the default window [s] of the long-run factor
@@ -109,6 +109,12 @@ def check_against_mission(cfg, spec) -> None:
             f'sensor {name} is a {types[name]}: use "{types[name]}" or "off", not {show(model)}',
             f,
         )
+    _require(
+        any(cfg.models.get(name, kind) != MODEL_OFF for name, kind in types.items()),
+        "models",
+        "every sensor's model is off: there is nothing to fit (turn one on)",
+        f,
+    )
     for key, ids in (("state.effects", st.effects), ("state.exclude", st.exclude)):
         for i, e in enumerate(ids, start=1):
             owner = e.split(".")[0]
@@ -176,6 +182,9 @@ AXES = ("roll", "pitch", "yaw")
 #: the predictor's star models for tracker frames (:mod:`gcs_core.predictor.stars`)
 STAR_MODELS = ("sky", "uniform", "catalog", "telemetry")
 ELEMENT_KEYS = ("role", "value", "sigma")
+#: an element's a-priori value and finite σ, internal units (rad, nT, ...): within ±1e12, σ ≥ 1e-15
+ELEMENT_LIMIT = 1e12
+ELEMENT_SIGMA_MIN = 1e-15
 MANEUVER_KEYS = ("start", "duration", "axis", "rate_deg_s")
 _ID = re.compile(r"^[A-Za-z][A-Za-z0-9_-]*\.\S+$")
 
@@ -207,10 +216,14 @@ def read_state(st: dict, f) -> dict[str, Any]:
             f"must be one of {', '.join(ROLES)}, not {show(role)}",
             f,
         )
+        sigma = _number(ov, "sigma", None, f, positive=True, prefix=pre, allow_inf=True)
+        if sigma is not None and sigma != math.inf:  # 1/σ² and σ² must stay far from overflow
+            _require(sigma >= ELEMENT_SIGMA_MIN, pre + "sigma", f"must be ≥ {ELEMENT_SIGMA_MIN}, not {sigma}", f)
+            _require(sigma <= ELEMENT_LIMIT, pre + "sigma", f"must be ≤ {ELEMENT_LIMIT}, not {sigma}", f)
         elements[name_e] = (
             role,
-            _number(ov, "value", None, f, prefix=pre),
-            _number(ov, "sigma", None, f, positive=True, prefix=pre, allow_inf=True),
+            _number(ov, "value", None, f, lo=-ELEMENT_LIMIT, hi=ELEMENT_LIMIT, prefix=pre),
+            sigma,
         )
     att_sig = _number(st, "attitude_sigma_deg", 1.0, f, positive=True, hi=180.0, prefix="state.")
     return {**lists, "attitude_sigma_deg": att_sig, "elements": elements}

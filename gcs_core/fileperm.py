@@ -33,19 +33,28 @@ import os
 import shutil
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from pathlib import Path
 from typing import IO
 
 _lock = threading.Lock()
 
 
-def usual_mode() -> int:
-    """0666 less the current umask (read without changing it for other threads for long)."""
-    with _lock:
+def _umask() -> int:
+    with _lock:  # read without changing it for other threads for long
         mask = os.umask(0o022)
         os.umask(mask)
-    return 0o666 & ~mask
+    return mask
+
+
+def usual_mode() -> int:
+    """0666 less the current umask: what ``open(..., "w")`` gives a new file."""
+    return 0o666 & ~_umask()
+
+
+def usual_dir_mode() -> int:
+    """0777 less the current umask: what ``mkdir`` gives a new directory."""
+    return 0o777 & ~_umask()
 
 
 def make_usual(fd_or_path) -> None:
@@ -81,8 +90,11 @@ def _unlink(path) -> None:
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary path beside ``path`` to write; it replaces ``path`` on a clean exit
-    (module docstring). The folder must exist."""
+    (module docstring). The folder must exist. A symbolic link is written through: the
+    file it names is replaced and the link stays."""
     path = Path(path)
+    if path.is_symlink():
+        path = Path(os.path.realpath(path))
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
     os.close(fd)
     try:
@@ -133,6 +145,39 @@ def write_atomic(
     return path
 
 
+def write_atomic_set(files: Sequence[tuple[Path, str | bytes]]) -> list[Path]:
+    """Write several files as a set: every one to a temporary beside it first (fsync-ed);
+    only when all are written are they renamed into place. A failure (disk full) removes
+    the temporaries and leaves no partial set behind."""
+    staged: list[tuple[str, Path]] = []
+    try:
+        for path, data in files:
+            fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
+            staged.append((tmp, path))
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+                fh.flush()
+                os.fsync(fh.fileno())
+            make_usual(tmp)
+    except BaseException:
+        for tmp, _ in staged:
+            _unlink(tmp)
+        raise
+    for tmp, path in staged:
+        os.replace(tmp, path)
+    for folder in {path.parent for _, path in staged}:
+        fsync_path(folder, directory=True)
+    return [path for _, path in staged]
+
+
+def probe_folder(folder: str | os.PathLike) -> None:
+    """Create and remove a temporary file in ``folder``: raises the OSError a write there
+    would meet (read-only, permissions, missing), so that it is met before the work."""
+    fd, tmp = tempfile.mkstemp(dir=folder, prefix=".gcs-probe.", suffix=".tmp")
+    os.close(fd)
+    _unlink(tmp)
+
+
 _RENAME_EXCHANGE = 2
 _AT_FDCWD = -100
 
@@ -148,14 +193,15 @@ def _exchange(a: Path, b: Path) -> bool:
 
 
 @contextlib.contextmanager
-def atomic_directory(out: str | os.PathLike, *, mode: int = 0o755) -> Iterator[Path]:
+def atomic_directory(out: str | os.PathLike, *, mode: int | None = None) -> Iterator[Path]:
     """Yield an empty staging directory beside ``out``; on a clean exit it replaces ``out``
     (module docstring); on an exception it is removed and ``out`` is untouched.
-    ``mode``: the new directory's permissions (``mkdtemp`` makes it private)."""
-    out = Path(out)
+    ``mode``: the new directory's permissions (``mkdtemp`` makes it private); default
+    0777 less the umask, as ``mkdir`` gives."""
+    out = Path(os.path.abspath(out))
     out.parent.mkdir(parents=True, exist_ok=True)
     stage = Path(tempfile.mkdtemp(prefix=f".{out.name}.", suffix=".tmp", dir=out.parent))
-    stage.chmod(mode)
+    stage.chmod(usual_dir_mode() if mode is None else mode)
     try:
         yield stage
         for root, dirs, files in os.walk(stage):

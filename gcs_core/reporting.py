@@ -291,6 +291,10 @@ def _clean(o):
 
 
 def write_json_atomic(path: Path, data: dict) -> Path:
-    """Write JSON (NaN/inf as null) atomically (:func:`gcs_core.fileperm.write_atomic`)."""
+    """Write JSON (NaN/inf as null) atomically (:func:`gcs_core.fileperm.write_atomic`);
+    a file of a kind GCS recognises (an SCDS, an SDF, a mission directory) is never replaced."""
+    from gcs_core.io.outputs import refuse_other_kind
+
+    refuse_other_kind(path, "text", "the JSON report")
     text = json.dumps(_clean(json.loads(json.dumps(data, default=json_default))), indent=2)
     return write_atomic(path, text, parents=True)

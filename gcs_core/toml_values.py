@@ -39,7 +39,10 @@ class LocatedError(Protocol):
 
 def show(value: Any) -> str:
     """``repr(value)``, cut to :data:`SHOWN` characters (with ``...``)."""
-    text = repr(value)
+    try:
+        text = repr(value)
+    except ValueError:  # an integer past Python's 4300-digit limit
+        text = f"<an integer of {digits(value)} digits>"
     return text if len(text) <= SHOWN else text[: SHOWN - 3] + "..."
 
 
@@ -53,11 +56,19 @@ def is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def digits(value: int) -> int:
+    """Decimal digits of an integer, without converting it to text (at most one too many)."""
+    return int(abs(value).bit_length() * 0.30103) + 1
+
+
 def number_complaint(value: Any, *, allow_inf: bool = False) -> str | None:
     """Why ``value`` is not a finite number (``+inf`` allowed with ``allow_inf``), or None."""
     if not is_number(value):
         return f"must be a number, not {show(value)}"
-    v = float(value)
+    try:
+        v = float(value)
+    except OverflowError:  # an integer beyond 1.8e308
+        return f"must be a number below 1e308, not an integer of {digits(value)} digits"
     if math.isnan(v):
         return "must be a number, not nan"
     if not (allow_inf and v == math.inf) and not math.isfinite(v):
@@ -66,7 +77,10 @@ def number_complaint(value: Any, *, allow_inf: bool = False) -> str | None:
 
 
 def decode(raw: bytes, path, error: LocatedError) -> str:
-    """UTF-8 text of a TOML file, or ``error`` ("not UTF-8 text") at the bad byte's line and column."""
+    """UTF-8 text of a TOML file, or ``error`` ("not UTF-8 text") at the bad byte's line and column.
+    A UTF-8 byte-order mark (as some Windows editors write) is accepted and dropped."""
+    if raw.startswith(b"\xef\xbb\xbf"):
+        raw = raw[3:]
     try:
         return raw.decode("utf-8")
     except UnicodeDecodeError as err:
@@ -101,3 +115,8 @@ def loads(text: str, path, error: LocatedError) -> dict:
         raise error(f"TOML syntax error: {msg}", file=path) from None
     except RecursionError:
         raise error("TOML nesting too deep", file=path) from None
+    except ValueError:  # int() past Python's 4300-digit limit, raised through tomllib
+        m = re.search(r"[0-9_]{4000,}", text)
+        line = text.count("\n", 0, m.start()) + 1 if m else None
+        column = m.start() - text.rfind("\n", 0, m.start()) if m else None
+        raise error("a number of more than 4300 digits", file=path, line=line, column=column) from None

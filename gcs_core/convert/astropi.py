@@ -41,6 +41,7 @@ Psychometrika 31(1), 1–10 (1966).
 
 from __future__ import annotations
 
+import logging
 import shutil
 from datetime import UTC, datetime
 from pathlib import Path
@@ -48,9 +49,19 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core.convert import ConversionReport
-from gcs_core.convert.common import leading_transient, read_named_csv, sha256, staged_directory, write_csv
+from gcs_core.convert.common import (
+    check_destination,
+    check_source,
+    leading_transient,
+    read_named_csv,
+    sha256,
+    staged_directory,
+    write_csv,
+)
 from gcs_core.errors import InputError
 from gcs_core.noise.measured import ESTIMATED_MARK, white_noise
+
+log = logging.getLogger(__name__)
 
 __all__ = ["convert", "SENSOR", "procrustes_mounting"]
 
@@ -100,17 +111,48 @@ def procrustes_mounting(B_S: np.ndarray, B_L: np.ndarray) -> tuple[np.ndarray, n
     return M, mS - M @ mL
 
 
-def _lvlh_field(tle_file: Path, epoch: datetime, t: np.ndarray) -> np.ndarray:
-    """IGRF [nT] along the TLE orbit in the earth_pointing (LVLH) frame, (N, 3)."""
+#: largest field component accepted [nT] (the importer's bound: the Earth's is < 7e4 nT)
+MAX_FIELD_NT = 1e6
+#: largest magnitude of an aux reading accepted (temperature, humidity, pressure, light)
+MAX_AUX = 1e9
+
+
+def _refuse_absurd(table, B: np.ndarray, aux: dict[str, np.ndarray]) -> None:
+    """Refuse a field beyond :data:`MAX_FIELD_NT` or an aux value beyond :data:`MAX_AUX`
+    at its line and column (a 1e300 would otherwise overflow the estimates)."""
+    bad = np.argwhere(np.abs(B) > MAX_FIELD_NT)
+    if bad.size:
+        k, j = (int(x) for x in bad[0])
+        raise table.error(k, FIELD_COLUMNS[j], f"{B[k, j] / UT_TO_NT:g} µT exceeds ±{MAX_FIELD_NT / UT_TO_NT:g} µT")
+    for column, name in AUX_COLUMNS.items():
+        if name in aux and np.any(np.abs(aux[name]) > MAX_AUX):
+            k = int(np.argmax(np.abs(aux[name]) > MAX_AUX))
+            raise table.error(k, column, f"{aux[name][k]:g} exceeds ±{MAX_AUX:g}")
+
+
+def _lvlh_field(tle_file: Path, epoch: datetime, t: np.ndarray) -> tuple[np.ndarray, str]:
+    """IGRF [nT] along the TLE orbit in the earth_pointing (LVLH) frame, (N, 3), and a
+    warning ('' if none) when the data lie more than ``STALE_DAYS`` from the elements' epoch."""
+    from gcs_core.ephem import timescale
     from gcs_core.ephem.geomag import GeomagField
     from gcs_core.ephem.orbit import TleOrbit
-    from gcs_core.ephem.tle import read_tle, tle_states
+    from gcs_core.ephem.tle import STALE_DAYS, read_tle, tle_states
     from gcs_core.frames.reference import reference_dcm
 
     orbit = TleOrbit(*read_tle(tle_file), epoch)
+    jd = timescale.julian_date(epoch, np.array([float(t[0]), float(t[-1])]))
+    far = float(np.max(np.abs(jd - orbit.tle_epoch_jd)))
+    warning = ""
+    if far > STALE_DAYS:
+        warning = (
+            f"the data lie {far:.1f} days from the epoch of {tle_file.name} (SGP4's error grows by "
+            "1-3 km a day in low orbit): use elements of the data's days"
+        )
+        log.warning("%s", warning)
+        warning = "warning: " + warning
     r, v, _ = tle_states(orbit, epoch, t, "teme")
     B_I = GeomagField(epoch).field_I(t, r)
-    return np.einsum("nij,nj->ni", reference_dcm("earth_pointing", r, v), B_I)
+    return np.einsum("nij,nj->ni", reference_dcm("earth_pointing", r, v), B_I), warning
 
 
 def _mission_toml(name, epoch, noise_nT, sigma_axes, n_transient, align_deg, bias_nT, rigid_rms_nT) -> str:
@@ -203,11 +245,14 @@ def convert(
     if tle is None:
         raise InputError("the Astro Pi converter needs the station's two-line elements (--tle FILE)", key="tle")
     tle = Path(tle)
+    check_source(source, "astropi")
+    check_destination(source, out, overwrite=overwrite)  # before the work: fail fast
     read_tle(tle)
     table = read_named_csv(source, (TIME_COLUMN, *FIELD_COLUMNS))
     epoch, t = _times(table)
     B = np.column_stack([table.numbers(c) for c in FIELD_COLUMNS]) * UT_TO_NT
     aux = {AUX_COLUMNS[c]: table.numbers(c) for c in AUX_COLUMNS if c in table.header}
+    _refuse_absurd(table, B, aux)
     medians = {}
     for c in CENTRED:
         if AUX_COLUMNS[c] in aux:
@@ -224,13 +269,13 @@ def convert(
     flag[:n_tr] = 1
 
     use = flag == 0
-    B_L = _lvlh_field(tle, epoch, t)
+    B_L, tle_warning = _lvlh_field(tle, epoch, t)
     M, bias = procrustes_mounting(B[use], B_L[use])
     rigid_rms = float(np.sqrt(np.mean(np.sum((B[use] - B_L[use] @ M.T - bias) ** 2, axis=1) / 3)))
     align = np.degrees(np.array(dcm_to_euler123(M), dtype=float))
 
     name = name or out.name
-    with staged_directory(out, overwrite=overwrite) as stage:
+    with staged_directory(out, overwrite=overwrite, source=source) as stage:
         (stage / "telemetry").mkdir()
         write_csv(
             stage / "telemetry" / f"{SENSOR}.csv",
@@ -291,7 +336,7 @@ def convert(
         "mounting estimated against IGRF in LVLH: alignment_deg ["
         + ", ".join(f"{x:.2f}" for x in align)
         + f"], {rigid_rms:.0f} nT RMS left",
-    )
+    ) + ((tle_warning,) if tle_warning else ())
     return ConversionReport(
         format="astropi",
         source=source,

@@ -72,7 +72,7 @@ import numpy as np
 
 from gcs_core.convert import ConversionReport
 from gcs_core.convert.broad_text import mission_toml, source_md
-from gcs_core.convert.common import staged_directory
+from gcs_core.convert.common import check_destination, check_source, staged_directory
 from gcs_core.convert.holds import FLAG_NOTE, bus_check, held_repeats, hold_runs
 from gcs_core.errors import InputError
 from gcs_core.noise import measured as noise_mod
@@ -111,41 +111,63 @@ SENSORS = {"gyro": "GYR", "magnetometer": "MAG", "attitude_reference": "OPT"}
 _SITE = (CITATION, EPOCH, LAB_POSITION_KM, LAB_LATITUDE_DEG)
 
 
+#: what h5py raises on a damaged or crafted file (a failed filter, a corrupt header, ...)
+_H5_ERRORS = (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError, AttributeError)
+
+
+def _dataset(f, name: str, cols: int, unit: str, source: Path) -> np.ndarray:
+    """Dataset ``name`` as float64 (N,) or (N, cols), every type and shape checked."""
+    import h5py
+
+    if name not in f:
+        raise InputError(
+            f"not a BROAD trial: dataset '{name}' [{unit}] is missing (found: {', '.join(sorted(f.keys())) or 'none'})",
+            file=source,
+            key=name,
+        )
+    obj = f.get(name)
+    if not isinstance(obj, h5py.Dataset):
+        raise InputError(f"'{name}' is not a dataset (a group or a link)", file=source, key=name)
+    if obj.dtype.kind not in "fiub":
+        raise InputError(f"dataset '{name}' holds {obj.dtype} values, not numbers", file=source, key=name)
+    shape = (obj.shape[0],) if cols == 0 and len(obj.shape) == 1 else (obj.shape[0] if obj.shape else 0, cols)
+    if len(obj.shape) != len(shape) or tuple(obj.shape) != shape or shape[0] == 0:
+        raise InputError(
+            f"dataset '{name}' has shape {obj.shape}, expected (N{', ' + str(cols) if cols else ''}) with N > 0",
+            file=source,
+            key=name,
+        )
+    return np.asarray(obj[()], dtype=np.float64)
+
+
 def _read(source: Path) -> tuple[dict[str, np.ndarray], float, str]:
+    """The datasets, the sampling rate [Hz] and the info text of a BROAD trial; every
+    failure of a damaged or crafted file is one InputError naming the file."""
     import h5py  # foreign HDF5 (GCS's own files go through gcs_core.io.h5store)
 
     try:
         f = h5py.File(source, "r")
     except FileNotFoundError:
         raise InputError("file not found", file=source) from None
-    except OSError as err:
-        raise InputError(f"not an HDF5 file ({err})", file=source) from None
-    with f:
-        data = {}
-        for name, (cols, unit) in DATASETS.items():
-            if name not in f:
+    except _H5_ERRORS as err:
+        raise InputError(f"not an HDF5 file ({_first_line(err)})", file=source) from None
+    try:
+        with f:
+            data = {name: _dataset(f, name, cols, unit, source) for name, (cols, unit) in DATASETS.items()}
+            if "sampling_rate" not in f.attrs:
                 raise InputError(
-                    f"not a BROAD trial: dataset '{name}' [{unit}] is missing "
-                    f"(found: {', '.join(sorted(f.keys())) or 'none'})",
-                    file=source,
-                    key=name,
+                    "not a BROAD trial: attribute 'sampling_rate' [Hz] is missing", file=source, key="sampling_rate"
                 )
-            a = np.asarray(f[name][()])
-            shape = (a.shape[0],) if cols == 0 else (a.shape[0], cols)
-            if a.ndim != len(shape) or a.shape != shape:
-                raise InputError(
-                    f"dataset '{name}' has shape {a.shape}, expected (N{', ' + str(cols) if cols else ''})",
-                    file=source,
-                    key=name,
-                )
-            data[name] = a
-        if "sampling_rate" not in f.attrs:
-            raise InputError(
-                "not a BROAD trial: attribute 'sampling_rate' [Hz] is missing", file=source, key="sampling_rate"
-            )
-        rate = float(np.asarray(f.attrs["sampling_rate"]))
-        info = f.attrs.get("info", "")
-        info = info.decode() if isinstance(info, bytes) else str(info)
+            raw_rate = np.asarray(f.attrs["sampling_rate"])
+            if raw_rate.size != 1 or raw_rate.dtype.kind not in "fiu":
+                raise InputError("sampling_rate must be one number [Hz]", file=source, key="sampling_rate")
+            rate = float(raw_rate.reshape(-1)[0])
+            info = f.attrs.get("info", "")
+            info = info.decode("utf-8", "replace") if isinstance(info, bytes) else str(info)
+    except InputError:
+        raise
+    except _H5_ERRORS as err:
+        raise InputError(f"is damaged or not a BROAD trial ({_first_line(err)})", file=source) from None
     n = {k: v.shape[0] for k, v in data.items()}
     if len(set(n.values())) != 1:
         raise InputError(f"datasets of different lengths: {n}", file=source)
@@ -166,6 +188,11 @@ def _read(source: Path) -> tuple[dict[str, np.ndarray], float, str]:
             key="opt_quat",
         )
     return data, rate, info
+
+
+def _first_line(err: BaseException) -> str:
+    lines = str(err).strip().splitlines()
+    return lines[0] if lines else type(err).__name__
 
 
 def _transients(t: np.ndarray, y: np.ndarray, rest: np.ndarray, what: str) -> list[str]:
@@ -253,10 +280,8 @@ def convert(
     InputError naming the file and dataset that do not match, or the output directory.
     """
     source, out = Path(source), Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("the output exists and is not a directory", file=out)
-    if out.is_dir() and any(out.iterdir()) and not overwrite:  # before the read: fail fast
-        raise InputError("the output directory is not empty (give --force to replace it)", file=out)
+    check_source(source, "broad")
+    check_destination(source, out, overwrite=overwrite)  # before the read: fail fast
     data, rate, info = _read(source)
     n_all = data["imu_gyr"].shape[0]
     t = np.arange(n_all) / rate
@@ -352,7 +377,7 @@ def convert(
     )
     notes.append(f"gyro data-book bias = mean over the rest ({int(rest0.sum())} samples)")
 
-    with staged_directory(out, overwrite=overwrite) as tmp:
+    with staged_directory(out, overwrite=overwrite, source=source) as tmp:
         (tmp / "telemetry").mkdir()
         (tmp / "extra").mkdir()
         rows = {}

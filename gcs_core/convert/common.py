@@ -8,6 +8,7 @@ import contextlib
 import csv
 import hashlib
 import math
+import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -16,7 +17,16 @@ import numpy as np
 from gcs_core.errors import InputError
 from gcs_core.fileperm import atomic_directory
 
-__all__ = ["NamedCsv", "read_named_csv", "write_csv", "staged_directory", "sha256", "leading_transient"]
+__all__ = [
+    "NamedCsv",
+    "read_named_csv",
+    "write_csv",
+    "staged_directory",
+    "check_destination",
+    "MARKER",
+    "sha256",
+    "leading_transient",
+]
 
 
 class NamedCsv:
@@ -131,21 +141,64 @@ def write_csv(
             fh.write(fmt % tuple(c[i] for c in cols))
 
 
+#: the file every converted mission directory carries: ``--force`` replaces only such a one.
+MARKER = ".gcs-converted"
+
+
+def check_source(source: Path, fmt: str) -> None:
+    """The source is a regular file (a FIFO would block, ``/dev/zero`` never end)."""
+    from gcs_core.io.inputs import refuse_unreadable
+
+    kind = refuse_unreadable(source, f"{fmt} source")
+    if kind != "file":
+        raise InputError(f"{fmt} source {'is a directory, not a file' if kind == 'dir' else 'not found'}", file=source)
+
+
+def check_destination(source: Path | None, out: Path, *, overwrite: bool) -> Path:
+    """Check the mission directory to write before any work; returns it, links resolved.
+
+    Refused: a path that is not a directory; a non-empty directory without ``overwrite``;
+    with it, a directory GCS did not convert (no :data:`MARKER` file), one holding the
+    source file or the current directory, or the root of the file system.
+    """
+    shown = Path(out)
+    out = Path(os.path.realpath(out))
+    if shown.exists() and not shown.is_dir():
+        raise InputError("the output exists and is not a directory", file=shown)
+    src = Path(os.path.realpath(source)) if source is not None else None
+    if src is not None and (out == src or out in src.parents):
+        raise InputError(f"the output directory holds the source {source}: choose another folder", file=shown)
+    if out.is_dir() and any(out.iterdir()):
+        if not overwrite:
+            raise InputError("the output directory is not empty (give --force to replace it)", file=shown)
+        if out.parent == out or out == Path(os.path.realpath(os.getcwd())) or out in Path(os.getcwd()).parents:
+            raise InputError("the output directory holds the current directory: choose another folder", file=shown)
+        if not (out / MARKER).is_file():
+            raise InputError(
+                f"the output directory was not made by gcs convert (no {MARKER} file): --force replaces "
+                "only a converted mission directory; choose a new folder",
+                file=shown,
+            )
+    return out
+
+
 @contextlib.contextmanager
-def staged_directory(out: Path, *, overwrite: bool = False) -> Iterator[Path]:
+def staged_directory(out: Path, *, overwrite: bool = False, source: Path | None = None) -> Iterator[Path]:
     """Yield an empty directory next to ``out``; on success it replaces ``out``
     (:func:`gcs_core.fileperm.atomic_directory`: its files synced, one rename).
 
-    ``out`` may not exist or be empty; a non-empty one is refused unless ``overwrite``.
-    On failure the staging directory is removed and ``out`` is untouched.
+    ``out`` is checked by :func:`check_destination` (``--force`` replaces only a directory
+    GCS converted, never one holding the source); the new directory carries
+    :data:`MARKER` and gets the usual permissions (the umask applies). On failure the
+    staging directory is removed and ``out`` is untouched.
     """
-    out = Path(out)
-    if out.exists() and not out.is_dir():
-        raise InputError("the output exists and is not a directory", file=out)
-    if out.is_dir() and any(out.iterdir()) and not overwrite:
-        raise InputError("the output directory is not empty (give --force to replace it)", file=out)
-    with atomic_directory(out, mode=0o755) as stage:  # a mission directory is not private
+    out = check_destination(source, Path(out), overwrite=overwrite)
+    with atomic_directory(out) as stage:
         yield stage
+        (stage / MARKER).write_text(
+            "This mission directory was written by gcs convert; gcs convert --force may replace it.\n",
+            encoding="utf-8",
+        )
 
 
 def sha256(path: Path) -> str:

@@ -44,6 +44,7 @@ from gcs_core.ephem import teme, timescale
 from gcs_core.ephem.orbit import TleOrbit
 from gcs_core.ephem.sun import sun_position_km
 from gcs_core.errors import InputError
+from gcs_core.io.inputs import refuse_unreadable
 
 log = logging.getLogger(__name__)
 
@@ -72,6 +73,7 @@ def read_tle(path: str | os.PathLike) -> tuple[str, str]:
     shorter than 69 characters, a bad checksum (column 69), or lines of two satellites.
     """
     path = Path(path)
+    refuse_unreadable(path, "two-line element file")  # a FIFO would block
     try:
         text = path.read_text(encoding="ascii", errors="strict")
     except (OSError, UnicodeDecodeError) as err:

@@ -31,6 +31,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.fileperm import atomic_open
+from gcs_core.io.inputs import refuse_unreadable
 from gcs_core.io.types import Table
 
 log = logging.getLogger(__name__)
@@ -216,6 +217,7 @@ def read_table(path: str | os.PathLike, *, required: Iterable[str] = ("t",), wha
     """
     path = Path(path)
     required = ("t",) + tuple(c for c in required if c != "t")
+    refuse_unreadable(path, f"{what} file")  # a FIFO would block, /dev/zero never end
     try:
         raw = path.read_bytes()
     except FileNotFoundError:

@@ -8,12 +8,10 @@ Guarantees every GCS data set gets:
   at any moment leaves either the old file or the new one, never a mixture. Appending
   (SCDS versions, ASF solutions) copies the existing groups into the new file, so earlier
   groups are carried over byte for byte.
-* **Locking between GCS processes.** ``fcntl.flock`` on a sidecar ``<file>.lock``:
-  writers hold it exclusively, readers shared. A process that cannot get it within
-  :data:`LOCK_WAIT_S` gets :class:`~gcs_core.errors.DataFileError` "... is in use by
-  another GCS process (pid N)". HDF5's own file locking is turned off
-  (``locking=False``): ours is the only one. Locks are re-entrant within a process.
-  Sidecar lock files are left in place (removing them would race with waiters).
+* **Locking between GCS processes** (:mod:`gcs_core.io.locks`): ``fcntl.flock`` on a
+  sidecar ``<file>.lock`` opened without following links, never truncated; writers
+  exclusive, readers shared, the wait as long as an append can take. HDF5's own file
+  locking is turned off (``locking=False``): ours is the only one.
 * **Checksums.** The first 512 bytes (HDF5's user block) hold a text header: format,
   version, file length and the SHA-256 of the rest of the file. It is checked before
   HDF5 reads anything. HDF5 can loop forever on some damaged metadata, so a damaged
@@ -28,14 +26,10 @@ wrong format, locked) becomes one ``DataFileError(message, file=path)``.
 
 from __future__ import annotations
 
-import errno
-import fcntl
 import glob
 import hashlib
 import logging
 import os
-import threading
-import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
@@ -47,6 +41,8 @@ import numpy as np
 
 from gcs_core.errors import DataFileError
 from gcs_core.fileperm import atomic_path
+from gcs_core.io.locks import locked, resolved
+from gcs_core.io.outputs import refuse_not_a_file, refuse_replacing
 
 log = logging.getLogger(__name__)
 
@@ -61,9 +57,6 @@ HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 USERBLOCK = 512
 GCS_MAGIC = b"GCS-HDF5"
 HEADER_VERSION = 1
-#: seconds a process waits for a lock held by another GCS process before giving up.
-LOCK_WAIT_S = 1.0
-_POLL_S = 0.02
 
 #: the errors h5py raises for unreadable files and objects (KeyError for a corrupt
 #: object header, OSError for a failed filter or a truncated file).
@@ -82,103 +75,6 @@ def gcs_version() -> str:
 
 def utc_now() -> str:
     return datetime.now(UTC).strftime("%Y-%m-%dT%H:%M:%S.%fZ")
-
-
-# --- locking --------------------------------------------------------------------------
-
-
-class _Held:
-    __slots__ = ("fd", "exclusive", "count")
-
-    def __init__(self, fd: int, exclusive: bool):
-        self.fd, self.exclusive, self.count = fd, exclusive, 0
-
-
-_held: dict[str, _Held] = {}
-_held_guard = threading.Lock()
-
-
-def lock_path(path: str | os.PathLike) -> Path:
-    """The sidecar lock file of ``path``."""
-    path = Path(path)
-    return path.with_name(path.name + ".lock")
-
-
-def _holder_pid(fd: int) -> str:
-    try:
-        text = os.pread(fd, 32, 0).decode("ascii", "replace").strip()
-        return str(int(text.split()[0]))
-    except (OSError, ValueError, IndexError):
-        return "unknown"
-
-
-def _flock(fd: int, exclusive: bool, path: Path, wait: float) -> None:
-    op = (fcntl.LOCK_EX if exclusive else fcntl.LOCK_SH) | fcntl.LOCK_NB
-    deadline = time.monotonic() + wait
-    while True:
-        try:
-            fcntl.flock(fd, op)
-            return
-        except OSError as err:
-            if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
-                raise DataFileError(f"cannot lock ({err.strerror})", file=path) from None
-        if time.monotonic() >= deadline:
-            raise DataFileError(f"is in use by another GCS process (pid {_holder_pid(fd)})", file=path)
-        time.sleep(_POLL_S)
-
-
-@contextmanager
-def locked(path: str | os.PathLike, *, exclusive: bool, wait: float | None = None) -> Iterator[None]:
-    """Hold the GCS lock of ``path`` (exclusive for writers, shared for readers).
-
-    Re-entrant within one process: an inner request reuses the outer lock, upgrading
-    shared to exclusive when asked. A shared lock in a directory where the lock file
-    cannot be created (read-only media) is skipped: nothing can write there anyway.
-    """
-    path = Path(path)
-    wait = LOCK_WAIT_S if wait is None else wait
-    lpath = lock_path(path)
-    key = os.path.abspath(lpath)
-    with _held_guard:
-        held = _held.get(key)
-    if held is not None:
-        upgraded = exclusive and not held.exclusive
-        if upgraded:
-            _flock(held.fd, True, path, wait)
-            held.exclusive = True
-        held.count += 1
-        try:
-            yield
-        finally:
-            held.count -= 1
-            if upgraded:
-                fcntl.flock(held.fd, fcntl.LOCK_SH)
-                held.exclusive = False
-        return
-    try:
-        fd = os.open(lpath, os.O_RDWR | os.O_CREAT | os.O_CLOEXEC, 0o644)
-    except OSError as err:
-        if not exclusive and err.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
-            log.debug("%s: no lock file (%s); reading unlocked", path, err.strerror)
-            yield
-            return
-        raise DataFileError(f"cannot create the lock file {lpath.name} ({err.strerror})", file=path) from None
-    try:
-        _flock(fd, exclusive, path, wait)
-        if exclusive or os.fstat(fd).st_size == 0:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        held = _Held(fd, exclusive)
-        held.count = 1
-        with _held_guard:
-            _held[key] = held
-        try:
-            yield
-        finally:
-            with _held_guard:
-                _held.pop(key, None)
-    finally:
-        os.close(fd)  # releases the flock
 
 
 # --- opening --------------------------------------------------------------------------
@@ -260,7 +156,11 @@ def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
                     raise DataFileError("has a damaged GCS header block", file=path)
                 raise DataFileError("is not an HDF5 file (no HDF5 signature)", file=path)
             fields = {}
-            for line in head.rstrip(b"\0").decode("ascii", "replace").splitlines()[1:]:
+            text, nul, padding = head.partition(b"\0")
+            first = text.split(b"\n", 1)[0]
+            if padding.strip(b"\0") or not nul or not (first[len(GCS_MAGIC) : len(GCS_MAGIC) + 1] == b" "):
+                raise DataFileError("has a damaged GCS header block", file=path)
+            for line in text.decode("ascii", "replace").splitlines()[1:]:
                 key, _, value = line.partition(" ")
                 fields[key] = value.strip()
             try:
@@ -308,10 +208,7 @@ def open_read(
     headers, missing groups) are turned into :class:`DataFileError` as well.
     """
     path = Path(path)
-    if not path.exists():
-        raise DataFileError(f"{fmt} file not found", file=path)
-    if path.is_dir():
-        raise DataFileError(f"{fmt} file is a directory", file=path)
+    refuse_not_a_file(path, fmt)  # missing, a directory, a FIFO, a loop of links: refused unopened
     ctx = locked(path, exclusive=False) if lock else _nothing()
     with ctx:
         if check:
@@ -321,6 +218,8 @@ def open_read(
         except H5_ERRORS as err:
             raise _describe_open_failure(path, err) from None
         try:
+            if check:
+                refuse_links(f, path)
             try:
                 found = f.attrs.get(FORMAT_ATTR)
                 version = f.attrs.get(VERSION_ATTR)
@@ -361,6 +260,26 @@ def _nothing() -> Iterator[None]:
     yield
 
 
+def refuse_links(f: h5py.File, path: Path) -> None:
+    """Refuse soft and external links: GCS writes none, and an external link reads
+    another file (``/etc/passwd``) as if it were part of this one."""
+    found: list[str] = []
+
+    def visit(name: bytes, info) -> int | None:  # the low-level walk: no object opened per link
+        if info.type != h5py.h5l.TYPE_HARD:
+            kind = "an external" if info.type == h5py.h5l.TYPE_EXTERNAL else "a soft"
+            found.append(f"/{name.decode('utf-8', 'replace')} is {kind} link")
+            return 1  # stop
+        return None
+
+    try:
+        f.id.links.visit(visit, info=True)
+    except H5_ERRORS as err:
+        raise corrupt(path, err, "the group index") from None
+    if found:
+        raise DataFileError(f"holds links GCS never writes ({found[0]}): refused", file=path)
+
+
 def verify(path: str | os.PathLike, fmt: str, *, max_version: int) -> int:
     """Read every dataset and attribute of the file (every checksum checked).
 
@@ -399,30 +318,68 @@ def _remove_stale_temps(path: Path) -> None:
 
 
 @contextmanager
-def atomic_create(path: str | os.PathLike, fmt: str, version: int) -> Iterator[h5py.File]:
+def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending: bool = False) -> Iterator[h5py.File]:
     """Write a new GCS HDF5 file atomically, under the exclusive lock.
 
-    Yields an ``h5py.File`` open on a temporary file in the destination directory,
+    Yields an ``h5py.File`` built in memory (written to a temporary file in the
+    destination directory on a clean exit, by Python: a full disk is one clean error),
     with ``gcs_format``, ``gcs_format_version``, ``created_utc`` and ``gcs_version``
     already set. On a clean exit the file is closed, synced and renamed over ``path``;
-    on an exception it is removed and ``path`` is untouched.
+    on an exception it is removed and ``path`` is untouched. A file of another kind GCS
+    recognises (:func:`gcs_core.io.outputs.file_kind`) is never replaced, nor an SCDS or
+    ASF unless ``appending`` (:func:`append_group`).
     """
-    path = Path(path)
+    path = resolved(path)  # a symbolic link is written through
     if not path.parent.is_dir():
         raise DataFileError("directory does not exist", file=path.parent)
     with locked(path, exclusive=True):
+        refuse_replacing(path, fmt, appending)
         _remove_stale_temps(path)
         try:
             with atomic_path(path) as tmp:
-                with h5py.File(tmp, "w", libver=LIBVER, locking=False, userblock_size=USERBLOCK) as f:
+                # built in memory (HDF5's core driver), written out by Python: a full disk
+                # is one OSError here, never an HDF5 write failure (destructor noise, a crash)
+                f = h5py.File(
+                    tmp,
+                    "w",
+                    driver="core",
+                    backing_store=False,
+                    libver=LIBVER,
+                    locking=False,
+                    userblock_size=USERBLOCK,
+                )
+                try:
                     f.attrs[FORMAT_ATTR] = fmt
                     f.attrs[VERSION_ATTR] = np.int64(version)
                     f.attrs[CREATED_ATTR] = utc_now()
                     f.attrs[GCS_VERSION_ATTR] = gcs_version()
                     yield f
+                    f.flush()
+                    image = f.id.get_file_image()
+                finally:
+                    f.close()
+                with open(tmp, "wb") as fh:
+                    if image.startswith(HDF5_SIGNATURE):  # the image leaves the user block out
+                        fh.write(bytes(USERBLOCK))
+                    fh.write(image)
+                del image
                 _write_header(tmp, fmt, version)  # hashed and written; atomic_path syncs it
         except OSError as err:  # disk full, read-only directory, ...
             raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
+
+
+def check_appendable(path: str | os.PathLike, fmt: str, collection: str, *, max_version: int) -> None:
+    """Refuse to append to ``path`` unless every check holds: the whole-file SHA-256, then
+    every object's own checksum, no links, numbered groups as GCS writes them. Run by
+    :func:`append_group`, and by the ``gcs`` command before a fit whose result it appends."""
+    try:
+        verify(path, fmt, max_version=max_version)
+        with open_read(path, fmt, max_version=max_version) as src:
+            numbered_names(src, collection)
+    except DataFileError as err:
+        raise DataFileError(
+            f"{err.message}; refusing to append to it (the earlier versions would be at risk)", file=path
+        ) from None
 
 
 def append_group(
@@ -442,17 +399,12 @@ def append_group(
     fills the new group, and the result replaces the old file atomically. Returns the
     new number (1, 2, ...).
     """
-    path = Path(path)
+    path = resolved(path)  # a symbolic link is written through
     with locked(path, exclusive=True):
         existing: list[int] = []
         if path.exists():
-            try:  # the whole-file SHA-256 covers every byte, every earlier group
-                check_file(path, fmt, max_version=max_version)
-            except DataFileError as err:
-                raise DataFileError(
-                    f"{err.message}; refusing to append to it (the earlier versions would be at risk)", file=path
-                ) from None
-        with atomic_create(path, fmt, version) as dst:
+            check_appendable(path, fmt, collection, max_version=max_version)
+        with atomic_create(path, fmt, version, appending=True) as dst:
             if path.exists():
                 with open_read(path, fmt, max_version=max_version) as src:
                     for key, value in src.attrs.items():
@@ -460,17 +412,40 @@ def append_group(
                             dst.attrs[key] = value
                     for name in src:
                         src.copy(src[name], dst, name=name)
-                    if collection in src:
-                        existing = [int(n) for n in src[collection] if n.isdigit()]
+                    existing = [int(n) for n in numbered_names(src, collection)]
             number = max(existing, default=0) + 1
             group = dst.require_group(collection).create_group(f"{number:05d}")
             build(group, number)
         return number
 
 
+#: at most this many digits in a version (solution) number.
+MAX_NUMBER_DIGITS = 9
+
+
 def numbered_names(f: h5py.File, collection: str) -> list[str]:
-    """The numbered groups ``/<collection>/NNNNN`` of an append-only file, oldest first."""
-    return sorted(n for n in f[collection] if n.isdigit()) if collection in f else []
+    """The numbered groups ``/<collection>/NNNNN`` of an append-only file, oldest first
+    (sorted as numbers: 100000 after 99999).
+
+    A collection that is not a group, a numbered entry that is not a group, or a number
+    of more than :data:`MAX_NUMBER_DIGITS` digits is refused (``DataFileError``).
+    """
+    if collection not in f:
+        return []
+    path = Path(f.filename)
+    group = f[collection]
+    if not isinstance(group, h5py.Group):
+        raise DataFileError(f"is corrupt: /{collection} is a dataset, not a group", file=path)
+    names = [n for n in group if n.isascii() and n.isdigit()]
+    for n in names:
+        if len(n.lstrip("0")) > MAX_NUMBER_DIGITS:
+            raise DataFileError(
+                f"is corrupt: /{collection}/{n} has a number of {len(n)} digits (at most {MAX_NUMBER_DIGITS})",
+                file=path,
+            )
+        if not isinstance(group[n], h5py.Group):
+            raise DataFileError(f"is corrupt: /{collection}/{n} is a dataset, not a group", file=path)
+    return sorted(names, key=int)
 
 
 def pick_numbered(f: h5py.File, collection: str, n: int | None, what: str, path: Path) -> h5py.Group:
@@ -483,8 +458,9 @@ def pick_numbered(f: h5py.File, collection: str, n: int | None, what: str, path:
     available = numbered_names(f, collection)
     if not available:
         raise DataFileError(f"holds no {what}s", file=path)
-    name = available[-1] if n is None else f"{int(n):05d}"
-    if name not in available:
+    by_number = {int(x): x for x in available}
+    name = available[-1] if n is None else by_number.get(int(n))
+    if name is None:
         raise DataFileError(f"has no {what} {n} ({what}s {int(available[0])} to {int(available[-1])})", file=path)
     return f[collection][name]
 

@@ -28,6 +28,7 @@ from typing import Any
 from gcs_core import toml_values
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
+from gcs_core.io.inputs import check_directory_readable, refuse_unreadable
 from gcs_core.io.orbit_spec import GROUND_KEYS, ORBIT_KEYS, earth_rate, ephemeris_or_orbit, ground_position
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
@@ -381,13 +382,15 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     InputError naming mission.toml, the line and the key at fault.
     """
     given = Path(mission_dir)
-    if given.is_dir():
+    kind = refuse_unreadable(given, "mission directory")
+    if kind == "dir":
+        check_directory_readable(given, "mission directory")
         root, path = given, given / MISSION_FILE
     elif given.name == MISSION_FILE or given.suffix == ".toml":
         root, path = given.parent, given
     else:
         raise InputError(f"mission directory not found{did_you_mean_path(given, want_dir=True)}", file=given)
-    if not path.is_file():
+    if refuse_unreadable(path, MISSION_FILE) != "file":
         raise InputError(
             f"{MISSION_FILE} not found: a mission directory holds "
             f"{MISSION_FILE}, ephemeris.csv and telemetry/ (ICD §1)",

@@ -16,6 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core.errors import InputError
+from gcs_core.io.inputs import NOT_A_FILE, path_kind
 from gcs_core.toml_values import number_complaint, show
 
 __all__ = ["Locator", "Ctx", "number", "show", "numbers", "string", "existing_file", "optional_file"]
@@ -97,6 +98,11 @@ def existing_file(
     if is_dir:
         raise ctx.error(f"{what} file {rel!r} is a directory, not a file", key, table, index, tkey)
     if not is_file:
+        kind, detail = path_kind(path)
+        if kind in NOT_A_FILE:
+            raise ctx.error(f"{what} file {rel!r} {NOT_A_FILE[kind]}", key, table, index, tkey)
+        if kind == "error":
+            raise ctx.error(f"{what} file {rel!r} cannot be looked up ({detail})", key, table, index, tkey)
         raise ctx.error(f"{what} file {rel!r} not found (looked for {path})", key, table, index, tkey)
     return path
 

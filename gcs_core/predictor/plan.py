@@ -31,6 +31,7 @@ from typing import Any
 
 import numpy as np
 
+from gcs_core import limits
 from gcs_core.config import AXES, STAR_MODELS, AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.units import DEG
@@ -88,6 +89,12 @@ class DataPlan:
             raise InputError(f"the plan needs end > start (got {self.start}, {self.end})", key="prediction.end")
         if not self.step > 0:
             raise InputError(f"must be > 0, got {self.step}", key="prediction.step")
+        if (self.end - self.start) / self.step + 1 > limits.MAX_OUTPUT_TIMES:  # before any allocation
+            raise InputError(
+                f"{self.step:g} s gives {(self.end - self.start) / self.step + 1:.3g} output times over the plan; "
+                f"at most {limits.MAX_OUTPUT_TIMES} (a larger step)",
+                key="prediction.step",
+            )
         for g in self.gaps:
             if len(g) != 2 or not g[0] < g[1]:
                 raise InputError(f"a gap must be [t0, t1] with t0 < t1, got {g!r}", key="prediction.gaps")
@@ -162,6 +169,12 @@ class DataPlan:
     def grid(self, cadence: float, *, first: float | None = None) -> np.ndarray:
         """(N,) frame slots ``first + k·cadence`` inside ``[start, end]`` (``first`` = start)."""
         t0 = self.start if first is None else first
+        if (self.end - t0) / cadence + 1 > limits.MAX_PLAN_FRAMES:  # before any allocation
+            raise InputError(
+                f"{(self.end - t0) / cadence + 1:.3g} frames at {cadence:g} s over the plan; "
+                f"at most {limits.MAX_PLAN_FRAMES} per sensor (a shorter plan)",
+                key="prediction.end",
+            )
         n = int(math.floor((self.end - t0) / cadence + 1e-9))
         return t0 + cadence * np.arange(n + 1, dtype=float)
 

@@ -134,7 +134,12 @@ def connect(workers: int | None, scheduler: str | None):
         os.environ.setdefault(k, v)
     dask.config.set({"distributed.nanny.pre-spawn-environ": dict(PIN_ENV), "distributed.worker.daemon": False})
     assert workers is not None  # without a scheduler the caller gives a count
-    cluster = LocalCluster(
-        n_workers=int(workers), threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=logging.ERROR
+    cluster = LocalCluster(  # scheduler and dashboard on the loopback only: nothing served to the network
+        n_workers=int(workers),
+        threads_per_worker=1,
+        processes=True,
+        host="127.0.0.1",
+        dashboard_address="127.0.0.1:0",
+        silence_logs=logging.ERROR,
     )
     return Client(cluster), cluster

@@ -48,6 +48,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+from gcs_core import limits
 from gcs_core.config import AXES, AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.io.types import MissionSpec
@@ -144,6 +145,22 @@ def check_key(key: str, spec: MissionSpec) -> None:
         + "; models.NAME, NAME.alignment_deg[i], NAME.noise, NAME.KEY)",
         key=full,
     )
+
+
+#: plan keys whose values are numbers (checked for every value before the study runs)
+NUMBER_KEYS = tuple(k for k in PLAN_KEYS if k.endswith(("_min", "_deg", "_deg_s")) or k == "passes")
+
+
+def check_values(key: str, values: Sequence) -> None:
+    """Refuse, before the study runs, a value no plan could use: text for a number key,
+    a span beyond :data:`gcs_core.limits.MAX_SPAN_MIN`."""
+    if key in NUMBER_KEYS or key.endswith(".noise") or _ALIGN.match(key):
+        for v in values:
+            x = _num({key: v}, key)
+            if key in ("span_min", "pass_min", "separation_min") and x is not None and x > limits.MAX_SPAN_MIN:
+                raise InputError(
+                    f"{x:g} min is longer than the limit of {limits.MAX_SPAN_MIN:g} min", key=f"trade.vary.{key}"
+                )
 
 
 def combinations(vary: Mapping[str, Sequence]) -> list[dict[str, Any]]:

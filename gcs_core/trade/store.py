@@ -29,6 +29,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.io import h5store
+from gcs_core.io.outputs import refuse_other_kind
 from gcs_core.json_values import json_default
 
 TRADE, MONTECARLO = "TRADE", "MONTECARLO"
@@ -102,6 +103,7 @@ def prepare_output(path: str | Path, fmt: str, digest: str, *, resume: bool, ove
     if p.exists() and not (resume or overwrite):
         raise InputError("exists: add --resume to compute only what is missing, or --overwrite", file=p)
     if p.exists() and overwrite and not resume:
+        refuse_other_kind(p, fmt, f"the {fmt.lower()} results")  # --overwrite never deletes an SCDS
         p.unlink()
         return set()
     return done_indices(p, fmt, digest) if resume else set()

@@ -184,6 +184,7 @@ def _context(defn: StudyDefinition):
         check_against_mission(cfg, spec)
         for k in defn.vary:
             space.check_key(k, spec)
+            space.check_values(k, defn.vary[k])
         start = 0.0 if cfg.prediction.start is None else cfg.prediction.start
         end = start + 3600.0 if cfg.prediction.end is None else cfg.prediction.end
         base = DataPlan.from_config(cfg, span=(start, end))

@@ -40,6 +40,7 @@ import logging
 import os
 import sys
 import traceback
+import warnings
 from pathlib import Path
 
 # GCS's matrices are small (tens of columns): threaded BLAS only contends for the cores,
@@ -48,8 +49,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 from gcs_core.config_checks import NOISE_WEIGHTINGS
 from gcs_core.errors import ConfigError, EstimationError, GcsError, InputError
+from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import seconds_or_zero, whole_number
-from gcs_tui.cli.progress import MODES, LogHandler, Progress
+from gcs_tui.cli.outputs import check_outputs
+from gcs_tui.cli.progress import MODES, LogHandler, Progress, warning_line
 
 log = logging.getLogger("gcs")
 
@@ -61,7 +64,8 @@ LOGGERS = ("gcs", "gcs_core", "gcs_tui")
 
 
 def _out(text: str = "") -> None:
-    sys.stdout.write(text + "\n")
+    """One result line (or several), control characters from files shown escaped."""
+    sys.stdout.write(terminal_safe(text) + "\n")
 
 
 def _lines(lines) -> None:
@@ -118,7 +122,7 @@ def _fit(a, prog: Progress, **kw):
 def _fit_failed(a) -> bool:
     res = a.result
     if res is not None and res.status in FAILED_STATUSES:
-        sys.stderr.write(f"gcs: estimation failed: {res.message}\n")
+        sys.stderr.write(f"gcs: estimation failed: {terminal_safe(res.message, one_line=True)}\n")
         return True
     return False
 
@@ -304,15 +308,18 @@ def cmd_batch(args, prog: Progress) -> int:
     if args.rank:
         _out("")
         _lines(candidate_table(a.candidates, alpha=a.config.diagnosis.significance))
+    problem = ""
     if args.scds:
-        from gcs_core.calibration import save_calibration
+        from gcs_tui.cli.outputs import save_calibration_kept
 
         with prog.task(f"appending the calibration to {args.scds}"):
-            v = save_calibration(a, _output(args.scds), note=args.note or "")
-        _out(f"calibration saved as version {v} in {args.scds}")
+            v, where, problem = save_calibration_kept(a, _output(args.scds), args.note or "")
+        _out(f"calibration saved as version {v} in {where}")
     _write_json(args.report, lambda: analysis_report(a, command="batch"))
     _write_noise_correlation(args, a)
     _export_plots(args, a)
+    if problem:  # the fit is kept beside; the SCDS asked for did not take it
+        return _error(prog, f"error: {args.scds}: {problem}; the calibration is saved in {where} instead", EXIT_INPUT)
     return EXIT_ESTIMATION if _fit_failed(a) else EXIT_OK
 
 
@@ -612,7 +619,7 @@ def _one_line(text: str) -> str:
 
 def _error(prog: Progress, text: str, code: int) -> int:
     prog.close()
-    sys.stderr.write(f"gcs: {_one_line(text)}\n")
+    sys.stderr.write(f"gcs: {terminal_safe(_one_line(text), one_line=True)}\n")
     return code
 
 
@@ -630,7 +637,10 @@ def main(argv=None) -> int:
     prog = Progress(sys.stderr, mode="off" if args.quiet else args.progress)
     handler = LogHandler(prog)
     saved = _install_logging(handler, verbose=args.verbose, quiet=args.quiet)
+    saved_show = warnings.showwarning
+    warnings.showwarning = warning_line  # no numpy source lines on stderr
     try:
+        check_outputs(args)  # before any work: a bad output path costs no fitting time
         code = args.func(args, prog)
         sys.stdout.flush()
         if code != EXIT_INTERNAL:  # the TUI's crash line stays the only line
@@ -667,6 +677,7 @@ def main(argv=None) -> int:
         )
     finally:
         prog.close()
+        warnings.showwarning = saved_show
         _restore_logging(handler, saved)
 
 

@@ -19,7 +19,7 @@ import numpy as np
 import plotext as plt
 
 from gcs_core import display
-from gcs_core.fileperm import write_atomic
+from gcs_core.fileperm import write_atomic_set
 from gcs_tui.binning import Binned, binned_means, envelope
 
 #: at most this many used (and as many edited) points are drawn in one SVG plot
@@ -182,15 +182,17 @@ def channel_plots(analysis, name: str, comp: str, sel, y, edited, sigma: float, 
 
 
 def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[Path]:
-    """Write one plot per sensor component (txt) or one HTML page (html); returns paths."""
+    """Write one plot per sensor component (txt) or one HTML page (html); returns paths.
+    The plots are written as a set (:func:`gcs_core.fileperm.write_atomic_set`)."""
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    out: list[Path] = []
+    files: list[tuple[Path, str]] = []
     sections = []
     for name, r in analysis.result.residuals.items():
         sel = r.valid
         sig_all = np.atleast_1d(np.asarray(r.sigma, dtype=float))
-        shown = display.display_unit(r.unit, float(np.nanmax(sig_all)) if sig_all.size else float("nan"))
+        finite = sig_all[np.isfinite(sig_all)]
+        shown = display.display_unit(r.unit, float(np.max(finite)) if finite.size else float("nan"))
         k = display.scale(r.unit, shown)
         unit = display.unit_label(shown)
         for j, comp in enumerate(r.components):
@@ -202,9 +204,7 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
                 f"n {int(np.count_nonzero(~ed))}, edited {int(np.count_nonzero(ed))})"
             )
             if fmt == "txt":
-                p = folder / f"residuals_{name}_{comp}.txt"
-                write_atomic(p, text_plot(t, y, ed, sigma, title, unit))
-                out.append(p)
+                files.append((folder / f"residuals_{name}_{comp}.txt", text_plot(t, y, ed, sigma, title, unit)))
             else:
                 sections.append(svg_plot(t, y, ed, sigma, title, unit))
                 sections += channel_plots(analysis, name, comp, sel, y, ed, sigma, unit)
@@ -222,6 +222,5 @@ def export_residual_plots(analysis, folder: Path, *, fmt: str = "txt") -> list[P
             + "\n".join(sections)
             + "\n</body></html>\n"
         )
-        write_atomic(p, page)
-        out.append(p)
-    return out
+        files.append((p, page))
+    return write_atomic_set(files)  # all or none: a full disk leaves no partial set

@@ -29,6 +29,8 @@ from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import IO, Any
 
+from gcs_core.textsafe import terminal_safe
+
 MODES = ("auto", "bar", "plain", "off")
 
 
@@ -36,7 +38,7 @@ class Task:
     """Handle of one running task: ``task(done, total, text)`` updates it."""
 
     def __init__(self, owner: Progress, task_id, text: str):
-        self._owner, self._id, self.text, self.last = owner, task_id, text, ""
+        self._owner, self._id, self.text, self.last = owner, task_id, terminal_safe(text, one_line=True), ""
 
     def __call__(self, done: float | None = None, total: float | None = None, text: str = "") -> None:
         self._owner._update(self, done, total, text)
@@ -65,7 +67,9 @@ class Progress:
 
     # ------------------------------------------------------------------ output
     def echo(self, line: str) -> None:
-        """One line of progress or log output (above the live line when there is one)."""
+        """One line of progress or log output (above the live line when there is one);
+        control characters from file names and mission names are shown escaped."""
+        line = terminal_safe(line)
         if self._live is not None:
             self._live.console.print(line, markup=False, highlight=False, soft_wrap=True)
         else:
@@ -101,10 +105,13 @@ class Progress:
             live.stop()
             self._live = None
             mark = "✓" if ok else "✗"
+            from rich.markup import escape
+
+            shown = escape(handle.text)  # a name holding "[red]" is text, not markup
             live.console.print(
-                f"[green]{mark}[/] {handle.text} [dim]{time.monotonic() - start:.1f} s[/]"
+                f"[green]{mark}[/] {shown} [dim]{time.monotonic() - start:.1f} s[/]"
                 if ok
-                else f"[red]{mark}[/] {handle.text}",
+                else f"[red]{mark}[/] {shown}",
                 highlight=False,
             )
 
@@ -194,4 +201,17 @@ def _count(done, total) -> str:
 
 
 def _short(text: str, width: int = 50) -> str:
+    text = terminal_safe(text, one_line=True)
     return text if len(text) <= width else text[: width - 1] + "…"
+
+
+_log = logging.getLogger("gcs")
+
+
+def warning_line(message, category, filename, lineno, file=None, line=None) -> None:
+    """A Python warning as one log line: numpy's RuntimeWarnings (an all-NaN slice, an
+    overflow the code then handles) at debug level (``-v``), others as warnings."""
+    if issubclass(category, RuntimeWarning):
+        _log.debug("%s:%s: %s: %s", filename, lineno, category.__name__, message)
+    else:
+        _log.warning("%s", message)

@@ -38,7 +38,8 @@ def fit_table(analysis) -> list[str]:
     ]
     for name, r in res.residuals.items():
         rms = np.atleast_1d(np.asarray(r.rms, dtype=float))
-        shown = display.display_unit(r.unit, float(np.nanmax(rms)) if rms.size else float("nan"))
+        finite = rms[np.isfinite(rms)]  # all NaN (every frame edited): no "All-NaN slice" warning
+        shown = display.display_unit(r.unit, float(np.max(finite)) if finite.size else float("nan"))
         comp = ", ".join(
             f"{c} {display.quantity(v, r.unit, shown=shown, with_unit=False)}" for c, v in zip(r.components, rms)
         )

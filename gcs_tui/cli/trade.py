@@ -17,14 +17,16 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from gcs_core import limits
 from gcs_core.errors import InputError
+from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import whole_number
 
 EXIT_OK, EXIT_FLAG, EXIT_INTERRUPT = 0, 1, 130
 
 
 def _out(text: str = "") -> None:
-    sys.stdout.write(text + "\n")
+    sys.stdout.write(terminal_safe(text) + "\n")
 
 
 def _engine_options(args) -> dict:
@@ -229,7 +231,10 @@ def cmd_montecarlo(args, prog) -> int:
     assert cfg.path is not None  # a loaded config keeps its file's path
     args.config_path = cfg.path
     mc = cfg.montecarlo
-    runs = args.runs or int(mc.get("runs", 100))
+    runs = args.runs if args.runs is not None else mc.get("runs", 100)
+    if isinstance(runs, bool) or not isinstance(runs, int) or not 1 <= runs <= limits.MAX_MONTECARLO_RUNS:
+        key = "--runs" if args.runs is not None else "montecarlo.runs"
+        raise InputError(f"must be a whole number from 1 to {limits.MAX_MONTECARLO_RUNS}, not {runs!r}", key=key)
     seed = args.seed if args.seed is not None else int(mc.get("seed", 20261202))
     output = args.output or mc.get("output")
     if output is not None and not args.output and not Path(output).is_absolute():

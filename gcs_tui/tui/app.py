@@ -27,6 +27,7 @@ from textual.worker import get_current_worker
 from gcs_core.cancel import Cancelled, cancellable
 from gcs_core.errors import GcsError
 from gcs_core.fileperm import make_usual
+from gcs_core.textsafe import terminal_safe
 from gcs_tui.tui import jobs
 from gcs_tui.tui.commands import GcsCommands
 from gcs_tui.tui.keys import APP, VIEWS, bindings
@@ -289,7 +290,7 @@ class GcsApp(App):
             parts.append(f"added: {', '.join(added)}")
         if self.last_notice:
             parts.append(self.last_notice)
-        return " · ".join(parts)
+        return terminal_safe(" · ".join(parts), one_line=True)  # names and notices come from files
 
     # ------------------------------------------------------------------ actions
     def action_view(self, mode: str) -> None:
@@ -337,7 +338,7 @@ class GcsApp(App):
 
         an = getattr(self.workbench, "analysis", None)
         carried = an is not None and an.config.filter.noise_weighting == "correlated"
-        title = f"Allan deviation · {self.workbench.mission.spec.name}"
+        title = f"Allan deviation · {terminal_safe(self.workbench.mission.spec.name, one_line=True)}"
         self.push_screen(AllanScreen(results, title, correlation_lines(getattr(an, "correlation", {}), carried)))
 
     def action_help(self) -> None:

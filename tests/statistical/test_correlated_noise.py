@@ -216,8 +216,8 @@ def test_a_numerically_failed_sandwich_is_caught_and_reported(tmp_path, monkeypa
     from test_field_gradient import EFFECTS, fit
     from test_field_gradient import write_mission as lab_mission
 
-    from gcs_core.noise import correlation
     from gcs_core.diagnosis.honest_sigma import sigma_scale_report
+    from gcs_core.noise import correlation
 
     a, res = fit(lab_mission(tmp_path, np.random.default_rng(7), hold=1), EFFECTS)
     pinv = np.linalg.pinv

@@ -185,7 +185,13 @@ def test_refuses_a_full_output_directory_unless_forced(tmp_path):
     src = _trial(tmp_path / "t.hdf5")
     with pytest.raises(InputError, match="not empty"):
         convert("broad", src, tmp_path / "m")
-    convert("broad", src, tmp_path / "m", overwrite=True)  # gcs convert --force
+    with pytest.raises(InputError, match="not made by gcs convert"):  # issue 23: --force only on GCS's own
+        convert("broad", src, tmp_path / "m", overwrite=True)
+    assert (tmp_path / "m" / "x").exists()
+    (tmp_path / "m" / "x").unlink()
+    convert("broad", src, tmp_path / "m")
+    (tmp_path / "m" / "x").write_text("")
+    convert("broad", src, tmp_path / "m", overwrite=True)  # gcs convert --force on a converted directory
     assert not (tmp_path / "m" / "x").exists()
     assert (tmp_path / "m" / "mission.toml").is_file()
 

@@ -13,7 +13,7 @@ import pytest
 from repo_paths import ROOT
 
 from gcs_core.errors import DataFileError
-from gcs_core.io import asf, h5store, scds
+from gcs_core.io import asf, h5store, locks, scds
 from gcs_core.io.importer import load_mission
 from gcs_core.io.sdf import iter_blocks, read_sdf
 from gcs_core.io.sdf_write import write_sdf
@@ -251,7 +251,7 @@ def test_lock_held_by_another_process(tmp_path, monkeypatch):
     proc = subprocess.Popen([sys.executable, "-c", holder], stdout=subprocess.PIPE, env=env, text=True)
     try:
         assert proc.stdout.readline().strip() == "locked"
-        monkeypatch.setattr(h5store, "LOCK_WAIT_S", 0.1)
+        monkeypatch.setattr(locks, "LOCK_WAIT_S", 0.1)
         message = one_line_error(append, path, 1)
         assert message == f"{path}: is in use by another GCS process (pid {proc.pid})"
         assert f"pid {proc.pid}" in one_line_error(scds.list_versions, path)

@@ -47,7 +47,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gcs_core import limits
 from gcs_core.compiled import COMPILED, jit
+from gcs_core.errors import InputError
 from gcs_core.estimators.whole_span.knot_kernels import _accumulate, _accumulate_fused, _accumulate_numpy
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 
@@ -120,6 +122,12 @@ def make_grid(
     gyro's sample interval).
     """
     span = max(float(t1 - t0), 1e-9)
+    if span / max(spacing, 1e-9) > limits.MAX_KNOTS:  # before any allocation
+        raise InputError(
+            f"{span / max(spacing, 1e-9):.3g} knots of {spacing:g} s over {span:g} s; at most {limits.MAX_KNOTS} "
+            "(the spacing follows the gyro's arw, rrw and sample interval)",
+            key="whole_span.knots",
+        )
     n = max(1, int(np.ceil(span / max(spacing, 1e-9))))
     tau = t0 + np.arange(n + 1) * (span / n)
     tau[-1] = t1 + 1e-6 * (span / n)  # the last knot closes the span
