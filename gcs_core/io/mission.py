@@ -150,6 +150,9 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 #: keys every [[sensor]] table may hold besides its type's data-book keys.
 COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
+#: [[sensor]] keys of a plan file only (docs/planning.md): the frame spacing [s] and the
+#: sensor's own data gaps [[t0, t1], ...] [s since the epoch]
+PLAN_SENSOR_KEYS = ("cadence", "gaps")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
 
 
@@ -186,11 +189,11 @@ def _plain(value: Any) -> Any:
 # --- tables ---------------------------------------------------------------------------
 
 
-def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> SensorSpec:
+def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str, planning: bool = False) -> SensorSpec:
     base = f"sensor[{index}]"
     if not isinstance(raw, dict):
         raise ctx.error("must be a table ([[sensor]])", base, "sensor", index)
-    for key in ("name", "type", "telemetry"):
+    for key in ("name", "type") if planning else ("name", "type", "telemetry"):
         if key not in raw:
             who = repr(raw["name"]) if isinstance(raw.get("name"), str) else "without a name"
             raise ctx.error(
@@ -230,15 +233,20 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
             index,
             "type",
         )
-    telemetry = existing_file(
-        ctx,
-        root,
-        raw.get("telemetry"),
-        f"{base}.telemetry",
-        "sensor",
-        f"telemetry (sensor {name!r})",
-        index,
-        "telemetry",
+    # a plan (planning=True) has no telemetry: the path is where it would be, never read
+    telemetry = (
+        root / "telemetry" / f"{name}.csv"
+        if planning and "telemetry" not in raw
+        else existing_file(
+            ctx,
+            root,
+            raw.get("telemetry"),
+            f"{base}.telemetry",
+            "sensor",
+            f"telemetry (sensor {name!r})",
+            index,
+            "telemetry",
+        )
     )
     alignment: tuple[float, float, float] | None = None
     if "alignment_deg" in raw:
@@ -283,7 +291,10 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
             )
         else:
             book[key] = spec.default
-    unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known)
+    if planning:
+        book.update(_plan_keys(ctx, raw, base, index))
+    extra = PLAN_SENSOR_KEYS if planning else ()
+    unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known and k not in extra)
     for k in unknown:
         book[k] = _plain(raw[k])
         log.warning("%s: unknown key '%s.%s' (sensor %r, type %s) kept but not used", ctx.file, base, k, name, stype)
@@ -297,6 +308,28 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
         book=book,
         unknown_keys=unknown,
     )
+
+
+def _plan_keys(ctx: Ctx, raw: dict, base: str, index: int) -> dict[str, Any]:
+    """A plan's ``cadence`` (> 0 s) and ``gaps`` ([[t0, t1], ...] with t0 < t1) of one sensor."""
+    out: dict[str, Any] = {}
+    if "cadence" in raw:
+        c = number(ctx, raw["cadence"], f"{base}.cadence", "sensor", index, "cadence")
+        if not c > 0:
+            raise ctx.error(f"must be > 0 s, not {c:g}", f"{base}.cadence", "sensor", index, "cadence")
+        out["cadence"] = c
+    if "gaps" in raw:
+        g = raw["gaps"]
+        if not isinstance(g, list):
+            raise ctx.error("must be a list of [t0, t1] pairs [s]", f"{base}.gaps", "sensor", index, "gaps")
+        pairs = []
+        for k, pair in enumerate(g, start=1):
+            a, b = numbers(ctx, pair, 2, f"{base}.gaps[{k}]", "sensor", index, "gaps")
+            if not a < b:
+                raise ctx.error(f"needs t0 < t1, not [{a:g}, {b:g}]", f"{base}.gaps[{k}]", "sensor", index, "gaps")
+            pairs.append((a, b))
+        out["gaps"] = tuple(pairs)
+    return out
 
 
 def _check_links(ctx: Ctx, sensors: list[SensorSpec]) -> None:
@@ -326,12 +359,16 @@ def _load_toml(path: Path) -> tuple[dict, str]:
     return toml_values.loads(text, path, InputError), text
 
 
-def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
+def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False) -> MissionSpec:
     """Read and check ``mission.toml`` (ICD §3, §5).
 
     Parameters
     ----------
     mission_dir : the mission directory, or the mission.toml file itself.
+    planning : the file is a plan (docs/planning.md): an analysis config that holds its own
+        ``[mission]`` and ``[[sensor]]`` tables. Sensors need no telemetry and may give a
+        ``cadence`` and their own ``gaps``; the orbit may be left to ``[trade.orbit]``
+        (neither ``[ephemeris]`` nor ``[orbit]``); the config's tables are not reported.
 
     Returns
     -------
@@ -358,7 +395,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         )
     doc, text = _load_toml(path)
     ctx = Ctx(path, Locator(text))
-    unknown: list[str] = [k for k in doc if k not in _TOP_TABLES]
+    unknown: list[str] = [k for k in doc if k not in _TOP_TABLES and not planning]
 
     m = doc.get("mission")
     if not isinstance(m, dict):
@@ -415,6 +452,8 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         ground = ground_position(ctx, e, mode, unknown)
         earth = earth_rate(ctx, e)
         ephemeris = None
+    elif planning and "ephemeris" not in doc and "orbit" not in doc:
+        ephemeris, orbit = None, {}  # the orbit is the plan's [trade.orbit]
     else:
         ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
     aux = optional_file(ctx, root, doc, "aux", unknown)
@@ -428,7 +467,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     sensors: list[SensorSpec] = []
     seen: dict[str, int] = {}
     for index, raw in enumerate(raw_sensors, start=1):
-        s = _read_sensor(ctx, root, raw, index, mode)
+        s = _read_sensor(ctx, root, raw, index, mode, planning)
         if s.name in seen:
             raise ctx.error(
                 f"sensor name {s.name!r} is used twice (sensor[{seen[s.name]}] "

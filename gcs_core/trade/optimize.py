@@ -35,7 +35,7 @@ from typing import Any
 from gcs_core.config import AXES, AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.trade import engine, space
-from gcs_core.trade.report import sigma_display
+from gcs_core.trade.report import element_unit, in_unit
 from gcs_core.trade.study import PlanRow, StudyDefinition, evaluate_plans, target_elements
 from gcs_core.units import ARCSEC, DEG
 
@@ -177,8 +177,8 @@ class OptimizeResult:
         for t in self.targets:
             for n in self.elements.get(t.name, []):
                 i = row.elements.index(n)
-                s, u = sigma_display(row.sigma[i], row.units[i])
-                lim, _ = sigma_display(t.limit, row.units[i])
+                shown, u = element_unit(row.units[i], row.sigma[i])
+                s, lim = in_unit(row.sigma[i], row.units[i], shown), in_unit(t.limit, row.units[i], shown)
                 ok = row.sigma[i] * (1.0 + self.margin) < t.limit
                 out.append(
                     f"  σ {n:<16} {s:10.4g} {u:<3} (target < {lim:g} with a "
@@ -222,16 +222,22 @@ def optimize(
     progress: Callable[[int, int], None] | None = None,
 ) -> OptimizeResult:
     """Search the plan space (module docstring)."""
-    from gcs_core.io.mission import read_mission_spec
+    from gcs_core.predictor.source import load_source
 
     if cfg.path is None:
         raise InputError("the optimizer needs its analysis config on disk", key="trade")
-    spec = read_mission_spec(cfg.mission)
+    src = load_source(cfg, method=method)  # read once here, shipped to any worker
+    spec = src.spec
     elements = {t.name: list(target_elements([t.name], spec)[0]) for t in targets}
     names = tuple(dict.fromkeys(n for t in targets for n in elements[t.name]))
     cands = candidates(budget)
     defn = StudyDefinition(
-        str(Path(cfg.path).resolve()), {"span_min": (), "maneuvers": ()}, names, cfg.trade.get("orbit"), method
+        str(Path(cfg.path).resolve()),
+        {"span_min": (), "maneuvers": ()},
+        names,
+        cfg.trade.get("orbit"),
+        method,
+        source=src,
     )
     items = list(enumerate(cands))
     rows: list[PlanRow] = []

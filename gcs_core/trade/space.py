@@ -122,6 +122,40 @@ def parse_vary(items: Sequence[str]) -> dict[str, tuple]:
     return out
 
 
+#: keys that describe the same part of a plan in two ways (one replaces the other)
+_EXCLUSIVE = (
+    ({"span_min"}, {"passes", "pass_min", "separation_min"}),
+    ({"maneuver.duration_min"}, {"maneuver.angle_deg"}),
+    (
+        {"maneuvers"},
+        {
+            "maneuver.axis",
+            "maneuver.rate_deg_s",
+            "maneuver.start_min",
+            "maneuver.duration_min",
+            "maneuver.angle_deg",
+            "maneuver.back",
+        },
+    ),
+)
+
+
+def merge_vary(table: Mapping[str, tuple], given: Mapping[str, tuple]) -> dict[str, tuple]:
+    """The config's ``[trade.vary]`` with the command line's keys merged in: a given key
+    replaces the table's values of that key and of the keys describing the same thing
+    another way (``passes`` replaces ``span_min``, ``maneuvers`` the ``maneuver.*`` keys);
+    every other key of the table stays (``maneuver.back = true``, ``start_min``)."""
+    drop: set[str] = set()
+    for a, b in _EXCLUSIVE:
+        if a & set(given):
+            drop |= b
+        if b & set(given):
+            drop |= a
+    out = {k: v for k, v in table.items() if k not in drop or k in given}
+    out.update(given)
+    return out
+
+
 def check_key(key: str, spec: MissionSpec) -> None:
     """Refuse a key the plan space does not know, naming it (``trade.vary.KEY``)."""
     names = {s.name for s in spec.sensors}

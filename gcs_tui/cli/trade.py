@@ -20,7 +20,9 @@ from pathlib import Path
 from gcs_core.errors import InputError
 from gcs_tui.cli.arguments import whole_number
 
-EXIT_OK, EXIT_FLAG, EXIT_INTERRUPT = 0, 1, 130
+EXIT_OK, EXIT_FLAG, EXIT_INPUT, EXIT_INTERRUPT = 0, 1, 2, 130
+#: the estimators a plan can be predicted for (gcs_core.config.METHODS, the default first)
+METHODS = ("whole_span", "batch", "kalman")
 
 
 def _out(text: str = "") -> None:
@@ -91,7 +93,7 @@ def add_commands(add, target) -> None:
     sp.add_argument("--plot", help="write the plot of σ against the varied keys here (text)")
     sp.add_argument("--top", type=_count, help="error budgets of this many best plans")
     sp.add_argument("--limit", type=_count, default=20, help="rows of the table")
-    sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
+    sp.add_argument("--method", choices=METHODS, help="override the config's method (default whole_span)")
     _scale_args(sp)
 
     sp = add("optimize", cmd_optimize, "the cheapest data plan meeting σ targets within a budget")
@@ -109,7 +111,7 @@ def add_commands(add, target) -> None:
     sp.add_argument("--axes", help="allowed maneuver axes, e.g. roll,yaw")
     sp.add_argument("--rates", help="allowed maneuver rates [deg/s], e.g. 0.05,0.1")
     sp.add_argument("--write-config", help="write the chosen plan as an analysis config here")
-    sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
+    sp.add_argument("--method", choices=METHODS, help="override the config's method (default whole_span)")
     sp.add_argument("--workers", type=_count, default=0, help="run on a local Dask cluster of N processes")
     sp.add_argument("--scheduler", help="run on an existing Dask cluster")
 
@@ -167,6 +169,9 @@ def cmd_trade(args, prog) -> int:
     _out("error budget of the best plans (σ = noise ⊕ consider elements):")
     for line in budget_lines(rows, defn.top):
         _out(line)
+    warned = sorted({w for r in rows for w in r.warnings})
+    for w in warned:
+        sys.stderr.write(f"gcs: warning: {w}\n")
     if output is not None:
         _out(f"\n{len(rows)} plans in {output}")
     if args.plot:
@@ -177,6 +182,9 @@ def cmd_trade(args, prog) -> int:
 
         _write(path, study_plot(rows, varied_keys([r for r in rows if r.status == "ok"]) or tuple(defn.vary)))
         _out(f"plot written to {path}")
+    if rows and all(r.status != "ok" for r in rows):
+        sys.stderr.write(f"gcs: error: no plan of the study could be predicted, e.g. {rows[0].status}\n")
+        return EXIT_INPUT
     return EXIT_OK
 
 
