@@ -182,7 +182,7 @@ def _content(cfg: AnalysisConfig, spec: MissionSpec, orbit, eph, catalog) -> str
         "trade_orbit": (cfg.trade or {}).get("orbit"),
         "mission": repr((spec.name, spec.epoch.isoformat(), spec.attitude_mode, spec.spin_axis_guess_deg)),
         "sensors": [repr((s.name, s.type, s.alignment_deg, s.noise, sorted(s.book.items()))) for s in spec.sensors],
-        "orbit": repr(orbit),
+        "orbit": repr(orbit) if isinstance(orbit, TleElements) else None,  # Kepler: trade_orbit
         "ephemeris": None if eph is None else hashlib.sha256(eph.stack(list(eph.columns)).tobytes()).hexdigest(),
         "catalog": None if catalog is None else len(catalog),
     }
