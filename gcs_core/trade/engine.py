@@ -49,7 +49,7 @@ PIN_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS
 
 
 #: seconds to reach a scheduler and complete Dask's handshake
-CONNECT_TIMEOUT_S = 4.0
+CONNECT_TIMEOUT_S = 3.0
 #: seconds to wait for a scheduler's first worker
 WORKER_WAIT_S = 4.0
 
@@ -76,14 +76,62 @@ def check_scheduler(address: str) -> tuple[str, int]:
         host, port = None, None
     if not host or port is None:
         raise _scheduler_error(address, "give tcp://HOST:PORT")
+    deadline = time.monotonic() + CONNECT_TIMEOUT_S
     try:
-        with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S):
-            pass
+        with socket.create_connection((host, port), timeout=CONNECT_TIMEOUT_S) as sock:
+            why = _dask_greeting(sock, deadline)
     except TimeoutError:
-        raise _scheduler_error(address, f"no answer within {CONNECT_TIMEOUT_S:g} s") from None
+        raise _scheduler_error(address, f"not a Dask scheduler (no greeting within {CONNECT_TIMEOUT_S:g} s)") from None
     except OSError as err:
         raise _scheduler_error(address, err.strerror or type(err).__name__) from None
+    if why:
+        raise _scheduler_error(address, f"not a Dask scheduler ({why})")
     return host, port
+
+
+#: the largest greeting a Dask peer sends (its handshake is a few dozen bytes)
+MAX_GREETING_BYTES = 65536
+
+
+def _read_exactly(sock, n: int, deadline: float) -> bytes:
+    buf = b""
+    while len(buf) < n:
+        sock.settimeout(max(deadline - time.monotonic(), 0.01))
+        chunk = sock.recv(n - len(buf))
+        if not chunk:
+            raise ConnectionError("closed the connection")
+        buf += chunk
+    return buf
+
+
+def _dask_greeting(sock, deadline: float) -> str:
+    """Why the peer is not a Dask server ("" if it is): a Dask listener first sends its
+    handshake (``distributed.comm.core.Listener.on_connection``), a length-prefixed
+    message (``distributed.comm.tcp``: 8-byte length, then packed frames) holding a dict
+    with its ``python`` version. Read within ``deadline``, bounded in size, decoded by
+    ``distributed.protocol`` — never a blind allocation of whatever length a stranger sends."""
+    import struct
+
+    from distributed.protocol.core import loads
+    from distributed.protocol.utils import unpack_frames
+
+    try:
+        (n,) = struct.unpack("Q", _read_exactly(sock, 8, deadline))
+        if not 0 < n <= MAX_GREETING_BYTES:
+            return f"a first message of {n} bytes"
+        frames, more = unpack_frames(_read_exactly(sock, n, deadline), partial=True)
+        if more:
+            return "a greeting with extra buffers"
+        msg = loads(frames)
+    except ConnectionError as err:
+        return str(err)
+    except TimeoutError:  # socket.timeout too
+        raise
+    except Exception as err:  # noqa: BLE001 — any undecodable greeting: not Dask
+        return f"an undecodable greeting: {type(err).__name__}"
+    if not isinstance(msg, dict) or "python" not in msg:
+        return "a greeting without Dask's handshake"
+    return ""
 
 
 def _client(client_cls, address: str):
@@ -95,7 +143,7 @@ def _client(client_cls, address: str):
     """
     host, port = check_scheduler(address)
     try:
-        client = client_cls(f"tcp://{host}:{port}", timeout=f"{CONNECT_TIMEOUT_S}s", set_as_default=False)
+        client = client_cls(f"tcp://{host}:{port}", timeout=f"{CONNECT_TIMEOUT_S}s")
     except Exception as err:  # noqa: BLE001 — any failure of the handshake means "not a Dask scheduler"
         raise _scheduler_error(address, f"not a Dask scheduler ({type(err).__name__})") from None
     try:
