@@ -144,15 +144,16 @@ def merge_vary(table: Mapping[str, tuple], given: Mapping[str, tuple]) -> dict[s
     """The config's ``[trade.vary]`` with the command line's keys merged in: a given key
     replaces the table's values of that key and of the keys describing the same thing
     another way (``passes`` replaces ``span_min``, ``maneuvers`` the ``maneuver.*`` keys);
-    every other key of the table stays (``maneuver.back = true``, ``start_min``)."""
+    every other key of the table stays (``maneuver.back = true``, ``start_min``), after
+    the given ones."""
     drop: set[str] = set()
     for a, b in _EXCLUSIVE:
         if a & set(given):
             drop |= b
         if b & set(given):
             drop |= a
-    out = {k: v for k, v in table.items() if k not in drop or k in given}
-    out.update(given)
+    out = dict(given)  # the command line's keys first (the first varies slowest)
+    out.update({k: v for k, v in table.items() if k not in drop and k not in given})
     return out
 
 
