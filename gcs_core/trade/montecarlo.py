@@ -87,6 +87,8 @@ class MonteCarlo:
     #: the plan read once on the submitting machine (:mod:`gcs_core.predictor.source`),
     #: shipped to the workers; None: read from ``config_path`` where the run happens
     source: Any = field(default=None, compare=False, repr=False)
+    #: element -> the σ its a-priori draw uses (:func:`draw_sigmas`); None: the a priori's
+    draw: Any = field(default=None, compare=False, repr=False)
 
     def as_json(self) -> str:
         return json.dumps({"config_path": self.config_path, "runs": self.runs, "seed": self.seed})
@@ -253,7 +255,7 @@ def one_run(mc: MonteCarlo, i: int) -> dict:
             a = Analysis(cfg.with_changes(mission=path, diagnosis={"holdout_fraction": 0.0}), mission=mission)
             book = {e.name: e.value for e in a.problem.state}
             truth = _truth(json.loads((folder / "truth.json").read_text()), a.problem, book, cfg.method)
-            drawn = draw_prior(a.problem.state, truth, np.random.default_rng([seed, PRIOR_STREAM]))
+            drawn = draw_prior(a.problem.state, truth, np.random.default_rng([seed, PRIOR_STREAM]), mc.draw)
             a.problem = a.problem.with_state(a.problem.state.with_values(drawn))
             res = a.fit(holdout=False)
         except (GcsError, np.linalg.LinAlgError) as err:
@@ -280,9 +282,30 @@ def one_run(mc: MonteCarlo, i: int) -> dict:
 PRIOR_STREAM = 1
 
 
-def draw_prior(state, truth: dict[str, float], rng: np.random.Generator) -> dict[str, float]:
-    """The run's a-priori means (module docstring): ``x̄ = x_true + σ̄ z`` for every solve-for
-    element with a finite a-priori σ̄ and every consider element (drawn in state order)."""
+#: a solve-for element's draw is capped at this many predicted σ (:func:`draw_sigmas`)
+DRAW_CAP = 10.0
+
+
+def draw_sigmas(pred) -> dict[str, float]:
+    """Solve-for element -> σ of its a-priori draw, ``min(σ̄, DRAW_CAP σ)`` with σ̄ its a
+    priori and σ its predicted σ (a consider element is drawn with its σ̄: what the fit
+    holds it wrong by). The cap keeps the draws inside the region the predictor
+    linearizes (a sensor's transfer function drawn over its whole, wide a priori tests
+    its nonlinearity, not the plan); where it binds, ``σ < σ̄ / DRAW_CAP``, and the a
+    priori's share of the error variance, ``(σ/σ̄)⁴ σ_draw²``, is below
+    ``DRAW_CAP² (σ/σ̄)⁴ σ² < 1 %`` of σ²."""
+    out = {}
+    prior = pred.prior if pred.prior is not None else np.full(len(pred.names), np.inf)
+    for n, s0, s in zip(pred.names, prior, pred.sigma[-1]):
+        if math.isfinite(s0) and s0 > 0:
+            out[n] = float(min(s0, DRAW_CAP * s)) if math.isfinite(s) else float(s0)
+    return out
+
+
+def draw_prior(state, truth: dict[str, float], rng: np.random.Generator, sigmas=None) -> dict[str, float]:
+    """The run's a-priori means (module docstring): ``x̄ = x_true + σ_d z`` for every
+    solve-for element with a finite a-priori σ̄ and every consider element (drawn in state
+    order); ``σ_d`` from ``sigmas`` (:func:`draw_sigmas`), else σ̄."""
     from gcs_core.problem.state import CONSIDER, SOLVE_FOR
 
     out = {}
@@ -291,7 +314,8 @@ def draw_prior(state, truth: dict[str, float], rng: np.random.Generator) -> dict
             continue
         if not (math.isfinite(el.sigma0) and el.sigma0 > 0):
             continue
-        out[el.name] = float(truth[el.name] + el.sigma0 * rng.standard_normal())
+        s = el.sigma0 if sigmas is None else sigmas.get(el.name, el.sigma0)
+        out[el.name] = float(truth[el.name] + s * rng.standard_normal())
     return out
 
 
@@ -461,6 +485,8 @@ def run_montecarlo(
     cfg, spec, plan = _context(mc)
     simulation(cfg, spec, plan, 0)  # a config the runs cannot use fails here, before any run
     pred = predicted(mc)
+    if mc.draw is None:
+        mc = replace(mc, draw=draw_sigmas(pred))
     digest = mc.digest()
     skip = (
         store.prepare_output(output, store.MONTECARLO, digest, resume=resume, overwrite=overwrite)
