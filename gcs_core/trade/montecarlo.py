@@ -467,6 +467,19 @@ def summary_lines(res: MonteCarloResult) -> list[str]:
     return out
 
 
+def prepared(mc: MonteCarlo):
+    """(``mc`` with its plan read and its draw σ set, the prediction): what every run needs,
+    computed once here and shipped to the workers. A config the runs cannot use fails
+    here, before any run is written."""
+    mc = mc.with_source()
+    cfg, spec, plan = _context(mc)
+    simulation(cfg, spec, plan, 0)
+    pred = predicted(mc)
+    if mc.draw is None:
+        mc = replace(mc, draw=draw_sigmas(pred))
+    return mc, pred
+
+
 def run_montecarlo(
     mc: MonteCarlo,
     output=None,
@@ -481,12 +494,7 @@ def run_montecarlo(
     """All runs (those already in ``output`` skipped with ``resume``), then the summary."""
     if mc.runs < 2:
         raise InputError(f"need at least 2 runs, not {mc.runs}", key="montecarlo.runs")
-    mc = mc.with_source()  # the config read and checked here, shipped to any worker
-    cfg, spec, plan = _context(mc)
-    simulation(cfg, spec, plan, 0)  # a config the runs cannot use fails here, before any run
-    pred = predicted(mc)
-    if mc.draw is None:
-        mc = replace(mc, draw=draw_sigmas(pred))
+    mc, pred = prepared(mc)
     digest = mc.digest()
     skip = (
         store.prepare_output(output, store.MONTECARLO, digest, resume=resume, overwrite=overwrite)
@@ -517,7 +525,7 @@ def replay(output, i: int) -> list[str]:
     """Recompute run ``i`` of a results file from its stored seed and compare."""
     head, records = store.read(output, store.MONTECARLO)
     d = json.loads(head["study"])
-    mc = MonteCarlo(d["config_path"], int(d["runs"]), int(d["seed"]))
+    mc, _ = prepared(MonteCarlo(d["config_path"], int(d["runs"]), int(d["seed"])))
     old = next((r for r in records if int(r["index"]) == i), None)
     if old is None:
         raise InputError(f"run {i} is not in the file", file=output)
