@@ -27,7 +27,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from gcs_core.trade.montecarlo import MonteCarlo, run_montecarlo, summary_lines  # noqa: E402
+from gcs_core.trade.montecarlo import MonteCarlo, run_montecarlo, summary_lines
 
 
 def main() -> int:
