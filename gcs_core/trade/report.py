@@ -82,10 +82,10 @@ def study_table(rows: Sequence[PlanRow], *, limit: int | None = 20) -> list[str]
     widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(heads)]
     out = ["  ".join(h.rjust(w) for h, w in zip(heads, widths))]
     out += ["  ".join(c.rjust(w) for c, w in zip(b, widths)) for b in body]
-    shown = min(len(rows), limit or len(rows))
+    n_shown = min(len(rows), limit or len(rows))
     failed = [r for r in rows if r.status != "ok"]
     out.append(
-        f"{shown} of {len(rows)} plans shown (score: geometric mean of σ / best σ over the "
+        f"{n_shown} of {len(rows)} plans shown (score: geometric mean of σ / best σ over the "
         "targets; 1 = best at every target; * = set by the a priori: the data alone cannot "
         "separate the element; '—' = not in the plan's state)"
     )
