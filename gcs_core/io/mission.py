@@ -150,9 +150,10 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 #: keys every [[sensor]] table may hold besides its type's data-book keys.
 COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
-#: [[sensor]] keys of a plan file only (docs/planning.md): the frame spacing [s] and the
-#: sensor's own data gaps [[t0, t1], ...] [s since the epoch]
-PLAN_SENSOR_KEYS = ("cadence", "gaps")
+#: [[sensor]] keys of a plan file only (docs/planning.md): the frame spacing [s], the
+#: sensor's own data gaps [[t0, t1], ...] [s since the epoch] and a magnetometer's
+#: observable ("vector" or "magnitude", gcs_core.predictor.magnitude)
+PLAN_SENSOR_KEYS = ("cadence", "gaps", "observable")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
 
 
@@ -318,6 +319,16 @@ def _plan_keys(ctx: Ctx, raw: dict, base: str, index: int) -> dict[str, Any]:
         if not c > 0:
             raise ctx.error(f"must be > 0 s, not {c:g}", f"{base}.cadence", "sensor", index, "cadence")
         out["cadence"] = c
+    if "observable" in raw:
+        out["observable"] = string(ctx, raw["observable"], f"{base}.observable", "sensor", index, "observable")
+        if out["observable"] not in ("vector", "magnitude") or raw.get("type") != "magnetometer":
+            raise ctx.error(
+                'a magnetometer\'s observable is "vector" or "magnitude"',
+                f"{base}.observable",
+                "sensor",
+                index,
+                "observable",
+            )
     if "gaps" in raw:
         g = raw["gaps"]
         if not isinstance(g, list):

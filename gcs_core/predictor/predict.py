@@ -29,6 +29,7 @@ from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.orbit import build_ephemeris
 from gcs_core.errors import InputError
 from gcs_core.filtr.batch import name_combinations
+from gcs_core.filtr.smoothing_batch import process_noise
 from gcs_core.filtr.smoothing_uses import predicted_covariance
 from gcs_core.io.csvio import read_table
 from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
@@ -36,6 +37,7 @@ from gcs_core.io.tle_table import tle_ephemeris_table
 from gcs_core.io.types import MissionSpec
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
+from gcs_core.predictor.magnitude import magnitude_rows, magnitude_sensors
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
 from gcs_core.problem.attitude import RPY
@@ -353,7 +355,13 @@ def predict(
         catalog=catalog,
     )
     m = _method(method, cfg)
-    return _run(planned, plan, m, warn_batch=m == "information" and cfg is not None and cfg.method == "batch")
+    return _run(
+        planned,
+        plan,
+        m,
+        warn_batch=m == "information" and cfg is not None and cfg.method == "batch",
+        magnitude=magnitude_sensors(spec),
+    )
 
 
 def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> PredictionResult:
@@ -370,7 +378,14 @@ def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> Pr
     return _run(planned, plan, method)
 
 
-def _run(planned: PlannedProblem, plan: DataPlan, method: str, *, warn_batch: bool = False) -> PredictionResult:
+def _run(
+    planned: PlannedProblem,
+    plan: DataPlan,
+    method: str,
+    *,
+    warn_batch: bool = False,
+    magnitude: set[str] | frozenset[str] = frozenset(),
+) -> PredictionResult:
     problem, values = planned.problem, planned.values
     state = problem.state
     names = tuple(state.solve_for)
@@ -384,7 +399,8 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str, *, warn_batch: bo
     sigma_c = np.array([state[nm].sigma0 for nm in cons], dtype=float)
     if np.any(~np.isfinite(sigma_c)):
         raise InputError("a consider element needs a finite a-priori sigma", key="state.elements")
-    lins = linearize(problem, values, names + cons)
+    lins: list = linearize(problem, values, names + cons)
+    lins = [magnitude_rows(lin) if lin.name in magnitude else lin for lin in lins]
     rows = [info.weighted_rows(lin, sd.t, masks[sd.name]) for lin, sd in zip(lins, problem.sensors)]
     frames = {sd.name: int(t.size) for (t, _), sd in zip(rows, problem.sensors)}
     A_final = info.final_information(rows, n + len(cons), plan.end)[:n, :n]
@@ -399,6 +415,12 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str, *, warn_batch: bo
             A_cum, n, info.prior_information(sigma0), sigma_c, _attitude_partials(problem, values, names, times)
         )
     final = None
+    if magnitude and (use_kalman or process_noise(problem) is not None):
+        raise InputError(
+            f"the magnitude-only observable of {', '.join(sorted(magnitude))} is predicted without a "
+            "gyro's process noise (Eq 3-2): turn the gyro off or use the vector observable",
+            key="models",
+        )
     if (method == "whole_span" or warn_batch) and not use_kalman:
         final = predicted_covariance(
             problem, values, names, cons, {k: ~np.asarray(v, bool) for k, v in masks.items()}, A_final, sigma0, sigma_c

@@ -30,6 +30,8 @@ Keys (times in minutes from the plan start; angles in degrees):
 ``NAME.alignment_deg[i]`` mounting angle a_i (i = 1, 2, 3, ICD §2) of sensor NAME
 ``NAME.noise``            noise of sensor NAME (data-book units); ``NAME.KEY`` any numeric
                           scalar data-book key (``IRU.arw``, ``FHST1.fov_deg``, ...)
+``NAME.observable``       vector | magnitude: what magnetometer NAME measures (magnitude:
+                          the seed's attitude-independent CADS observable)
 ``effects``               catalogue effects added to the solve-for set, ``+``-joined
                           (``TAM1.alignment+FHST1.alignment``), or ``none``
 ========================  ==============================================================
@@ -416,6 +418,9 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         if idx is None:
             raise InputError(f"no sensor named '{name}' in the mission", key=f"trade.vary.{key}")
         s = sensors[idx]
+        if field == "observable":
+            sensors[idx] = replace(s, book={**s.book, "observable": observable(s, combo[key], f"trade.vary.{key}")})
+            continue
         x = _num(combo, key)
         if m:
             a = list(s.alignment_deg or (0.0, 0.0, 0.0))
@@ -432,6 +437,20 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
             book[field] = x
             sensors[idx] = replace(s, book=book)
     return replace(spec, sensors=tuple(sensors))
+
+
+#: what a magnetometer measures in a plan: the field vector (the default) or its magnitude
+#: alone (the seed's attitude-independent CADS observable, :mod:`gcs_core.predictor.magnitude`)
+OBSERVABLES = ("vector", "magnitude")
+
+
+def observable(sensor, value, key: str) -> str:
+    """A magnetometer's ``observable`` (:data:`OBSERVABLES`), refused for other sensors."""
+    if sensor.type != "magnetometer":
+        raise InputError(f"only a magnetometer has an observable, not the {sensor.type} {sensor.name}", key=key)
+    if value not in OBSERVABLES:
+        raise InputError(f"must be one of {', '.join(OBSERVABLES)}, not {value!r}", key=key)
+    return str(value)
 
 
 def element_override(cfg: AnalysisConfig, name: str, **kw) -> AnalysisConfig:
