@@ -8,7 +8,12 @@ allowed ``rates``.
 
 Plan space. Spans from :data:`SPANS_H` up to the budget; no maneuver, or a sequence of
 one maneuver per allowed axis (one axis, or two, in the order given), each
-:data:`SLEW_MINUTES` long at an allowed rate, flown back to back and centred in the span.
+:data:`SLEW_MINUTES` long at an allowed rate, flown back to back and centred in the span;
+the same data split into ``passes`` passes (2 or more, budget ``passes``) separated by
+:data:`SEPARATIONS_MIN`; and, where the operator controls it (budget ``starts``), the
+start phase in the orbit [min from the plan's start]. What the search did not control
+(the start phase when ``starts`` is not given) is reported afterwards
+(:mod:`gcs_core.trade.robustness`): the chosen plan's σ over the orbit.
 A plan meets a target when its predicted σ is below the limit by the margin
 (:data:`MARGIN`, the accuracy the predictor is held to against Monte Carlo), so the
 flown plan still meets it if the true σ is that much above the prediction. Cost is
@@ -40,6 +45,8 @@ from gcs_core.trade.study import PlanRow, StudyDefinition, evaluate_plans, targe
 from gcs_core.units import ARCSEC, DEG
 
 SPANS_H = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
+#: gaps between passes of a split plan [min]
+SEPARATIONS_MIN = (15.0, 30.0, 45.0)
 SLEW_MINUTES = (1.0, 2.0, 3.0, 5.0, 7.5, 10.0, 15.0, 20.0, 30.0)
 DEFAULT_RATES = (0.05, 0.1, 0.2)
 #: a target is met when σ·(1 + MARGIN) is below its limit
@@ -94,10 +101,20 @@ class Budget:
     hours: float = 2.0
     axes: tuple[str, ...] = AXES
     rates: tuple[float, ...] = DEFAULT_RATES
+    #: start phases the operator can choose [min from the plan's start]; () = not controlled
+    starts: tuple[float, ...] = ()
+    #: numbers of passes the data may be split into (1 = one continuous pass)
+    passes: tuple[int, ...] = (1,)
 
     @classmethod
-    def from_mapping(cls, d: Mapping[str, Any], *, slew_min=None, hours=None, axes=None, rates=None) -> Budget:
+    def from_mapping(
+        cls, d: Mapping[str, Any], *, slew_min=None, hours=None, axes=None, rates=None, starts=None, passes=None
+    ) -> Budget:
         b = cls()
+        d = dict(d)
+        for key, v in (("starts", starts), ("passes", passes)):
+            if v is not None:
+                d[key] = v.split(",") if isinstance(v, str) else v
         sm = slew_min if slew_min is not None else d.get("slew_min", b.slew_min)
         hr = hours if hours is not None else d.get("hours", b.hours)
         ax = axes if axes is not None else d.get("axes", b.axes)
@@ -111,7 +128,14 @@ class Budget:
             raise InputError(f"axes must be among {', '.join(AXES)}, not {ax!r}", key="trade.optimize.budget.axes")
         if not (float(sm) >= 0 and float(hr) > 0) or any(r == 0 for r in rt):
             raise InputError("slew_min ≥ 0, hours > 0 and rates ≠ 0 are needed", key="trade.optimize.budget")
-        return cls(float(sm), float(hr), ax, rt)
+        try:
+            st = tuple(float(x) for x in d.get("starts", ()))
+            ps = tuple(int(x) for x in d.get("passes", (1,)))
+        except (TypeError, ValueError):
+            raise InputError("starts [min] and passes must be lists of numbers", key="trade.optimize.budget") from None
+        if any(p < 1 for p in ps) or any(x < 0 for x in st):
+            raise InputError("passes ≥ 1 and starts ≥ 0 are needed", key="trade.optimize.budget")
+        return cls(float(sm), float(hr), ax, rt, st, ps or (1,))
 
 
 def candidates(budget: Budget) -> list[dict[str, Any]]:
@@ -130,9 +154,26 @@ def candidates(budget: Budget) -> list[dict[str, Any]]:
     for (slew, seq), h in itertools.product(seqs, spans):
         if slew > 60.0 * h:
             continue
-        out.append({"span_min": 60.0 * h, "maneuvers": seq})
-    out.sort(key=lambda c: (_slew(c), c["span_min"], c["maneuvers"]))
+        for n in budget.passes:
+            if n == 1:
+                shapes: list[dict[str, Any]] = [{"span_min": 60.0 * h}]
+            else:
+                pass_min = 60.0 * h / n
+                if slew > pass_min:  # the slews fly inside one pass
+                    continue
+                shapes = [{"passes": n, "pass_min": pass_min, "separation_min": sep} for sep in SEPARATIONS_MIN]
+            for shape in shapes:
+                for start in budget.starts or (None,):
+                    c = {**shape, "maneuvers": seq}
+                    if start is not None:
+                        c["start_min"] = start
+                    out.append(c)
+    out.sort(key=lambda c: (_slew(c), _data_min(c), c.get("passes", 1), c["maneuvers"], c.get("start_min", 0.0)))
     return out
+
+
+def _data_min(c) -> float:
+    return c["span_min"] if "span_min" in c else c["passes"] * c["pass_min"]
 
 
 def _slew(c) -> float:
@@ -157,7 +198,9 @@ class OptimizeResult:
         out = [
             "targets: " + ", ".join(t.text for t in self.targets),
             f"budget: ≤ {self.budget.slew_min:g} min of slewing, ≤ {self.budget.hours:g} h of data, "
-            f"axes {','.join(self.budget.axes)}, rates {','.join(f'{r:g}' for r in self.budget.rates)} deg/s",
+            f"axes {','.join(self.budget.axes)}, rates {','.join(f'{r:g}' for r in self.budget.rates)} deg/s, "
+            f"passes {','.join(str(p) for p in self.budget.passes)}, start "
+            + (f"{','.join(f'{x:g}' for x in self.budget.starts)} min" if self.budget.starts else "not controlled"),
             f"{self.searched} plans predicted",
         ]
         row = self.best
@@ -263,6 +306,10 @@ def optimize(
     if chosen is not None:
         res.config = plan_config(cfg, chosen)
         res.why = why_lines(defn, chosen, spec)
+        if not budget.starts:
+            from gcs_core.trade.robustness import start_phase_lines
+
+            res.why += start_phase_lines(defn, chosen, targets, elements, margin)
     return res
 
 

@@ -110,6 +110,8 @@ def add_commands(add, target) -> None:
     sp.add_argument("--hours", type=float, help="budget: most hours of data")
     sp.add_argument("--axes", help="allowed maneuver axes, e.g. roll,yaw")
     sp.add_argument("--rates", help="allowed maneuver rates [deg/s], e.g. 0.05,0.1")
+    sp.add_argument("--starts", help="start phases the operator can choose [min from the plan start], e.g. 0,30,60")
+    sp.add_argument("--passes", help="numbers of passes the data may be split into, e.g. 1,2")
     sp.add_argument("--write-config", help="write the chosen plan as an analysis config here")
     sp.add_argument("--method", choices=METHODS, help="override the config's method (default whole_span)")
     sp.add_argument("--workers", type=_count, default=0, help="run on a local Dask cluster of N processes")
@@ -208,7 +210,13 @@ def cmd_optimize(args, prog) -> int:
     if not targets:
         raise InputError("give at least one --target ELEMENT<SIGMA", key="trade.optimize.targets")
     budget = Budget.from_mapping(
-        opt.get("budget", {}), slew_min=args.slew_min, hours=args.hours, axes=args.axes, rates=args.rates
+        opt.get("budget", {}),
+        slew_min=args.slew_min,
+        hours=args.hours,
+        axes=args.axes,
+        rates=args.rates,
+        starts=args.starts,
+        passes=args.passes,
     )
     with prog.task("searching the plan space", total=None) as task:
         res = optimize(
