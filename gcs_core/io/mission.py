@@ -29,6 +29,7 @@ from gcs_core import toml_values
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
 from gcs_core.io.orbit_spec import earth_rate, ephemeris_or_orbit, ground_position
+from gcs_core.io.plan_sensor import PLAN_SENSOR_KEYS, plan_keys
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
 
@@ -150,10 +151,6 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 #: keys every [[sensor]] table may hold besides its type's data-book keys.
 COMMON_KEYS = ("name", "type", "telemetry", "alignment_deg")
 _TOP_TABLES = ("mission", "ephemeris", "orbit", "aux", "onboard_attitude", "sensor")
-#: [[sensor]] keys of a plan file only (docs/planning.md): the frame spacing [s], the
-#: sensor's own data gaps [[t0, t1], ...] [s since the epoch] and a magnetometer's
-#: observable ("vector" or "magnitude", gcs_core.predictor.magnitude)
-PLAN_SENSOR_KEYS = ("cadence", "gaps", "observable")
 _MISSION_KEYS = ("name", "epoch", "attitude_mode", "spin_axis_guess_deg")
 
 
@@ -293,7 +290,7 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str, planning
         else:
             book[key] = spec.default
     if planning:
-        book.update(_plan_keys(ctx, raw, base, index))
+        book.update(plan_keys(ctx, raw, base, index))
     extra = PLAN_SENSOR_KEYS if planning else ()
     unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known and k not in extra)
     for k in unknown:
@@ -309,38 +306,6 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str, planning
         book=book,
         unknown_keys=unknown,
     )
-
-
-def _plan_keys(ctx: Ctx, raw: dict, base: str, index: int) -> dict[str, Any]:
-    """A plan's ``cadence`` (> 0 s) and ``gaps`` ([[t0, t1], ...] with t0 < t1) of one sensor."""
-    out: dict[str, Any] = {}
-    if "cadence" in raw:
-        c = number(ctx, raw["cadence"], f"{base}.cadence", "sensor", index, "cadence")
-        if not c > 0:
-            raise ctx.error(f"must be > 0 s, not {c:g}", f"{base}.cadence", "sensor", index, "cadence")
-        out["cadence"] = c
-    if "observable" in raw:
-        out["observable"] = string(ctx, raw["observable"], f"{base}.observable", "sensor", index, "observable")
-        if out["observable"] not in ("vector", "magnitude") or raw.get("type") != "magnetometer":
-            raise ctx.error(
-                'a magnetometer\'s observable is "vector" or "magnitude"',
-                f"{base}.observable",
-                "sensor",
-                index,
-                "observable",
-            )
-    if "gaps" in raw:
-        g = raw["gaps"]
-        if not isinstance(g, list):
-            raise ctx.error("must be a list of [t0, t1] pairs [s]", f"{base}.gaps", "sensor", index, "gaps")
-        pairs = []
-        for k, pair in enumerate(g, start=1):
-            a, b = numbers(ctx, pair, 2, f"{base}.gaps[{k}]", "sensor", index, "gaps")
-            if not a < b:
-                raise ctx.error(f"needs t0 < t1, not [{a:g}, {b:g}]", f"{base}.gaps[{k}]", "sensor", index, "gaps")
-            pairs.append((a, b))
-        out["gaps"] = tuple(pairs)
-    return out
 
 
 def _check_links(ctx: Ctx, sensors: list[SensorSpec]) -> None:
