@@ -171,9 +171,11 @@ def cmd_trade(args, prog) -> int:
     _out("error budget of the best plans (σ = noise ⊕ consider elements):")
     for line in budget_lines(rows, defn.top):
         _out(line)
-    warned = sorted({w for r in rows for w in r.warnings})
-    for w in warned:
-        sys.stderr.write(f"gcs: warning: {w}\n")
+    warned = [r for r in rows if r.warnings]
+    if warned:  # one line for the study: the first plan's numbers and how many plans warn
+        sys.stderr.write(
+            f"gcs: warning: {len(warned)} of {len(rows)} plans, e.g. {warned[0].plan_id}: {warned[0].warnings[0]}\n"
+        )
     if output is not None:
         _out(f"\n{len(rows)} plans in {output}")
     if args.plot:
