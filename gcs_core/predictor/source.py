@@ -119,6 +119,9 @@ def base_plan(cfg: AnalysisConfig, spec: MissionSpec) -> DataPlan:
     (or 0), with each sensor's own ``gaps``."""
     start = 0.0 if cfg.prediction.start is None else cfg.prediction.start
     plan = DataPlan.from_config(cfg, span=(start, start + DEFAULT_SPAN_S))
+    if plan.catalog is not None and not plan.catalog.is_absolute():
+        # the config joined it to its mission directory, itself relative to where gcs runs
+        plan = replace(plan, catalog=plan.catalog.resolve())
     own = {s.name: tuple(s.get("gaps")) for s in spec.sensors if s.get("gaps")}
     return replace(plan, sensor_gaps=own) if own else plan
 

@@ -195,3 +195,11 @@ def test_magnitude_only_tam_observable_is_a_choice_and_weaker_than_the_vector():
     assert all(r.status == "ok" for r in rows)
     for span in (10, 95):
         assert sig[("magnitude", span)] > 1.05 * sig[("vector", span)], sig
+
+
+def test_a_relative_config_path_finds_its_star_catalog(monkeypatch):
+    """The catalog of a config named relative to the working directory is read once, there
+    (the bundled optimizer study: a catalog beside the studies)."""
+    monkeypatch.chdir(ROOT)
+    src = load_source("sample_data/trade/optimize-tam-fhst.toml")
+    assert src.catalog is not None and len(src.catalog) > 0
