@@ -32,6 +32,8 @@ Keys (times in minutes from the plan start; angles in degrees):
                           scalar data-book key (``IRU.arw``, ``FHST1.fov_deg``, ...)
 ``NAME.observable``       vector | magnitude: what magnetometer NAME measures (magnitude:
                           the seed's attitude-independent CADS observable)
+``NAME.window_min``       ``"A:B"``: sensor NAME delivers data only from A to B minutes
+                          after the plan start (a per-sensor data window)
 ``effects``               catalogue effects added to the solve-for set, ``+``-joined
                           (``TAM1.alignment+FHST1.alignment``), or ``none``
 ========================  ==============================================================
@@ -293,6 +295,7 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan, combo: Ma
         step=min(base_plan.step, span),
     )
     plan = _maneuver(plan, combo, base_plan)
+    plan = _windows(plan, combo, base_plan)
 
     models = dict(cfg.models)
     for s in spec.sensors:
@@ -418,6 +421,8 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         if idx is None:
             raise InputError(f"no sensor named '{name}' in the mission", key=f"trade.vary.{key}")
         s = sensors[idx]
+        if field == WINDOW:
+            continue  # the plan's, not the sensor's (_windows)
         if field == "observable":
             sensors[idx] = replace(s, book={**s.book, "observable": observable(s, combo[key], f"trade.vary.{key}")})
             continue
@@ -437,6 +442,34 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
             book[field] = x
             sensors[idx] = replace(s, book=book)
     return replace(spec, sensors=tuple(sensors))
+
+
+#: the data-book-like key of a sensor's data window (``NAME.window_min = "A:B"``)
+WINDOW = "window_min"
+
+
+def _windows(plan: DataPlan, combo: Mapping[str, Any], base: DataPlan) -> DataPlan:
+    """``NAME.window_min = "A:B"``: sensor NAME delivers data only from A to B minutes after
+    the plan's start (its own gaps before and after; the base plan's gaps of the sensor
+    move with the start like the others)."""
+    shift = plan.start - base.start
+    own = {k: tuple((a + shift, b + shift) for a, b in v) for k, v in base.sensor_gaps.items()}
+    for key, value in combo.items():
+        name, _, field = key.rpartition(".")
+        if field != WINDOW:
+            continue
+        text = str(value).replace(" ", "")
+        try:
+            a, b = (60.0 * float(x) for x in text.split(":"))
+        except ValueError:
+            raise InputError(
+                f'a window is "START:END" in minutes from the plan start, not {value!r}', key=f"trade.vary.{key}"
+            ) from None
+        if not 0.0 <= a < b:
+            raise InputError(f"a window needs 0 ≤ START < END, not {value!r}", key=f"trade.vary.{key}")
+        gaps = [g for g in ((plan.start, plan.start + a), (plan.start + b, plan.end + 1.0)) if g[1] > g[0]]
+        own[name] = own.get(name, ()) + tuple(gaps)
+    return replace(plan, sensor_gaps=own) if own else plan
 
 
 #: what a magnetometer measures in a plan: the field vector (the default) or its magnitude

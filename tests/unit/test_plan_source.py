@@ -203,3 +203,14 @@ def test_a_relative_config_path_finds_its_star_catalog(monkeypatch):
     monkeypatch.chdir(ROOT)
     src = load_source("sample_data/trade/optimize-tam-fhst.toml")
     assert src.catalog is not None and len(src.catalog) > 0
+
+
+def test_a_sensor_window_is_its_own_gaps_before_and_after():
+    from gcs_core.trade import space
+
+    src = load_source(TRADE / "smm-fhst.toml")
+    setup = space.apply(src.config, src.spec, src.plan, {"FHST2.window_min": "10:20", "start_min": 30})
+    t0 = 1800.0
+    assert setup.plan.sensor_gaps["FHST2"] == ((t0, t0 + 600.0), (t0 + 1200.0, setup.plan.end + 1.0))
+    assert not setup.plan.in_gap([t0 + 900.0], "FHST2")[0] and setup.plan.in_gap([t0 + 300.0], "FHST2")[0]
+    assert not setup.plan.in_gap([t0 + 300.0], "FHST1")[0]
