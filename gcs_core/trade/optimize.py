@@ -105,13 +105,30 @@ class Budget:
     starts: tuple[float, ...] = ()
     #: numbers of passes the data may be split into (1 = one continuous pass)
     passes: tuple[int, ...] = (1,)
+    #: sensor -> the most minutes of data it may deliver (a per-sensor window, placed at
+    #: the start, the middle or the end of the plan by the search)
+    windows: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
     def from_mapping(
-        cls, d: Mapping[str, Any], *, slew_min=None, hours=None, axes=None, rates=None, starts=None, passes=None
+        cls,
+        d: Mapping[str, Any],
+        *,
+        slew_min=None,
+        hours=None,
+        axes=None,
+        rates=None,
+        starts=None,
+        passes=None,
+        windows=None,
     ) -> Budget:
         b = cls()
         d = dict(d)
+        if windows is not None:  # "FHST2=10,FSS1=20" from the command line
+            pairs = [w.split("=", 1) for w in windows.split(",")] if isinstance(windows, str) else windows.items()
+            if any(len(p) != 2 for p in pairs):
+                raise InputError("--windows takes SENSOR=MINUTES[,SENSOR=MINUTES]", key="trade.optimize.budget.windows")
+            d["windows"] = {str(k).strip(): v for k, v in pairs}
         for key, v in (("starts", starts), ("passes", passes)):
             if v is not None:
                 d[key] = v.split(",") if isinstance(v, str) else v
@@ -131,11 +148,14 @@ class Budget:
         try:
             st = tuple(float(x) for x in d.get("starts", ()))
             ps = tuple(int(x) for x in d.get("passes", (1,)))
+            wn = {str(k): float(v) for k, v in dict(d.get("windows", {})).items()}
         except (TypeError, ValueError):
-            raise InputError("starts [min] and passes must be lists of numbers", key="trade.optimize.budget") from None
-        if any(p < 1 for p in ps) or any(x < 0 for x in st):
-            raise InputError("passes ≥ 1 and starts ≥ 0 are needed", key="trade.optimize.budget")
-        return cls(float(sm), float(hr), ax, rt, st, ps or (1,))
+            raise InputError(
+                "starts [min], passes and windows {SENSOR = minutes} must be numbers", key="trade.optimize.budget"
+            ) from None
+        if any(p < 1 for p in ps) or any(x < 0 for x in st) or any(not w > 0 for w in wn.values()):
+            raise InputError("passes ≥ 1, starts ≥ 0 and windows > 0 are needed", key="trade.optimize.budget")
+        return cls(float(sm), float(hr), ax, rt, st, ps or (1,), wn)
 
 
 def candidates(budget: Budget) -> list[dict[str, Any]]:
@@ -167,8 +187,28 @@ def candidates(budget: Budget) -> list[dict[str, Any]]:
                     c = {**shape, "maneuvers": seq}
                     if start is not None:
                         c["start_min"] = start
-                    out.append(c)
+                    out.extend(_windowed(c, budget.windows))
     out.sort(key=lambda c: (_slew(c), _data_min(c), c.get("passes", 1), c["maneuvers"], c.get("start_min", 0.0)))
+    return out
+
+
+#: where a sensor's window goes in the plan: at its start, its middle, its end
+WINDOW_PLACES = (0.0, 0.5, 1.0)
+
+
+def _windowed(c: dict[str, Any], windows: Mapping[str, float]) -> list[dict[str, Any]]:
+    """``c`` with every placement of each windowed sensor's data (budget ``windows``)."""
+    out = [c]
+    span = _data_min(c) if "span_min" in c else c["passes"] * c["pass_min"] + (c["passes"] - 1) * c["separation_min"]
+    for name, minutes in windows.items():
+        if minutes >= span:
+            continue
+        placed = []
+        for x in out:
+            for f in WINDOW_PLACES:
+                a = f * (span - minutes)
+                placed.append({**x, f"{name}.window_min": f"{a:g}:{a + minutes:g}"})
+        out = placed
     return out
 
 
@@ -200,7 +240,8 @@ class OptimizeResult:
             f"budget: ≤ {self.budget.slew_min:g} min of slewing, ≤ {self.budget.hours:g} h of data, "
             f"axes {','.join(self.budget.axes)}, rates {','.join(f'{r:g}' for r in self.budget.rates)} deg/s, "
             f"passes {','.join(str(p) for p in self.budget.passes)}, start "
-            + (f"{','.join(f'{x:g}' for x in self.budget.starts)} min" if self.budget.starts else "not controlled"),
+            + (f"{','.join(f'{x:g}' for x in self.budget.starts)} min" if self.budget.starts else "not controlled")
+            + "".join(f", {k} ≤ {v:g} min of data" for k, v in self.budget.windows.items()),
             f"{self.searched} plans predicted",
         ]
         row = self.best

@@ -221,6 +221,7 @@ class PlanSetup:
                 for m in p.maneuvers
             ],
             "stars": p.stars,
+            "sensor_gaps": {k: [list(g) for g in v] for k, v in p.sensor_gaps.items()},
             "attitude_mode": self.spec.attitude_mode,
             "sensors": {
                 s.name: {

@@ -112,6 +112,7 @@ def add_commands(add, target) -> None:
     sp.add_argument("--rates", help="allowed maneuver rates [deg/s], e.g. 0.05,0.1")
     sp.add_argument("--starts", help="start phases the operator can choose [min from the plan start], e.g. 0,30,60")
     sp.add_argument("--passes", help="numbers of passes the data may be split into, e.g. 1,2")
+    sp.add_argument("--windows", help="sensors' most minutes of data, placed by the search, e.g. FHST2=10")
     sp.add_argument("--write-config", help="write the chosen plan as an analysis config here")
     sp.add_argument("--method", choices=METHODS, help="override the config's method (default whole_span)")
     sp.add_argument("--workers", type=_count, default=0, help="run on a local Dask cluster of N processes")
@@ -219,6 +220,7 @@ def cmd_optimize(args, prog) -> int:
         rates=args.rates,
         starts=args.starts,
         passes=args.passes,
+        windows=args.windows,
     )
     with prog.task("searching the plan space", total=None) as task:
         res = optimize(
@@ -235,6 +237,8 @@ def cmd_optimize(args, prog) -> int:
     if res.best is not None and res.config is not None and args.write_config:
         path = save_config(res.config, Path(args.write_config))
         _out(f"plan written to {path} (gcs montecarlo {path} checks it)")
+        if res.best.description.get("sensor_gaps"):
+            _out("note: the sensors' own windows are not in a config; give them as [[sensor]] gaps of a plan file")
     return EXIT_OK if res.best is not None else EXIT_FLAG
 
 

@@ -67,3 +67,10 @@ def test_optimizer_searches_start_phase_and_passes_and_reports_the_orbit_depende
     text = "\n".join(free.lines())
     assert "not controlled, the start in the orbit" in text, text
     assert "target met at" in text
+
+
+def test_per_sensor_windows_are_placed_by_the_search():
+    c = candidates(Budget(hours=0.5, windows={"FHST2": 10.0}))
+    windows = {x["FHST2.window_min"] for x in c if x["span_min"] == 30.0}
+    assert windows == {"0:10", "10:20", "20:30"}
+    assert all("FHST2.window_min" not in x for x in c if x["span_min"] <= 10.0)
