@@ -30,8 +30,7 @@ The analysis config's planning tables (:mod:`gcs_core.config` reads them with th
     mean_anomaly_deg = 10.0
     [trade.optimize]
     targets = ["TAM1.alignment<0.01deg", "FHST1.misalignment<10arcsec"]
-    budget = {slew_min = 10.0, hours = 2.0, axes = ["roll", "yaw"], rates = [0.1],
-              passes = [1, 2], starts = [0, 30, 60]}   # passes and start phase [min] searched
+    budget = {slew_min = 10.0, hours = 2.0, axes = ["roll", "yaw"], rates = [0.1], passes = [1, 2]}
 
     [montecarlo]                  # gcs montecarlo
     runs = 100
