@@ -382,6 +382,9 @@ PLANNING_TABLES: dict[str, tuple[str, ...]] = {
     "trade": ("vary", "targets", "orbit", "top", "output", "optimize"),
     "montecarlo": ("runs", "seed", "output"),
 }
+#: a plan (docs/planning.md) carries its mission description in the config itself: these
+#: tables are mission.toml's, read by :func:`gcs_core.io.mission.read_mission_spec`
+PLAN_MISSION_TABLES = ("mission", "sensor", "orbit", "ephemeris")
 #: the tables of a config and the keys each holds (from the dataclasses' fields)
 TABLES: dict[str, tuple[str, ...]] = {
     "analysis": ANALYSIS_KEYS,
@@ -433,13 +436,25 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     """Validate the TOML tables of a config (relative paths resolve against ``path``'s folder)."""
     f = path
     _require(isinstance(data, dict), "", "a config is a TOML document of tables", f)
-    _unknown(data, {**TABLES, **PLANNING_TABLES}, "", f)
+    _unknown(data, {**TABLES, **PLANNING_TABLES, **dict.fromkeys(PLAN_MISSION_TABLES)}, "", f)
     tables = {name: _table(data, name, name, f) for name in {**TABLES, **PLANNING_TABLES}}
 
     an = tables["analysis"]
     _unknown(an, TABLES["analysis"], "analysis.", f)
-    _require("mission" in an, "analysis.mission", "missing: name the mission directory", f)
-    mission_s = an["mission"]
+    plan_file = "mission" in data  # a plan: its own [mission] and [[sensor]] tables
+    _require(
+        not (plan_file and "mission" in an),
+        "analysis.mission",
+        "give a mission directory or the plan's own [mission] tables, not both",
+        f,
+    )
+    _require(
+        "mission" in an or (plan_file and path is not None),
+        "analysis.mission",
+        "missing: name the mission directory (or describe the mission in [mission] and [[sensor]] tables)",
+        f,
+    )
+    mission_s = str(path) if plan_file else an["mission"]
     _require(
         isinstance(mission_s, str) and mission_s.strip() != "" and "\0" not in mission_s,
         "analysis.mission",
@@ -483,7 +498,8 @@ def config_from_dict(data: dict, *, path: Path | None = None) -> AnalysisConfig:
     _unknown(dg, TABLES["diagnosis"], "diagnosis.", f)
     pr = tables["prediction"]
     _unknown(pr, TABLES["prediction"], "prediction.", f)
-    prediction = read_prediction(pr, mission, f)
+    # a plan file's catalog sits beside the plan, a mission's in its directory
+    prediction = read_prediction(pr, mission.parent if plan_file else mission, f)
     vf = tables["verification"]
     _unknown(vf, TABLES["verification"], "verification.", f)
     for extra, keys in PLANNING_TABLES.items():

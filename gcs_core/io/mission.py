@@ -30,6 +30,7 @@ from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
 from gcs_core.io.inputs import check_directory_readable, refuse_unreadable
 from gcs_core.io.orbit_spec import GROUND_KEYS, ORBIT_KEYS, earth_rate, ephemeris_or_orbit, ground_position
+from gcs_core.io.plan_sensor import PLAN_SENSOR_KEYS, plan_keys
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string
 from gcs_core.io.types import ATTITUDE_MODES, SENSOR_TYPES, MissionSpec, SensorSpec
 from gcs_core.suggest import closest, did_you_mean, did_you_mean_path
@@ -214,11 +215,11 @@ def unknown_key_hint(key: str) -> str:
     return did_you_mean(last, known)
 
 
-def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> SensorSpec:
+def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str, planning: bool = False) -> SensorSpec:
     base = f"sensor[{index}]"
     if not isinstance(raw, dict):
         raise ctx.error("must be a table ([[sensor]])", base, "sensor", index)
-    for key in ("name", "type", "telemetry"):
+    for key in ("name", "type") if planning else ("name", "type", "telemetry"):
         if key not in raw:
             who = repr(raw["name"]) if isinstance(raw.get("name"), str) else "without a name"
             raise ctx.error(
@@ -258,15 +259,20 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
             index,
             "type",
         )
-    telemetry = existing_file(
-        ctx,
-        root,
-        raw.get("telemetry"),
-        f"{base}.telemetry",
-        "sensor",
-        f"telemetry (sensor {name!r})",
-        index,
-        "telemetry",
+    # a plan (planning=True) has no telemetry: the path is where it would be, never read
+    telemetry = (
+        root / "telemetry" / f"{name}.csv"
+        if planning and "telemetry" not in raw
+        else existing_file(
+            ctx,
+            root,
+            raw.get("telemetry"),
+            f"{base}.telemetry",
+            "sensor",
+            f"telemetry (sensor {name!r})",
+            index,
+            "telemetry",
+        )
     )
     alignment: tuple[float, float, float] | None = None
     if "alignment_deg" in raw:
@@ -313,7 +319,10 @@ def _read_sensor(ctx: Ctx, root: Path, raw: Any, index: int, mode: str) -> Senso
             )
         elif key not in NOISE_CORRELATION_KEYS:  # absent: white noise, nothing stored
             book[key] = spec.default
-    unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known)
+    if planning:
+        book.update(plan_keys(ctx, raw, base, index))
+    extra = PLAN_SENSOR_KEYS if planning else ()
+    unknown = tuple(k for k in raw if k not in COMMON_KEYS and k not in known and k not in extra)
     for k in unknown:
         book[k] = _plain(raw[k])
         log.warning(
@@ -364,12 +373,16 @@ def _load_toml(path: Path) -> tuple[dict, str]:
     return toml_values.loads(text, path, InputError), text
 
 
-def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
+def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False) -> MissionSpec:
     """Read and check ``mission.toml`` (ICD §3, §5).
 
     Parameters
     ----------
     mission_dir : the mission directory, or the mission.toml file itself.
+    planning : the file is a plan (docs/planning.md): an analysis config that holds its own
+        ``[mission]`` and ``[[sensor]]`` tables. Sensors need no telemetry and may give a
+        ``cadence`` and their own ``gaps``; the orbit may be left to ``[trade.orbit]``
+        (neither ``[ephemeris]`` nor ``[orbit]``); the config's tables are not reported.
 
     Returns
     -------
@@ -398,7 +411,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         )
     doc, text = _load_toml(path)
     ctx = Ctx(path, Locator(text))
-    unknown: list[str] = [k for k in doc if k not in _TOP_TABLES]
+    unknown: list[str] = [k for k in doc if k not in _TOP_TABLES and not planning]
 
     m = doc.get("mission")
     if not isinstance(m, dict):
@@ -455,6 +468,8 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
         ground = ground_position(ctx, e, mode, unknown)
         earth = earth_rate(ctx, e)
         ephemeris = None
+    elif planning and "ephemeris" not in doc and "orbit" not in doc:
+        ephemeris, orbit = None, {}  # the orbit is the plan's [trade.orbit]
     else:
         ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
     aux = optional_file(ctx, root, doc, "aux", unknown)
@@ -468,7 +483,7 @@ def read_mission_spec(mission_dir: str | os.PathLike) -> MissionSpec:
     sensors: list[SensorSpec] = []
     seen: dict[str, int] = {}
     for index, raw in enumerate(raw_sensors, start=1):
-        s = _read_sensor(ctx, root, raw, index, mode)
+        s = _read_sensor(ctx, root, raw, index, mode, planning)
         if s.name in seen:
             raise ctx.error(
                 f"sensor name {s.name!r} is used twice (sensor[{seen[s.name]}] "

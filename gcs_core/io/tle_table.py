@@ -36,9 +36,28 @@ def tle_ephemeris_table(
 ) -> Table:
     """An ephemeris table (ICD §4 columns) propagated from a TLE over ``[t_start, t_end]``
     widened by ``margin_s``, every ``step_s`` seconds (the last row on the end exactly)."""
+    line1, line2 = read_tle(tle_file)
+    return tle_lines_table(
+        line1, line2, epoch, t_start, t_end, frame=frame, step_s=step_s, margin_s=margin_s, tle_file=tle_file
+    )
+
+
+def tle_lines_table(
+    line1: str,
+    line2: str,
+    epoch,
+    t_start: float,
+    t_end: float,
+    *,
+    frame: str = "teme",
+    step_s: float = DEFAULT_STEP_S,
+    margin_s: float = MARGIN_S,
+    tle_file: str | os.PathLike = "TLE",
+) -> Table:
+    """:func:`tle_ephemeris_table` of two element lines already read (a plan ships them to
+    the workers of a cluster instead of the file's path)."""
     if not 0.0 < step_s <= 60.0:
         raise InputError(f"step_s must be in (0, 60] s (ICD §4), not {step_s:g}", key="orbit.step_s")
-    line1, line2 = read_tle(tle_file)
     orbit = TleOrbit(line1, line2, epoch)
     lo, hi = float(t_start) - margin_s, float(t_end) + margin_s
     jd_lo, jd_hi = timescale.julian_date(epoch, np.array([lo, hi]))

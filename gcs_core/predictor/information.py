@@ -206,4 +206,4 @@ def final_information(rows: Sequence[tuple[np.ndarray, np.ndarray]], k: int, t_e
 
 def masks_in(plan, problem) -> Mapping[str, np.ndarray]:
     """Frames of ``problem`` inside the plan span and outside its gaps."""
-    return {sd.name: plan.in_span(sd.t) & ~plan.in_gap(sd.t) for sd in problem.sensors}
+    return {sd.name: plan.in_span(sd.t) & ~plan.in_gap(sd.t, sd.name) for sd in problem.sensors}

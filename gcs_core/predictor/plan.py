@@ -70,6 +70,8 @@ class DataPlan:
         star per frame spread evenly over the field of view (no catalog at all).
     catalog : the star catalog file of ``stars = "catalog"``; a relative path is taken
         from the mission directory; None: the mission's ``star_catalog.csv``.
+    sensor_gaps : sensor name -> its own ``(t0, t1)`` gaps, on top of ``gaps`` (a plan's
+        ``[[sensor]] gaps``: a tracker blinded by the Earth, a Sun sensor switched off).
     """
 
     start: float
@@ -83,6 +85,7 @@ class DataPlan:
     frames: str = "plan"
     stars: str = "sky"
     catalog: Path | None = None
+    sensor_gaps: Mapping[str, tuple[tuple[float, float], ...]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.start) and math.isfinite(self.end) and self.end > self.start):
@@ -98,6 +101,10 @@ class DataPlan:
         for g in self.gaps:
             if len(g) != 2 or not g[0] < g[1]:
                 raise InputError(f"a gap must be [t0, t1] with t0 < t1, got {g!r}", key="prediction.gaps")
+        for name, gs in self.sensor_gaps.items():
+            for g in gs:
+                if len(g) != 2 or not g[0] < g[1]:
+                    raise InputError(f"a gap must be [t0, t1] with t0 < t1, got {g!r}", key=f"{name}.gaps")
         for i, m in enumerate(self.maneuvers):
             if m.axis not in AXES:
                 raise InputError(f"axis must be one of {', '.join(AXES)}", key=f"prediction.maneuvers[{i}].axis")
@@ -178,11 +185,12 @@ class DataPlan:
         n = int(math.floor((self.end - t0) / cadence + 1e-9))
         return t0 + cadence * np.arange(n + 1, dtype=float)
 
-    def in_gap(self, t) -> np.ndarray:
-        """(N,) True where ``t`` lies in a data gap ``[t0, t1)``."""
+    def in_gap(self, t, sensor: str | None = None) -> np.ndarray:
+        """(N,) True where ``t`` lies in a data gap ``[t0, t1)`` (with ``sensor``: in one of
+        the plan's gaps or that sensor's own)."""
         t = np.asarray(t, dtype=float)
         mask = np.zeros(t.shape, dtype=bool)
-        for a, b in self.gaps:
+        for a, b in (*self.gaps, *self.sensor_gaps.get(sensor or "", ())):
             mask |= (t >= a) & (t < b)
         return mask
 

@@ -31,6 +31,7 @@ from gcs_core.ephem.orbit import build_ephemeris
 from gcs_core.errors import InputError
 from gcs_core.estimators.batch.least_squares import name_combinations
 from gcs_core.estimators.registry import estimator
+from gcs_core.estimators.whole_span.grid import process_noise
 from gcs_core.estimators.whole_span.uses import predicted_covariance
 from gcs_core.io.csvio import read_table
 from gcs_core.io.importer import EPHEMERIS_COLUMNS, ImportedMission, load_mission
@@ -38,6 +39,7 @@ from gcs_core.io.tle_table import tle_ephemeris_table
 from gcs_core.io.types import MissionSpec
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
+from gcs_core.predictor.magnitude import magnitude_rows, magnitude_sensors
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
 from gcs_core.problem.attitude import RPY
@@ -82,10 +84,12 @@ class PredictionResult:
     noise_only : (n,) final noise-only 1-σ.
     availability : sensor -> fraction of the plan's cadence slots with a usable frame.
     frames : sensor -> number of usable frames.
-    method : ``"information"`` (Eq 3-2) or ``"kalman"`` (Eq 3-4).
+    method : ``"information"`` (Eq 3-2), ``"kalman"`` (Eq 3-4) or ``"whole_span"`` (Eq 3-2's
+        history, the final covariance the whole-span fit's).
     plan : the data plan.
     unobservable : combinations of elements the data cannot separate (final time).
     prior : (n,) a-priori 1-σ of the solve-for elements.
+    warnings : the batch method's computed warning (:func:`batch_warning`), if any.
     """
 
     times: np.ndarray
@@ -105,6 +109,7 @@ class PredictionResult:
     plan: DataPlan | None = None
     unobservable: tuple[str, ...] = ()
     prior: np.ndarray | None = None
+    warnings: tuple[str, ...] = ()
 
     def index(self, name: str) -> int:
         try:
@@ -169,6 +174,7 @@ class PredictionResult:
             "frames": dict(self.frames),
             "unobservable": list(self.unobservable),
             "undetermined": list(self.undetermined),
+            "warnings": list(self.warnings),
         }
 
     def budget_rows(self) -> list[dict[str, Any]]:
@@ -238,9 +244,11 @@ def _ephemeris(spec: MissionSpec, eph_table, plan: DataPlan, orbit, step: float)
         )
     if orbit is None:
         raise InputError(
-            "no ephemeris for the plan: give the mission's ephemeris.csv or an orbit (KeplerOrbit / TleOrbit)",
+            "no ephemeris for the plan: give the mission's ephemeris.csv, an [orbit] tle or a [trade.orbit] table",
             key="prediction.orbit",
         )
+    if hasattr(orbit, "table"):  # two-line elements of a plan (gcs_core.predictor.source)
+        return Ephemeris.from_table(orbit.table(spec.epoch, plan.start, plan.end, EPHEMERIS_MARGIN_S))
     return build_ephemeris(orbit, spec.epoch, plan.start - EPHEMERIS_MARGIN_S, plan.end + EPHEMERIS_MARGIN_S, step)
 
 
@@ -259,6 +267,7 @@ def predict(
     orbit=None,
     method: str | None = None,
     ephemeris_step: float = 30.0,
+    catalog=None,
 ) -> PredictionResult:
     """Predict the σ of every solve-for element over a data plan (module docstring).
 
@@ -282,6 +291,8 @@ def predict(
         whole-span fit's, the gyro noise carried as process noise
         (:func:`~gcs_core.estimators.whole_span.fit.predicted_covariance`).
     ephemeris_step : tabulation step of an orbit-built ephemeris [s].
+    catalog : the star catalog already read (:class:`~gcs_core.predictor.stars.Catalog`),
+        for ``stars = "catalog"`` without reading a file here.
 
     Returns
     -------
@@ -322,8 +333,16 @@ def predict(
         physics=physics,
         options=state_options(cfg),
         use_gyro=not gyro_off,
+        catalog=catalog,
     )
-    return _run(planned, plan, _method(method, cfg))
+    m = _method(method, cfg)
+    return _run(
+        planned,
+        plan,
+        m,
+        warn_batch=m == "information" and cfg is not None and cfg.method == "batch",
+        magnitude=magnitude_sensors(spec),
+    )
 
 
 def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> PredictionResult:
@@ -340,7 +359,14 @@ def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> Pr
     return _run(planned, plan, method)
 
 
-def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResult:
+def _run(
+    planned: PlannedProblem,
+    plan: DataPlan,
+    method: str,
+    *,
+    warn_batch: bool = False,
+    magnitude: set[str] | frozenset[str] = frozenset(),
+) -> PredictionResult:
     problem, values = planned.problem, planned.values
     state = problem.state
     names = tuple(state.solve_for)
@@ -354,7 +380,8 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
     sigma_c = np.array([state[nm].sigma0 for nm in cons], dtype=float)
     if np.any(~np.isfinite(sigma_c)):
         raise InputError("a consider element needs a finite a-priori sigma", key="state.elements")
-    lins = linearize(problem, values, names + cons)
+    lins: list = linearize(problem, values, names + cons)
+    lins = [magnitude_rows(lin) if lin.name in magnitude else lin for lin in lins]
     rows = [info.weighted_rows(lin, sd.t, masks[sd.name]) for lin, sd in zip(lins, problem.sensors)]
     frames = {sd.name: int(t.size) for (t, _), sd in zip(rows, problem.sensors)}
     A_final = info.final_information(rows, n + len(cons), plan.end)[:n, :n]
@@ -368,15 +395,25 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
         hist = info.static_history(
             A_cum, n, info.prior_information(sigma0), sigma_c, _attitude_partials(problem, values, names, times)
         )
-    if method == "whole_span" and not use_kalman:
+    final = None
+    if magnitude and (use_kalman or process_noise(problem) is not None):
+        raise InputError(
+            f"the magnitude-only observable of {', '.join(sorted(magnitude))} is predicted without a "
+            "gyro's process noise (Eq 3-2): turn the gyro off or use the vector observable",
+            key="models",
+        )
+    if (method == "whole_span" or warn_batch) and not use_kalman:
         final = predicted_covariance(
             problem, values, names, cons, {k: ~np.asarray(v, bool) for k, v in masks.items()}, A_final, sigma0, sigma_c
         )
-        if final is not None:  # the end of the plan: the whole-span covariance
-            P, P_cons, budget = final
-            hist["P"], hist["P_consider"], hist["budget"] = P, P_cons, budget
-            hist["sigma_noise"][-1] = np.sqrt(np.diag(P))
-            hist["sigma"][-1] = np.sqrt(np.diag(P_cons))
+    warnings: tuple[str, ...] = ()
+    if method == "information" and final is not None:
+        warnings = batch_warning(names, hist["sigma_noise"][-1], np.sqrt(np.diag(final[0])))
+    elif method == "whole_span" and final is not None:  # the end of the plan: the whole-span covariance
+        P, P_cons, budget = final
+        hist["P"], hist["P_consider"], hist["budget"] = P, P_cons, budget
+        hist["sigma_noise"][-1] = np.sqrt(np.diag(P))
+        hist["sigma"][-1] = np.sqrt(np.diag(P_cons))
     slots = planned.slots
     availability = {k: (frames.get(k, 0) / slots[k] if slots.get(k) else 0.0) for k in slots if k in frames}
     unobs = tuple(name_combinations(A_final, names, 1e-7))
@@ -394,10 +431,36 @@ def _run(planned: PlannedProblem, plan: DataPlan, method: str) -> PredictionResu
         noise_only=hist["sigma_noise"][-1].copy(),
         availability=availability,
         frames=frames,
-        method="kalman" if use_kalman else "information",
+        method="kalman" if use_kalman else ("whole_span" if method == "whole_span" else "information"),
         plan=plan,
         unobservable=unobs,
         prior=sigma0.copy(),
+        warnings=warnings,
+    )
+
+
+#: the batch's σ understates the whole-span σ (the gyro noise as process noise) by more
+#: than this factor for some element: the plan's batch σ is not to be trusted
+BATCH_UNDERSTATES = 1.1
+
+
+def batch_warning(names, sigma_batch: np.ndarray, sigma_whole_span: np.ndarray) -> tuple[str, ...]:
+    """The computed warning of a plan predicted for the batch method (the fits give the same
+    for data, :meth:`gcs_core.session.Analysis._method_warnings`): the batch takes the
+    gyro-propagated attitude as exact, so where the gyro noise matters its σ is too small.
+    The ratio whole-span σ / batch σ of each element for this plan, when one exceeds
+    :data:`BATCH_UNDERSTATES`."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.asarray(sigma_whole_span, float) / np.asarray(sigma_batch, float)
+    ok = np.isfinite(ratio)
+    if not np.any(ok) or float(np.max(ratio[ok])) <= BATCH_UNDERSTATES:
+        return ()
+    order = [i for i in np.argsort(-np.where(ok, ratio, 0.0)) if ok[i]][:4]
+    worst = ", ".join(f"{names[i]} ×{ratio[i]:.2f}" for i in order)
+    return (
+        "batch method: the gyro noise (not modelled by the batch) makes its predicted σ too "
+        f"small for this plan (σ with the process noise / batch σ: {worst}). Use method = "
+        '"whole_span" (the default) for honest σ.',
     )
 
 

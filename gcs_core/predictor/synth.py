@@ -237,6 +237,7 @@ def plan_problem(
     physics: PhysicsOptions | None = None,
     options: StateOptions | None = None,
     use_gyro: bool = True,
+    catalog=None,
 ) -> PlannedProblem:
     """Headers-only Problem of ``spec`` for ``plan`` (module docstring).
 
@@ -251,6 +252,8 @@ def plan_problem(
         (nominal attitude at ``start``), optional.
     physics, options : as for :func:`~gcs_core.problem.build.build_problem`.
     use_gyro : carry the attitude by the gyro if the mission has one.
+    catalog : the star catalog already read (a plan read on another machine,
+        :mod:`gcs_core.predictor.source`); None: :func:`star_catalog`.
     """
     telemetry = dict(telemetry or {})
     eph.check_covers(np.array([plan.start, plan.end]), what="the prediction plan")
@@ -270,7 +273,8 @@ def plan_problem(
     gyros = [s for s in spec.sensors if s.type == "gyro"]
     gyro = gyros[0] if (gyros and use_gyro and not spinning) else None
     trackers = any(s.type == "star_tracker" for s in spec.sensors)
-    catalog = star_catalog(spec, plan, telemetry) if (trackers and not from_tm) else None
+    if catalog is None or plan.stars != "catalog":
+        catalog = star_catalog(spec, plan, telemetry) if (trackers and not from_tm) else None
 
     tables: dict[str, Table] = {}
     cadence: dict[str, float] = {}
@@ -288,7 +292,7 @@ def plan_problem(
                 tables[s.name] = _gyro_table(s, plan, c, nominal)
             continue
         if from_tm and tab is not None:
-            keep = plan.in_span(tab.t) & ~plan.in_gap(tab.t)
+            keep = plan.in_span(tab.t) & ~plan.in_gap(tab.t, s.name)
             table = _subset(tab, keep)
         else:
             if s.type in SPINNER_TYPES:
@@ -298,7 +302,7 @@ def plan_problem(
                 t = t[t <= plan.end - c - SPINNER_MARGIN_S]
             else:
                 t = plan.grid(c)
-            t = t[~plan.in_gap(t)]
+            t = t[~plan.in_gap(t, s.name)]
             t = t[available(s, t, nominal)] if t.size else t
             stars_I = None
             if s.type == "star_tracker" and catalog is not None:

@@ -4,9 +4,12 @@
 - :mod:`.study` — :class:`StudyDefinition`, the predictor per plan, ranking;
 - :mod:`.run` — :func:`run_study`: a study to its HDF5 results file, resumable;
 - :mod:`.optimize` — the cheapest plan meeting σ targets within a budget;
+  :mod:`.robustness` — how much it depends on the start phase it did not control;
 - :mod:`.montecarlo` — simulate and fit a plan many times, scatter against predicted σ;
 - :mod:`.engine` — serial or Dask execution; :mod:`.store` — the results files.
 
+Every command reads the plan once through :mod:`gcs_core.predictor.source` (one code path,
+one orbit, one estimator: ``whole_span`` unless the config says otherwise; docs/planning.md).
 Nothing here imports Dask unless ``workers`` or ``scheduler`` is given.
 
 The analysis config's planning tables (:mod:`gcs_core.config` reads them with the rest)::
@@ -27,7 +30,7 @@ The analysis config's planning tables (:mod:`gcs_core.config` reads them with th
     mean_anomaly_deg = 10.0
     [trade.optimize]
     targets = ["TAM1.alignment<0.01deg", "FHST1.misalignment<10arcsec"]
-    budget = {slew_min = 10.0, hours = 2.0, axes = ["roll", "yaw"], rates = [0.1]}
+    budget = {slew_min = 10.0, hours = 2.0, axes = ["roll", "yaw"], rates = [0.1], passes = [1, 2]}
 
     [montecarlo]                  # gcs montecarlo
     runs = 100

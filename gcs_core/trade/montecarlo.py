@@ -1,22 +1,36 @@
 """Monte Carlo of a data plan: simulate, fit, and compare the scatter with the predicted σ.
 
-The plan of an analysis config (``[prediction]``: span, gaps, maneuvers) is flown by the
-project's truth simulator (:mod:`gcs_core.sim`, independent physics) with the data book
-as truth, once per run with the noise re-drawn, and each run is fitted with the
-configured method (:meth:`gcs_core.session.Analysis.fit`). Per run ``i`` the simulator's
-seed comes from ``numpy.random.SeedSequence(seed).spawn(runs)[i]`` (entropy and spawn
-key stored with the run: ``--replay i`` recomputes that run alone).
+The plan of an analysis config (``[prediction]``: span, gaps, maneuvers; the sensors' own
+gaps) is flown by the project's truth simulator (:mod:`gcs_core.sim`, independent physics)
+with the data book as truth, once per run with the noise re-drawn, and each run is fitted
+with the configured method (:meth:`gcs_core.session.Analysis.fit`). Per run ``i`` the
+simulator's seed comes from ``numpy.random.SeedSequence(seed).spawn(runs)[i]`` (entropy and
+spawn key stored with the run: ``--replay i`` recomputes that run alone).
+
+Truth drawn from the a priori. The predicted covariance is that of a truth distributed as
+the a priori, ``x ~ N(x̄, P̄)``. Each run draws the estimator's a-priori mean about the
+simulator's truth instead, ``x̄ = x + δ``, ``δ ~ N(0, P̄)`` (the same joint distribution of
+``x̄ − x``, for every element whatever its sensor model): every solve-for element with a
+finite a-priori σ, and every consider element, which the fit then holds at its drawn,
+wrong value. The scatter is therefore compared with the predictor's *total* σ (noise and
+consider elements together) and the NEES with each fit's ``P_consider``.
 
 For each solve-for element the summary compares
 
-* predicted σ: the predictor's noise-only σ for the same plan (Eq 3-2/3-4, no data), with
-  the trackers' stars from the simulator's catalog;
-* Monte-Carlo σ: the sample standard deviation of ``x̂ − x_true`` over the runs;
-* the ratio (1 ± 15 % is the acceptance), the mean error in σ and the fit's own σ;
+* predicted σ: the predictor's σ for the same plan (:func:`gcs_core.predictor.source.predict_source`,
+  the plan read once as every planning command reads it), the trackers' stars from the
+  simulator's catalog;
+* Monte-Carlo σ: the sample standard deviation ``s`` of ``x̂ − x_true`` over the N runs;
+* the ratio ``s / σ`` with its sampling band. ``(N − 1) s² / σ² ~ χ²(N − 1)`` when σ is
+  right, so the ratio of a right prediction lies in ``[sqrt(χ²_{α/2}/(N−1)),
+  sqrt(χ²_{1−α/2}/(N−1))]``; the acceptance (:data:`MATCH_FRACTION`, "within 15 % once its
+  sampling error is allowed for") widens that band by 15 % each way, at a family-wise
+  α = :data:`ALPHA` over the elements compared (Bonferroni);
+* the mean error in σ and the fit's own σ;
 
 and the NEES ``Σ_runs eᵀ P⁻¹ e`` over the elements the plan determines, with its 95 %
-χ² band (Bar-Shalom, Li & Kirubarajan 2001, §5.4.2). With N runs the sample σ itself is
-uncertain by about ``1/sqrt(2(N−1))`` (7 % at 100 runs).
+χ² band (Bar-Shalom, Li & Kirubarajan 2001, §5.4.2). The verdict holds when every
+determined element is inside its band and the NEES inside its own.
 
 Truth: every element is compared with the simulator's value of the *same* quantity in
 the estimator's parameterization. Elements the simulator holds at their data-book value
@@ -31,6 +45,9 @@ whatever the method lets wander:
   ``t_mid`` by that drift;
 * ``kalman``: the walk at ``t_ref`` less the drift of the least-squares line through it;
 * ``batch`` (no wander): the least-squares line through the walk over the fitted span.
+
+A config the runs cannot use (no ``[trade.orbit]``, a spinning mission, an unknown key)
+is refused before the first run: no failed runs are written.
 """
 
 from __future__ import annotations
@@ -39,8 +56,8 @@ import json
 import math
 import tempfile
 import time
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, replace
+from collections.abc import Callable
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -49,9 +66,16 @@ import numpy as np
 from gcs_core.errors import GcsError, InputError
 from gcs_core.estimators.registry import estimator
 from gcs_core.trade import engine, store
+from gcs_core.trade.mc_summary import (
+    ALPHA,
+    CONVERGED,
+    MATCH_FRACTION,
+    MonteCarloResult,
+    ratio_band,
+    summarize,
+    summary_lines,
+)
 
-#: the acceptance band of predicted against Monte-Carlo σ
-MATCH_FRACTION = 0.15
 #: raised-cosine ramps of the simulated maneuvers [s] (the turn is still rate × duration):
 #: body rates stay continuous, as a real slew's do
 RAMP_S = 20.0
@@ -64,17 +88,26 @@ class MonteCarlo:
     config_path: str
     runs: int
     seed: int
+    #: the plan read once on the submitting machine (:mod:`gcs_core.predictor.source`),
+    #: shipped to the workers; None: read from ``config_path`` where the run happens
+    source: Any = field(default=None, compare=False, repr=False)
+    #: element -> the σ its a-priori draw uses (:func:`draw_sigmas`); None: the a priori's
+    draw: Any = field(default=None, compare=False, repr=False)
 
     def as_json(self) -> str:
         return json.dumps({"config_path": self.config_path, "runs": self.runs, "seed": self.seed})
 
+    def with_source(self) -> MonteCarlo:
+        if self.source is not None:
+            return self
+        from gcs_core.predictor.source import load_source
+
+        return replace(self, source=load_source(self.config_path))
+
     def digest(self) -> str:
         import hashlib
 
-        from gcs_core.config import load_config
-
-        cfg = load_config(self.config_path)
-        d = {"config": cfg.digest(), "orbit": cfg.trade.get("orbit"), "seed": self.seed}
+        d = {"config": self.with_source().source.content, "seed": self.seed}
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
     def run_seed(self, i: int) -> tuple[int, list[int]]:
@@ -88,19 +121,15 @@ _CTX: dict = {}
 
 
 def _context(mc: MonteCarlo):
-    key = mc.config_path
-    if key not in _CTX:
-        from gcs_core.config import load_config
-        from gcs_core.io.mission import read_mission_spec
-        from gcs_core.predictor.plan import DataPlan
-
-        cfg = load_config(mc.config_path)
-        spec = read_mission_spec(cfg.mission)
-        start = 0.0 if cfg.prediction.start is None else cfg.prediction.start
-        plan = DataPlan.from_config(cfg, span=(start, start + 1800.0))
-        _CTX.clear()
-        _CTX[key] = (cfg, spec, plan)
-    return _CTX[key]
+    """(config, spec, plan) of the study: the shipped source's, else read once per process."""
+    src = mc.source
+    if src is None:
+        src = _CTX.get(mc.config_path)
+        if src is None:
+            src = mc.with_source().source
+            _CTX.clear()
+            _CTX[mc.config_path] = src
+    return src.config, src.spec, src.plan
 
 
 def simulation(cfg, spec, plan, seed: int):
@@ -153,7 +182,7 @@ def _restricted(mission, plan):
 
     tel = {}
     for name, tab in mission.telemetry.items():
-        keep = plan.in_span(tab.t) & ~plan.in_gap(tab.t)
+        keep = plan.in_span(tab.t) & ~plan.in_gap(tab.t, name)
         if mission.spec.sensor(name).type == "gyro":  # the gyro runs through the gaps
             keep = (tab.t >= plan.start - 1e-9) & (tab.t <= plan.end + 1e-9)
         tel[name] = _subset(tab, keep)
@@ -222,8 +251,10 @@ def one_run(mc: MonteCarlo, i: int) -> dict:
             mission = _restricted(load_mission(path), plan)
             a = Analysis(cfg.with_changes(mission=path, diagnosis={"holdout_fraction": 0.0}), mission=mission)
             book = {e.name: e.value for e in a.problem.state}
-            res = a.fit(holdout=False)
             truth = _truth(json.loads((folder / "truth.json").read_text()), a.problem, book, cfg.method)
+            drawn = draw_prior(a.problem.state, truth, np.random.default_rng([seed, PRIOR_STREAM]), mc.draw)
+            a.problem = a.problem.with_state(a.problem.state.with_values(drawn))
+            res = a.fit(holdout=False)
         except (GcsError, np.linalg.LinAlgError) as err:
             rec.update(status=" ".join(str(err).split()), seconds=time.perf_counter() - t0)
             return rec
@@ -237,11 +268,52 @@ def one_run(mc: MonteCarlo, i: int) -> dict:
         names=names,
         x_hat=[float(x) for x in res.x],
         error=e.tolist(),
-        P=np.asarray(res.P).tolist(),
+        P=np.asarray(res.P_consider).tolist(),
         chi2=float(res.chi2),
         seconds=time.perf_counter() - t0,
     )
     return rec
+
+
+#: the second stream of a run's seed: its a-priori draw (the first is the simulator's noise)
+PRIOR_STREAM = 1
+
+
+#: a solve-for element's draw is capped at this many predicted σ (:func:`draw_sigmas`)
+DRAW_CAP = 10.0
+
+
+def draw_sigmas(pred) -> dict[str, float]:
+    """Solve-for element -> σ of its a-priori draw, ``min(σ̄, DRAW_CAP σ)`` with σ̄ its a
+    priori and σ its predicted σ (a consider element is drawn with its σ̄: what the fit
+    holds it wrong by). The cap keeps the draws inside the region the predictor
+    linearizes (a sensor's transfer function drawn over its whole, wide a priori tests
+    its nonlinearity, not the plan); where it binds, ``σ < σ̄ / DRAW_CAP``, and the a
+    priori's share of the error variance, ``(σ/σ̄)⁴ σ_draw²``, is below
+    ``DRAW_CAP² (σ/σ̄)⁴ σ² < 1 %`` of σ²."""
+    out = {}
+    prior = pred.prior if pred.prior is not None else np.full(len(pred.names), np.inf)
+    for n, s0, s in zip(pred.names, prior, pred.sigma[-1]):
+        if math.isfinite(s0) and s0 > 0:
+            out[n] = float(min(s0, DRAW_CAP * s)) if math.isfinite(s) else float(s0)
+    return out
+
+
+def draw_prior(state, truth: dict[str, float], rng: np.random.Generator, sigmas=None) -> dict[str, float]:
+    """The run's a-priori means (module docstring): ``x̄ = x_true + σ_d z`` for every
+    solve-for element with a finite a-priori σ̄ and every consider element (drawn in state
+    order); ``σ_d`` from ``sigmas`` (:func:`draw_sigmas`), else σ̄."""
+    from gcs_core.problem.state import CONSIDER, SOLVE_FOR
+
+    out = {}
+    for el in state:
+        if el.role not in (SOLVE_FOR, CONSIDER) or el.name not in truth:
+            continue
+        if not (math.isfinite(el.sigma0) and el.sigma0 > 0):
+            continue
+        s = el.sigma0 if sigmas is None else sigmas.get(el.name, el.sigma0)
+        out[el.name] = float(truth[el.name] + s * rng.standard_normal())
+    return out
 
 
 def _runs(mc: MonteCarlo, batch: list) -> list[dict]:
@@ -250,118 +322,35 @@ def _runs(mc: MonteCarlo, batch: list) -> list[dict]:
 
 # ---------------------------------------------------------------------------- prediction
 def predicted(mc: MonteCarlo):
-    """The predictor's result for the plan, the trackers' stars from the simulator's catalog."""
-    from gcs_core.io.mission import read_mission_spec
-    from gcs_core.predictor.predict import predict
+    """The predictor's result for the plan (:func:`~gcs_core.predictor.source.predict_source`),
+    the trackers' stars from the simulator's catalog."""
+    from gcs_core.predictor.stars import read_catalog
     from gcs_core.sim.writer import write_mission
 
-    cfg, spec, plan = _context(mc)
+    src = mc.with_source().source
+    cfg, spec, plan = src.config, src.spec, src.plan
+    if not any(s.type == "star_tracker" for s in spec.sensors):
+        return src.predict()
     short = replace(plan, start=plan.start, end=min(plan.end, plan.start + 60.0), gaps=(), maneuvers=())
     with tempfile.TemporaryDirectory(prefix="gcs-mc-") as d:
         sim = simulation(cfg, spec, short, 0)
         path = write_mission(replace(sim, duration_s=min(sim.duration_s, 120.0)), Path(d) / "m")
-        sim_spec = read_mission_spec(path)
-        trackers = any(s.type == "star_tracker" for s in spec.sensors)
-        p = replace(plan, stars="catalog", catalog=Path(path) / "star_catalog.csv") if trackers else plan
-        from gcs_core.trade.study import make_orbit
-
-        return predict(
-            cfg,
-            mission=replace(spec, root=sim_spec.root, ephemeris_file=None),
-            plan=p,
-            orbit=make_orbit(cfg.trade.get("orbit"), spec.epoch),
-        )
+        catalog = read_catalog(Path(path) / "star_catalog.csv")
+    return replace(src, catalog=catalog).predict(replace(plan, stars="catalog", catalog=None))
 
 
 # ---------------------------------------------------------------------------- summary
-@dataclass(frozen=True)
-class MonteCarloResult:
-    """Scatter against prediction (module docstring); arrays over ``names``."""
-
-    runs: int
-    failed: int
-    names: tuple[str, ...]
-    units: tuple[str, ...]
-    predicted: np.ndarray
-    scatter: np.ndarray
-    ratio: np.ndarray
-    mean_z: np.ndarray
-    fit_sigma: np.ndarray
-    determined: np.ndarray
-    nees: float
-    nees_band: tuple[float, float]
-    nees_dof: int
-
-    @property
-    def consistent(self) -> bool:
-        r = self.ratio[self.determined]
-        return bool(np.all(np.abs(r - 1.0) <= MATCH_FRACTION))
-
-
-def summarize(pred, records: Sequence[dict]) -> MonteCarloResult:
-    from scipy import stats
-
-    ok = [r for r in records if r.get("status") in ("converged", "max_passes")]
-    if not ok:
-        raise InputError("no run converged", key="montecarlo")
-    names = tuple(ok[0]["names"])
-    E = np.array([r["error"] for r in ok])
-    Ps = np.array([r["P"] for r in ok])
-    pi = [pred.names.index(n) if n in pred.names else None for n in names]
-    psig = np.array([pred.noise_only[i] if i is not None else np.nan for i in pi])
-    und = set(pred.undetermined)
-    det = np.array([n not in und and np.isfinite(s) for n, s in zip(names, psig)])
-    scat = np.std(E, axis=0, ddof=1) if len(ok) > 1 else np.full(len(names), np.nan)
-    units = tuple(pred.units[i] if i is not None else "" for i in pi)
-    idx = np.flatnonzero(det)
-    nees = float(sum(e[idx] @ np.linalg.solve(P[np.ix_(idx, idx)], e[idx]) for e, P in zip(E, Ps)))
-    dof = len(ok) * idx.size
-    band = (float(stats.chi2.ppf(0.025, dof)), float(stats.chi2.ppf(0.975, dof))) if dof else (0.0, 0.0)
-    return MonteCarloResult(
-        len(ok),
-        len(records) - len(ok),
-        names,
-        units,
-        psig,
-        scat,
-        scat / psig,
-        np.mean(E, axis=0) / psig,
-        np.sqrt(np.mean(np.einsum("kii->ki", Ps), axis=0)),
-        det,
-        nees,
-        band,
-        dof,
-    )
-
-
-def summary_lines(res: MonteCarloResult) -> list[str]:
-    from gcs_core.trade.report import sigma_display
-
-    out = [
-        f"{res.runs} runs fitted"
-        + (f", {res.failed} failed" if res.failed else "")
-        + f"; predicted σ against the Monte-Carlo scatter (±{100 * MATCH_FRACTION:g} %)",
-        f"{'element':<16}{'predicted σ':>13}{'MC σ':>11}{'ratio':>8}{'fit σ':>11}{'mean/σ':>8}  unit",
-    ]
-    for k, n in enumerate(res.names):
-        p, u = sigma_display(res.predicted[k], res.units[k])
-        s, _ = sigma_display(res.scatter[k], res.units[k])
-        f, _ = sigma_display(res.fit_sigma[k], res.units[k])
-        flag = "" if res.determined[k] else "  (not determined by the plan)"
-        if res.determined[k] and abs(res.ratio[k] - 1.0) > MATCH_FRACTION:
-            flag = "  OUTSIDE ±15 %"
-        out.append(f"{n:<16}{p:>13.4g}{s:>11.4g}{res.ratio[k]:>8.3f}{f:>11.4g}{res.mean_z[k]:>+8.2f}  {u}{flag}")
-    lo, hi = res.nees_band
-    out.append(
-        f"NEES over the determined elements: {res.nees:.1f} on {res.nees_dof} dof, 95 % band "
-        f"[{lo:.1f}, {hi:.1f}] — {'inside' if lo <= res.nees <= hi else 'OUTSIDE'}"
-    )
-    out.append(
-        "predicted σ "
-        + ("match" if res.consistent else "do NOT match")
-        + f" the scatter within {100 * MATCH_FRACTION:g} % for every determined element"
-    )
-    return out
+def prepared(mc: MonteCarlo):
+    """(``mc`` with its plan read and its draw σ set, the prediction): what every run needs,
+    computed once here and shipped to the workers. A config the runs cannot use fails
+    here, before any run is written."""
+    mc = mc.with_source()
+    cfg, spec, plan = _context(mc)
+    simulation(cfg, spec, plan, 0)
+    pred = predicted(mc)
+    if mc.draw is None:
+        mc = replace(mc, draw=draw_sigmas(pred))
+    return mc, pred
 
 
 def run_montecarlo(
@@ -378,6 +367,7 @@ def run_montecarlo(
     """All runs (those already in ``output`` skipped with ``resume``), then the summary."""
     if mc.runs < 2:
         raise InputError(f"need at least 2 runs, not {mc.runs}", key="montecarlo.runs")
+    mc, pred = prepared(mc)
     digest = mc.digest()
     skip = (
         store.prepare_output(output, store.MONTECARLO, digest, resume=resume, overwrite=overwrite)
@@ -401,14 +391,14 @@ def run_montecarlo(
     if output is not None:
         _, records = store.read(output, store.MONTECARLO)
         records = [r for r in records if int(r["index"]) < mc.runs]
-    return summarize(predicted(mc), sorted(records, key=lambda r: r["index"]))
+    return summarize(pred, sorted(records, key=lambda r: r["index"]))
 
 
 def replay(output, i: int) -> list[str]:
     """Recompute run ``i`` of a results file from its stored seed and compare."""
     head, records = store.read(output, store.MONTECARLO)
     d = json.loads(head["study"])
-    mc = MonteCarlo(d["config_path"], int(d["runs"]), int(d["seed"]))
+    mc, _ = prepared(MonteCarlo(d["config_path"], int(d["runs"]), int(d["seed"])))
     old = next((r for r in records if int(r["index"]) == i), None)
     if old is None:
         raise InputError(f"run {i} is not in the file", file=output)
@@ -418,3 +408,23 @@ def replay(output, i: int) -> list[str]:
         f"run {i}: seed {new['seed']} (entropy {mc.seed}, spawn key {new['spawn_key']}), status {new['status']}",
         "estimates identical to the stored run" if same else "estimates DIFFER from the stored run",
     ]
+
+
+__all__ = [
+    "ALPHA",
+    "CONVERGED",
+    "MATCH_FRACTION",
+    "MonteCarlo",
+    "MonteCarloResult",
+    "draw_prior",
+    "draw_sigmas",
+    "one_run",
+    "predicted",
+    "prepared",
+    "ratio_band",
+    "replay",
+    "run_montecarlo",
+    "simulation",
+    "summarize",
+    "summary_lines",
+]

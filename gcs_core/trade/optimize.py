@@ -8,7 +8,12 @@ allowed ``rates``.
 
 Plan space. Spans from :data:`SPANS_H` up to the budget; no maneuver, or a sequence of
 one maneuver per allowed axis (one axis, or two, in the order given), each
-:data:`SLEW_MINUTES` long at an allowed rate, flown back to back and centred in the span.
+:data:`SLEW_MINUTES` long at an allowed rate, flown back to back and centred in the span;
+the same data split into ``passes`` passes (2 or more, budget ``passes``) separated by
+:data:`SEPARATIONS_MIN`; and, where the operator controls it (budget ``starts``), the
+start phase in the orbit [min from the plan's start]. What the search did not control
+(the start phase when ``starts`` is not given) is reported afterwards
+(:mod:`gcs_core.trade.robustness`): the chosen plan's σ over the orbit.
 A plan meets a target when its predicted σ is below the limit by the margin
 (:data:`MARGIN`, the accuracy the predictor is held to against Monte Carlo), so the
 flown plan still meets it if the true σ is that much above the prediction. Cost is
@@ -35,11 +40,13 @@ from typing import Any
 from gcs_core.config import AXES, AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.trade import engine, space
-from gcs_core.trade.report import sigma_display
+from gcs_core.trade.report import element_unit, in_unit
 from gcs_core.trade.study import PlanRow, StudyDefinition, evaluate_plans, target_elements
 from gcs_core.units import ARCSEC, DEG
 
 SPANS_H = (0.25, 0.5, 0.75, 1.0, 1.5, 2.0, 3.0, 4.0, 6.0)
+#: gaps between passes of a split plan [min]
+SEPARATIONS_MIN = (15.0, 30.0, 45.0)
 SLEW_MINUTES = (1.0, 2.0, 3.0, 5.0, 7.5, 10.0, 15.0, 20.0, 30.0)
 DEFAULT_RATES = (0.05, 0.1, 0.2)
 #: a target is met when σ·(1 + MARGIN) is below its limit
@@ -94,10 +101,37 @@ class Budget:
     hours: float = 2.0
     axes: tuple[str, ...] = AXES
     rates: tuple[float, ...] = DEFAULT_RATES
+    #: start phases the operator can choose [min from the plan's start]; () = not controlled
+    starts: tuple[float, ...] = ()
+    #: numbers of passes the data may be split into (1 = one continuous pass)
+    passes: tuple[int, ...] = (1,)
+    #: sensor -> the most minutes of data it may deliver (a per-sensor window, placed at
+    #: the start, the middle or the end of the plan by the search)
+    windows: Mapping[str, float] = field(default_factory=dict)
 
     @classmethod
-    def from_mapping(cls, d: Mapping[str, Any], *, slew_min=None, hours=None, axes=None, rates=None) -> Budget:
+    def from_mapping(
+        cls,
+        d: Mapping[str, Any],
+        *,
+        slew_min=None,
+        hours=None,
+        axes=None,
+        rates=None,
+        starts=None,
+        passes=None,
+        windows=None,
+    ) -> Budget:
         b = cls()
+        d = dict(d)
+        if windows is not None:  # "FHST2=10,FSS1=20" from the command line
+            pairs = [w.split("=", 1) for w in windows.split(",")] if isinstance(windows, str) else windows.items()
+            if any(len(p) != 2 for p in pairs):
+                raise InputError("--windows takes SENSOR=MINUTES[,SENSOR=MINUTES]", key="trade.optimize.budget.windows")
+            d["windows"] = {str(k).strip(): v for k, v in pairs}
+        for key, v in (("starts", starts), ("passes", passes)):
+            if v is not None:
+                d[key] = v.split(",") if isinstance(v, str) else v
         sm = slew_min if slew_min is not None else d.get("slew_min", b.slew_min)
         hr = hours if hours is not None else d.get("hours", b.hours)
         ax = axes if axes is not None else d.get("axes", b.axes)
@@ -111,7 +145,17 @@ class Budget:
             raise InputError(f"axes must be among {', '.join(AXES)}, not {ax!r}", key="trade.optimize.budget.axes")
         if not (float(sm) >= 0 and float(hr) > 0) or any(r == 0 for r in rt):
             raise InputError("slew_min ≥ 0, hours > 0 and rates ≠ 0 are needed", key="trade.optimize.budget")
-        return cls(float(sm), float(hr), ax, rt)
+        try:
+            st = tuple(float(x) for x in d.get("starts", ()))
+            ps = tuple(int(x) for x in d.get("passes", (1,)))
+            wn = {str(k): float(v) for k, v in dict(d.get("windows", {})).items()}
+        except (TypeError, ValueError):
+            raise InputError(
+                "starts [min], passes and windows {SENSOR = minutes} must be numbers", key="trade.optimize.budget"
+            ) from None
+        if any(p < 1 for p in ps) or any(x < 0 for x in st) or any(not w > 0 for w in wn.values()):
+            raise InputError("passes ≥ 1, starts ≥ 0 and windows > 0 are needed", key="trade.optimize.budget")
+        return cls(float(sm), float(hr), ax, rt, st, ps or (1,), wn)
 
 
 def candidates(budget: Budget) -> list[dict[str, Any]]:
@@ -130,9 +174,46 @@ def candidates(budget: Budget) -> list[dict[str, Any]]:
     for (slew, seq), h in itertools.product(seqs, spans):
         if slew > 60.0 * h:
             continue
-        out.append({"span_min": 60.0 * h, "maneuvers": seq})
-    out.sort(key=lambda c: (_slew(c), c["span_min"], c["maneuvers"]))
+        for n in budget.passes:
+            if n == 1:
+                shapes: list[dict[str, Any]] = [{"span_min": 60.0 * h}]
+            else:
+                pass_min = 60.0 * h / n
+                if slew > pass_min:  # the slews fly inside one pass
+                    continue
+                shapes = [{"passes": n, "pass_min": pass_min, "separation_min": sep} for sep in SEPARATIONS_MIN]
+            for shape in shapes:
+                for start in budget.starts or (None,):
+                    c = {**shape, "maneuvers": seq}
+                    if start is not None:
+                        c["start_min"] = start
+                    out.extend(_windowed(c, budget.windows))
+    out.sort(key=lambda c: (_slew(c), _data_min(c), c.get("passes", 1), c["maneuvers"], c.get("start_min", 0.0)))
     return out
+
+
+#: where a sensor's window goes in the plan: at its start, its middle, its end
+WINDOW_PLACES = (0.0, 0.5, 1.0)
+
+
+def _windowed(c: dict[str, Any], windows: Mapping[str, float]) -> list[dict[str, Any]]:
+    """``c`` with every placement of each windowed sensor's data (budget ``windows``)."""
+    out = [c]
+    span = _data_min(c) if "span_min" in c else c["passes"] * c["pass_min"] + (c["passes"] - 1) * c["separation_min"]
+    for name, minutes in windows.items():
+        if minutes >= span:
+            continue
+        placed = []
+        for x in out:
+            for f in WINDOW_PLACES:
+                a = f * (span - minutes)
+                placed.append({**x, f"{name}.window_min": f"{a:g}:{a + minutes:g}"})
+        out = placed
+    return out
+
+
+def _data_min(c) -> float:
+    return c["span_min"] if "span_min" in c else c["passes"] * c["pass_min"]
 
 
 def _slew(c) -> float:
@@ -157,7 +238,10 @@ class OptimizeResult:
         out = [
             "targets: " + ", ".join(t.text for t in self.targets),
             f"budget: ≤ {self.budget.slew_min:g} min of slewing, ≤ {self.budget.hours:g} h of data, "
-            f"axes {','.join(self.budget.axes)}, rates {','.join(f'{r:g}' for r in self.budget.rates)} deg/s",
+            f"axes {','.join(self.budget.axes)}, rates {','.join(f'{r:g}' for r in self.budget.rates)} deg/s, "
+            f"passes {','.join(str(p) for p in self.budget.passes)}, start "
+            + (f"{','.join(f'{x:g}' for x in self.budget.starts)} min" if self.budget.starts else "not controlled")
+            + "".join(f", {k} ≤ {v:g} min of data" for k, v in self.budget.windows.items()),
             f"{self.searched} plans predicted",
         ]
         row = self.best
@@ -177,8 +261,8 @@ class OptimizeResult:
         for t in self.targets:
             for n in self.elements.get(t.name, []):
                 i = row.elements.index(n)
-                s, u = sigma_display(row.sigma[i], row.units[i])
-                lim, _ = sigma_display(t.limit, row.units[i])
+                shown, u = element_unit(row.units[i], row.sigma[i])
+                s, lim = in_unit(row.sigma[i], row.units[i], shown), in_unit(t.limit, row.units[i], shown)
                 ok = row.sigma[i] * (1.0 + self.margin) < t.limit
                 out.append(
                     f"  σ {n:<16} {s:10.4g} {u:<3} (target < {lim:g} with a "
@@ -222,16 +306,22 @@ def optimize(
     progress: Callable[[int, int], None] | None = None,
 ) -> OptimizeResult:
     """Search the plan space (module docstring)."""
-    from gcs_core.io.mission import read_mission_spec
+    from gcs_core.predictor.source import load_source
 
     if cfg.path is None:
         raise InputError("the optimizer needs its analysis config on disk", key="trade")
-    spec = read_mission_spec(cfg.mission)
+    src = load_source(cfg, method=method)  # read once here, shipped to any worker
+    spec = src.spec
     elements = {t.name: list(target_elements([t.name], spec)[0]) for t in targets}
     names = tuple(dict.fromkeys(n for t in targets for n in elements[t.name]))
     cands = candidates(budget)
     defn = StudyDefinition(
-        str(Path(cfg.path).resolve()), {"span_min": (), "maneuvers": ()}, names, cfg.trade.get("orbit"), method
+        str(Path(cfg.path).resolve()),
+        {"span_min": (), "maneuvers": ()},
+        names,
+        cfg.trade.get("orbit"),
+        method,
+        source=src,
     )
     items = list(enumerate(cands))
     rows: list[PlanRow] = []
@@ -257,6 +347,10 @@ def optimize(
     if chosen is not None:
         res.config = plan_config(cfg, chosen)
         res.why = why_lines(defn, chosen, spec)
+        if not budget.starts:
+            from gcs_core.trade.robustness import start_phase_lines
+
+            res.why += start_phase_lines(defn, chosen, targets, elements, margin)
     return res
 
 

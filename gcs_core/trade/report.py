@@ -5,29 +5,46 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 
+from gcs_core import display
 from gcs_core.trade.study import ATTITUDE_NAMES, PlanRow, ranked
-from gcs_core.units import ARCSEC
+
+
+def element_unit(unit: str, sigma: float) -> tuple[str, str]:
+    """(display unit, its label) of an element of internal ``unit`` whose σ is ``sigma``:
+    :func:`gcs_core.display.display_unit` (the one display rule), so ``gcs predict``,
+    ``trade`` and ``montecarlo`` show one element alike (a dimensionless one with no unit)."""
+    shown = display.display_unit(unit, sigma)
+    return shown, display.unit_label(shown)
+
+
+def in_unit(value: float, unit: str, shown: str) -> float:
+    """``value`` (internal ``unit``) in the display unit ``shown``."""
+    return display.to_display(value, unit, shown)
 
 
 def sigma_display(value: float, unit: str) -> tuple[float, str]:
-    """A σ in the unit an analyst reads: rad → arcsec, rad/s → deg/h, dimensionless → ppm,
-    others as they are."""
-    if unit == "rad":
-        return value / ARCSEC, "″"
-    if unit == "rad/s":
-        return value * 180.0 / math.pi * 3600.0, "°/h"
-    if unit == "1":
-        return value * 1e6, "ppm"
-    return value, unit
+    """A σ in the small display unit of the one rule (rad → arcsec, rad/s → deg/h, rad/s2 →
+    deg/h², dimensionless and others as they are) and its label; for a fixed axis label
+    (plots, the TUI's columns) where no σ chooses the unit."""
+    shown = display.display_unit(unit, 0.0)
+    return in_unit(value, unit, shown), display.unit_label(shown)
 
 
-def _cell(v: float, unit: str, prior: bool = False) -> str:
+def _cell(v: float, unit: str, prior: bool = False, shown: str | None = None) -> str:
     if math.isnan(v):
         return "—"
     if math.isinf(v):
         return "undet."
-    x, _ = sigma_display(v, unit)
+    x = in_unit(v, unit, shown) if shown is not None else sigma_display(v, unit)[0]
     return f"{x:.3g}" + ("*" if prior else "")
+
+
+def _column_units(rows: Sequence[PlanRow], r0: PlanRow) -> list[str]:
+    """One display unit per target column: the rule's unit for the column's largest σ."""
+    return [
+        display.common_unit(u, [r.sigma[i] for r in rows if r.status == "ok" and i < len(r.sigma)])
+        for i, u in enumerate(r0.units)
+    ]
 
 
 def _short(name: str) -> str:
@@ -40,8 +57,14 @@ def study_table(rows: Sequence[PlanRow], *, limit: int | None = 20) -> list[str]
         return ["no plans"]
     r0 = next((r for r in rows if r.status == "ok"), rows[0])
     keys = list(r0.values)
+    shown = _column_units(rows, r0)
     heads = (
-        ["#", "score"] + keys + [f"σ {_short(n)} [{sigma_display(1.0, u)[1]}]" for n, u in zip(r0.elements, r0.units)]
+        ["#", "score"]
+        + keys
+        + [
+            f"σ {_short(n)}" + (f" [{display.unit_label(sh)}]" if display.unit_label(sh) else "")
+            for n, sh in zip(r0.elements, shown)
+        ]
     )
     body = []
     for rank, (sc, r) in enumerate(ranked(rows), start=1):
@@ -52,17 +75,17 @@ def study_table(rows: Sequence[PlanRow], *, limit: int | None = 20) -> list[str]
             [str(rank), score]
             + [str(r.values.get(k)) for k in keys]
             + [
-                _cell(v, u, bool(r.prior_limited and r.prior_limited[i]))
+                _cell(v, u, bool(r.prior_limited and r.prior_limited[i]), shown[i] if i < len(shown) else None)
                 for i, (v, u) in enumerate(zip(r.sigma, r.units))
             ]
         )
     widths = [max(len(h), *(len(b[i]) for b in body)) for i, h in enumerate(heads)]
     out = ["  ".join(h.rjust(w) for h, w in zip(heads, widths))]
     out += ["  ".join(c.rjust(w) for c, w in zip(b, widths)) for b in body]
-    shown = min(len(rows), limit or len(rows))
+    n_shown = min(len(rows), limit or len(rows))
     failed = [r for r in rows if r.status != "ok"]
     out.append(
-        f"{shown} of {len(rows)} plans shown (score: geometric mean of σ / best σ over the "
+        f"{n_shown} of {len(rows)} plans shown (score: geometric mean of σ / best σ over the "
         "targets; 1 = best at every target; * = set by the a priori: the data alone cannot "
         "separate the element; '—' = not in the plan's state)"
     )
@@ -81,12 +104,14 @@ def budget_lines(rows: Sequence[PlanRow], top: int = 3) -> list[str]:
         for i, (n, u) in enumerate(zip(r.elements, r.units)):
             if n in ATTITUDE_NAMES:
                 continue
-            _, unit = sigma_display(1.0, u)
-            parts = [f"noise {_cell(r.noise_only[i], u)}"]
+            shown, unit = element_unit(u, r.sigma[i])
+            parts = [f"noise {_cell(r.noise_only[i], u, shown=shown)}"]
             parts += [
-                f"{c} {_cell(v[i], u)}" for c, v in sorted(r.budget.items(), key=lambda kv: -kv[1][i]) if v[i] > 0
+                f"{c} {_cell(v[i], u, shown=shown)}"
+                for c, v in sorted(r.budget.items(), key=lambda kv: -kv[1][i])
+                if v[i] > 0
             ]
-            out.append(f"  {n:<18} σ {_cell(r.sigma[i], u):>8} {unit:<4} = " + " ⊕ ".join(parts))
+            out.append(f"  {n:<18} σ {_cell(r.sigma[i], u, shown=shown):>8} {unit:<4} = " + " ⊕ ".join(parts))
         if r.undetermined:
             out.append("  not determined by this plan: " + ", ".join(r.undetermined))
     return out

@@ -39,6 +39,7 @@ def row_from_record(rec: dict) -> PlanRow:
         rec["status"],
         float(rec["seconds"]),
         tuple(bool(x) for x in rec.get("prior_limited", ())),
+        tuple(rec.get("warnings", ())),
     )
 
 
@@ -71,6 +72,7 @@ def run_study(
 
     ``progress(done, total)`` counts plans, those already in the file included.
     """
+    defn = defn.with_source()  # read here once; the workers get it with the tasks
     combos = defn.combos()
     digest = defn.digest()
     skip: set[int] = set()

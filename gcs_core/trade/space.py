@@ -30,6 +30,10 @@ Keys (times in minutes from the plan start; angles in degrees):
 ``NAME.alignment_deg[i]`` mounting angle a_i (i = 1, 2, 3, ICD §2) of sensor NAME
 ``NAME.noise``            noise of sensor NAME (data-book units); ``NAME.KEY`` any numeric
                           scalar data-book key (``IRU.arw``, ``FHST1.fov_deg``, ...)
+``NAME.observable``       vector | magnitude: what magnetometer NAME measures (magnitude:
+                          the seed's attitude-independent CADS observable)
+``NAME.window_min``       ``"A:B"``: sensor NAME delivers data only from A to B minutes
+                          after the plan start (a per-sensor data window)
 ``effects``               catalogue effects added to the solve-for set, ``+``-joined
                           (``TAM1.alignment+FHST1.alignment``), or ``none``
 ========================  ==============================================================
@@ -123,6 +127,41 @@ def parse_vary(items: Sequence[str]) -> dict[str, tuple]:
     return out
 
 
+#: keys that describe the same part of a plan in two ways (one replaces the other)
+_EXCLUSIVE = (
+    ({"span_min"}, {"passes", "pass_min", "separation_min"}),
+    ({"maneuver.duration_min"}, {"maneuver.angle_deg"}),
+    (
+        {"maneuvers"},
+        {
+            "maneuver.axis",
+            "maneuver.rate_deg_s",
+            "maneuver.start_min",
+            "maneuver.duration_min",
+            "maneuver.angle_deg",
+            "maneuver.back",
+        },
+    ),
+)
+
+
+def merge_vary(table: Mapping[str, tuple], given: Mapping[str, tuple]) -> dict[str, tuple]:
+    """The config's ``[trade.vary]`` with the command line's keys merged in: a given key
+    replaces the table's values of that key and of the keys describing the same thing
+    another way (``passes`` replaces ``span_min``, ``maneuvers`` the ``maneuver.*`` keys);
+    every other key of the table stays (``maneuver.back = true``, ``start_min``), after
+    the given ones."""
+    drop: set[str] = set()
+    for a, b in _EXCLUSIVE:
+        if a & set(given):
+            drop |= b
+        if b & set(given):
+            drop |= a
+    out = dict(given)  # the command line's keys first (the first varies slowest)
+    out.update({k: v for k, v in table.items() if k not in drop and k not in given})
+    return out
+
+
 def check_key(key: str, spec: MissionSpec) -> None:
     """Refuse a key the plan space does not know, naming it (``trade.vary.KEY``)."""
     names = {s.name for s in spec.sensors}
@@ -199,6 +238,7 @@ class PlanSetup:
                 for m in p.maneuvers
             ],
             "stars": p.stars,
+            "sensor_gaps": {k: [list(g) for g in v] for k, v in p.sensor_gaps.items()},
             "attitude_mode": self.spec.attitude_mode,
             "sensors": {
                 s.name: {
@@ -273,6 +313,7 @@ def apply(cfg: AnalysisConfig, spec: MissionSpec, base_plan: DataPlan, combo: Ma
         step=min(base_plan.step, span),
     )
     plan = _maneuver(plan, combo, base_plan)
+    plan = _windows(plan, combo, base_plan)
 
     models = dict(cfg.models)
     for s in spec.sensors:
@@ -398,6 +439,11 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
         if idx is None:
             raise InputError(f"no sensor named '{name}' in the mission", key=f"trade.vary.{key}")
         s = sensors[idx]
+        if field == WINDOW:
+            continue  # the plan's, not the sensor's (_windows)
+        if field == "observable":
+            sensors[idx] = replace(s, book={**s.book, "observable": observable(s, combo[key], f"trade.vary.{key}")})
+            continue
         x = _num(combo, key)
         if m:
             a = list(s.alignment_deg or (0.0, 0.0, 0.0))
@@ -414,6 +460,48 @@ def _spec(spec: MissionSpec, combo: Mapping[str, Any]) -> MissionSpec:
             book[field] = x
             sensors[idx] = replace(s, book=book)
     return replace(spec, sensors=tuple(sensors))
+
+
+#: the data-book-like key of a sensor's data window (``NAME.window_min = "A:B"``)
+WINDOW = "window_min"
+
+
+def _windows(plan: DataPlan, combo: Mapping[str, Any], base: DataPlan) -> DataPlan:
+    """``NAME.window_min = "A:B"``: sensor NAME delivers data only from A to B minutes after
+    the plan's start (its own gaps before and after; the base plan's gaps of the sensor
+    move with the start like the others)."""
+    shift = plan.start - base.start
+    own = {k: tuple((a + shift, b + shift) for a, b in v) for k, v in base.sensor_gaps.items()}
+    for key, value in combo.items():
+        name, _, field = key.rpartition(".")
+        if field != WINDOW:
+            continue
+        text = str(value).replace(" ", "")
+        try:
+            a, b = (60.0 * float(x) for x in text.split(":"))
+        except ValueError:
+            raise InputError(
+                f'a window is "START:END" in minutes from the plan start, not {value!r}', key=f"trade.vary.{key}"
+            ) from None
+        if not 0.0 <= a < b:
+            raise InputError(f"a window needs 0 ≤ START < END, not {value!r}", key=f"trade.vary.{key}")
+        gaps = [g for g in ((plan.start, plan.start + a), (plan.start + b, plan.end + 1.0)) if g[1] > g[0]]
+        own[name] = own.get(name, ()) + tuple(gaps)
+    return replace(plan, sensor_gaps=own) if own else plan
+
+
+#: what a magnetometer measures in a plan: the field vector (the default) or its magnitude
+#: alone (the seed's attitude-independent CADS observable, :mod:`gcs_core.predictor.magnitude`)
+OBSERVABLES = ("vector", "magnitude")
+
+
+def observable(sensor, value, key: str) -> str:
+    """A magnetometer's ``observable`` (:data:`OBSERVABLES`), refused for other sensors."""
+    if sensor.type != "magnetometer":
+        raise InputError(f"only a magnetometer has an observable, not the {sensor.type} {sensor.name}", key=key)
+    if value not in OBSERVABLES:
+        raise InputError(f"must be one of {', '.join(OBSERVABLES)}, not {value!r}", key=key)
+    return str(value)
 
 
 def element_override(cfg: AnalysisConfig, name: str, **kw) -> AnalysisConfig:

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_core.config import AnalysisConfig, load_config
+from gcs_core.config import AnalysisConfig
 from gcs_core.errors import GcsError, InputError
 from gcs_core.trade import space
 
@@ -59,9 +59,12 @@ class StudyDefinition:
         ``FHST1.misalign_x``), or ``"attitude"`` (the default).
     orbit : Kepler elements (:data:`ORBIT_KEYS`); when given, every plan's ephemeris is
         tabulated from it (one ephemeris source for the whole study, any span or start),
-        otherwise the mission's ephemeris file must cover each plan.
-    method : ``"batch"``/``"kalman"`` to override the config's, or None.
+        otherwise the mission's TLE or ephemeris file (:mod:`gcs_core.predictor.source`).
+    method : ``"whole_span"``/``"batch"``/``"kalman"`` to override the config's, or None.
     top : how many best plans get their error budget printed.
+    source : the plan read once on the submitting machine
+        (:class:`~gcs_core.predictor.source.PlanSource`): what a worker computes from,
+        shipped with the definition; None: read from ``config_path`` where it runs.
     """
 
     config_path: str
@@ -70,6 +73,15 @@ class StudyDefinition:
     orbit: Mapping[str, float] | None = None
     method: str | None = None
     top: int = 3
+    source: Any = field(default=None, compare=False, repr=False)
+
+    def with_source(self) -> StudyDefinition:
+        """This definition with its plan read (:func:`~gcs_core.predictor.source.load_source`)."""
+        if self.source is not None:
+            return self
+        from gcs_core.predictor.source import load_source
+
+        return replace(self, source=load_source(self.config_path, method=self.method))
 
     def combos(self) -> list[dict[str, Any]]:
         return space.combinations(self.vary)
@@ -88,13 +100,13 @@ class StudyDefinition:
         )
 
     def digest(self) -> str:
-        """Hash of everything the numbers depend on: the base config's settings (not its
-        path), the varied keys and values, the targets, the orbit and the method."""
-        cfg = load_config(self.config_path)
+        """Hash of everything the numbers depend on: the base config's settings and the
+        mission description (not their paths), the varied keys and values, the targets,
+        the orbit and the method."""
         d = json.loads(self.as_json())
         d.pop("config_path")
         d.pop("top")
-        d["config"] = cfg.digest()
+        d["config"] = self.with_source().source.content
         return hashlib.sha256(json.dumps(d, sort_keys=True).encode()).hexdigest()[:16]
 
     @classmethod
@@ -131,6 +143,7 @@ class PlanRow:
         priori's doing, not the plan's.
     status : ``"ok"`` or the one-line reason the plan could not be predicted.
     seconds : time the prediction took (not part of the numbers compared across runs).
+    warnings : the prediction's warnings (the batch method's computed warning).
     """
 
     index: int
@@ -148,6 +161,7 @@ class PlanRow:
     status: str = "ok"
     seconds: float = 0.0
     prior_limited: tuple[bool, ...] = ()
+    warnings: tuple[str, ...] = ()
 
     def sigma_of(self, name: str) -> float:
         return self.sigma[self.elements.index(name)]
@@ -169,42 +183,32 @@ _TARGETS: dict[tuple, tuple] = {}
 
 
 def _context(defn: StudyDefinition):
-    """(config, spec, base plan, orbit) of a study, read once per process."""
+    """The study's :class:`~gcs_core.predictor.source.PlanSource`: the one shipped with the
+    definition, else read once per process; its varied keys checked."""
+    if defn.source is not None:
+        return defn.source
     key = defn.as_json()
-    ctx = _CONTEXT.get(key)
-    if ctx is None:
-        from gcs_core.config_checks import check_against_mission
-        from gcs_core.io.mission import read_mission_spec
-        from gcs_core.predictor.plan import DataPlan
-
-        cfg = load_config(defn.config_path)
-        if defn.method is not None:
-            cfg = replace(cfg, method=defn.method)
-        spec = read_mission_spec(cfg.mission)
-        check_against_mission(cfg, spec)
-        for k in defn.vary:
-            space.check_key(k, spec)
-            space.check_values(k, defn.vary[k])
-        start = 0.0 if cfg.prediction.start is None else cfg.prediction.start
-        end = start + 3600.0 if cfg.prediction.end is None else cfg.prediction.end
-        base = DataPlan.from_config(cfg, span=(start, end))
-        ctx = (cfg, spec, base, make_orbit(defn.orbit, spec.epoch))
+    src = _CONTEXT.get(key)
+    if src is None:
+        src = defn.with_source().source
         _CONTEXT.clear()  # one study at a time per process
-        _CONTEXT[key] = ctx
-    return ctx
+        _CONTEXT[key] = src
+    return src
+
+
+def check_study(defn: StudyDefinition) -> None:
+    """Refuse a varied key the plan space does not know (before any plan is computed)."""
+    src = defn.with_source().source
+    for k in defn.vary:
+        space.check_key(k, src.spec)
+        space.check_values(k, defn.vary[k])
 
 
 def make_orbit(orbit: Mapping[str, float] | None, epoch):
     """A :class:`~gcs_core.ephem.orbit.KeplerOrbit` from the ``[trade.orbit]`` table, or None."""
-    if not orbit:
-        return None
-    from gcs_core.ephem.orbit import KeplerOrbit
+    from gcs_core.predictor.source import kepler_orbit
 
-    missing = [k for k in ORBIT_KEYS if k not in orbit]
-    if missing:
-        raise InputError(f"missing {', '.join(missing)} (an orbit needs {', '.join(ORBIT_KEYS)})", key="trade.orbit")
-    a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg = (float(orbit[k]) for k in ORBIT_KEYS)
-    return KeplerOrbit(a_km, e, i_deg, raan_deg, argp_deg, mean_anomaly_deg, epoch)
+    return kepler_orbit(orbit, epoch)
 
 
 def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tuple[str, ...]]:
@@ -234,7 +238,7 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
         elif t in params:
             found = params[t]
         elif gyro and t.startswith(f"{gyro[0]}.bias_rate"):
-            found = [(t, "rad/s²")]
+            found = [(t, "rad/s2")]
         else:
             raise InputError(
                 f"unknown target '{t}': give an element (TAM1.bias_x), an effect id "
@@ -251,11 +255,10 @@ def target_elements(targets: Sequence[str], spec) -> tuple[tuple[str, ...], tupl
 
 def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str, Any]]]) -> list[PlanRow]:
     """Predict each ``(index, combination)`` of ``items`` (a batch of one task)."""
-    from gcs_core.predictor.predict import predict
-
-    cfg, spec, base, orbit = _context(defn)
+    src = _context(defn)
+    cfg, spec, base = src.config, src.spec, src.plan
     targets = defn.targets or (ATTITUDE,)  # without targets: the attitude
-    key = (targets, defn.config_path, id(spec))  # once per process, not once per batch
+    key = (targets, src.content, id(spec))  # once per process, not once per batch
     if key not in _TARGETS:
         _TARGETS.clear()
         _TARGETS[key] = target_elements(targets, spec)
@@ -266,9 +269,7 @@ def evaluate_plans(defn: StudyDefinition, items: Sequence[tuple[int, Mapping[str
         pid = space.plan_id(combo)
         try:
             setup = space.apply(cfg, spec, base, combo)
-            # with an orbit, every plan's ephemeris comes from it (one source for the study)
-            mspec = replace(setup.spec, ephemeris_file=None) if orbit is not None else setup.spec
-            res = predict(setup.config, mission=mspec, plan=setup.plan, orbit=orbit)
+            res = src.predict(setup.plan, config=setup.config, spec=setup.spec)
         except (GcsError, np.linalg.LinAlgError) as err:
             log.info("plan %s: %s", pid, err)
             desc = {}
@@ -368,6 +369,7 @@ def _row(index, pid, combo, setup, res, names, units, seconds) -> PlanRow:
         "ok",
         seconds,
         tuple(_prior_limited(n, res, setup.spec, x) for n, x in zip(names, noise)),
+        tuple(res.warnings),
     )
 
 
@@ -432,18 +434,18 @@ def definition_from_config(
     method: str | None = None,
     top: int | None = None,
 ) -> StudyDefinition:
-    """The study of a config's ``[trade]`` table; command-line ``vary`` and ``targets``,
-    when given, replace the table's."""
+    """The study of a config's ``[trade]`` table. Command-line ``vary`` merges into the
+    table's ``[trade.vary]`` (a key given on the command line replaces that key's values;
+    the table's other keys, ``maneuver.back = true`` or ``start_min`` say, stay); command-
+    line ``targets`` replace the table's."""
     if cfg.path is None:
         raise InputError("a trade study needs its analysis config on disk", key="trade")
     tr = dict(getattr(cfg, "trade", {}) or {})
     table = tr.get("vary", {})
     if not isinstance(table, dict):
         raise InputError("must be a table of KEY = [values]", key="trade.vary")
-    v = (
-        dict(vary)
-        if vary
-        else {k: tuple(val) if isinstance(val, (list, tuple)) else (val,) for k, val in table.items()}
+    v = space.merge_vary(
+        {k: tuple(val) if isinstance(val, (list, tuple)) else (val,) for k, val in table.items()}, dict(vary or {})
     )
     if not v:
         raise InputError("nothing to vary: give --vary KEY=VALUES or a [trade.vary] table", key="trade.vary")

@@ -381,14 +381,29 @@ def cmd_effects(args, prog: Progress) -> int:
 
 
 def cmd_predict(args, prog: Progress) -> int:
+    """A plan (no mission directory) or a config with ``[trade.orbit]``: the plan as
+    ``gcs trade`` reads it (:mod:`gcs_core.predictor.source`, no telemetry); otherwise the
+    mission's telemetry span, cadences and onboard attitude."""
     from gcs_core.predictor.predict import predict
+    from gcs_core.predictor.source import is_plan_file, load_source
     from gcs_tui.cli.tables import prediction_table
 
-    cfg, mission = _setup(args, prog)
-    with prog.task("predicting the accuracy of the data plan (covariance only)"):
-        res = predict(cfg, mission=mission)
+    cfg = _load(args)
+    if is_plan_file(cfg) or (cfg.trade or {}).get("orbit"):
+        with prog.task(f"reading the plan {cfg.path or cfg.mission}"):
+            src = load_source(cfg)
+        name = src.spec.name
+        with prog.task("predicting the accuracy of the data plan (covariance only)"):
+            res = src.predict()
+    else:
+        cfg, mission = _setup(args, prog)
+        name = mission.spec.name
+        with prog.task("predicting the accuracy of the data plan (covariance only)"):
+            res = predict(cfg, mission=mission)
+    for w in res.warnings:
+        log.warning("%s", w)
     _lines(prediction_table(res))
-    _write_json(args.report, {"mission": mission.spec.name, "command": "predict", **res.as_report()})
+    _write_json(args.report, {"mission": name, "command": "predict", **res.as_report()})
     return EXIT_OK
 
 

@@ -189,18 +189,36 @@ def prediction_table(res) -> list[str]:
             f"plan t = {plan.start:g} to {plan.end:g} s, {len(plan.gaps)} gap(s), "
             f"{len(plan.maneuvers)} maneuver(s); method {res.method}"
         )
-    lines.append(f"{'element':28s} predicted 1-sigma at end of plan")
+    budget = dict(getattr(res, "budget", {}) or {})
+    noise = getattr(res, "noise_only", None)
+    lines.append(
+        f"{'element':28s} predicted 1-sigma from the whole plan"
+        + ("  (= noise ⊕ each consider element)" if budget else "")
+    )
     undetermined = set(getattr(res, "undetermined", ()))
-    for n, u, s in zip(names, units, final):
+    for i, (n, u, s) in enumerate(zip(names, units, final)):
         note = "   not determined by the plan (the a priori)" if n in undetermined else ""
-        lines.append(f"{n:28s} {display.quantity(float(s), u, shown=display.display_unit(u, float(s)))}{note}")
+        if n.startswith("att."):
+            note += "   (attitude at the reference epoch)"
+        shown = display.display_unit(u, float(s))
+        text = display.quantity(float(s), u, shown=shown)
+        if budget and noise is not None:
+            parts = [f"noise {display.quantity(float(noise[i]), u, shown=shown, with_unit=False)}"]
+            parts += [
+                f"{c} {display.quantity(float(v[i]), u, shown=shown, with_unit=False)}"
+                for c, v in sorted(budget.items(), key=lambda kv: -float(kv[1][i]))
+                if float(v[i]) > 0
+            ]
+            text += " = " + " ⊕ ".join(parts)
+        lines.append(f"{n:28s} {text}{note}")
     att = getattr(res, "attitude_sigma", None)
     if att is not None and len(att):
         # three-axis: about the body axes; spinning: of the spin-axis unit vector (≈ angles)
         axes = ("roll", "pitch", "yaw") if "att.roll" in names else ("spin axis x", "spin axis y", "spin axis z")
         shown = display.display_unit("rad", float(np.nanmax(att[-1])))
+        when = f" (t = {plan.end:g} s)" if plan is not None else ""
         lines.append(
-            "attitude 1-sigma at end of plan: "
+            f"attitude 1-sigma at the end of the plan{when}: "
             + ", ".join(f"{ax} {display.quantity(float(v), 'rad', shown=shown)}" for ax, v in zip(axes, att[-1]))
         )
     frames = getattr(res, "frames", None)

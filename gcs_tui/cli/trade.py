@@ -22,7 +22,9 @@ from gcs_core.errors import InputError
 from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import whole_number
 
-EXIT_OK, EXIT_FLAG, EXIT_INTERRUPT = 0, 1, 130
+EXIT_OK, EXIT_FLAG, EXIT_INPUT, EXIT_INTERRUPT = 0, 1, 2, 130
+#: the estimators a plan can be predicted for (gcs_core.config.METHODS, the default first)
+METHODS = ("whole_span", "batch", "kalman")
 
 
 def _out(text: str = "") -> None:
@@ -93,7 +95,7 @@ def add_commands(add, target) -> None:
     sp.add_argument("--plot", help="write the plot of σ against the varied keys here (text)")
     sp.add_argument("--top", type=_count, help="error budgets of this many best plans")
     sp.add_argument("--limit", type=_count, default=20, help="rows of the table")
-    sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
+    sp.add_argument("--method", choices=METHODS, help="override the config's method (default whole_span)")
     _scale_args(sp)
 
     sp = add("optimize", cmd_optimize, "the cheapest data plan meeting σ targets within a budget")
@@ -110,8 +112,11 @@ def add_commands(add, target) -> None:
     sp.add_argument("--hours", type=float, help="budget: most hours of data")
     sp.add_argument("--axes", help="allowed maneuver axes, e.g. roll,yaw")
     sp.add_argument("--rates", help="allowed maneuver rates [deg/s], e.g. 0.05,0.1")
+    sp.add_argument("--starts", help="start phases the operator can choose [min from the plan start], e.g. 0,30,60")
+    sp.add_argument("--passes", help="numbers of passes the data may be split into, e.g. 1,2")
+    sp.add_argument("--windows", help="sensors' most minutes of data, placed by the search, e.g. FHST2=10")
     sp.add_argument("--write-config", help="write the chosen plan as an analysis config here")
-    sp.add_argument("--method", choices=("batch", "kalman"), help="override the config's method")
+    sp.add_argument("--method", choices=METHODS, help="override the config's method (default whole_span)")
     sp.add_argument("--workers", type=_count, default=0, help="run on a local Dask cluster of N processes")
     sp.add_argument("--scheduler", help="run on an existing Dask cluster")
 
@@ -169,6 +174,11 @@ def cmd_trade(args, prog) -> int:
     _out("error budget of the best plans (σ = noise ⊕ consider elements):")
     for line in budget_lines(rows, defn.top):
         _out(line)
+    warned = [r for r in rows if r.warnings]
+    if warned:  # one line for the study: the first plan's numbers and how many plans warn
+        sys.stderr.write(
+            f"gcs: warning: {len(warned)} of {len(rows)} plans, e.g. {warned[0].plan_id}: {warned[0].warnings[0]}\n"
+        )
     if output is not None:
         _out(f"\n{len(rows)} plans in {output}")
     if args.plot:
@@ -179,6 +189,9 @@ def cmd_trade(args, prog) -> int:
 
         _write(path, study_plot(rows, varied_keys([r for r in rows if r.status == "ok"]) or tuple(defn.vary)))
         _out(f"plot written to {path}")
+    if rows and all(r.status != "ok" for r in rows):
+        sys.stderr.write(f"gcs: error: no plan of the study could be predicted, e.g. {rows[0].status}\n")
+        return EXIT_INPUT
     return EXIT_OK
 
 
@@ -202,7 +215,14 @@ def cmd_optimize(args, prog) -> int:
     if not targets:
         raise InputError("give at least one --target ELEMENT<SIGMA", key="trade.optimize.targets")
     budget = Budget.from_mapping(
-        opt.get("budget", {}), slew_min=args.slew_min, hours=args.hours, axes=args.axes, rates=args.rates
+        opt.get("budget", {}),
+        slew_min=args.slew_min,
+        hours=args.hours,
+        axes=args.axes,
+        rates=args.rates,
+        starts=args.starts,
+        passes=args.passes,
+        windows=args.windows,
     )
     with prog.task("searching the plan space", total=None) as task:
         res = optimize(
@@ -219,6 +239,8 @@ def cmd_optimize(args, prog) -> int:
     if res.best is not None and res.config is not None and args.write_config:
         path = save_config(res.config, Path(args.write_config))
         _out(f"plan written to {path} (gcs montecarlo {path} checks it)")
+        if res.best.description.get("sensor_gaps"):
+            _out("note: the sensors' own windows are not in a config; give them as [[sensor]] gaps of a plan file")
     return EXIT_OK if res.best is not None else EXIT_FLAG
 
 

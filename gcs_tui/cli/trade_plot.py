@@ -50,10 +50,16 @@ def study_plot(rows: Sequence, keys: tuple[str, ...], *, width: int = 100, heigh
             plt.plot([a for a, _ in fin], [b for _, b in fin], marker="dot")
         if not _numeric(v1):
             plt.xticks(x, [str(v) for v in v1])
-        plt.title(f"σ {name} [{sigma_display(1.0, unit)[1]}] against {keys[0]}")
+        plt.title(f"σ {name}{_unit(unit)} against {keys[0]}")
         plt.xlabel(keys[0])
         out.append(_plain(plt.build()))
     return "\n\n".join(out) + "\n"
+
+
+def _unit(unit: str) -> str:
+    """`` [label]`` of the display unit, nothing for a dimensionless element."""
+    label = sigma_display(1.0, unit)[1]
+    return f" [{label}]" if label else ""
 
 
 def heat_map(rows: Sequence, name: str, unit: str, keys: tuple[str, str]) -> str:
@@ -64,7 +70,7 @@ def heat_map(rows: Sequence, name: str, unit: str, keys: tuple[str, str]) -> str
     lo, hi = (float(fin.min()), float(fin.max())) if fin.size else (1.0, 1.0)
     span = math.log(hi / lo) if hi > lo else 1.0
     lines = [
-        f"σ {name} [{sigma_display(1.0, unit)[1]}]: rows {keys[0]}, columns {keys[1]}; "
+        f"σ {name}{_unit(unit)}: rows {keys[0]}, columns {keys[1]}; "
         f"shade '{SHADES[1]}' {lo:.3g} … '{SHADES[-1]}' {hi:.3g}, '?' not determined"
     ]
     w = max(6, *(len(str(v)) for v in v2))

@@ -91,3 +91,65 @@ def test_runs_seeded_stored_replayable_and_resumable(config, tmp_path, monkeypat
         z = np.array(r["error"]) / np.sqrt(np.diag(np.array(r["P"])))
         bad = {n: round(float(v), 2) for n, v in zip(r["names"], z) if abs(v) > four_sigma}
         assert not bad, (r["index"], bad)
+
+
+#: a seeded slice of the bundled TAM-bias study (benchmarks/montecarlo_bundled.py runs 200+)
+SLICE_RUNS = 16
+BUNDLED = ROOT / "sample_data" / "trade" / "smm-tam-bias.toml"
+
+
+def test_bundled_study_slice_agrees_with_its_prediction():
+    """The bundled TAM-bias plan, 16 runs with the truth's a priori drawn: every determined
+    element inside its sampling band and the NEES inside its own."""
+    res = run_montecarlo(MonteCarlo(str(BUNDLED), SLICE_RUNS, 20261204))
+    assert res.runs == SLICE_RUNS and res.failed == 0
+    assert res.consistent, "\n".join(mc_mod.summary_lines(res))
+
+
+def test_ratio_band_is_the_chi2_band_of_a_sample_sigma_widened_by_15_percent():
+    from scipy import stats
+
+    lo, hi = mc_mod.ratio_band(200, 1)
+    assert lo == pytest.approx(0.85 * np.sqrt(stats.chi2.ppf(0.025, 199) / 199))
+    assert hi == pytest.approx(1.15 * np.sqrt(stats.chi2.ppf(0.975, 199) / 199))
+    # more elements compared: a wider band (Bonferroni); more runs: a narrower one
+    assert mc_mod.ratio_band(200, 10)[1] > hi and mc_mod.ratio_band(1000, 1)[1] < hi
+
+
+def test_truth_drawn_from_the_a_priori_consider_elements_too():
+    from types import SimpleNamespace as El
+
+    state = [
+        El(name="TAM1.bias_x", role="solve-for", sigma0=200.0),
+        El(name="TAM1.align_1", role="consider", sigma0=1e-3),
+        El(name="IRU.bias_x", role="held", sigma0=1e-6),
+        El(name="att.roll", role="solve-for", sigma0=np.inf),
+    ]
+    truth = {"TAM1.bias_x": 5.0, "TAM1.align_1": 0.0, "IRU.bias_x": 0.0, "att.roll": 0.1}
+    draws = [mc_mod.draw_prior(state, truth, np.random.default_rng([s, 1]), {"TAM1.bias_x": 2.0}) for s in range(400)]
+    assert all(set(d) == {"TAM1.bias_x", "TAM1.align_1"} for d in draws)
+    bias = np.array([d["TAM1.bias_x"] for d in draws]) - 5.0
+    align = np.array([d["TAM1.align_1"] for d in draws])
+    # the draw's σ (the capped 2 nT; the consider element's own a priori), χ² on 399 dof
+    for x, sigma in ((bias, 2.0), (align, 1e-3)):
+        p = stats_chi2_p(x, sigma)
+        assert 1e-3 < p < 1 - 1e-3, p
+
+
+def stats_chi2_p(x, sigma):
+    from scipy import stats
+
+    return float(stats.chi2.cdf(np.sum(np.square(x / sigma)), x.size))
+
+
+def test_config_error_writes_no_failed_runs(tmp_path):
+    from gcs_core.errors import InputError
+
+    cfg = tmp_path / "no_orbit.toml"
+    cfg.write_text(
+        CONFIG.format(mission=ROOT / "sample_data" / "missions" / "nominal-sunpoint").split("[trade.orbit]")[0]
+    )
+    out = tmp_path / "mc.h5"
+    with pytest.raises(InputError, match="trade.orbit"):
+        run_montecarlo(MonteCarlo(str(cfg), 5, 1), out)
+    assert not out.exists()

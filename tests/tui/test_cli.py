@@ -170,7 +170,8 @@ def test_predict_prints_and_reports(tmp_path, capsys):
         == cli.EXIT_OK
     )
     out = capsys.readouterr().out
-    assert "predicted 1-sigma at end of plan" in out and "att.roll" in out
+    assert "predicted 1-sigma from the whole plan" in out and "att.roll" in out
+    assert "(attitude at the reference epoch)" in out and "at end of plan" not in out
     rep = json.loads((tmp_path / "p.json").read_text())
     assert rep["mission"] == "hidden-tam-contamination"
     assert rep["plan"]["maneuvers"][0]["axis"] == "yaw"

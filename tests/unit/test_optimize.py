@@ -49,3 +49,28 @@ def test_cheapest_plan_meeting_a_gyro_target_needs_a_roll_slew():
     text = "\n".join(res.lines())
     assert "without the roll maneuver: not determined" in text, text
     assert res.searched > 1  # cheaper plans were tried and failed
+
+
+def test_optimizer_searches_start_phase_and_passes_and_reports_the_orbit_dependence():
+    """The TAM bias of the bundled study: one pass or two passes 15–45 min apart, the
+    start phase searched when the operator controls it; otherwise the chosen plan's σ
+    over the orbit is reported (how much the answer depends on what was not controlled)."""
+    cfg = load_config(ROOT / "sample_data" / "trade" / "smm-tam-bias.toml")
+    budget = Budget(hours=0.5, starts=(0.0, 30.0, 60.0), passes=(1, 2))
+    c = candidates(budget)
+    assert {x.get("start_min") for x in c} == {0.0, 30.0, 60.0}
+    assert any(x.get("passes") == 2 and x["separation_min"] == 30.0 for x in c)
+    target = parse_target("TAM1.bias<3nT")
+    res = optimize(cfg, [target], budget)
+    assert res.best is not None, "\n".join(res.lines())
+    free = optimize(cfg, [target], Budget(hours=0.5, passes=(1, 2)))
+    text = "\n".join(free.lines())
+    assert "not controlled, the start in the orbit" in text, text
+    assert "target met at" in text
+
+
+def test_per_sensor_windows_are_placed_by_the_search():
+    c = candidates(Budget(hours=0.5, windows={"FHST2": 10.0}))
+    windows = {x["FHST2.window_min"] for x in c if x["span_min"] == 30.0}
+    assert windows == {"0:10", "10:20", "20:30"}
+    assert all("FHST2.window_min" not in x for x in c if x["span_min"] <= 10.0)

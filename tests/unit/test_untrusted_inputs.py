@@ -205,7 +205,7 @@ def test_sizes_are_bounded_before_allocating(tmp_path, mission, capsys):
         assert "--runs" in err and "1 to 100000" in err
     err = one_line(capsys, cli.main(["-q", "trade", str(TRADE), "--vary", "span_min=1e9", "--output", "x.h5"]))
     assert "trade.vary.span_min" in err and "limit" in err
-    from gcs_core.filtr.knots import make_grid
+    from gcs_core.estimators.whole_span.knots import make_grid
 
     with pytest.raises(InputError, match="at most 2000000") as info:
         make_grid(0.0, 1e6, 1e-6, 1e-6, 1e-8)  # a microsecond spacing over 12 days
