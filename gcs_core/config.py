@@ -99,7 +99,7 @@ from gcs_core.config_checks import (
 )
 from gcs_core.errors import ConfigError
 from gcs_core.fileperm import write_atomic
-from gcs_core.io.inputs import refuse_unreadable
+from gcs_core.inputs import refuse_unreadable
 from gcs_core.io.types import SENSOR_TYPES
 from gcs_core.problem.prepare import FIELD_MODELS, PhysicsOptions
 from gcs_core.problem.state import ROLES

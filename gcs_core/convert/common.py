@@ -147,7 +147,7 @@ MARKER = ".gcs-converted"
 
 def check_source(source: Path, fmt: str) -> None:
     """The source is a regular file (a FIFO would block, ``/dev/zero`` never end)."""
-    from gcs_core.io.inputs import refuse_unreadable
+    from gcs_core.inputs import refuse_unreadable
 
     kind = refuse_unreadable(source, f"{fmt} source")
     if kind != "file":

@@ -44,7 +44,7 @@ from gcs_core.ephem import teme, timescale
 from gcs_core.ephem.orbit import TleOrbit
 from gcs_core.ephem.sun import sun_position_km
 from gcs_core.errors import InputError
-from gcs_core.io.inputs import refuse_unreadable
+from gcs_core.inputs import refuse_unreadable
 
 log = logging.getLogger(__name__)
 

@@ -11,7 +11,7 @@ No physics here: what the files say, checked, as plain objects.
 * :mod:`~gcs_core.io.h5store` — the one place HDF5 files are opened (atomic, locked,
   checksummed), with :mod:`~gcs_core.io.locks` for the locks between processes;
 * :mod:`~gcs_core.io.outputs` — output paths checked before work (kinds GCS recognises,
-  writability); :mod:`~gcs_core.io.inputs` — input paths that are not regular files;
+  writability); :mod:`~gcs_core.inputs` — input paths that are not regular files;
 * :mod:`~gcs_core.io.sdf` — the Standard Data File (seed Table 3-2), read;
   :mod:`~gcs_core.io.sdf_write` writes it;
 * :mod:`~gcs_core.io.scds` — the Sensor Calibration Data Set (append-only versions);

@@ -31,7 +31,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.fileperm import atomic_open
-from gcs_core.io.inputs import refuse_unreadable
+from gcs_core.inputs import refuse_unreadable
 from gcs_core.io.types import Table
 
 log = logging.getLogger(__name__)

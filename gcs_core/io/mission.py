@@ -28,7 +28,7 @@ from typing import Any
 from gcs_core import toml_values
 from gcs_core.ephem.timescale import parse_utc
 from gcs_core.errors import InputError
-from gcs_core.io.inputs import check_directory_readable, refuse_unreadable
+from gcs_core.inputs import check_directory_readable, refuse_unreadable
 from gcs_core.io.orbit_spec import GROUND_KEYS, ORBIT_KEYS, earth_rate, ephemeris_or_orbit, ground_position
 from gcs_core.io.plan_sensor import PLAN_SENSOR_KEYS, plan_keys
 from gcs_core.io.toml_fields import Ctx, Locator, existing_file, number, numbers, optional_file, show, string

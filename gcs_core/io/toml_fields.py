@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core.errors import InputError
-from gcs_core.io.inputs import NOT_A_FILE, path_kind
+from gcs_core.inputs import NOT_A_FILE, path_kind
 from gcs_core.toml_values import number_complaint, show
 
 __all__ = ["Locator", "Ctx", "number", "show", "numbers", "string", "existing_file", "optional_file"]

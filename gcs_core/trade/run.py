@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_core.trade import engine, store
-from gcs_core.trade.study import PlanRow, StudyDefinition, evaluate_plans
+from gcs_core.trade.study import PlanRow, StudyDefinition, check_study, evaluate_plans
 
 
 def row_from_record(rec: dict) -> PlanRow:
@@ -73,6 +73,7 @@ def run_study(
     ``progress(done, total)`` counts plans, those already in the file included.
     """
     defn = defn.with_source()  # read here once; the workers get it with the tasks
+    check_study(defn)  # a varied key or value no plan could use: refused before any work
     combos = defn.combos()
     digest = defn.digest()
     skip: set[int] = set()

@@ -14,6 +14,7 @@ each property stops at a modest number of examples to keep the file fast.
 
 from __future__ import annotations
 
+import json
 import math
 import tempfile
 from pathlib import Path
@@ -64,7 +65,13 @@ def _accepts_or_refuses(load) -> C.AnalysisConfig | None:
 def _round_trips(cfg: C.AnalysisConfig) -> None:
     """An accepted config written and read back is the same config."""
     again = C.config_from_dict(C.parse_toml(tomli_w.dumps(C.to_dict(cfg))), path=cfg.path)
-    assert again == cfg
+    # the planning tables are kept raw (checked by the trade study) and may hold nan, which
+    # is equal to itself only through its text
+    assert again == cfg or _text(again) == _text(cfg)
+
+
+def _text(cfg: C.AnalysisConfig) -> str:
+    return json.dumps(C.to_dict(cfg), sort_keys=True, default=str)
 
 
 #: per table: lines that belong there (good and bad values), and a few that do not

@@ -28,6 +28,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
             "gcs_core",
             "gcs_core.errors",
             "gcs_core.cancel",
+            "gcs_core.inputs",
             "gcs_core.units",
             "gcs_core.fileperm",
             "gcs_core.compiled",

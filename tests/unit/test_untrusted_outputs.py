@@ -75,7 +75,7 @@ def test_no_output_option_replaces_a_calibration_history(history, argv, capsys, 
 def test_the_engine_refuses_too(history, tmp_path):
     """write_sdf and the JSON writer refuse an SCDS even when called directly."""
     from gcs_core.io.importer import load_mission
-    from gcs_core.io.sdf import write_sdf
+    from gcs_core.io.sdf_write import write_sdf
     from gcs_core.reporting import write_json_atomic
 
     before = history.read_bytes()

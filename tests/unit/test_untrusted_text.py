@@ -85,7 +85,12 @@ def test_the_tui_status_line_and_title_are_escaped():
     from gcs_tui.tui.app import GcsApp
 
     wb = SimpleNamespace(
-        ready=True, mission=SimpleNamespace(name=PWNED), result=None, stale=False, current=SimpleNamespace(steps=[])
+        ready=True,
+        mission=SimpleNamespace(name=PWNED),
+        result=None,
+        filtr=None,
+        stale=False,
+        current=SimpleNamespace(steps=[]),
     )
     fake = SimpleNamespace(workbench=wb, last_notice=OSC52)
     text = GcsApp.status_text(fake)
