@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import os
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -109,27 +110,8 @@ def _load_toml(path: Path) -> tuple[dict, str]:
     return toml_values.loads(text, path, InputError), text
 
 
-def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False) -> MissionSpec:
-    """Read and check ``mission.toml`` (ICD §3, §5).
-
-    Parameters
-    ----------
-    mission_dir : the mission directory, or the mission.toml file itself.
-    planning : the file is a plan (docs/planning.md): an analysis config that holds its own
-        ``[mission]`` and ``[[sensor]]`` tables. Sensors need no telemetry and may give a
-        ``cadence`` and their own ``gaps``; the orbit may be left to ``[trade.orbit]``
-        (neither ``[ephemeris]`` nor ``[orbit]``); the config's tables are not reported.
-
-    Returns
-    -------
-    MissionSpec with paths resolved against the mission directory (every file checked
-    to exist), the epoch as a timezone-aware UTC datetime, one SensorSpec per
-    ``[[sensor]]`` table in file order.
-
-    Raises
-    ------
-    InputError naming mission.toml, the line and the key at fault.
-    """
+def _locate(mission_dir: str | os.PathLike) -> tuple[Path, Path]:
+    """The mission directory and its mission.toml (or a .toml file given itself)."""
     given = Path(mission_dir)
     kind = refuse_unreadable(given, "mission directory")
     if kind == "dir":
@@ -145,10 +127,54 @@ def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False)
             f"{MISSION_FILE}, ephemeris.csv and telemetry/ (ICD §1)",
             file=path,
         )
-    doc, text = _load_toml(path)
-    ctx = Ctx(path, Locator(text))
-    unknown: list[str] = [k for k in doc if k not in _TOP_TABLES and not planning]
+    return root, path
 
+
+@dataclass(frozen=True)
+class _Header:
+    """``[mission]``: name, epoch (UTC), attitude mode and the spin axis guess [deg]."""
+
+    name: str
+    epoch: datetime
+    mode: str
+    spin_guess: tuple[float, float] | None
+
+
+def _epoch(ctx: Ctx, raw: object) -> datetime:
+    """``mission.epoch``: a TOML date-time (UTC if naive) or an ISO-8601 UTC string."""
+    if isinstance(raw, datetime):
+        try:
+            return raw.replace(tzinfo=UTC) if raw.tzinfo is None else raw.astimezone(UTC)
+        except OverflowError:
+            raise ctx.error("date-time out of range", "mission.epoch", "mission", 1, "epoch") from None
+    if isinstance(raw, str):
+        try:
+            return parse_utc(raw)
+        except ValueError as err:
+            raise ctx.error(str(err), "mission.epoch", "mission", 1, "epoch") from None
+    raise ctx.error(f"must be an ISO-8601 UTC string, not {show(raw)}", "mission.epoch", "mission", 1, "epoch")
+
+
+def _spin_guess(ctx: Ctx, m: dict) -> tuple[float, float] | None:
+    """``mission.spin_axis_guess_deg`` = [RA, Dec] [deg], if given."""
+    if "spin_axis_guess_deg" not in m:
+        return None
+    ra, dec = numbers(
+        ctx, m["spin_axis_guess_deg"], 2, "mission.spin_axis_guess_deg", "mission", 1, "spin_axis_guess_deg"
+    )
+    if not (0.0 <= ra <= 360.0 and -90.0 <= dec <= 90.0):
+        raise ctx.error(
+            f"[RA, Dec] must have RA in [0, 360] and Dec in [-90, 90], not [{ra:g}, {dec:g}]",
+            "mission.spin_axis_guess_deg",
+            "mission",
+            1,
+            "spin_axis_guess_deg",
+        )
+    return (ra, dec)
+
+
+def _read_header(ctx: Ctx, doc: dict, unknown: list[str]) -> _Header:
+    """``[mission]``, its unknown keys added to ``unknown``."""
     m = doc.get("mission")
     if not isinstance(m, dict):
         raise ctx.error("missing [mission] table (name, epoch, attitude_mode)", "mission", "mission")
@@ -156,21 +182,7 @@ def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False)
         if key not in m:
             raise ctx.error(f"missing key '{key}' in [mission]", f"mission.{key}", "mission")
     name = string(ctx, m["name"], "mission.name", "mission", 1, "name")
-    epoch_raw = m["epoch"]
-    if isinstance(epoch_raw, datetime):
-        try:
-            epoch = epoch_raw.replace(tzinfo=UTC) if epoch_raw.tzinfo is None else epoch_raw.astimezone(UTC)
-        except OverflowError:
-            raise ctx.error("date-time out of range", "mission.epoch", "mission", 1, "epoch") from None
-    elif isinstance(epoch_raw, str):
-        try:
-            epoch = parse_utc(epoch_raw)
-        except ValueError as err:
-            raise ctx.error(str(err), "mission.epoch", "mission", 1, "epoch") from None
-    else:
-        raise ctx.error(
-            f"must be an ISO-8601 UTC string, not {show(epoch_raw)}", "mission.epoch", "mission", 1, "epoch"
-        )
+    epoch = _epoch(ctx, m["epoch"])
     mode = string(ctx, m["attitude_mode"], "mission.attitude_mode", "mission", 1, "attitude_mode")
     if mode not in ATTITUDE_MODES:
         raise ctx.error(
@@ -180,37 +192,37 @@ def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False)
             1,
             "attitude_mode",
         )
-    spin_guess = None
-    if "spin_axis_guess_deg" in m:
-        ra, dec = numbers(
-            ctx, m["spin_axis_guess_deg"], 2, "mission.spin_axis_guess_deg", "mission", 1, "spin_axis_guess_deg"
-        )
-        if not (0.0 <= ra <= 360.0 and -90.0 <= dec <= 90.0):
-            raise ctx.error(
-                f"[RA, Dec] must have RA in [0, 360] and Dec in [-90, 90], not [{ra:g}, {dec:g}]",
-                "mission.spin_axis_guess_deg",
-                "mission",
-                1,
-                "spin_axis_guess_deg",
-            )
-        spin_guess = (ra, dec)
+    spin_guess = _spin_guess(ctx, m)
     unknown += [f"mission.{k}" for k in m if k not in _MISSION_KEYS]
+    return _Header(name, epoch, mode, spin_guess)
 
+
+@dataclass(frozen=True)
+class _Site:
+    """Where the spacecraft is: an ephemeris file and/or ``[orbit]`` (MissionSpec's orbit
+    fields), or a ground mission's position [km] and Earth rate [rad/s]."""
+
+    ephemeris: Path | None
+    orbit: dict
+    ground: tuple[float, float, float] | None
+    earth: tuple[float, float, float] | None
+
+
+def _read_site(ctx: Ctx, root: Path, doc: dict, mode: str, planning: bool, unknown: list[str]) -> _Site:
+    """``[ephemeris]`` / ``[orbit]`` (a plan may leave the orbit to ``[trade.orbit]``)."""
     e = doc.get("ephemeris")
-    ground = None
-    earth = None
-    orbit: dict = {}
     if isinstance(e, dict) and "ground_position_km" in e and "file" not in e:
         ground = ground_position(ctx, e, mode, unknown)
-        earth = earth_rate(ctx, e)
-        ephemeris = None
-    elif planning and "ephemeris" not in doc and "orbit" not in doc:
-        ephemeris, orbit = None, {}  # the orbit is the plan's [trade.orbit]
-    else:
-        ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
-    aux = optional_file(ctx, root, doc, "aux", unknown)
-    onboard = optional_file(ctx, root, doc, "onboard_attitude", unknown)
+        return _Site(None, {}, ground, earth_rate(ctx, e))
+    if planning and "ephemeris" not in doc and "orbit" not in doc:
+        return _Site(None, {}, None, None)  # the orbit is the plan's [trade.orbit]
+    ephemeris, orbit = ephemeris_or_orbit(ctx, root, doc, unknown)
+    return _Site(ephemeris, orbit, None, None)
 
+
+def _read_sensors(ctx: Ctx, root: Path, doc: dict, mode: str, planning: bool) -> list[SensorSpec]:
+    """Every ``[[sensor]]`` (:func:`~gcs_core.io.mission_sensor.read_sensor`), names unique,
+    links checked."""
     raw_sensors = doc.get("sensor")
     if raw_sensors is None:
         raise ctx.error("no [[sensor]] tables: the mission has no sensors to calibrate", "sensor", "sensor")
@@ -232,30 +244,68 @@ def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False)
         seen[s.name] = index
         sensors.append(s)
     _check_links(ctx, sensors)
-    if ground is not None:
-        for index, s in enumerate(sensors, start=1):
-            if s.type in SUN_TYPES:
-                raise ctx.error(
-                    f"a ground mission has no Sun: sensor {s.name!r} of type {s.type} cannot be used (docs/ground.md)",
-                    f"sensor[{index}].type",
-                    "sensor",
-                    index,
-                    "type",
-                )
+    return sensors
+
+
+def _refuse_sun_sensors(ctx: Ctx, sensors: list[SensorSpec]) -> None:
+    """A ground mission has no Sun (docs/ground.md)."""
+    for index, s in enumerate(sensors, start=1):
+        if s.type in SUN_TYPES:
+            raise ctx.error(
+                f"a ground mission has no Sun: sensor {s.name!r} of type {s.type} cannot be used (docs/ground.md)",
+                f"sensor[{index}].type",
+                "sensor",
+                index,
+                "type",
+            )
+
+
+def read_mission_spec(mission_dir: str | os.PathLike, *, planning: bool = False) -> MissionSpec:
+    """Read and check ``mission.toml`` (ICD §3, §5).
+
+    Parameters
+    ----------
+    mission_dir : the mission directory, or the mission.toml file itself.
+    planning : the file is a plan (docs/planning.md): an analysis config that holds its own
+        ``[mission]`` and ``[[sensor]]`` tables. Sensors need no telemetry and may give a
+        ``cadence`` and their own ``gaps``; the orbit may be left to ``[trade.orbit]``
+        (neither ``[ephemeris]`` nor ``[orbit]``); the config's tables are not reported.
+
+    Returns
+    -------
+    MissionSpec with paths resolved against the mission directory (every file checked
+    to exist), the epoch as a timezone-aware UTC datetime, one SensorSpec per
+    ``[[sensor]]`` table in file order.
+
+    Raises
+    ------
+    InputError naming mission.toml, the line and the key at fault.
+    """
+    root, path = _locate(mission_dir)
+    doc, text = _load_toml(path)
+    ctx = Ctx(path, Locator(text))
+    unknown: list[str] = [k for k in doc if k not in _TOP_TABLES and not planning]
+    header = _read_header(ctx, doc, unknown)
+    site = _read_site(ctx, root, doc, header.mode, planning, unknown)
+    aux = optional_file(ctx, root, doc, "aux", unknown)
+    onboard = optional_file(ctx, root, doc, "onboard_attitude", unknown)
+    sensors = _read_sensors(ctx, root, doc, header.mode, planning)
+    if site.ground is not None:
+        _refuse_sun_sensors(ctx, sensors)
     for k in unknown:
         log.warning("%s: unknown key '%s' kept but not used%s", path, k, unknown_key_hint(k))
     return MissionSpec(
         root=root,
-        name=name,
-        epoch=epoch,
-        attitude_mode=mode,
-        ephemeris_file=ephemeris,
+        name=header.name,
+        epoch=header.epoch,
+        attitude_mode=header.mode,
+        ephemeris_file=site.ephemeris,
         sensors=tuple(sensors),
-        spin_axis_guess_deg=spin_guess,
+        spin_axis_guess_deg=header.spin_guess,
         aux_file=aux,
         onboard_file=onboard,
         unknown_keys=tuple(unknown),
-        ground_position_km=ground,
-        earth_rate_rad_s=earth,
-        **orbit,
+        ground_position_km=site.ground,
+        earth_rate_rad_s=site.earth,
+        **site.orbit,
     )
