@@ -47,7 +47,8 @@ def uncompiled_kernels() -> list[str]:
     missing = []
     for name, dispatcher in _kernels():
         try:
-            index = Path(dispatcher._cache._cache_file._index_path)  # type: ignore[attr-defined]
+            cache_file = dispatcher._cache._cache_file  # type: ignore[attr-defined] # numba private, untyped
+            index = Path(cache_file._index_path)
         except AttributeError:  # another numba's layout: assume compiled rather than cry wolf
             continue
         if not index.exists():

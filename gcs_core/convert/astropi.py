@@ -43,6 +43,7 @@ from __future__ import annotations
 
 import logging
 import shutil
+from dataclasses import dataclass
 from datetime import UTC, datetime
 from pathlib import Path
 
@@ -50,6 +51,7 @@ import numpy as np
 
 from gcs_core.convert import ConversionReport
 from gcs_core.convert.common import (
+    NamedCsv,
     check_destination,
     check_source,
     leading_transient,
@@ -155,15 +157,49 @@ def _lvlh_field(tle_file: Path, epoch: datetime, t: np.ndarray) -> tuple[np.ndar
     return np.einsum("nij,nj->ni", reference_dcm("earth_pointing", r, v), B_I), warning
 
 
-def _mission_toml(name, epoch, noise_nT, sigma_axes, n_transient, align_deg, bias_nT, rigid_rms_nT) -> str:
-    a = ", ".join(f"{x:.3f}" for x in align_deg)
-    b = ", ".join(f"{x:.1f}" for x in bias_nT)
-    s = ", ".join(f"{x:.1f}" for x in sigma_axes)
-    return f"""# Converted by `gcs convert astropi` from the Raspberry Pi Foundation's Astro Pi flight data
+@dataclass(frozen=True)
+class _Readings:
+    """What the Astro Pi CSV holds, converted: the table read, the epoch (its first row) and
+    seconds since it, the field [nT], the aux channels (centred ones minus their median)."""
+
+    table: NamedCsv
+    epoch: datetime
+    t: np.ndarray
+    B: np.ndarray
+    aux: dict[str, np.ndarray]
+    medians: dict[str, float]
+
+    @property
+    def median_text(self) -> str:
+        return ", ".join(f"{c} {m:g}" for c, m in self.medians.items())
+
+
+@dataclass(frozen=True)
+class _Estimates:
+    """What the data book cannot know, estimated from the data (module docstring): the white
+    noise per axis and its RMS [nT], the start-up transient's length and each row's flag, the
+    mounting [deg] and bias [nT] with the RMS they leave [nT], and the TLE's staleness
+    warning ('' if none)."""
+
+    sigma: np.ndarray
+    noise: float
+    n_transient: int
+    flag: np.ndarray
+    align_deg: np.ndarray
+    bias: np.ndarray
+    rigid_rms: float
+    tle_warning: str
+
+
+def _mission_toml(name: str, r: _Readings, e: _Estimates) -> str:
+    a = ", ".join(f"{x:.3f}" for x in e.align_deg)
+    b = ", ".join(f"{x:.1f}" for x in e.bias)
+    s = ", ".join(f"{x:.1f}" for x in e.sigma)
+    text = f"""# Converted by `gcs convert astropi` from the Raspberry Pi Foundation's Astro Pi flight data
 # (CC BY-SA 4.0, see LICENCE.md, SOURCE.md and PROVENANCE.md): the unit's magnetometer inside the ISS.
 [mission]
 name = "{name}"
-epoch = "{epoch:%Y-%m-%dT%H:%M:%SZ}"        # the first sample
+epoch = "{r.epoch:%Y-%m-%dT%H:%M:%SZ}"        # the first sample
 attitude_mode = "earth_pointing"            # the station flies near local-vertical/local-horizontal
 
 [orbit]                                     # no ephemeris file: SGP4 from the station's elements
@@ -177,34 +213,33 @@ file = "aux.csv"
 [[sensor]]
 name = "{SENSOR}"
 type = "magnetometer"
-telemetry = "telemetry/{SENSOR}.csv"        # {n_transient} start-up samples flagged (flag = 1), kept, not used
+telemetry = "telemetry/{SENSOR}.csv"        # {e.n_transient} start-up samples flagged (flag = 1), kept, not used
 # ESTIMATED, not a data book: the mounting is unknown. Rotation and offset fitted against IGRF
-# along the TLE orbit in LVLH (orthogonal Procrustes), leaving {rigid_rms_nT:.0f} nT RMS.
+# along the TLE orbit in LVLH (orthogonal Procrustes), leaving {e.rigid_rms:.0f} nT RMS.
 alignment_deg = [{a}]
 bias = [{b}]                                # nT
 # {ESTIMATED_MARK} (second differences; per axis [{s}] nT): the white noise it shows.
-noise = {noise_nT:.1f}                      # nT
+noise = {e.noise:.1f}                      # nT
 """
+    return text if r.aux else text.replace('[aux]\nfile = "aux.csv"\n\n', "")
 
 
-def _provenance(
-    source, digest, tle, rows, n_transient, sigma_axes, noise, align, bias, rigid_rms, aux_names, epoch, medians
-) -> str:
+def _provenance(source: Path, tle: Path, r: _Readings, e: _Estimates) -> str:
     return f"""# Provenance
 
 Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
 
-- Source: `{source.name}` ({rows} data rows), SHA-256 `{digest}`.
+- Source: `{source.name}` ({len(r.table)} data rows), SHA-256 `{sha256(source)}`.
 - Orbit: `{tle.name}` copied as `orbit.tle` (SHA-256 `{sha256(tle)}`); GCS propagates it
   with SGP4 (the `[orbit]` extension, docs/icd_extensions.md).
-- Time: `Date/Time` read as UTC; `t` = seconds since {epoch:%Y-%m-%dT%H:%M:%SZ}, the first row.
+- Time: `Date/Time` read as UTC; `t` = seconds since {r.epoch:%Y-%m-%dT%H:%M:%SZ}, the first row.
 - Magnetometer `MagX, MagY, MagZ` [µT] × 1000 → `telemetry/{SENSOR}.csv` `bx, by, bz` [nT], every
-  row kept. The first {n_transient} rows are the unit's start-up transient (the field settling
+  row kept. The first {e.n_transient} rows are the unit's start-up transient (the field settling
   from zero, then more than 3σ off the steady field extrapolated back; `leading_transient` in
   gcs_core/convert/common.py) and carry `flag = 1`: kept in the file, not used.
-- Auxiliary channels → `aux.csv`: {", ".join(aux_names) or "none"}; `dtemp_c`,
+- Auxiliary channels → `aux.csv`: {", ".join(r.aux) or "none"}; `dtemp_c`,
   `dhumidity_pct`, `dpressure_hpa` are `Temperature` [°C], `Humidity` [%], `Pressure` [hPa]
-  minus their median over the file ({medians}), so that a contamination by them is not
+  minus their median over the file ({r.median_text}), so that a contamination by them is not
   almost all a bias; `light_clear` is the `C` (clear) light channel as read.
 - Not converted: `Latitude, Longitude` (written onboard from an orbit known to be several
   minutes of track off: the position comes from the TLE), `Compass, Pitch, Roll, Yaw` (the
@@ -212,18 +247,114 @@ Converted by `gcs convert astropi` (gcs_core/convert/astropi.py).
 
 ## Estimated from the data (not a data book)
 
-- White noise per axis {", ".join(f"{x:.1f}" for x in sigma_axes)} nT (second differences of
-  consecutive samples, 5σ-clipped, / √6); `noise = {noise:.1f}` nT is their RMS. The file
+- White noise per axis {", ".join(f"{x:.1f}" for x in e.sigma)} nT (second differences of
+  consecutive samples, 5σ-clipped, / √6); `noise = {e.noise:.1f}` nT is their RMS. The file
   writes 0.1 µT steps: quantization alone is 29 nT.
-- Mounting `alignment_deg = [{", ".join(f"{x:.3f}" for x in align)}]` and bias
-  `[{", ".join(f"{x:.0f}" for x in bias)}]` nT: the rotation and offset that best map IGRF along
-  the TLE orbit in LVLH onto the measurements (orthogonal Procrustes); {rigid_rms:.0f} nT RMS left.
+- Mounting `alignment_deg = [{", ".join(f"{x:.3f}" for x in e.align_deg)}]` and bias
+  `[{", ".join(f"{x:.0f}" for x in e.bias)}]` nT: the rotation and offset that best map IGRF along
+  the TLE orbit in LVLH onto the measurements (orthogonal Procrustes); {e.rigid_rms:.0f} nT RMS left.
 
 ## Licence
 
 The data are © Raspberry Pi Foundation, CC BY-SA 4.0 (LICENCE.md); this mission directory is
 derived from them and is distributed under the same licence, with that attribution.
 """
+
+
+def _read(source: Path) -> _Readings:
+    """The CSV's times, field and aux channels, every value checked (module docstring)."""
+    table = read_named_csv(source, (TIME_COLUMN, *FIELD_COLUMNS))
+    epoch, t = _times(table)
+    B = np.column_stack([table.numbers(c) for c in FIELD_COLUMNS]) * UT_TO_NT
+    aux = {AUX_COLUMNS[c]: table.numbers(c) for c in AUX_COLUMNS if c in table.header}
+    _refuse_absurd(table, B, aux)
+    medians = {}
+    for c in CENTRED:
+        if AUX_COLUMNS[c] in aux:
+            medians[c] = float(np.median(aux[AUX_COLUMNS[c]]))
+            aux[AUX_COLUMNS[c]] = aux[AUX_COLUMNS[c]] - medians[c]
+    return _Readings(table, epoch, t, B, aux, medians)
+
+
+def _estimate(r: _Readings, tle: Path) -> _Estimates:
+    """The noise, the start-up transient and the mounting, from the data (module docstring)."""
+    from gcs_core.frames.rotations import dcm_to_euler123
+
+    t, B = r.t, r.B
+    # white noise from the data (gcs_core.noise.measured, the one estimator of both converters);
+    # measured again without the start-up transient it helped to find
+    sigma = white_noise(t, B)
+    n_tr = leading_transient(B, sigma, t=t)
+    sigma = white_noise(t[n_tr:], B[n_tr:])
+    noise = float(np.sqrt(np.mean(sigma**2)))
+    flag = np.zeros(t.size, dtype=int)
+    flag[:n_tr] = 1
+
+    use = flag == 0
+    B_L, tle_warning = _lvlh_field(tle, r.epoch, t)
+    M, bias = procrustes_mounting(B[use], B_L[use])
+    rigid_rms = float(np.sqrt(np.mean(np.sum((B[use] - B_L[use] @ M.T - bias) ** 2, axis=1) / 3)))
+    align = np.degrees(np.array(dcm_to_euler123(M), dtype=float))
+    return _Estimates(sigma, noise, n_tr, flag, align, bias, rigid_rms, tle_warning)
+
+
+def _write(stage: Path, source: Path, tle: Path, name: str, r: _Readings, e: _Estimates) -> list[str]:
+    """The mission directory's files, in ``stage``; returns the files written."""
+    (stage / "telemetry").mkdir()
+    write_csv(
+        stage / "telemetry" / f"{SENSOR}.csv",
+        ("t", "bx", "by", "bz", "flag"),
+        (r.t, *r.B.T, e.flag),
+        ("%.3f", "%.1f", "%.1f", "%.1f", "%d"),
+        comments=(
+            "Astro Pi Mark II magnetometer on the ISS, nT (source µT x 1000); "
+            "flag 1 = start-up transient, kept, not used",
+            "Data: Raspberry Pi Foundation, CC BY-SA 4.0 (LICENCE.md)",
+        ),
+    )
+    files = ["mission.toml", "orbit.tle", f"telemetry/{SENSOR}.csv"]
+    if r.aux:
+        write_csv(
+            stage / "aux.csv",
+            ("t", *r.aux),
+            (r.t, *r.aux.values()),
+            ("%.3f",) + ("%.6g",) * len(r.aux),
+            comments=(
+                "Astro Pi channels beside the magnetometer (PROVENANCE.md); d* = deviation from the median: "
+                + r.median_text,
+            ),
+        )
+        files.append("aux.csv")
+    shutil.copyfile(tle, stage / "orbit.tle")
+    (stage / "mission.toml").write_text(_mission_toml(name, r, e), encoding="utf-8")
+    for extra in ("LICENCE.md", "LICENSE.md", "LICENSE", "SOURCE.md"):
+        if (source.parent / extra).is_file():
+            shutil.copyfile(source.parent / extra, stage / extra)
+            files.append(extra)
+    (stage / "PROVENANCE.md").write_text(_provenance(source, tle, r, e), encoding="utf-8")
+    files.append("PROVENANCE.md")
+    return files
+
+
+def _report(source: Path, out: Path, files: list[str], r: _Readings, e: _Estimates) -> ConversionReport:
+    notes = (
+        f"MagX..Z µT -> bx..bz nT; epoch {r.epoch:%Y-%m-%dT%H:%M:%SZ} (first row)",
+        f"start-up transient: first {e.n_transient} samples flagged (flag = 1), kept",
+        f"noise estimated from the data: {e.noise:.1f} nT (per axis " + ", ".join(f"{x:.1f}" for x in e.sigma) + ")",
+        "mounting estimated against IGRF in LVLH: alignment_deg ["
+        + ", ".join(f"{x:.2f}" for x in e.align_deg)
+        + f"], {e.rigid_rms:.0f} nT RMS left",
+    ) + ((e.tle_warning,) if e.tle_warning else ())
+    return ConversionReport(
+        format="astropi",
+        source=source,
+        out=out,
+        rows=len(r.table),
+        samples={SENSOR: int(r.t.size), "aux": int(r.t.size) if r.aux else 0},
+        flagged={SENSOR: e.n_transient},
+        files=tuple(files),
+        notes=notes,
+    )
 
 
 def convert(
@@ -239,7 +370,6 @@ def convert(
     name : mission name (default: the output directory's name).
     """
     from gcs_core.ephem.tle import read_tle
-    from gcs_core.frames.rotations import dcm_to_euler123
 
     source, out = Path(source), Path(out)
     if tle is None:
@@ -248,102 +378,8 @@ def convert(
     check_source(source, "astropi")
     check_destination(source, out, overwrite=overwrite)  # before the work: fail fast
     read_tle(tle)
-    table = read_named_csv(source, (TIME_COLUMN, *FIELD_COLUMNS))
-    epoch, t = _times(table)
-    B = np.column_stack([table.numbers(c) for c in FIELD_COLUMNS]) * UT_TO_NT
-    aux = {AUX_COLUMNS[c]: table.numbers(c) for c in AUX_COLUMNS if c in table.header}
-    _refuse_absurd(table, B, aux)
-    medians = {}
-    for c in CENTRED:
-        if AUX_COLUMNS[c] in aux:
-            medians[c] = float(np.median(aux[AUX_COLUMNS[c]]))
-            aux[AUX_COLUMNS[c]] = aux[AUX_COLUMNS[c]] - medians[c]
-
-    # white noise from the data (gcs_core.noise.measured, the one estimator of both converters);
-    # measured again without the start-up transient it helped to find
-    sigma = white_noise(t, B)
-    n_tr = leading_transient(B, sigma, t=t)
-    sigma = white_noise(t[n_tr:], B[n_tr:])
-    noise = float(np.sqrt(np.mean(sigma**2)))
-    flag = np.zeros(t.size, dtype=int)
-    flag[:n_tr] = 1
-
-    use = flag == 0
-    B_L, tle_warning = _lvlh_field(tle, epoch, t)
-    M, bias = procrustes_mounting(B[use], B_L[use])
-    rigid_rms = float(np.sqrt(np.mean(np.sum((B[use] - B_L[use] @ M.T - bias) ** 2, axis=1) / 3)))
-    align = np.degrees(np.array(dcm_to_euler123(M), dtype=float))
-
-    name = name or out.name
+    readings = _read(source)
+    estimates = _estimate(readings, tle)
     with staged_directory(out, overwrite=overwrite, source=source) as stage:
-        (stage / "telemetry").mkdir()
-        write_csv(
-            stage / "telemetry" / f"{SENSOR}.csv",
-            ("t", "bx", "by", "bz", "flag"),
-            (t, *B.T, flag),
-            ("%.3f", "%.1f", "%.1f", "%.1f", "%d"),
-            comments=(
-                "Astro Pi Mark II magnetometer on the ISS, nT (source µT x 1000); "
-                "flag 1 = start-up transient, kept, not used",
-                "Data: Raspberry Pi Foundation, CC BY-SA 4.0 (LICENCE.md)",
-            ),
-        )
-        files = ["mission.toml", "orbit.tle", f"telemetry/{SENSOR}.csv"]
-        if aux:
-            write_csv(
-                stage / "aux.csv",
-                ("t", *aux),
-                (t, *aux.values()),
-                ("%.3f",) + ("%.6g",) * len(aux),
-                comments=(
-                    "Astro Pi channels beside the magnetometer (PROVENANCE.md); "
-                    "d* = deviation from the median: " + ", ".join(f"{c} {m:g}" for c, m in medians.items()),
-                ),
-            )
-            files.append("aux.csv")
-        shutil.copyfile(tle, stage / "orbit.tle")
-        text = _mission_toml(name, epoch, noise, sigma, n_tr, align, bias, rigid_rms)
-        if not aux:
-            text = text.replace('[aux]\nfile = "aux.csv"\n\n', "")
-        (stage / "mission.toml").write_text(text, encoding="utf-8")
-        for extra in ("LICENCE.md", "LICENSE.md", "LICENSE", "SOURCE.md"):
-            if (source.parent / extra).is_file():
-                shutil.copyfile(source.parent / extra, stage / extra)
-                files.append(extra)
-        (stage / "PROVENANCE.md").write_text(
-            _provenance(
-                source,
-                sha256(source),
-                tle,
-                len(table),
-                n_tr,
-                sigma,
-                noise,
-                align,
-                bias,
-                rigid_rms,
-                list(aux),
-                epoch,
-                ", ".join(f"{c} {m:g}" for c, m in medians.items()),
-            ),
-            encoding="utf-8",
-        )
-        files.append("PROVENANCE.md")
-    notes = (
-        f"MagX..Z µT -> bx..bz nT; epoch {epoch:%Y-%m-%dT%H:%M:%SZ} (first row)",
-        f"start-up transient: first {n_tr} samples flagged (flag = 1), kept",
-        f"noise estimated from the data: {noise:.1f} nT (per axis " + ", ".join(f"{x:.1f}" for x in sigma) + ")",
-        "mounting estimated against IGRF in LVLH: alignment_deg ["
-        + ", ".join(f"{x:.2f}" for x in align)
-        + f"], {rigid_rms:.0f} nT RMS left",
-    ) + ((tle_warning,) if tle_warning else ())
-    return ConversionReport(
-        format="astropi",
-        source=source,
-        out=out,
-        rows=len(table),
-        samples={SENSOR: int(t.size), "aux": int(t.size) if aux else 0},
-        flagged={SENSOR: n_tr},
-        files=tuple(files),
-        notes=notes,
-    )
+        files = _write(stage, source, tle, name or out.name, readings, estimates)
+    return _report(source, out, files, readings, estimates)

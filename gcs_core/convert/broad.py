@@ -66,12 +66,14 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
-from gcs_core.convert import ConversionReport
-from gcs_core.convert.broad_text import mission_toml, source_md
+from gcs_core.convert import ConversionReport, broad_noise
+from gcs_core.convert.broad_noise import rest_samples
+from gcs_core.convert.broad_text import Site, mission_toml, source_md
 from gcs_core.convert.common import check_destination, check_source, staged_directory
 from gcs_core.convert.holds import FLAG_NOTE, bus_check, held_repeats, hold_runs
 from gcs_core.errors import InputError
@@ -108,7 +110,7 @@ CITATION = (
     "(https://creativecommons.org/licenses/by/4.0/)"
 )
 SENSORS = {"gyro": "GYR", "magnetometer": "MAG", "attitude_reference": "OPT"}
-_SITE = (CITATION, EPOCH, LAB_POSITION_KM, LAB_LATITUDE_DEG)
+_SITE = Site(CITATION, EPOCH, LAB_POSITION_KM, LAB_LATITUDE_DEG)
 
 
 #: what h5py raises on a damaged or crafted file (a failed filter, a corrupt header, ...)
@@ -215,35 +217,6 @@ def _transients(t: np.ndarray, y: np.ndarray, rest: np.ndarray, what: str) -> li
     ]
 
 
-def _rest(moving: np.ndarray) -> np.ndarray:
-    """(N,) the samples the noise and the gyro's rest bias are measured on: the middle
-    half of the longest run outside the motion phase (the unit is often picked up, or
-    still swinging, a few seconds on either side of the phase flagged as motion)."""
-    still = ~np.asarray(moving, dtype=bool)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
-    runs = edges.reshape(-1, 2)
-    out = np.zeros(still.size, dtype=bool)
-    if runs.size:
-        lo, hi = runs[int(np.argmax(runs[:, 1] - runs[:, 0]))]
-        q = (hi - lo) // 4
-        out[lo + q : hi - q] = True
-    return out
-
-
-def _floor(line: np.ndarray, spread: np.ndarray, tiny: float, what: str, unit: str, warnings: list[str]) -> np.ndarray:
-    """``line`` where it is a positive number; elsewhere the per-sample spread, else ``tiny``."""
-    bad = ~(np.isfinite(line) & (line > 0))
-    if not bad.any():
-        return line
-    out = np.where(bad, np.where(np.isfinite(spread) & (spread > 0), spread, tiny), line)
-    warnings.append(
-        f"{what}: no noise measurable at rest on {int(bad.sum())} axis(es); "
-        f"written {np.array2string(out, precision=4)} {unit} from the per-sample "
-        "spread (or a floor): check it"
-    )
-    return out
-
-
 def _write_csv(path: Path, header: str, cols: list[np.ndarray], fmt: list[str]) -> int:
     a = np.column_stack(cols)
     with open(path, "w", encoding="utf-8", newline="\n") as fh:
@@ -252,9 +225,207 @@ def _write_csv(path: Path, header: str, cols: list[np.ndarray], fmt: list[str]) 
     return int(a.shape[0])
 
 
-def _rms(v) -> float:
-    v = np.asarray(v, dtype=float)
-    return float(np.sqrt(np.mean(v * v)))
+@dataclass(frozen=True)
+class Trial:
+    """A BROAD trial read (:func:`_read`) and cut to its span, in GCS's units and order.
+
+    t : (n,) [s from the file's first sample]; gyr [rad/s], mag_nT [nT], acc [m/s²] :
+    (n, 3); q_gcs : (n, 4) the optical quaternion scalar-last (NaN while untracked), tracked
+    : (n,) where it is not; pos : (n, 3) the optical position [m, ENU] as read, lever : (n,
+    3) the same from the whole file's mean tracked position; moving : (n,) the motion
+    phase; rest : (n,) the samples the noise is measured on
+    (:func:`~gcs_core.convert.broad_noise.rest_samples`); info : the file's description;
+    rate [Hz]; n_all : samples in the file; keep : (n_all,) those in ``span``.
+    """
+
+    t: np.ndarray
+    gyr: np.ndarray
+    mag_nT: np.ndarray
+    acc: np.ndarray
+    q_gcs: np.ndarray
+    tracked: np.ndarray
+    pos: np.ndarray
+    lever: np.ndarray
+    moving: np.ndarray
+    rest: np.ndarray
+    info: str
+    rate: float
+    n_all: int
+    keep: np.ndarray
+    span: tuple[float, float] | None
+
+
+@dataclass(frozen=True)
+class Flags:
+    """Each sample's flag (0, or :data:`~gcs_core.convert.holds.FLAG_HELD` /
+    ``FLAG_INTERPOLATED``) of the gyro and the magnetometer."""
+
+    gyro: np.ndarray
+    mag: np.ndarray
+
+    @property
+    def g_held(self) -> np.ndarray:
+        return self.gyro != 0
+
+    @property
+    def m_held(self) -> np.ndarray:
+        return self.mag != 0
+
+
+@dataclass
+class Notes:
+    """What the conversion reports, gathered step by step: start-up transients, the held
+    repeats' lines, warnings and notes."""
+
+    transients: list[str] = field(default_factory=list)
+    holds: list[str] = field(default_factory=list)
+    warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+
+
+def _read_span(source: Path, span: tuple[float, float] | None, log: Notes) -> Trial:
+    """The trial (:func:`_read`) within ``span`` [s from the first sample], if given."""
+    data, rate, info = _read(source)
+    n_all = data["imu_gyr"].shape[0]
+    t = np.arange(n_all) / rate
+    keep = np.ones(n_all, dtype=bool)
+    if span is not None:
+        lo, hi = float(span[0]), float(span[1])
+        if not hi > lo:
+            raise InputError(f"span end {hi:g} s must be after its start {lo:g} s", key="span")
+        keep = (t >= lo) & (t <= hi)
+        if keep.sum() < 100:
+            raise InputError(
+                f"span [{lo:g}, {hi:g}] s holds {int(keep.sum())} samples of {t[-1]:.1f} s; at least 100 needed",
+                key="span",
+            )
+        log.warnings.append(f"extract: samples of t = {lo:g} to {hi:g} s only ({int(keep.sum())} of {n_all})")
+    d = {k: v[keep] for k, v in data.items()}
+    moving = d["movement"].astype(bool)
+    q = d["opt_quat"]
+    q_gcs = np.column_stack([q[:, 1:4], q[:, 0]])  # (w,x,y,z) -> (x,y,z,w), same C_BI
+    tracked = np.isfinite(q_gcs).all(axis=1)
+    if not tracked.any():
+        raise InputError("dataset 'opt_quat' holds no tracked sample (all NaN)", file=source, key="opt_quat")
+    lever = d["opt_pos"] - np.nanmean(data["opt_pos"], axis=0)
+    return Trial(
+        t=t[keep],
+        gyr=d["imu_gyr"],
+        mag_nT=d["imu_mag"] * UT_TO_NT,
+        acc=d["imu_acc"],
+        q_gcs=q_gcs,
+        tracked=tracked,
+        pos=d["opt_pos"],
+        lever=lever,
+        moving=moving,
+        rest=rest_samples(moving),
+        info=info,
+        rate=rate,
+        n_all=n_all,
+        keep=keep,
+        span=span,
+    )
+
+
+def _flag(trial: Trial, log: Notes) -> Flags:
+    """Start-up transients, held repeats and interpolated samples, untracked optical samples
+    (module docstring): flagged or reported, every sample kept."""
+    t, tracked = trial.t, trial.tracked
+    for label, y in (("gyro", trial.gyr), ("magnetometer", trial.mag_nT), ("accelerometer", trial.acc)):
+        log.transients += _transients(t, y, trial.rest, label)
+    dt = 1.0 / trial.rate
+    # held repeats and interpolated samples (module docstring), against each channel's quantization
+    g_flag, g_lines = bus_check("gyro", trial.gyr, trial.moving, dt)
+    m_flag, m_lines = bus_check("magnetometer", trial.mag_nT, trial.moving, dt)
+    log.holds += g_lines + m_lines
+    lead = int(np.argmax(tracked))
+    if lead:
+        log.transients.append(
+            f"optical reference: untracked for its first {lead} samples "
+            f"(t = {t[0]:.3f} to {t[lead - 1]:.3f} s); written as nan"
+        )
+    untracked = int((~tracked).sum())
+    if untracked:
+        log.warnings.append(
+            f"optical reference: {untracked} untracked samples written as nan (the import drops and counts them)"
+        )
+    return Flags(g_flag, m_flag)
+
+
+def _write_tables(tmp: Path, trial: Trial, flags: Flags) -> dict[str, int]:
+    """The telemetry, aux and extra CSV files; file -> rows written."""
+    t, g_held, m_held = trial.t, flags.g_held, flags.m_held
+    (tmp / "telemetry").mkdir()
+    (tmp / "extra").mkdir()
+    rows = {}
+    rows["telemetry/GYR.csv"] = _write_csv(
+        tmp / "telemetry/GYR.csv",
+        f"# {FLAG_NOTE}\nt,wx,wy,wz,flag" if g_held.any() else "t,wx,wy,wz",
+        [t, *trial.gyr.T] + ([flags.gyro] if g_held.any() else []),
+        ["%.6f"] + ["%.9g"] * 3 + (["%d"] if g_held.any() else []),
+    )
+    rows["telemetry/MAG.csv"] = _write_csv(
+        tmp / "telemetry/MAG.csv",
+        f"# {FLAG_NOTE}\nt,bx,by,bz,flag" if m_held.any() else "t,bx,by,bz",
+        [t, *trial.mag_nT.T] + ([flags.mag] if m_held.any() else []),
+        ["%.6f"] + ["%.4f"] * 3 + (["%d"] if m_held.any() else []),
+    )
+    rows["telemetry/OPT.csv"] = _write_csv(
+        tmp / "telemetry/OPT.csv", "t,q1,q2,q3,q4", [t, *trial.q_gcs.T], ["%.6f"] + ["%.10f"] * 4
+    )
+    rows["extra/acc.csv"] = _write_csv(tmp / "extra/acc.csv", "t,ax,ay,az", [t, *trial.acc.T], ["%.6f"] + ["%.6g"] * 3)
+    rows["extra/opt_pos.csv"] = _write_csv(
+        tmp / "extra/opt_pos.csv", "t,x,y,z", [t, *trial.pos.T], ["%.6f"] + ["%.6g"] * 3
+    )
+    placed = np.isfinite(trial.lever).all(axis=1)
+    rows["aux.csv"] = _write_csv(
+        tmp / "aux.csv", "t,pos_x,pos_y,pos_z", [t[placed], *trial.lever[placed].T], ["%.6f"] + ["%.6f"] * 3
+    )
+    rows["extra/movement.csv"] = _write_csv(
+        tmp / "extra/movement.csv", "t,movement", [t, trial.moving.astype(float)], ["%.6f", "%d"]
+    )
+    return rows
+
+
+def _conversion_json(source: Path, rows: dict[str, int], trial: Trial, flags: Flags, log: Notes) -> str:
+    """conversion.json: what was written, flagged and estimated."""
+    return (
+        json.dumps(
+            {
+                "source": str(source),
+                "format": "broad",
+                "rows": rows,
+                "transients": log.transients,
+                "held_repeats": {
+                    "flags": FLAG_NOTE,
+                    "magnetometer": {str(v): int((flags.mag == v).sum()) for v in (2, 3)},
+                    "gyro": {str(v): int((flags.gyro == v).sum()) for v in (2, 3)},
+                    "magnetometer_runs": {str(k): v for k, v in hold_runs(held_repeats(trial.mag_nT)).items()},
+                    "report": log.holds,
+                },
+                "warnings": log.warnings,
+                "notes": log.notes,
+                "citation": CITATION,
+            },
+            indent=2,
+        )
+        + "\n"
+    )
+
+
+def _report(source: Path, out: Path, rows: dict[str, int], log: Notes) -> ConversionReport:
+    return ConversionReport(
+        format="broad",
+        source=source,
+        out=out,
+        rows=int(max(rows.values(), default=0)),
+        samples=dict(rows),
+        files=tuple(sorted(rows)) + ("mission.toml", "SOURCE.md"),
+        notes=tuple(f"transient (kept): {x}" for x in log.transients)
+        + tuple(f"repeats: {x}" for x in log.holds)
+        + tuple(f"warning: {x}" for x in log.warnings)
+        + tuple(log.notes),
+    )
 
 
 def convert(
@@ -282,178 +453,22 @@ def convert(
     source, out = Path(source), Path(out)
     check_source(source, "broad")
     check_destination(source, out, overwrite=overwrite)  # before the read: fail fast
-    data, rate, info = _read(source)
-    n_all = data["imu_gyr"].shape[0]
-    t = np.arange(n_all) / rate
-    keep = np.ones(n_all, dtype=bool)
-    warnings, notes, transients = [], [], []
-    if span is not None:
-        lo, hi = float(span[0]), float(span[1])
-        if not hi > lo:
-            raise InputError(f"span end {hi:g} s must be after its start {lo:g} s", key="span")
-        keep = (t >= lo) & (t <= hi)
-        if keep.sum() < 100:
-            raise InputError(
-                f"span [{lo:g}, {hi:g}] s holds {int(keep.sum())} samples of {t[-1]:.1f} s; at least 100 needed",
-                key="span",
-            )
-        warnings.append(f"extract: samples of t = {lo:g} to {hi:g} s only ({int(keep.sum())} of {n_all})")
-    d = {k: v[keep] for k, v in data.items()}
-    t = t[keep]
-    moving = d["movement"].astype(bool)
-    rest0 = _rest(moving)
-    gyr, mag_nT, acc = d["imu_gyr"], d["imu_mag"] * UT_TO_NT, d["imu_acc"]
-    q = d["opt_quat"]
-    q_gcs = np.column_stack([q[:, 1:4], q[:, 0]])  # (w,x,y,z) -> (x,y,z,w), same C_BI
-    tracked = np.isfinite(q_gcs).all(axis=1)
-    if not tracked.any():
-        raise InputError("dataset 'opt_quat' holds no tracked sample (all NaN)", file=source, key="opt_quat")
-    for label, y in (("gyro", gyr), ("magnetometer", mag_nT), ("accelerometer", acc)):
-        transients += _transients(t, y, rest0, label)
-    dt = 1.0 / rate
-    # held repeats and interpolated samples (module docstring), against each channel's quantization
-    g_flag, g_lines = bus_check("gyro", gyr, moving, dt)
-    m_flag, m_lines = bus_check("magnetometer", mag_nT, moving, dt)
-    holds = g_lines + m_lines
-    g_held, m_held = g_flag != 0, m_flag != 0
-    s_gyr = noise_mod.white_noise(t[~g_held], gyr[~g_held])
-    s_mag = noise_mod.white_noise(t[~m_held], mag_nT[~m_held])  # the samples used
-    lead = int(np.argmax(tracked))
-    if lead:
-        transients.append(
-            f"optical reference: untracked for its first {lead} samples "
-            f"(t = {t[0]:.3f} to {t[lead - 1]:.3f} s); written as nan"
-        )
-    untracked = int((~tracked).sum())
-    if untracked:
-        warnings.append(
-            f"optical reference: {untracked} untracked samples written as nan (the import drops and counts them)"
-        )
-
-    # noise from the data (gcs_core.noise.measured), of the samples the fit uses
-    s_opt = noise_mod.white_noise(t[tracked], q_gcs[tracked], quaternion=True)
-    if rest0.sum() < 64:
-        raise InputError(
-            f"only {int(rest0.sum())} samples at rest: too few to measure the noise", file=source, key="movement"
-        )
-    # the white-noise lines of the rest (consecutive samples of the unit are correlated:
-    # the per-sample spread s_* understates the noise slow parameters see)
-    g_curves = noise_mod.allan_deviation(t[rest0], gyr[rest0])
-    g_terms = [noise_mod.gyro_terms(c) for c in g_curves]
-    arw = _rms([g.arw for g in g_terms])
-    rrw = _rms([g.rrw for g in g_terms])
-    m_use = rest0 & ~m_held  # irregularly spaced where held repeats are left out: per sample used
-    m_dt = noise_mod.mean_interval(t[m_use])
-    m_line = np.array([noise_mod.white_level(c, m_dt)[0] for c in noise_mod.allan_deviation(t[m_use], mag_nT[m_use])])
-    opt_rest = rest0 & tracked
-    if opt_rest.sum() < 64:
-        raise InputError(
-            f"only {int(opt_rest.sum())} tracked optical samples at rest: too few to measure the noise",
-            file=source,
-            key="opt_quat",
-        )
-    o_line = np.array(
-        [
-            noise_mod.white_level(c, dt)[0]
-            for c in noise_mod.allan_deviation(t[opt_rest], q_gcs[opt_rest], quaternion=True)
-        ]
-    )
-    # a channel constant at rest (or quantized coarser than its noise) shows no noise there:
-    # its per-sample spread over the whole span, else a floor, stands in (and is reported)
-    m_line = _floor(m_line, s_mag, 1e-3, "magnetometer", "nT", warnings)
-    o_line = _floor(o_line, s_opt, 1e-9, "optical reference", "rad", warnings)
-    if not arw > 0:
-        arw = float(_floor(np.array([0.0]), np.array([_rms(s_gyr)]), 1e-9, "gyro", "rad/s", warnings)[0]) * np.sqrt(dt)
-    bias0 = gyr[rest0].mean(axis=0)
-    notes.append(
-        f"noise estimated from the telemetry: per-sample spread (second differences) "
-        f"gyro {np.array2string(s_gyr, precision=4)} rad/s, magnetometer "
-        f"{np.array2string(s_mag, precision=1)} nT, optical "
-        f"{np.array2string(s_opt, precision=7)} rad; white-noise lines at rest "
-        f"(Allan deviation): gyro ARW {arw:.4g} rad/s^0.5, magnetometer "
-        f"{np.array2string(m_line, precision=1)} nT per sample used "
-        f"(every {1e3 * m_dt:.3f} ms on average), optical "
-        f"{np.array2string(o_line, precision=7)} rad per sample"
-    )
-    notes.append(f"gyro data-book bias = mean over the rest ({int(rest0.sum())} samples)")
-
+    log = Notes()
+    trial = _read_span(source, span, log)
+    flags = _flag(trial, log)
+    noise = broad_noise.estimate(trial, flags, source, log.warnings)
+    log.notes += noise.notes()
     with staged_directory(out, overwrite=overwrite, source=source) as tmp:
-        (tmp / "telemetry").mkdir()
-        (tmp / "extra").mkdir()
-        rows = {}
-        rows["telemetry/GYR.csv"] = _write_csv(
-            tmp / "telemetry/GYR.csv",
-            f"# {FLAG_NOTE}\nt,wx,wy,wz,flag" if g_held.any() else "t,wx,wy,wz",
-            [t, *gyr.T] + ([g_flag] if g_held.any() else []),
-            ["%.6f"] + ["%.9g"] * 3 + (["%d"] if g_held.any() else []),
-        )
-        rows["telemetry/MAG.csv"] = _write_csv(
-            tmp / "telemetry/MAG.csv",
-            f"# {FLAG_NOTE}\nt,bx,by,bz,flag" if m_held.any() else "t,bx,by,bz",
-            [t, *mag_nT.T] + ([m_flag] if m_held.any() else []),
-            ["%.6f"] + ["%.4f"] * 3 + (["%d"] if m_held.any() else []),
-        )
-        rows["telemetry/OPT.csv"] = _write_csv(
-            tmp / "telemetry/OPT.csv", "t,q1,q2,q3,q4", [t, *q_gcs.T], ["%.6f"] + ["%.10f"] * 4
-        )
-        rows["extra/acc.csv"] = _write_csv(tmp / "extra/acc.csv", "t,ax,ay,az", [t, *acc.T], ["%.6f"] + ["%.6g"] * 3)
-        rows["extra/opt_pos.csv"] = _write_csv(
-            tmp / "extra/opt_pos.csv", "t,x,y,z", [t, *d["opt_pos"].T], ["%.6f"] + ["%.6g"] * 3
-        )
-        pos = d["opt_pos"] - np.nanmean(data["opt_pos"], axis=0)
-        placed = np.isfinite(pos).all(axis=1)
-        rows["aux.csv"] = _write_csv(
-            tmp / "aux.csv", "t,pos_x,pos_y,pos_z", [t[placed], *pos[placed].T], ["%.6f"] + ["%.6f"] * 3
-        )
-        rows["extra/movement.csv"] = _write_csv(
-            tmp / "extra/movement.csv", "t,movement", [t, moving.astype(float)], ["%.6f", "%d"]
-        )
-        mname = name or f"broad-{source.stem}"
-        n_flag = (int((m_flag == 2).sum()), int((m_flag == 3).sum()))
-        args = (bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s_gyr, rest0.sum(), n_flag, _SITE)
-        toml = mission_toml(mname, source, *args)
+        rows = _write_tables(tmp, trial, flags)
+        n_flag = (int((flags.mag == 2).sum()), int((flags.mag == 3).sum()))
+        toml = mission_toml(name or f"broad-{source.stem}", source, noise, n_flag, _SITE)
         (tmp / "mission.toml").write_text(toml, encoding="utf-8")
-        (tmp / "SOURCE.md").write_text(
-            source_md(source, info, rate, n_all, span, keep, transients, warnings, holds, _SITE), encoding="utf-8"
-        )
+        (tmp / "SOURCE.md").write_text(source_md(source, trial, log, _SITE), encoding="utf-8")
         lic = source.parent / "LICENSE"
         if lic.is_file():
             shutil.copyfile(lic, tmp / "LICENSE")
         else:
-            warnings.append(f"no LICENSE beside {source.name}: the mission states CC BY 4.0 in SOURCE.md")
-        report = ConversionReport(
-            format="broad",
-            source=source,
-            out=out,
-            rows=int(max(rows.values(), default=0)),
-            samples=dict(rows),
-            files=tuple(sorted(rows)) + ("mission.toml", "SOURCE.md"),
-            notes=tuple(f"transient (kept): {x}" for x in transients)
-            + tuple(f"repeats: {x}" for x in holds)
-            + tuple(f"warning: {x}" for x in warnings)
-            + tuple(notes),
-        )
-        (tmp / "conversion.json").write_text(
-            json.dumps(
-                {
-                    "source": str(source),
-                    "format": "broad",
-                    "rows": rows,
-                    "transients": transients,
-                    "held_repeats": {
-                        "flags": FLAG_NOTE,
-                        "magnetometer": {str(v): int((m_flag == v).sum()) for v in (2, 3)},
-                        "gyro": {str(v): int((g_flag == v).sum()) for v in (2, 3)},
-                        "magnetometer_runs": {str(k): v for k, v in hold_runs(held_repeats(mag_nT)).items()},
-                        "report": holds,
-                    },
-                    "warnings": warnings,
-                    "notes": notes,
-                    "citation": CITATION,
-                },
-                indent=2,
-            )
-            + "\n",
-            encoding="utf-8",
-        )
+            log.warnings.append(f"no LICENSE beside {source.name}: the mission states CC BY 4.0 in SOURCE.md")
+        report = _report(source, out, rows, log)
+        (tmp / "conversion.json").write_text(_conversion_json(source, rows, trial, flags, log), encoding="utf-8")
     return report

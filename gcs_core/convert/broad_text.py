@@ -5,21 +5,38 @@ for :mod:`gcs_core.convert.broad`.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING
+
 import numpy as np
 
+from gcs_core.convert.broad_noise import Noise, rms
 from gcs_core.convert.holds import FLAG_HELD, FLAG_INTERPOLATED
 from gcs_core.noise import measured as noise_mod
 
-
-def _rms(v) -> float:
-    v = np.asarray(v, dtype=float)
-    return float(np.sqrt(np.mean(v * v)))
+if TYPE_CHECKING:
+    from gcs_core.convert.broad import Notes, Trial
 
 
-def mission_toml(name, source, bias0, arw, rrw, m_line, o_line, s_mag, s_opt, s_gyr, n_rest, n_held, site) -> str:
-    """The mission.toml text; ``site`` = (CITATION, EPOCH, LAB_POSITION_KM, LAB_LATITUDE_DEG)
-    of :mod:`gcs_core.convert.broad`."""
-    CITATION, EPOCH, LAB_POSITION_KM, LAB_LATITUDE_DEG = site
+@dataclass(frozen=True)
+class Site:
+    """Where and what the data are: the citation, the epoch that labels the times, the
+    Earth's centre seen from the laboratory [km, ENU] and its latitude [deg N]
+    (:mod:`gcs_core.convert.broad`'s constants)."""
+
+    citation: str
+    epoch: str
+    position_km: tuple[float, float, float]
+    latitude_deg: float
+
+
+def mission_toml(name: str, source: Path, noise: Noise, n_held: tuple[int, int], site: Site) -> str:
+    """The mission.toml text: the data book of ``noise`` and the ``n_held`` (held repeats,
+    interpolated samples) of the magnetometer."""
+    CITATION, EPOCH, LAB_POSITION_KM, LAB_LATITUDE_DEG = site.citation, site.epoch, site.position_km, site.latitude_deg
+    bias0, arw, rrw, n_rest = noise.bias0, noise.arw, noise.rrw, noise.n_rest
+    m_line, o_line, s_mag, s_opt, s_gyr = noise.m_line, noise.o_line, noise.s_mag, noise.s_opt, noise.s_gyr
     b = ", ".join(f"{v:.6g}" for v in bias0)
     return f"""# Converted by `gcs convert broad` from {source.name}, a trial of BROAD:
 # {CITATION}
@@ -51,7 +68,7 @@ name = "MAG"                      # myon aktos-t magnetometer (converted from µ
 type = "magnetometer"
 telemetry = "telemetry/MAG.csv"   # flagged, kept, not used: {n_held[0]} held repeats (flag = {FLAG_HELD}), {n_held[1]} interpolated (flag = {FLAG_INTERPOLATED})
 alignment_deg = [0.0, 0.0, 0.0]
-noise = {_rms(m_line):.6g}   # nT per sample used, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest of the samples used (per axis {np.array2string(m_line, precision=1)}; per-sample spread {np.array2string(s_mag, precision=1)})
+noise = {rms(m_line):.6g}   # nT per sample used, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest of the samples used (per axis {np.array2string(m_line, precision=1)}; per-sample spread {np.array2string(s_mag, precision=1)})
 bias = [0.0, 0.0, 0.0]
 
 [[sensor]]
@@ -59,14 +76,15 @@ name = "OPT"                      # OptiTrack motion capture, eight Flex13 camer
 type = "attitude_reference"
 telemetry = "telemetry/OPT.csv"
 alignment_deg = [0.0, 0.0, 0.0]   # aligned to the unit by the data's authors
-noise = {_rms(o_line):.6g}   # rad, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest (per axis {np.array2string(o_line, precision=7)}; per-sample spread {np.array2string(s_opt, precision=7)})
+noise = {rms(o_line):.6g}   # rad, {noise_mod.ESTIMATED_MARK}: white-noise line of the Allan deviation at rest (per axis {np.array2string(o_line, precision=7)}; per-sample spread {np.array2string(s_opt, precision=7)})
 """  # noqa: E501 — the written file's own lines
 
 
-def source_md(source, info, rate, n_all, span, keep, transients, warnings, holds, site) -> str:
-    """The SOURCE.md text (provenance, licence, what was flagged); ``site`` as for
-    :func:`mission_toml`."""
-    CITATION, _, _, LAB_LATITUDE_DEG = site
+def source_md(source: Path, trial: Trial, log: Notes, site: Site) -> str:
+    """The SOURCE.md text (provenance, licence, what was flagged)."""
+    CITATION, LAB_LATITUDE_DEG = site.citation, site.latitude_deg
+    info, rate, n_all, span, keep = trial.info, trial.rate, trial.n_all, trial.span, trial.keep
+    transients, warnings, holds = log.transients, log.warnings, log.holds
     lines = [
         f"# {source.name}",
         "",

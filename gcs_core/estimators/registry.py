@@ -67,7 +67,7 @@ class Estimator(Protocol):
     @property
     def prediction(self) -> str:
         """The predictor's method that forms this estimator's covariance without data
-        (:data:`gcs_core.predictor.predict.METHODS`)."""
+        (:data:`gcs_core.predictor.methods.PREDICTION_METHODS`)."""
         ...
 
     def fit(

@@ -138,6 +138,9 @@ class StaticAlgebra:
     """The result protocol's algebra for a fit whose state is static between its parameters
     (:mod:`gcs_core.estimators.static_algebra`); the batch's and the filter's results."""
 
+    #: the fitted state (a field of each result that mixes this in)
+    state: StateVector
+
     @property
     def carries_process_noise(self) -> bool:
         return False
@@ -152,7 +155,7 @@ class StaticAlgebra:
         return False
 
     def warm_start(self) -> dict:
-        return {"initial": self.state.values()}  # type: ignore[attr-defined]
+        return {"initial": self.state.values()}
 
     def attitude_provider(self, provider: AttitudeProvider) -> AttitudeProvider:
         return provider

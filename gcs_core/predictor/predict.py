@@ -9,7 +9,10 @@ model's partials at the nominal state and accumulates information over time:
 * static states (method ``"information"``, the batch estimator's setting):
   ``P(t) = (P̄⁻¹ + Σ_{t_k≤t} Hᵀ R⁻¹ H)⁻¹`` (Eq 3-2, :mod:`.information`);
 * a gyro-carried attitude with process noise (method ``"kalman"``): the covariance
-  recursion of Eq 3-4 (:mod:`.kalman`).
+  recursion of Eq 3-4 (:mod:`.kalman`);
+* the whole-span fit's final covariance (method ``"whole_span"``, the default fit's).
+
+What each method does is read from :mod:`.methods`, never from its name.
 
 Elements with role ``consider`` add ``S P_c Sᵀ``; the result carries the σ contribution
 of each of them to every solve-for element and the noise-only part (an error budget).
@@ -40,6 +43,7 @@ from gcs_core.io.types import MissionSpec
 from gcs_core.predictor import information as info
 from gcs_core.predictor.kalman import kalman_history
 from gcs_core.predictor.magnitude import magnitude_rows, magnitude_sensors
+from gcs_core.predictor.methods import PredictionMethod, prediction_method
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.synth import PlannedProblem, median_step, plan_problem
 from gcs_core.problem.attitude import RPY
@@ -50,7 +54,6 @@ from gcs_core.problem.prepare import PhysicsOptions
 
 log = logging.getLogger(__name__)
 
-METHODS = ("information", "kalman", "whole_span")
 #: margin of an orbit-built ephemeris beyond the plan span [s] (time-tag and crossing shifts)
 EPHEMERIS_MARGIN_S = 120.0
 #: an element whose predicted σ is within this fraction of its a priori is "undetermined"
@@ -192,12 +195,17 @@ class PredictionResult:
 
 
 # ----------------------------------------------------------------------------------------
-def _method(method: str | None, cfg: AnalysisConfig | None) -> str:
+def _method(method: str | None, cfg: AnalysisConfig | None) -> PredictionMethod:
     if method is None:
         method = "information" if cfg is None else estimator(cfg.method).prediction
-    if method not in METHODS:
-        raise InputError(f"method must be one of {', '.join(METHODS)}, got {method!r}", key="prediction.method")
-    return method
+    return prediction_method(method)
+
+
+def _checks_batch(method: PredictionMethod, cfg: AnalysisConfig | None) -> bool:
+    """The plan is predicted, by a method that leaves out the gyro's process noise, for the
+    configured estimator whose own method that is (the batch): its σ are then compared with
+    the whole-span σ (:func:`batch_warning`)."""
+    return cfg is not None and method.leaves_out_process_noise and estimator(cfg.method).prediction == method.name
 
 
 def _mission_parts(source, mission, cfg):
@@ -336,16 +344,10 @@ def predict(
         catalog=catalog,
     )
     m = _method(method, cfg)
-    return _run(
-        planned,
-        plan,
-        m,
-        warn_batch=m == "information" and cfg is not None and cfg.method == "batch",
-        magnitude=magnitude_sensors(spec),
-    )
+    return _run(planned, plan, m, warn_batch=_checks_batch(m, cfg), magnitude=magnitude_sensors(spec))
 
 
-def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> PredictionResult:
+def _predict_problem(problem: Problem, plan: DataPlan | None, method: PredictionMethod) -> PredictionResult:
     """Prediction for a Problem's own frames (values ignored), restricted to the plan."""
     if plan is None:
         t = [sd.t for sd in problem.sensors if sd.n]
@@ -362,7 +364,7 @@ def _predict_problem(problem: Problem, plan: DataPlan | None, method: str) -> Pr
 def _run(
     planned: PlannedProblem,
     plan: DataPlan,
-    method: str,
+    method: PredictionMethod,
     *,
     warn_batch: bool = False,
     magnitude: set[str] | frozenset[str] = frozenset(),
@@ -385,9 +387,10 @@ def _run(
     rows = [info.weighted_rows(lin, sd.t, masks[sd.name]) for lin, sd in zip(lins, problem.sensors)]
     frames = {sd.name: int(t.size) for (t, _), sd in zip(rows, problem.sensors)}
     A_final = info.final_information(rows, n + len(cons), plan.end)[:n, :n]
-    use_kalman = method == "kalman" and isinstance(problem.attitude, GyroAttitude) and tuple(names[:3]) == RPY
-    if method == "kalman" and not use_kalman:
+    used = method.used(isinstance(problem.attitude, GyroAttitude) and tuple(names[:3]) == RPY)
+    if used is not method:
         log.info("no gyro carries a solved-for attitude: the prediction uses Eq 3-2")
+    use_kalman = used.gyro_recursion
     if use_kalman:
         hist = kalman_history(problem, values, names, cons, sigma0, sigma_c, times, masks=masks)
     else:
@@ -402,14 +405,14 @@ def _run(
             "gyro's process noise (Eq 3-2): turn the gyro off or use the vector observable",
             key="models",
         )
-    if (method == "whole_span" or warn_batch) and not use_kalman:
+    if (used.whole_span_final or warn_batch) and not use_kalman:
         final = predicted_covariance(
             problem, values, names, cons, {k: ~np.asarray(v, bool) for k, v in masks.items()}, A_final, sigma0, sigma_c
         )
     warnings: tuple[str, ...] = ()
-    if method == "information" and final is not None:
+    if used.leaves_out_process_noise and final is not None:
         warnings = batch_warning(names, hist["sigma_noise"][-1], np.sqrt(np.diag(final[0])))
-    elif method == "whole_span" and final is not None:  # the end of the plan: the whole-span covariance
+    elif used.whole_span_final and final is not None:  # the end of the plan: the whole-span covariance
         P, P_cons, budget = final
         hist["P"], hist["P_consider"], hist["budget"] = P, P_cons, budget
         hist["sigma_noise"][-1] = np.sqrt(np.diag(P))
@@ -431,7 +434,7 @@ def _run(
         noise_only=hist["sigma_noise"][-1].copy(),
         availability=availability,
         frames=frames,
-        method="kalman" if use_kalman else ("whole_span" if method == "whole_span" else "information"),
+        method=used.name,
         plan=plan,
         unobservable=unobs,
         prior=sigma0.copy(),

@@ -22,10 +22,8 @@ from gcs_core.estimators.registry import ESTIMATORS
 ALLOWED = {"gcs_core/estimators/registry.py", "gcs_core/config.py", "gcs_core/config_checks.py"}
 #: result types no downstream code may test for
 RESULT_TYPES = {"BatchResult", "SmoothedResult", "FilterResult", "FitResult"}
-#: module -> offences still there (the predictor's own methods share the estimators' names)
-PENDING = {
-    "gcs_core/predictor/predict.py": 3,
-}
+#: module -> offences still there (each to be moved by the area that owns it; may only shrink)
+PENDING: dict[str, int] = {}
 
 
 def _offences(tree: ast.AST) -> list[str]:

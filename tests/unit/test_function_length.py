@@ -2,9 +2,8 @@
 
 Every function and method of ``gcs_core`` is read with ``ast`` (nothing is imported). Its
 length is the lines from its first statement after the docstring to its last, so a full
-docstring costs nothing. :data:`KNOWN_LONG` lists the functions that were longer when the
-rule was first checked, each to be split by the area that owns it; the list may only shrink
-(an entry that is no longer long, or no longer exists, fails the test until removed).
+docstring costs nothing. The functions that were longer when the rule was first checked have
+been split (issue 21); none is exempt.
 """
 
 from __future__ import annotations
@@ -15,13 +14,6 @@ from repo_paths import ROOT
 
 #: the most lines of code a function of the engine may have (docstring not counted)
 MAX_LINES = 100
-
-#: module path -> functions over MAX_LINES when the check was introduced (to be split)
-KNOWN_LONG: dict[str, set[str]] = {
-    "gcs_core/convert/astropi.py": {"convert"},
-    "gcs_core/convert/broad.py": {"convert"},
-    "gcs_core/io/mission.py": {"read_mission_spec", "_read_sensor"},
-}
 
 
 def _body_lines(fn: ast.FunctionDef | ast.AsyncFunctionDef) -> int:
@@ -51,12 +43,4 @@ def long_functions() -> dict[str, dict[str, int]]:
 
 
 def test_no_engine_function_is_over_100_lines():
-    found = long_functions()
-    new = {p: {f: n for f, n in fns.items() if f not in KNOWN_LONG.get(p, set())} for p, fns in found.items()}
-    assert {p: fns for p, fns in new.items() if fns} == {}, "split these functions (at most 100 lines each)"
-
-
-def test_the_list_of_known_long_functions_only_shrinks():
-    found = long_functions()
-    stale = {p: sorted(fns - set(found.get(p, {}))) for p, fns in KNOWN_LONG.items()}
-    assert {p: fns for p, fns in stale.items() if fns} == {}, "remove these from KNOWN_LONG: they are short now"
+    assert long_functions() == {}, "split these functions (at most 100 lines each)"
