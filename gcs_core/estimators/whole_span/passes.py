@@ -13,7 +13,7 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.estimators.residuals import Residuals
 from gcs_core.estimators.whole_span import knots as kn
-from gcs_core.estimators.whole_span.knot_kernels import correct_attitude
+from gcs_core.estimators.whole_span.knot_kernels import correct_attitude, rotate_by_rotvec
 from gcs_core.estimators.whole_span.readout import EpochErrors, ReadoutEpochs, row_variance
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
@@ -94,6 +94,10 @@ class CorrectedAttitude:
     def _correct(self, C, t):
         C = self._correct_knots(C, t)
         if self.errors is not None and np.any(self.errors.eps):
+            if COMPILED:
+                out = np.empty_like(C)
+                rotate_by_rotvec(self.errors.at(t), np.ascontiguousarray(C), out)
+                return out
             C = rotvec_to_dcm(self.errors.at(t)) @ C
         return C
 

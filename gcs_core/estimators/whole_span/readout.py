@@ -78,6 +78,8 @@ J. L., *Fundamentals of Spacecraft Attitude Determination and Control*, Springer
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from gcs_core.compiled import COMPILED, jit
@@ -104,12 +106,13 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: n
     j = sysk.grid.index(t)
     if COMPILED:
         knot = sysk._local(j.astype(np.int64))
-        R = sysk.R
-        if sysk.grid.d == 6 and R.shape[0]:
+        R, d = sysk.R, sysk.grid.d
+        Ul, Ur = np.zeros((t.size, 3, d)), np.zeros((t.size, 3, d))
+        Ul[:, :, :3], Ur[:, :, :3] = Dl, Dr
+        if d == 6 and R.shape[0]:
             Gam = -(t - sysk.grid.tau[j])[:, None, None] * R[np.minimum(j, R.shape[0] - 1)]  # Γ_j(t)
-        else:
-            Gam = np.zeros((t.size, 3, 3))
-        _knot_downdate(Dl, Dr, Gam, Y, knot, np.asarray(cols, np.int64), sysk.Dk, sysk.Bk)
+            Ul[:, :, 3:], Ur[:, :, 3:] = Dl @ Gam, Dr @ Gam
+        _subtract_per_knot(sysk, knot, Ul.reshape(-1, d), Ur.reshape(-1, d), Y.reshape(-1, Y.shape[2]), cols)
         return
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     Ul = kn.knot_rows(Dl, eye, t, j, sysk.grid, sysk.R)  # (E, 3, d)
@@ -127,6 +130,31 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: n
         for q, c in enumerate(cols):
             Bk[js, :, c] -= HB[:, :, q]
     sysk.Bk[js, :, -1] -= HB[:, :, -1]
+
+
+def _subtract_per_knot(sysk: kn.KnotSystem, knot, Ul, Ur, Yf, cols) -> None:
+    """``Dk_j −= sym(U_lᵀ U_r)``, ``Bk_j −= U_lᵀ Y`` over each knot's epochs (three rows per
+    epoch in ``Ul``, ``Ur`` (3E, d) and ``Yf`` (3E, p + 1); epochs in time order, so a knot's
+    rows are contiguous): one BLAS product per knot."""
+    starts = np.flatnonzero(np.r_[True, knot[1:] != knot[:-1]])
+    ends = np.r_[starts[1:], knot.size]
+    js = knot[starts]
+    d = Ul.shape[1]
+    DD = np.empty((starts.size, d, d))
+    UB = np.empty((starts.size, d, Yf.shape[1]))
+    for i in range(starts.size):
+        a, b = 3 * starts[i], 3 * ends[i]
+        X = Ul[a:b].T @ Ur[a:b]
+        DD[i] = 0.5 * (X + X.T)
+        np.matmul(Ul[a:b].T, Yf[a:b], out=UB[i])
+    ext = np.append(np.asarray(cols, np.int64), sysk.Bk.shape[2] - 1)
+    at = (js[:, None, None], np.arange(d)[None, :, None], ext[None, None, :])
+    if np.all(js[1:] > js[:-1]):
+        sysk.Dk[js] -= DD
+        sysk.Bk[at] -= UB
+    else:
+        np.subtract.at(sysk.Dk, js, DD)
+        np.subtract.at(sysk.Bk, at, UB)
 
 
 def inverse_spd3(M: np.ndarray) -> np.ndarray:
@@ -157,17 +185,41 @@ class EpochErrors:
         self.eps = np.zeros((self.T.size, 3))
         self.cond = self.eps.copy()
         self.stale = False  # ε̂ adopted after the last pass
+        # (index, is an epoch) of times that view a sensor's frame times, asked at every
+        # pass: keyed by the viewed array's identity and the view's place in it
+        self._where: dict[tuple, tuple] = {}
 
     def index(self, t: np.ndarray) -> np.ndarray:
         """(n,) epoch of each time (every data time is one)."""
-        return np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
+        return self._locate(t)[0]
+
+    def _locate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(epoch index, whether the time is that epoch) of each time, cached for views of
+        a longer array (frame times are never changed in place; a weak reference ties the
+        entry to the array)."""
+        t = np.asarray(t, float)
+        base = t.base if isinstance(t.base, np.ndarray) and t.base.ndim == 1 else None
+        key = None
+        if base is not None and t.ndim == 1 and t.size and t.strides == base.strides:
+            off = (t.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // t.itemsize
+            key = (id(base), int(off), t.size, float(t[0]), float(t[-1]))
+            hit = self._where.get(key)
+            if hit is not None and hit[0]() is base:
+                return hit[1]
+        i = np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
+        found = (i, self.T[i] == t if self.T.size else np.zeros(np.shape(t), bool))
+        if key is not None:
+            if len(self._where) >= 4096:  # bounded: a long span's blocks
+                self._where.clear()
+            self._where[key] = (weakref.ref(base), found)
+        return found
 
     def at(self, t: np.ndarray) -> np.ndarray:
         """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch)."""
         if not self.T.size:
             return np.zeros((np.size(t), 3))
-        i = self.index(t)
-        return np.where((self.T[i] == t)[:, None], self.eps[i], 0.0)
+        i, hit = self._locate(t)
+        return np.where(hit[:, None], self.eps[i], 0.0)
 
     def moved(self, sig_e: float) -> float:
         """The largest change :meth:`adopt` would make, in σ_e (inf when ε̂ changed since the
@@ -260,14 +312,32 @@ class ReadoutEpochs:
         self.flush()
         return self.chi2_removed
 
+    def _window(self, parts) -> tuple[np.ndarray, list[np.ndarray], int]:
+        """The window's epochs (sorted times), the epoch of each part's frames among them,
+        and the first epoch's index in :attr:`EpochErrors.T` (0 without it). With the
+        span's epochs known (:class:`EpochErrors`, every data time) the indices are looked
+        up once per problem (cached by the frame-time arrays) and the window's epochs are
+        a slice of them; epochs no part reaches have no rows and are dropped with the
+        epochs without attitude-sensitive rows."""
+        ro = self.errors
+        if ro is None or not ro.T.size:
+            T = np.unique(np.concatenate([p[0] for p in parts]))
+            return T, [np.searchsorted(T, p[0]) for p in parts], 0
+        gidx = [ro._locate(p[0])[0] for p in parts]
+        lo = min(int(g[0]) for g in gidx if g.size)
+        hi = max(int(g[-1]) for g in gidx if g.size) + 1
+        return ro.T[lo:hi], [g - lo for g in gidx], lo
+
     def _eliminate(self, parts) -> None:
-        T = np.unique(np.concatenate([p[0] for p in parts]))
+        parts = [q for q in parts if q[0].size]
+        if not parts:
+            return
+        T, idxs, lo = self._window(parts)
         E, p = T.size, self.p
         F = np.zeros((E, 3, 3))
         G = np.zeros((E, 3, p + 1))  # D̃ᵀ[H̃ | r̃] per epoch
         FC = np.zeros((E, 3, 3)) if self.knots is not None else None
-        for t, Fb, FCb, X, cols in parts:
-            idx = np.searchsorted(T, t)
+        for (t, Fb, FCb, X, cols), idx in zip(parts, idxs):
             ext = np.append(cols, p)
             rep = idx.size > 1 and bool(np.any(np.diff(idx) <= 0))  # repeated times: unbuffered adds
             if rep:
@@ -287,8 +357,9 @@ class ReadoutEpochs:
             else:  # the advanced indices' axes come first: (n, k + 1, 3)
                 G[idx[:, None], :, ext[None, :]] += np.swapaxes(X, 1, 2)
         keep = np.einsum("eaa->e", F) > 0  # epochs with attitude-sensitive rows
+        k = np.arange(lo, lo + E)  # their indices in EpochErrors.T (with ``errors``)
         if not np.all(keep):
-            T, F, G = T[keep], F[keep], G[keep]
+            T, F, G, k = T[keep], F[keep], G[keep], k[keep]
             FC = FC[keep] if FC is not None else None
         if not T.size:
             return
@@ -296,67 +367,41 @@ class ReadoutEpochs:
         if ro is not None:
             # rows evaluated at ε̂: the gradient in ε is Σ D̃ᵀ r̃ − ε̂/σ_e², and the prior's
             # ‖ε̂‖²/σ_e² is part of the cost
-            k = ro.index(T)
             eps = ro.eps[k]
             G[:, :, p] -= self.inv_e2 * eps
             self.chi2_removed -= self.inv_e2 * float(np.sum(eps * eps))
         if COMPILED:
-            Minv, Y = np.empty_like(F), np.empty_like(G)
-            _epoch_solve(F, G, self.inv_e2, Minv, Y)
+            # Y = M⁻¹ G, and V = L⁻¹ G with M = L Lᵀ: Gᵀ M⁻¹ G = Vᵀ V, one symmetric
+            # product (BLAS syrk) for the normal matrix, the gradient and χ² at once
+            Minv, Y, V = np.empty_like(F), np.empty_like(G), np.empty_like(G)
+            _epoch_solve(F, G, self.inv_e2, Minv, Y, V)
+            Vf = V.reshape(-1, p + 1)
+            S = Vf.T @ Vf
+            if p:
+                self.A -= S[:p, :p]
+                self.b -= S[:p, p]
+            self.chi2_removed += float(S[p, p])
         else:
             Minv = inverse_spd3(F + self.inv_e2 * np.eye(3))
             Y = np.matmul(Minv, G)  # (E, 3, p + 1): M⁻¹ G
+            Gf, Yf = G.reshape(-1, p + 1), Y.reshape(-1, p + 1)
+            if p:
+                S = Gf[:, :p].T @ Yf[:, :p]  # Σ G_xᵀ M⁻¹ G_x, symmetric to round-off
+                self.A -= 0.5 * (S + S.T)
+                self.b -= Gf[:, :p].T @ Yf[:, p]
+            self.chi2_removed += float(Gf[:, p] @ Yf[:, p])
         if ro is not None:
             ro.cond[k] = eps + Y[:, :, p]  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
             ro.stale = False
-        Gf, Yf = G.reshape(-1, p + 1), Y.reshape(-1, p + 1)
-        if p:
-            S = Gf[:, :p].T @ Yf[:, :p]  # Σ G_xᵀ M⁻¹ G_x, symmetric to round-off
-            self.A -= 0.5 * (S + S.T)
-            self.b -= Gf[:, :p].T @ Yf[:, p]
-        self.chi2_removed += float(Gf[:, p] @ Yf[:, p])
         if self.knots is not None and FC is not None:
             subtract_knot_rows(self.knots, FC, np.matmul(Minv, FC), T, Y, np.arange(p))
 
 
 @_jit
-def _knot_downdate(Dl, Dr, Gam, Y, knot, cols, Dk, Bk):
-    """The compiled form of :func:`subtract_knot_rows`: per epoch ``U_l = Dl [I | Γ]``,
-    ``U_r = Dr [I | Γ]``, ``Dk_j −= U_lᵀ U_r``, ``Bk_j −= U_lᵀ Y`` (Gam (E, 3, 3) the Γ_j(t)
-    of each epoch; ``knot`` local indices of the held blocks)."""
-    d = Dk.shape[1]
-    p = cols.shape[0]
-    last = Bk.shape[2] - 1
-    Ul = np.empty((3, 6))
-    Ur = np.empty((3, 6))
-    for e in range(Dl.shape[0]):
-        jj = knot[e]
-        for r in range(3):
-            for c in range(3):
-                Ul[r, c] = Dl[e, r, c]
-                Ur[r, c] = Dr[e, r, c]
-            if d == 6:
-                for c in range(3):
-                    Ul[r, 3 + c] = Dl[e, r, 0] * Gam[e, 0, c] + Dl[e, r, 1] * Gam[e, 1, c] + Dl[e, r, 2] * Gam[e, 2, c]
-                    Ur[r, 3 + c] = Dr[e, r, 0] * Gam[e, 0, c] + Dr[e, r, 1] * Gam[e, 1, c] + Dr[e, r, 2] * Gam[e, 2, c]
-        for a in range(d):
-            for b in range(d):
-                Dk[jj, a, b] -= 0.5 * (
-                    Ul[0, a] * Ur[0, b]
-                    + Ul[1, a] * Ur[1, b]
-                    + Ul[2, a] * Ur[2, b]
-                    + Ul[0, b] * Ur[0, a]
-                    + Ul[1, b] * Ur[1, a]
-                    + Ul[2, b] * Ur[2, a]
-                )
-            for q in range(p):
-                Bk[jj, a, cols[q]] -= Ul[0, a] * Y[e, 0, q] + Ul[1, a] * Y[e, 1, q] + Ul[2, a] * Y[e, 2, q]
-            Bk[jj, a, last] -= Ul[0, a] * Y[e, 0, p] + Ul[1, a] * Y[e, 1, p] + Ul[2, a] * Y[e, 2, p]
-
-
-@_jit
-def _epoch_solve(F, G, inv_e2, Minv, Y):
-    """``Minv_e = (F_e + σ_e⁻² I)⁻¹`` (adjugate, as :func:`inverse_spd3`) and ``Y_e = Minv_e G_e``."""
+def _epoch_solve(F, G, inv_e2, Minv, Y, V):
+    """``Minv_e = (F_e + σ_e⁻² I)⁻¹`` (adjugate, as :func:`inverse_spd3`), ``Y_e = Minv_e G_e``
+    and ``V_e = L_e⁻¹ G_e`` with ``L_e`` the Cholesky factor of ``F_e + σ_e⁻² I``
+    (``V_eᵀ V_e = G_eᵀ Y_e``)."""
     for e in range(F.shape[0]):
         a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
         d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
@@ -366,10 +411,21 @@ def _epoch_solve(F, G, inv_e2, Minv, Y):
         m[0, 0], m[0, 1], m[0, 2] = A / det, B / det, C / det
         m[1, 0], m[1, 1], m[1, 2] = B / det, (a * g - c * c) / det, (b * c - a * f) / det
         m[2, 0], m[2, 1], m[2, 2] = C / det, (b * c - a * f) / det, (a * d - b * b) / det
+        # M = L Lᵀ (3 × 3 Cholesky; M ≥ σ_e⁻² I is positive definite)
+        l00 = np.sqrt(a)
+        l10, l20 = b / l00, c / l00
+        l11 = np.sqrt(d - l10 * l10)
+        l21 = (f - l20 * l10) / l11
+        l22 = np.sqrt(g - l20 * l20 - l21 * l21)
         for q in range(G.shape[2]):
             g0, g1, g2 = G[e, 0, q], G[e, 1, q], G[e, 2, q]
             for r in range(3):
                 Y[e, r, q] = m[r, 0] * g0 + m[r, 1] * g1 + m[r, 2] * g2
+            v0 = g0 / l00
+            v1 = (g1 - l10 * v0) / l11
+            V[e, 0, q] = v0
+            V[e, 1, q] = v1
+            V[e, 2, q] = (g2 - l20 * v0 - l21 * v1) / l22
 
 
 @_jit
