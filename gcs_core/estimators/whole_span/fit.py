@@ -266,7 +266,7 @@ def _first_linearization(it: _Iterate) -> None:
     Jacobian finds it (the same per-epoch sums, :meth:`.readout.ReadoutEpochs.add`), and
     the one full pass is made about it."""
     errors = it.passes.errors
-    if errors is not None and not np.any(errors.eps):
+    if errors is not None and not errors.nonzero:
         it.passes.run(it.x, it.z, it.edits, jacobian=False)
         it.adopt_readout()
         it.lin = it.passes.run(it.x, it.z, it.edits)

@@ -93,7 +93,7 @@ class CorrectedAttitude:
 
     def _correct(self, C, t):
         C = self._correct_knots(C, t)
-        if self.errors is not None and np.any(self.errors.eps):
+        if self.errors is not None and self.errors.nonzero:
             if COMPILED:
                 out = np.empty_like(C)
                 rotate_by_rotvec(self.errors.at(t), np.ascontiguousarray(C), out)
@@ -109,7 +109,7 @@ class CorrectedAttitude:
         ``−ω × v`` made from it would be a regressor with errors, correlated with the
         residuals; corrected, its error is the posterior one, uncorrelated with them."""
         er, base = self.errors, self.base
-        if er is None or w is None or not np.any(er.eps) or not hasattr(base, "knots"):
+        if er is None or w is None or not er.nonzero or not hasattr(base, "knots"):
             return w
         k = base._rows(t)
         t1, t0 = base.knots[k], base.knots[k - 1]
@@ -306,7 +306,7 @@ class Passes:
             buf[blk.lo : blk.hi] = 0.0
             return
         buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2)
-        if self.errors is not None and np.any(self.errors.eps):
+        if self.errors is not None and self.errors.nonzero:
             De = np.einsum("nma,na->nm", np.nan_to_num(D), self.errors.at(sd.t[blk.lo : blk.hi]))
             self.buffers.r[sd.name][blk.lo : blk.hi] += De
             if sd.name in self.buffers.y_pred:  # the prediction at ε = 0 likewise

@@ -107,11 +107,17 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: n
     if COMPILED:
         knot = sysk._local(j.astype(np.int64))
         R, d = sysk.R, sysk.grid.d
-        Ul, Ur = np.zeros((t.size, 3, d)), np.zeros((t.size, 3, d))
-        Ul[:, :, :3], Ur[:, :, :3] = Dl, Dr
-        if d == 6 and R.shape[0]:
-            Gam = -(t - sysk.grid.tau[j])[:, None, None] * R[np.minimum(j, R.shape[0] - 1)]  # Γ_j(t)
-            Ul[:, :, 3:], Ur[:, :, 3:] = Dl @ Gam, Dr @ Gam
+        Ul, Ur = np.empty((t.size, 3, d)), np.empty((t.size, 3, d))
+        _epoch_knot_rows(
+            np.ascontiguousarray(Dl),
+            np.ascontiguousarray(Dr),
+            t,
+            j.astype(np.int64),
+            sysk.grid.tau,
+            R if R.shape[0] else np.zeros((1, 3, 3)),
+            Ul,
+            Ur,
+        )
         _subtract_per_knot(sysk, knot, Ul.reshape(-1, d), Ur.reshape(-1, d), Y.reshape(-1, Y.shape[2]), cols)
         return
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
@@ -185,6 +191,7 @@ class EpochErrors:
         self.eps = np.zeros((self.T.size, 3))
         self.cond = self.eps.copy()
         self.stale = False  # ε̂ adopted after the last pass
+        self.nonzero = False  # any ε̂ ≠ 0 (kept with ``eps``: asked per block)
         # (index, is an epoch) of times that view a sensor's frame times, asked at every
         # pass: keyed by the viewed array's identity and the view's place in it
         self._where: dict[tuple, tuple] = {}
@@ -232,6 +239,7 @@ class EpochErrors:
         """Linearize the next passes about the last pass's conditional optimum."""
         if not self.stale:
             self.eps = self.cond.copy()
+            self.nonzero = bool(np.any(self.eps))
             self.stale = True
 
 
@@ -287,6 +295,10 @@ class ReadoutEpochs:
         if COMPILED:
             F, X = np.zeros((n, 3, 3)), np.zeros((n, 3, k + 1))
             _frame_products(D, w, Hm, rw, F, X)
+            FC = None
+            if C is not None:
+                FC = np.empty((n, 3, 3))
+                _products3(F, np.ascontiguousarray(C), FC)
         else:
             Dw = np.nan_to_num(D) * w[:, :, None]
             F = np.einsum("nma,nmb->nab", Dw, Dw)
@@ -294,7 +306,7 @@ class ReadoutEpochs:
             if k:
                 X[:, :, :k] = np.einsum("nma,nmq->naq", Dw, Hm.reshape(n, m, k))
             X[:, :, k] = np.einsum("nma,nm->na", Dw, rw.reshape(n, m))
-        FC = F @ C if C is not None else None
+            FC = F @ C if C is not None else None
         self._parts.append((np.asarray(t, float), F, FC, X, np.asarray(cols, int)))
 
     def flush(self) -> None:
@@ -426,6 +438,36 @@ def _epoch_solve(F, G, inv_e2, Minv, Y, V):
             V[e, 0, q] = v0
             V[e, 1, q] = v1
             V[e, 2, q] = (g2 - l20 * v0 - l21 * v1) / l22
+
+
+@_jit
+def _epoch_knot_rows(Dl, Dr, t, j, tau, R, Ul, Ur):
+    """``U_l = Dl [I | Γ_j(t)]``, ``U_r = Dr [I | Γ_j(t)]`` per epoch (E, 3, d), with
+    ``Γ_j(t) = −(t − τ_j) R_j`` (d = 6; R zero when the grid has no interval)."""
+    d = Ul.shape[2]
+    nR = R.shape[0]
+    for e in range(Dl.shape[0]):
+        jj = j[e]
+        jr = jj if jj < nR else nR - 1
+        s = -(t[e] - tau[jj])
+        for r in range(3):
+            for c in range(3):
+                Ul[e, r, c] = Dl[e, r, c]
+                Ur[e, r, c] = Dr[e, r, c]
+            if d == 6:
+                for c in range(3):
+                    Ul[e, r, 3 + c] = s * (Dl[e, r, 0] * R[jr, 0, c] + Dl[e, r, 1] * R[jr, 1, c] + Dl[e, r, 2] * R[jr, 2, c])
+                    Ur[e, r, 3 + c] = s * (Dr[e, r, 0] * R[jr, 0, c] + Dr[e, r, 1] * R[jr, 1, c] + Dr[e, r, 2] * R[jr, 2, c])
+
+
+@_jit
+def _products3(A, B, out):
+    """``out_i = A_i B_i`` for (n, 3, 3) stacks (numpy's batched matmul is slow at 3 × 3)."""
+    for i in range(A.shape[0]):
+        for r in range(3):
+            a0, a1, a2 = A[i, r, 0], A[i, r, 1], A[i, r, 2]
+            for c in range(3):
+                out[i, r, c] = a0 * B[i, 0, c] + a1 * B[i, 1, c] + a2 * B[i, 2, c]
 
 
 @_jit
