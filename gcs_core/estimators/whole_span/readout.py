@@ -104,22 +104,6 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: n
     if not t.size:
         return
     j = sysk.grid.index(t)
-    if COMPILED:
-        knot = sysk._local(j.astype(np.int64))
-        R, d = sysk.R, sysk.grid.d
-        Ul, Ur = np.empty((t.size, 3, d)), np.empty((t.size, 3, d))
-        _epoch_knot_rows(
-            np.ascontiguousarray(Dl),
-            np.ascontiguousarray(Dr),
-            t,
-            j.astype(np.int64),
-            sysk.grid.tau,
-            R if R.shape[0] else np.zeros((1, 3, 3)),
-            Ul,
-            Ur,
-        )
-        _subtract_per_knot(sysk, knot, Ul.reshape(-1, d), Ur.reshape(-1, d), Y.reshape(-1, Y.shape[2]), cols)
-        return
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     Ul = kn.knot_rows(Dl, eye, t, j, sysk.grid, sysk.R)  # (E, 3, d)
     Ur = kn.knot_rows(Dr, eye, t, j, sysk.grid, sysk.R)
@@ -138,6 +122,21 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: n
     sysk.Bk[js, :, -1] -= HB[:, :, -1]
 
 
+def subtract_factored_knot_rows(sysk: kn.KnotSystem, W: np.ndarray, t: np.ndarray, V: np.ndarray, cols) -> None:
+    """:func:`subtract_knot_rows` from the factored epochs: with ``M = L Lᵀ`` per epoch,
+    ``W = L⁻¹ F C`` (E, 3, 3) and ``V = L⁻¹ G`` (E, 3, p + 1) the downdate is
+    ``Dk_j −= Uᵀ U``, ``Bk_j −= Uᵀ V`` with ``U = W [I | Γ_j(t)]`` (``U_lᵀ U_r = Uᵀ U``,
+    ``U_lᵀ Y = Uᵀ V``): the rows formed compiled, the sums one BLAS product per knot."""
+    if not t.size:
+        return
+    j = sysk.grid.index(t).astype(np.int64)
+    R, d = sysk.R, sysk.grid.d
+    U = np.empty((t.size, 3, d))
+    _epoch_knot_rows(W, t, j, sysk.grid.tau, R if R.shape[0] else np.zeros((1, 3, 3)), U)
+    Uf = U.reshape(-1, d)
+    _subtract_per_knot(sysk, sysk._local(j), Uf, Uf, V.reshape(-1, V.shape[2]), cols)
+
+
 def _subtract_per_knot(sysk: kn.KnotSystem, knot, Ul, Ur, Yf, cols) -> None:
     """``Dk_j −= sym(U_lᵀ U_r)``, ``Bk_j −= U_lᵀ Y`` over each knot's epochs (three rows per
     epoch in ``Ul``, ``Ur`` (3E, d) and ``Yf`` (3E, p + 1); epochs in time order, so a knot's
@@ -150,8 +149,11 @@ def _subtract_per_knot(sysk: kn.KnotSystem, knot, Ul, Ur, Yf, cols) -> None:
     UB = np.empty((starts.size, d, Yf.shape[1]))
     for i in range(starts.size):
         a, b = 3 * starts[i], 3 * ends[i]
-        X = Ul[a:b].T @ Ur[a:b]
-        DD[i] = 0.5 * (X + X.T)
+        if Ur is Ul:
+            DD[i] = Ul[a:b].T @ Ul[a:b]  # symmetric (BLAS syrk)
+        else:
+            X = Ul[a:b].T @ Ur[a:b]
+            DD[i] = 0.5 * (X + X.T)
         np.matmul(Ul[a:b].T, Yf[a:b], out=UB[i])
     ext = np.append(np.asarray(cols, np.int64), sysk.Bk.shape[2] - 1)
     at = (js[:, None, None], np.arange(d)[None, :, None], ext[None, None, :])
@@ -349,7 +351,7 @@ class ReadoutEpochs:
         F = np.zeros((E, 3, 3))
         G = np.zeros((E, 3, p + 1))  # D̃ᵀ[H̃ | r̃] per epoch
         FC = np.zeros((E, 3, 3)) if self.knots is not None else None
-        for (t, Fb, FCb, X, cols), idx in zip(parts, idxs):
+        for (_t, Fb, FCb, X, cols), idx in zip(parts, idxs):
             ext = np.append(cols, p)
             rep = idx.size > 1 and bool(np.any(np.diff(idx) <= 0))  # repeated times: unbuffered adds
             if rep:
@@ -383,25 +385,31 @@ class ReadoutEpochs:
             G[:, :, p] -= self.inv_e2 * eps
             self.chi2_removed -= self.inv_e2 * float(np.sum(eps * eps))
         if COMPILED:
-            # Y = M⁻¹ G, and V = L⁻¹ G with M = L Lᵀ: Gᵀ M⁻¹ G = Vᵀ V, one symmetric
-            # product (BLAS syrk) for the normal matrix, the gradient and χ² at once
-            Minv, Y, V = np.empty_like(F), np.empty_like(G), np.empty_like(G)
-            _epoch_solve(F, G, self.inv_e2, Minv, Y, V)
+            # with M = L Lᵀ per epoch, V = L⁻¹ G: Gᵀ M⁻¹ G = Vᵀ V, one symmetric product
+            # (BLAS syrk) for the normal matrix, the gradient and χ² at once; W = L⁻¹ F C
+            # gives the knots' part the same way (subtract_factored_knot_rows)
+            V, W, y_eps = np.empty_like(G), np.empty_like(F), np.empty((F.shape[0], 3))
+            _epoch_solve(F, G, FC if FC is not None else F[:0], self.inv_e2, V, W, y_eps)
             Vf = V.reshape(-1, p + 1)
             S = Vf.T @ Vf
             if p:
                 self.A -= S[:p, :p]
                 self.b -= S[:p, p]
             self.chi2_removed += float(S[p, p])
-        else:
-            Minv = inverse_spd3(F + self.inv_e2 * np.eye(3))
-            Y = np.matmul(Minv, G)  # (E, 3, p + 1): M⁻¹ G
-            Gf, Yf = G.reshape(-1, p + 1), Y.reshape(-1, p + 1)
-            if p:
-                S = Gf[:, :p].T @ Yf[:, :p]  # Σ G_xᵀ M⁻¹ G_x, symmetric to round-off
-                self.A -= 0.5 * (S + S.T)
-                self.b -= Gf[:, :p].T @ Yf[:, p]
-            self.chi2_removed += float(Gf[:, p] @ Yf[:, p])
+            if ro is not None:
+                ro.cond[k] = eps + y_eps  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
+                ro.stale = False
+            if self.knots is not None and FC is not None:
+                subtract_factored_knot_rows(self.knots, W, T, V, np.arange(p))
+            return
+        Minv = inverse_spd3(F + self.inv_e2 * np.eye(3))
+        Y = np.matmul(Minv, G)  # (E, 3, p + 1): M⁻¹ G
+        Gf, Yf = G.reshape(-1, p + 1), Y.reshape(-1, p + 1)
+        if p:
+            S = Gf[:, :p].T @ Yf[:, :p]  # Σ G_xᵀ M⁻¹ G_x, symmetric to round-off
+            self.A -= 0.5 * (S + S.T)
+            self.b -= Gf[:, :p].T @ Yf[:, p]
+        self.chi2_removed += float(Gf[:, p] @ Yf[:, p])
         if ro is not None:
             ro.cond[k] = eps + Y[:, :, p]  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
             ro.stale = False
@@ -410,54 +418,56 @@ class ReadoutEpochs:
 
 
 @_jit
-def _epoch_solve(F, G, inv_e2, Minv, Y, V):
-    """``Minv_e = (F_e + σ_e⁻² I)⁻¹`` (adjugate, as :func:`inverse_spd3`), ``Y_e = Minv_e G_e``
-    and ``V_e = L_e⁻¹ G_e`` with ``L_e`` the Cholesky factor of ``F_e + σ_e⁻² I``
-    (``V_eᵀ V_e = G_eᵀ Y_e``)."""
+def _epoch_solve(F, G, FC, inv_e2, V, W, y_eps):
+    """Per epoch the Cholesky factor ``L`` of ``M = F + σ_e⁻² I`` (3 × 3, positive
+    definite), ``V = L⁻¹ G``, ``W = L⁻¹ FC`` (when FC has the epochs) and
+    ``y_eps = M⁻¹ g_ε = L⁻ᵀ V[:, last]`` (the read-out error's step)."""
+    last = G.shape[2] - 1
     for e in range(F.shape[0]):
         a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
         d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
-        A, B, C = d * g - f * f, c * f - b * g, b * f - c * d
-        det = a * A + b * B + c * C
-        m = Minv[e]
-        m[0, 0], m[0, 1], m[0, 2] = A / det, B / det, C / det
-        m[1, 0], m[1, 1], m[1, 2] = B / det, (a * g - c * c) / det, (b * c - a * f) / det
-        m[2, 0], m[2, 1], m[2, 2] = C / det, (b * c - a * f) / det, (a * d - b * b) / det
-        # M = L Lᵀ (3 × 3 Cholesky; M ≥ σ_e⁻² I is positive definite)
         l00 = np.sqrt(a)
         l10, l20 = b / l00, c / l00
         l11 = np.sqrt(d - l10 * l10)
         l21 = (f - l20 * l10) / l11
         l22 = np.sqrt(g - l20 * l20 - l21 * l21)
         for q in range(G.shape[2]):
-            g0, g1, g2 = G[e, 0, q], G[e, 1, q], G[e, 2, q]
-            for r in range(3):
-                Y[e, r, q] = m[r, 0] * g0 + m[r, 1] * g1 + m[r, 2] * g2
-            v0 = g0 / l00
-            v1 = (g1 - l10 * v0) / l11
+            v0 = G[e, 0, q] / l00
+            v1 = (G[e, 1, q] - l10 * v0) / l11
             V[e, 0, q] = v0
             V[e, 1, q] = v1
-            V[e, 2, q] = (g2 - l20 * v0 - l21 * v1) / l22
+            V[e, 2, q] = (G[e, 2, q] - l20 * v0 - l21 * v1) / l22
+        if FC.shape[0]:
+            for q in range(3):
+                v0 = FC[e, 0, q] / l00
+                v1 = (FC[e, 1, q] - l10 * v0) / l11
+                W[e, 0, q] = v0
+                W[e, 1, q] = v1
+                W[e, 2, q] = (FC[e, 2, q] - l20 * v0 - l21 * v1) / l22
+        y2 = V[e, 2, last] / l22
+        y1 = (V[e, 1, last] - l21 * y2) / l11
+        y_eps[e, 2] = y2
+        y_eps[e, 1] = y1
+        y_eps[e, 0] = (V[e, 0, last] - l10 * y1 - l20 * y2) / l00
 
 
 @_jit
-def _epoch_knot_rows(Dl, Dr, t, j, tau, R, Ul, Ur):
-    """``U_l = Dl [I | Γ_j(t)]``, ``U_r = Dr [I | Γ_j(t)]`` per epoch (E, 3, d), with
-    ``Γ_j(t) = −(t − τ_j) R_j`` (d = 6; R zero when the grid has no interval)."""
-    d = Ul.shape[2]
+def _epoch_knot_rows(W, t, j, tau, R, U):
+    """``U = W [I | Γ_j(t)]`` per epoch (E, 3, d), with ``Γ_j(t) = −(t − τ_j) R_j`` (d = 6;
+    R zero when the grid has no interval)."""
+    d = U.shape[2]
     nR = R.shape[0]
-    for e in range(Dl.shape[0]):
+    for e in range(W.shape[0]):
         jj = j[e]
         jr = jj if jj < nR else nR - 1
         s = -(t[e] - tau[jj])
         for r in range(3):
             for c in range(3):
-                Ul[e, r, c] = Dl[e, r, c]
-                Ur[e, r, c] = Dr[e, r, c]
+                U[e, r, c] = W[e, r, c]
             if d == 6:
+                w0, w1, w2 = W[e, r, 0], W[e, r, 1], W[e, r, 2]
                 for c in range(3):
-                    Ul[e, r, 3 + c] = s * (Dl[e, r, 0] * R[jr, 0, c] + Dl[e, r, 1] * R[jr, 1, c] + Dl[e, r, 2] * R[jr, 2, c])
-                    Ur[e, r, 3 + c] = s * (Dr[e, r, 0] * R[jr, 0, c] + Dr[e, r, 1] * R[jr, 1, c] + Dr[e, r, 2] * R[jr, 2, c])
+                    U[e, r, 3 + c] = s * (w0 * R[jr, 0, c] + w1 * R[jr, 1, c] + w2 * R[jr, 2, c])
 
 
 @_jit
