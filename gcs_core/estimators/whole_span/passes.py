@@ -113,7 +113,7 @@ class CorrectedAttitude:
             return w
         k = base._rows(t)
         t1, t0 = base.knots[k], base.knots[k - 1]
-        return w + (er.at(t1) - er.at(t0)) / (t1 - t0)[:, None]
+        return w + (er.at(t1, t, "interval end") - er.at(t0, t, "interval start")) / (t1 - t0)[:, None]
 
     def _correct_knots(self, C, t):
         if not np.any(self.z):
@@ -305,9 +305,10 @@ class Passes:
         if D is None or blk.geom.C_BI is None:
             buf[blk.lo : blk.hi] = 0.0
             return
+        D = np.nan_to_num(D)
         buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2)
         if self.errors is not None and self.errors.nonzero:
-            De = np.einsum("nma,na->nm", np.nan_to_num(D), self.errors.at(sd.t[blk.lo : blk.hi]))
+            De = np.einsum("nma,na->nm", D, self.errors.at(sd.t[blk.lo : blk.hi]))
             self.buffers.r[sd.name][blk.lo : blk.hi] += De
             if sd.name in self.buffers.y_pred:  # the prediction at ε = 0 likewise
                 self.buffers.y_pred[sd.name][blk.lo : blk.hi] -= De

@@ -202,16 +202,18 @@ class EpochErrors:
         """(n,) epoch of each time (every data time is one)."""
         return self._locate(t)[0]
 
-    def _locate(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(epoch index, whether the time is that epoch) of each time, cached for views of
-        a longer array (frame times are never changed in place; a weak reference ties the
-        entry to the array)."""
+    def _locate(self, t: np.ndarray, of: np.ndarray | None = None, tag: str = "") -> tuple[np.ndarray, np.ndarray]:
+        """(epoch index, whether the time is that epoch) of each time, cached when the times
+        (or ``of``, the times they derive from, with a ``tag`` saying how) view a longer
+        array: frame times are never changed in place; a weak reference ties the entry to
+        the array."""
         t = np.asarray(t, float)
-        base = t.base if isinstance(t.base, np.ndarray) and t.base.ndim == 1 else None
+        src = t if of is None else of
+        base = src.base if isinstance(src.base, np.ndarray) and src.base.ndim == 1 else None
         key = None
-        if base is not None and t.ndim == 1 and t.size and t.strides == base.strides:
-            off = (t.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // t.itemsize
-            key = (id(base), int(off), t.size, float(t[0]), float(t[-1]))
+        if base is not None and src.ndim == 1 and src.size and src.strides == base.strides:
+            off = (src.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // src.itemsize
+            key = (id(base), int(off), src.size, float(src[0]), float(src[-1]), tag)
             hit = self._where.get(key)
             if hit is not None and hit[0]() is base:
                 return hit[1]
@@ -223,11 +225,12 @@ class EpochErrors:
             self._where[key] = (weakref.ref(base), found)
         return found
 
-    def at(self, t: np.ndarray) -> np.ndarray:
-        """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch)."""
+    def at(self, t: np.ndarray, of: np.ndarray | None = None, tag: str = "") -> np.ndarray:
+        """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch); ``of``, ``tag``: the
+        times ``t`` derive from, for the cache (:meth:`_locate`)."""
         if not self.T.size:
             return np.zeros((np.size(t), 3))
-        i, hit = self._locate(t)
+        i, hit = self._locate(t, of, tag)
         return np.where(hit[:, None], self.eps[i], 0.0)
 
     def moved(self, sig_e: float) -> float:
