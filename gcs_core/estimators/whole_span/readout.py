@@ -356,6 +356,19 @@ class ReadoutEpochs:
         FC = np.zeros((E, 3, 3)) if self.knots is not None else None
         for (_t, Fb, FCb, X, cols), idx in zip(parts, idxs):
             ext = np.append(cols, p)
+            if COMPILED:  # one compiled pass adds F, F C and G (repeated epochs add in turn)
+                with_fc = FC is not None and FCb is not None
+                _scatter(
+                    idx.astype(np.int64),
+                    ext.astype(np.int64),
+                    X,
+                    G,
+                    Fb,
+                    F,
+                    FCb if with_fc else Fb[:0],
+                    FC if with_fc else F,
+                )
+                continue
             rep = idx.size > 1 and bool(np.any(np.diff(idx) <= 0))  # repeated times: unbuffered adds
             if rep:
                 np.add.at(F, idx, Fb)
@@ -366,9 +379,7 @@ class ReadoutEpochs:
                     np.add.at(FC, idx, FCb)
                 else:
                     FC[idx] += FCb
-            if COMPILED:
-                _scatter(idx.astype(np.int64), ext.astype(np.int64), X, G)
-            elif rep:
+            if rep:
                 for q, c in enumerate(ext):
                     np.add.at(G[:, :, c], idx, X[:, :, q])
             else:  # the advanced indices' axes come first: (n, k + 1, 3)
@@ -484,10 +495,17 @@ def _products3(A, B, out):
 
 
 @_jit
-def _scatter(idx, ext, X, G):
-    """``G[idx[i], :, ext[q]] += X[i, :, q]`` (repeated epochs add)."""
+def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
+    """``G[idx[i], :, ext[q]] += X[i, :, q]``, ``F[idx[i]] += Fb[i]`` and, when ``FCb`` has
+    the frames, ``FC[idx[i]] += FCb[i]`` (repeated epochs add)."""
+    with_fc = FCb.shape[0] > 0
     for i in range(idx.shape[0]):
         e = idx[i]
+        for r in range(3):
+            for c in range(3):
+                F[e, r, c] += Fb[i, r, c]
+                if with_fc:
+                    FC[e, r, c] += FCb[i, r, c]
         for q in range(ext.shape[0]):
             c = ext[q]
             for r in range(3):
