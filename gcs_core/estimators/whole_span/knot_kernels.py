@@ -1,9 +1,7 @@
 """Compiled loops of the knot corrections (:mod:`gcs_core.estimators.whole_span.knots`), with numba.
 
-* :func:`knot_row_matrix` — a block's weighted knot rows ``u = w D C [I | Γ_j(t)]``
-  (N·m, d), summed per knot by matrix products ``uᵀu``, ``uᵀ [H | r]``
-  (:meth:`~gcs_core.estimators.whole_span.knots.KnotSystem.add_augmented_rows`: one BLAS
-  product per knot where a scalar loop over every row and column was 3–5× slower);
+* :func:`_accumulate_fused` — per knot ``Σ uᵀu`` and ``Σ uᵀ [H | r]`` over a block's
+  weighted rows, the knot rows ``u = w D C [I | Γ_j(t)]`` formed on the fly (one pass);
 * :func:`_accumulate` — the same from rows already formed; :func:`_accumulate_numpy` its
   numpy form (segment sums), used without numba;
 * :func:`correct_attitude` — ``exp(−[δθ×]) C`` with ``δθ = C α(t)`` (Rodrigues);
@@ -56,35 +54,58 @@ def _accumulate_numpy(U, H, rw, knot, cols, Dk, Bk):
 
 
 @_jit
-def knot_row_matrix(D, C, w, t, knot, tau, R, U):
-    """``U[i·m + r] = w_ir D_ir C_i [I | Γ_j(t_i)]`` (D (N, m, 3), C (N, 3, 3), w (N, m),
-    U (N·m, d)): the module docstring's knot rows; rows
-    of weight 0 and NaN partials give 0 (as ``np.nan_to_num``)."""
-    d = U.shape[1]
-    m = D.shape[1]
+def _accumulate_fused(D, C, w, t, knot, tau, R, Hm, rw, m, cols, Dk, Bk):
+    """:func:`knot_rows` and :func:`_accumulate` in one pass: the rows ``u`` are formed
+    per frame and summed at once (D (N, m, 3), C (N, 3, 3), w (N, m), Hm (N·m, k),
+    rw (N·m,); the module docstring gives ``u``)."""
+    d = Dk.shape[1]
+    k = cols.shape[0]
+    last = Bk.shape[2] - 1
     nR = R.shape[0]
+    u = np.empty(6)
+    acc = np.zeros((6, k + 1))
+    accD = np.zeros((6, 6))
+    cur = -1
     for i in range(D.shape[0]):
         jj = knot[i]
+        if jj != cur:
+            if cur >= 0:
+                for a in range(d):
+                    for b in range(d):
+                        Dk[cur, a, b] += accD[a, b]
+                    for q in range(k):
+                        Bk[cur, a, cols[q]] += acc[a, q]
+                    Bk[cur, a, last] += acc[a, k]
+            accD[:, :] = 0.0
+            acc[:, :] = 0.0
+            cur = jj
         s = -(t[i] - tau[jj])
         jr = jj if jj < nR else nR - 1
         for r in range(m):
-            row = i * m + r
             wr = w[i, r]
             if wr == 0.0:
-                for a in range(d):
-                    U[row, a] = 0.0
                 continue
-            d0, d1, d2 = D[i, r, 0], D[i, r, 1], D[i, r, 2]
-            d0 = d0 * wr if d0 == d0 else 0.0
-            d1 = d1 * wr if d1 == d1 else 0.0
-            d2 = d2 * wr if d2 == d2 else 0.0
-            u0 = d0 * C[i, 0, 0] + d1 * C[i, 1, 0] + d2 * C[i, 2, 0]
-            u1 = d0 * C[i, 0, 1] + d1 * C[i, 1, 1] + d2 * C[i, 2, 1]
-            u2 = d0 * C[i, 0, 2] + d1 * C[i, 1, 2] + d2 * C[i, 2, 2]
-            U[row, 0], U[row, 1], U[row, 2] = u0, u1, u2
+            d0, d1, d2 = D[i, r, 0] * wr, D[i, r, 1] * wr, D[i, r, 2] * wr
+            for c in range(3):
+                u[c] = d0 * C[i, 0, c] + d1 * C[i, 1, c] + d2 * C[i, 2, c]
             if d == 6:
                 for c in range(3):
-                    U[row, 3 + c] = s * (u0 * R[jr, 0, c] + u1 * R[jr, 1, c] + u2 * R[jr, 2, c])
+                    u[3 + c] = s * (u[0] * R[jr, 0, c] + u[1] * R[jr, 1, c] + u[2] * R[jr, 2, c])
+            row = i * m + r
+            for a in range(d):
+                ua = u[a]
+                for b in range(d):
+                    accD[a, b] += ua * u[b]
+                for q in range(k):
+                    acc[a, q] += ua * Hm[row, q]
+                acc[a, k] += ua * rw[row]
+    if cur >= 0:
+        for a in range(d):
+            for b in range(d):
+                Dk[cur, a, b] += accD[a, b]
+            for q in range(k):
+                Bk[cur, a, cols[q]] += acc[a, q]
+            Bk[cur, a, last] += acc[a, k]
 
 
 @_jit

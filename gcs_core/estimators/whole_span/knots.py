@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.compiled import COMPILED, jit
-from gcs_core.estimators.whole_span.knot_kernels import _accumulate, _accumulate_numpy, knot_row_matrix
+from gcs_core.estimators.whole_span.knot_kernels import _accumulate, _accumulate_fused, _accumulate_numpy
 from gcs_core.models.gyro_noise import GyroNoise, farrenkopf_q
 
 _jit = jit()
@@ -327,54 +327,24 @@ class KnotSystem:
             m = D.shape[1]
             self.add(U, Hm.reshape(D.shape[0], m, -1), rw.reshape(D.shape[0], m), t, cols)
             return
-        self.add_augmented_rows(D, C, w, t, np.column_stack([Hm, rw]), cols)
-
-    def add_augmented_rows(self, D, C, w, t, Hr, cols) -> None:
-        """:meth:`add_rows` with the static rows and residuals side by side, ``Hr = [Hm | rw]``
-        (N·m, k + 1), as :func:`~gcs_core.problem.linearization.iter_blocks` gives them.
-
-        The knot rows ``u`` are formed once (:func:`knot_row_matrix`), then summed per knot
-        by matrix products ``uᵀu``, ``uᵀ[Hm | rw]`` over the knot's rows (frames are in time
-        order, so a knot's rows are contiguous): the sums of :func:`_accumulate`, in BLAS's
-        order."""
-        if not COMPILED:
-            self.add_rows(D, C, w, t, Hr[:, :-1], Hr[:, -1], cols)
-            return
-        n, m = D.shape[:2]
-        if not n:
-            return
         knot = self._local(self.grid.index(t).astype(np.int64))
         R = self.R if self.R.shape[0] else np.eye(3)[None]
-        d = self.grid.d
-        U = np.empty((n * m, d))
-        knot_row_matrix(
-            D,
-            np.ascontiguousarray(C),
+        # the fused kernel reads the knot times through the held buffer's offset
+        _accumulate_fused(
+            np.nan_to_num(D),
+            C,
             w,
             t,
             knot,
             self.grid.tau[self.base :],
             R[self.base :] if self.base < R.shape[0] else R[-1:],
-            U,
+            Hm,
+            rw,
+            D.shape[1],
+            np.asarray(cols, np.int64),
+            self.Dk,
+            self.Bk,
         )
-        starts = np.flatnonzero(np.r_[True, knot[1:] != knot[:-1]])
-        ends = np.r_[starts[1:], n]
-        js = knot[starts]
-        k1 = Hr.shape[1]
-        DD = np.empty((starts.size, d, d))
-        UB = np.empty((starts.size, d, k1))
-        for i in range(starts.size):
-            Us = U[starts[i] * m : ends[i] * m]
-            DD[i] = Us.T @ Us  # symmetric (BLAS syrk)
-            np.matmul(Us.T, Hr[starts[i] * m : ends[i] * m], out=UB[i])
-        ext = np.append(np.asarray(cols, np.int64), self.Bk.shape[2] - 1)
-        at = (js[:, None, None], np.arange(d)[None, :, None], ext[None, None, :])
-        if np.all(js[1:] > js[:-1]):  # frames in time order: each knot once
-            self.Dk[js] += DD
-            self.Bk[at] += UB
-        else:
-            np.add.at(self.Dk, js, DD)
-            np.add.at(self.Bk, at, UB)
 
     def add(self, U, H, rw, t, cols) -> None:
         """Add one block's weighted rows: U (N, m, d), H (N, m, k) over static ``cols``,

@@ -288,9 +288,9 @@ class Passes:
         w = blk.used[:, None] / sd.sigma[None, :]
         C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
         if blk.Hr is not None:
-            sysk.add_augmented_rows(D, C, w, t, blk.Hr, blk.cols)
+            sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
         else:
-            sysk.add_augmented_rows(D, C, w, t, rw.reshape(-1, 1), np.zeros(0, np.int64))
+            sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(), np.zeros(0, np.int64))
         return C
 
     def _readout_rows(self, blk) -> None:
