@@ -241,9 +241,8 @@ def _edit_passes(problem: Problem, it: _Iterate) -> None:
     opts = it.opts
     edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
     for edit_pass in range(opts.edit_passes if edits_on else 1):
-        if it.lin is None:
-            _first_linearization(it)
-        it.cost = it.passes.cost(it.x, it.lin.chi2, it.lin.system)
+        lin = it.lin if it.lin is not None else _first_linearization(it)
+        it.cost = it.passes.cost(it.x, lin.chi2, lin.system)
         it.history.append(it.cost)
         _iterate(it)
         if not edits_on:
@@ -259,7 +258,7 @@ def _edit_passes(problem: Problem, it: _Iterate) -> None:
         log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in it.edits.values()))
 
 
-def _first_linearization(it: _Iterate) -> None:
+def _first_linearization(it: _Iterate) -> SpanLinearization:
     """Linearize at the pass's first point, about the read-out errors' conditional optimum
     there when σ_e is carried (:mod:`.readout`). From ``ε̂ = 0`` (a fresh start) that
     optimum needs only the residuals and the attitude partials: a pass without the
@@ -270,11 +269,12 @@ def _first_linearization(it: _Iterate) -> None:
         it.passes.run(it.x, it.z, it.edits, jacobian=False)
         it.adopt_readout()
         it.lin = it.passes.run(it.x, it.z, it.edits)
-        return
+        return it.lin
     it.lin = it.passes.run(it.x, it.z, it.edits)
     if it.adopt_readout():  # start about the read-out errors' conditional optimum
         it.lin = None
         it.lin = it.passes.run(it.x, it.z, it.edits)
+    return it.lin
 
 
 @dataclass(frozen=True)
