@@ -199,6 +199,7 @@ class Passes:
         self.x_bar, self.prior_info = x_bar, prior_info
         self.values = problem.state.values()
         self.work: dict = {}
+        self.readout_work: dict = {}  # the read-out elimination's window buffers (readout.py)
         self.buffers = Residuals().ensure(problem)
         self.stream, self.keep = True, True  # knots eliminated as the data pass them
         # the knots' drift-bias axes R_j (knots.py), taken from the trajectory where the fit
@@ -225,7 +226,9 @@ class Passes:
         A, b = np.zeros((n, n)), np.zeros(n)
         chi2, m_used = 0.0, 0
         ro = (
-            ReadoutEpochs(self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors, self.errors)
+            ReadoutEpochs(
+                self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors, self.errors, self.readout_work
+            )
             if self.sig_e2
             else None
         )

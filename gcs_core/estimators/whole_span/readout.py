@@ -268,6 +268,7 @@ class ReadoutEpochs:
         knots: kn.KnotSystem | None,
         sensors,
         errors: EpochErrors | None = None,
+        work: dict | None = None,
     ):
         self.inv_e2 = 1.0 / float(sig_e2)
         self.errors = errors  # ε̂ the rows were evaluated at (None: ε = 0)
@@ -278,6 +279,19 @@ class ReadoutEpochs:
         self._last = -1
         self._parts: list[tuple] = []
         self._passed: list[tuple] = []
+        # the windows' (E, 3, p + 1) arrays, reused from window to window and, given the
+        # caller's ``work``, from pass to pass (fresh pages cost more than the sums in them)
+        self._work = work if work is not None else {}
+
+    def _buffer(self, key: str, shape: tuple, zero: bool) -> np.ndarray:
+        size = int(np.prod(shape))
+        buf = self._work.get(key)
+        if buf is None or buf.size < size:
+            buf = self._work[key] = np.empty(size)
+        out = buf[:size].reshape(shape)
+        if zero:
+            out.fill(0.0)
+        return out
 
     def visit(self, sd) -> None:
         """A block of ``sd`` comes next: close the window when ``sd`` was in it already."""
@@ -352,7 +366,7 @@ class ReadoutEpochs:
         T, idxs, lo = self._window(parts)
         E, p = T.size, self.p
         F = np.zeros((E, 3, 3))
-        G = np.zeros((E, 3, p + 1))  # D̃ᵀ[H̃ | r̃] per epoch
+        G = self._buffer("G", (E, 3, p + 1), zero=True)  # D̃ᵀ[H̃ | r̃] per epoch
         FC = np.zeros((E, 3, 3)) if self.knots is not None else None
         for (_t, Fb, FCb, X, cols), idx in zip(parts, idxs):
             ext = np.append(cols, p)
@@ -402,7 +416,7 @@ class ReadoutEpochs:
             # with M = L Lᵀ per epoch, V = L⁻¹ G: Gᵀ M⁻¹ G = Vᵀ V, one symmetric product
             # (BLAS syrk) for the normal matrix, the gradient and χ² at once; W = L⁻¹ F C
             # gives the knots' part the same way (subtract_factored_knot_rows)
-            V, W, y_eps = np.empty_like(G), np.empty_like(F), np.empty((F.shape[0], 3))
+            V, W, y_eps = self._buffer("V", G.shape, zero=False), np.empty_like(F), np.empty((F.shape[0], 3))
             _epoch_solve(F, G, FC if FC is not None else F[:0], self.inv_e2, V, W, y_eps)
             Vf = V.reshape(-1, p + 1)
             S = Vf.T @ Vf
