@@ -241,12 +241,8 @@ def _edit_passes(problem: Problem, it: _Iterate) -> None:
     opts = it.opts
     edits_on = any(opts.k_for(sd.name) for sd in problem.sensors)
     for edit_pass in range(opts.edit_passes if edits_on else 1):
-        if it.lin is None:
-            it.lin = it.passes.run(it.x, it.z, it.edits)
-            if it.adopt_readout():  # start about the read-out errors' conditional optimum
-                it.lin = None
-                it.lin = it.passes.run(it.x, it.z, it.edits)
-        it.cost = it.passes.cost(it.x, it.lin.chi2, it.lin.system)
+        lin = it.lin if it.lin is not None else _first_linearization(it)
+        it.cost = it.passes.cost(it.x, lin.chi2, lin.system)
         it.history.append(it.cost)
         _iterate(it)
         if not edits_on:
@@ -260,6 +256,25 @@ def _edit_passes(problem: Problem, it: _Iterate) -> None:
             break
         it.lin = None
         log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in it.edits.values()))
+
+
+def _first_linearization(it: _Iterate) -> SpanLinearization:
+    """Linearize at the pass's first point, about the read-out errors' conditional optimum
+    there when σ_e is carried (:mod:`.readout`). From ``ε̂ = 0`` (a fresh start) that
+    optimum needs only the residuals and the attitude partials: a pass without the
+    Jacobian finds it (the same per-epoch sums, :meth:`.readout.ReadoutEpochs.add`), and
+    the one full pass is made about it."""
+    errors = it.passes.errors
+    if errors is not None and not errors.nonzero:
+        it.passes.run(it.x, it.z, it.edits, jacobian=False)
+        it.adopt_readout()
+        it.lin = it.passes.run(it.x, it.z, it.edits)
+        return it.lin
+    it.lin = it.passes.run(it.x, it.z, it.edits)
+    if it.adopt_readout():  # start about the read-out errors' conditional optimum
+        it.lin = None
+        it.lin = it.passes.run(it.x, it.z, it.edits)
+    return it.lin
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,8 @@
   weighted rows, the knot rows ``u = w D C [I | Γ_j(t)]`` formed on the fly (one pass);
 * :func:`_accumulate` — the same from rows already formed; :func:`_accumulate_numpy` its
   numpy form (segment sums), used without numba;
-* :func:`correct_attitude` — ``exp(−[δθ×]) C`` with ``δθ = C α(t)`` (Rodrigues).
+* :func:`correct_attitude` — ``exp(−[δθ×]) C`` with ``δθ = C α(t)`` (Rodrigues);
+* :func:`rotate_by_rotvec` — ``exp(−[φ×]) C`` per frame (the read-out errors ε̂).
 
 Engine selection is :data:`gcs_core.compiled.COMPILED`, as for the batch
 kernels; without numba these stay plain Python and the numpy forms run.
@@ -142,6 +143,35 @@ def correct_attitude(C, t, knot, tau, z, R, out):
         E20 = fa * K02 + fb * v[0] * v[2]
         E12 = -fa * K12 + fb * v[1] * v[2]
         E21 = fa * K12 + fb * v[1] * v[2]
+        for c in range(3):
+            c0, c1, c2 = C[i, 0, c], C[i, 1, c], C[i, 2, c]
+            out[i, 0, c] = E00 * c0 + E01 * c1 + E02 * c2
+            out[i, 1, c] = E10 * c0 + E11 * c1 + E12 * c2
+            out[i, 2, c] = E20 * c0 + E21 * c1 + E22 * c2
+
+
+@_jit
+def rotate_by_rotvec(phi, C, out):
+    """``out_i = exp(−[φ_i×]) C_i`` (:func:`gcs_core.frames.rotations.rotvec_to_dcm`, the same
+    series below 1e-8 rad): the read-out errors' correction of the attitude."""
+    for i in range(C.shape[0]):
+        v0, v1, v2 = phi[i, 0], phi[i, 1], phi[i, 2]
+        ang2 = v0 * v0 + v1 * v1 + v2 * v2
+        ang = np.sqrt(ang2)
+        if ang < 1e-8:
+            fa, fb = 1.0 - ang2 / 6.0, 0.5 - ang2 / 24.0
+        else:
+            fa, fb = np.sin(ang) / ang, (1.0 - np.cos(ang)) / ang2
+        # exp(−[v×]) = I − fa [v×] + fb [v×]²
+        E00 = 1.0 - fb * (v1 * v1 + v2 * v2)
+        E11 = 1.0 - fb * (v0 * v0 + v2 * v2)
+        E22 = 1.0 - fb * (v0 * v0 + v1 * v1)
+        E01 = fa * v2 + fb * v0 * v1
+        E10 = -fa * v2 + fb * v0 * v1
+        E02 = -fa * v1 + fb * v0 * v2
+        E20 = fa * v1 + fb * v0 * v2
+        E12 = fa * v0 + fb * v1 * v2
+        E21 = -fa * v0 + fb * v1 * v2
         for c in range(3):
             c0, c1, c2 = C[i, 0, c], C[i, 1, c], C[i, 2, c]
             out[i, 0, c] = E00 * c0 + E01 * c1 + E02 * c2

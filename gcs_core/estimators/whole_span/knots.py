@@ -240,12 +240,31 @@ def chained_attitude(C: np.ndarray, grid: KnotGrid, z: np.ndarray, R: np.ndarray
     knots' drift corrections over days) a few per cent in the knot columns turned the
     Gauss–Newton direction of a week-long span into one along which the cost barely falls.
     """
-    if not np.any(z) or C is None:
+    if not np.any(z) or C is None or not t.size:
         return C
+    if _correction_bound(grid, z, t) < SMALL_CORRECTION:
+        return C  # every |α| is below it (a bound from the knots alone, no per-frame work)
     a = alpha_at(grid, z, R, t)
     if not a.size or float(np.max(np.abs(a))) < SMALL_CORRECTION:
         return C
     return np.matmul(C, left_jacobian(a))
+
+
+def _correction_bound(grid: KnotGrid, z: np.ndarray, t: np.ndarray) -> float:
+    """An upper bound of ``max |α(t)|`` (every component) over the times ``t``:
+    ``|α_c| ≤ |α_j,c| + |t − τ_j| |β_j|`` (``R_j`` a rotation), ``|t − τ_j|`` at most the
+    longest interval or the times' overhang of the grid's ends (with a margin for
+    round-off in ``R``)."""
+    a = float(np.max(np.abs(z[:, :3])))
+    if grid.d == 6:
+        tau = grid.tau
+        s_max = max(
+            float(np.max(np.diff(tau))) if tau.size > 1 else 0.0,
+            float(np.max(t)) - float(tau[-1]),
+            float(tau[0]) - float(np.min(t)),
+        )
+        a += abs(s_max) * float(np.max(np.linalg.norm(z[:, 3:], axis=1)))
+    return a * (1.0 + 1e-6)
 
 
 def alpha_at(grid: KnotGrid, z: np.ndarray, R: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.estimators.residuals import Residuals
 from gcs_core.estimators.whole_span import knots as kn
-from gcs_core.estimators.whole_span.knot_kernels import correct_attitude
+from gcs_core.estimators.whole_span.knot_kernels import correct_attitude, rotate_by_rotvec
 from gcs_core.estimators.whole_span.readout import EpochErrors, ReadoutEpochs, row_variance
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
@@ -93,7 +93,11 @@ class CorrectedAttitude:
 
     def _correct(self, C, t):
         C = self._correct_knots(C, t)
-        if self.errors is not None and np.any(self.errors.eps):
+        if self.errors is not None and self.errors.nonzero:
+            if COMPILED:
+                out = np.empty_like(C)
+                rotate_by_rotvec(self.errors.at(t), np.ascontiguousarray(C), out)
+                return out
             C = rotvec_to_dcm(self.errors.at(t)) @ C
         return C
 
@@ -105,11 +109,11 @@ class CorrectedAttitude:
         ``−ω × v`` made from it would be a regressor with errors, correlated with the
         residuals; corrected, its error is the posterior one, uncorrelated with them."""
         er, base = self.errors, self.base
-        if er is None or w is None or not np.any(er.eps) or not hasattr(base, "knots"):
+        if er is None or w is None or not er.nonzero or not hasattr(base, "knots"):
             return w
         k = base._rows(t)
         t1, t0 = base.knots[k], base.knots[k - 1]
-        return w + (er.at(t1) - er.at(t0)) / (t1 - t0)[:, None]
+        return w + (er.at(t1, t, "interval end") - er.at(t0, t, "interval start")) / (t1 - t0)[:, None]
 
     def _correct_knots(self, C, t):
         if not np.any(self.z):
@@ -195,6 +199,7 @@ class Passes:
         self.x_bar, self.prior_info = x_bar, prior_info
         self.values = problem.state.values()
         self.work: dict = {}
+        self.readout_work: dict = {}  # the read-out elimination's window buffers (readout.py)
         self.buffers = Residuals().ensure(problem)
         self.stream, self.keep = True, True  # knots eliminated as the data pass them
         # the knots' drift-bias axes R_j (knots.py), taken from the trajectory where the fit
@@ -221,7 +226,9 @@ class Passes:
         A, b = np.zeros((n, n)), np.zeros(n)
         chi2, m_used = 0.0, 0
         ro = (
-            ReadoutEpochs(self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors, self.errors)
+            ReadoutEpochs(
+                self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors, self.errors, self.readout_work
+            )
             if self.sig_e2
             else None
         )
@@ -301,9 +308,10 @@ class Passes:
         if D is None or blk.geom.C_BI is None:
             buf[blk.lo : blk.hi] = 0.0
             return
+        D = np.nan_to_num(D)
         buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2)
-        if self.errors is not None and np.any(self.errors.eps):
-            De = np.einsum("nma,na->nm", np.nan_to_num(D), self.errors.at(sd.t[blk.lo : blk.hi]))
+        if self.errors is not None and self.errors.nonzero:
+            De = np.einsum("nma,na->nm", D, self.errors.at(sd.t[blk.lo : blk.hi]))
             self.buffers.r[sd.name][blk.lo : blk.hi] += De
             if sd.name in self.buffers.y_pred:  # the prediction at ε = 0 likewise
                 self.buffers.y_pred[sd.name][blk.lo : blk.hi] -= De

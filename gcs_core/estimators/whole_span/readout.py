@@ -78,12 +78,19 @@ J. L., *Fundamentals of Spacecraft Attitude Determination and Control*, Springer
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
-from gcs_core.compiled import COMPILED, jit
+from gcs_core.compiled import COMPILED
 from gcs_core.estimators.whole_span import knots as kn
-
-_jit = jit()
+from gcs_core.estimators.whole_span.readout_kernels import (
+    _epoch_knot_rows,
+    _epoch_solve,
+    _frame_products,
+    _products3,
+    _scatter,
+)
 
 
 def row_variance(D: np.ndarray, sig_e2: float) -> np.ndarray:
@@ -102,15 +109,6 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: n
     if not t.size:
         return
     j = sysk.grid.index(t)
-    if COMPILED:
-        knot = sysk._local(j.astype(np.int64))
-        R = sysk.R
-        if sysk.grid.d == 6 and R.shape[0]:
-            Gam = -(t - sysk.grid.tau[j])[:, None, None] * R[np.minimum(j, R.shape[0] - 1)]  # Γ_j(t)
-        else:
-            Gam = np.zeros((t.size, 3, 3))
-        _knot_downdate(Dl, Dr, Gam, Y, knot, np.asarray(cols, np.int64), sysk.Dk, sysk.Bk)
-        return
     eye = np.broadcast_to(np.eye(3), (t.size, 3, 3))
     Ul = kn.knot_rows(Dl, eye, t, j, sysk.grid, sysk.R)  # (E, 3, d)
     Ur = kn.knot_rows(Dr, eye, t, j, sysk.grid, sysk.R)
@@ -127,6 +125,49 @@ def subtract_knot_rows(sysk: kn.KnotSystem, Dl: np.ndarray, Dr: np.ndarray, t: n
         for q, c in enumerate(cols):
             Bk[js, :, c] -= HB[:, :, q]
     sysk.Bk[js, :, -1] -= HB[:, :, -1]
+
+
+def subtract_factored_knot_rows(sysk: kn.KnotSystem, W: np.ndarray, t: np.ndarray, V: np.ndarray, cols) -> None:
+    """:func:`subtract_knot_rows` from the factored epochs: with ``M = L Lᵀ`` per epoch,
+    ``W = L⁻¹ F C`` (E, 3, 3) and ``V = L⁻¹ G`` (E, 3, p + 1) the downdate is
+    ``Dk_j −= Uᵀ U``, ``Bk_j −= Uᵀ V`` with ``U = W [I | Γ_j(t)]`` (``U_lᵀ U_r = Uᵀ U``,
+    ``U_lᵀ Y = Uᵀ V``): the rows formed compiled, the sums one BLAS product per knot."""
+    if not t.size:
+        return
+    j = sysk.grid.index(t).astype(np.int64)
+    R, d = sysk.R, sysk.grid.d
+    U = np.empty((t.size, 3, d))
+    _epoch_knot_rows(W, t, j, sysk.grid.tau, R if R.shape[0] else np.zeros((1, 3, 3)), U)
+    Uf = U.reshape(-1, d)
+    _subtract_per_knot(sysk, sysk._local(j), Uf, Uf, V.reshape(-1, V.shape[2]), cols)
+
+
+def _subtract_per_knot(sysk: kn.KnotSystem, knot, Ul, Ur, Yf, cols) -> None:
+    """``Dk_j −= sym(U_lᵀ U_r)``, ``Bk_j −= U_lᵀ Y`` over each knot's epochs (three rows per
+    epoch in ``Ul``, ``Ur`` (3E, d) and ``Yf`` (3E, p + 1); epochs in time order, so a knot's
+    rows are contiguous): one BLAS product per knot."""
+    starts = np.flatnonzero(np.r_[True, knot[1:] != knot[:-1]])
+    ends = np.r_[starts[1:], knot.size]
+    js = knot[starts]
+    d = Ul.shape[1]
+    DD = np.empty((starts.size, d, d))
+    UB = np.empty((starts.size, d, Yf.shape[1]))
+    for i in range(starts.size):
+        a, b = 3 * starts[i], 3 * ends[i]
+        if Ur is Ul:
+            DD[i] = Ul[a:b].T @ Ul[a:b]  # symmetric (BLAS syrk)
+        else:
+            X = Ul[a:b].T @ Ur[a:b]
+            DD[i] = 0.5 * (X + X.T)
+        np.matmul(Ul[a:b].T, Yf[a:b], out=UB[i])
+    ext = np.append(np.asarray(cols, np.int64), sysk.Bk.shape[2] - 1)
+    at = (js[:, None, None], np.arange(d)[None, :, None], ext[None, None, :])
+    if np.all(js[1:] > js[:-1]):
+        sysk.Dk[js] -= DD
+        sysk.Bk[at] -= UB
+    else:
+        np.subtract.at(sysk.Dk, js, DD)
+        np.subtract.at(sysk.Bk, at, UB)
 
 
 def inverse_spd3(M: np.ndarray) -> np.ndarray:
@@ -157,17 +198,45 @@ class EpochErrors:
         self.eps = np.zeros((self.T.size, 3))
         self.cond = self.eps.copy()
         self.stale = False  # ε̂ adopted after the last pass
+        self.nonzero = False  # any ε̂ ≠ 0 (kept with ``eps``: asked per block)
+        # (index, is an epoch) of times that view a sensor's frame times, asked at every
+        # pass: keyed by the viewed array's identity and the view's place in it
+        self._where: dict[tuple, tuple] = {}
 
     def index(self, t: np.ndarray) -> np.ndarray:
         """(n,) epoch of each time (every data time is one)."""
-        return np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
+        return self._locate(t)[0]
 
-    def at(self, t: np.ndarray) -> np.ndarray:
-        """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch)."""
+    def _locate(self, t: np.ndarray, of: np.ndarray | None = None, tag: str = "") -> tuple[np.ndarray, np.ndarray]:
+        """(epoch index, whether the time is that epoch) of each time, cached when the times
+        (or ``of``, the times they derive from, with a ``tag`` saying how) view a longer
+        array: frame times are never changed in place; a weak reference ties the entry to
+        the array."""
+        t = np.asarray(t, float)
+        src = t if of is None else of
+        base = src.base if isinstance(src.base, np.ndarray) and src.base.ndim == 1 else None
+        key = None
+        if base is not None and src.ndim == 1 and src.size and src.strides == base.strides:
+            off = (src.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // src.itemsize
+            key = (id(base), int(off), src.size, float(src[0]), float(src[-1]), tag)
+            hit = self._where.get(key)
+            if hit is not None and hit[0]() is base:
+                return hit[1]
+        i = np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
+        found = (i, self.T[i] == t if self.T.size else np.zeros(np.shape(t), bool))
+        if key is not None:
+            if len(self._where) >= 4096:  # bounded: a long span's blocks
+                self._where.clear()
+            self._where[key] = (weakref.ref(base), found)
+        return found
+
+    def at(self, t: np.ndarray, of: np.ndarray | None = None, tag: str = "") -> np.ndarray:
+        """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch); ``of``, ``tag``: the
+        times ``t`` derive from, for the cache (:meth:`_locate`)."""
         if not self.T.size:
             return np.zeros((np.size(t), 3))
-        i = self.index(t)
-        return np.where((self.T[i] == t)[:, None], self.eps[i], 0.0)
+        i, hit = self._locate(t, of, tag)
+        return np.where(hit[:, None], self.eps[i], 0.0)
 
     def moved(self, sig_e: float) -> float:
         """The largest change :meth:`adopt` would make, in σ_e (inf when ε̂ changed since the
@@ -180,6 +249,7 @@ class EpochErrors:
         """Linearize the next passes about the last pass's conditional optimum."""
         if not self.stale:
             self.eps = self.cond.copy()
+            self.nonzero = bool(np.any(self.eps))
             self.stale = True
 
 
@@ -203,6 +273,7 @@ class ReadoutEpochs:
         knots: kn.KnotSystem | None,
         sensors,
         errors: EpochErrors | None = None,
+        work: dict | None = None,
     ):
         self.inv_e2 = 1.0 / float(sig_e2)
         self.errors = errors  # ε̂ the rows were evaluated at (None: ε = 0)
@@ -213,6 +284,19 @@ class ReadoutEpochs:
         self._last = -1
         self._parts: list[tuple] = []
         self._passed: list[tuple] = []
+        # the windows' (E, 3, p + 1) arrays, reused from window to window and, given the
+        # caller's ``work``, from pass to pass (fresh pages cost more than the sums in them)
+        self._work = work if work is not None else {}
+
+    def _buffer(self, key: str, shape: tuple, zero: bool) -> np.ndarray:
+        size = int(np.prod(shape))
+        buf = self._work.get(key)
+        if buf is None or buf.size < size:
+            buf = self._work[key] = np.empty(size)
+        out = buf[:size].reshape(shape)
+        if zero:
+            out.fill(0.0)
+        return out
 
     def visit(self, sd) -> None:
         """A block of ``sd`` comes next: close the window when ``sd`` was in it already."""
@@ -235,6 +319,10 @@ class ReadoutEpochs:
         if COMPILED:
             F, X = np.zeros((n, 3, 3)), np.zeros((n, 3, k + 1))
             _frame_products(D, w, Hm, rw, F, X)
+            FC = None
+            if C is not None:
+                FC = np.empty((n, 3, 3))
+                _products3(F, np.ascontiguousarray(C), FC)
         else:
             Dw = np.nan_to_num(D) * w[:, :, None]
             F = np.einsum("nma,nmb->nab", Dw, Dw)
@@ -242,7 +330,7 @@ class ReadoutEpochs:
             if k:
                 X[:, :, :k] = np.einsum("nma,nmq->naq", Dw, Hm.reshape(n, m, k))
             X[:, :, k] = np.einsum("nma,nm->na", Dw, rw.reshape(n, m))
-        FC = F @ C if C is not None else None
+            FC = F @ C if C is not None else None
         self._parts.append((np.asarray(t, float), F, FC, X, np.asarray(cols, int)))
 
     def flush(self) -> None:
@@ -260,15 +348,46 @@ class ReadoutEpochs:
         self.flush()
         return self.chi2_removed
 
+    def _window(self, parts) -> tuple[np.ndarray, list[np.ndarray], int]:
+        """The window's epochs (sorted times), the epoch of each part's frames among them,
+        and the first epoch's index in :attr:`EpochErrors.T` (0 without it). With the
+        span's epochs known (:class:`EpochErrors`, every data time) the indices are looked
+        up once per problem (cached by the frame-time arrays) and the window's epochs are
+        a slice of them; epochs no part reaches have no rows and are dropped with the
+        epochs without attitude-sensitive rows."""
+        ro = self.errors
+        if ro is None or not ro.T.size:
+            T = np.unique(np.concatenate([p[0] for p in parts]))
+            return T, [np.searchsorted(T, p[0]) for p in parts], 0
+        gidx = [ro._locate(p[0])[0] for p in parts]
+        lo = min(int(g[0]) for g in gidx if g.size)
+        hi = max(int(g[-1]) for g in gidx if g.size) + 1
+        return ro.T[lo:hi], [g - lo for g in gidx], lo
+
     def _eliminate(self, parts) -> None:
-        T = np.unique(np.concatenate([p[0] for p in parts]))
+        parts = [q for q in parts if q[0].size]
+        if not parts:
+            return
+        T, idxs, lo = self._window(parts)
         E, p = T.size, self.p
         F = np.zeros((E, 3, 3))
-        G = np.zeros((E, 3, p + 1))  # D̃ᵀ[H̃ | r̃] per epoch
+        G = self._buffer("G", (E, 3, p + 1), zero=True)  # D̃ᵀ[H̃ | r̃] per epoch
         FC = np.zeros((E, 3, 3)) if self.knots is not None else None
-        for t, Fb, FCb, X, cols in parts:
-            idx = np.searchsorted(T, t)
+        for (_t, Fb, FCb, X, cols), idx in zip(parts, idxs):
             ext = np.append(cols, p)
+            if COMPILED:  # one compiled pass adds F, F C and G (repeated epochs add in turn)
+                with_fc = FC is not None and FCb is not None
+                _scatter(
+                    idx.astype(np.int64),
+                    ext.astype(np.int64),
+                    X,
+                    G,
+                    Fb,
+                    F,
+                    FCb if with_fc else Fb[:0],
+                    FC if with_fc else F,
+                )
+                continue
             rep = idx.size > 1 and bool(np.any(np.diff(idx) <= 0))  # repeated times: unbuffered adds
             if rep:
                 np.add.at(F, idx, Fb)
@@ -279,16 +398,15 @@ class ReadoutEpochs:
                     np.add.at(FC, idx, FCb)
                 else:
                     FC[idx] += FCb
-            if COMPILED:
-                _scatter(idx.astype(np.int64), ext.astype(np.int64), X, G)
-            elif rep:
+            if rep:
                 for q, c in enumerate(ext):
                     np.add.at(G[:, :, c], idx, X[:, :, q])
             else:  # the advanced indices' axes come first: (n, k + 1, 3)
                 G[idx[:, None], :, ext[None, :]] += np.swapaxes(X, 1, 2)
         keep = np.einsum("eaa->e", F) > 0  # epochs with attitude-sensitive rows
+        k = np.arange(lo, lo + E)  # their indices in EpochErrors.T (with ``errors``)
         if not np.all(keep):
-            T, F, G = T[keep], F[keep], G[keep]
+            T, F, G, k = T[keep], F[keep], G[keep], k[keep]
             FC = FC[keep] if FC is not None else None
         if not T.size:
             return
@@ -296,112 +414,37 @@ class ReadoutEpochs:
         if ro is not None:
             # rows evaluated at ε̂: the gradient in ε is Σ D̃ᵀ r̃ − ε̂/σ_e², and the prior's
             # ‖ε̂‖²/σ_e² is part of the cost
-            k = ro.index(T)
             eps = ro.eps[k]
             G[:, :, p] -= self.inv_e2 * eps
             self.chi2_removed -= self.inv_e2 * float(np.sum(eps * eps))
         if COMPILED:
-            Minv, Y = np.empty_like(F), np.empty_like(G)
-            _epoch_solve(F, G, self.inv_e2, Minv, Y)
-        else:
-            Minv = inverse_spd3(F + self.inv_e2 * np.eye(3))
-            Y = np.matmul(Minv, G)  # (E, 3, p + 1): M⁻¹ G
-        if ro is not None:
-            ro.cond[k] = eps + Y[:, :, p]  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
-            ro.stale = False
+            # with M = L Lᵀ per epoch, V = L⁻¹ G: Gᵀ M⁻¹ G = Vᵀ V, one symmetric product
+            # (BLAS syrk) for the normal matrix, the gradient and χ² at once; W = L⁻¹ F C
+            # gives the knots' part the same way (subtract_factored_knot_rows)
+            V, W, y_eps = self._buffer("V", G.shape, zero=False), np.empty_like(F), np.empty((F.shape[0], 3))
+            _epoch_solve(F, G, FC if FC is not None else F[:0], self.inv_e2, V, W, y_eps)
+            Vf = V.reshape(-1, p + 1)
+            S = Vf.T @ Vf
+            if p:
+                self.A -= S[:p, :p]
+                self.b -= S[:p, p]
+            self.chi2_removed += float(S[p, p])
+            if ro is not None:
+                ro.cond[k] = eps + y_eps  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
+                ro.stale = False
+            if self.knots is not None and FC is not None:
+                subtract_factored_knot_rows(self.knots, W, T, V, np.arange(p))
+            return
+        Minv = inverse_spd3(F + self.inv_e2 * np.eye(3))
+        Y = np.matmul(Minv, G)  # (E, 3, p + 1): M⁻¹ G
         Gf, Yf = G.reshape(-1, p + 1), Y.reshape(-1, p + 1)
         if p:
             S = Gf[:, :p].T @ Yf[:, :p]  # Σ G_xᵀ M⁻¹ G_x, symmetric to round-off
             self.A -= 0.5 * (S + S.T)
             self.b -= Gf[:, :p].T @ Yf[:, p]
         self.chi2_removed += float(Gf[:, p] @ Yf[:, p])
+        if ro is not None:
+            ro.cond[k] = eps + Y[:, :, p]  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
+            ro.stale = False
         if self.knots is not None and FC is not None:
             subtract_knot_rows(self.knots, FC, np.matmul(Minv, FC), T, Y, np.arange(p))
-
-
-@_jit
-def _knot_downdate(Dl, Dr, Gam, Y, knot, cols, Dk, Bk):
-    """The compiled form of :func:`subtract_knot_rows`: per epoch ``U_l = Dl [I | Γ]``,
-    ``U_r = Dr [I | Γ]``, ``Dk_j −= U_lᵀ U_r``, ``Bk_j −= U_lᵀ Y`` (Gam (E, 3, 3) the Γ_j(t)
-    of each epoch; ``knot`` local indices of the held blocks)."""
-    d = Dk.shape[1]
-    p = cols.shape[0]
-    last = Bk.shape[2] - 1
-    Ul = np.empty((3, 6))
-    Ur = np.empty((3, 6))
-    for e in range(Dl.shape[0]):
-        jj = knot[e]
-        for r in range(3):
-            for c in range(3):
-                Ul[r, c] = Dl[e, r, c]
-                Ur[r, c] = Dr[e, r, c]
-            if d == 6:
-                for c in range(3):
-                    Ul[r, 3 + c] = Dl[e, r, 0] * Gam[e, 0, c] + Dl[e, r, 1] * Gam[e, 1, c] + Dl[e, r, 2] * Gam[e, 2, c]
-                    Ur[r, 3 + c] = Dr[e, r, 0] * Gam[e, 0, c] + Dr[e, r, 1] * Gam[e, 1, c] + Dr[e, r, 2] * Gam[e, 2, c]
-        for a in range(d):
-            for b in range(d):
-                Dk[jj, a, b] -= 0.5 * (
-                    Ul[0, a] * Ur[0, b]
-                    + Ul[1, a] * Ur[1, b]
-                    + Ul[2, a] * Ur[2, b]
-                    + Ul[0, b] * Ur[0, a]
-                    + Ul[1, b] * Ur[1, a]
-                    + Ul[2, b] * Ur[2, a]
-                )
-            for q in range(p):
-                Bk[jj, a, cols[q]] -= Ul[0, a] * Y[e, 0, q] + Ul[1, a] * Y[e, 1, q] + Ul[2, a] * Y[e, 2, q]
-            Bk[jj, a, last] -= Ul[0, a] * Y[e, 0, p] + Ul[1, a] * Y[e, 1, p] + Ul[2, a] * Y[e, 2, p]
-
-
-@_jit
-def _epoch_solve(F, G, inv_e2, Minv, Y):
-    """``Minv_e = (F_e + σ_e⁻² I)⁻¹`` (adjugate, as :func:`inverse_spd3`) and ``Y_e = Minv_e G_e``."""
-    for e in range(F.shape[0]):
-        a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
-        d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
-        A, B, C = d * g - f * f, c * f - b * g, b * f - c * d
-        det = a * A + b * B + c * C
-        m = Minv[e]
-        m[0, 0], m[0, 1], m[0, 2] = A / det, B / det, C / det
-        m[1, 0], m[1, 1], m[1, 2] = B / det, (a * g - c * c) / det, (b * c - a * f) / det
-        m[2, 0], m[2, 1], m[2, 2] = C / det, (b * c - a * f) / det, (a * d - b * b) / det
-        for q in range(G.shape[2]):
-            g0, g1, g2 = G[e, 0, q], G[e, 1, q], G[e, 2, q]
-            for r in range(3):
-                Y[e, r, q] = m[r, 0] * g0 + m[r, 1] * g1 + m[r, 2] * g2
-
-
-@_jit
-def _scatter(idx, ext, X, G):
-    """``G[idx[i], :, ext[q]] += X[i, :, q]`` (repeated epochs add)."""
-    for i in range(idx.shape[0]):
-        e = idx[i]
-        for q in range(ext.shape[0]):
-            c = ext[q]
-            for r in range(3):
-                G[e, r, c] += X[i, r, q]
-
-
-@_jit
-def _frame_products(D, w, Hm, rw, F, X):
-    """Per frame ``F = Σ_r D̃_rᵀ D̃_r`` and ``X = Σ_r D̃_rᵀ [h̃_r | r̃_r]`` with ``D̃_r = w_r D_r``
-    (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,); rows of weight 0 skipped)."""
-    n, m = D.shape[0], D.shape[1]
-    k = Hm.shape[1]
-    d = np.empty(3)
-    for i in range(n):
-        for r in range(m):
-            wr = w[i, r]
-            if wr == 0.0:
-                continue
-            for a in range(3):
-                v = D[i, r, a] * wr
-                d[a] = v if v == v else 0.0  # NaN partials count as 0 (np.nan_to_num)
-            row = i * m + r
-            for a in range(3):
-                for b in range(3):
-                    F[i, a, b] += d[a] * d[b]
-                for q in range(k):
-                    X[i, a, q] += d[a] * Hm[row, q]
-                X[i, a, k] += d[a] * rw[row]

@@ -1,0 +1,123 @@
+"""Compiled loops of the read-out noise elimination (:mod:`gcs_core.estimators.whole_span.readout`),
+with numba (:data:`gcs_core.compiled.COMPILED`; without numba the numpy forms in that module run):
+
+* :func:`_frame_products` — per frame ``F = Σ D̃ᵀD̃`` and ``D̃ᵀ[H̃ | r̃]``;
+* :func:`_products3` — ``F C`` per frame;
+* :func:`_scatter` — a block's frames added to the window's epochs;
+* :func:`_epoch_solve` — per epoch the Cholesky factor of ``M = F + σ_e⁻² I`` and the
+  factored rows ``L⁻¹ G``, ``L⁻¹ F C`` and the read-out error's step;
+* :func:`_epoch_knot_rows` — the epochs' knot rows ``W [I | Γ_j(t)]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from gcs_core.compiled import jit
+
+_jit = jit()
+
+
+@_jit
+def _epoch_solve(F, G, FC, inv_e2, V, W, y_eps):
+    """Per epoch the Cholesky factor ``L`` of ``M = F + σ_e⁻² I`` (3 × 3, positive
+    definite), ``V = L⁻¹ G``, ``W = L⁻¹ FC`` (when FC has the epochs) and
+    ``y_eps = M⁻¹ g_ε = L⁻ᵀ V[:, last]`` (the read-out error's step)."""
+    last = G.shape[2] - 1
+    for e in range(F.shape[0]):
+        a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
+        d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
+        l00 = np.sqrt(a)
+        l10, l20 = b / l00, c / l00
+        l11 = np.sqrt(d - l10 * l10)
+        l21 = (f - l20 * l10) / l11
+        l22 = np.sqrt(g - l20 * l20 - l21 * l21)
+        for q in range(G.shape[2]):
+            v0 = G[e, 0, q] / l00
+            v1 = (G[e, 1, q] - l10 * v0) / l11
+            V[e, 0, q] = v0
+            V[e, 1, q] = v1
+            V[e, 2, q] = (G[e, 2, q] - l20 * v0 - l21 * v1) / l22
+        if FC.shape[0]:
+            for q in range(3):
+                v0 = FC[e, 0, q] / l00
+                v1 = (FC[e, 1, q] - l10 * v0) / l11
+                W[e, 0, q] = v0
+                W[e, 1, q] = v1
+                W[e, 2, q] = (FC[e, 2, q] - l20 * v0 - l21 * v1) / l22
+        y2 = V[e, 2, last] / l22
+        y1 = (V[e, 1, last] - l21 * y2) / l11
+        y_eps[e, 2] = y2
+        y_eps[e, 1] = y1
+        y_eps[e, 0] = (V[e, 0, last] - l10 * y1 - l20 * y2) / l00
+
+
+@_jit
+def _epoch_knot_rows(W, t, j, tau, R, U):
+    """``U = W [I | Γ_j(t)]`` per epoch (E, 3, d), with ``Γ_j(t) = −(t − τ_j) R_j`` (d = 6;
+    R zero when the grid has no interval)."""
+    d = U.shape[2]
+    nR = R.shape[0]
+    for e in range(W.shape[0]):
+        jj = j[e]
+        jr = jj if jj < nR else nR - 1
+        s = -(t[e] - tau[jj])
+        for r in range(3):
+            for c in range(3):
+                U[e, r, c] = W[e, r, c]
+            if d == 6:
+                w0, w1, w2 = W[e, r, 0], W[e, r, 1], W[e, r, 2]
+                for c in range(3):
+                    U[e, r, 3 + c] = s * (w0 * R[jr, 0, c] + w1 * R[jr, 1, c] + w2 * R[jr, 2, c])
+
+
+@_jit
+def _products3(A, B, out):
+    """``out_i = A_i B_i`` for (n, 3, 3) stacks (numpy's batched matmul is slow at 3 × 3)."""
+    for i in range(A.shape[0]):
+        for r in range(3):
+            a0, a1, a2 = A[i, r, 0], A[i, r, 1], A[i, r, 2]
+            for c in range(3):
+                out[i, r, c] = a0 * B[i, 0, c] + a1 * B[i, 1, c] + a2 * B[i, 2, c]
+
+
+@_jit
+def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
+    """``G[idx[i], :, ext[q]] += X[i, :, q]``, ``F[idx[i]] += Fb[i]`` and, when ``FCb`` has
+    the frames, ``FC[idx[i]] += FCb[i]`` (repeated epochs add)."""
+    with_fc = FCb.shape[0] > 0
+    for i in range(idx.shape[0]):
+        e = idx[i]
+        for r in range(3):
+            for c in range(3):
+                F[e, r, c] += Fb[i, r, c]
+                if with_fc:
+                    FC[e, r, c] += FCb[i, r, c]
+        for q in range(ext.shape[0]):
+            c = ext[q]
+            for r in range(3):
+                G[e, r, c] += X[i, r, q]
+
+
+@_jit
+def _frame_products(D, w, Hm, rw, F, X):
+    """Per frame ``F = Σ_r D̃_rᵀ D̃_r`` and ``X = Σ_r D̃_rᵀ [h̃_r | r̃_r]`` with ``D̃_r = w_r D_r``
+    (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,); rows of weight 0 skipped)."""
+    n, m = D.shape[0], D.shape[1]
+    k = Hm.shape[1]
+    d = np.empty(3)
+    for i in range(n):
+        for r in range(m):
+            wr = w[i, r]
+            if wr == 0.0:
+                continue
+            for a in range(3):
+                v = D[i, r, a] * wr
+                d[a] = v if v == v else 0.0  # NaN partials count as 0 (np.nan_to_num)
+            row = i * m + r
+            for a in range(3):
+                for b in range(3):
+                    F[i, a, b] += d[a] * d[b]
+                for q in range(k):
+                    X[i, a, q] += d[a] * Hm[row, q]
+                X[i, a, k] += d[a] * rw[row]
