@@ -351,7 +351,10 @@ def _code_templates() -> tuple[set[str], set[str]]:
     import ast
 
     raised, everything = set(), set()
-    sources = sorted((ROOT / "gcs_core" / "io").glob("*.py")) + [ROOT / "gcs_core" / "noise" / "measured.py"]
+    sources = sorted((ROOT / "gcs_core" / "io").glob("*.py")) + [
+        ROOT / "gcs_core" / "noise" / "measured.py",
+        ROOT / "gcs_core" / "inputs.py",
+    ]
     for source in sources + [ROOT / "gcs_core" / "ephem" / "timescale.py", ROOT / "gcs_core" / "toml_values.py"]:
         for node in ast.walk(ast.parse(source.read_text())):
             t = _template(node)
