@@ -8,7 +8,7 @@ here knows about screens or terminals.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -16,11 +16,13 @@ import numpy as np
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis import aliases, determination, discovery, goodness, physics
 from gcs_core.diagnosis import holdout as held_out
+from gcs_core.diagnosis import search as search_session
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.honest_sigma import SIGMA_WINDOW, fit_sigma_scale
 from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
+from gcs_core.diagnosis.structure import StructureReport
 from gcs_core.diagnosis.weighting import NoiseWeighting, measure, same_factors, stated_residuals, weighted_sensors
 from gcs_core.errors import ConfigError
 from gcs_core.filtr.batch import BatchOptions
@@ -30,6 +32,7 @@ from gcs_core.filtr.smoothing_batch import SmoothedResult, fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
+from gcs_core.models.drift import split_family
 from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.units import DEG
 
@@ -68,6 +71,8 @@ class Analysis:
         self.stop_reason = ""
         self.noise: NoiseWeighting | None = None
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
+        #: sensor -> generic family effects the residual-structure search made candidates
+        self.offered: dict[str, tuple[str, ...]] = {}
         self.problem: Problem = self._build()
         self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
         self._null_at_prior: tuple | None = None  # (problem, combinations)
@@ -75,6 +80,7 @@ class Analysis:
         self._aliases: tuple | None = None  # (result it was formed for, aliases)
         self.sigma_window = SIGMA_WINDOW  # [s] of sigma_scale(); 0 = off, None = chosen
         self._sigma_scale: tuple | None = None  # (result, window, SigmaScale | None)
+        self.structure_report: StructureReport | None = None  # the latest search
 
     # ------------------------------------------------------------------ set-up
     @property
@@ -101,10 +107,37 @@ class Analysis:
         if off:
             mission = _without_sensors(mission, off)
         gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
-        problem = build_problem(mission, physics=self.physics, options=self._state_options(), use_gyro=not gyro_off)
+        problem = build_problem(
+            mission,
+            physics=self.physics,
+            options=self._state_options(),
+            use_gyro=not gyro_off,
+            families=self._families(),
+        )
         if self._scale():  # long-run noise weighting: the fit's σ are the stated σ × k
             problem.sensors = weighted_sensors(problem.sensors, self._scale())
         return problem
+
+    def _families(self) -> dict[str, tuple[str, ...]]:
+        """sensor -> generic family effects its model carries: those offered by the search and
+        those the config names (:mod:`gcs_core.models.drift`)."""
+        out = {k: list(v) for k, v in self.offered.items()}
+        for eid in (*self.config.state.effects, *self.config.state.exclude):
+            sensor, _, effect = eid.partition(".")
+            if split_family(effect) is not None and effect not in out.setdefault(sensor, []):
+                out[sensor].append(effect)
+        return {k: tuple(v) for k, v in out.items() if v}
+
+    def structure(self, sensors: Iterable[str] = (), *, offer: bool = False) -> StructureReport:
+        """Residual-structure search (:mod:`gcs_core.diagnosis.structure`) of the sensors whose
+        residuals exceed the noise and of ``sensors``; with ``offer`` the families of what it
+        finds become candidates (True when that changed the problem: rank again)."""
+        if self.result is None:
+            self.fit()
+        self.structure_report = search_session.run(self, sensors)
+        if offer:
+            search_session.offer(self, self.structure_report)
+        return self.structure_report
 
     def _scale(self) -> dict[str, float]:
         """sensor -> the factor its stated σ is weighted with (only those above 1)."""

@@ -135,7 +135,13 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
 
 
 def explanation(effect: str) -> tuple[str, str]:
-    """(family, explanation) of an effect name; contamination channels share one text."""
+    """(family, explanation) of an effect name; contamination channels share one text, and
+    so do the generic families (:mod:`gcs_core.diagnosis.families`)."""
+    from gcs_core.diagnosis.families import explanation as family_explanation
+
+    fam = family_explanation(effect)
+    if fam is not None:
+        return fam
     if effect.startswith("contamination_"):
         ch = effect[len("contamination_") :]
         return (

@@ -13,7 +13,7 @@ import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
-from gcs_core.diagnosis import policy
+from gcs_core.diagnosis import blame, policy
 from gcs_core.display import p_text
 
 log = logging.getLogger(__name__)
@@ -69,8 +69,16 @@ def discover(analysis, *, max_steps: int = 10, progress: Callable[[str], None] |
         analysis.fit()
     if not analysis.steps:
         analysis.first_step()
+    search = getattr(analysis, "structure", None)
     for _ in range(max_steps):
         cands = analysis.rank()
+        report = None
+        if search is not None:
+            # what the misfit sensors' residuals follow; its families become candidates
+            before = analysis.problem
+            report = search(offer=True)
+            if analysis.problem is not before:
+                cands = analysis.rank()
         ok = [c for c in cands if c.identifiable and c.p_adjusted < alpha]
         if not ok:
             best = cands[0] if cands else None
@@ -82,15 +90,17 @@ def discover(analysis, *, max_steps: int = 10, progress: Callable[[str], None] |
                 else ""
             )
             break
-        top = policy.parsimonious(ok[0], cands, analysis.result, analysis.problem.state, alpha)
+        top = policy.parsimonious(blame.choose(ok, report), cands, analysis.result, analysis.problem.state, alpha)
         say(
             f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
-            f"{p_text(top.p_adjusted, 'p adj')})"
+            f"{p_text(top.p_adjusted, 'p adj')}; {blame.blame_text(top)})"
         )
         analysis.add_effect(top.id)
     else:
         reason = f"stopped after {max_steps} steps"
     analysis.rank()
+    if search is not None:
+        search()  # what the residuals that remain follow, for the report
     g = analysis.goodness()
     if g is not None:
         # a converged fit of an inadequate model must not read as success
