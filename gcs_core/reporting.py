@@ -63,6 +63,7 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
             "verdict": gof.verdict if gof is not None else "not run",
             "warnings": list(analysis.warnings),
             "stop_reason": analysis.stop_reason,
+            "residual_structure": _structure(analysis),
             "config_digest": analysis.config.digest(),
         }
     )
@@ -72,6 +73,17 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
         out["sigma_scale"] = sigma_scale_report(sc, res.sigma, res) if sc is not None else None
     if getattr(analysis, "noise", None) is not None:  # [filter] noise_weighting = "long_run"
         out["noise_weighting"] = analysis.noise.as_report()
+    return out
+
+
+def _structure(analysis) -> dict[str, Any] | None:
+    """The latest residual-structure search (docs/residual_structure.md), with the families
+    it offered; None when none ran."""
+    rep = getattr(analysis, "structure_report", None)
+    if rep is None:
+        return None
+    out = rep.as_report()
+    out["families_offered"] = {k: list(v) for k, v in getattr(analysis, "offered", {}).items()}
     return out
 
 

@@ -81,6 +81,7 @@ class Analysis:
         self.sigma_window = SIGMA_WINDOW  # [s] of sigma_scale(); 0 = off, None = chosen
         self._sigma_scale: tuple | None = None  # (result, window, SigmaScale | None)
         self.structure_report: StructureReport | None = None  # the latest search
+        self.search_sensors: tuple[str, ...] = ()  # sensors searched on request besides the misfit ones
 
     # ------------------------------------------------------------------ set-up
     @property
@@ -134,7 +135,7 @@ class Analysis:
         finds become candidates (True when that changed the problem: rank again)."""
         if self.result is None:
             self.fit()
-        self.structure_report = search_session.run(self, sensors)
+        self.structure_report = search_session.run(self, (*self.search_sensors, *sensors))
         if offer:
             search_session.offer(self, self.structure_report)
         return self.structure_report
@@ -368,6 +369,10 @@ class Analysis:
             exclude = [x for x in self.config.state.exclude if x != effect_id]
             if on:
                 effects.append(effect_id)
+                base = _intercept_of(e, self.problem.state)
+                if base and base not in effects:  # a family carries its base effect when held
+                    effects.append(base)
+                    exclude = [x for x in exclude if x != base]
             else:
                 exclude.append(effect_id)
             self.config = self.config.with_changes(state={"effects": tuple(effects), "exclude": tuple(exclude)})
@@ -499,3 +504,13 @@ def _without_sensors(mission, names: set):
     spec = dc_replace(mission.spec, sensors=tuple(s for s in mission.spec.sensors if s.name not in names))
     tel = {k: v for k, v in mission.telemetry.items() if k not in names}
     return dc_replace(mission, spec=spec, telemetry=tel)
+
+
+def _intercept_of(e: Effect, state) -> str | None:
+    """The base effect a generic family adds with it (its held elements, see
+    :func:`gcs_core.diagnosis.catalogue.mission_catalogue`), or None."""
+    parts = split_family(e.effect)
+    if parts is None or e.sensor is None:
+        return None
+    base = [n for n in e.elements if state[n].effect == parts[0]]
+    return f"{e.sensor}.{parts[0]}" if base else None

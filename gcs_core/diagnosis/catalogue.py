@@ -199,6 +199,7 @@ def mission_catalogue(problem, physics) -> list[Effect]:
         seen[eid] = Effect(
             eid, e.sensor, e.effect, seen[eid].elements + (e.name,), seen[eid].family, seen[eid].explanation
         )
+    _with_intercepts(seen, problem.state)
     types = {sd.model.type_name for sd in problem.sensors}
     relevant = {
         "stellar_aberration": "star_tracker" in types,
@@ -213,3 +214,18 @@ def mission_catalogue(problem, physics) -> list[Effect]:
             fam, text = explanation(opt)
             seen[f"model.{opt}"] = Effect(f"model.{opt}", None, opt, (), fam, text)
     return list(seen.values())
+
+
+def _with_intercepts(seen: dict[str, Effect], state) -> None:
+    """A generic family whose base effect is not estimated carries that effect's elements
+    too: ``p(t) = p + k (x − x̄)`` needs ``p`` at the mean of the channel (a magnetometer's
+    gain drifting with a temperature is off its data-book value at the mean temperature)."""
+    from gcs_core.models.drift import split_family
+    from gcs_core.problem.state import HELD
+
+    for eid, e in list(seen.items()):
+        parts = split_family(e.effect)
+        base = seen.get(f"{e.sensor}.{parts[0]}") if parts is not None else None
+        if base is None or not all(state[n].role == HELD for n in base.elements):
+            continue
+        seen[eid] = Effect(eid, e.sensor, e.effect, e.elements + base.elements, e.family, e.explanation)

@@ -14,7 +14,7 @@ frame times ``sd.t`` (:func:`sensor_channels`):
   cylindrical shadow (``r·ŝ < 0`` and ``|r − (r·ŝ)ŝ| < R_E``), 0 in sunlight;
 * ``rate_x/y/z``, ``rate`` — the body rate the gyro measured [rad/s] and its magnitude,
   and ``angle_turned`` — ``∫|ω| dt`` from the start [rad] (with a gyro);
-* ``fov_<component>`` — the sensor's own measurement component (the measured vector's
+* ``fov_<component>`` — the sensor's own predicted measurement component (the measured vector's
   position in the field of view: a tracker's ``h, v``, a Sun sensor's counts; for a
   magnetometer the measured field's direction ``b/|b|`` in the sensor frame);
 * ``tlm:<column>`` — a telemetry column of the sensor that is not a measurement (a star
@@ -123,11 +123,16 @@ def rate_channels(gyro_table, t: np.ndarray) -> dict[str, np.ndarray]:
     return out
 
 
-def sensor_channels(sd, *, builder, telemetry: Mapping | None = None, gyro: str | None = None) -> list[Channel]:
+def sensor_channels(
+    sd, *, builder, telemetry: Mapping | None = None, gyro: str | None = None, y_fov: np.ndarray | None = None
+) -> list[Channel]:
     """Every channel at the frames of prepared sensor ``sd`` (module docstring).
 
     ``builder`` gives the orbit and the Sun; ``telemetry`` (sensor name -> table) the gyro's
-    rates and the sensor's own non-measurement columns; ``gyro`` the gyro's name.
+    rates and the sensor's own non-measurement columns; ``gyro`` the gyro's name. ``y_fov``:
+    the fit's predicted measurements, for the position in the field of view (the measured
+    values carry the noise the residual carries: binned on them, any residual would seem
+    to follow them, regression to the mean); the measurements where not given.
     """
     t = np.asarray(sd.t, dtype=float)
     out: list[Channel] = []
@@ -146,7 +151,7 @@ def sensor_channels(sd, *, builder, telemetry: Mapping | None = None, gyro: str 
         for name, vals in rate_channels(telemetry[gyro], t).items():
             kind = "angle" if name == "angle_turned" else "rate"
             out.append(Channel(name, kind, "rad" if kind == "angle" else "rad/s", vals))
-    y = np.asarray(sd.y, dtype=float)
+    y = np.asarray(sd.y if y_fov is None else np.where(np.isfinite(y_fov), y_fov, sd.y), dtype=float)
     if sd.model.type_name == "magnetometer":
         d = y / np.linalg.norm(y, axis=1, keepdims=True)
         for i, c in enumerate(sd.model.components):

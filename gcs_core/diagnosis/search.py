@@ -3,7 +3,7 @@
 :func:`exceeding` names the sensors whose residuals exceed the noise, on the fitted span
 (``Σz²`` against χ² on the frames' count, the fit's few parameters left out: conservative)
 or the held-out span (the session's held-out χ² tests), each at the family-wise level over
-all these tests; :func:`run` searches them, and any sensor asked for, with
+all these tests; :func:`run` searches them, any sensor asked for and the others, with
 :func:`gcs_core.diagnosis.structure.search`; :func:`offer` makes the generic families of
 what was found candidates of the session (:mod:`gcs_core.diagnosis.families`).
 """
@@ -53,18 +53,25 @@ def channels_of(analysis, sensor: str) -> list[Channel]:
     cache = prob.__dict__.setdefault("_channel_cache", {})
     if sensor not in cache:
         sd = prob.sensor(sensor)
+        r = analysis.result.residuals.get(sensor)
+        y_fov = np.asarray(r.y, float) - np.asarray(r.residual, float) if r is not None and r.y.shape == sd.y.shape else None
         cache[sensor] = sensor_channels(
-            sd, builder=prob.builder, telemetry=analysis.mission.telemetry, gyro=prob.gyro_name
+            sd, builder=prob.builder, telemetry=analysis.mission.telemetry, gyro=prob.gyro_name, y_fov=y_fov
         )
     return cache[sensor]
 
 
 def run(analysis, sensors: Iterable[str] = ()) -> StructureReport:
-    """Search the sensors exceeding the noise and those in ``sensors`` (on request)."""
+    """Search every sensor with residuals: those exceeding the noise, those in ``sensors``
+    (on request) and the rest (a drift the fit's attitude half absorbs may leave a sensor
+    within its noise while its residual still follows the channel); the search's family-wise
+    level covers them all."""
     why = exceeding(analysis)
     for s in sensors:
         why.setdefault(s, "on request")
     res = analysis.result
+    for s in res.residuals:
+        why.setdefault(s, "within the noise")
     known = {sd.name for sd in analysis.problem.sensors}
     why = {k: v for k, v in why.items() if k in known and k in res.residuals}
     chans = {s: channels_of(analysis, s) for s in why}
