@@ -22,6 +22,9 @@ from collections.abc import Iterable, Mapping
 from gcs_core.diagnosis.structure import Dependency
 from gcs_core.models.drift import DRIFTING, ORBIT_TAGS, TIME_TAG, drifting_params, split_family
 
+#: aux channels no family is made on: a magnetometer's position in a laboratory (the
+#: catalogue's field_gradient is a field that follows it)
+POSITION = ("aux:pos_x", "aux:pos_y", "aux:pos_z")
 #: what a drifting effect following each kind of channel physically is
 PHYSICS: dict[tuple[str, str], str] = {
     ("alignment", "temperature"): "thermo-elastic bending",
@@ -97,6 +100,8 @@ def offered_for(dep: Dependency, model, *, aliases: Iterable[str] = ()) -> list[
     tags: list[str] = []
     names = [dep.channel, *aliases]
     for ch in names:
+        if ch in POSITION:  # a field following the position is the catalogue's field gradient
+            continue
         if ch.startswith("aux:"):
             tags.append(ch[4:])
         elif ch in ("orbit_phase", "sun_angle", "eclipse"):

@@ -44,6 +44,8 @@ N_BINS = 10
 MAX_BLOCKS = 1200
 #: share of one channel's variance another must explain to be called its alias
 ALIAS_R2 = 0.9
+#: share from which two channels are reported as following one another (not yet aliases)
+RELATED_R2 = 0.5
 #: at most this many dependencies are reported per sensor
 TOP_PER_SENSOR = 4
 
@@ -128,6 +130,8 @@ class StructureReport:
     found : significant dependencies, most significant first.
     best : sensor -> its strongest tests (significant or not), for display.
     alias_groups : sensor -> groups of channels that are aliases of each other there.
+    relations : sensor -> ``(a, b, R²)`` of the channel pairs that follow one another
+        (R² ≥ :data:`RELATED_R2`; for the orbit phase, its harmonics' share).
     """
 
     searched: Mapping[str, str]
@@ -136,6 +140,7 @@ class StructureReport:
     found: tuple[Dependency, ...] = ()
     best: Mapping[str, tuple[Dependency, ...]] = field(default_factory=dict)
     alias_groups: Mapping[str, tuple[tuple[str, ...], ...]] = field(default_factory=dict)
+    relations: Mapping[str, tuple[tuple[str, str, float], ...]] = field(default_factory=dict)
 
     def for_sensor(self, sensor: str) -> list[Dependency]:
         return [d for d in self.found if d.sensor == sensor]
@@ -147,6 +152,9 @@ class StructureReport:
             "alpha": self.alpha,
             "found": [d.as_report() for d in self.found],
             "alias_groups": {k: [list(g) for g in v] for k, v in self.alias_groups.items()},
+            "channel_relations": {
+                k: [{"a": a, "b": b, "r2": round(r2, 3)} for a, b, r2 in v] for k, v in self.relations.items()
+            },
         }
 
 
@@ -215,22 +223,13 @@ def _explained(y: np.ndarray, X: np.ndarray) -> float:
     return 1.0 - float(res @ res) / vy if vy > 0 else 0.0
 
 
-def _binned_share(y: np.ndarray, x: np.ndarray, periodic: bool) -> float:
-    """Correlation ratio η²: share of ``y``'s variance its means in the bins of ``x`` explain."""
-    k = _bins(x, periodic)
-    cnt = np.bincount(k).astype(float)
-    m = np.bincount(k, weights=y) / np.maximum(cnt, 1)
-    yc = y - y.mean()
-    vy = float(yc @ yc)
-    return 1.0 - float(np.sum((y - m[k]) ** 2)) / vy if vy > 0 else 0.0
-
-
-def channel_aliases(channels: Sequence[Channel], *, r2: float = ALIAS_R2) -> dict[str, tuple[str, ...]]:
-    """channel -> the other channels that are its aliases at these frames (module docstring)."""
+def channel_r2(channels: Sequence[Channel], *, floor: float = RELATED_R2) -> dict[tuple[str, str], float]:
+    """(a, b) -> how much one channel explains of the other at these frames, for the pairs at
+    or above ``floor``: the squared correlation, or for the orbit phase the share of the
+    other's variance its first two harmonics explain (module docstring). FOV pairs aside."""
     step = max(1, len(channels[0].values) // 4000) if channels else 1
     vals = {c.name: np.asarray(c.values, float)[::step] for c in channels}
-    out: dict[str, list[str]] = {c.name: [] for c in channels}
-    phase = next((c for c in channels if c.kind == "orbit"), None)
+    out: dict[tuple[str, str], float] = {}
     for i, a in enumerate(channels):
         for b in channels[i + 1 :]:
             if a.kind == "fov" and b.kind == "fov":
@@ -239,18 +238,24 @@ def channel_aliases(channels: Sequence[Channel], *, r2: float = ALIAS_R2) -> dic
             ok = np.isfinite(ya) & np.isfinite(yb)
             if np.count_nonzero(ok) < 20:
                 continue
-            if phase is not None and phase.name in (a.name, b.name):
-                other = yb if a.name == phase.name else ya
-                u = vals[phase.name][ok]
-                X = np.column_stack([*harmonics(u, 1), *harmonics(u, 2)])
-                alias = _explained(other[ok], X) >= r2
+            if a.periodic or b.periodic:
+                u, other = (ya, yb) if a.periodic else (yb, ya)
+                X = np.column_stack([*harmonics(u[ok], 1), *harmonics(u[ok], 2)])
+                r2 = _explained(other[ok], X)
             else:
-                alias = min(
-                    _binned_share(ya[ok], yb[ok], b.periodic), _binned_share(yb[ok], ya[ok], a.periodic)
-                ) >= r2 and abs(np.corrcoef(ya[ok], yb[ok])[0, 1]) >= math.sqrt(r2)
-            if alias:
-                out[a.name].append(b.name)
-                out[b.name].append(a.name)
+                c = np.corrcoef(ya[ok], yb[ok])[0, 1]
+                r2 = float(c * c) if np.isfinite(c) else 0.0
+            if r2 >= floor:
+                out[(a.name, b.name)] = float(r2)
+    return out
+
+
+def channel_aliases(channels: Sequence[Channel], *, r2: float = ALIAS_R2) -> dict[str, tuple[str, ...]]:
+    """channel -> the other channels that are its aliases at these frames (module docstring)."""
+    out: dict[str, list[str]] = {c.name: [] for c in channels}
+    for (a, b), v in channel_r2(channels, floor=r2).items():
+        out[a].append(b)
+        out[b].append(a)
     return {k: tuple(v) for k, v in out.items()}
 
 
@@ -337,13 +342,20 @@ def search(
     ids = tuple(catalogue_ids)
     rows: list[Dependency] = []
     groups: dict[str, tuple[tuple[str, ...], ...]] = {}
+    relations: dict[str, tuple[tuple[str, str, float], ...]] = {}
     m = 0
     for sensor in why:
         res = residuals.get(sensor)
         chans = channels.get(sensor, ())
         if res is None or not chans:
             continue
-        aliases = channel_aliases(chans)
+        r2 = channel_r2(chans)
+        relations[sensor] = tuple(sorted(((a, b, v) for (a, b), v in r2.items()), key=lambda x: -x[2]))
+        aliases: dict[str, list[str]] = {c.name: [] for c in chans}
+        for (a, b), v in r2.items():
+            if v >= ALIAS_R2:
+                aliases[a].append(b)
+                aliases[b].append(a)
         groups[sensor] = alias_groups(aliases)
         r = np.asarray(res.residual, dtype=float)
         for ci, comp in enumerate(res.components):
@@ -375,7 +387,7 @@ def search(
                         p,
                         share=share,
                         catalogue=catalogue_forms(sensor, ch, ids),
-                        aliases=aliases.get(ch.name, ()),
+                        aliases=tuple(aliases.get(ch.name, ())),
                     )
                 )
     m = max(m, 1)
@@ -387,9 +399,7 @@ def search(
         lst = best.setdefault(d.sensor, [])
         if len(lst) < TOP_PER_SENSOR:
             lst.append(d)
-    return StructureReport(
-        dict(why), m, alpha, found, {k: tuple(v) for k, v in best.items()}, groups
-    )
+    return StructureReport(dict(why), m, alpha, found, {k: tuple(v) for k, v in best.items()}, groups, relations)
 
 
 def _adjust(d: Dependency, m: int) -> Dependency:

@@ -94,5 +94,9 @@ def report_lines(report: StructureReport | None, offered: dict | None = None, *,
     for sensor, groups in report.alias_groups.items():
         for g in groups:
             if len(g) > 1:
-                out.append(f"  {sensor}: channels that follow one another: " + ", ".join(label(c) for c in g))
+                out.append(f"  {sensor}: aliases (R² ≥ 0.9, one stands for the other): " + ", ".join(label(c) for c in g))
+    for sensor, rel in report.relations.items():
+        loose = [f"{label(a)} ~ {label(b)} ({r2:.2f})" for a, b, r2 in rel if r2 < 0.9 and "fov" not in a + b]
+        if loose:
+            out.append(f"  {sensor}: channels that follow one another (R²): " + ", ".join(loose))
     return out
