@@ -43,10 +43,10 @@ from scipy import stats
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), *(str(p) for p in sorted((ROOT / "tests").iterdir()) if p.is_dir())]
 
-import drift_cases as dc  # noqa: E402
+import drift_cases as dc
 
-from gcs_core.sim.scenarios import nominal_threeaxis  # noqa: E402
-from gcs_core.sim.writer import write_mission  # noqa: E402
+from gcs_core.sim.scenarios import nominal_threeaxis
+from gcs_core.sim.writer import write_mission
 
 RMS_LIMIT = 1.05
 
@@ -145,8 +145,9 @@ def main(argv=None) -> int:
                 )
                 continue
             zi, zn = r["z"]
+            lower = 100 * bound(r["right"], n, upper=False)
             print(
-                f"| {case.kind} | {hours:g} h | {share(r['right'], n)}, lower {100 * bound(r['right'], n, upper=False):.0f} % "
+                f"| {case.kind} | {hours:g} h | {share(r['right'], n)}, lower {lower:.0f} % "
                 f"| {share(r['other'], n)} | {share(r['rms'], n)} | {100 * r['ideal']:.1f} % "
                 f"| {share(zi, zn)} |",
                 flush=True,

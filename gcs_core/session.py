@@ -30,9 +30,9 @@ from gcs_core.filtr.filter_options import FilterOptions
 from gcs_core.filtr.results import BatchResult, FitResult
 from gcs_core.filtr.smoothing_batch import SmoothedResult, fit_problem
 from gcs_core.filtr.smoothing_uses import batch_wander_cost, smoothed_holdout_rms, static_holdout_rms
+from gcs_core.models.drift import split_family
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem
 from gcs_core.problem.prepare import PHYSICS_EFFECTS, PhysicsOptions
-from gcs_core.models.drift import split_family
 from gcs_core.problem.state import HELD, SOLVE_FOR
 from gcs_core.units import DEG
 

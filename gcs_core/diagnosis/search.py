@@ -54,7 +54,11 @@ def channels_of(analysis, sensor: str) -> list[Channel]:
     if sensor not in cache:
         sd = prob.sensor(sensor)
         r = analysis.result.residuals.get(sensor)
-        y_fov = np.asarray(r.y, float) - np.asarray(r.residual, float) if r is not None and r.y.shape == sd.y.shape else None
+        y_fov = (
+            np.asarray(r.y, float) - np.asarray(r.residual, float)
+            if r is not None and r.y.shape == sd.y.shape
+            else None
+        )
         cache[sensor] = sensor_channels(
             sd, builder=prob.builder, telemetry=analysis.mission.telemetry, gyro=prob.gyro_name, y_fov=y_fov
         )

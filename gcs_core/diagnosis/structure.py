@@ -253,7 +253,7 @@ def channel_r2(channels: Sequence[Channel], *, floor: float = RELATED_R2) -> dic
 def channel_aliases(channels: Sequence[Channel], *, r2: float = ALIAS_R2) -> dict[str, tuple[str, ...]]:
     """channel -> the other channels that are its aliases at these frames (module docstring)."""
     out: dict[str, list[str]] = {c.name: [] for c in channels}
-    for (a, b), v in channel_r2(channels, floor=r2).items():
+    for a, b in channel_r2(channels, floor=r2):
         out[a].append(b)
         out[b].append(a)
     return {k: tuple(v) for k, v in out.items()}

@@ -86,7 +86,9 @@ def report_lines(report: StructureReport | None, offered: dict | None = None, *,
         deps = strongest(report.found, sensor)[:per_sensor]
         if not deps:
             best = report.best.get(sensor, ())
-            tail = f" (strongest: {label(best[0].channel)}, {display.p_text(best[0].p_adjusted, 'p adj')})" if best else ""
+            tail = (
+                f" (strongest: {label(best[0].channel)}, {display.p_text(best[0].p_adjusted, 'p adj')})" if best else ""
+            )
             out.append(f"  {sensor}: follows none of the channels searched{tail}")
             continue
         for d in deps:
@@ -94,7 +96,9 @@ def report_lines(report: StructureReport | None, offered: dict | None = None, *,
     for sensor, groups in report.alias_groups.items():
         for g in groups:
             if len(g) > 1:
-                out.append(f"  {sensor}: aliases (R² ≥ 0.9, one stands for the other): " + ", ".join(label(c) for c in g))
+                out.append(
+                    f"  {sensor}: aliases (R² ≥ 0.9, one stands for the other): " + ", ".join(label(c) for c in g)
+                )
     for sensor, rel in report.relations.items():
         loose = [f"{label(a)} ~ {label(b)} ({r2:.2f})" for a, b, r2 in rel if r2 < 0.9 and "fov" not in a + b]
         if loose:

@@ -180,8 +180,10 @@ class DriftingModel(ObservationModel):
         delta = self.predict(geom, params).y - self.inner.predict(geom, own).y
         delta = np.nan_to_num(delta if rows is None else delta[rows])
 
+        fn: Any = inner  # called as (params, wanted), as ObservationModel.held documents
+
         def call(p: Mapping[str, float], wanted=None):
-            hp = inner({k: v for k, v in p.items() if k not in self.terms}, wanted)
+            hp = fn({k: v for k, v in p.items() if k not in self.terms}, wanted)
             return replace(hp, y=hp.y + delta)
 
         return call

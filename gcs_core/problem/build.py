@@ -357,7 +357,10 @@ def _with_families(sensors, families: Mapping[str, Sequence[str]], builder) -> l
         r, v = builder.orbit(t)
         return argument_of_latitude(r, v)
 
-    return [replace(sd, model=with_families(sd, families[sd.name], phase)) if families.get(sd.name) else sd for sd in sensors]
+    return [
+        replace(sd, model=with_families(sd, families[sd.name], phase)) if families.get(sd.name) else sd
+        for sd in sensors
+    ]
 
 
 def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> list[Element]:

@@ -52,7 +52,9 @@ KINDS = [
     ),
     DriftCase("tracker_orbit", "FHST2.alignment_vs_orbit1", 10.0 * ARCSEC, "FHST2", ("orbit_phase",)),
     DriftCase("sun_sensor_bias_temperature", "FSS1.bias_vs_tam_temp", 3e-5, "FSS1", ("aux:tam_temp", "orbit_phase")),
-    DriftCase("magnetometer_scale_temperature", "TAM1.scale_vs_tam_temp", 1e-3, "TAM1", ("aux:tam_temp", "orbit_phase")),
+    DriftCase(
+        "magnetometer_scale_temperature", "TAM1.scale_vs_tam_temp", 1e-3, "TAM1", ("aux:tam_temp", "orbit_phase")
+    ),
 ]
 #: the form no family holds: the report must name the channel and add nothing
 MAGNITUDE = DriftCase("tracker_magnitude", "FHST2.magnitude_error", 4.0 * ARCSEC, "FHST2", ("tlm:mag",))

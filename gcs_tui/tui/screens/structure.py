@@ -31,7 +31,9 @@ MAX_POINTS = 3000
 
 def _channel_scale(unit: str) -> tuple[float, str]:
     """Factor and label of a channel's axis (degrees for angles, hours for time)."""
-    return {"rad": (1.0 / DEG, "deg"), "s": (1.0 / 3600.0, "h"), "rad/s": (3600.0 / DEG, "deg/h")}.get(unit, (1.0, unit))
+    return {"rad": (1.0 / DEG, "deg"), "s": (1.0 / 3600.0, "h"), "rad/s": (3600.0 / DEG, "deg/h")}.get(
+        unit, (1.0, unit)
+    )
 
 
 class StructureScreen(ModalScreen[None]):
