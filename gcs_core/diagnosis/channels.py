@@ -32,6 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from gcs_core.models.drift import argument_of_latitude
+
 #: equatorial Earth radius [km] of the cylindrical shadow (WGS-84 a)
 R_EARTH_KM = 6378.137
 #: telemetry columns that are never channels (catalogue positions, the frame time)
@@ -72,17 +74,6 @@ def aux_unit(name: str) -> str:
     if low.startswith("mtb"):
         return "A m²"
     return f"unit of {name}"
-
-
-def argument_of_latitude(r: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """``u`` [rad, 0..2π) from position and velocity (N, 3) (module docstring)."""
-    h = np.cross(r, v)
-    h /= np.linalg.norm(h, axis=1, keepdims=True)
-    node = np.cross(np.array([0.0, 0.0, 1.0]), h)
-    nn = np.linalg.norm(node, axis=1, keepdims=True)
-    node = np.where(nn > 1e-12, node / np.where(nn > 0, nn, 1.0), np.array([1.0, 0.0, 0.0]))
-    w = np.cross(h, node)
-    return np.mod(np.arctan2(np.einsum("ij,ij->i", r, w), np.einsum("ij,ij->i", r, node)), 2 * np.pi)
 
 
 def orbit_channels(builder, t: np.ndarray) -> dict[str, np.ndarray]:

@@ -42,6 +42,18 @@ TIME_TAG = "time"
 HOUR_S = 3600.0
 
 
+def argument_of_latitude(r: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """``u`` [rad, 0..2π) from position and velocity (N, 3) (Vallado, *Fundamentals of Astrodynamics
+    and Applications*, 4th ed., §2.5: argument of latitude)."""
+    h = np.cross(r, v)
+    h /= np.linalg.norm(h, axis=1, keepdims=True)
+    node = np.cross(np.array([0.0, 0.0, 1.0]), h)
+    nn = np.linalg.norm(node, axis=1, keepdims=True)
+    node = np.where(nn > 1e-12, node / np.where(nn > 0, nn, 1.0), np.array([1.0, 0.0, 0.0]))
+    w = np.cross(h, node)
+    return np.mod(np.arctan2(np.einsum("ij,ij->i", r, w), np.einsum("ij,ij->i", r, node)), 2 * np.pi)
+
+
 def drifting_params(model: ObservationModel) -> dict[str, tuple[str, ...]]:
     """effect -> the model's parameters of that drifting effect (in model order)."""
     out: dict[str, list[str]] = {}

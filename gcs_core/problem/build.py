@@ -350,8 +350,7 @@ def build_problem(
 
 def _with_families(sensors, families: Mapping[str, Sequence[str]], builder) -> list[SensorData]:
     """The prepared sensors with their generic family effects (:mod:`gcs_core.models.drift`)."""
-    from gcs_core.diagnosis.channels import argument_of_latitude
-    from gcs_core.models.drift import with_families
+    from gcs_core.models.drift import argument_of_latitude, with_families
 
     def phase(t):
         r, v = builder.orbit(t)
