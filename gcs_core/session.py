@@ -81,6 +81,7 @@ class Analysis:
         self.sigma_window = SIGMA_WINDOW  # [s] of sigma_scale(); 0 = off, None = chosen
         self._sigma_scale: tuple | None = None  # (result, window, SigmaScale | None)
         self.structure_report: StructureReport | None = None  # the latest search
+        self._structure: tuple | None = None  # (result, sensors asked, report) of the latest search
         self.search_sensors: tuple[str, ...] = ()  # sensors searched on request besides the misfit ones
 
     # ------------------------------------------------------------------ set-up
@@ -135,9 +136,16 @@ class Analysis:
         finds become candidates (True when that changed the problem: rank again)."""
         if self.result is None:
             self.fit()
-        self.structure_report = search_session.run(self, (*self.search_sensors, *sensors))
+        asked = (*self.search_sensors, *sensors)
+        cached = self._structure
+        if cached is not None and cached[0] is self.result and cached[1] == asked:
+            self.structure_report = cached[2]  # one search per fit (discovery's last step asks again)
+        else:
+            self.structure_report = search_session.run(self, asked)
+            self._structure = (self.result, asked, self.structure_report)
         if offer:
             search_session.offer(self, self.structure_report)
+            self._structure = (self.result, asked, self.structure_report)  # same residuals, families added
         return self.structure_report
 
     def _scale(self) -> dict[str, float]:

@@ -160,18 +160,21 @@ class StructureReport:
 
 def _bins(x: np.ndarray, periodic: bool) -> np.ndarray:
     """Bin index (0..K−1) of each value: the channel's levels when it has at most
-    :data:`N_BINS`, else quantile bins (equal-width on the circle for a phase)."""
-    levels = np.unique(x)
+    :data:`N_BINS`, else quantile bins (equal-width on the circle for a phase). Levels and
+    quantiles come from at most ~5000 of the values (a long span's channel is smooth)."""
+    sub = x[:: max(1, x.size // 5000)]
+    levels = np.unique(sub)
     if levels.size <= N_BINS:
-        return np.searchsorted(levels, x)
+        return np.minimum(np.searchsorted(levels, x), max(levels.size - 1, 0))
     if periodic:
         return np.minimum((np.mod(x, 2 * np.pi) / (2 * np.pi) * N_BINS).astype(int), N_BINS - 1)
-    edges = np.unique(np.quantile(x, np.linspace(0, 1, N_BINS + 1)[1:-1]))
+    edges = np.unique(np.quantile(sub, np.linspace(0, 1, N_BINS + 1)[1:-1]))
     return np.searchsorted(edges, x, side="right")
 
 
-def binned_test(z: np.ndarray, x: np.ndarray, *, periodic: bool = False):
-    """The binned-means F test of ``z`` (time-ordered, normalized residual) against ``x``.
+def binned_test(z: np.ndarray, x: np.ndarray, *, periodic: bool = False, bins: np.ndarray | None = None):
+    """The binned-means F test of ``z`` (time-ordered, normalized residual) against ``x``
+    (``bins``: the bin of each value when already known, :func:`_bins`).
 
     Returns ``(F/f, dof1, dof2, f, p, centers, means, counts, share)`` with ``means`` in the
     units of ``z``, or None when there are fewer than two usable bins.
@@ -181,7 +184,7 @@ def binned_test(z: np.ndarray, x: np.ndarray, *, periodic: bool = False):
     nb = n // b
     if nb < 8:
         return None
-    bins_f = _bins(x, periodic)
+    bins_f = _bins(x, periodic) if bins is None else bins
     zb = z[: nb * b].reshape(nb, b).mean(axis=1)
     kb = bins_f[: nb * b].reshape(nb, b)[:, b // 2]
     labels, kb = np.unique(kb, return_inverse=True)
@@ -227,7 +230,7 @@ def channel_r2(channels: Sequence[Channel], *, floor: float = RELATED_R2) -> dic
     """(a, b) -> how much one channel explains of the other at these frames, for the pairs at
     or above ``floor``: the squared correlation, or for the orbit phase the share of the
     other's variance its first two harmonics explain (module docstring). FOV pairs aside."""
-    step = max(1, len(channels[0].values) // 4000) if channels else 1
+    step = max(1, len(channels[0].values) // 2000) if channels else 1
     vals = {c.name: np.asarray(c.values, float)[::step] for c in channels}
     out: dict[tuple[str, str], float] = {}
     for i, a in enumerate(channels):
@@ -358,14 +361,23 @@ def search(
                 aliases[b].append(a)
         groups[sensor] = alias_groups(aliases)
         r = np.asarray(res.residual, dtype=float)
+        binned = {}  # channel -> (finite, bin of each frame): the same for every component
+        for ch in chans:
+            v = np.asarray(ch.values, float)
+            fin = np.isfinite(v)
+            k = np.zeros(v.size, dtype=int)
+            k[fin] = _bins(v[fin], ch.periodic)
+            binned[ch.name] = (fin, k)
         for ci, comp in enumerate(res.components):
             ok = np.asarray(res.used, bool) & np.isfinite(r[:, ci])
             z = r[ok, ci] / float(res.sigma[ci])
             for ch in chans:
-                x = np.asarray(ch.values, float)[ok]
-                fin = np.isfinite(x)
+                fin_all, k_all = binned[ch.name]
+                fin = fin_all[ok]
                 m += 1
-                out = binned_test(z[fin], x[fin], periodic=ch.periodic)
+                out = binned_test(
+                    z[fin], np.asarray(ch.values, float)[ok][fin], periodic=ch.periodic, bins=k_all[ok][fin]
+                )
                 if out is None:
                     continue
                 F, d1, d2, f, p, centers, means, counts, share = out
