@@ -183,6 +183,16 @@ def generic_catalogue() -> list[tuple[str, str, str]]:
     """(effect, family, explanation) for ``gcs effects`` without a mission."""
     rows = [(name, *explanation(name)) for name in EXPLANATIONS]
     rows.append(("contamination_<channel>", *explanation("contamination_<channel>")))
+    rows.append(
+        (
+            "<alignment|bias|scale>_vs_<channel>",
+            "drift",
+            "A generic family offered when the residual-structure search finds a sensor's residual "
+            "following a channel: the sensor's alignment, bias or scale varying linearly with an aux "
+            "channel, the orbit phase (orbit1, orbit2: its first and second harmonic) or time "
+            "(docs/residual_structure.md).",
+        )
+    )
     return rows
 
 

@@ -14,6 +14,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 
 from gcs_core.diagnosis import blame, policy
+from gcs_core.diagnosis import search as search_session
 from gcs_core.display import p_text
 
 log = logging.getLogger(__name__)
@@ -79,6 +80,8 @@ def discover(analysis, *, max_steps: int = 10, progress: Callable[[str], None] |
             report = search(offer=True)
             if analysis.problem is not before:
                 cands = analysis.rank()
+            if not search_session.trusted(analysis):
+                report = None  # reported, not acted on (search.trusted)
         ok = [c for c in cands if c.identifiable and c.p_adjusted < alpha]
         if not ok:
             best = cands[0] if cands else None

@@ -5,7 +5,8 @@
 or the held-out span (the session's held-out χ² tests), each at the family-wise level over
 all these tests; :func:`run` searches them, any sensor asked for and the others, with
 :func:`gcs_core.diagnosis.structure.search`; :func:`offer` makes the generic families of
-what was found candidates of the session (:mod:`gcs_core.diagnosis.families`).
+what was found candidates of the session (:mod:`gcs_core.diagnosis.families`), except
+under the batch method with a gyro, whose attitude wander looks like any slow drift.
 """
 
 from __future__ import annotations
@@ -83,10 +84,20 @@ def run(analysis, sensors: Iterable[str] = ()) -> StructureReport:
     return search(res.residuals, chans, alpha=analysis.config.diagnosis.significance, why=why, catalogue_ids=ids)
 
 
+def trusted(analysis) -> bool:
+    """Whether the search's findings may make candidates and blame: not under the batch
+    method with a gyro, which holds the gyro-carried attitude exact, so that the attitude's
+    wander shows in every sensor as a slow dependence (on time, the orbit, a temperature
+    following it) its score tests cannot tell from a drift (``Analysis._method_warnings``)."""
+    return not (analysis.config.method == "batch" and analysis.problem.gyro_name is not None)
+
+
 def offer(analysis, report: StructureReport) -> bool:
     """Make the families of ``report``'s findings candidates; True when any is new. The
     problem is rebuilt with them (held, so the fit is unchanged) and the latest result's
     state gains them at zero."""
+    if not trusted(analysis):
+        return False
     models = {sd.name: sd.model for sd in analysis.problem.sensors}
     new = families_from(report.found, models)
     changed = False

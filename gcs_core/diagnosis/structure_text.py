@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from gcs_core import display
 from gcs_core.diagnosis.channels import aux_unit
-from gcs_core.diagnosis.structure import Dependency, StructureReport, strongest
+from gcs_core.diagnosis.structure import ALIAS_R2, Dependency, StructureReport, strongest
 from gcs_core.units import DEG
 
 #: channel kinds whose form a generic family holds (:mod:`gcs_core.diagnosis.families`)
@@ -100,7 +100,7 @@ def report_lines(report: StructureReport | None, offered: dict | None = None, *,
                     f"  {sensor}: aliases (R² ≥ 0.9, one stands for the other): " + ", ".join(label(c) for c in g)
                 )
     for sensor, rel in report.relations.items():
-        loose = [f"{label(a)} ~ {label(b)} ({r2:.2f})" for a, b, r2 in rel if r2 < 0.9 and "fov" not in a + b]
+        loose = [f"{label(a)} ~ {label(b)} ({r2:.2f})" for a, b, r2 in rel if r2 < ALIAS_R2 and "fov" not in a + b]
         if loose:
             out.append(f"  {sensor}: channels that follow one another (R²): " + ", ".join(loose))
     return out
