@@ -6,10 +6,11 @@ a bending tracker tilts the attitude with it. A candidate on the magnetometer ma
 significant, though the cause is the tracker. Two rules, applied to the candidates that
 pass the family-wise level (:func:`choose`):
 
-1. **The sensor whose own residual follows a channel goes first.** When the
-   residual-structure search found sensor Y's residual following a channel, Y's
-   candidates of that form (a family on that channel, or a catalogue effect with that
-   form) are chosen before anyone else's.
+1. **The sensor whose own residual follows a channel most strongly goes first.** Going
+   down the search's findings, most significant first: for the first finding (sensor Y's
+   residual following a channel) with passing candidates of its form (Y's families on
+   that channel or its aliases, or a catalogue effect of that form, a physics option
+   included), the most significant of those is chosen, before anyone else's.
 2. **A candidate is not added on sensor X when its Δχ² comes mostly from another sensor
    Y's residuals** (the score's share, ``Candidate.sensors``, below :data:`OWN_SHARE`
    in X's own) while Y has a passing candidate whose Δχ² comes from Y itself: Y's
@@ -21,11 +22,13 @@ pass the family-wise level (:func:`choose`):
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 from gcs_core.diagnosis.families import channel_of
-from gcs_core.diagnosis.ranking import Candidate
-from gcs_core.diagnosis.structure import StructureReport
+from gcs_core.diagnosis.policy import BIC_TIE
+from gcs_core.diagnosis.ranking import Candidate, is_family
+from gcs_core.diagnosis.structure import Dependency, StructureReport
 
 #: share of a candidate's Δχ² its own sensor's residuals must give for it to stand alone
 OWN_SHARE = 0.5
@@ -40,30 +43,35 @@ def own_share(c: Candidate) -> float | None:
     return float(c.sensors[s])
 
 
-def matches(c: Candidate, report: StructureReport | None) -> bool:
-    """``c`` is a candidate on a sensor whose residual the search found following a channel,
-    of that channel's form (a family on it, or a catalogue effect of its form)."""
-    if report is None or c.effect.sensor is None:
-        return False
-    deps = report.for_sensor(c.effect.sensor)
-    if not deps:
-        return False
+def matches(c: Candidate, d: Dependency) -> bool:
+    """``c`` has the form of dependency ``d``: a family on ``d``'s sensor made on its channel
+    or one of its aliases, or a catalogue effect (a physics option included) of that form."""
+    if c.id in d.catalogue:
+        return True
     ch = channel_of(c.effect.effect)
-    for d in deps:
-        chans = {d.channel, *d.aliases}
-        if ch is not None and (ch in chans or (ch == "orbit_phase" and chans & {"sun_angle", "eclipse"})):
-            return True
-        if c.id in d.catalogue:
-            return True
-    return False
+    if ch is None or c.effect.sensor != d.sensor:
+        return False
+    chans = {d.channel, *d.aliases}
+    return ch in chans or (ch == "orbit_phase" and bool(chans & {"sun_angle", "eclipse"}))
 
 
-def choose(ok: Sequence[Candidate], report: StructureReport | None) -> Candidate:
+def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int = 2) -> Candidate:
     """The candidate to add among ``ok`` (passing, identifiable, most significant first):
-    rules 1 and 2 of the module docstring, else the most significant."""
-    first = [c for c in ok if matches(c, report)]
-    if first:
-        return first[0]
+    rules 1 and 2 of the module docstring, else the most significant. Rule 1 goes down the
+    search's findings, most significant first: the first with passing candidates of its
+    form gives the one of those with the best Bayesian information criterion
+    ``Δχ² − dof·ln n`` (``n`` measurements; Schwarz 1978): a family of nine elements on the
+    sensor whose residual follows the orbit does not win over a physics option of one
+    element that explains the same residual through the attitude; within
+    :data:`~gcs_core.diagnosis.policy.BIC_TIE` of the best, a catalogue effect wins."""
+    log_n = math.log(max(n_meas, 2))
+    for d in report.found if report is not None else ():
+        first = [c for c in ok if matches(c, d)]
+        if first:
+            bic = {c.id: c.delta_chi2 - c.dof * log_n for c in first}
+            best = max(bic.values())
+            # within BIC_TIE the data give no preference: the catalogue's effect (known physics)
+            return max(first, key=lambda c: (bic[c.id] >= best - BIC_TIE and not is_family(c.effect), bic[c.id]))
     for c in ok:
         own = own_share(c)
         if own is None or own >= OWN_SHARE:

@@ -93,7 +93,9 @@ def discover(analysis, *, max_steps: int = 10, progress: Callable[[str], None] |
                 else ""
             )
             break
-        top = policy.parsimonious(blame.choose(ok, report), cands, analysis.result, analysis.problem.state, alpha)
+        n_meas = sum(r.n * len(r.components) for r in analysis.result.residuals.values())
+        pick = blame.choose(ok, report, n_meas)
+        top = policy.parsimonious(pick, cands, analysis.result, analysis.problem.state, alpha)
         say(
             f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
             f"{p_text(top.p_adjusted, 'p adj')}; {blame.blame_text(top)})"
