@@ -363,10 +363,10 @@ def search(
         r = np.asarray(res.residual, dtype=float)
         binned = {}  # channel -> (finite, bin of each frame): the same for every component
         for ch in chans:
-            v = np.asarray(ch.values, float)
-            fin = np.isfinite(v)
-            k = np.zeros(v.size, dtype=int)
-            k[fin] = _bins(v[fin], ch.periodic)
+            vals = np.asarray(ch.values, float)
+            fin = np.isfinite(vals)
+            k = np.zeros(vals.size, dtype=int)
+            k[fin] = _bins(vals[fin], ch.periodic)
             binned[ch.name] = (fin, k)
         for ci, comp in enumerate(res.components):
             ok = np.asarray(res.used, bool) & np.isfinite(r[:, ci])
