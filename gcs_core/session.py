@@ -131,9 +131,10 @@ class Analysis:
         return {k: tuple(v) for k, v in out.items() if v}
 
     def structure(self, sensors: Iterable[str] = (), *, offer: bool = False) -> StructureReport:
-        """Residual-structure search (:mod:`gcs_core.diagnosis.structure`) of the sensors whose
-        residuals exceed the noise and of ``sensors``; with ``offer`` the families of what it
-        finds become candidates (True when that changed the problem: rank again)."""
+        """Residual-structure search (:mod:`gcs_core.diagnosis.structure`) of every sensor with
+        residuals (``sensors`` and :attr:`search_sensors` are labelled "on request"), once per
+        fit; with ``offer`` the families of what it finds become candidates (the problem is
+        then rebuilt: rank again)."""
         if self.result is None:
             self.fit()
         asked = (*self.search_sensors, *sensors)
