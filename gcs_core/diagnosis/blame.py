@@ -6,11 +6,11 @@ a bending tracker tilts the attitude with it. A candidate on the magnetometer ma
 significant, though the cause is the tracker. Two rules, applied to the candidates that
 pass the family-wise level (:func:`choose`):
 
-1. **The sensor whose own residual follows a channel most strongly goes first.** Going
-   down the search's findings, most significant first: for the first finding (sensor Y's
-   residual following a channel) with passing candidates of its form (Y's families on
+1. **Candidates on the channels the search found go first.** When the search found
+   sensor Y's residual following a channel, Y's candidates of that form (its families on
    that channel or its aliases, or a catalogue effect of that form, a physics option
-   included), the most significant of those is chosen, before anyone else's.
+   included) are chosen before any other; among them, the one that explains most for its
+   elements (:func:`choose`).
 2. **A candidate is not added on sensor X when its Δχ² comes mostly from another sensor
    Y's residuals** (the score's share, ``Candidate.sensors``, below :data:`OWN_SHARE`
    in X's own) while Y has a passing candidate whose Δχ² comes from Y itself: Y's
@@ -57,21 +57,22 @@ def matches(c: Candidate, d: Dependency) -> bool:
 
 def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int = 2) -> Candidate:
     """The candidate to add among ``ok`` (passing, identifiable, most significant first):
-    rules 1 and 2 of the module docstring, else the most significant. Rule 1 goes down the
-    search's findings, most significant first: the first with passing candidates of its
-    form gives the one of those with the best Bayesian information criterion
-    ``Δχ² − dof·ln n`` (``n`` measurements; Schwarz 1978): a family of nine elements on the
-    sensor whose residual follows the orbit does not win over a physics option of one
-    element that explains the same residual through the attitude; within
+    rules 1 and 2 of the module docstring, else the most significant. Rule 1 takes, among
+    the passing candidates of the form of some finding of the search (each on its own
+    sensor), the one with the best Bayesian information criterion ``Δχ² − dof·ln n``
+    (``n`` measurements; Schwarz 1978): a Sun sensor's drifting offset that moves the
+    attitude explains more than the trackers' families on the same channel, and a family of
+    nine elements on a tracker whose residual follows the orbit does not win over a physics
+    option of one element that explains it through the attitude. Within
     :data:`~gcs_core.diagnosis.policy.BIC_TIE` of the best, a catalogue effect wins."""
     log_n = math.log(max(n_meas, 2))
-    for d in report.found if report is not None else ():
-        first = [c for c in ok if matches(c, d)]
-        if first:
-            bic = {c.id: c.delta_chi2 - c.dof * log_n for c in first}
-            best = max(bic.values())
-            # within BIC_TIE the data give no preference: the catalogue's effect (known physics)
-            return max(first, key=lambda c: (bic[c.id] >= best - BIC_TIE and not is_family(c.effect), bic[c.id]))
+    found = report.found if report is not None else ()
+    first = [c for c in ok if any(matches(c, d) for d in found)]
+    if first:
+        bic = {c.id: c.delta_chi2 - c.dof * log_n for c in first}
+        best = max(bic.values())
+        # within BIC_TIE the data give no preference: the catalogue's effect (known physics)
+        return max(first, key=lambda c: (bic[c.id] >= best - BIC_TIE and not is_family(c.effect), bic[c.id]))
     for c in ok:
         own = own_share(c)
         if own is None or own >= OWN_SHARE:
