@@ -27,7 +27,7 @@ one-sided 95 % Clopper–Pearson bound (Clopper & Pearson, Biometrika 26(4), 193
 Usage::
 
     nice -n 10 python benchmarks/discovery_past_catalogue.py [--spans 4 8] [--seeds 20]
-        [--nominal 40] [--modes sun_pointing inertial earth_pointing] [--kinds ...]
+        [--nominal 40] [--modes sun_pointing inertial earth_pointing] [--kinds ...] [--start 1]
 """
 
 from __future__ import annotations
@@ -77,10 +77,10 @@ def share(k: int, n: int) -> str:
     return f"{100 * k / max(n, 1):5.1f} % ({k}/{n})"
 
 
-def run_kind(case, hours: float, seeds: int) -> dict:
+def run_kind(case, hours: float, seeds: int, start: int = 1) -> dict:
     right = other = rms_ok = 0
     ideal, z_in, z_n, named, nothing = [], 0, 0, 0, 0
-    for seed in range(1, seeds + 1):
+    for seed in range(start, start + seeds):
         with tempfile.TemporaryDirectory() as d:
             a = dc.analyse(dc.simulate(case, seed, Path(d), hours))
             out = dc.outcome(case, a)
@@ -105,9 +105,9 @@ def run_kind(case, hours: float, seeds: int) -> dict:
     }
 
 
-def run_nominal(mode: str, hours: float, seeds: int) -> tuple[int, int]:
+def run_nominal(mode: str, hours: float, seeds: int, start: int = 1) -> tuple[int, int]:
     alarms = 0
-    for seed in range(1000, 1000 + seeds):
+    for seed in range(999 + start, 999 + start + seeds):
         with tempfile.TemporaryDirectory() as d:
             cfg = nominal_threeaxis(mode, seed=seed, duration_s=hours * 3600.0)
             for s in cfg.sensors:
@@ -126,6 +126,7 @@ def main(argv=None) -> int:
     ap.add_argument("--spans", type=float, nargs="+", default=[4.0, 8.0])
     ap.add_argument("--seeds", type=int, default=20)
     ap.add_argument("--nominal", type=int, default=40)
+    ap.add_argument("--start", type=int, default=1, help="first seed (to extend an earlier run)")
     ap.add_argument("--modes", nargs="+", default=["sun_pointing", "inertial", "earth_pointing"])
     ap.add_argument("--kinds", nargs="+", default=[c.kind for c in [*dc.KINDS, dc.MAGNITUDE]])
     args = ap.parse_args(argv)
@@ -138,7 +139,7 @@ def main(argv=None) -> int:
         for case in cases:
             if args.seeds <= 0:
                 break
-            r = run_kind(case, hours, args.seeds)
+            r = run_kind(case, hours, args.seeds, args.start)
             n = r["n"]
             if case is dc.MAGNITUDE:
                 print(
@@ -160,7 +161,7 @@ def main(argv=None) -> int:
         print("|---|---|---|---|")
         for hours in args.spans:
             for mode in args.modes:
-                k, n = run_nominal(mode, hours, args.nominal)
+                k, n = run_nominal(mode, hours, args.nominal, args.start)
                 print(f"| {mode} | {hours:g} h | {share(k, n)} | {100 * bound(k, n):.1f} % |", flush=True)
     print(f"\nCPU {time.process_time() - t0:.0f} s")
     return 0
