@@ -84,6 +84,23 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
     return ok[0]
 
 
+def prefer_misfit(
+    top: Candidate, cands: Sequence[Candidate], report: StructureReport | None, alpha: float
+) -> Candidate:
+    """Among ``top``'s aliases (candidates the data cannot tell from it), the one on the
+    sensor whose own residual the search found structured, when ``top``'s sensor shows none:
+    a relative alignment between two trackers is either's, and the one whose residual
+    follows something is to blame (a tracker whose error follows the star's magnitude)."""
+    if report is None or top.effect.sensor is None or report.for_sensor(top.effect.sensor):
+        return top
+    by_id = {c.id: c for c in cands}
+    for alias, _ in top.aliases_candidates:
+        c = by_id.get(alias)
+        if c is not None and c.effect.sensor and report.for_sensor(c.effect.sensor) and c.p_adjusted < alpha:
+            return c
+    return top
+
+
 def blame_text(c: Candidate) -> str:
     """``Δχ² from FHST2 (93%), TAM1 (5%)``: where a candidate's Δχ² comes from."""
     parts = [f"{s} ({100 * v:.0f}%)" for s, v in sorted(c.sensors.items(), key=lambda kv: -kv[1]) if v >= 0.01]

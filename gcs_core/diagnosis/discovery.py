@@ -96,6 +96,7 @@ def discover(analysis, *, max_steps: int = 10, progress: Callable[[str], None] |
         n_meas = sum(r.n * len(r.components) for r in analysis.result.residuals.values())
         pick = blame.choose(ok, report, n_meas)
         top = policy.parsimonious(pick, cands, analysis.result, analysis.problem.state, alpha)
+        top = blame.prefer_misfit(top, cands, report, alpha)
         say(
             f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
             f"{p_text(top.p_adjusted, 'p adj')}; {blame.blame_text(top)})"
