@@ -45,13 +45,17 @@ def sensors_off(cfg: AnalysisConfig | None, spec: MissionSpec) -> set[str]:
     return {name for name, m in cfg.models.items() if m == "off"}
 
 
-def problem_from_config(cfg: AnalysisConfig, mission) -> Problem:
+def problem_from_config(cfg: AnalysisConfig, mission, *, families: dict[str, tuple[str, ...]] | None = None) -> Problem:
     """The problem of ``cfg`` on the imported ``mission``: its sensors less those switched
-    off (the gyro off: the attitude is not gyro-carried), its state and its physics."""
+    off (the gyro off: the attitude is not gyro-carried), its state and its physics;
+    ``families``: sensor -> the generic drift families its model carries
+    (:mod:`gcs_core.models.drift`)."""
     spec = mission.spec
     off = sensors_off(cfg, spec)
     if off:
         kept = replace(spec, sensors=tuple(s for s in spec.sensors if s.name not in off))
         mission = replace(mission, spec=kept, telemetry={k: v for k, v in mission.telemetry.items() if k not in off})
     gyro_off = any(s.type == "gyro" and s.name in off for s in spec.sensors)
-    return build_problem(mission, physics=cfg.physics, options=state_options(cfg), use_gyro=not gyro_off)
+    return build_problem(
+        mission, physics=cfg.physics, options=state_options(cfg), use_gyro=not gyro_off, families=families
+    )

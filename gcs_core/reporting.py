@@ -65,6 +65,7 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
             "verdict": gof.verdict if gof is not None else "not run",
             "warnings": list(analysis.warnings),
             "stop_reason": analysis.stop_reason,
+            "residual_structure": _structure(analysis),
             "config_digest": analysis.config.digest(),
         }
     )
@@ -77,6 +78,17 @@ def analysis_report(analysis, *, command: str | None = None) -> dict[str, Any]:
     if getattr(analysis, "correlation", None):  # each sensor's noise correlation (docs/icd_extensions.md)
         carried = analysis.config.filter.noise_weighting == "correlated"
         out["noise_correlation"] = noise_correlation.report(analysis.correlation, carried)
+    return out
+
+
+def _structure(analysis) -> dict[str, Any] | None:
+    """The latest residual-structure search (docs/residual_structure.md), with the families
+    it offered; None when none ran."""
+    rep = getattr(analysis, "structure_report", None)
+    if rep is None:
+        return None
+    out = rep.as_report()
+    out["families_offered"] = {k: list(v) for k, v in getattr(analysis, "offered", {}).items()}
     return out
 
 

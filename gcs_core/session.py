@@ -8,7 +8,7 @@ here knows about screens or terminals.
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -18,16 +18,19 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.config_problem import problem_from_config
 from gcs_core.diagnosis import aliases, determination, goodness, physics
 from gcs_core.diagnosis import holdout as held_out
+from gcs_core.diagnosis import search as search_session
 from gcs_core.diagnosis.catalogue import Effect, mission_catalogue
 from gcs_core.diagnosis.discovery import Step
 from gcs_core.diagnosis.honest_sigma import SIGMA_WINDOW, fit_sigma_scale
 from gcs_core.diagnosis.physics import PhysicsNeed
 from gcs_core.diagnosis.ranking import Candidate, rank_candidates
+from gcs_core.diagnosis.structure import StructureReport
 from gcs_core.errors import ConfigError
 from gcs_core.estimators.batch.least_squares import BatchOptions
 from gcs_core.estimators.kalman.options import FilterOptions
 from gcs_core.estimators.registry import Estimator, FitSettings, KalmanEstimator, estimator
 from gcs_core.estimators.results import FitResult
+from gcs_core.models.drift import split_family
 from gcs_core.noise import correlated as noise_correlation
 from gcs_core.noise import correlated_sigma
 from gcs_core.noise.weighting import NoiseWeighting, same_factors, stated_residuals, weighted_sensors
@@ -93,6 +96,8 @@ class Analysis:
         self.stop_reason = ""
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
         self._factors_mode = config.filter.noise_weighting  # the weighting the factors come from
+        #: sensor -> generic family effects the residual-structure search made candidates
+        self.offered: dict[str, tuple[str, ...]] = {}
         self.problem: Problem = self._build()
         self._goodness: tuple | None = None  # (result it was formed for, GoodnessOfFit)
         self._null_at_prior: tuple | None = None  # (problem, combinations)
@@ -100,6 +105,9 @@ class Analysis:
         self._aliases: tuple | None = None  # (result it was formed for, aliases)
         self.sigma_window = SIGMA_WINDOW  # [s] of sigma_scale(); 0 = off, None = chosen
         self._sigma_scale: tuple | None = None  # (result, window, SigmaScale | None)
+        self.structure_report: StructureReport | None = None  # the latest search
+        self._structure: tuple | None = None  # (result, sensors asked, report) of the latest search
+        self.search_sensors: tuple[str, ...] = ()  # sensors searched on request besides the misfit ones
 
     # ------------------------------------------------------------------ set-up
     @property
@@ -110,10 +118,39 @@ class Analysis:
         """The state definition and prepared sensors of the current config
         (:func:`gcs_core.config_problem.problem_from_config`), weighted by the long-run
         noise factors when the fit is (the fit's σ are then the stated σ × k)."""
-        problem = problem_from_config(self.config, self.mission)
+        problem = problem_from_config(self.config, self.mission, families=self._families())
         if self._scale():
             problem.sensors = weighted_sensors(problem.sensors, self._scale())
         return problem
+
+    def _families(self) -> dict[str, tuple[str, ...]]:
+        """sensor -> generic family effects its model carries: those offered by the search and
+        those the config names (:mod:`gcs_core.models.drift`)."""
+        out = {k: list(v) for k, v in self.offered.items()}
+        for eid in (*self.config.state.effects, *self.config.state.exclude):
+            sensor, _, effect = eid.partition(".")
+            if split_family(effect) is not None and effect not in out.setdefault(sensor, []):
+                out[sensor].append(effect)
+        return {k: tuple(v) for k, v in out.items() if v}
+
+    def structure(self, sensors: Iterable[str] = (), *, offer: bool = False) -> StructureReport:
+        """Residual-structure search (:mod:`gcs_core.diagnosis.structure`) of every sensor with
+        residuals (``sensors`` and :attr:`search_sensors` are labelled "on request"), once per
+        fit; with ``offer`` the families of what it finds become candidates (the problem is
+        then rebuilt: rank again)."""
+        if self.result is None:
+            self.fit()
+        asked = (*self.search_sensors, *sensors)
+        cached = self._structure
+        if cached is not None and cached[0] is self.result and cached[1] == asked:
+            self.structure_report = cached[2]  # one search per fit (discovery's last step asks again)
+        else:
+            self.structure_report = search_session.run(self, asked)
+            self._structure = (self.result, asked, self.structure_report)
+        if offer:
+            search_session.offer(self, self.structure_report)
+            self._structure = (self.result, asked, self.structure_report)  # same residuals, families added
+        return self.structure_report
 
     def _scale(self) -> dict[str, float]:
         """sensor -> the factor its stated σ is weighted with (only those above 1)."""
@@ -358,6 +395,10 @@ class Analysis:
             exclude = [x for x in self.config.state.exclude if x != effect_id]
             if on:
                 effects.append(effect_id)
+                base = _intercept_of(e, self.problem.state)
+                if base and base not in effects:  # a family carries its base effect when held
+                    effects.append(base)
+                    exclude = [x for x in exclude if x != base]
             else:
                 exclude.append(effect_id)
             self.config = self.config.with_changes(state={"effects": tuple(effects), "exclude": tuple(exclude)})
@@ -487,3 +528,13 @@ class Analysis:
         if self._aliases is None or self._aliases[0] is not res:
             self._aliases = (res, aliases.problem_aliases(self.problem, res))
         return self._aliases[1]
+
+
+def _intercept_of(e: Effect, state) -> str | None:
+    """The base effect a generic family adds with it (its held elements, see
+    :func:`gcs_core.diagnosis.catalogue.mission_catalogue`), or None."""
+    parts = split_family(e.effect)
+    if parts is None or e.sensor is None:
+        return None
+    base = [n for n in e.elements if state[n].effect == parts[0]]
+    return f"{e.sensor}.{parts[0]}" if base else None

@@ -16,10 +16,12 @@ import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from gcs_core.diagnosis import policy
+from gcs_core.diagnosis import blame, policy
+from gcs_core.diagnosis import search as search_session
 from gcs_core.display import p_text
 
 if TYPE_CHECKING:  # the session calls this loop; the loop only reads the session
+    from gcs_core.diagnosis.structure import StructureReport
     from gcs_core.session import Analysis
 
 log = logging.getLogger(__name__)
@@ -36,8 +38,16 @@ def discover(analysis: Analysis, *, max_steps: int = 10, progress: Callable[[str
         analysis.fit()
     if not analysis.steps:
         analysis.first_step()
+    search = analysis.structure
     for _ in range(max_steps):
         cands = analysis.rank()
+        # what the misfit sensors' residuals follow; its families become candidates
+        before = analysis.problem
+        report: StructureReport | None = search(offer=True)
+        if analysis.problem is not before:
+            cands = analysis.rank()
+        if not search_session.trusted(analysis):
+            report = None  # reported, not acted on (search.trusted)
         ok = [c for c in cands if c.passes]
         if not ok:
             best = cands[0] if cands else None
@@ -49,15 +59,21 @@ def discover(analysis: Analysis, *, max_steps: int = 10, progress: Callable[[str
                 else ""
             )
             break
-        top = policy.parsimonious(ok[0], cands, analysis.result, analysis.problem.state, alpha)
+        fitted = analysis.result
+        assert fitted is not None  # rank() fitted
+        n_meas = sum(int(r.n) * len(r.components) for r in fitted.residuals.values())
+        pick = blame.choose(ok, report, n_meas)
+        top = policy.parsimonious(pick, cands, analysis.result, analysis.problem.state, alpha)
+        top = blame.prefer_misfit(top, cands, report, alpha)
         say(
             f"adding {top.id} (Δχ² = {top.delta_chi2:.1f}, dof {top.dof}, {p_text(top.p_value)}, "
-            f"{p_text(top.p_adjusted, 'p adj')})"
+            f"{p_text(top.p_adjusted, 'p adj')}; {blame.blame_text(top)})"
         )
         analysis.add_effect(top.id)
     else:
         reason = f"stopped after {max_steps} steps"
     analysis.rank()
+    search()  # what the residuals that remain follow, for the report
     g = analysis.goodness()
     if g is not None:
         # a converged fit of an inadequate model must not read as success

@@ -135,7 +135,13 @@ EXPLANATIONS: dict[str, tuple[str, str]] = {
 
 
 def explanation(effect: str) -> tuple[str, str]:
-    """(family, explanation) of an effect name; contamination channels share one text."""
+    """(family, explanation) of an effect name; contamination channels share one text, and
+    so do the generic families (:mod:`gcs_core.diagnosis.families`)."""
+    from gcs_core.diagnosis.families import explanation as family_explanation
+
+    fam = family_explanation(effect)
+    if fam is not None:
+        return fam
     if effect.startswith("contamination_"):
         ch = effect[len("contamination_") :]
         return (
@@ -177,6 +183,16 @@ def generic_catalogue() -> list[tuple[str, str, str]]:
     """(effect, family, explanation) for ``gcs effects`` without a mission."""
     rows = [(name, *explanation(name)) for name in EXPLANATIONS]
     rows.append(("contamination_<channel>", *explanation("contamination_<channel>")))
+    rows.append(
+        (
+            "<alignment|bias|scale>_vs_<channel>",
+            "drift",
+            "A generic family offered when the residual-structure search finds a sensor's residual "
+            "following a channel: the sensor's alignment, bias or scale varying linearly with an aux "
+            "channel, the orbit phase (orbit1, orbit2: its first and second harmonic) or time "
+            "(docs/residual_structure.md).",
+        )
+    )
     return rows
 
 
@@ -193,6 +209,7 @@ def mission_catalogue(problem, physics) -> list[Effect]:
         seen[eid] = Effect(
             eid, e.sensor, e.effect, seen[eid].elements + (e.name,), seen[eid].family, seen[eid].explanation
         )
+    _with_intercepts(seen, problem.state)
     types = {sd.model.type_name for sd in problem.sensors}
     relevant = {
         "stellar_aberration": "star_tracker" in types,
@@ -207,3 +224,18 @@ def mission_catalogue(problem, physics) -> list[Effect]:
             fam, text = explanation(opt)
             seen[f"model.{opt}"] = Effect(f"model.{opt}", None, opt, (), fam, text)
     return list(seen.values())
+
+
+def _with_intercepts(seen: dict[str, Effect], state) -> None:
+    """A generic family whose base effect is not estimated carries that effect's elements
+    too: ``p(t) = p + k (x − x̄)`` needs ``p`` at the mean of the channel (a magnetometer's
+    gain drifting with a temperature is off its data-book value at the mean temperature)."""
+    from gcs_core.models.drift import split_family
+    from gcs_core.problem.state import HELD
+
+    for eid, e in list(seen.items()):
+        parts = split_family(e.effect)
+        base = seen.get(f"{e.sensor}.{parts[0]}") if parts is not None else None
+        if base is None or not all(state[n].role == HELD for n in base.elements):
+            continue
+        seen[eid] = Effect(eid, e.sensor, e.effect, e.elements + base.elements, e.family, e.explanation)

@@ -30,5 +30,8 @@ def parsimonious(top: Candidate, cands: list[Candidate], result, state, alpha: f
     def seed_effect(c: Candidate) -> bool:
         return bool(c.effect.elements) and all(state[nm].seed for nm in c.effect.elements if nm in state)
 
+    def catalogued(c: Candidate) -> bool:  # a catalogue effect over a generic family of the same form
+        return "_vs_" not in c.effect.effect
+
     # then known physics (no new parameter) over a free one: WGS-84 over a fitted κ
-    return max(close, key=lambda c: (seed_effect(c), c.effect.physics, bic[c.id]))
+    return max(close, key=lambda c: (seed_effect(c), c.effect.physics, catalogued(c), bic[c.id]))

@@ -304,7 +304,10 @@ def _verdicts(raw, effects, idx_of, S_all, result: FitResult, alpha: float) -> l
     """The ranked candidates from their scores ``raw``: p-values adjusted for the number of
     candidates (Bonferroni), aliases between candidates, and whether each is identifiable;
     most significant first, each with its explanation."""
-    m = max(len(raw), 1)
+    # Bonferroni within each group: the catalogue's effects, and the generic drift families
+    # the residual-structure search offered (docs/residual_structure.md, family-wise honesty)
+    n_family = sum(1 for r in raw if is_family(r[0]))
+    m_of = {True: max(n_family, 1), False: max(len(raw) - n_family, 1)}
     n_meas = sum(int(np.count_nonzero(r.used)) * r.residual.shape[1] for r in result.residuals.values())
     log_n = float(np.log(max(n_meas, 2)))
     # aliasing between candidates (canonical correlation of conditional signatures). The
@@ -326,7 +329,13 @@ def _verdicts(raw, effects, idx_of, S_all, result: FitResult, alpha: float) -> l
             if rho > ALIAS_TOL:
                 cand_alias.append((oe.id, rho, other[1], other[2]))
         # an alias "wins" when it explains the data better after a BIC penalty per dof
-        stronger = [a for a in cand_alias if (a[2] - a[3] * log_n) > (dchi - dof * log_n) + 1e-9]
+        # (a drift family does not make a catalogue effect of the same signature unidentifiable:
+        # the known physics keeps precedence, docs/residual_structure.md)
+        stronger = [
+            a
+            for a in cand_alias
+            if (a[2] - a[3] * log_n) > (dchi - dof * log_n) + 1e-9 and (is_family(e) or "_vs_" not in a[0])
+        ]
         identifiable = dof > 0 and absorbed < ABSORB_TOL and not stronger
         tot = sum(shares.values()) or 1.0
         out.append(
@@ -335,7 +344,7 @@ def _verdicts(raw, effects, idx_of, S_all, result: FitResult, alpha: float) -> l
                 dchi,
                 dof,
                 p,
-                min(1.0, p * m),
+                min(1.0, p * m_of[is_family(e)]),
                 {k: v for k, v in est_items(e, est, result)},
                 sigma,
                 mdb,
@@ -344,11 +353,16 @@ def _verdicts(raw, effects, idx_of, S_all, result: FitResult, alpha: float) -> l
                 tuple((a[0], a[1]) for a in cand_alias),
                 identifiable,
                 {k: v / tot for k, v in shares.items()},
-                significant=min(1.0, p * m) < alpha,
+                significant=min(1.0, p * m_of[is_family(e)]) < alpha,
             )
         )
     out.sort(key=lambda c: (c.p_value, -c.delta_chi2))
     return [replace(c, explanation=explain(c, alpha)) for c in out]
+
+
+def is_family(e: Effect) -> bool:
+    """A generic drift family (``<effect>_vs_<channel>``, :mod:`gcs_core.models.drift`)."""
+    return "_vs_" in e.effect
 
 
 def est_items(e: Effect, est: np.ndarray, result: FitResult):

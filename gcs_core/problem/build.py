@@ -13,7 +13,7 @@ columns ``H = ∂h/∂x``.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import cast
 
@@ -225,12 +225,14 @@ def build_problem(
     options: StateOptions | None = None,
     use_gyro: bool = True,
     chunk_frames: int = CHUNK_FRAMES,
+    families: Mapping[str, Sequence[str]] | None = None,
 ) -> Problem:
     """SODL + SIDP: the state vector and prepared sensors of an imported mission.
 
     The problem keeps what estimation needs (prepared sensors, the gyro rates, the
     telemetry columns geometry variants read again), not the mission: a caller that
-    has no further use for the mission may drop it.
+    has no further use for the mission may drop it. ``families``: sensor -> generic family
+    effects (``alignment_vs_tam_temp``, :mod:`gcs_core.models.drift`) its model gains.
     """
     spec = mission.spec
     physics = physics or PhysicsOptions()
@@ -238,6 +240,8 @@ def build_problem(
     eph = Ephemeris.from_table(mission.ephemeris_table, margin_s=getattr(mission, "ephemeris_margin_s", 0.0))
     builder = GeometryBuilder(spec, eph, physics, mission.aux)
     sensors = prepare_sensors(spec, mission.telemetry, builder)
+    if families:
+        sensors = _with_families(sensors, families, builder)
     mode = spec.attitude_mode
     gyros = [s for s in spec.sensors if s.type == "gyro"]
     attitude = _attitude_provider(mission, eph, gyros, use_gyro, chunk_frames)
@@ -369,6 +373,20 @@ def _sensor_elements(
                 elements[names_now.index(el.name)] = el
         param_map[s.name] = pmap
     return param_map
+
+
+def _with_families(sensors, families: Mapping[str, Sequence[str]], builder) -> list[SensorData]:
+    """The prepared sensors with their generic family effects (:mod:`gcs_core.models.drift`)."""
+    from gcs_core.models.drift import argument_of_latitude, with_families
+
+    def phase(t):
+        r, v = builder.orbit(t)
+        return argument_of_latitude(r, v)
+
+    return [
+        replace(sd, model=with_families(sd, families[sd.name], phase)) if families.get(sd.name) else sd
+        for sd in sensors
+    ]
 
 
 def _link_sun_sensor_tilt(spec, elements: list[Element], param_map: dict) -> list[Element]:

@@ -343,6 +343,24 @@ def _tilt(s: SensorConfig, m: float, kw: dict) -> None:
     s.true["tilt_deg"] = float(s.book["tilt_deg"]) + float(np.degrees(m))
 
 
+def _drift(key: str, default_axis=None, pattern=None):
+    """A drift of the sensor's own physics (:mod:`gcs_core.sim.drifts`) on ``tam_temp``."""
+
+    def apply(s, m, kw):
+        spec = {"channel": "tam_temp", "ref": float(kw.get("ref", 22.0)), "rate": float(m)}
+        if default_axis is not None:
+            spec["axis"] = list(kw.get("axis", default_axis))
+        if pattern is not None:
+            spec["rate"] = [float(m) * x for x in pattern]
+        s.true[key] = spec
+
+    return apply
+
+
+def _orbit_bend(s, m, kw):
+    s.true["orbit_bend"] = {"amplitude": float(m), "axis": list(kw.get("axis", (0.0, 1.0, 0.0))), "phase": 0.7}
+
+
 _VEC3 = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun")
 #: Sensor effects by catalogue name (``gcs effects``): the id is ``<SENSOR>.<name>``.
 EFFECTS: dict[str, EffectSpec] = {
@@ -412,6 +430,37 @@ EFFECTS: dict[str, EffectSpec] = {
         "plane-field sensor tilt ε_S (tilt_deg += m), shared by the horizon timing (Eq 4-12d, 4-14)",
         _tilt,
     ),
+    "alignment_vs_tam_temp": EffectSpec(
+        ("star_tracker",),
+        "rad/°C",
+        "the optics bend thermo-elastically: frame turned by m·(tam_temp − 22 °C) about axis "
+        "(default (0, 1, 0), a focal-plane axis; (1, 0, 0) the boresight)",
+        _drift("bend", default_axis=(0.0, 1.0, 0.0)),
+    ),
+    "alignment_vs_orbit1": EffectSpec(
+        ("star_tracker",),
+        "rad",
+        "frame turned by m·sin(u + 0.7) about axis (default (0, 1, 0)), u the argument of latitude",
+        _orbit_bend,
+    ),
+    "magnitude_error": EffectSpec(
+        ("star_tracker",),
+        "rad/mag",
+        "centroid h displaced by m·(star magnitude − 4) (no model family holds it)",
+        lambda s, m, kw: s.true.__setitem__("mag_error", {"rate": float(m), "ref": 4.0}),
+    ),
+    "bias_vs_tam_temp": EffectSpec(
+        ("fine_sun",),
+        "tan/°C",
+        "FSS offsets A1, B1 move by m·(1, −0.6)·(tam_temp − 22 °C)",
+        _drift("bias_drift", pattern=(1.0, -0.6)),
+    ),
+    "scale_vs_tam_temp": EffectSpec(
+        ("magnetometer",),
+        "1/°C",
+        "TAM gains move by m·(1, −0.7, 0.5)·(tam_temp − 22 °C)",
+        _drift("scale_drift"),
+    ),
     "d_gamma": EffectSpec(("horizon",), "rad", "scanner cone half-angle bias Δγ", _set("d_gamma")),
     "d_phi": EffectSpec(("horizon",), "rad", "scanner azimuth bias ΔΦ", _set("d_phi")),
     "d_rho": EffectSpec(("horizon",), "rad", "Earth angular radius bias Δρ", _set("d_rho")),
@@ -479,6 +528,8 @@ def with_effect(
         cfg.name = name
     sensor_name, _, effect = effect_id.partition(".")
     kw = {k: v for k, v in (("axis", axis), ("pattern", pattern)) if v is not None}
+    if cfg.aux is not None:
+        kw["ref"] = cfg.aux.temp_mean_c  # drifts on tam_temp are about its mean
     if sensor_name == "model":
         if effect not in MODEL_EFFECTS:
             raise InputError(f"unknown model effect '{effect}'", key="effect_id")

@@ -44,7 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gcs_core.sim import astro
+from gcs_core.sim import astro, drifts
 from gcs_core.sim._rot import rpy_to_dcm, unit
 from gcs_core.sim.config import SensorConfig
 from gcs_core.sim.field import igrf_gci
@@ -98,7 +98,11 @@ class MagnetometerSim:
         r, v = w.orbit(tt)
         B_I = igrf_gci(w.epoch, w.jd0, tt, r)
         C = w.attitude(tt, r, v)
-        B_S = np.einsum("ij,njk,nk->ni", self.K @ self.M, C, B_I) + self.bias
+        B_S = np.einsum("ij,njk,nk->ni", self.K @ self.M, C, B_I)
+        g = drifts.gains(self.s, self.aux, tt)
+        if g is not None:  # gains drifting with a channel: (K + diag g) M C B_I
+            B_S = B_S + g * np.einsum("ij,njk,nk->ni", self.M, C, B_I)
+        B_S = B_S + self.bias
         for ch, k in self.contamination.items():
             B_S = B_S + self.aux.value(ch, tt)[:, None] * k[None, :]
         if self.gm is None:
@@ -124,6 +128,7 @@ class _SunSim:
         self.aberration = bool(ph.get("solar_aberration", True))
         self.parallax = bool(ph.get("sun_parallax", True))
         self.n_eclipsed = 0
+        self.aux = None  # the mission's aux channels (a drifting offset follows one; drifts.py)
 
     def sun_sensor_frame(self, t_rows):
         w = self.world
@@ -153,8 +158,9 @@ class FineSunSim(_SunSim):
         A1, A2, A3, ka = (float(x) for x in self.s.value("coeff_alpha"))
         B1, B2, B3, kb = (float(x) for x in self.s.value("coeff_beta"))
         Ha, Hb = (float(x) for x in self.s.value("harmonic", (0.0, 0.0)))
-        xa = (ta - A1 - A3 * np.sin(ka * ta) - Ha * np.sin(2 * ka * ta)) / A2
-        xb = (tb - B1 - B3 * np.sin(kb * tb) - Hb * np.sin(2 * kb * tb)) / B2
+        dA1, dB1 = drifts.offsets(self.s, self.aux, t_rows + self.tau)
+        xa = (ta - (A1 + dA1) - A3 * np.sin(ka * ta) - Ha * np.sin(2 * ka * ta)) / A2
+        xb = (tb - (B1 + dB1) - B3 * np.sin(kb * tb) - Hb * np.sin(2 * kb * tb)) / B2
         return self._finish(t_rows, keep, xa, xb)
 
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from gcs_core.sim import astro
+from gcs_core.sim import astro, drifts
 from gcs_core.sim._rot import rpy_to_dcm, unit
 from gcs_core.sim.config import SensorConfig
 from gcs_core.sim.gauss_markov import correlated_noise
@@ -92,6 +92,7 @@ class StarTrackerSim:
         self.earth_excl = np.radians(float(sensor.value("earth_exclusion_deg", 10.0)))
         self.misid = float(sensor.value("misid_fraction", 0.0))
         self.aberration = stellar_aberration
+        self.aux = None  # the mission's aux channels (a bending tracker follows one; drifts.py)
         self.n_occulted = 0
         self.n_misidentified = 0
 
@@ -100,7 +101,7 @@ class StarTrackerSim:
         tt = t_rows + self.tau
         r, v = w.orbit(tt)
         s = w.sun(tt)
-        C_SI = self.M[None] @ w.attitude(tt, r, v, s)
+        C_SI = drifts.bent_alignment(self.s, self.M, w, self.aux, tt, r, v) @ w.attitude(tt, r, v, s)
         bore_I = C_SI[:, 0, :]
         rn = np.linalg.norm(r, axis=-1)
         ang_earth = np.arccos(np.clip(np.einsum("ij,ij->i", bore_I, -r) / rn, -1, 1))
@@ -138,9 +139,10 @@ class StarTrackerSim:
         if not rows:
             return {c: np.zeros(0) for c in self.columns}
         t_out = np.array([x[0] for x in rows])
-        h = np.array([x[1] for x in rows]) / self.scale[0]
-        vv = np.array([x[2] for x in rows]) / self.scale[1]
         star = np.array([x[3] for x in rows], dtype=int)
+        h_err = drifts.magnitude_error(self.s, self.cat.mag[star])
+        h = (np.array([x[1] for x in rows]) + h_err) / self.scale[0]
+        vv = np.array([x[2] for x in rows]) / self.scale[1]
         if self.gm is None:
             e = self.rng.standard_normal((h.size, 2)) * self.noise
         else:  # Gauss–Markov noise at the frame times (gauss_markov.py)

@@ -356,11 +356,15 @@ def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, ca
     if kind == "gyro":
         return GyroSim(sensor, world, rng)
     if kind == "star_tracker":
-        return StarTrackerSim(
+        st = StarTrackerSim(
             sensor, world, catalog, rng, stellar_aberration=bool(world.cfg.physics.get("stellar_aberration", True))
         )
+        st.aux = aux
+        return st
     if kind == "fine_sun":
-        return FineSunSim(sensor, world, rng)
+        fss = FineSunSim(sensor, world, rng)
+        fss.aux = aux
+        return fss
     if kind == "coarse_sun":
         return CoarseSunSim(sensor, world, rng)
     if kind == "plane_field_sun":

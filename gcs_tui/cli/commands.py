@@ -325,6 +325,7 @@ def cmd_batch(args, prog: Progress) -> int:
 
 def cmd_discover(args, prog: Progress) -> int:
 
+    from gcs_core.diagnosis.structure_text import report_lines
     from gcs_core.reporting import analysis_report, physics_why
     from gcs_tui.cli.tables import (
         candidate_table,
@@ -335,6 +336,7 @@ def cmd_discover(args, prog: Progress) -> int:
     a = _analysis(args, prog)
     if args.significance is not None:
         a.config = a.config.with_changes(diagnosis={"significance": args.significance})
+    a.search_sensors = tuple(args.search or ())
     _fit(a, prog)
     if _fit_failed(a):
         return EXIT_ESTIMATION
@@ -347,6 +349,10 @@ def cmd_discover(args, prog: Progress) -> int:
     _lines("  " + line for line in steps_table(steps))
     _out("stopped: " + a.stop_reason)
     _lines("remaining: " + line for line in remaining_lines(a))
+    structure = report_lines(a.structure_report, a.offered)
+    if structure:
+        _out("")
+        _lines(structure)
     needed = a.physics_needed()
     if needed:
         _out("")
@@ -583,6 +589,12 @@ def build_parser() -> argparse.ArgumentParser:
             sp.add_argument("--max-steps", type=_positive_int, default=10, help="at most this many additions")
             sp.add_argument("--significance", type=_alpha, help="family-wise α (default from the config)")
             sp.add_argument("--strict", action="store_true", help="exit 1 when effects were added")
+            sp.add_argument(
+                "--search",
+                action="append",
+                metavar="SENSOR",
+                help="also search this sensor's residual structure (repeatable; misfit sensors always are)",
+            )
 
     sp = add("effects", cmd_effects, "list the catalogue of candidate effects")
     target(sp, required=False)

@@ -251,7 +251,9 @@ def candidate_table(candidates: Iterable, *, alpha: float, limit: int | None = 1
         )
     if limit and len(cands) > limit:
         lines.append(f"... {len(cands) - limit} more (all are in the JSON report)")
-    lines.append(f"* significant and identifiable at family-wise α = {alpha:g}: p adj = min(1, {len(cands)}·p) < α")
+    n_fam = sum(1 for c in cands if "_vs_" in c.effect.effect)
+    m = f"{len(cands) - n_fam}·p" + (f"; drift families counted apart, {n_fam}·p" if n_fam else "")
+    lines.append(f"* significant and identifiable at family-wise α = {alpha:g}: p adj = min(1, {m}) < α")
     lines.append(RULE)
     return lines
 

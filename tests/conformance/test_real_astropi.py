@@ -1,7 +1,9 @@
 """The real Astro Pi mission (``sample_data/missions/real-astropi-iss``, Raspberry Pi
-Foundation, CC BY-SA 4.0): discovery runs to its end, every addition lowers the held-out
-RMS, and the report says what remains against the estimated noise. The numbers are those
-of docs/case_studies/astropi.md."""
+Foundation, CC BY-SA 4.0): discovery runs its ten steps, every addition lowers the held-out
+RMS, and the report says what remains against the estimated noise. With the generic drift
+families (issue 26) the magnetometer's gains and bias following the orbit phase come first
+(docs/case_studies/discovery_past_catalogue.md); docs/case_studies/astropi.md gives the
+catalogue-only run (1.185 µT, 7.98× the noise)."""
 
 from __future__ import annotations
 
@@ -36,20 +38,22 @@ def discovered():
 def test_discovery_runs_to_its_end_and_every_addition_lowers_the_held_out_rms(discovered):
     a = discovered
     added = [s for s in a.steps if s.action == "add"]
-    assert added and a.stop_reason.startswith("no candidate is significant")
+    assert added and a.stop_reason.startswith(("no candidate is significant", "stopped after 10 steps"))
     held = [s.holdout_after["MAG"] for s in a.steps]
     assert all(later < earlier for earlier, later in zip(held, held[1:])), held
     ids = {s.effect for s in added}
-    assert {"MAG.scale", "MAG.nonorthogonality", "MAG.time_offset"} <= ids
+    assert {"MAG.nonorthogonality", "MAG.time_offset"} <= ids
+    assert "MAG.scale" in a.effects_in_state()  # with its family on the orbit phase
 
 
 def test_report_says_what_remains_against_the_estimated_noise(discovered):
     rep = analysis_report(discovered, command="discover")
     rem = rep["remaining"]["MAG"]
     assert rem["noise_estimated"] and not rem["consistent_with_noise"]
-    # docs/case_studies/astropi.md: 1.185 µT per component left, 8.0 times the 148.9 nT the sensor shows
-    assert rem["rms"] == pytest.approx(1.185 * one_uT, rel=0.02)
-    assert rem["rms_normalized"] == pytest.approx(7.98, abs=0.1)
+    # 1.020 µT per component left after ten steps, 6.85 times the 148.9 nT the sensor shows
+    # (the catalogue alone, docs/case_studies/astropi.md: 1.185 µT, 7.98 times)
+    assert rem["rms"] == pytest.approx(1.020 * one_uT, rel=0.02)
+    assert rem["rms_normalized"] == pytest.approx(6.85, abs=0.1)
 
 
 def test_earth_pointing_body_rate_is_the_frame_turn(discovered):

@@ -3,7 +3,8 @@ explanation of the selected one, and the add/refit history — normalized RMS pe
 on the fitted span with the held-out span beside it.
 
 ``a`` adds the selected candidate and refits in the background (asking first when it
-is not significant or not identifiable); ``r`` removes an effect already in the state.
+is not significant or not identifiable); ``r`` removes an effect already in the state;
+``y`` opens what the residuals follow (the residual-structure search, :mod:`.structure`).
 Every width keeps every column (the table scrolls sideways); the explanation pane
 scrolls and holds the whole paragraph, the full aliases and the estimates. Below 120
 columns the charts share the lower pane with the explanation (``g`` switches).
@@ -15,6 +16,7 @@ import math
 
 from rich.text import Text
 from textual.app import ComposeResult
+from textual.binding import Binding
 from textual.containers import Horizontal, Vertical, VerticalScroll
 from textual.widgets import DataTable, Static
 
@@ -37,7 +39,8 @@ class DiagnosisScreen(GcsScreen):
 
     VIEW = "diagnosis"
     CSS_PATH = "diagnosis.tcss"
-    BINDINGS = bindings(SCREENS["diagnosis"])
+    # y: what the residuals follow (issue 26), hidden from the footer
+    BINDINGS = [*bindings(SCREENS["diagnosis"]), Binding("y", "structure", "Residual structure", show=False)]
     NEEDS_FIT = True
 
     def compose_body(self) -> ComposeResult:
@@ -209,3 +212,13 @@ class DiagnosisScreen(GcsScreen):
 
     def action_remove_effect(self) -> None:
         self.app.action_remove_effect()
+
+    def action_structure(self) -> None:
+        """The residual-structure search's dependencies; one selected, its residual against
+        the channel (:mod:`gcs_tui.tui.screens.structure`)."""
+        from gcs_tui.tui.screens.structure import StructureScreen
+
+        if self.wb is None or self.wb.analysis.result is None:
+            self.app.notify("no fit yet", severity="warning")
+            return
+        self.app.push_screen(StructureScreen(self.wb.analysis))

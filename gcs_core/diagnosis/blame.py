@@ -1,0 +1,107 @@
+"""Blame the right sensor: which candidate discovery adds when several pass.
+
+One sensor's unexplained error moves the fitted attitude, and the other sensors'
+residuals then follow it: a perfect magnetometer's residual follows a temperature because
+a bending tracker tilts the attitude with it. A candidate on the magnetometer may then be
+significant, though the cause is the tracker. Two rules, applied to the candidates that
+pass the family-wise level (:func:`choose`):
+
+1. **Candidates on the channels the search found go first.** When the search found
+   sensor Y's residual following a channel, Y's candidates of that form (its families on
+   that channel or its aliases, or a catalogue effect of that form, a physics option
+   included) are chosen before any other; among them, the one that explains most for its
+   elements (:func:`choose`).
+2. **A candidate is not added on sensor X when its Δχ² comes mostly from another sensor
+   Y's residuals** (the score's share, ``Candidate.sensors``, below :data:`OWN_SHARE`
+   in X's own) while Y has a passing candidate whose Δχ² comes from Y itself: Y's
+   explanation is the stronger one. Effects of sensors without residuals of their own
+   (the gyro carrying the attitude) and physics effects are exempt.
+
+:func:`blame_text` says for each candidate where its Δχ² comes from.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+from gcs_core.diagnosis.families import channel_of
+from gcs_core.diagnosis.policy import BIC_TIE
+from gcs_core.diagnosis.ranking import Candidate, is_family
+from gcs_core.diagnosis.structure import Dependency, StructureReport
+
+#: share of a candidate's Δχ² its own sensor's residuals must give for it to stand alone
+OWN_SHARE = 0.5
+
+
+def own_share(c: Candidate) -> float | None:
+    """Share of ``c``'s Δχ² from its own sensor's residuals; None when that sensor has none
+    (a gyro, a physics option)."""
+    s = c.effect.sensor
+    if s is None or s not in c.sensors:  # a sensor with residuals scores its own effects
+        return None
+    return float(c.sensors[s])
+
+
+def matches(c: Candidate, d: Dependency) -> bool:
+    """``c`` has the form of dependency ``d``: a family on ``d``'s sensor made on its channel
+    or one of its aliases, or a catalogue effect (a physics option included) of that form."""
+    if c.id in d.catalogue:
+        return True
+    ch = channel_of(c.effect.effect)
+    if ch is None or c.effect.sensor != d.sensor:
+        return False
+    chans = {d.channel, *d.aliases}
+    return ch in chans or (ch == "orbit_phase" and bool(chans & {"sun_angle", "eclipse"}))
+
+
+def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int = 2) -> Candidate:
+    """The candidate to add among ``ok`` (passing, identifiable, most significant first):
+    rules 1 and 2 of the module docstring, else the most significant. Rule 1 takes, among
+    the passing candidates of the form of some finding of the search (each on its own
+    sensor), the one with the best Bayesian information criterion ``Δχ² − dof·ln n``
+    (``n`` measurements; Schwarz 1978): a Sun sensor's drifting offset that moves the
+    attitude explains more than the trackers' families on the same channel, and a family of
+    nine elements on a tracker whose residual follows the orbit does not win over a physics
+    option of one element that explains it through the attitude. Within
+    :data:`~gcs_core.diagnosis.policy.BIC_TIE` of the best, a catalogue effect wins."""
+    log_n = math.log(max(n_meas, 2))
+    found = report.found if report is not None else ()
+    first = [c for c in ok if any(matches(c, d) for d in found)]
+    if first:
+        bic = {c.id: c.delta_chi2 - c.dof * log_n for c in first}
+        best = max(bic.values())
+        # within BIC_TIE the data give no preference: the catalogue's effect (known physics)
+        return max(first, key=lambda c: (bic[c.id] >= best - BIC_TIE and not is_family(c.effect), bic[c.id]))
+    for c in ok:
+        own = own_share(c)
+        if own is None or own >= OWN_SHARE:
+            return c
+        source = max(c.sensors.items(), key=lambda kv: kv[1])[0]
+        theirs = [o for o in ok if o.effect.sensor == source and (own_share(o) or 0.0) >= OWN_SHARE]
+        if not theirs:
+            return c
+    return ok[0]
+
+
+def prefer_misfit(
+    top: Candidate, cands: Sequence[Candidate], report: StructureReport | None, alpha: float
+) -> Candidate:
+    """Among ``top``'s aliases (candidates the data cannot tell from it), the one on the
+    sensor whose own residual the search found structured, when ``top``'s sensor shows none:
+    a relative alignment between two trackers is either's, and the one whose residual
+    follows something is to blame (a tracker whose error follows the star's magnitude)."""
+    if report is None or top.effect.sensor is None or report.for_sensor(top.effect.sensor):
+        return top
+    by_id = {c.id: c for c in cands}
+    for alias, _ in top.aliases_candidates:
+        c = by_id.get(alias)
+        if c is not None and c.effect.sensor and report.for_sensor(c.effect.sensor) and c.p_adjusted < alpha:
+            return c
+    return top
+
+
+def blame_text(c: Candidate) -> str:
+    """``Δχ² from FHST2 (93%), TAM1 (5%)``: where a candidate's Δχ² comes from."""
+    parts = [f"{s} ({100 * v:.0f}%)" for s, v in sorted(c.sensors.items(), key=lambda kv: -kv[1]) if v >= 0.01]
+    return "Δχ² from " + (", ".join(parts) if parts else "no sensor's residuals")

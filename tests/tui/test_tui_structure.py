@@ -1,0 +1,43 @@
+"""The residual-structure list (issue 26): from Diagnosis, ``y`` lists what the residuals
+follow, and selecting one plots that residual against the channel."""
+
+from __future__ import annotations
+
+import pytest
+from textual.widgets import DataTable
+from tui_testing import sample_mission, settle
+
+from gcs_core.config import AnalysisConfig, save_config
+from gcs_tui.tui.app import GcsApp
+from gcs_tui.tui.screens.diagnosis import DiagnosisScreen
+from gcs_tui.tui.screens.structure import StructureScreen
+
+
+@pytest.mark.slow
+async def test_dependencies_listed_and_plotted(tmp_path):
+    mission = sample_mission("hidden-tam-contamination")
+    if mission is None:
+        pytest.skip("sample mission not bundled")
+    config = save_config(AnalysisConfig().with_changes(mission=mission), tmp_path / "analysis.toml")
+    app = GcsApp(config)
+    async with app.run_test(size=(120, 36)) as pilot:
+        await settle(pilot)
+        await pilot.press("f")  # fit
+        await settle(pilot)
+        await pilot.press("7")  # diagnosis
+        await settle(pilot)
+        assert isinstance(app.screen, DiagnosisScreen)
+        await pilot.press("y")
+        await settle(pilot)
+        screen = app.screen
+        assert isinstance(screen, StructureScreen)
+        table = screen.query_one("#deps", DataTable)
+        assert table.row_count > 0
+        first = screen.deps[0]
+        assert (first.sensor, first.channel) == ("TAM1", "aux:mtb_x")  # the hidden contamination's channel
+        await pilot.press("down")
+        await settle(pilot)
+        assert screen.query_one("#dep-plot")._painter is not None
+        await pilot.press("escape")
+        await settle(pilot)
+        assert isinstance(app.screen, DiagnosisScreen)
