@@ -89,7 +89,7 @@ def trusted(analysis) -> bool:
     method with a gyro, which holds the gyro-carried attitude exact, so that the attitude's
     wander shows in every sensor as a slow dependence (on time, the orbit, a temperature
     following it) its score tests cannot tell from a drift (``Analysis._method_warnings``)."""
-    return not (analysis.config.method == "batch" and analysis.problem.gyro_name is not None)
+    return analysis.estimator.gyro_process_noise or analysis.problem.gyro_name is None
 
 
 def offer(analysis, report: StructureReport) -> bool:
@@ -109,11 +109,12 @@ def offer(analysis, report: StructureReport) -> bool:
             changed = True
     if not changed:
         return False
-    old = analysis.result
+    record = analysis.record
     analysis.problem = analysis._build()
-    if old is not None:
+    if record is not None:
+        old = record.result
         values = old.state.values()
         merged = analysis.problem.state.with_values({k: v for k, v in values.items() if k in analysis.problem.state})
-        analysis.result = replace(old, state=merged)
+        analysis.record = replace(record, result=replace(old, state=merged))
     log.info("offered families: %s", ", ".join(f"{s}.{f}" for s, fs in new.items() for f in fs))
     return True

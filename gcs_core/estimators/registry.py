@@ -70,6 +70,13 @@ class Estimator(Protocol):
         (:data:`gcs_core.predictor.methods.PREDICTION_METHODS`)."""
         ...
 
+    @property
+    def gyro_process_noise(self) -> bool:
+        """Whether a gyro-carried attitude wanders under the gyro's noise in this estimator
+        (False: it holds the propagated attitude exact, so the wander shows in every sensor
+        as a slow dependence that score tests cannot tell from a drift)."""
+        ...
+
     def fit(
         self,
         problem: Problem,
@@ -108,6 +115,7 @@ class BatchEstimator:
     """Batch least squares (Eq 3-1, 3-2): the gyro-carried attitude taken as exact."""
 
     name: str = "batch"
+    gyro_process_noise: bool = False
     training: str = "batch"
     attitude_source: str = "batch"
     prediction: str = "information"
@@ -149,6 +157,7 @@ class WholeSpanEstimator:
     """Least squares over the whole span with the gyro's process noise (the default)."""
 
     name: str = "whole_span"
+    gyro_process_noise: bool = True
     training: str = "whole_span"
     attitude_source: str = "batch"
     prediction: str = "whole_span"
@@ -180,6 +189,7 @@ class KalmanEstimator:
     (the same model, and a filter pass per training fit would double the cost)."""
 
     name: str = "kalman"
+    gyro_process_noise: bool = True
     training: str = "batch"
     attitude_source: str = "filter"
     prediction: str = "kalman"
