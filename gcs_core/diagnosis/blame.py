@@ -10,7 +10,9 @@ pass the family-wise level (:func:`choose`):
    sensor Y's residual following a channel, Y's candidates of that form (its families on
    that channel or its aliases, or a catalogue effect of that form, a physics option
    included) are chosen before any other; among them, the one that explains most for its
-   elements (:func:`choose`).
+   elements (:func:`choose`). Unless a sensor's own candidate (its Δχ² from its own
+   residuals) explains clearly more than all of them: that sensor's error is then what
+   moves the attitude the others follow.
 2. **A candidate is not added on sensor X when its Δχ² comes mostly from another sensor
    Y's residuals** (the score's share, ``Candidate.sensors``, below :data:`OWN_SHARE`
    in X's own) while Y has a passing candidate whose Δχ² comes from Y itself: Y's
@@ -32,6 +34,8 @@ from gcs_core.diagnosis.structure import Dependency, StructureReport
 
 #: share of a candidate's Δχ² its own sensor's residuals must give for it to stand alone
 OWN_SHARE = 0.5
+#: share of a family's Δχ² a catalogue effect of the same sensor must explain to go first
+CATALOGUE_SHARE = 0.5
 
 
 def own_share(c: Candidate) -> float | None:
@@ -69,10 +73,22 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
     found = report.found if report is not None else ()
     first = [c for c in ok if any(matches(c, d) for d in found)]
     if first:
-        bic = {c.id: c.delta_chi2 - c.dof * log_n for c in first}
-        best = max(bic.values())
+        bic = {c.id: c.delta_chi2 - c.dof * log_n for c in ok}
+        best = max(bic[c.id] for c in first)
+        # a sensor's own explanation that explains clearly more than anything of the search's
+        # forms comes first: its error moves the attitude, and the other sensors' residuals
+        # follow the orbit only through it (a Sun sensor's harmonic against the trackers'
+        # orbit families)
+        # (and a catalogue effect of its own that ties with them: known physics first)
+        theirs_own = [c for c in ok if c not in first and (own_share(c) or 0.0) >= OWN_SHARE]
+        stronger = [
+            c for c in theirs_own if bic[c.id] > best + BIC_TIE or (not is_family(c.effect) and bic[c.id] >= best - BIC_TIE)
+        ]
+        if stronger:
+            return max(stronger, key=lambda c: bic[c.id])
         # within BIC_TIE the data give no preference: the catalogue's effect (known physics)
-        return max(first, key=lambda c: (bic[c.id] >= best - BIC_TIE and not is_family(c.effect), bic[c.id]))
+        pick = max(first, key=lambda c: (bic[c.id] >= best - BIC_TIE and not is_family(c.effect), bic[c.id]))
+        return _catalogue_first(pick, ok, bic)
     for c in ok:
         own = own_share(c)
         if own is None or own >= OWN_SHARE:
@@ -82,6 +98,26 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
         if not theirs:
             return c
     return ok[0]
+
+
+def _catalogue_first(pick: Candidate, ok: Sequence[Candidate], bic: dict[str, float]) -> Candidate:
+    """A generic family is added only for what the catalogue cannot explain: when a passing
+    catalogue effect of the family's sensor, scored on that sensor's own residuals, explains
+    at least :data:`CATALOGUE_SHARE` of the family's Δχ², that effect goes first (a
+    magnetometer's scale and non-orthogonality before a bias following the orbit's second
+    harmonic, which a matrix error also makes); the search runs again after it, and the
+    family comes back if a dependence remains."""
+    if not is_family(pick.effect):
+        return pick
+    known = [
+        c
+        for c in ok
+        if not is_family(c.effect)
+        and c.effect.sensor == pick.effect.sensor
+        and (own_share(c) or 0.0) >= OWN_SHARE
+        and c.delta_chi2 >= CATALOGUE_SHARE * pick.delta_chi2
+    ]
+    return max(known, key=lambda c: bic[c.id]) if known else pick
 
 
 def prefer_misfit(

@@ -161,7 +161,8 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
     ok = np.isfinite(scale) & (scale < SCALE_MAX) & (np.diag(Ainv) > 0)
     failed = tuple(n for n, good in zip(names, ok) if not good)
     if failed:
-        log.warning("σ scale not estimable (numerically) for %s: left out", ", ".join(failed))
+        # the report and the σ-scale block name them; not a warning of the fit (no TUI notice)
+        log.info("σ scale not estimable (numerically) for %s: left out", ", ".join(failed))
     kept = {n: float(x) for n, x, good in zip(names, scale, ok) if good}
     return SigmaScale(sensors, float(block_s), n_blocks, kept, failed)
 

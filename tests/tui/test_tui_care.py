@@ -209,7 +209,14 @@ def test_rows_with_similar_sigma_share_a_unit():
 
 def test_no_p_of_zero_in_the_cli_table():
     cand = SimpleNamespace(
-        id="TAM1.scale", delta_chi2=5000.0, dof=3, p_value=0.0, p_adjusted=0.0, identifiable=True, passes=True
+        id="TAM1.scale",
+        effect=SimpleNamespace(sensor="TAM1", effect="scale"),
+        delta_chi2=5000.0,
+        dof=3,
+        p_value=0.0,
+        p_adjusted=0.0,
+        identifiable=True,
+        passes=True,
     )
     lines = tables.candidate_table([cand], alpha=0.001)
     assert "< 1e-16" in lines[1] and " 0 " not in lines[1]
