@@ -82,7 +82,9 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
         # (and a catalogue effect of its own that ties with them: known physics first)
         theirs_own = [c for c in ok if c not in first and (own_share(c) or 0.0) >= OWN_SHARE]
         stronger = [
-            c for c in theirs_own if bic[c.id] > best + BIC_TIE or (not is_family(c.effect) and bic[c.id] >= best - BIC_TIE)
+            c
+            for c in theirs_own
+            if bic[c.id] > best + BIC_TIE or (not is_family(c.effect) and bic[c.id] >= best - BIC_TIE)
         ]
         if stronger:
             return max(stronger, key=lambda c: bic[c.id])
