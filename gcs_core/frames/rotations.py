@@ -117,7 +117,8 @@ def quat_normalize(q):
     """Unit quaternion with non-negative scalar part (the sign convention GCS stores)."""
     q = np.asarray(q, dtype=float)
     n = np.linalg.norm(q, axis=-1, keepdims=True)
-    q = q / n
+    with np.errstate(invalid="ignore", divide="ignore"):  # a missing (NaN or zero) sample stays NaN
+        q = q / n
     return np.where(q[..., 3:4] < 0.0, -q, q)
 
 
