@@ -25,7 +25,6 @@ often is that spacecraft-day's error.
 from __future__ import annotations
 
 import logging
-import os
 import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
@@ -116,38 +115,14 @@ def _prepare(m: Manifest, store: FleetStore, sc, day: str) -> _Prepared:
     return _Prepared(e, job=job, done=done)
 
 
-def _pinned_env() -> dict:
-    from gcs_core.trade.engine import PIN_ENV
-
-    return dict(PIN_ENV)
-
-
 def connect(workers: int, scheduler: str | None):
     """(client, cluster or None): a LocalCluster of ``workers`` pinned processes on
-    127.0.0.1, or a client of the cluster at ``scheduler``."""
-    try:
-        import dask
-        from dask.distributed import Client, LocalCluster
-    except ImportError:  # pragma: no cover - an optional extra
-        raise GcsError("gcs fleet needs dask and distributed (pip install 'gcs[scale]')") from None
-    if scheduler:
-        try:
-            return Client(scheduler, timeout="20s"), None
-        except OSError as err:
-            raise GcsError(f"cannot reach the Dask scheduler at {scheduler} ({one_line(err)})") from None
-    env = _pinned_env()
-    for k, v in env.items():
-        os.environ.setdefault(k, v)
-    dask.config.set({"distributed.nanny.pre-spawn-environ": env, "distributed.worker.daemon": False})
-    cluster = LocalCluster(
-        n_workers=int(workers),
-        threads_per_worker=1,
-        processes=True,
-        host="127.0.0.1",
-        dashboard_address="127.0.0.1:0",
-        silence_logs=logging.ERROR,
-    )
-    return Client(cluster), cluster
+    127.0.0.1, or a client of the cluster at ``scheduler``, reached and checked as the trade
+    studies do it (:func:`gcs_core.trade.engine.connect`: one line, exit 2, within seconds,
+    when nothing Dask answers there)."""
+    from gcs_core.trade.engine import connect as dask_connect
+
+    return dask_connect(workers, scheduler)
 
 
 def _worker_memory() -> dict:

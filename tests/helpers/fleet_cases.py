@@ -27,9 +27,9 @@ def local_cluster(workers: int = 2):
     import dask
     from dask.distributed import Client, LocalCluster
 
-    from gcs_core.fleet.run import _pinned_env
+    from gcs_core.trade.engine import PIN_ENV
 
-    with dask.config.set({"distributed.nanny.pre-spawn-environ": _pinned_env()}):
+    with dask.config.set({"distributed.nanny.pre-spawn-environ": dict(PIN_ENV)}):
         cluster = LocalCluster(
             n_workers=workers,
             threads_per_worker=1,
