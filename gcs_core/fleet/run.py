@@ -274,8 +274,8 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
                     outcome = Outcome(p.entry.spacecraft, p.entry.day, p.entry.input_hash)
                     outcome.error = one_line(f"task failed: {type(err).__name__}: {err}")
                 fut.release()
+                refill()  # the workers' queues first: the append below runs while they compute
                 order.settle(p.entry, outcome, p.done)
-                refill()
             for p2 in items:  # anything left (only skips and errors once the window is empty)
                 order.settle(p2.entry) if p2.job is None else order.settle(p2.entry, _not_run(p2))
         run.compute_s = time.perf_counter() - t_up
