@@ -10,15 +10,14 @@ page. The text export must be plain characters. Residuals are synthetic and seed
 from __future__ import annotations
 
 import os
-import shutil
 import struct
-import subprocess
 import zlib
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from browser import chromium, screenshot
 
 from gcs_core.units import ARCSEC
 from gcs_tui.cli.export import export_residual_plots
@@ -82,14 +81,6 @@ def _umask() -> int:
     return m
 
 
-def _chromium() -> str | None:
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        path = shutil.which(name)
-        if path:
-            return path
-    return None
-
-
 def read_png(path: Path) -> np.ndarray:
     """(H, W, 3) uint8 of an 8-bit RGB or RGBA, non-interlaced PNG (what Chromium writes)."""
     data = path.read_bytes()
@@ -139,7 +130,7 @@ def read_png(path: Path) -> np.ndarray:
 
 def test_html_plots_render_in_a_real_browser(tmp_path):
     """Chromium draws the page: the band, the axes and the text are there in the pixels."""
-    browser = _chromium()
+    browser = chromium()
     if browser is None:
         pytest.skip(
             "no Chromium: `make test` installs it with apt-get (apt-get install chromium); "
@@ -147,18 +138,7 @@ def test_html_plots_render_in_a_real_browser(tmp_path):
         )
     (page,) = export_residual_plots(fake_analysis(), tmp_path, fmt="html")
     png = tmp_path / "page.png"
-    cmd = [
-        browser,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--hide-scrollbars",
-        f"--user-data-dir={tmp_path / 'profile'}",
-        "--window-size=1000,1300",
-        f"--screenshot={png}",
-        page.as_uri(),
-    ]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=60)
+    run = screenshot(browser, page, png, width=1000, height=1300)
     assert png.is_file(), run.stderr[-2000:]
     img = read_png(png).astype(int)
     h, w, _ = img.shape

@@ -16,11 +16,11 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
 from dataclasses import replace
 
 import numpy as np
 import pytest
+from browser import chromium, screenshot
 from fleet_cases import local_cluster, small_fleet
 
 from gcs_core.config import save_config
@@ -199,27 +199,14 @@ def test_a_task_never_reads_the_submitters_paths(fleet, tmp_path):
 
 
 def test_the_html_report_opens_in_headless_chromium_with_its_table_and_trends(fleet, tmp_path):
-    from test_plot_export import _chromium
-
-    browser = _chromium()
+    browser = chromium()
     if browser is None:
         pytest.skip("no Chromium: `make test` installs it with apt-get (apt-get install chromium)")
     image = pytest.importorskip("PIL.Image")
     page = tmp_path / "fleet.html"
     page.write_text(render_html(fleet["report"]))
     png = tmp_path / "fleet.png"
-    cmd = [
-        browser,
-        "--headless",
-        "--no-sandbox",
-        "--disable-gpu",
-        "--hide-scrollbars",
-        f"--user-data-dir={tmp_path / 'profile'}",
-        "--window-size=1200,4000",
-        f"--screenshot={png}",
-        page.as_uri(),
-    ]
-    run = subprocess.run(cmd, capture_output=True, text=True, timeout=90)
+    run = screenshot(browser, page, png, width=1200, height=4000, timeout=90)
     assert png.is_file(), run.stderr[-2000:]
     img = np.asarray(image.open(png).convert("RGB")).astype(int)
 
