@@ -119,6 +119,26 @@ class GcsApp(App):
         self.crash_line = ""
         """One line naming an unhandled error and the log holding its traceback ('' if none)."""
 
+    def notify(
+        self,
+        message: str,
+        *,
+        title: str = "",
+        severity: Any = "information",
+        timeout: float | None = None,
+        markup: bool = False,
+    ) -> None:
+        """A toast, its text made safe: messages carry paths and errors from files others wrote,
+        so control and bidi characters are shown escaped (:func:`gcs_core.textsafe.terminal_safe`)
+        and brackets are text, not markup (a file named ``[red]x`` is shown as it is named)."""
+        super().notify(
+            terminal_safe(message),
+            title=terminal_safe(title, one_line=True),
+            severity=severity,
+            timeout=timeout,
+            markup=markup,
+        )
+
     def _handle_exception(self, error: Exception) -> None:
         """An unhandled error: its traceback to a log file, one line for the CLI, exit 4
         (:mod:`gcs_tui.tui.crash`) — never a traceback on the terminal."""

@@ -180,3 +180,16 @@ async def test_a_plot_error_is_drawn_not_raised(tmp_path):
         plot.paint(bad)
         await pilot.pause()
         assert "plot not drawn" in str(plot.render())
+
+
+async def test_a_toast_shows_a_hostile_name_as_text(tmp_path):
+    """Error toasts carry paths and messages from files others wrote: control and bidi
+    characters are shown escaped and brackets stay text (no markup, no MarkupError)."""
+    app = GcsApp()
+    async with app.run_test(size=(80, 24)) as pilot:
+        app.notify("bad file [red]x\x1b]2;PWNED\x07\u202e.csv[/]", title="open\x1b[2J failed", severity="error")
+        await pilot.pause()
+        (toast,) = list(app._notifications)
+        assert "\x1b" not in toast.message and "\u202e" not in toast.message
+        assert "[red]x\\x1b]2;PWNED\\x07\\u202e.csv[/]" in toast.message
+        assert toast.title == "open\\x1b[2J failed" and toast.markup is False
