@@ -102,6 +102,17 @@ def channel_unit(tag: str, unit_of_aux) -> str:
     return unit_of_aux(tag)
 
 
+def family_unit(unit: str, tag: str) -> str:
+    """Unit of a family's coefficient on a parameter in ``unit``: the parameter's own for the
+    orbit's harmonics (an amplitude), per hour for time, per °C for a channel named as a
+    temperature, and per unit of the channel otherwise (aux.csv carries no units)."""
+    if tag in ORBIT_TAGS:
+        return unit
+    if tag == TIME_TAG:
+        return f"{unit}/h"
+    return f"{unit}/degC" if "temp" in tag.lower() else f"{unit} per unit of {tag}"
+
+
 class DriftingModel(ObservationModel):
     """A model with generic families added (module docstring); everything else is the
     wrapped model's. Made by :func:`with_families`, one subclass per wrapped type."""
@@ -128,7 +139,7 @@ class DriftingModel(ObservationModel):
                     extra.append(
                         ParamSpec(
                             name,
-                            f"{sp.unit}/x",
+                            family_unit(sp.unit, tag),
                             0.0,
                             10.0 * sp.sigma,
                             seed=False,

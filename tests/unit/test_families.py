@@ -73,6 +73,15 @@ def test_names_say_physics_and_unit():
     assert family_name("alignment") is None
 
 
+def test_elements_carry_the_unit_of_their_channel():
+    from gcs_core.models.drift import family_unit
+
+    assert family_unit("rad", "tam_temp") == "rad/degC"
+    assert family_unit("rad", "orbit1") == "rad"  # an amplitude
+    assert family_unit("nT", "time") == "nT/h"
+    assert family_unit("1", "mtb_x") == "1 per unit of mtb_x"
+
+
 def test_offers_on_the_channel_and_its_aliases():
     model, *_ = CASES["star_tracker"](np.random.default_rng(0))
     dep = Dependency(
