@@ -357,8 +357,16 @@ def _drift(key: str, default_axis=None, pattern=None):
     return apply
 
 
+#: phase φ [rad] of the once-per-orbit tilt ``A sin(u + φ)`` (gcs_core/sim/drifts.py)
+ORBIT_BEND_PHASE = 0.7
+
+
 def _orbit_bend(s, m, kw):
-    s.true["orbit_bend"] = {"amplitude": float(m), "axis": list(kw.get("axis", (0.0, 1.0, 0.0))), "phase": 0.7}
+    s.true["orbit_bend"] = {
+        "amplitude": float(m),
+        "axis": list(kw.get("axis", (0.0, 1.0, 0.0))),
+        "phase": ORBIT_BEND_PHASE,
+    }
 
 
 _VEC3 = ("magnetometer", "gyro", "star_tracker", "fine_sun", "coarse_sun")

@@ -19,7 +19,7 @@ from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.families import channel_of
 from gcs_core.session import Analysis
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm
-from gcs_core.sim.scenarios import with_effect
+from gcs_core.sim.scenarios import ORBIT_BEND_PHASE, with_effect
 from gcs_core.sim.writer import write_mission
 
 ARCSEC = np.radians(1.0 / 3600.0)
@@ -86,6 +86,24 @@ def true_slopes(case: DriftCase, analysis: Analysis) -> dict[str, float]:
 
         d = (rpy(0.5) - rpy(-0.5)) / 1.0
         return {f"{sensor}.align_{i + 1}_vs_tam_temp": float(d[i]) for i in range(3)}
+    if case.kind == "tracker_orbit":
+        # the simulator's tilt A sin(u + φ) about its axis (sim/scenarios.py: φ = 0.7 rad, axis y)
+        # = A sin φ cos u + A cos φ sin u: each harmonic's coefficient times the change of the
+        # alignment's angles per radian turned about the axis
+        book = analysis.mission.spec.sensor(sensor).alignment_deg or (0.0, 0.0, 0.0)
+        M = rpy_to_dcm(*np.radians(np.asarray(book, dtype=float)))
+        axis = np.asarray(case.options.get("axis", (0.0, 1.0, 0.0)), dtype=float)
+        eps = ARCSEC
+        g = (
+            np.asarray(dcm_to_rpy(rotvec_to_dcm(eps * axis) @ M))
+            - np.asarray(dcm_to_rpy(rotvec_to_dcm(-eps * axis) @ M))
+        ) / (2 * eps)
+        phase = ORBIT_BEND_PHASE
+        out = {}
+        for i in range(3):
+            out[f"{sensor}.align_{i + 1}_vs_orbit1_cos"] = float(case.magnitude * np.sin(phase) * g[i])
+            out[f"{sensor}.align_{i + 1}_vs_orbit1_sin"] = float(case.magnitude * np.cos(phase) * g[i])
+        return out
     if case.kind == "sun_sensor_bias_temperature":
         return {f"{sensor}.A1_vs_tam_temp": case.magnitude, f"{sensor}.B1_vs_tam_temp": -0.6 * case.magnitude}
     if case.kind == "magnetometer_scale_temperature":
