@@ -25,9 +25,17 @@ from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_d
 from gcs_core.models import make_model
 from gcs_core.models.base import ParamSpec
 from gcs_core.models.gyro_noise import gyro_noise
+from gcs_core.models.gyro_steps import GyroStepModel, gyro_families, step_channels, step_tags
 from gcs_core.problem.attitude import RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude, rpy_specs
 from gcs_core.problem.gyro_attitude import GyroAttitude
-from gcs_core.problem.prepare import GeometryBuilder, HeldChannels, PhysicsOptions, SensorData, prepare_sensors
+from gcs_core.problem.prepare import (
+    GeometryBuilder,
+    HeldChannels,
+    PhysicsOptions,
+    SensorData,
+    aux_channel_names,
+    prepare_sensors,
+)
 from gcs_core.problem.state import HELD, SOLVE_FOR, Element, StateVector
 from gcs_core.units import DEG
 
@@ -244,7 +252,7 @@ def build_problem(
         sensors = _with_families(sensors, families, builder)
     mode = spec.attitude_mode
     gyros = [s for s in spec.sensors if s.type == "gyro"]
-    attitude = _attitude_provider(mission, eph, gyros, use_gyro, chunk_frames)
+    attitude = _attitude_provider(mission, eph, gyros, use_gyro, chunk_frames, families)
     gyro_name = attitude.gyro
     types = {s.name: s.type for s in spec.sensors}
     tables = {sd.name: _slim_table(mission.telemetry[sd.name], sd, types[sd.name]) for sd in sensors}
@@ -254,6 +262,8 @@ def build_problem(
     models = {sd.name: sd.model for sd in sensors}
     for g in gyros:
         models.setdefault(g.name, make_model(g))
+    if gyro_name is not None and getattr(attitude, "step_tags", ()):
+        models[gyro_name] = GyroStepModel(models[gyro_name], attitude.step_tags)
     param_map = _sensor_elements(spec, models, elements, use_gyro, gyro_name)
     elements = _link_sun_sensor_tilt(spec, elements, param_map)
     state = StateVector(tuple(elements))
@@ -272,10 +282,13 @@ def build_problem(
     )
 
 
-def _attitude_provider(mission, eph: Ephemeris, gyros: list, use_gyro: bool, chunk_frames: int) -> AttitudeProvider:
+def _attitude_provider(
+    mission, eph: Ephemeris, gyros: list, use_gyro: bool, chunk_frames: int, families=None
+) -> AttitudeProvider:
     """SIDP's attitude provider: the spin axis (Eq 4-2) on a spinning mission, the first gyro
     carrying the attitude (seed §4.2.7, Eq 4-32, 4-38) when there is one and ``use_gyro``, else constant
-    roll/pitch/yaw from the reference frame (Eq 4-6)."""
+    roll/pitch/yaw from the reference frame (Eq 4-6). The gyro's ``bias_vs_<channel>``
+    families among ``families`` make its bias follow those aux channels (:mod:`gcs_core.models.gyro_steps`)."""
     spec = mission.spec
     mode = spec.attitude_mode
     if mode == "spinning":
@@ -283,6 +296,7 @@ def _attitude_provider(mission, eph: Ephemeris, gyros: list, use_gyro: bool, chu
     if gyros and use_gyro:
         g = gyros[0]
         tab = mission.telemetry[g.name]
+        tags = step_tags(gyro_families(families, g.name), aux_channel_names(mission.aux))
         return GyroAttitude(
             mode,
             eph,
@@ -291,6 +305,7 @@ def _attitude_provider(mission, eph: Ephemeris, gyros: list, use_gyro: bool, chu
             tab.stack(("wx", "wy", "wz")),
             block_knots=chunk_frames,
             earth_rate=spec.earth_rate_rad_s,
+            steps=step_channels(tab.t, mission.aux, tags),
         )
     return ReferenceAttitude(mode, eph)
 
