@@ -19,7 +19,13 @@ frame times ``sd.t`` (:func:`sensor_channels`):
   magnetometer the measured field's direction ``b/|b|`` in the sensor frame);
 * ``tlm:<column>`` — a telemetry column of the sensor that is not a measurement (a star
   tracker's ``mag``, the catalogue magnitude of the star it reports);
-* ``time`` — seconds from the first frame (a drift; its bins see steps).
+* ``time`` — seconds from the first frame (a drift; its bins see steps);
+* ``int:<name>`` — with a gyro carrying the attitude, the time integral of each *switched*
+  aux channel (two levels: a heater, a valve, a power state) [unit × s], ``∫(x − x̄) dt``
+  less its least-squares quadratic in time over the span. A gyro bias that steps with the
+  switch moves the carried attitude by ``∫ k x dt``; the fit's attitude, bias and bias rate
+  take up its constant, linear and quadratic parts, and what is left in every sensor's
+  residual follows this channel, not the switch itself (:mod:`gcs_core.models.gyro_steps`).
 
 Each :class:`Channel` carries the unit it is in, what kind it is (for the catalogue's forms
 and for the families) and the values; NaN where undefined.
@@ -102,6 +108,30 @@ def _held(t_src: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.asarray(values, dtype=float)[k]
 
 
+def switched_integrals(aux, t: np.ndarray) -> dict[str, np.ndarray]:
+    """``int:<name>`` at times ``t`` of each aux channel with exactly two levels (module
+    docstring): the held channel (ICD §6) integrated exactly between its rows, its mean
+    over the rows' span taken out, then the least-squares quadratic in time."""
+    out: dict[str, np.ndarray] = {}
+    if aux is None or len(aux) < 4:
+        return out
+    ta = np.asarray(aux.t, dtype=float)
+    for name, col in aux.columns.items():
+        x = np.asarray(col, dtype=float)
+        if name == "t" or not np.all(np.isfinite(x)) or np.unique(x).size != 2:
+            continue
+        span = ta[-1] - ta[0]
+        dx = x - float(np.sum(x[:-1] * np.diff(ta)) / span)  # about the time mean of the held channel
+        cum = np.concatenate([[0.0], np.cumsum(dx[:-1] * np.diff(ta))])  # ∫ at the rows
+        k = np.clip(np.searchsorted(ta, t, side="right") - 1, 0, ta.size - 1)
+        val = cum[k] + dx[k] * (t - ta[k])
+        tt = (t - ta[0]) / span
+        V = np.column_stack([np.ones_like(tt), tt, tt * tt])
+        coef, *_ = np.linalg.lstsq(V, val, rcond=None)
+        out[f"int:{name}"] = val - V @ coef
+    return out
+
+
 def rate_channels(gyro_table, t: np.ndarray) -> dict[str, np.ndarray]:
     """The measured body rate (interpolated to ``t``), its magnitude and the angle turned."""
     tg = np.asarray(gyro_table.t, dtype=float)
@@ -138,6 +168,10 @@ def sensor_channels(
         out.append(Channel("sun_angle", "sun", "rad", orb["sun_angle"]))
         if np.any(orb["eclipse"] > 0) and np.any(orb["eclipse"] == 0):
             out.append(Channel("eclipse", "eclipse", "1", orb["eclipse"]))
+    if gyro is not None and sd.model.attitude_kind == "three_axis":
+        for name, vals in switched_integrals(getattr(builder, "aux", None), t).items():
+            ch = name[4:]
+            out.append(Channel(name, "aux_integral", f"{aux_unit(ch)} × s", vals))
     if telemetry is not None and gyro is not None and gyro in telemetry:
         for name, vals in rate_channels(telemetry[gyro], t).items():
             kind = "angle" if name == "angle_turned" else "rate"
