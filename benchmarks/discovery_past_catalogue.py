@@ -3,8 +3,10 @@
 Kinds (``tests/helpers/drift_cases.py``, the simulator's own physics in
 :mod:`gcs_core.sim.drifts`): a tracker bending 4″/°C with the bench temperature about a
 focal-plane axis, a tracker tilting 10″ once per orbit, a Sun sensor's offsets following
-the temperature, a magnetometer's gains following it, and a tracker error following the
-star's magnitude (no family holds it). For each kind and span (4 h, 8 h) over ``--seeds``
+the temperature, a magnetometer's gains following it, the gyro's drift-rate bias stepping
+0.05 °/h while its heater is on (``gyro_heater``: the aux channel ``iru_heater``, a
+thermostat's duty cycle), and a tracker error following the star's magnitude (no family
+holds it). For each kind and span (4 h, 8 h) over ``--seeds``
 seeds, one row:
 
 * ``right``: the first effect added is on the right sensor and made on the right channel

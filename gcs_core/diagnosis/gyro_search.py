@@ -14,12 +14,13 @@ samples are correlated over many knots, have too few independent values for a bi
 What does see it is the score test of the gyro's bias following the channel, formed with
 the whole-span fit's own elimination of the knots (:func:`gcs_core.diagnosis.ranking.rank_candidates`):
 the exact test of this one form, χ² on 3 degrees of freedom under the null. So the search
-on the gyro is that test, one per *switched* aux channel (exactly two levels: a heater, a
-valve, a power state); its p-value is counted in the search's family-wise correction like
-every binned test, and a finding offers the family ``<GYRO>.bias_vs_<channel>``
-(:mod:`gcs_core.models.gyro_steps`). On a mission without a switched channel nothing is
-tested and nothing changes. Not under the batch method (its findings are not acted on,
-:func:`gcs_core.diagnosis.search.trusted`) nor when the attitude is not gyro-carried.
+on the gyro is that test, one per switch (an aux channel of values 0 and 1: a heater, a
+valve, a power state; :func:`gcs_core.diagnosis.channels.switch_channels`); its p-value
+is counted in the search's family-wise correction like every binned test, and a finding
+offers the family ``<GYRO>.bias_vs_<channel>`` (:mod:`gcs_core.models.gyro_steps`). On a
+mission without a switch nothing is tested and nothing changes. Not under the batch
+method (its findings are not acted on, :func:`gcs_core.diagnosis.search.trusted`) nor when
+the attitude is not gyro-carried.
 """
 
 from __future__ import annotations
@@ -29,24 +30,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from gcs_core.diagnosis.channels import aux_unit
+from gcs_core.diagnosis.channels import aux_unit, switch_channels
 from gcs_core.diagnosis.structure import Dependency
 from gcs_core.problem.state import HELD
 
 log = logging.getLogger(__name__)
 AXES = "xyz"
-
-
-def switched_channels(aux) -> tuple[str, ...]:
-    """The aux channels with exactly two levels (finite values)."""
-    if aux is None or len(aux) < 4:
-        return ()
-    out = []
-    for name, col in aux.columns.items():
-        x = np.asarray(col, dtype=float)
-        if name != "t" and np.all(np.isfinite(x)) and np.unique(x).size == 2:
-            out.append(name)
-    return tuple(out)
 
 
 def _scored(analysis, gyro: str, tag: str):
@@ -90,7 +79,7 @@ def gyro_dependencies(analysis) -> list[Dependency]:
     if gyro is None or not isinstance(prob.attitude, GyroAttitude) or not trusted(analysis):
         return []
     out = []
-    for tag in switched_channels(analysis.mission.aux):
+    for tag in switch_channels(analysis.mission.aux):
         c = _scored(analysis, gyro, tag)
         if c is None:
             continue

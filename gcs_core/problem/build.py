@@ -24,6 +24,7 @@ from gcs_core.errors import ConfigError, InputError
 from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import ParamSpec
+from gcs_core.models.gyro import GyroModel
 from gcs_core.models.gyro_noise import gyro_noise
 from gcs_core.models.gyro_steps import GyroStepModel, gyro_families, step_channels, step_tags
 from gcs_core.problem.attitude import RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude, rpy_specs
@@ -262,8 +263,8 @@ def build_problem(
     models = {sd.name: sd.model for sd in sensors}
     for g in gyros:
         models.setdefault(g.name, make_model(g))
-    if gyro_name is not None and getattr(attitude, "step_tags", ()):
-        models[gyro_name] = GyroStepModel(models[gyro_name], attitude.step_tags)
+    if gyro_name is not None and isinstance(attitude, GyroAttitude) and attitude.step_tags:
+        models[gyro_name] = GyroStepModel(cast(GyroModel, models[gyro_name]), attitude.step_tags)
     param_map = _sensor_elements(spec, models, elements, use_gyro, gyro_name)
     elements = _link_sun_sensor_tilt(spec, elements, param_map)
     state = StateVector(tuple(elements))

@@ -29,8 +29,8 @@ __all__ = ["AuxSchedule", "MTB_CHANNELS"]
 class AuxSchedule:
     """Switch schedule of the torquers over the whole mission (small: a few per hour)."""
 
-    columns = ("t",) + MTB_CHANNELS + ("tam_temp",)
-    formats = ("%.12g",) * 5
+    columns: tuple[str, ...] = ("t",) + MTB_CHANNELS + ("tam_temp",)
+    formats: tuple[str, ...] = ("%.12g",) * 5
 
     def __init__(
         self, cfg: AuxConfig, duration_s: float, rng: np.random.Generator, heater_rng: np.random.Generator | None = None

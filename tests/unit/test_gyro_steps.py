@@ -64,9 +64,9 @@ def test_step_partials_match_finite_differences(monkeypatch, compiled):
         col = ev.names.index(name)
         plus = dict(values, **{name: values[name] + h})
         minus = dict(values, **{name: values[name] - h})
-        fd = (_dtheta(np.array(att.evaluate(plus, t).C_BI), C0) - _dtheta(np.array(att.evaluate(minus, t).C_BI), C0)) / (
-            2 * h
-        )
+        fd = (
+            _dtheta(np.array(att.evaluate(plus, t).C_BI), C0) - _dtheta(np.array(att.evaluate(minus, t).C_BI), C0)
+        ) / (2 * h)
         J = ev.J[:, :, col]
         scale = np.max(np.abs(fd))
         assert scale > 0
