@@ -68,7 +68,7 @@ class GyroStepModel(GyroModel):
         extra = tuple(
             ParamSpec(
                 f"bias_{ax}_vs_{tag}",
-                "rad/s/x",
+                f"rad/s per unit of {tag}",
                 0.0,
                 STEP_SIGMA,
                 seed=False,
