@@ -69,6 +69,8 @@ class Channel:
     @property
     def label(self) -> str:
         """The channel as the analyst knows it (``tam_temp``, ``orbit phase``)."""
+        if self.kind == "aux_integral":
+            return f"∫{self.name[4:]} dt"
         return self.name.split(":", 1)[1] if ":" in self.name else self.name.replace("_", " ")
 
 

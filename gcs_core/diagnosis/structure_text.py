@@ -30,6 +30,8 @@ def channel_text(value: float, d: Dependency) -> str:
         return f"{value / DEG:.0f}°"
     if d.channel_unit == "rad/s":
         return f"{display.sig(value / DEG * 3600.0, 2)} deg/h"
+    if d.kind == "aux_integral":  # a switch's time integral: seconds on
+        return f"{display.sig(value, 2)} s"
     if d.channel_unit == "s":
         return f"{value / 3600.0:.1f} h"
     if d.channel_unit == "1":
@@ -39,6 +41,8 @@ def channel_text(value: float, d: Dependency) -> str:
 
 
 def label(channel: str) -> str:
+    if channel.startswith("int:"):  # the time integral of a switch
+        return f"∫{channel[4:]} dt"
     return channel.split(":", 1)[1] if ":" in channel else channel.replace("_", " ")
 
 
