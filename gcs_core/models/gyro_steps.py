@@ -60,7 +60,7 @@ class GyroStepModel(GyroModel):
     held by default: candidates). The propagation carries them (module docstring); as an
     observation model (a gyro not carrying the attitude) they are not offered."""
 
-    def __init__(self, inner: GyroModel, tags: Sequence[str]):
+    def __init__(self, inner: ObservationModel, tags: Sequence[str]):
         super().__init__(inner.sensor, aux_channels=inner.aux_channels)
         self.step_tags = tuple(tags)
 
@@ -89,8 +89,12 @@ def with_steps(model: ObservationModel, families: Sequence[str], aux_names: Iter
     return GyroStepModel(model, tags)
 
 
-def gyro_families(families: Mapping[str, Sequence[str]] | None, gyro: str | None) -> tuple[str, ...]:
-    """The family effects named for the gyro ``gyro`` (empty without)."""
-    if not families or gyro is None:
-        return ()
-    return tuple(families.get(gyro, ()))
+def gyro_step_channels(
+    families: Mapping[str, Sequence[str]] | None, gyro: str, t_rows: np.ndarray, aux
+) -> dict[str, np.ndarray]:
+    """channel -> (K,) at the gyro's rows, for the ``bias_vs_<channel>`` families named for
+    ``gyro`` among ``families`` (sensor -> family effects) whose channel ``aux`` has."""
+    from gcs_core.problem.prepare import aux_channel_names
+
+    tags = step_tags((families or {}).get(gyro, ()), aux_channel_names(aux))
+    return step_channels(t_rows, aux, tags)

@@ -24,19 +24,11 @@ from gcs_core.errors import ConfigError, InputError
 from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_dcm
 from gcs_core.models import make_model
 from gcs_core.models.base import ParamSpec
-from gcs_core.models.gyro import GyroModel
 from gcs_core.models.gyro_noise import gyro_noise
-from gcs_core.models.gyro_steps import GyroStepModel, gyro_families, step_channels, step_tags
+from gcs_core.models.gyro_steps import GyroStepModel, gyro_step_channels
 from gcs_core.problem.attitude import RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude, rpy_specs
 from gcs_core.problem.gyro_attitude import GyroAttitude
-from gcs_core.problem.prepare import (
-    GeometryBuilder,
-    HeldChannels,
-    PhysicsOptions,
-    SensorData,
-    aux_channel_names,
-    prepare_sensors,
-)
+from gcs_core.problem.prepare import GeometryBuilder, HeldChannels, PhysicsOptions, SensorData, prepare_sensors
 from gcs_core.problem.state import HELD, SOLVE_FOR, Element, StateVector
 from gcs_core.units import DEG
 
@@ -263,8 +255,8 @@ def build_problem(
     models = {sd.name: sd.model for sd in sensors}
     for g in gyros:
         models.setdefault(g.name, make_model(g))
-    if gyro_name is not None and isinstance(attitude, GyroAttitude) and attitude.step_tags:
-        models[gyro_name] = GyroStepModel(cast(GyroModel, models[gyro_name]), attitude.step_tags)
+    if isinstance(attitude, GyroAttitude) and attitude.step_tags:  # its bias follows aux channels
+        models[attitude.gyro] = GyroStepModel(models[attitude.gyro], attitude.step_tags)
     param_map = _sensor_elements(spec, models, elements, use_gyro, gyro_name)
     elements = _link_sun_sensor_tilt(spec, elements, param_map)
     state = StateVector(tuple(elements))
@@ -283,13 +275,10 @@ def build_problem(
     )
 
 
-def _attitude_provider(
-    mission, eph: Ephemeris, gyros: list, use_gyro: bool, chunk_frames: int, families=None
-) -> AttitudeProvider:
+def _attitude_provider(mission, eph, gyros: list, use_gyro: bool, chunk_frames: int, fams=None) -> AttitudeProvider:
     """SIDP's attitude provider: the spin axis (Eq 4-2) on a spinning mission, the first gyro
     carrying the attitude (seed §4.2.7, Eq 4-32, 4-38) when there is one and ``use_gyro``, else constant
-    roll/pitch/yaw from the reference frame (Eq 4-6). The gyro's ``bias_vs_<channel>``
-    families among ``families`` make its bias follow those aux channels (:mod:`gcs_core.models.gyro_steps`)."""
+    roll/pitch/yaw from the reference frame (Eq 4-6); the gyro's bias follows its ``fams`` (gyro_steps.py)."""
     spec = mission.spec
     mode = spec.attitude_mode
     if mode == "spinning":
@@ -297,7 +286,6 @@ def _attitude_provider(
     if gyros and use_gyro:
         g = gyros[0]
         tab = mission.telemetry[g.name]
-        tags = step_tags(gyro_families(families, g.name), aux_channel_names(mission.aux))
         return GyroAttitude(
             mode,
             eph,
@@ -306,7 +294,7 @@ def _attitude_provider(
             tab.stack(("wx", "wy", "wz")),
             block_knots=chunk_frames,
             earth_rate=spec.earth_rate_rad_s,
-            steps=step_channels(tab.t, mission.aux, tags),
+            steps=gyro_step_channels(fams, g.name, tab.t, mission.aux),
         )
     return ReferenceAttitude(mode, eph)
 

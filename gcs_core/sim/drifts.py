@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from gcs_core.errors import InputError
 from gcs_core.sim._rot import rotvec_to_dcm
 
 
@@ -141,3 +142,16 @@ def heater_step(sensor, aux, t: np.ndarray) -> np.ndarray | None:
     if not hs:
         return None
     return np.asarray(hs["rate"], dtype=float)[None, :] * channel(aux, hs, t)[:, None]
+
+
+def heater_effect(s, m: float, kw: dict) -> None:
+    """The hidden effect ``<GYRO>.bias_vs_iru_heater``: a step ``m (0.6, −0.48, 0.64)`` [rad/s]."""
+    s.true["heater_step"] = {"channel": "iru_heater", "ref": 0.0, "rate": [0.6 * m, -0.48 * m, 0.64 * m]}
+
+
+def with_heater(cfg, effect: str) -> None:
+    """The heater's channel is written with its effect (it needs the mission's aux channels)."""
+    if effect == "bias_vs_iru_heater":
+        if cfg.aux is None:
+            raise InputError(f"effect '{effect}' needs the mission's aux channels", key="effect_id")
+        cfg.aux.heater = True

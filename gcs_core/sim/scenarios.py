@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.sim import astro
+from gcs_core.sim import astro, drifts
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.astro import R_EARTH_KM
 from gcs_core.sim.config import (
@@ -466,9 +466,7 @@ EFFECTS: dict[str, EffectSpec] = {
         "rad/s",
         "the drift-rate bias steps by m·(0.6, −0.48, 0.64) while the IRU heater is on (aux iru_heater, "
         "a thermostat's duty cycle, written only with this effect)",
-        lambda s, m, kw: s.true.__setitem__(
-            "heater_step", {"channel": "iru_heater", "ref": 0.0, "rate": [0.6 * m, -0.48 * m, 0.64 * m]}
-        ),
+        drifts.heater_effect,
     ),
     "d_gamma": EffectSpec(("horizon",), "rad", "scanner cone half-angle bias Δγ", _set("d_gamma")),
     "d_phi": EffectSpec(("horizon",), "rad", "scanner azimuth bias ΔΦ", _set("d_phi")),
@@ -556,12 +554,9 @@ def with_effect(
             raise InputError(f"effect '{effect}' does not apply to {s.type} {sensor_name}", key="effect_id")
         if effect == "d_t":
             cfg.ephemeris_time_error_s = float(magnitude)
-        elif effect == "bias_vs_iru_heater" and cfg.aux is None:
-            raise InputError(f"effect '{effect}' needs the mission's aux channels", key="effect_id")
         elif spec.apply is not None:
             spec.apply(s, float(magnitude), kw)
-            if effect == "bias_vs_iru_heater" and cfg.aux is not None:
-                cfg.aux.heater = True  # the heater's channel is written with its effect
+            drifts.with_heater(cfg, effect)
         unit_, desc = spec.unit, spec.description
     cfg.effects.append(HiddenEffect(effect_id, float(magnitude), unit_, description or desc))
     return cfg
