@@ -10,7 +10,9 @@ pass the family-wise level (:func:`choose`):
    sensor Y's residual following a channel, Y's candidates of that form (its families on
    that channel or its aliases, or a catalogue effect of that form, a physics option
    included) are chosen before any other; among them, the one that explains most for its
-   elements (:func:`choose`). Unless a sensor's own candidate (its Δχ² from its own
+   elements (:func:`choose`). A sensor's residual following the time integral of a
+   switched aux channel is the form of the gyro's bias following the switch (the gyro
+   carries the attitude and has no residuals of its own). Unless a sensor's own candidate (its Δχ² from its own
    residuals) explains clearly more than all of them: that sensor's error is then what
    moves the attitude the others follow.
 2. **A candidate is not added on sensor X when its Δχ² comes mostly from another sensor
@@ -53,6 +55,10 @@ def matches(c: Candidate, d: Dependency) -> bool:
     if c.id in d.catalogue:
         return True
     ch = channel_of(c.effect.effect)
+    if ch is not None and d.kind == "aux_integral":
+        # the integral of a switch in any sensor's residual: the gyro's bias following the
+        # switch (a sensor without residuals of its own, carrying the attitude)
+        return own_share(c) is None and d.channel == "int:" + ch.removeprefix("aux:")
     if ch is None or c.effect.sensor != d.sensor:
         return False
     chans = {d.channel, *d.aliases}

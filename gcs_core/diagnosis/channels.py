@@ -19,7 +19,14 @@ frame times ``sd.t`` (:func:`sensor_channels`):
   magnetometer the measured field's direction ``b/|b|`` in the sensor frame);
 * ``tlm:<column>`` — a telemetry column of the sensor that is not a measurement (a star
   tracker's ``mag``, the catalogue magnitude of the star it reports);
-* ``time`` — seconds from the first frame (a drift; its bins see steps).
+* ``time`` — seconds from the first frame (a drift; its bins see steps);
+* ``int:<name>`` — with a gyro carrying the attitude, the time integral of each *switch*
+  (an aux channel whose values are exactly 0 and 1: a heater, a valve, a power state;
+  :func:`switch_channels`) [s], ``∫(x − x̄) dt``
+  less its least-squares quadratic in time over the span. A gyro bias that steps with the
+  switch moves the carried attitude by ``∫ k x dt``; the fit's attitude, bias and bias rate
+  take up its constant, linear and quadratic parts, and what is left in every sensor's
+  residual follows this channel, not the switch itself (:mod:`gcs_core.models.gyro_steps`).
 
 Each :class:`Channel` carries the unit it is in, what kind it is (for the catalogue's forms
 and for the families) and the values; NaN where undefined.
@@ -62,6 +69,8 @@ class Channel:
     @property
     def label(self) -> str:
         """The channel as the analyst knows it (``tam_temp``, ``orbit phase``)."""
+        if self.kind == "aux_integral":
+            return f"∫{self.name[4:]} dt"
         return self.name.split(":", 1)[1] if ":" in self.name else self.name.replace("_", " ")
 
 
@@ -102,6 +111,40 @@ def _held(t_src: np.ndarray, values: np.ndarray, t: np.ndarray) -> np.ndarray:
     return np.asarray(values, dtype=float)[k]
 
 
+def switch_channels(aux) -> tuple[str, ...]:
+    """The aux channels that are switches: every value 0 or 1, both present (an on/off
+    state). A channel of other levels (a torquer's −60, 0, 60 A m², of which a short span
+    may show only two) is not one."""
+    if aux is None or len(aux) < 4:
+        return ()
+    out = []
+    for name, col in aux.columns.items():
+        x = np.asarray(col, dtype=float)
+        if name != "t" and np.all((x == 0.0) | (x == 1.0)) and np.any(x == 0.0) and np.any(x == 1.0):
+            out.append(name)
+    return tuple(out)
+
+
+def switched_integrals(aux, t: np.ndarray) -> dict[str, np.ndarray]:
+    """``int:<name>`` at times ``t`` of each switch (module docstring): the held channel
+    (ICD §6) integrated exactly between its rows, its mean over the rows' span taken out,
+    then the least-squares quadratic in time."""
+    out: dict[str, np.ndarray] = {}
+    ta = np.asarray(aux.t, dtype=float) if aux is not None else np.zeros(0)
+    for name in switch_channels(aux):
+        x = np.asarray(aux.columns[name], dtype=float)
+        span = ta[-1] - ta[0]
+        dx = x - float(np.sum(x[:-1] * np.diff(ta)) / span)  # about the time mean of the held channel
+        cum = np.concatenate([[0.0], np.cumsum(dx[:-1] * np.diff(ta))])  # ∫ at the rows
+        k = np.clip(np.searchsorted(ta, t, side="right") - 1, 0, ta.size - 1)
+        val = cum[k] + dx[k] * (t - ta[k])
+        tt = (t - ta[0]) / span
+        V = np.column_stack([np.ones_like(tt), tt, tt * tt])
+        coef, *_ = np.linalg.lstsq(V, val, rcond=None)
+        out[f"int:{name}"] = val - V @ coef
+    return out
+
+
 def rate_channels(gyro_table, t: np.ndarray) -> dict[str, np.ndarray]:
     """The measured body rate (interpolated to ``t``), its magnitude and the angle turned."""
     tg = np.asarray(gyro_table.t, dtype=float)
@@ -138,6 +181,9 @@ def sensor_channels(
         out.append(Channel("sun_angle", "sun", "rad", orb["sun_angle"]))
         if np.any(orb["eclipse"] > 0) and np.any(orb["eclipse"] == 0):
             out.append(Channel("eclipse", "eclipse", "1", orb["eclipse"]))
+    if gyro is not None and sd.model.attitude_kind == "three_axis":
+        for name, vals in switched_integrals(getattr(builder, "aux", None), t).items():
+            out.append(Channel(name, "aux_integral", "s", vals))
     if telemetry is not None and gyro is not None and gyro in telemetry:
         for name, vals in rate_channels(telemetry[gyro], t).items():
             kind = "angle" if name == "angle_turned" else "rate"

@@ -39,17 +39,20 @@ PHYSICS: dict[tuple[str, str], str] = {
     ("scale", "orbit"): "a gain cycling over the orbit",
     ("scale", "time"): "gain drift (ageing)",
     ("scale", "aux"): "a gain following",
+    ("bias", "heater"): "bias step with the heater",
 }
 
 #: the unit a drifting effect's coefficient is spoken of in, by effect (a bias in the sensor's own unit)
 _PARAM_UNIT = {"alignment": "arcsec", "scale": "ppm", "bias": "{unit}"}
 
 
-def _kind(tag: str) -> str:
+def _kind(tag: str, base: str = "") -> str:
     if tag in ORBIT_TAGS:
         return "orbit"
     if tag == TIME_TAG:
         return "time"
+    if base == "bias" and "heater" in tag.lower():
+        return "heater"
     return "temperature" if "temp" in tag.lower() else "aux"
 
 
@@ -62,11 +65,11 @@ def family_name(effect: str, sensor_unit: str = "sensor units") -> str | None:
     if parts is None:
         return None
     base, tag = parts
-    kind = _kind(tag)
+    kind = _kind(tag, base)
     what = PHYSICS[(base, kind)]
     if kind == "aux":
         what += f" {tag}"
-    shown = _PARAM_UNIT[base].format(unit=sensor_unit)
+    shown = _PARAM_UNIT[base].format(unit="°/h" if sensor_unit == "rad/s" else sensor_unit)
     per = {"orbit": f"{shown} amplitude of the orbit's harmonic {ORBIT_TAGS.get(tag, '')}"}.get(kind)
     if per is None:
         per = f"{shown} per " + ("hour" if kind == "time" else aux_unit(tag))
@@ -79,10 +82,19 @@ def explanation(effect: str) -> tuple[str, str] | None:
     if parts is None:
         return None
     base, tag = parts
-    kind = _kind(tag)
+    kind = _kind(tag, base)
     chan = {"orbit": f"the orbit phase ({'once' if tag == 'orbit1' else 'twice'} per orbit)", "time": "time"}.get(
         kind, f"'{tag}'"
     )
+    if kind == "heater":
+        return (
+            "drift",
+            f"bias step with the heater, the bias per unit of '{tag}' (°/h for a gyro): the bias steps when "
+            f"'{tag}' switches. "
+            f"On a gyro carrying the attitude the step turns the attitude by its time integral, and every "
+            f"sensor's residual follows the integral of '{tag}' (a generic family made from the "
+            "residual-structure search, carried inside the gyro-propagated attitude).",
+        )
     return (
         "drift",
         f"{family_name(effect)}: the sensor's {base} is not constant but varies linearly with {chan}. "
@@ -120,10 +132,23 @@ def offered_for(dep: Dependency, model, *, aliases: Iterable[str] = ()) -> list[
     return out
 
 
-def families_from(found: Iterable[Dependency], models: Mapping[str, object]) -> dict[str, tuple[str, ...]]:
-    """sensor -> the family effects to offer for the significant dependencies ``found``."""
+def families_from(
+    found: Iterable[Dependency], models: Mapping[str, object], gyro: str | None = None
+) -> dict[str, tuple[str, ...]]:
+    """sensor -> the family effects to offer for the significant dependencies ``found``. A
+    dependency on the time integral of a switched aux channel (``int:<name>``) in any
+    sensor's residual, or the gyro's own (:mod:`gcs_core.diagnosis.gyro_search`), makes the
+    gyro ``gyro`` (carrying the attitude) offer its bias following the switch,
+    ``bias_vs_<name>`` (:mod:`gcs_core.models.gyro_steps`); nothing else of the gyro's."""
     out: dict[str, list[str]] = {}
     for d in found:
+        if d.kind == "aux_integral" or (d.sensor == gyro and d.channel.startswith("aux:")):
+            if gyro is not None:
+                fam = f"bias_vs_{d.channel.split(':', 1)[1]}"
+                lst = out.setdefault(gyro, [])
+                if fam not in lst:
+                    lst.append(fam)
+            continue
         model = models.get(d.sensor)
         if model is None:
             continue

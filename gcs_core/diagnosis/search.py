@@ -20,6 +20,7 @@ from scipy import stats
 
 from gcs_core.diagnosis.channels import Channel, sensor_channels
 from gcs_core.diagnosis.families import families_from
+from gcs_core.diagnosis.gyro_search import gyro_dependencies
 from gcs_core.diagnosis.structure import StructureReport, search
 
 log = logging.getLogger(__name__)
@@ -81,7 +82,12 @@ def run(analysis, sensors: Iterable[str] = ()) -> StructureReport:
     why = {k: v for k, v in why.items() if k in known and k in res.residuals}
     chans = {s: channels_of(analysis, s) for s in why}
     ids = [e.id for e in analysis.candidate_effects()]
-    return search(res.residuals, chans, alpha=analysis.config.diagnosis.significance, why=why, catalogue_ids=ids)
+    gyro = gyro_dependencies(analysis)  # its bias against switched aux channels (none without)
+    if gyro:
+        why[gyro[0].sensor] = "its bias against the switched aux channels (score test)"
+    return search(
+        res.residuals, chans, alpha=analysis.config.diagnosis.significance, why=why, catalogue_ids=ids, extra=gyro
+    )
 
 
 def trusted(analysis) -> bool:
@@ -99,7 +105,7 @@ def offer(analysis, report: StructureReport) -> bool:
     if not trusted(analysis):
         return False
     models = {sd.name: sd.model for sd in analysis.problem.sensors}
-    new = families_from(report.found, models)
+    new = families_from(report.found, models, gyro=analysis.problem.gyro_name)
     changed = False
     for s, fams in new.items():
         have = analysis.offered.get(s, ())

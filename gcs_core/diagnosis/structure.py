@@ -108,11 +108,11 @@ class Dependency:
             "high": {"residual": float(self.means[hi]), "at": float(self.centers[hi])},
             "peak_to_peak": self.size,
             "F": round(self.F, 3),
-            "dof": [round(self.dof[0], 1), round(self.dof[1], 1)],
+            "dof": [round(self.dof[0], 1), round(self.dof[1], 1) if math.isfinite(self.dof[1]) else None],
             "correlation_inflation": round(self.inflation, 3),
             "p_value": self.p_value,
             "p_adjusted": self.p_adjusted,
-            "variance_share": round(self.share, 4),
+            "variance_share": round(self.share, 4) if math.isfinite(self.share) else None,  # None: a score test
             "catalogue_forms": list(self.catalogue),
             "aliases": list(self.aliases),
             "bins": {"at": [float(x) for x in self.centers], "mean": [float(x) for x in self.means]},
@@ -290,7 +290,7 @@ def physical_order(name: str) -> tuple[int, str]:
         rank = 0
     elif name == "orbit_phase":
         rank = 1
-    elif name.startswith("aux:") and any(k in low for k in ("heater", "mtb", "current")):
+    elif (name.startswith("aux:") and any(k in low for k in ("heater", "mtb", "current"))) or name.startswith("int:"):
         rank = 2
     elif name.startswith("aux:"):
         rank = 3
@@ -312,6 +312,7 @@ FORMS: dict[str, tuple[str, ...]] = {
     "fov": ("alignment", "scale", "bias", "nonorthogonality", "harmonic", "transfer_function"),
     "telemetry": (),
     "time": ("bias_instability",),
+    "aux_integral": (),  # the gyro's bias following the switch: a family (gyro_steps.py)
 }
 
 
@@ -336,11 +337,14 @@ def search(
     alpha: float,
     why: Mapping[str, str],
     catalogue_ids: Iterable[str] = (),
+    extra: Sequence[Dependency] = (),
 ) -> StructureReport:
     """Test every residual component of the sensors in ``why`` against each of its channels.
 
     ``residuals``: sensor -> :class:`~gcs_core.estimators.results.SensorResiduals` (used frames,
     residual and σ); ``channels``: sensor -> its :class:`Channel` list at its frames.
+    ``extra``: tests made elsewhere (the gyro's, :mod:`gcs_core.diagnosis.gyro_search`),
+    with their unadjusted p, counted in the family-wise correction with the others.
     """
     ids = tuple(catalogue_ids)
     rows: list[Dependency] = []
@@ -402,7 +406,8 @@ def search(
                         aliases=tuple(aliases.get(ch.name, ())),
                     )
                 )
-    m = max(m, 1)
+    rows += list(extra)
+    m = max(m + len(extra), 1)
     rows = [_adjust(d, m) for d in rows]
     rows.sort(key=lambda d: (d.p_value, -d.F))
     found = tuple(d for d in rows if d.p_adjusted < alpha)

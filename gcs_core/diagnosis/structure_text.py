@@ -12,7 +12,7 @@ from gcs_core.diagnosis.structure import ALIAS_R2, Dependency, StructureReport, 
 from gcs_core.units import DEG
 
 #: channel kinds whose form a generic family holds (:mod:`gcs_core.diagnosis.families`)
-FAMILY_KINDS = ("aux", "orbit", "sun", "eclipse", "time")
+FAMILY_KINDS = ("aux", "orbit", "sun", "eclipse", "time", "aux_integral")
 
 
 def residual_text(value: float, unit: str, spread: float) -> str:
@@ -30,6 +30,8 @@ def channel_text(value: float, d: Dependency) -> str:
         return f"{value / DEG:.0f}°"
     if d.channel_unit == "rad/s":
         return f"{display.sig(value / DEG * 3600.0, 2)} deg/h"
+    if d.kind == "aux_integral":  # a switch's time integral: seconds on
+        return f"{display.sig(value, 2)} s"
     if d.channel_unit == "s":
         return f"{value / 3600.0:.1f} h"
     if d.channel_unit == "1":
@@ -39,6 +41,8 @@ def channel_text(value: float, d: Dependency) -> str:
 
 
 def label(channel: str) -> str:
+    if channel.startswith("int:"):  # the time integral of a switch
+        return f"∫{channel[4:]} dt"
     return channel.split(":", 1)[1] if ":" in channel else channel.replace("_", " ")
 
 
@@ -51,7 +55,12 @@ def dependency_line(d: Dependency, offered: tuple[str, ...] = ()) -> str:
         f"{d.sensor} {d.component} follows {label(d.channel)}: "
         f"{residual_text(float(d.means[first]), d.unit, spread)} at {channel_text(float(d.centers[first]), d)} … "
         f"{residual_text(float(d.means[last]), d.unit, spread)} at {channel_text(float(d.centers[last]), d)} "
-        f"({display.p_text(d.p_adjusted, 'p adj')}, {100 * d.share:.0f} % of its variance)"
+        f"({display.p_text(d.p_adjusted, 'p adj')}, "
+        + (
+            f"{100 * d.share:.0f} % of its variance)"
+            if d.share == d.share
+            else f"score test χ² {display.sig(d.F * d.dof[0], 3)} on {d.dof[0]:.0f} dof)"  # the gyro's
+        )
     )
     if d.aliases:
         text += "; also " + ", ".join(label(a) for a in d.aliases) + " (aliases: they follow one another here)"
@@ -68,7 +77,9 @@ def dependency_line(d: Dependency, offered: tuple[str, ...] = ()) -> str:
 def _family_on(effect: str, d: Dependency) -> bool:
     from gcs_core.diagnosis.families import channel_of
 
-    ch = channel_of(effect)
+    ch = channel_of(effect.split(".", 1)[1] if "." in effect else effect)
+    if ch is not None and d.kind == "aux_integral":
+        return "." in effect and d.channel == "int:" + ch.removeprefix("aux:")
     return ch is not None and (ch == d.channel or ch in d.aliases)
 
 
@@ -92,7 +103,10 @@ def report_lines(report: StructureReport | None, offered: dict | None = None, *,
             out.append(f"  {sensor}: follows none of the channels searched{tail}")
             continue
         for d in deps:
-            out.append("  " + dependency_line(d, tuple(offered.get(sensor, ()))))
+            mine = tuple(offered.get(sensor, ()))
+            if d.kind == "aux_integral":  # the gyro's bias following the switch (families.py)
+                mine += tuple(f"{s}.{f}" for s, fs in offered.items() if s not in report.searched for f in fs)
+            out.append("  " + dependency_line(d, mine))
     for sensor, groups in report.alias_groups.items():
         for g in groups:
             if len(g) > 1:

@@ -25,6 +25,7 @@ from gcs_core.frames.rotations import euler123_to_dcm, quat_normalize, quat_to_d
 from gcs_core.models import make_model
 from gcs_core.models.base import ParamSpec
 from gcs_core.models.gyro_noise import gyro_noise
+from gcs_core.models.gyro_steps import GyroStepModel, gyro_step_channels
 from gcs_core.problem.attitude import RADEC, RPY, AttitudeProvider, ReferenceAttitude, SpinAttitude, rpy_specs
 from gcs_core.problem.gyro_attitude import GyroAttitude
 from gcs_core.problem.prepare import GeometryBuilder, HeldChannels, PhysicsOptions, SensorData, prepare_sensors
@@ -244,7 +245,7 @@ def build_problem(
         sensors = _with_families(sensors, families, builder)
     mode = spec.attitude_mode
     gyros = [s for s in spec.sensors if s.type == "gyro"]
-    attitude = _attitude_provider(mission, eph, gyros, use_gyro, chunk_frames)
+    attitude = _attitude_provider(mission, eph, gyros, use_gyro, chunk_frames, families)
     gyro_name = attitude.gyro
     types = {s.name: s.type for s in spec.sensors}
     tables = {sd.name: _slim_table(mission.telemetry[sd.name], sd, types[sd.name]) for sd in sensors}
@@ -254,6 +255,8 @@ def build_problem(
     models = {sd.name: sd.model for sd in sensors}
     for g in gyros:
         models.setdefault(g.name, make_model(g))
+    if isinstance(attitude, GyroAttitude) and attitude.step_tags:  # its bias follows aux channels
+        models[attitude.gyro] = GyroStepModel(models[attitude.gyro], attitude.step_tags)
     param_map = _sensor_elements(spec, models, elements, use_gyro, gyro_name)
     elements = _link_sun_sensor_tilt(spec, elements, param_map)
     state = StateVector(tuple(elements))
@@ -272,10 +275,10 @@ def build_problem(
     )
 
 
-def _attitude_provider(mission, eph: Ephemeris, gyros: list, use_gyro: bool, chunk_frames: int) -> AttitudeProvider:
+def _attitude_provider(mission, eph, gyros: list, use_gyro: bool, chunk_frames: int, fams=None) -> AttitudeProvider:
     """SIDP's attitude provider: the spin axis (Eq 4-2) on a spinning mission, the first gyro
     carrying the attitude (seed §4.2.7, Eq 4-32, 4-38) when there is one and ``use_gyro``, else constant
-    roll/pitch/yaw from the reference frame (Eq 4-6)."""
+    roll/pitch/yaw from the reference frame (Eq 4-6); the gyro's bias follows its ``fams`` (gyro_steps.py)."""
     spec = mission.spec
     mode = spec.attitude_mode
     if mode == "spinning":
@@ -291,6 +294,7 @@ def _attitude_provider(mission, eph: Ephemeris, gyros: list, use_gyro: bool, chu
             tab.stack(("wx", "wy", "wz")),
             block_knots=chunk_frames,
             earth_rate=spec.earth_rate_rad_s,
+            steps=gyro_step_channels(fams, g.name, tab.t, mission.aux),
         )
     return ReferenceAttitude(mode, eph)
 

@@ -7,6 +7,14 @@ sums; the derivation is in the docstring of :mod:`gcs_core.problem.attitude`, wh
 other attitude providers and their :class:`~gcs_core.problem.attitude.AttitudeProvider`
 protocol live.
 
+A bias following aux channels (the family ``bias_vs_<channel>`` of the gyro, issue 26: the
+bias stepping when a heater switches) is carried inside the propagation::
+
+    b(t) = b + ḃ τ + Σ_i k_i x_i(t),   ∂ω/∂k_i = −Mᵀ x_i(t)
+
+with ``x_i`` the channel held over each row's interval, minus its mean over the rows; its
+cumulative sums are those of the bias with ``x_i`` in place of ``τ`` (:meth:`GyroAttitude._compute_block`).
+
 On a ground mission that states the Earth's rate in its lab frame, the attitude carried by
 the rates is inertial and is turned into the lab's exactly (:mod:`gcs_core.problem.earth_rate`).
 """
@@ -21,7 +29,7 @@ from collections.abc import Mapping
 import numpy as np
 
 from gcs_core.compiled import COMPILED
-from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply, quat_normalize
+from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_multiply
 from gcs_core.models import common as model_common
 from gcs_core.models.gyro import G_NAMES, g_matrix
 from gcs_core.problem import kernels
@@ -35,86 +43,14 @@ from gcs_core.problem.attitude import (
     rpy_error_jacobian,
 )
 from gcs_core.problem.earth_rate import lab_attitude
-
-
-# ----------------------------------------------------------------------------------------
-# Quaternion helpers (fast forms of the Eq 4-8/4-10 products used along the gyro knots)
-# ----------------------------------------------------------------------------------------
-def _dcm(q) -> np.ndarray:
-    """Eq 4-8 ``C(q) = (q4² − |e|²) I + 2 e eᵀ − 2 q4 [e×]``, entry by entry; (N, 4) -> (N, 3, 3).
-
-    The same arithmetic as :func:`gcs_core.frames.rotations.quat_to_dcm`, without its
-    (N, 3, 3) temporaries.
-    """
-    e1, e2, e3, q4 = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
-    s = q4 * q4 - (e1 * e1 + e2 * e2 + e3 * e3)
-    a1, a2, a3 = 2.0 * q4 * e1, 2.0 * q4 * e2, 2.0 * q4 * e3
-    C = np.empty((q.shape[0], 3, 3))
-    C[:, 0, 0] = s + 2.0 * (e1 * e1)
-    C[:, 1, 1] = s + 2.0 * (e2 * e2)
-    C[:, 2, 2] = s + 2.0 * (e3 * e3)
-    e12, e13, e23 = 2.0 * (e1 * e2), 2.0 * (e1 * e3), 2.0 * (e2 * e3)
-    C[:, 0, 1] = e12 + a3
-    C[:, 1, 0] = e12 - a3
-    C[:, 0, 2] = e13 - a2
-    C[:, 2, 0] = e13 + a2
-    C[:, 1, 2] = e23 + a1
-    C[:, 2, 1] = e23 - a1
-    return C
-
-
-def _scan_products(q, group: int = 8) -> np.ndarray:
-    """``Q_k = q_k ⊗ … ⊗ q_0`` for (N, 4) ``q`` (not normalized).
-
-    Two levels: a sequential product inside groups of ``group`` consecutive steps
-    (``group − 1`` vectorized passes over N/group rows), the same recursively over the
-    group totals, then each group is composed with the product of all earlier groups.
-    About 2.3 passes over the data instead of the ``log2 N`` of a Hillis–Steele prefix;
-    composition is associative, so only the round-off differs.
-    """
-    n = q.shape[0]
-    if n <= 4 * group:
-        Q = q.copy()
-        d = 1
-        while d < n:
-            Q[d:] = quat_multiply(Q[d:], Q[:-d])
-            d *= 2
-        return Q
-    nb = -(-n // group)
-    Q = np.empty((nb * group, 4))
-    Q[:n] = q
-    Q[n:] = (0.0, 0.0, 0.0, 1.0)  # identity steps pad the last group
-    Q = Q.reshape(nb, group, 4)
-    for j in range(1, group):
-        Q[:, j] = quat_multiply(Q[:, j], Q[:, j - 1])
-    before = _scan_products(np.ascontiguousarray(Q[:-1, -1]), group)  # product of groups < b
-    Q[1:] = quat_multiply(Q[1:], before[:, None, :])
-    return Q.reshape(-1, 4)[:n]
-
-
-def _quat_scan(q):
-    """Cumulative composition ``Q_k = q_k ⊗ … ⊗ q_0``, normalized (see :func:`_scan_products`)."""
-    return quat_normalize(_scan_products(np.asarray(q, dtype=float)))
-
-
-def _step_quaternions(omega, dt):
-    """Quaternions of ``exp(−[ω Δt ×])`` (Eq 4-38), shape (N, 4)."""
-    phi = omega * dt[:, None]
-    ang = np.sqrt(np.einsum("ij,ij->i", phi, phi))
-    half = 0.5 * ang
-    small = ang < 1e-12
-    k = np.where(small, 0.5 - ang**2 / 48.0, np.sin(half) / np.where(small, 1.0, ang))
-    out = np.empty((phi.shape[0], 4))
-    np.multiply(phi, k[:, None], out=out[:, :3])
-    out[:, 3] = np.cos(half)
-    return out
+from gcs_core.problem.quat_steps import fast_dcm, quat_scan, step_quaternions
 
 
 # ----------------------------------------------------------------------------------------
 class _GyroConsts:
     """Everything of the gyro-carried attitude that depends on the state but not on time."""
 
-    __slots__ = ("Ginv", "M", "dM", "b", "bdot", "MtGinv", "C0", "J0", "Ma", "q0", "t_mid")
+    __slots__ = ("Ginv", "M", "dM", "b", "bdot", "k", "MtGinv", "C0", "J0", "Ma", "q0", "t_mid")
 
     def __init__(self, att: GyroAttitude, values: Mapping[str, float]):
         p = att._gyro_params(values)
@@ -123,6 +59,8 @@ class _GyroConsts:
         self.M, self.dM = model_common.alignment_matrix(p)
         self.b = np.array([p["bias_x"], p["bias_y"], p["bias_z"]])
         self.bdot = np.array([p[n] for n in BIAS_RATE_NAMES])
+        #: (m, 3) the bias per unit of each step channel [rad/s per unit]
+        self.k = np.array([[p[f"bias_{ax}_vs_{tag}"] for ax in "xyz"] for tag in att.step_tags]).reshape(-1, 3)
         self.MtGinv = self.M.T @ self.Ginv
         rpy = [values[n] for n in RPY]
         self.C0 = euler123_to_dcm(*rpy) @ att.ref.reference(att.t_ref)[0]
@@ -136,7 +74,7 @@ class _Block:
     """Knots ``r0 .. r1`` of the gyro-carried attitude (rows ``r0 .. r1−1``).
 
     C : (n+1, 3, 3) attitude at the knots; omega : (n, 3) corrected rates;
-    W : ``(G⁻¹ y, u, τ)`` of the rows, from which ``∂ω/∂p`` is formed where needed;
+    W : ``(G⁻¹ y, u, τ, x)`` of the rows (x: (n, m) the step channels), from which ``∂ω/∂p`` is formed where needed;
     E : (n+1, 3, P) the cumulative sums ``E_k``.
     """
 
@@ -146,9 +84,10 @@ class _Block:
         self.r0, self.r1, self.C, self.omega, self.W, self.E = r0, r1, C, omega, W, E
 
 
-def _rate_partials(c: _GyroConsts, Gy, u, tau) -> np.ndarray:
-    """``∂ω/∂p`` (n, 3, 18) over :attr:`GyroAttitude.param_names` from ``G⁻¹ y``, ``u``, ``τ``."""
-    W = np.empty((Gy.shape[0], 3, 18))
+def _rate_partials(c: _GyroConsts, Gy, u, tau, xs) -> np.ndarray:
+    """``∂ω/∂p`` (n, 3, 18 + 3m) over :attr:`GyroAttitude.param_names` from ``G⁻¹ y``, ``u``,
+    ``τ`` and the m step channels ``xs`` (n, m)."""
+    W = np.empty((Gy.shape[0], 3, 18 + 3 * xs.shape[1]))
     for a in range(3):
         for col in range(3):
             # ∂(G⁻¹)/∂G_ac = −G⁻¹ E_ac G⁻¹  ->  ∂ω = −Mᵀ G⁻¹ e_a (G⁻¹ y)_c
@@ -157,6 +96,8 @@ def _rate_partials(c: _GyroConsts, Gy, u, tau) -> np.ndarray:
     for k in range(3):
         W[:, :, 12 + k] = u @ c.dM[k]  # (∂M/∂a_k)ᵀ u
     W[:, :, 15:18] = -c.M.T[None, :, :] * tau[:, None, None]
+    for i in range(xs.shape[1]):
+        W[:, :, 18 + 3 * i : 21 + 3 * i] = -c.M.T[None, :, :] * xs[:, i, None, None]
     return W
 
 
@@ -227,6 +168,8 @@ class GyroAttitude:
     block_knots : rows per block of the propagation (bounded memory, below).
     earth_rate : (3,) the Earth's rate in the lab frame of a ground mission [rad/s], or None
         (:mod:`gcs_core.problem.earth_rate`).
+    steps : channel -> (K,) its value over each row's interval: the bias follows it
+        (module docstring; elements ``<gyro>.bias_<ax>_vs_<channel>``); taken about its mean.
 
     Memory. The propagation is computed in blocks of ``block_knots`` rows: each block
     starts from the attitude and ``E`` at its first knot (a checkpoint, 3×3 + 3×P
@@ -248,6 +191,7 @@ class GyroAttitude:
         *,
         block_knots: int = BLOCK_KNOTS,
         earth_rate=None,
+        steps=None,
     ):
         self.ref = ReferenceAttitude(mode, ephemeris)
         #: (3,) the Earth's rate in the reference (lab) frame [rad/s], or None (module docstring)
@@ -258,6 +202,13 @@ class GyroAttitude:
         first = float(np.median(dt)) if dt.size else 1.0
         self.knots = np.concatenate([[t_gyro[0] - first], t_gyro])  # τ_0 .. τ_K
         self.y = np.asarray(y_gyro, float)
+        steps = dict(steps or {})
+        #: the aux channels the bias follows, and (K, m) their values about the mean
+        self.step_tags: tuple[str, ...] = tuple(steps)
+        self.X = np.zeros((self.y.shape[0], len(steps)))
+        for i, tag in enumerate(self.step_tags):
+            x = np.asarray(steps[tag], float).reshape(-1)
+            self.X[:, i] = x - np.mean(x)
         self.t_ref = float(self.knots[0])
         self._block_knots = max(1, int(block_knots))
         self._key: tuple[float, ...] | None = None
@@ -296,7 +247,11 @@ class GyroAttitude:
     def param_names(self) -> tuple[str, ...]:
         return tuple(
             f"{self.gyro}.{n}"
-            for n in G_NAMES + ("bias_x", "bias_y", "bias_z") + model_common.ALIGN_NAMES + BIAS_RATE_NAMES
+            for n in G_NAMES
+            + ("bias_x", "bias_y", "bias_z")
+            + model_common.ALIGN_NAMES
+            + BIAS_RATE_NAMES
+            + tuple(f"bias_{ax}_vs_{tag}" for tag in self.step_tags for ax in "xyz")
         )
 
     @property
@@ -334,15 +289,16 @@ class GyroAttitude:
         self._drop_blocks()
 
     def _rates(self, values, k0: int = 0, k1: int | None = None):
-        """Corrected body rates ω_k (K, 3) and ``∂ω_k/∂p`` (K, 3, 18) over param_names,
+        """Corrected body rates ω_k (K, 3) and ``∂ω_k/∂p`` (K, 3, P) over param_names,
         for rows ``k0 .. k1−1`` (all by default).
 
         ``ω = Mᵀ (G⁻¹ y − b − ḃ (t − t_mid))``: Eq 4-32 inverted, with the bias drifting
         linearly about the middle of the span when the bias-instability effect is in use.
         """
         c = _GyroConsts(self, values)
-        omega, Gy, u, tau = self._rate_terms(c, k0, self.y.shape[0] if k1 is None else k1)
-        return omega, _rate_partials(c, Gy, u, tau)
+        k1 = self.y.shape[0] if k1 is None else k1
+        omega, Gy, u, tau = self._rate_terms(c, k0, k1)
+        return omega, _rate_partials(c, Gy, u, tau, self.X[k0:k1])
 
     def _rate_terms(self, c: _GyroConsts, r0: int, r1: int):
         """``ω``, ``G⁻¹ y``, ``u = G⁻¹ y − b(t)`` (n, 3) and ``τ = t − t_mid`` (n,) of rows r0..r1−1."""
@@ -351,10 +307,14 @@ class GyroAttitude:
             n = r1 - r0
             Gy, u, omega = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
             kernels.rates(self.y[r0:r1], c.Ginv, c.b, c.bdot, c.M, tau, Gy, u, omega)
-            return omega, Gy, u, tau
-        Gy = self.y[r0:r1] @ c.Ginv.T  # G⁻¹ y
-        u = Gy - c.b - tau[:, None] * c.bdot  # G⁻¹ y − b(t)   (n, 3)
-        return u @ c.M, Gy, u, tau  # ω = Mᵀ u
+        else:
+            Gy = self.y[r0:r1] @ c.Ginv.T  # G⁻¹ y
+            u = Gy - c.b - tau[:, None] * c.bdot  # G⁻¹ y − b(t)   (n, 3)
+            omega = u @ c.M  # ω = Mᵀ u
+        if self.step_tags and np.any(c.k):
+            u -= self.X[r0:r1] @ c.k  # the bias following the step channels
+            omega = u @ c.M
+        return omega, Gy, u, tau
 
     def _compute_block(self, b: int, with_E: bool) -> _Block:
         """Block ``b`` from its checkpoint (which must exist); records the next checkpoint.
@@ -363,7 +323,8 @@ class GyroAttitude:
         structure of ``W`` (:func:`_rate_partials`) rather than from W itself::
 
             C_jᵀ ∂ω/∂G_ac = −(C_jᵀ Mᵀ G⁻¹)_{:,a} (G⁻¹ y)_c,   C_jᵀ ∂ω/∂b = −C_jᵀ Mᵀ,
-            C_jᵀ ∂ω/∂a_k = C_jᵀ (∂M/∂a_k)ᵀ u,               C_jᵀ ∂ω/∂ḃ = −C_jᵀ Mᵀ τ_j
+            C_jᵀ ∂ω/∂a_k = C_jᵀ (∂M/∂a_k)ᵀ u,               C_jᵀ ∂ω/∂ḃ = −C_jᵀ Mᵀ τ_j,
+            C_jᵀ ∂ω/∂k_i = −C_jᵀ Mᵀ x_ij
 
         Without ``with_E`` (predictions only) the sums are skipped. With numba
         (:mod:`gcs_core.problem.kernels`) the knots and the sums are one compiled pass
@@ -383,13 +344,20 @@ class GyroAttitude:
             Q = np.empty((n, 4))
             kernels.propagate(q_s, omega, dt, Q, C[1:])
         else:
-            steps = _step_quaternions(omega, dt)
-            Q = quat_multiply(_quat_scan(steps), np.broadcast_to(q_s, steps.shape))
-            C[1:] = _dcm(Q)
+            steps = step_quaternions(omega, dt)
+            Q = quat_multiply(quat_scan(steps), np.broadcast_to(q_s, steps.shape))
+            C[1:] = fast_dcm(Q)
         E = None
+        xs = self.X[r0:r1]
         if with_E and COMPILED:
             E = self._spare_E(n + 1)
-            kernels.gyro_sums(C, c.MtGinv, c.M, c.dM, Gy, u, tau, dt, E_s, E)
+            if self.step_tags:
+                E18 = np.empty((n + 1, 3, 18))
+                kernels.gyro_sums(C, c.MtGinv, c.M, c.dM, Gy, u, tau, dt, np.ascontiguousarray(E_s[:, :18]), E18)
+                E[:, :, :18] = E18
+                self._step_sums(C, c, dt, xs, E_s, E)
+            else:
+                kernels.gyro_sums(C, c.MtGinv, c.M, c.dM, Gy, u, tau, dt, E_s, E)
         elif with_E:
             Ct = np.ascontiguousarray(np.swapaxes(C[1:], 1, 2))  # C_jᵀ (n, 3, 3)
             E = self._spare_E(n + 1)
@@ -403,6 +371,8 @@ class GyroAttitude:
             Z = np.stack([u @ c.dM[k] for k in range(3)], -1)  # (∂M/∂a_k)ᵀ u  (n, 3, 3)
             np.multiply(Ct @ Z, dt[:, None, None], out=incr[:, :, 12:15])
             np.multiply(incr[:, :, 9:12], tau[:, None, None], out=incr[:, :, 15:18])
+            for i in range(xs.shape[1]):
+                np.multiply(incr[:, :, 9:12], xs[:, i, None, None], out=incr[:, :, 18 + 3 * i : 21 + 3 * i])
             np.cumsum(incr, axis=0, out=incr)
             if np.any(E_s):
                 incr += E_s
@@ -411,7 +381,19 @@ class GyroAttitude:
             self._checkpoints.append(ck)
         elif E is not None and self._checkpoints[b + 1][2] is None:
             self._checkpoints[b + 1] = ck
-        return _Block(r0, r1, C, omega, (Gy, u, tau), E)
+        return _Block(r0, r1, C, omega, (Gy, u, tau, xs), E)
+
+    @staticmethod
+    def _step_sums(C, c: _GyroConsts, dt, xs, E_s, E) -> None:
+        """The step channels' columns of ``E`` (from 18 on), in place: ``E_s`` plus the
+        cumulative sums of ``−C_jᵀ Mᵀ x_ij Δ_j`` (the bias's increments times ``x``)."""
+        n = dt.size
+        Nb = (np.swapaxes(C[1:], 1, 2).reshape(-1, 3) @ (-c.M.T)).reshape(n, 3, 3) * dt[:, None, None]
+        for i in range(xs.shape[1]):
+            cols = slice(18 + 3 * i, 21 + 3 * i)
+            E[0, :, cols] = E_s[:, cols]
+            np.cumsum(Nb * xs[:, i, None, None], axis=0, out=E[1:, :, cols])
+            E[1:, :, cols] += E_s[:, cols]
 
     def _drop_blocks(self) -> None:
         """Forget the held block; its E buffer becomes the spare if nothing else holds it."""
@@ -425,13 +407,14 @@ class GyroAttitude:
         self._blocks = {}
 
     def _spare_E(self, rows: int) -> np.ndarray:
-        """An (rows, 3, 18) array, recycled from the block last dropped when nothing else
+        """An (rows, 3, P) array, recycled from the block last dropped when nothing else
         holds it (fresh pages cost more than the sums written into them)."""
+        P = len(self.param_names)
         buf = self._spare
         self._spare = None
-        if buf is None or buf.size < rows * 54:
-            buf = np.empty(max(rows, min(self._block_knots, self.y.shape[0]) + 1) * 54)
-        return buf[: rows * 54].reshape(rows, 3, 18)
+        if buf is None or buf.size < rows * 3 * P:
+            buf = np.empty(max(rows, min(self._block_knots, self.y.shape[0]) + 1) * 3 * P)
+        return buf[: rows * 3 * P].reshape(rows, 3, P)
 
     def _block(self, values, b: int, with_E: bool = True) -> _Block:
         self._state(values)
@@ -488,9 +471,9 @@ class GyroAttitude:
         w = blk.omega[where.w]
         ig, s = where.ig, where.s
         # C(t) = exp(−[ω_k s ×]) C_{k−1};  C(t)ᵀ δθ(t) = C_0ᵀ δθ_0 + E_{k−1} + C(t)ᵀ W_k s δp
-        C[g] = _dcm(_step_quaternions(blk.omega[ig], s)) @ blk.C[ig]
-        Gy, u, tau = blk.W
-        Wg = _rate_partials(c, Gy[ig], u[ig], tau[ig])
+        C[g] = fast_dcm(step_quaternions(blk.omega[ig], s)) @ blk.C[ig]
+        Gy, u, tau, xs = blk.W
+        Wg = _rate_partials(c, Gy[ig], u[ig], tau[ig], xs[ig])
         return self._lab(C, w, t, (c.Ma, (blk.E, j), (g, Wg, s)))
 
     def frames(self, values: Mapping[str, float], t, *, partials: bool = True) -> FrameAttitude:
@@ -509,7 +492,7 @@ class GyroAttitude:
                 if where.g is not None:
                     if isinstance(where.j, slice):
                         C = C.copy()
-                    C[where.g] = _dcm(_step_quaternions(blk.omega[where.ig], where.s)) @ blk.C[where.ig]
+                    C[where.g] = fast_dcm(step_quaternions(blk.omega[where.ig], where.s)) @ blk.C[where.ig]
                 return self._lab(C, blk.omega[where.w], t)
             return self._frames_in_block(blk, t, where)
         return FrameAttitude.of(self.evaluate(values, t))

@@ -6,6 +6,10 @@ switch times are multiples of the aux cadence so that the rows of aux.csv (a cha
 holds its value until its next row) describe the truth exactly.
 
 ``tam_temp`` [°C] is a slow sinusoid ``T0 + ΔT sin(2π t / P)``, written rounded to 1e-4.
+
+``iru_heater`` (0 or 1), only when :attr:`AuxConfig.heater` is set: the IRU's heater, a
+thermostat's duty cycle (:func:`gcs_core.sim.drifts.thermostat`), drawn from its own random
+stream so that the other channels are those of the same mission without it.
 """
 
 from __future__ import annotations
@@ -13,8 +17,11 @@ from __future__ import annotations
 import numpy as np
 
 from gcs_core.sim.config import AuxConfig
+from gcs_core.sim.drifts import thermostat
 
 MTB_CHANNELS = ("mtb_x", "mtb_y", "mtb_z")
+#: the IRU heater's on/off channel (with ``AuxConfig.heater``)
+HEATER = "iru_heater"
 
 __all__ = ["AuxSchedule", "MTB_CHANNELS"]
 
@@ -22,10 +29,12 @@ __all__ = ["AuxSchedule", "MTB_CHANNELS"]
 class AuxSchedule:
     """Switch schedule of the torquers over the whole mission (small: a few per hour)."""
 
-    columns = ("t",) + MTB_CHANNELS + ("tam_temp",)
-    formats = ("%.12g",) * 5
+    columns: tuple[str, ...] = ("t",) + MTB_CHANNELS + ("tam_temp",)
+    formats: tuple[str, ...] = ("%.12g",) * 5
 
-    def __init__(self, cfg: AuxConfig, duration_s: float, rng: np.random.Generator):
+    def __init__(
+        self, cfg: AuxConfig, duration_s: float, rng: np.random.Generator, heater_rng: np.random.Generator | None = None
+    ):
         self.cfg = cfg
         self.switch_t: dict[str, np.ndarray] = {}
         self.level: dict[str, np.ndarray] = {}
@@ -42,6 +51,13 @@ class AuxSchedule:
             self.switch_t[ch] = np.asarray(times)
             self.level[ch] = np.asarray(levels)
         self.temp_phase = float(rng.uniform(0, 2 * np.pi))
+        if cfg.heater:
+            hr = heater_rng if heater_rng is not None else np.random.default_rng(0)
+            sw = thermostat(duration_s, step, cfg.temp_period_s, hr)
+            self.switch_t[HEATER] = sw
+            self.level[HEATER] = (np.arange(sw.size) % 2).astype(float)  # off, on, off, ...
+            self.columns = AuxSchedule.columns + (HEATER,)
+            self.formats = AuxSchedule.formats + ("%.12g",)
 
     def value(self, channel: str, t) -> np.ndarray:
         """True value of a channel at times ``t`` (N,)."""

@@ -148,6 +148,8 @@ class AuxConfig:
     """tam_temp amplitude [°C]."""
     temp_period_s: float = 5700.0
     """tam_temp period [s] (about one orbit)."""
+    heater: bool = False
+    """write the IRU heater's on/off channel ``iru_heater`` (a thermostat, drifts.py)."""
 
 
 @dataclass

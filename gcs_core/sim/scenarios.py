@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.sim import astro
+from gcs_core.sim import astro, drifts
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.astro import R_EARTH_KM
 from gcs_core.sim.config import (
@@ -469,6 +469,13 @@ EFFECTS: dict[str, EffectSpec] = {
         "TAM gains move by m·(1, −0.7, 0.5)·(tam_temp − 22 °C)",
         _drift("scale_drift"),
     ),
+    "bias_vs_iru_heater": EffectSpec(
+        ("gyro",),
+        "rad/s",
+        "the drift-rate bias steps by m·(0.6, −0.48, 0.64) while the IRU heater is on (aux iru_heater, "
+        "a thermostat's duty cycle, written only with this effect)",
+        drifts.heater_effect,
+    ),
     "d_gamma": EffectSpec(("horizon",), "rad", "scanner cone half-angle bias Δγ", _set("d_gamma")),
     "d_phi": EffectSpec(("horizon",), "rad", "scanner azimuth bias ΔΦ", _set("d_phi")),
     "d_rho": EffectSpec(("horizon",), "rad", "Earth angular radius bias Δρ", _set("d_rho")),
@@ -557,6 +564,7 @@ def with_effect(
             cfg.ephemeris_time_error_s = float(magnitude)
         elif spec.apply is not None:
             spec.apply(s, float(magnitude), kw)
+            drifts.with_heater(cfg, effect)
         unit_, desc = spec.unit, spec.description
     cfg.effects.append(HiddenEffect(effect_id, float(magnitude), unit_, description or desc))
     return cfg

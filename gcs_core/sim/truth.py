@@ -25,6 +25,9 @@ Gyro (Eq 4-32, ICD §5 gyro) with the Farrenkopf noise model, per row ``k`` cove
     y_k = G (M ω̄_k + (b_{k−1} + b_k)/2) + sqrt(σ_v²/Δ + σ_u² Δ/12) N(0, I)
           + (e_k − e_{k−1}) / Δ,   e ~ N(0, σ_e² I)          (optional electronic noise)
 
+plus, with a heater (``heater_step``, :mod:`gcs_core.sim.drifts`), ``G Δb h_k`` with ``h_k``
+the heater's state over the row's interval (it switches on the 1 s aux grid).
+
 Onboard attitude: ``C_ob = exp(−[δ×]) exp(−[n×]) C_true``, δ the injected constant error,
 ``n`` white noise.
 
@@ -40,7 +43,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from gcs_core.sim import astro, orbit
+from gcs_core.sim import astro, drifts, orbit
 from gcs_core.sim._rot import dcm_to_quat, dcm_to_rotvec, rot3, rotvec_to_dcm, rpy_to_dcm, unit
 from gcs_core.sim.config import MissionConfig, SensorConfig, SpinProfile, ThreeAxisProfile
 
@@ -180,8 +183,8 @@ class GyroSim:
     columns = ("t", "wx", "wy", "wz")
     formats = ("%.12e",) * 4
 
-    def __init__(self, sensor: SensorConfig, world: World, rng: np.random.Generator):
-        self.s, self.world = sensor, world
+    def __init__(self, sensor: SensorConfig, world: World, rng: np.random.Generator, aux=None):
+        self.s, self.world, self.aux = sensor, world, aux
         # Separate streams for noise, bias walk and electronic noise: the files do not depend
         # on how the span is chunked.
         self.rng, self.rng_walk, self.rng_e = (np.random.default_rng(x) for x in rng.integers(2**62, size=3))
@@ -216,6 +219,9 @@ class GyroSim:
             noise = noise + (e - e_prev) / dt
             self.e_prev = e[-1]
         drift = self.bias_rate[None, :] * (t_rows - 0.5 * dt)[:, None]  # its interval mean
+        step = drifts.heater_step(self.s, self.aux, t_rows - 0.5 * dt)  # held over the row's interval
+        if step is not None:
+            drift = drift + step
         y = (w_avg @ self.M.T + 0.5 * (b_start + b_end) + drift) @ self.G.T + noise
         self.bias = b_end[-1].copy()
         every = max(1, int(round(60.0 / dt)))  # the true bias once a minute

@@ -187,8 +187,8 @@ def _generate(cfg: MissionConfig, root: Path) -> dict:
         files["ephemeris"] = _Csv(root / "ephemeris.csv", _EPH_COLS, ["%.9f"] * 10)
         aux = None
         if cfg.aux is not None and not cfg.spinning:
-            aux = AuxSchedule(cfg.aux, D, _rng(cfg.seed, "aux"))
-            files["aux"] = _Csv(root / "aux.csv", AuxSchedule.columns, AuxSchedule.formats)
+            aux = AuxSchedule(cfg.aux, D, _rng(cfg.seed, "aux"), _rng(cfg.seed, "heater"))
+            files["aux"] = _Csv(root / "aux.csv", aux.columns, aux.formats)
         onboard_rng = _rng(cfg.seed, "onboard")
         if cfg.onboard is not None and not cfg.spinning:
             files["onboard"] = _Csv(root / "onboard_attitude.csv", ("t", "q1", "q2", "q3", "q4"), ["%.12f"] * 5)
@@ -354,7 +354,7 @@ def make_sensor_sim(sensor: SensorConfig, world, rng: np.random.Generator, *, ca
     if kind == "magnetometer":
         return MagnetometerSim(sensor, world, rng, aux)
     if kind == "gyro":
-        return GyroSim(sensor, world, rng)
+        return GyroSim(sensor, world, rng, aux)
     if kind == "star_tracker":
         st = StarTrackerSim(
             sensor, world, catalog, rng, stellar_aberration=bool(world.cfg.physics.get("stellar_aberration", True))

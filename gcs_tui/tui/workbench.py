@@ -359,7 +359,8 @@ class Workbench:
 
     # ------------------------------------------------------------------ fitting
     def fit(self, progress: Progress | None = None, cancelled: Callable[[], bool] | None = None) -> Analysis | None:
-        """A fresh fit of the current config, the held-out score and the ranking.
+        """A fresh fit of the current config, the held-out score, the residual-structure
+        search (its families become candidates, as discovery offers them) and the ranking.
 
         The new analysis replaces the current one only when it is complete and not
         ``cancelled()``; returns it (None when cancelled).
@@ -376,7 +377,8 @@ class Workbench:
             fresh.first_step()
         if stop():
             return None
-        say(2, 4, f"ranking {len(fresh.candidate_effects())} candidate effects")
+        say(2, 4, "residual structure; ranking the candidate effects")
+        fresh.structure(offer=True)  # the families of what the residuals follow are candidates too
         fresh.rank()
         say(3, 4, "goodness of fit")
         fresh.goodness()  # the χ² tests, formed here rather than on the UI thread
@@ -399,6 +401,7 @@ class Workbench:
         stop = cancelled or (lambda: False)
         a = copy.copy(self.current)
         a.steps = list(a.steps)
+        a.offered = dict(a.offered)  # the search may offer more: not on the analysis shown
         if a.result is None:
             say(0, 3, "first fit")
             a.fit()
@@ -409,6 +412,7 @@ class Workbench:
         if stop():
             return None
         say(2, 3, "ranking candidates")
+        a.structure(offer=True)  # families of what the residuals follow, as discovery offers them
         a.rank()
         a.goodness()
         if stop():

@@ -3,7 +3,8 @@
 Each kind is the sensor's own physics in the simulator (:mod:`gcs_core.sim.drifts`): a
 tracker's optics bending with the bench temperature or over the orbit, a Sun sensor's
 offset and a magnetometer's gains following the temperature, and a tracker error following
-the star's magnitude (a form no family holds). :func:`run_case` simulates, runs discovery
+the star's magnitude (a form no family holds), and the gyro's drift-rate bias stepping while
+its heater is on (the aux channel ``iru_heater``, a thermostat's duty cycle). :func:`run_case` simulates, runs discovery
 with the default whole-span method, and returns what the acceptance checks need.
 """
 
@@ -23,6 +24,10 @@ from gcs_core.sim.scenarios import ORBIT_BEND_PHASE, with_effect
 from gcs_core.sim.writer import write_mission
 
 ARCSEC = np.radians(1.0 / 3600.0)
+DEG_PER_HOUR = np.radians(1.0) / 3600.0
+#: the gyro's bias step with its heater on: 0.05 °/h along (0.6, −0.48, 0.64) (sim/scenarios.py)
+HEATER_STEP = 0.05 * DEG_PER_HOUR
+HEATER_PATTERN = (0.6, -0.48, 0.64)
 
 
 @dataclass(frozen=True)
@@ -55,6 +60,7 @@ KINDS = [
     DriftCase(
         "magnetometer_scale_temperature", "TAM1.scale_vs_tam_temp", 1e-3, "TAM1", ("aux:tam_temp", "orbit_phase")
     ),
+    DriftCase("gyro_heater", "IRU.bias_vs_iru_heater", HEATER_STEP, "IRU", ("aux:iru_heater",)),
 ]
 #: the form no family holds: the report must name the channel and add nothing
 MAGNITUDE = DriftCase("tracker_magnitude", "FHST2.magnitude_error", 4.0 * ARCSEC, "FHST2", ("tlm:mag",))
@@ -106,6 +112,8 @@ def true_slopes(case: DriftCase, analysis: Analysis) -> dict[str, float]:
         return out
     if case.kind == "sun_sensor_bias_temperature":
         return {f"{sensor}.A1_vs_tam_temp": case.magnitude, f"{sensor}.B1_vs_tam_temp": -0.6 * case.magnitude}
+    if case.kind == "gyro_heater":
+        return {f"{sensor}.bias_{ax}_vs_iru_heater": case.magnitude * p for ax, p in zip("xyz", HEATER_PATTERN)}
     if case.kind == "magnetometer_scale_temperature":
         return {f"{sensor}.scale_{ax}_vs_tam_temp": case.magnitude * p for ax, p in zip("xyz", (1.0, -0.7, 0.5))}
     return {}

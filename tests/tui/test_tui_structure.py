@@ -41,3 +41,25 @@ async def test_dependencies_listed_and_plotted(tmp_path):
         await pilot.press("escape")
         await settle(pilot)
         assert isinstance(app.screen, DiagnosisScreen)
+
+
+@pytest.mark.slow
+async def test_family_candidates_listed_with_the_catalogue_ones(tmp_path):
+    """After a fit, the candidate table lists the families of what the residuals follow (the
+    hidden contamination's channel, the orbit) beside the catalogue's effects, as discovery
+    offers them."""
+    mission = sample_mission("hidden-tam-contamination")
+    if mission is None:
+        pytest.skip("sample mission not bundled")
+    config = save_config(AnalysisConfig().with_changes(mission=mission), tmp_path / "analysis.toml")
+    app = GcsApp(config)
+    async with app.run_test(size=(120, 36)) as pilot:
+        await settle(pilot)
+        await pilot.press("f")  # fit
+        await settle(pilot)
+        await pilot.press("7")  # diagnosis
+        await settle(pilot)
+        table = app.screen.query_one("#candidates", DataTable)
+        keys = [str(k.value) for k in table.rows]
+        assert "TAM1.contamination_mtb_x" in keys  # the catalogue's
+        assert "TAM1.scale_vs_mtb_x" in keys  # a family on the channel the search found

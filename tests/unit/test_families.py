@@ -91,3 +91,36 @@ def test_offers_on_the_channel_and_its_aliases():
     offered = offered_for(dep, model, aliases=dep.aliases)
     assert "alignment_vs_tam_temp" in offered and "alignment_vs_orbit1" in offered
     assert "alignment_vs_orbit2" in offered and "scale_vs_tam_temp" in offered
+
+
+def test_a_gyro_bias_following_a_heater_is_named_with_its_physics_and_unit():
+    assert family_name("bias_vs_iru_heater", "rad/s") == "bias step with the heater, °/h per unit of iru_heater"
+
+
+def test_only_switches_offer_the_gyro_its_bias_step():
+    """A sensor's residual following the time integral of a switch, or the gyro's own score
+    test on the switch, offers the gyro's ``bias_vs_<switch>`` and nothing else of the gyro's;
+    a torquer of two levels on a short span is not a switch."""
+    from gcs_core.diagnosis.channels import switch_channels
+    from gcs_core.diagnosis.families import families_from
+
+    def dep(sensor, channel, kind):
+        return Dependency(
+            sensor, "h", "rad", channel, channel.split(":")[-1], kind, "s", np.zeros(2), np.zeros(2), np.ones(2),
+            10.0, (1.0, 100.0), 1.0, 1e-9,
+        )  # fmt: skip
+
+    model, *_ = CASES["star_tracker"](np.random.default_rng(0))
+    models = {"FHST1": model}
+    assert families_from([dep("FHST1", "int:iru_heater", "aux_integral")], models, gyro="IRU") == {
+        "IRU": ("bias_vs_iru_heater",)
+    }
+    assert families_from([dep("IRU", "aux:iru_heater", "aux")], models, gyro="IRU") == {"IRU": ("bias_vs_iru_heater",)}
+    assert families_from([dep("FHST1", "int:iru_heater", "aux_integral")], models, gyro=None) == {}
+    columns = {
+        "t": np.arange(6.0),
+        "iru_heater": np.array([0, 1, 1, 0, 0, 1.0]),
+        "mtb_x": np.array([0, 60, 0, 60, 0, 0.0]),
+    }
+    aux = type("Aux", (), {"t": columns["t"], "columns": columns, "__len__": lambda self: 6})()
+    assert switch_channels(aux) == ("iru_heater",)
