@@ -31,7 +31,10 @@ gyro-propagated attitude taken as exact — describes the data (χ²/m ≈ 1). T
    columns differenced in groups), trf with LSMR steps, from the a priori; against the
    default fit. Until 2026-12-05 the default fit's ratio was taken against (2), the batch's
    problem (31 variables, no process noise): a smaller, easier problem than the one the
-   default fit solves.
+   default fit solves. When ``least_squares`` stops short of the default fit's answer (its
+   relative ``ftol`` on a cost of 4e5 is coarser than the fall the knots bring), its time
+   so far is a lower bound of its time to the answer (tighter tolerances only continue
+   the same path): the ratio is then printed as "at least" (≥ in the SUMMARY).
 
 Timings are the best of a few repeats (the machine may be shared). Prints each timing, then
 a SUMMARY of every ratio with its target: the default fit ≤ 1× the batch without process
@@ -297,9 +300,13 @@ def run(
         f"knots {lw['dz_sigma']:.1e} σ against gcs{'' if same_ws else ' — NOT the same answer'}"
     )
     out["scipy_ws"] = lw
-    if same_ws:
-        out["ratio_ws"] = lw["t_ls"] / t_ws
-        print(f"RATIO gcs default (whole_span) is {out['ratio_ws']:.0f}× faster than least_squares on its problem")
+    # short of the answer, scipy's time so far bounds its time to the answer from below
+    out["ratio_ws"] = lw["t_ls"] / t_ws
+    out["ratio_ws_bound"] = not same_ws
+    print(
+        f"RATIO gcs default (whole_span) is {'' if same_ws else 'at least '}{out['ratio_ws']:.0f}× faster than "
+        f"least_squares on its problem{'' if same_ws else ' (scipy stopped short of the answer)'}"
+    )
     return out
 
 
@@ -329,7 +336,8 @@ def summary(out: dict) -> list[str]:
             else f"  target {sense} {target:g}: "
             + ("holds" if (v <= target if sense == "<=" else v >= target) else "DOES NOT HOLD")
         )
-        lines.append(f"  {what:58s} {v:8.2f}×{goal}")
+        bound = "≥" if out.get(f"{key}_bound") else " "
+        lines.append(f"  {what:58s} {bound}{v:7.2f}×{goal}")
     return lines
 
 
