@@ -17,7 +17,7 @@ out (the problem, not its solution). Residuals, in order:
 * the process rows ``L_jᵀ e_j``, ``e_j = z_{j+1} − Φ_j z_j``, ``L_j L_jᵀ = Q_j⁻¹``: they
   depend on knots j and j + 1.
 
-``½‖f‖² = ½ J`` (the fit's cost: data χ², static prior, process term). The sparsity lets
+``‖f‖² = J`` (the fit's cost: data χ², static prior, process term). The sparsity lets
 ``least_squares`` difference the knot columns in groups (knots two apart share no row):
 the statics' columns plus ``2d`` evaluations per Jacobian, not one per column; with a
 sparse Jacobian its trust-region steps use LSMR.
