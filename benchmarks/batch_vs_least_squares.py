@@ -4,7 +4,7 @@ Problem: one simulated day (default) of 1 Hz data — gyro + TAM + two FHSTs + F
 pointing with slews; solve-for: attitude, TAM bias, gyro G, bias and bias rate, FHST
 scales, FSS transfer-function parameters (33 elements, the SODL defaults). The simulated
 IRU is a quiet one (``BENCH_ARW``, ``BENCH_RRW``) so that the batch model — the
-gyro-propagated attitude taken as exact — describes the data (χ²/m ≈ 1). Three timings:
+gyro-propagated attitude taken as exact — describes the data (χ²/m ≈ 1). The timings:
 
 1. ``gcs`` batch least squares (analytic partials, streamed by chunks, Eq 3-1/3-2);
 2. ``scipy.optimize.least_squares`` (trf and dogbox) on the same whitened residuals and
@@ -25,13 +25,25 @@ gyro-propagated attitude taken as exact — describes the data (χ²/m ≈ 1). T
    noise: it is then the batch's problem) against the batch and least_squares; and the same
    fit carrying a gyro read-out noise σ_e (``--electronic``, default the trackers' noise;
    :mod:`gcs_core.estimators.whole_span.readout`), against the batch.
+5. ``least_squares`` on the default fit's own problem (:mod:`_ws_least_squares`): the
+   statics and the knot corrections (1 789 variables on the 24 h day), the whole-span cost
+   (data, static prior, process increments), its Jacobian's sparsity given (the knot
+   columns differenced in groups), trf with LSMR steps, from the a priori; against the
+   default fit. Until 2026-12-05 the default fit's ratio was taken against (2), the batch's
+   problem (31 variables, no process noise): a smaller, easier problem than the one the
+   default fit solves. When ``least_squares`` stops short of the default fit's answer (its
+   relative ``ftol`` on a cost of 4e5 is coarser than the fall the knots bring), its time
+   so far is a lower bound of its time to the answer (tighter tolerances only continue
+   the same path): the ratio is then printed as "at least" (≥ in the SUMMARY).
 
 Timings are the best of a few repeats (the machine may be shared). Prints each timing, then
 a SUMMARY of every ratio with its target: the default fit ≤ 1× the batch without process
-noise, ≤ 2× with the book's gyro noise, ≤ 3× with σ_e, and ≥ 30× faster than least_squares.
+noise, ≤ 2× with the book's gyro noise, ≤ 3× with σ_e, and ≥ 30× faster than least_squares
+on the same problem (the batch's without process noise, the whole-span one with it).
 
 Usage: ``python benchmarks/batch_vs_least_squares.py [--hours 24] [--skip-scipy]
-[--cache DIR] [--repeats 3] [--scipy-tol 1e-8] [--scipy-repeats 2] [--electronic 3.9e-5]``
+[--cache DIR] [--repeats 3] [--scipy-tol 1e-8] [--scipy-repeats 2] [--scipy-ws-repeats 1]
+[--electronic 3.9e-5]``
 (``--cache`` keeps
 the simulated mission between runs).
 """
@@ -51,6 +63,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from _timing import best_of
+from _ws_least_squares import least_squares_whole_span
 from gcs_core.compiled import COMPILED
 from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit, normal_equations
 from gcs_core.estimators.whole_span.fit import whole_span_fit
@@ -137,6 +150,7 @@ def run(
     scipy_tol: float = 1e-8,
     scipy_repeats: int = 2,
     electronic: float = 3.878509e-05,
+    scipy_ws_repeats: int = 1,
 ) -> dict:
     t0 = time.perf_counter()
     mission = load_mission(make_mission(hours, folder))
@@ -273,12 +287,26 @@ def run(
         )
         print(
             f"RATIO gcs default (whole_span) without process noise is {same[best]['t_ls'] / t_ws0:.0f}× "
-            f"faster than least_squares ({best}; acceptance ≥ 30); with the book's gyro noise "
-            f"{same[best]['t_ls'] / t_ws:.0f}×"
+            f"faster than least_squares ({best}; acceptance ≥ 30)"
         )
-        out.update(
-            ratio=ratio, scipy_method=best, ratio_ws0=same[best]["t_ls"] / t_ws0, ratio_ws=same[best]["t_ls"] / t_ws
-        )
+        out.update(ratio=ratio, scipy_method=best, ratio_ws0=same[best]["t_ls"] / t_ws0)
+    # least_squares on the default fit's own problem: statics and knots, the process term
+    lw = least_squares_whole_span(problem, ws, tol=scipy_tol, repeats=scipy_ws_repeats)
+    same_ws = lw["dx_sigma"] < SAME_ANSWER_SIGMA
+    print(
+        f"scipy least_squares on the whole-span problem (trf, LSMR steps, 2-point FD over the sparsity: "
+        f"{lw['rows']} × {lw['columns']}, {lw['nnz']} nonzeros): {lw['t_ls']:.1f} s, {lw['nfev']} residual "
+        f"evaluations ({lw['njev']} Jacobians); cost {lw['cost']:.4f}; max |Δx|/σ = {lw['dx_sigma']:.1e}, "
+        f"knots {lw['dz_sigma']:.1e} σ against gcs{'' if same_ws else ' — NOT the same answer'}"
+    )
+    out["scipy_ws"] = lw
+    # short of the answer, scipy's time so far bounds its time to the answer from below
+    out["ratio_ws"] = lw["t_ls"] / t_ws
+    out["ratio_ws_bound"] = not same_ws
+    print(
+        f"RATIO gcs default (whole_span) is {'' if same_ws else 'at least '}{out['ratio_ws']:.0f}× faster than "
+        f"least_squares on its problem{'' if same_ws else ' (scipy stopped short of the answer)'}"
+    )
     return out
 
 
@@ -288,7 +316,7 @@ TARGETS = (
     ("ws_over_batch", "default fit, the book's gyro noise / batch", 2.0, "<="),
     ("wse_over_batch", "default fit with the read-out noise σ_e / batch", 3.0, "<="),
     ("ratio", "least_squares / batch", None, ">="),
-    ("ratio_ws", "least_squares / default fit (the book's gyro noise)", 30.0, ">="),
+    ("ratio_ws", "least_squares / default fit, both on the whole-span problem", 30.0, ">="),
     ("ratio_ws0", "least_squares / default fit without process noise", 30.0, ">="),
 )
 
@@ -308,7 +336,8 @@ def summary(out: dict) -> list[str]:
             else f"  target {sense} {target:g}: "
             + ("holds" if (v <= target if sense == "<=" else v >= target) else "DOES NOT HOLD")
         )
-        lines.append(f"  {what:58s} {v:8.2f}×{goal}")
+        bound = "≥" if out.get(f"{key}_bound") else " "
+        lines.append(f"  {what:58s} {bound}{v:7.2f}×{goal}")
     return lines
 
 
@@ -320,6 +349,7 @@ def main() -> None:
     ap.add_argument("--repeats", type=int, default=3, help="timings are the best of this many")
     ap.add_argument("--scipy-tol", type=float, default=1e-8, help="ftol = xtol = gtol of least_squares (its default)")
     ap.add_argument("--scipy-repeats", type=int, default=2, help="least_squares runs per method (best kept)")
+    ap.add_argument("--scipy-ws-repeats", type=int, default=1, help="least_squares runs on the whole-span problem")
     ap.add_argument("--electronic", type=float, default=3.878509e-05, help="σ_e [rad] of the read-out timing (0: none)")
     args = ap.parse_args()
     kw = {
@@ -327,6 +357,7 @@ def main() -> None:
         "scipy_tol": args.scipy_tol,
         "scipy_repeats": args.scipy_repeats,
         "electronic": args.electronic,
+        "scipy_ws_repeats": args.scipy_ws_repeats,
     }
     if args.cache is not None:
         args.cache.mkdir(parents=True, exist_ok=True)

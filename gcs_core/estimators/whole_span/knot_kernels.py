@@ -53,11 +53,28 @@ def _accumulate_numpy(U, H, rw, knot, cols, Dk, Bk):
     Bk[js, :, -1] += np.add.reduceat(np.einsum("nra,nr->na", U, rw), starts, axis=0)
 
 
+#: the largest finite double: :func:`numpy.nan_to_num`'s image of +inf
+_MAX_FLOAT = float(np.finfo(np.float64).max)
+
+
+@_jit
+def _finite(v):
+    """``numpy.nan_to_num`` of one value (NaN → 0, ±inf → ± the largest double)."""
+    if v != v:
+        return 0.0
+    if v > _MAX_FLOAT:
+        return _MAX_FLOAT
+    if v < -_MAX_FLOAT:
+        return -_MAX_FLOAT
+    return v
+
+
 @_jit
 def _accumulate_fused(D, C, w, t, knot, tau, R, Hm, rw, m, cols, Dk, Bk):
     """:func:`knot_rows` and :func:`_accumulate` in one pass: the rows ``u`` are formed
     per frame and summed at once (D (N, m, 3), C (N, 3, 3), w (N, m), Hm (N·m, k),
-    rw (N·m,); the module docstring gives ``u``)."""
+    rw (N·m,); the module docstring gives ``u``). Non-finite partials are read as
+    :func:`numpy.nan_to_num` makes them (:func:`_finite`: no cleaned copy of D)."""
     d = Dk.shape[1]
     k = cols.shape[0]
     last = Bk.shape[2] - 1
@@ -85,7 +102,7 @@ def _accumulate_fused(D, C, w, t, knot, tau, R, Hm, rw, m, cols, Dk, Bk):
             wr = w[i, r]
             if wr == 0.0:
                 continue
-            d0, d1, d2 = D[i, r, 0] * wr, D[i, r, 1] * wr, D[i, r, 2] * wr
+            d0, d1, d2 = _finite(D[i, r, 0]) * wr, _finite(D[i, r, 1]) * wr, _finite(D[i, r, 2]) * wr
             for c in range(3):
                 u[c] = d0 * C[i, 0, c] + d1 * C[i, 1, c] + d2 * C[i, 2, c]
             if d == 6:

@@ -339,7 +339,7 @@ class KnotSystem:
         R = self.R if self.R.shape[0] else np.eye(3)[None]
         # the fused kernel reads the knot times through the held buffer's offset
         _accumulate_fused(
-            np.nan_to_num(D),
+            D,  # read through nan_to_num in the kernel
             C,
             w,
             t,

@@ -309,7 +309,7 @@ class Passes:
             buf[blk.lo : blk.hi] = 0.0
             return
         D = np.nan_to_num(D)
-        buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2)
+        buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2, finite=True)
         if self.errors is not None and self.errors.nonzero:
             De = np.einsum("nma,na->nm", D, self.errors.at(sd.t[blk.lo : blk.hi]))
             self.buffers.r[sd.name][blk.lo : blk.hi] += De

@@ -93,10 +93,12 @@ from gcs_core.estimators.whole_span.readout_kernels import (
 )
 
 
-def row_variance(D: np.ndarray, sig_e2: float) -> np.ndarray:
+def row_variance(D: np.ndarray, sig_e2: float, *, finite: bool = False) -> np.ndarray:
     """(N, m) the read-out noise's share of each row's variance, ``σ_e² |D_i|²``
-    (D (N, m, 3) the model's attitude partials, NaN rows give 0)."""
-    D = np.nan_to_num(D)
+    (D (N, m, 3) the model's attitude partials, NaN rows give 0; ``finite``: D has been
+    through :func:`numpy.nan_to_num` already)."""
+    if not finite:
+        D = np.nan_to_num(D)
     return sig_e2 * np.einsum("nma,nma->nm", D, D)
 
 
@@ -370,9 +372,9 @@ class ReadoutEpochs:
             return
         T, idxs, lo = self._window(parts)
         E, p = T.size, self.p
-        F = np.zeros((E, 3, 3))
+        F = self._buffer("F", (E, 3, 3), zero=True)
         G = self._buffer("G", (E, 3, p + 1), zero=True)  # D̃ᵀ[H̃ | r̃] per epoch
-        FC = np.zeros((E, 3, 3)) if self.knots is not None else None
+        FC = self._buffer("FC", (E, 3, 3), zero=True) if self.knots is not None else None
         for (_t, Fb, FCb, X, cols), idx in zip(parts, idxs):
             ext = np.append(cols, p)
             if COMPILED:  # one compiled pass adds F, F C and G (repeated epochs add in turn)
