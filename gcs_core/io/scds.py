@@ -18,7 +18,7 @@ HDF5 layout (see docs/formats.md)::
     /versions/NNNNN/covariance    (n, n)  [absent when none was given]
 
 Appending copies the verified file and adds one group, then replaces the file
-atomically (:func:`gcs_core.io.h5store.append_group`): a kill at any moment leaves
+atomically (:func:`gcs_core.io.h5append.append_group`): a kill at any moment leaves
 the previous file intact, and a file that fails its checksums is never written to.
 """
 
@@ -36,7 +36,7 @@ import h5py
 import numpy as np
 
 from gcs_core.errors import DataFileError
-from gcs_core.io import h5store
+from gcs_core.io import h5append, h5store
 
 FORMAT = "SCDS"
 VERSION = 1
@@ -179,7 +179,7 @@ def append_version(
         if cov is not None:
             h5store.write_array(g, "covariance", cov)
 
-    return h5store.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
+    return h5append.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
 
 
 def _summary(g: h5py.Group) -> VersionSummary:
