@@ -58,19 +58,25 @@ class Entry:
     asf_solution: int | None = None
     worker: str = ""
     seconds: float = 0.0
+    cpu_s: float = 0.0
 
 
 @dataclass
 class FleetRun:
     """What a run did: one :class:`Entry` per spacecraft-day, the number of workers, the
-    wall time [s] (``compute_s``: from the cluster being up to the last append), and each
-    worker's resident and peak memory [MB] at the end."""
+    wall time [s] (``compute_s``: from the cluster being up to the last append), each
+    worker's resident and peak memory [MB] at the end, and the CPU time [s] spent over
+    ``compute_s``: ``client_cpu_s`` by this process (reading missions, appending, the
+    Dask client; for a local cluster also its scheduler and nannies, which run here) and
+    ``worker_cpu_s`` by each worker process (its tasks and Dask's work around them)."""
 
     entries: list[Entry] = field(default_factory=list)
     workers: int = 0
     wall_s: float = 0.0
     compute_s: float = 0.0
     worker_memory_mb: dict = field(default_factory=dict)
+    client_cpu_s: float = 0.0
+    worker_cpu_s: dict = field(default_factory=dict)
 
     def entry(self, spacecraft: str, day: str) -> Entry:
         for e in self.entries:
@@ -125,6 +131,11 @@ def connect(workers: int, scheduler: str | None):
     return dask_connect(workers, scheduler)
 
 
+def _process_cpu_s() -> float:
+    """CPU time [s] of this process so far (run on each worker)."""
+    return time.process_time()
+
+
 def _worker_memory() -> dict:
     """This worker's resident and peak memory [MB] (run on each worker)."""
     import resource
@@ -155,7 +166,7 @@ class _Ordered:
 
     def _write(self, entry: Entry, outcome: Outcome | None, done: Done | None) -> None:
         if outcome is not None:
-            entry.worker, entry.seconds = outcome.worker, outcome.seconds
+            entry.worker, entry.seconds, entry.cpu_s = outcome.worker, outcome.seconds, outcome.cpu_s
             if outcome.error:
                 entry.state, entry.error = "error", outcome.error
             else:
@@ -233,7 +244,8 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
     try:
         if on_client:
             on_client(client)
-        t_up = time.perf_counter()
+        t_up, cpu_up = time.perf_counter(), time.process_time()
+        cpu_workers = _cpu_of(client)
         n = max(1, len(client.scheduler_info().get("workers", {})) or workers)
         run.workers = n
         window = IN_FLIGHT_PER_WORKER * n
@@ -278,7 +290,8 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
                 order.settle(p.entry, outcome, p.done)
             for p2 in items:  # anything left (only skips and errors once the window is empty)
                 order.settle(p2.entry) if p2.job is None else order.settle(p2.entry, _not_run(p2))
-        run.compute_s = time.perf_counter() - t_up
+        run.compute_s, run.client_cpu_s = time.perf_counter() - t_up, time.process_time() - cpu_up
+        run.worker_cpu_s = {w: c - cpu_workers.get(w, 0.0) for w, c in _cpu_of(client).items()}
         try:
             run.worker_memory_mb = client.run(_worker_memory)
         except Exception as err:  # noqa: BLE001 — memory figures are a nicety
@@ -290,6 +303,15 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _cpu_of(client) -> dict:
+    """Each worker's CPU time so far [s] ({} when the workers cannot say)."""
+    try:
+        return client.run(_process_cpu_s)
+    except Exception as err:  # noqa: BLE001 — CPU figures are a nicety
+        log.debug("no worker CPU figures: %s", err)
+        return {}
 
 
 def _not_run(p: _Prepared) -> Outcome:
