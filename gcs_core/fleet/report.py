@@ -234,5 +234,10 @@ def build_report(m: Manifest, run=None, *, days: list[str] | None = None) -> dic
             "already_done": states.count("already done"),
             "errors": states.count("error"),
             "worker_memory_mb": run.worker_memory_mb,
+            # CPU seconds over compute_s: the submitter (missions read, appends, Dask) and each worker
+            "compute_s": run.compute_s,
+            "submitter_cpu_s": run.client_cpu_s,
+            "worker_cpu_s": run.worker_cpu_s,
+            "per_minute": states.count("calibrated") / (run.compute_s / 60.0) if run.compute_s > 0 else None,
         }
     return report

@@ -33,7 +33,7 @@ from pathlib import Path
 from gcs_core.errors import GcsError
 from gcs_core.fleet.manifest import Manifest
 from gcs_core.fleet.store import Done, FleetStore, input_hash
-from gcs_core.fleet.task import Job, Outcome, one_line, run_job
+from gcs_core.fleet.task import Job, Outcome, one_line, run_job, warm_up
 
 log = logging.getLogger(__name__)
 
@@ -78,7 +78,9 @@ class FleetRun:
     worker's resident and peak memory [MB] at the end, and the CPU time [s] spent over
     ``compute_s``: ``client_cpu_s`` by this process (reading missions, appending, the
     Dask client; for a local cluster also its scheduler and nannies, which run here) and
-    ``worker_cpu_s`` by each worker process (its tasks and Dask's work around them)."""
+    ``worker_cpu_s`` by each worker process (its tasks and Dask's work around them);
+    ``warm_up_cpu_s``: each worker's import of GCS as the cluster started (before
+    ``compute_s``, :func:`gcs_core.fleet.task.warm_up`)."""
 
     entries: list[Entry] = field(default_factory=list)
     workers: int = 0
@@ -87,6 +89,7 @@ class FleetRun:
     worker_memory_mb: dict = field(default_factory=dict)
     client_cpu_s: float = 0.0
     worker_cpu_s: dict = field(default_factory=dict)
+    warm_up_cpu_s: dict = field(default_factory=dict)
 
     def entry(self, spacecraft: str, day: str) -> Entry:
         for e in self.entries:
@@ -257,6 +260,10 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
     try:
         if on_client:
             on_client(client)
+        try:  # part of starting a worker: importing GCS (a worker restarted later imports in its first task)
+            run.warm_up_cpu_s = client.run(warm_up)
+        except Exception as err:  # noqa: BLE001 — a worker that cannot import GCS fails its tasks, one line each
+            log.debug("workers not warmed up: %s", err)
         t_up, cpu_up = time.perf_counter(), time.process_time()
         cpu_workers = _cpu_of(client)
         n = max(1, len(client.scheduler_info().get("workers", {})) or workers)
