@@ -84,7 +84,7 @@ def _spacecraft_history(store: FleetStore, name: str, days: list[str], n_sigma: 
     path = store.scds_path(name)
     if not path.exists():
         return {}, []
-    versions = [scds.read_version(path, n) for n, _ in store.calibrations(name)]
+    versions = scds.read_versions(path)
     per_day: dict = {}
     for i, v in enumerate(versions):
         facts = v.provenance.get(FLEET_KEY) or {}
