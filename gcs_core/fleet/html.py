@@ -174,6 +174,13 @@ def render_html(report: dict) -> str:
             f"{run['calibrated']} calibrated, {run['completed']} completed, {run['already_done']} already done, "
             f"{run['errors']} errors.</p>"
         )
+        if run.get("per_minute"):
+            cpu = sum((run.get("worker_cpu_s") or {}).values())
+            parts.append(
+                f"<p>throughput: {run['per_minute']:.1f} spacecraft-days calibrated per minute of compute "
+                f"({run['compute_s']:.1f} s); CPU: workers {cpu:.1f} s, submitter {run['submitter_cpu_s']:.1f} s "
+                "(<code>benchmarks/fleet_throughput.py</code> measures the speed-up).</p>"
+            )
     parts.append("<h2>Status</h2>")
     parts += _status_table(report)
     parts.append("<h2>Malformed inputs and failures</h2>")

@@ -84,7 +84,7 @@ def _spacecraft_history(store: FleetStore, name: str, days: list[str], n_sigma: 
     path = store.scds_path(name)
     if not path.exists():
         return {}, []
-    versions = [scds.read_version(path, n) for n, _ in store.calibrations(name)]
+    versions = scds.read_versions(path)
     per_day: dict = {}
     for i, v in enumerate(versions):
         facts = v.provenance.get(FLEET_KEY) or {}
@@ -234,5 +234,10 @@ def build_report(m: Manifest, run=None, *, days: list[str] | None = None) -> dic
             "already_done": states.count("already done"),
             "errors": states.count("error"),
             "worker_memory_mb": run.worker_memory_mb,
+            # CPU seconds over compute_s: the submitter (missions read, appends, Dask) and each worker
+            "compute_s": run.compute_s,
+            "submitter_cpu_s": run.client_cpu_s,
+            "worker_cpu_s": run.worker_cpu_s,
+            "per_minute": states.count("calibrated") / (run.compute_s / 60.0) if run.compute_s > 0 else None,
         }
     return report

@@ -33,7 +33,7 @@ from pathlib import Path
 from gcs_core.errors import GcsError
 from gcs_core.fleet.manifest import Manifest
 from gcs_core.fleet.store import Done, FleetStore, input_hash
-from gcs_core.fleet.task import Job, Outcome, one_line, run_job
+from gcs_core.fleet.task import Job, Outcome, one_line, run_job, warm_up
 
 log = logging.getLogger(__name__)
 
@@ -41,6 +41,16 @@ __all__ = ["Entry", "FleetRun", "run_fleet", "connect"]
 
 #: tasks in flight per worker (a few, so a worker never waits for the submitter)
 IN_FLIGHT_PER_WORKER = 2
+#: Dask's own polling, slowed for a local cluster: with its defaults the scheduler and the
+#: nannies, which run in the submitting process, take 34 ms of CPU per second doing nothing
+#: (an event-loop health tick every 20 ms, each nanny reading its worker's memory every
+#: 100 ms, the system monitor every 0.5 s): on 2 cores that is taken from the 2 workers.
+#: With these, 6 ms/s. A worker is still restarted past its memory limit, within 1 s.
+QUIET_CLUSTER = {
+    "distributed.admin.tick.interval": "1s",
+    "distributed.worker.memory.monitor-interval": "1s",
+    "distributed.admin.system-monitor.interval": "5s",
+}
 
 
 @dataclass
@@ -58,19 +68,28 @@ class Entry:
     asf_solution: int | None = None
     worker: str = ""
     seconds: float = 0.0
+    cpu_s: float = 0.0
 
 
 @dataclass
 class FleetRun:
     """What a run did: one :class:`Entry` per spacecraft-day, the number of workers, the
-    wall time [s] (``compute_s``: from the cluster being up to the last append), and each
-    worker's resident and peak memory [MB] at the end."""
+    wall time [s] (``compute_s``: from the cluster being up to the last append), each
+    worker's resident and peak memory [MB] at the end, and the CPU time [s] spent over
+    ``compute_s``: ``client_cpu_s`` by this process (reading missions, appending, the
+    Dask client; for a local cluster also its scheduler and nannies, which run here) and
+    ``worker_cpu_s`` by each worker process (its tasks and Dask's work around them);
+    ``warm_up_cpu_s``: each worker's import of GCS as the cluster started (before
+    ``compute_s``, :func:`gcs_core.fleet.task.warm_up`)."""
 
     entries: list[Entry] = field(default_factory=list)
     workers: int = 0
     wall_s: float = 0.0
     compute_s: float = 0.0
     worker_memory_mb: dict = field(default_factory=dict)
+    client_cpu_s: float = 0.0
+    worker_cpu_s: dict = field(default_factory=dict)
+    warm_up_cpu_s: dict = field(default_factory=dict)
 
     def entry(self, spacecraft: str, day: str) -> Entry:
         for e in self.entries:
@@ -120,9 +139,17 @@ def connect(workers: int, scheduler: str | None):
     127.0.0.1, or a client of the cluster at ``scheduler``, reached and checked as the trade
     studies do it (:func:`gcs_core.trade.engine.connect`: one line, exit 2, within seconds,
     when nothing Dask answers there)."""
+    import dask
+
     from gcs_core.trade.engine import connect as dask_connect
 
-    return dask_connect(workers, scheduler)
+    with dask.config.set(QUIET_CLUSTER):  # read when the scheduler, nannies and workers start
+        return dask_connect(workers, scheduler)
+
+
+def _process_cpu_s() -> float:
+    """CPU time [s] of this process so far (run on each worker)."""
+    return time.process_time()
 
 
 def _worker_memory() -> dict:
@@ -155,7 +182,7 @@ class _Ordered:
 
     def _write(self, entry: Entry, outcome: Outcome | None, done: Done | None) -> None:
         if outcome is not None:
-            entry.worker, entry.seconds = outcome.worker, outcome.seconds
+            entry.worker, entry.seconds, entry.cpu_s = outcome.worker, outcome.seconds, outcome.cpu_s
             if outcome.error:
                 entry.state, entry.error = "error", outcome.error
             else:
@@ -233,7 +260,12 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
     try:
         if on_client:
             on_client(client)
-        t_up = time.perf_counter()
+        try:  # part of starting a worker: importing GCS (a worker restarted later imports in its first task)
+            run.warm_up_cpu_s = client.run(warm_up)
+        except Exception as err:  # noqa: BLE001 — a worker that cannot import GCS fails its tasks, one line each
+            log.debug("workers not warmed up: %s", err)
+        t_up, cpu_up = time.perf_counter(), time.process_time()
+        cpu_workers = _cpu_of(client)
         n = max(1, len(client.scheduler_info().get("workers", {})) or workers)
         run.workers = n
         window = IN_FLIGHT_PER_WORKER * n
@@ -278,7 +310,8 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
                 order.settle(p.entry, outcome, p.done)
             for p2 in items:  # anything left (only skips and errors once the window is empty)
                 order.settle(p2.entry) if p2.job is None else order.settle(p2.entry, _not_run(p2))
-        run.compute_s = time.perf_counter() - t_up
+        run.compute_s, run.client_cpu_s = time.perf_counter() - t_up, time.process_time() - cpu_up
+        run.worker_cpu_s = {w: c - cpu_workers.get(w, 0.0) for w, c in _cpu_of(client).items()}
         try:
             run.worker_memory_mb = client.run(_worker_memory)
         except Exception as err:  # noqa: BLE001 — memory figures are a nicety
@@ -290,6 +323,15 @@ def _compute(pending, items, order: _Ordered, run: FleetRun, workers, scheduler,
         client.close()
         if cluster is not None:
             cluster.close()
+
+
+def _cpu_of(client) -> dict:
+    """Each worker's CPU time so far [s] ({} when the workers cannot say)."""
+    try:
+        return client.run(_process_cpu_s)
+    except Exception as err:  # noqa: BLE001 — CPU figures are a nicety
+        log.debug("no worker CPU figures: %s", err)
+        return {}
 
 
 def _not_run(p: _Prepared) -> Outcome:

@@ -22,11 +22,13 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from gcs_core.errors import DataFileError
 from gcs_core.io import asf, h5store, scds
+from gcs_core.io.locks import locked
 
 __all__ = ["FleetStore", "input_hash", "Done", "FLEET_KEY"]
 
@@ -60,6 +62,11 @@ def input_hash(mission, config) -> str:
     return h.hexdigest()
 
 
+def _signature(path: Path) -> tuple:
+    st = os.stat(path)
+    return (st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns, st.st_ctime_ns)
+
+
 @dataclass(frozen=True)
 class Done:
     """What the store already holds for one input hash: the SCDS version (or None) and
@@ -78,6 +85,8 @@ class FleetStore:
 
     def __init__(self, root: str | Path):
         self.root = Path(root)
+        #: str(path) -> (file signature, [(number, provenance)]) (:meth:`_provenances`)
+        self._index: dict[str, tuple[tuple, list[tuple[int, dict]]]] = {}
 
     def scds_path(self, spacecraft: str) -> Path:
         return self.root / spacecraft / f"{spacecraft}.scds.h5"
@@ -86,21 +95,30 @@ class FleetStore:
         return self.root / spacecraft / f"{spacecraft}.asf.h5"
 
     # ------------------------------------------------------------------ reading
-    @staticmethod
-    def _provenances(path: Path, collection: str, fmt: str, version: int) -> list[tuple[int, dict]]:
-        """(number, provenance) of every entry of an SCDS or ASF, oldest first ([] if absent)."""
+    def _provenances(self, path: Path, collection: str, fmt: str, version: int) -> list[tuple[int, dict]]:
+        """(number, provenance) of every entry of an SCDS or ASF, oldest first ([] if absent).
+
+        Kept in an index while the file stays the file it was (same inode, size and change
+        times: an append replaces the file, so any append by anyone changes them); the
+        appends of this store extend the index under the file's lock (:meth:`append`)."""
         if not path.exists():
             return []
-        out = []
-        with h5store.open_read(path, fmt, max_version=version) as f:
-            for name in h5store.numbered_names(f, collection):
-                g = f[collection][name]
-                try:
-                    prov = json.loads(h5store.attr_str(g, "provenance", "{}"))
-                except json.JSONDecodeError:
-                    raise DataFileError(f"entry {name} has an unreadable provenance", file=path) from None
-                out.append((int(name), prov))
-        return out
+        with locked(path, exclusive=False):
+            sig = _signature(path)
+            hit = self._index.get(str(path))
+            if hit is not None and hit[0] == sig:
+                return list(hit[1])
+            out = []
+            with h5store.open_read(path, fmt, max_version=version) as f:
+                for name in h5store.numbered_names(f, collection):
+                    g = f[collection][name]
+                    try:
+                        prov = json.loads(h5store.attr_str(g, "provenance", "{}"))
+                    except json.JSONDecodeError:
+                        raise DataFileError(f"entry {name} has an unreadable provenance", file=path) from None
+                    out.append((int(name), prov))
+            self._index[str(path)] = (sig, out)
+        return list(out)
 
     def calibrations(self, spacecraft: str) -> list[tuple[int, dict]]:
         """(version, provenance) of the spacecraft's SCDS, oldest first."""
@@ -109,6 +127,25 @@ class FleetStore:
     def attitudes(self, spacecraft: str) -> list[tuple[int, dict]]:
         """(solution, provenance) of the spacecraft's ASF, oldest first."""
         return self._provenances(self.asf_path(spacecraft), asf.COLLECTION, asf.FORMAT, asf.VERSION)
+
+    def _append(self, path: Path, append, record: dict) -> int:
+        """``append(path, **record)`` under the file's lock, the index extended when it was
+        the file appended to (with the provenance exactly as stored)."""
+        prov = {**record["provenance"]}
+        prov.setdefault("created_utc", h5store.utc_now())
+        prov.setdefault("gcs_version", h5store.gcs_version())
+        record = {**record, "provenance": prov}
+        with locked(path, exclusive=True):
+            before = _signature(path) if path.exists() else None
+            number = append(path, **record)
+            hit = self._index.pop(str(path), None)
+            if before is None or (hit is not None and hit[0] == before):
+                entries = [] if hit is None else hit[1]
+                self._index[str(path)] = (
+                    _signature(path),
+                    [*entries, (int(number), json.loads(json.dumps(prov, sort_keys=True)))],
+                )
+        return number
 
     def done(self, spacecraft: str, digest: str) -> Done:
         """Which entries already carry ``digest`` (module docstring)."""
@@ -136,7 +173,7 @@ class FleetStore:
             cal["provenance"] = {**cal["provenance"], FLEET_KEY: facts}
             path = self.scds_path(outcome.spacecraft)
             path.parent.mkdir(parents=True, exist_ok=True)
-            version = scds.append_version(path, **cal)
+            version = self._append(path, scds.append_version, cal)
         solution = done.asf_solution
         if solution is None and outcome.attitude is not None:
             att = dict(outcome.attitude)
@@ -144,5 +181,5 @@ class FleetStore:
             att["provenance"] = prov
             path = self.asf_path(outcome.spacecraft)
             path.parent.mkdir(parents=True, exist_ok=True)
-            solution = asf.append_solution(path, **att)
+            solution = self._append(path, asf.append_solution, att)
         return Done(version, solution)

@@ -14,7 +14,7 @@ HDF5 layout (see docs/formats.md)::
     /solutions/NNNNN/q         (N, 4) q1, q2, q3, q4 (scalar last), GCI to body (ICD §2)
     /solutions/NNNNN/sigma_rad (N, 3) 1-sigma attitude error about body x, y, z [rad]
 
-Appending works as for the SCDS (:func:`gcs_core.io.h5store.append_group`).
+Appending works as for the SCDS (:func:`gcs_core.io.h5append.append_group`).
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import h5py
 import numpy as np
 
 from gcs_core.errors import DataFileError
-from gcs_core.io import h5store
+from gcs_core.io import h5append, h5store
 
 FORMAT = "ASF"
 VERSION = 1
@@ -137,7 +137,7 @@ def append_solution(
         h5store.write_array(g, "q", q, attrs={"convention": "q1, q2, q3, q4 (scalar last), GCI to body"})
         h5store.write_array(g, "sigma_rad", sigma, attrs={"unit": "rad"})
 
-    return h5store.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
+    return h5append.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
 
 
 def list_solutions(path: str | os.PathLike) -> list[AsfSummary]:

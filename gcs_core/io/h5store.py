@@ -6,14 +6,16 @@ Guarantees every GCS data set gets:
   closed, given its header, ``fsync``-ed, renamed over the destination with ``os.replace``
   and the directory ``fsync``-ed (:func:`gcs_core.fileperm.atomic_path`): a crash or a kill
   at any moment leaves either the old file or the new one, never a mixture. Appending
-  (SCDS versions, ASF solutions) copies the existing groups into the new file, so earlier
-  groups are carried over byte for byte.
+  (SCDS versions, ASF solutions; :mod:`gcs_core.io.h5append`) adds the new group to the
+  checked bytes of the existing file in memory, so earlier groups are carried over as
+  the bytes they were.
 * **Locking between GCS processes** (:mod:`gcs_core.io.locks`): ``fcntl.flock`` on a
   sidecar ``<file>.lock`` opened without following links, never truncated; writers
   exclusive, readers shared, the wait as long as an append can take. HDF5's own file
   locking is turned off (``locking=False``): ours is the only one.
 * **Checksums.** The first 512 bytes (HDF5's user block) hold a text header: format,
-  version, file length and the SHA-256 of the rest of the file. It is checked before
+  version, file length and the SHA-256 of the rest of the file
+  (:mod:`gcs_core.io.h5header`). It is checked before
   HDF5 reads anything. HDF5 can loop forever on some damaged metadata, so a damaged
   GCS file never reaches it. Inside, every dataset is chunked with the ``fletcher32``
   filter and the metadata carries HDF5's own checksums (``libver`` 1.10 layout).
@@ -26,11 +28,11 @@ wrong format, locked) becomes one ``DataFileError(message, file=path)``.
 
 from __future__ import annotations
 
+import functools
 import glob
-import hashlib
 import logging
 import os
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import UTC, datetime
 from pathlib import Path
@@ -41,6 +43,15 @@ import numpy as np
 
 from gcs_core.errors import DataFileError
 from gcs_core.fileperm import atomic_path
+from gcs_core.io.h5header import (  # noqa: F401 — check_file, _write_header: part of this module's API
+    GCS_MAGIC,
+    HDF5_SIGNATURE,
+    USERBLOCK,
+    _header_block,
+    _write_header,
+    check_file,
+    read_checked,
+)
 from gcs_core.io.locks import locked, resolved
 from gcs_core.io.outputs import refuse_not_a_file, refuse_replacing
 
@@ -52,19 +63,16 @@ CREATED_ATTR = "created_utc"
 GCS_VERSION_ATTR = "gcs_version"
 #: HDF5 1.10 file layout: superblock v3 and object headers v2, with metadata checksums.
 LIBVER = ("v110", "v110")
-HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
-#: the GCS header in the HDF5 user block (bytes HDF5 leaves to the application).
-USERBLOCK = 512
-GCS_MAGIC = b"GCS-HDF5"
-HEADER_VERSION = 1
 
 #: the errors h5py raises for unreadable files and objects (KeyError for a corrupt
 #: object header, OSError for a failed filter or a truncated file).
 H5_ERRORS = (OSError, KeyError, RuntimeError, ValueError, TypeError, IndexError)
 
 
+@functools.cache
 def gcs_version() -> str:
-    """Version string of the installed GCS package ("unknown" when not installed)."""
+    """Version string of the installed GCS package ("unknown" when not installed); read
+    once per process (the package metadata lookup costs milliseconds, every append asked)."""
     try:
         from importlib.metadata import PackageNotFoundError, version
 
@@ -112,80 +120,42 @@ def corrupt(path: str | os.PathLike, err: BaseException, where: str = "") -> Dat
     return DataFileError(f"is corrupt or not laid out as expected{place} ({text})", file=path)
 
 
-def _file_digest(fh, start: int) -> tuple[str, int]:
-    """(sha256 hex of the bytes from ``start`` to the end, file length)."""
-    fh.seek(start)
-    h = hashlib.sha256()
-    length = start
-    while chunk := fh.read(1 << 20):
-        h.update(chunk)
-        length += len(chunk)
-    return h.hexdigest(), length
-
-
-def _write_header(path: Path, fmt: str, version: int) -> None:
-    """Fill the user block of a closed file with the GCS header (see module docstring)."""
-    with open(path, "r+b") as fh:
-        digest, length = _file_digest(fh, USERBLOCK)
-        text = (
-            f"{GCS_MAGIC.decode()} {HEADER_VERSION}\nformat {fmt}\nversion {version}\n"
-            f"length {length}\nsha256 {digest}\n"
-        ).encode("ascii")
-        fh.seek(0)
-        fh.write(text.ljust(USERBLOCK, b"\0"))
-
-
-def check_file(path: str | os.PathLike, fmt: str, *, max_version: int) -> None:
-    """Check the GCS header block and the whole-file SHA-256 before HDF5 sees the file.
-
-    HDF5 itself can loop forever on some damaged metadata, so a GCS file is only handed
-    to it once its checksum holds. Raises DataFileError naming what is wrong.
-    """
-    path = Path(path)
+def open_image(data: bytes, path: Path, *, writable: bool = False) -> h5py.File:
+    """An ``h5py.File`` on a file's bytes in memory (HDF5's core driver, nothing written
+    back); ``path`` names the file in messages. Writable: new objects in the 1.10 layout."""
+    fapl = h5py.h5p.create(h5py.h5p.FILE_ACCESS)
+    fapl.set_fapl_core(1 << 20, False)
+    fapl.set_file_image(data)
+    fapl.set_libver_bounds(h5py.h5f.LIBVER_V110, h5py.h5f.LIBVER_V110)
     try:
-        with open(path, "rb") as fh:
-            head = fh.read(USERBLOCK)
-            size = os.fstat(fh.fileno()).st_size
-            if size == 0:
-                raise DataFileError("is empty (0 bytes), not an HDF5 file", file=path)
-            if head.startswith(HDF5_SIGNATURE):
-                raise DataFileError(f"is an HDF5 file but not a GCS {fmt} file (no GCS header block)", file=path)
-            if not head.startswith(GCS_MAGIC):
-                fh.seek(USERBLOCK)
-                if fh.read(len(HDF5_SIGNATURE)) == HDF5_SIGNATURE:
-                    raise DataFileError("has a damaged GCS header block", file=path)
-                raise DataFileError("is not an HDF5 file (no HDF5 signature)", file=path)
-            fields = {}
-            text, nul, padding = head.partition(b"\0")
-            first = text.split(b"\n", 1)[0]
-            if padding.strip(b"\0") or not nul or not (first[len(GCS_MAGIC) : len(GCS_MAGIC) + 1] == b" "):
-                raise DataFileError("has a damaged GCS header block", file=path)
-            for line in text.decode("ascii", "replace").splitlines()[1:]:
-                key, _, value = line.partition(" ")
-                fields[key] = value.strip()
-            try:
-                found, version = fields["format"], int(fields["version"])
-                length, digest = int(fields["length"]), fields["sha256"]
-            except (KeyError, ValueError):
-                raise DataFileError("has a damaged GCS header block", file=path) from None
-            if found != fmt:
-                raise DataFileError(f"is a GCS {found} file, not {fmt}", file=path)
-            if version > max_version:
-                raise DataFileError(
-                    f"was written by a newer GCS ({fmt} format version {version}; this GCS reads up to {max_version})",
-                    file=path,
-                )
-            if size < length:
-                raise DataFileError(f"is truncated ({size} of {length} bytes)", file=path)
-            if size > length:
-                raise DataFileError(
-                    f"has {size - length} bytes after its end ({length} bytes): the file is damaged", file=path
-                )
-            actual, _ = _file_digest(fh, USERBLOCK)
-    except OSError as err:
-        raise DataFileError(f"cannot be read ({err.strerror})", file=path) from None
-    if actual != digest:
-        raise DataFileError("fails its checksum (SHA-256 of the whole file): the file is damaged", file=path)
+        fid = h5py.h5f.open(os.fsencode(path.name), h5py.h5f.ACC_RDWR if writable else h5py.h5f.ACC_RDONLY, fapl=fapl)
+    except H5_ERRORS as err:
+        raise _describe_open_failure(path, err) from None
+    return h5py.File(fid)
+
+
+def check_root(f: h5py.File, path: Path, fmt: str, max_version: int) -> None:
+    """The root attributes name ``fmt`` and a version this GCS reads (DataFileError)."""
+    try:
+        found = f.attrs.get(FORMAT_ATTR)
+        version = f.attrs.get(VERSION_ATTR)
+    except H5_ERRORS as err:
+        raise corrupt(path, err, "the root attributes") from None
+    if isinstance(found, bytes):
+        found = found.decode("utf-8", "replace")
+    if found is None:
+        raise DataFileError(f"is an HDF5 file but not a GCS {fmt} file (no '{FORMAT_ATTR}' attribute)", file=path)
+    if found != fmt:
+        raise DataFileError(f"is a GCS {found} file, not {fmt}", file=path)
+    try:
+        version = int(version)
+    except (TypeError, ValueError):
+        raise DataFileError(f"has no valid '{VERSION_ATTR}' attribute", file=path) from None
+    if version > max_version:
+        raise DataFileError(
+            f"was written by a newer GCS ({fmt} format version {version}; this GCS reads up to {max_version})",
+            file=path,
+        )
 
 
 @contextmanager
@@ -220,28 +190,7 @@ def open_read(
         try:
             if check:
                 refuse_links(f, path)
-            try:
-                found = f.attrs.get(FORMAT_ATTR)
-                version = f.attrs.get(VERSION_ATTR)
-            except H5_ERRORS as err:
-                raise corrupt(path, err, "the root attributes") from None
-            if isinstance(found, bytes):
-                found = found.decode("utf-8", "replace")
-            if found is None:
-                raise DataFileError(
-                    f"is an HDF5 file but not a GCS {fmt} file (no '{FORMAT_ATTR}' attribute)", file=path
-                )
-            if found != fmt:
-                raise DataFileError(f"is a GCS {found} file, not {fmt}", file=path)
-            try:
-                version = int(version)
-            except (TypeError, ValueError):
-                raise DataFileError(f"has no valid '{VERSION_ATTR}' attribute", file=path) from None
-            if version > max_version:
-                raise DataFileError(
-                    f"was written by a newer GCS ({fmt} format version {version}; this GCS reads up to {max_version})",
-                    file=path,
-                )
+            check_root(f, path, fmt, max_version)
             try:
                 yield f
             except DataFileError:
@@ -286,22 +235,27 @@ def verify(path: str | os.PathLike, fmt: str, *, max_version: int) -> int:
     Returns the number of datasets read; raises DataFileError on the first failure.
     """
     path = Path(path)
-    count = 0
     with open_read(path, fmt, max_version=max_version) as f:
-        names: list[str] = []
+        return verify_objects(f, path)
+
+
+def verify_objects(f: h5py.File, path: Path) -> int:
+    """Read every dataset and attribute of the open file ``f`` (:func:`verify`)."""
+    count = 0
+    names: list[str] = []
+    try:
+        f.visit(names.append)
+    except H5_ERRORS as err:
+        raise corrupt(path, err, "the group index") from None
+    for name in names:
         try:
-            f.visit(names.append)
+            obj = f[name]
+            dict(obj.attrs)
+            if isinstance(obj, h5py.Dataset):
+                obj[()]
+                count += 1
         except H5_ERRORS as err:
-            raise corrupt(path, err, "the group index") from None
-        for name in names:
-            try:
-                obj = f[name]
-                dict(obj.attrs)
-                if isinstance(obj, h5py.Dataset):
-                    obj[()]
-                    count += 1
-            except H5_ERRORS as err:
-                raise corrupt(path, err, f"/{name}") from None
+            raise corrupt(path, err, f"/{name}") from None
     return count
 
 
@@ -318,7 +272,15 @@ def _remove_stale_temps(path: Path) -> None:
 
 
 @contextmanager
-def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending: bool = False) -> Iterator[h5py.File]:
+def atomic_create(
+    path: str | os.PathLike,
+    fmt: str,
+    version: int,
+    *,
+    appending: bool = False,
+    image: bytes | None = None,
+    written: dict | None = None,
+) -> Iterator[h5py.File]:
     """Write a new GCS HDF5 file atomically, under the exclusive lock.
 
     Yields an ``h5py.File`` built in memory (written to a temporary file in the
@@ -327,7 +289,12 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending:
     already set. On a clean exit the file is closed, synced and renamed over ``path``;
     on an exception it is removed and ``path`` is untouched. A file of another kind GCS
     recognises (:func:`gcs_core.io.outputs.file_kind`) is never replaced, nor an SCDS or
-    ASF unless ``appending`` (:func:`append_group`).
+    ASF unless ``appending`` (:func:`gcs_core.io.h5append.append_group`).
+
+    ``image``: start from these bytes of a checked GCS file (:func:`read_checked`) instead
+    of an empty file, their objects kept as they are (``gcs_format_version`` and
+    ``gcs_version`` set to this writer's). ``written``, when given, receives the new
+    file's ``sha256`` (of the bytes after the header block).
     """
     path = resolved(path)  # a symbolic link is written through
     if not path.parent.is_dir():
@@ -339,84 +306,40 @@ def atomic_create(path: str | os.PathLike, fmt: str, version: int, *, appending:
             with atomic_path(path) as tmp:
                 # built in memory (HDF5's core driver), written out by Python: a full disk
                 # is one OSError here, never an HDF5 write failure (destructor noise, a crash)
-                f = h5py.File(
-                    tmp,
-                    "w",
-                    driver="core",
-                    backing_store=False,
-                    libver=LIBVER,
-                    locking=False,
-                    userblock_size=USERBLOCK,
-                )
+                if image is None:
+                    f = h5py.File(
+                        tmp,
+                        "w",
+                        driver="core",
+                        backing_store=False,
+                        libver=LIBVER,
+                        locking=False,
+                        userblock_size=USERBLOCK,
+                    )
+                else:
+                    f = open_image(image, path, writable=True)
                 try:
-                    f.attrs[FORMAT_ATTR] = fmt
+                    if image is None:
+                        f.attrs[FORMAT_ATTR] = fmt
+                        f.attrs[CREATED_ATTR] = utc_now()
                     f.attrs[VERSION_ATTR] = np.int64(version)
-                    f.attrs[CREATED_ATTR] = utc_now()
                     f.attrs[GCS_VERSION_ATTR] = gcs_version()
                     yield f
                     f.flush()
-                    image = f.id.get_file_image()
+                    new = f.id.get_file_image()
                 finally:
                     f.close()
+                # HDF5's image leaves the user block out (it starts at the superblock)
+                body = memoryview(new) if new.startswith(HDF5_SIGNATURE) else memoryview(new)[USERBLOCK:]
+                block, digest = _header_block(fmt, version, body)
                 with open(tmp, "wb") as fh:
-                    if image.startswith(HDF5_SIGNATURE):  # the image leaves the user block out
-                        fh.write(bytes(USERBLOCK))
-                    fh.write(image)
-                del image
-                _write_header(tmp, fmt, version)  # hashed and written; atomic_path syncs it
+                    fh.write(block)
+                    fh.write(body)
+                del body, new
+                if written is not None:
+                    written["sha256"] = digest
         except OSError as err:  # disk full, read-only directory, ...
             raise DataFileError(f"cannot be written ({_one_line(err)})", file=path) from None
-
-
-def check_appendable(path: str | os.PathLike, fmt: str, collection: str, *, max_version: int) -> None:
-    """Refuse to append to ``path`` unless every check holds: the whole-file SHA-256, then
-    every object's own checksum, no links, numbered groups as GCS writes them. Run by
-    :func:`append_group`, and by the ``gcs`` command before a fit whose result it appends."""
-    try:
-        verify(path, fmt, max_version=max_version)
-        with open_read(path, fmt, max_version=max_version) as src:
-            numbered_names(src, collection)
-    except DataFileError as err:
-        raise DataFileError(
-            f"{err.message}; refusing to append to it (the earlier versions would be at risk)", file=path
-        ) from None
-
-
-def append_group(
-    path: str | os.PathLike,
-    fmt: str,
-    version: int,
-    collection: str,
-    build: Callable[[h5py.Group, int], None],
-    *,
-    max_version: int,
-) -> int:
-    """Append one numbered group ``/<collection>/NNNNN`` to an append-only file.
-
-    The existing file (if any) is first checked (:func:`check_file`: header and
-    whole-file SHA-256); a file that fails is refused, never rewritten. Its groups and
-    root attributes are copied into a new temporary file, ``build(group, number)``
-    fills the new group, and the result replaces the old file atomically. Returns the
-    new number (1, 2, ...).
-    """
-    path = resolved(path)  # a symbolic link is written through
-    with locked(path, exclusive=True):
-        existing: list[int] = []
-        if path.exists():
-            check_appendable(path, fmt, collection, max_version=max_version)
-        with atomic_create(path, fmt, version, appending=True) as dst:
-            if path.exists():
-                with open_read(path, fmt, max_version=max_version) as src:
-                    for key, value in src.attrs.items():
-                        if key not in (VERSION_ATTR, GCS_VERSION_ATTR):
-                            dst.attrs[key] = value
-                    for name in src:
-                        src.copy(src[name], dst, name=name)
-                    existing = [int(n) for n in numbered_names(src, collection)]
-            number = max(existing, default=0) + 1
-            group = dst.require_group(collection).create_group(f"{number:05d}")
-            build(group, number)
-        return number
 
 
 #: at most this many digits in a version (solution) number.

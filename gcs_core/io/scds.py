@@ -18,7 +18,7 @@ HDF5 layout (see docs/formats.md)::
     /versions/NNNNN/covariance    (n, n)  [absent when none was given]
 
 Appending copies the verified file and adds one group, then replaces the file
-atomically (:func:`gcs_core.io.h5store.append_group`): a kill at any moment leaves
+atomically (:func:`gcs_core.io.h5append.append_group`): a kill at any moment leaves
 the previous file intact, and a file that fails its checksums is never written to.
 """
 
@@ -36,7 +36,7 @@ import h5py
 import numpy as np
 
 from gcs_core.errors import DataFileError
-from gcs_core.io import h5store
+from gcs_core.io import h5append, h5store
 
 FORMAT = "SCDS"
 VERSION = 1
@@ -179,7 +179,7 @@ def append_version(
         if cov is not None:
             h5store.write_array(g, "covariance", cov)
 
-    return h5store.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
+    return h5append.append_group(path, FORMAT, VERSION, COLLECTION, build, max_version=VERSION)
 
 
 def _summary(g: h5py.Group) -> VersionSummary:
@@ -206,20 +206,32 @@ def read_version(path: str | os.PathLike, n: int | None = None) -> ScdsVersion:
     """Version ``n`` of the SCDS (the latest when ``n`` is None)."""
     path = Path(path)
     with h5store.open_read(path, FORMAT, max_version=VERSION) as f:
-        g = h5store.pick_numbered(f, COLLECTION, n, "calibration version", path)
-        name = g.name.rsplit("/", 1)[-1]
-        names = h5store.read_strings(g["param_names"])
-        units = h5store.read_strings(g["unit"])
-        values, sigmas = g["value"][()], g["sigma"][()]
-        if not (len(names) == len(units) == values.size == sigmas.size):
-            raise DataFileError(f"version {int(name)} has parameter arrays of unequal length", file=path)
-        params = {nm: (float(v), float(s), u) for nm, v, s, u in zip(names, values, sigmas, units)}
-        elements = tuple(h5store.read_strings(g["element_names"]))
-        cov = g["covariance"][()] if "covariance" in g else None
-        prov = json.loads(h5store.attr_str(g, "provenance", "{}"))
-        return ScdsVersion(
-            version=int(g.attrs["version"]), params=params, element_names=elements, covariance=cov, provenance=prov
-        )
+        return _version(h5store.pick_numbered(f, COLLECTION, n, "calibration version", path), path)
+
+
+def read_versions(path: str | os.PathLike) -> list[ScdsVersion]:
+    """Every version of the SCDS, oldest first, in one opening (one checksum pass over the
+    file, where reading them one by one would check the whole file once per version)."""
+    path = Path(path)
+    with h5store.open_read(path, FORMAT, max_version=VERSION) as f:
+        return [_version(f[COLLECTION][n], path) for n in h5store.numbered_names(f, COLLECTION)]
+
+
+def _version(g: h5py.Group, path: Path) -> ScdsVersion:
+    """One version group as read back (:class:`ScdsVersion`)."""
+    name = g.name.rsplit("/", 1)[-1]
+    names = h5store.read_strings(g["param_names"])
+    units = h5store.read_strings(g["unit"])
+    values, sigmas = g["value"][()], g["sigma"][()]
+    if not (len(names) == len(units) == values.size == sigmas.size):
+        raise DataFileError(f"version {int(name)} has parameter arrays of unequal length", file=path)
+    params = {nm: (float(v), float(s), u) for nm, v, s, u in zip(names, values, sigmas, units)}
+    elements = tuple(h5store.read_strings(g["element_names"]))
+    cov = g["covariance"][()] if "covariance" in g else None
+    prov = json.loads(h5store.attr_str(g, "provenance", "{}"))
+    return ScdsVersion(
+        version=int(g.attrs["version"]), params=params, element_names=elements, covariance=cov, provenance=prov
+    )
 
 
 def diff_versions(path: str | os.PathLike, a: int, b: int) -> list[tuple[str, float, float, float, float]]:

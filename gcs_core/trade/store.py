@@ -12,7 +12,7 @@ Layout (format ``TRADE`` or ``MONTECARLO``, version 1)::
         <name>             (k, ...) float64 arrays named by the caller (``sigma``,
                            ``x_hat``, ...), for readers that want plain HDF5
 
-Every batch is appended with :func:`~gcs_core.io.h5store.append_group`: a new file
+Every batch is appended with :func:`~gcs_core.io.h5append.append_group`: a new file
 written beside the old one, checksummed, fsync-ed and renamed over it. A study killed
 at any moment leaves the file as it was after the last finished batch, every row
 readable; :func:`done_indices` tells a resumed study what is already there.
@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from gcs_core.errors import InputError
-from gcs_core.io import h5store
+from gcs_core.io import h5append, h5store
 from gcs_core.io.outputs import refuse_other_kind
 from gcs_core.json_values import json_default
 
@@ -58,7 +58,7 @@ def append_batch(
         for name, a in (arrays or {}).items():
             h5store.write_array(group, name, np.asarray(a, dtype=float))
 
-    return h5store.append_group(path, fmt, VERSION, COLLECTION, build, max_version=VERSION)
+    return h5append.append_group(path, fmt, VERSION, COLLECTION, build, max_version=VERSION)
 
 
 def read(path: str | Path, fmt: str) -> tuple[dict[str, str], list[dict[str, Any]]]:

@@ -35,10 +35,10 @@ def check_outputs(args) -> None:
         if path:
             check_output_file(path, kind=kind, what=f"{what} ({option})", append=append)
             if append and Path(path).exists():  # a history that would refuse the append: before the fit
-                from gcs_core.io import asf, h5store, scds
+                from gcs_core.io import asf, h5append, scds
 
                 module = scds if kind == "SCDS" else asf
-                h5store.check_appendable(path, module.FORMAT, module.COLLECTION, max_version=module.VERSION)
+                h5append.check_appendable(path, module.FORMAT, module.COLLECTION, max_version=module.VERSION)
             given[option] = path
     for attr, (option, what) in FOLDERS.items():
         path = getattr(args, attr, None)
