@@ -20,6 +20,12 @@ pass the family-wise level (:func:`choose`):
    in X's own) while Y has a passing candidate whose Δχ² comes from Y itself: Y's
    explanation is the stronger one. Effects of sensors without residuals of their own
    (the gyro carrying the attitude) and physics effects are exempt.
+3. **A misfit sensor's candidates before those of sensors within their noise.** Among the
+   candidates of rule 1, when some are on sensors whose residuals exceed the noise, only
+   those (and the gyro's and physics options, which have no residuals of their own) are
+   chosen from: a tracker with an error no family holds (one following the star's
+   magnitude) tilts the attitude slowly, and a Sun sensor within its noise then "follows
+   time" too; the tracker's own drift family goes first, and the search runs again after it.
 
 :func:`blame_text` says for each candidate where its Δχ² comes from.
 """
@@ -78,6 +84,12 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
     log_n = math.log(max(n_meas, 2))
     found = report.found if report is not None else ()
     first = [c for c in ok if any(matches(c, d) for d in found)]
+    misfit = exceeding(report)
+    on_misfit = [c for c in first if c.effect.sensor in misfit or own_share(c) is None]
+    if misfit and on_misfit:
+        # rule 3: a sensor within its noise whose residual follows a channel only because a
+        # misfit sensor's error moves the attitude comes after that sensor's own candidates
+        first = on_misfit
     if first:
         bic = {c.id: c.delta_chi2 - c.dof * log_n for c in ok}
         best = max(bic[c.id] for c in first)
@@ -86,7 +98,11 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
         # follow the orbit only through it (a Sun sensor's harmonic against the trackers'
         # orbit families)
         # (and a catalogue effect of its own that ties with them: known physics first)
-        theirs_own = [c for c in ok if c not in first and (own_share(c) or 0.0) >= OWN_SHARE]
+        theirs_own = [
+            c
+            for c in ok
+            if c not in first and (own_share(c) or 0.0) >= OWN_SHARE and (not misfit or c.effect.sensor in misfit)
+        ]
         stronger = [
             c
             for c in theirs_own
@@ -106,6 +122,13 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
         if not theirs:
             return c
     return ok[0]
+
+
+def exceeding(report: StructureReport | None) -> set[str]:
+    """The sensors the search found exceeding their noise (fitted or held-out)."""
+    if report is None:
+        return set()
+    return {s for s, why in report.searched.items() if "exceed" in why}
 
 
 def _catalogue_first(pick: Candidate, ok: Sequence[Candidate], bic: dict[str, float]) -> Candidate:
