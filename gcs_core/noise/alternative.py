@@ -24,8 +24,8 @@ same tests, the same limit, with the nuisance evaluated where the test's own evi
 the data are (as a likelihood-ratio test re-estimates its nuisance under the alternative;
 Cox & Hinkley, *Theoretical Statistics*, 1974, §9.3). If the candidate passes there it is
 offered to discovery, which adds it and re-measures the weights as every step does; if
-not, the session is restored exactly and nothing changes. White-noise sensors have no
-factors under either model, so a white-noise fit is never touched.
+not, the session is restored exactly and nothing changes. It runs only while some sensor
+is carried (weighted by ``√κ > 1``): on white noise nothing runs and nothing changes.
 """
 
 from __future__ import annotations
@@ -86,8 +86,8 @@ def recheck(analysis: Analysis, cands: Sequence[Candidate]) -> list[Candidate] |
     """The candidates ranked at the weights measured under the most significant one (of
     ``cands``, most significant first) when it is unidentifiable by absorption (module
     docstring) and passes there; None (the session unchanged) otherwise."""
-    if analysis.config.filter.noise_weighting != "correlated" or analysis.result is None:
-        return None
+    if analysis.config.filter.noise_weighting != "correlated" or analysis.result is None or not analysis._scale():
+        return None  # white noise: no sensor carried, nothing runs
     best = next((c for c in cands if c.significant and c.dof > 0), None)
     if best is None or best.absorbed < ABSORB_TOL:
         return None
