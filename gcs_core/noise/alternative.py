@@ -34,7 +34,10 @@ import logging
 from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
+import numpy as np
+
 from gcs_core.diagnosis.ranking import ABSORB_TOL, Candidate
+from gcs_core.errors import EstimationError
 from gcs_core.noise.weighting import same_factors
 
 if TYPE_CHECKING:
@@ -91,12 +94,17 @@ def recheck(analysis: Analysis, cands: Sequence[Candidate]) -> list[Candidate] |
     best = next((c for c in cands if c.significant and c.dof > 0), None)
     if best is None or best.absorbed < ABSORB_TOL:
         return None
-    alt = weights_under(analysis, best.id)
-    if same_factors(alt, analysis._factors):
-        return None
     saved = _Saved(analysis)
-    _held_fit(analysis, alt)
-    new = analysis.rank()
+    try:
+        alt = weights_under(analysis, best.id)
+        if same_factors(alt, analysis._factors):
+            return None
+        _held_fit(analysis, alt)
+        new = analysis.rank()
+    except (EstimationError, np.linalg.LinAlgError) as exc:  # a trial that fails changes nothing
+        log.info("%s: weights under it not measured (%s)", best.id, exc)
+        saved.restore(analysis)
+        return None
     again = next((c for c in new if c.id == best.id), None)
     if again is not None and again.passes:
         log.info(

@@ -32,3 +32,23 @@ def test_fhst1_roll_is_found_exactly_under_tau_60_noise(tmp_path):
     assert sorted(rec["added"]) == sorted(h.expected), rec["added"]
     z = {k: v for k, v in rec["z"].items() if k in h.recover}
     assert z and all(abs(v) < three_sigma for v in z.values()), z
+
+
+def test_recheck_runs_only_for_an_absorbed_significant_candidate_with_a_sensor_carried():
+    from types import SimpleNamespace
+
+    from gcs_core.noise import alternative
+
+    def session(scale):
+        cfg = SimpleNamespace(filter=SimpleNamespace(noise_weighting="correlated"))
+        return SimpleNamespace(config=cfg, result=object(), _scale=lambda: scale)
+
+    def cand(absorbed, significant=True):
+        return SimpleNamespace(significant=significant, dof=3, absorbed=absorbed, id="X.alignment")
+
+    # white noise (nothing carried): nothing runs, whatever the candidates
+    assert alternative.recheck(session({}), [cand(0.9999)]) is None
+    # the most significant candidate is identifiable, or none is significant: nothing runs
+    carried = session({"FHST2": 4.8})
+    assert alternative.recheck(carried, [cand(0.5), cand(0.9999)]) is None
+    assert alternative.recheck(carried, [cand(0.9999, significant=False)]) is None
