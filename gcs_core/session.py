@@ -96,6 +96,8 @@ class Analysis:
         self.stop_reason = ""
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
         self._factors_mode = config.filter.noise_weighting  # the weighting the factors come from
+        #: fit with the factors as they are, measuring but not refitting (gcs_core/noise/alternative.py)
+        self.hold_factors = False
         #: sensor -> generic family effects the residual-structure search made candidates
         self.offered: dict[str, tuple[str, ...]] = {}
         self.problem: Problem = self._build()
@@ -300,7 +302,7 @@ class Analysis:
         declared = noise_correlation.declared_correlation(self.mission.spec) if correlated else {}
         passes = 0
         correlation: dict[str, noise_correlation.SensorCorrelation] = {}
-        for _ in range(max(fl.noise_passes, 2) if correlated else fl.noise_passes):
+        for _ in range(0 if self.hold_factors else max(fl.noise_passes, 2) if correlated else fl.noise_passes):
             factors, corr = noise_correlation.factors(res, sensors, fl, declared, self._scale())
             correlation = corr if correlated else correlation
             if same_factors(factors, self._factors):  # the weights stand; the latest measurement is kept
@@ -315,7 +317,7 @@ class Analysis:
             # weights (the whole-span grid follows the information, the editing the σ)
             res = self._fit_once(initial=res.state.values())
             passes += 1
-        if correlated and passes:  # the correlation the final residuals show (reported)
+        if correlated and (passes or self.hold_factors):  # the correlation the final residuals show (reported)
             correlation = noise_correlation.measure(res, sensors, declared, self._scale())
         window = float("nan") if correlated else fl.noise_window
         noise = NoiseWeighting(window, passes, dict(self._factors), fl.noise_weighting)

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING
 from gcs_core.diagnosis import blame, policy
 from gcs_core.diagnosis import search as search_session
 from gcs_core.display import p_text
+from gcs_core.noise import alternative
 
 if TYPE_CHECKING:  # the session calls this loop; the loop only reads the session
     from gcs_core.diagnosis.structure import StructureReport
@@ -48,6 +49,10 @@ def discover(analysis: Analysis, *, max_steps: int = 10, progress: Callable[[str
             cands = analysis.rank()
         if not search_session.trusted(analysis):
             report = None  # reported, not acted on (search.trusted)
+        # the most significant candidate absorbed at weights its own misfit set (noise/alternative.py)
+        again = alternative.recheck(analysis, cands)
+        if again is not None:
+            cands = again
         ok = [c for c in cands if c.passes]
         if not ok:
             best = cands[0] if cands else None

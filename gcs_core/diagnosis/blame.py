@@ -157,8 +157,14 @@ def prefer_misfit(
     """Among ``top``'s aliases (candidates the data cannot tell from it), the one on the
     sensor whose own residual the search found structured, when ``top``'s sensor shows none:
     a relative alignment between two trackers is either's, and the one whose residual
-    follows something is to blame (a tracker whose error follows the star's magnitude)."""
+    follows something is to blame (a tracker whose error follows the star's magnitude).
+    Not when ``top``'s Δχ² comes from no residual of its own sensor (the gyro's, which reach
+    the data only through the attitude): "its residual shows no structure" says nothing
+    there, and the other sensors' structure is its own signature (issue 27: a gyro scale
+    error read as FHST2.alignment_vs_time under τ = 60 s noise)."""
     if report is None or top.effect.sensor is None or report.for_sensor(top.effect.sensor):
+        return top
+    if top.sensors and top.effect.sensor not in top.sensors:
         return top
     by_id = {c.id: c for c in cands}
     for alias, _ in top.aliases_candidates:

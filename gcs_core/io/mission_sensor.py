@@ -22,6 +22,7 @@ from gcs_core.errors import InputError
 from gcs_core.io.plan_sensor import PLAN_SENSOR_KEYS, plan_keys
 from gcs_core.io.toml_fields import Ctx, existing_file, number, numbers, string
 from gcs_core.io.types import SENSOR_TYPES, SensorSpec
+from gcs_core.noise.psd import PSD_KEYS, correlated_sigma
 from gcs_core.suggest import closest, did_you_mean
 
 #: the reader's logger (mission.toml's warnings come from one place)
@@ -139,10 +140,12 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 }
 #: a sensor's noise declared correlated (first-order Gauss–Markov; docs/icd_extensions.md,
 #: gcs_core/noise/correlated.py): the correlation time τ [s] and the σ of the
-#: correlated part (default: all of ``noise``), in the sensor's telemetry units
+#: correlated part (default: all of ``noise``), in the sensor's telemetry units ``u``, or
+#: instead of that σ one PSD form (gcs_core/noise/psd.py, converted to it exactly)
 NOISE_CORRELATION_KEYS = {
     "noise_correlation_s": BookKey(0, "s", required=False, default=None, check=_positive),
     "noise_correlated": BookKey(0, "telemetry units", required=False, default=None, check=_positive),
+    **{k: BookKey(0, unit, required=False, default=None, check=_positive) for k, (unit, _) in PSD_KEYS.items()},
 }
 for _keys in BOOK_KEYS.values():
     if "noise" in _keys:
@@ -297,7 +300,38 @@ def _book(tab: _Table, name: str, stype: str, planning: bool) -> dict[str, Any]:
             book[key] = spec.default
     if planning:
         book.update(plan_keys(tab.ctx, raw, tab.base, tab.index))
+    _psd_form(tab, book)
     return book
+
+
+def _psd_form(tab: _Table, book: dict[str, Any]) -> None:
+    """A Gauss–Markov part declared as a PSD level (:data:`~gcs_core.noise.psd.PSD_KEYS`)
+    becomes its σ ``noise_correlated`` (the one form the book keeps, so a mission written
+    back from it reads the same): it needs
+    ``noise_correlation_s``, excludes the other forms, and may not exceed ``noise``."""
+    given = [k for k in ("noise_correlated", *PSD_KEYS) if k in book]
+    psd = [k for k in given if k in PSD_KEYS]
+    if not psd:
+        return
+    key = psd[0]
+    if len(given) > 1:
+        others = ", ".join(k for k in given if k != key)
+        raise tab.error(f"give one form of the correlated noise, not {key} and {others}", key, key)
+    tau = book.get("noise_correlation_s")
+    if tau is None:
+        raise tab.error(f"{key} needs noise_correlation_s (the τ [s] of the Gauss–Markov part)", key, key)
+    sig_c = correlated_sigma(key, book[key], tau)
+    noise = book.get("noise")
+    if noise is not None and sig_c > noise * (1.0 + 1e-12):
+        unit = PSD_KEYS[key][0]
+        raise tab.error(
+            f"{book[key]:g} [{unit}] with τ = {tau:g} s is a correlated σ of {sig_c:.6g}, above noise = {noise:g}"
+            " (the stated σ holds the correlated part and the white rest)",
+            key,
+            key,
+        )
+    del book[key]
+    book["noise_correlated"] = sig_c
 
 
 def _unknown(tab: _Table, name: str, stype: str, planning: bool, book: dict[str, Any]) -> tuple[str, ...]:

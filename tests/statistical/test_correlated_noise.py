@@ -127,6 +127,59 @@ def test_declared_correlation_is_read_checked_and_carried(shared_example, tmp_pa
         load_mission(root)
 
 
+def test_psd_forms_convert_exactly_to_the_simulators_sigma():
+    """σ_c from the one-sided low-frequency PSD level and from the driving-noise density
+    (gcs_core/noise/psd.py), against the Welch spectrum of the simulator's own AR(1) draws:
+    the plateau below the corner 1/(2π τ) averaged over ~60 bins × 127 segments (sampling
+    error ≈ 1.5 %; tolerance 6 %)."""
+    from scipy import signal
+
+    from gcs_core.noise.psd import sigma_from_driving_density, sigma_from_psd_level
+
+    tau, sig, dt = 10.0, 2.0, 1.0
+    s1 = 4.0 * sig**2 * tau  # one-sided plateau [u²/Hz]
+    q = 2.0 * sig**2 / tau  # driving-noise spectral density [u²/s]
+    assert math.isclose(sigma_from_psd_level(s1, tau), sig, rel_tol=1e-12)
+    assert math.isclose(sigma_from_driving_density(math.sqrt(q), tau), sig, rel_tol=1e-12)
+    x = GaussMarkov(tau, sig, 1, np.random.default_rng(27)).draw(np.arange(2**18) * dt)[:, 0]
+    f, p = signal.welch(x, fs=1.0 / dt, nperseg=4096, detrend=False)
+    model = s1 / (1.0 + (2 * math.pi * f * tau) ** 2)
+    low = (f > 0) & (f < 1.0 / (2 * math.pi * tau))
+    assert low.sum() > 50
+    assert abs(float(np.mean(p[low] / model[low])) - 1.0) < 0.06
+
+
+def test_psd_declaration_is_read_converted_and_checked(shared_example, tmp_path):
+    src = shared_example("sunpoint-nominal")
+    root = tmp_path / "m"
+    shutil.copytree(src, root)
+    toml = (root / "mission.toml").read_text()
+    head, sep, rest = toml.partition('name = "FHST1"')
+    noise = load_mission(src).spec.sensor("FHST1").noise
+
+    def read(lines: str):
+        (root / "mission.toml").write_text(head + sep + "\n" + lines + rest)
+        return load_mission(root).spec
+
+    sig_c = 0.5 * noise
+    spec = read(f"noise_correlation_s = 60.0\nnoise_correlated_psd = {4 * sig_c**2 * 60.0!r}")
+    assert nc.declared_correlation(spec)["FHST1"].share == pytest.approx(0.25, rel=1e-9)
+    assert "noise_correlated_psd" not in spec.sensor("FHST1").book
+    spec = read(f"noise_correlation_s = 60.0\nnoise_correlated_density = {sig_c * math.sqrt(2 / 60.0)!r}")
+    assert spec.sensor("FHST1").book["noise_correlated"] == pytest.approx(sig_c, rel=1e-12)
+    bad = {
+        "noise_correlated_psd = 1e-12": "needs noise_correlation_s",
+        "noise_correlation_s = 60.0\nnoise_correlated_psd = 1e-12\nnoise_correlated = 1e-5": "one form",
+        "noise_correlation_s = 60.0\nnoise_correlated_psd = 1.0": "above noise",
+        "noise_correlation_s = 60.0\nnoise_correlated_density = -1.0": "must be > 0",
+    }
+    for lines, why in bad.items():
+        key = "noise_correlated_density" if "density" in lines else "noise_correlated_psd"
+        with pytest.raises(GcsError, match=f"{key}.*{why}|{why}.*{key}") as err:
+            read(lines)
+        assert "\n" not in str(err.value) and "sensor[" in str(err.value)
+
+
 # ------------------------------------------------------------------------------ white noise
 def test_white_noise_changes_nothing_on_the_shared_example(shared_example):
     root = shared_example("sunpoint-nominal")
