@@ -20,12 +20,15 @@ pass the family-wise level (:func:`choose`):
    in X's own) while Y has a passing candidate whose Δχ² comes from Y itself: Y's
    explanation is the stronger one. Effects of sensors without residuals of their own
    (the gyro carrying the attitude) and physics effects are exempt.
-3. **A misfit sensor's candidates before those of sensors within their noise.** Among the
-   candidates of rule 1, when some are on sensors whose residuals exceed the noise, only
-   those (and the gyro's and physics options, which have no residuals of their own) are
-   chosen from: a tracker with an error no family holds (one following the star's
-   magnitude) tilts the attitude slowly, and a Sun sensor within its noise then "follows
-   time" too; the tracker's own drift family goes first, and the search runs again after it.
+3. **An unexplained misfit's own candidates first.** When a sensor exceeds its noise and its
+   residual's strongest dependency has the form of no passing candidate, rule 1 chooses only
+   among that sensor's candidates (and the gyro's and physics options, which have no
+   residuals of their own), when it has any: a tracker with an error no family holds (one
+   following the star's magnitude) tilts the attitude slowly, and a Sun sensor within its
+   noise then "follows time" too; the tracker's own drift family goes first, and the search
+   runs again after it. A sensor merely exceeding its noise is not enough, nor a weaker
+   dependency without a form (a Sun sensor whose held-out χ² exceeds, following the orbit
+   through the attitude of a tracker tilting over the orbit, and weakly the angle turned).
 
 :func:`blame_text` says for each candidate where its Δχ² comes from.
 """
@@ -84,7 +87,7 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
     log_n = math.log(max(n_meas, 2))
     found = report.found if report is not None else ()
     first = [c for c in ok if any(matches(c, d) for d in found)]
-    misfit = exceeding(report)
+    misfit = unexplained_misfits(report, ok)
     on_misfit = [c for c in first if c.effect.sensor in misfit or own_share(c) is None]
     if misfit and on_misfit:
         # rule 3: a sensor within its noise whose residual follows a channel only because a
@@ -124,11 +127,19 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
     return ok[0]
 
 
-def exceeding(report: StructureReport | None) -> set[str]:
-    """The sensors the search found exceeding their noise (fitted or held-out)."""
+def unexplained_misfits(report: StructureReport | None, ok: Sequence[Candidate]) -> set[str]:
+    """Sensors exceeding their noise (fitted or held-out) whose strongest dependency (the
+    largest share of its residual's variance) no passing candidate has the form of (a
+    tracker error following the star's magnitude): an error left unexplained there moves
+    the attitude the others follow."""
     if report is None:
         return set()
-    return {s for s, why in report.searched.items() if "exceed" in why}
+    exceeding = {s for s, why in report.searched.items() if "exceed" in why}
+    strongest: dict[str, Dependency] = {}
+    for d in report.found:
+        if d.sensor in exceeding and (d.sensor not in strongest or d.share > strongest[d.sensor].share):
+            strongest[d.sensor] = d
+    return {s for s, d in strongest.items() if not any(matches(c, d) for c in ok)}
 
 
 def _catalogue_first(pick: Candidate, ok: Sequence[Candidate], bic: dict[str, float]) -> Candidate:
