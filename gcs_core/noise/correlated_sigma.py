@@ -35,7 +35,9 @@ coupling in the correction term). ``Gᵀ C G`` is a forward first-order recursio
 sensor's frames (exact at any spacing) per component, as scaled cumulative sums
 (:func:`_forward_sum`). Unlike the residual-based sandwich (:mod:`gcs_core.noise.correlation`)
 this one is formed from the partials and the noise model, not the residuals, so what the
-attitude absorbed does not bias it. The fit's σ are scaled by ``min(1, s_i)``: never
+attitude absorbed does not bias it. Without a knot covariance (a batch fit: exact; a filter, or a
+whole-span result without its factors) ``P`` is the inverse over the static columns alone,
+conditional on any process states (:func:`_static_inverse`). The fit's σ are scaled by ``min(1, s_i)``: never
 inflated here (a slow signature's σ is the long-run weight's already).
 
 History: conditional on the static attitude, as first built, FHST1.scale_v's ratio read
@@ -55,6 +57,7 @@ from dataclasses import fields, replace
 
 import numpy as np
 
+from gcs_core.noise.correlation import equilibrated_inverse
 from gcs_core.problem.linearization import iter_blocks
 
 log = logging.getLogger(__name__)
@@ -98,6 +101,23 @@ def _knot_covariance(result):
     return (dyn, cov[1]) if cov is not None else (None, None)
 
 
+def _static_inverse(problem, result, columns, exclude) -> np.ndarray:
+    """``(Σ Hᵀ W' H + P₀⁻¹)⁻¹`` over the static columns alone: the inverse whose rows' influence
+    is ``H A⁻¹`` when no knot covariance is at hand (a batch fit: the fit's own ``P``; a
+    filter, or a whole-span result without its factors: conditional on their process states)."""
+    k = len(columns)
+    A = np.zeros((k, k))
+    for blk in iter_blocks(problem, result.state.values(), columns, weighted=True, exclude=exclude):
+        if blk.H is not None and blk.cols.size:
+            Hf = blk.H.reshape(-1, blk.cols.size)
+            A[np.ix_(blk.cols, blk.cols)] += Hf.T @ Hf
+    s0 = np.array([result.state[n].sigma0 for n in columns])
+    A += np.diag(np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0))
+    d = np.sqrt(np.diag(A))
+    d = np.where(np.isfinite(d) & (d > 0), d, 1.0)
+    return equilibrated_inverse(A / np.outer(d, d)) / np.outer(d, d)
+
+
 def _influence(blk, P: np.ndarray, dyn, X) -> np.ndarray:
     """(n, m, p) the block's weighted rows times the statics' columns of the full inverse
     normal matrix, ``[H_x  U_z] [P; X_j]`` (module docstring): each row's influence on the
@@ -133,10 +153,12 @@ def sigma_ratios(problem, result, carried: Mapping[str, tuple[float, float, floa
     columns = list(result.solve_for)
     if not columns or not carried:
         return {}
-    P = np.asarray(result.P, float)
-    dyn, X = _knot_covariance(result)
-    prob = dyn.problem(problem, readout=True) if dyn is not None else problem
     exclude = {n: ~np.asarray(r.used, bool) for n, r in result.residuals.items()}
+    dyn, X = _knot_covariance(result)
+    if dyn is not None:
+        P, prob = np.asarray(result.P, float), dyn.problem(problem, readout=True)
+    else:
+        P, prob = _static_inverse(problem, result, columns, exclude), problem
     rows: dict[str, list] = {}
     blocks = iter_blocks(prob, state.values(), columns, weighted=True, exclude=exclude, sensors=list(carried))
     for blk in blocks:
