@@ -114,7 +114,7 @@ def montecarlo(args) -> None:
     covariance before the sandwich rescales it, the a priori a pseudo-observation with
     influence ``P P₀⁻¹``), never shows in the scatter. Where the long-run weights and the
     sandwich leave the data little (the tracker scales: ~10 % of their variance is the a
-    priori's, ~1 % under white noise) the first ratio reads conservative by that share."""
+    priori's, well under 1 % under white noise) the first ratio reads conservative by that share."""
     from gcs_core.config import AnalysisConfig
     from gcs_core.noise import correlated_sigma
     from gcs_core.session import Analysis

@@ -44,7 +44,7 @@ History: conditional on the static attitude, as first built, FHST1.scale_v's rat
 0.48 where the marginal one reads 0.36 on a τ = 60 s seed (its Monte Carlo predicted /
 scatter was 1.61). Conditional on the knots (the static attitude among the columns) the
 tracker scales' ratios were within 1 % of the marginal ones, while the gyro bias and its
-rate read 0.94–0.95 instead of 0.99 (``docs/benchmarks.md``, correlated-noise section).
+rate read 0.93–0.95 instead of 0.98–0.99 (``docs/benchmarks.md``, correlated-noise section).
 With white noise (no sensor carried) nothing is computed and nothing changes.
 """
 
