@@ -69,6 +69,21 @@ class Dynamics:
             self._cov = kn.KnotSystem.covariance(self.factors, self.P)
         return self._cov
 
+    def knot_partials(self, blk) -> tuple[np.ndarray, np.ndarray] | None:
+        """``(U, j)`` of a weighted block (:func:`~gcs_core.problem.linearization.iter_blocks`
+        on :meth:`problem`): its rows' partials in their frames' knot columns ``U`` (n, m, d),
+        weighted and zero where unused as the fit forms them (:func:`.knots.knot_rows`), and
+        each frame's knot ``j`` (n,); None for rows without attitude partials."""
+        D = getattr(blk.pred, "d_att", None)
+        if D is None or blk.geom.C_BI is None:
+            return None
+        sd = blk.sensor
+        t = sd.t[blk.lo : blk.hi]
+        j = self.grid.index(t)
+        C = kn.chained_attitude(blk.geom.C_BI, self.grid, self.z, self.R, t)
+        w = blk.used[:, None] / sd.sigma[None, :]
+        return kn.knot_rows(np.nan_to_num(D), C, t, j, self.grid, self.R, w), j
+
     def knot_sigma(self) -> np.ndarray:
         """(K, d) 1-sigma of the corrections."""
         S = self.covariance()[0]
