@@ -16,7 +16,7 @@ import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from gcs_core.diagnosis import blame, policy
+from gcs_core.diagnosis import blame, leave_out, policy
 from gcs_core.diagnosis import search as search_session
 from gcs_core.display import p_text
 from gcs_core.noise import alternative
@@ -67,7 +67,14 @@ def discover(analysis: Analysis, *, max_steps: int = 10, progress: Callable[[str
         fitted = analysis.result
         assert fitted is not None  # rank() fitted
         n_meas = sum(int(r.n) * len(r.components) for r in fitted.residuals.values())
-        pick = blame.choose(ok, report, n_meas)
+        pick, suspects = _choose_checked(analysis, ok, report, n_meas, say)
+        if pick is None:
+            reason = (
+                "no candidate is significant but through the unexplained misfit of "
+                + ", ".join(sorted(suspects))
+                + f" (family-wise α = {alpha:g})"
+            )
+            break
         top = policy.parsimonious(pick, cands, analysis.result, analysis.problem.state, alpha)
         top = blame.prefer_misfit(top, cands, report, alpha)
         say(
@@ -85,3 +92,22 @@ def discover(analysis: Analysis, *, max_steps: int = 10, progress: Callable[[str
         reason += "; what remains: " + g.verdict
     say(reason)
     return reason
+
+
+def _choose_checked(analysis: Analysis, ok: list, report, n_meas: int, say) -> tuple:
+    """``(candidate to add or None, suspects)``: :func:`blame.choose`, then rule 4 of
+    :mod:`gcs_core.diagnosis.blame`: a candidate on a sensor within its noise, while a
+    misfit no candidate explains is in the data, must still pass with that sensor left out
+    (:func:`gcs_core.diagnosis.leave_out.passes_without`), else the next is chosen."""
+    pick = blame.choose(ok, report, n_meas)
+    suspects = blame.unexplained_misfits(report, ok) - {pick.effect.sensor}
+    while suspects and blame.within_noise(pick, report):
+        if leave_out.passes_without(analysis, suspects, pick.id):
+            break
+        say(f"not adding {pick.id}: significant only through {', '.join(sorted(suspects))} (left out, it is not)")
+        ok = [c for c in ok if c.id != pick.id]
+        if not ok:
+            return None, suspects
+        pick = blame.choose(ok, report, n_meas)
+        suspects = blame.unexplained_misfits(report, ok) - {pick.effect.sensor}
+    return pick, suspects

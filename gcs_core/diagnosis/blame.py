@@ -22,13 +22,19 @@ pass the family-wise level (:func:`choose`):
    (the gyro carrying the attitude) and physics effects are exempt.
 3. **An unexplained misfit's own candidates first.** When a sensor exceeds its noise and its
    residual's strongest dependency has the form of no passing candidate, rule 1 chooses only
-   among that sensor's candidates (and the gyro's and physics options, which have no
-   residuals of their own), when it has any: a tracker with an error no family holds (one
+   among that sensor's candidates of the search's forms (and the gyro's and physics options,
+   which have no residuals of their own), else among its own passing candidates (its
+   alignment), when it has any: a tracker with an error no family holds (one
    following the star's magnitude) tilts the attitude slowly, and a Sun sensor within its
    noise then "follows time" too; the tracker's own drift family goes first, and the search
    runs again after it. A sensor merely exceeding its noise is not enough, nor a weaker
    dependency without a form (a Sun sensor whose held-out χ² exceeds, following the orbit
    through the attitude of a tracker tilting over the orbit, and weakly the angle turned).
+4. **Left out, is it still there?** A candidate on a sensor within its noise, chosen while an
+   unexplained misfit (rule 3) is in the data, is checked with that misfit's sensor left out
+   of the fit (:mod:`gcs_core.diagnosis.leave_out`); if it no longer passes, it was
+   significant only through that sensor's error, and it is not added (the loop chooses
+   again without it). Run by :func:`gcs_core.stepwise.discover`.
 
 :func:`blame_text` says for each candidate where its Δχ² comes from.
 """
@@ -88,11 +94,12 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
     found = report.found if report is not None else ()
     first = [c for c in ok if any(matches(c, d) for d in found)]
     misfit = unexplained_misfits(report, ok)
-    on_misfit = [c for c in first if c.effect.sensor in misfit or own_share(c) is None]
-    if misfit and on_misfit:
+    if misfit:
         # rule 3: a sensor within its noise whose residual follows a channel only because a
         # misfit sensor's error moves the attitude comes after that sensor's own candidates
-        first = on_misfit
+        on_misfit = [c for c in first if c.effect.sensor in misfit or own_share(c) is None]
+        theirs = [c for c in ok if c.effect.sensor in misfit and (own_share(c) or 0.0) >= OWN_SHARE]
+        first = on_misfit or theirs or first
     if first:
         bic = {c.id: c.delta_chi2 - c.dof * log_n for c in ok}
         best = max(bic[c.id] for c in first)
@@ -125,6 +132,12 @@ def choose(ok: Sequence[Candidate], report: StructureReport | None, n_meas: int 
         if not theirs:
             return c
     return ok[0]
+
+
+def within_noise(c: Candidate, report: StructureReport | None) -> bool:
+    """``c`` is on a sensor with residuals that the search found within its noise."""
+    s = c.effect.sensor
+    return report is not None and s is not None and "exceed" not in report.searched.get(s, "exceed")
 
 
 def unexplained_misfits(report: StructureReport | None, ok: Sequence[Candidate]) -> set[str]:
