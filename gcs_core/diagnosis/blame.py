@@ -21,7 +21,8 @@ pass the family-wise level (:func:`choose`):
    explanation is the stronger one. Effects of sensors without residuals of their own
    (the gyro carrying the attitude) and physics effects are exempt.
 3. **An unexplained misfit's own candidates first.** When a sensor exceeds its noise and its
-   residual's strongest dependency has the form of no passing candidate, rule 1 chooses only
+   residual's strongest dependency has the form of no passing candidate (or the search found
+   none), rule 1 chooses only
    among that sensor's candidates of the search's forms (and the gyro's and physics options,
    which have no residuals of their own), else among its own passing candidates (its
    alignment), when it has any: a tracker with an error no family holds (one
@@ -143,8 +144,8 @@ def within_noise(c: Candidate, report: StructureReport | None) -> bool:
 def unexplained_misfits(report: StructureReport | None, ok: Sequence[Candidate]) -> set[str]:
     """Sensors exceeding their noise (fitted or held-out) whose strongest dependency (the
     largest share of its residual's variance) no passing candidate has the form of (a
-    tracker error following the star's magnitude): an error left unexplained there moves
-    the attitude the others follow."""
+    tracker error following the star's magnitude), or with no dependency found at all: an
+    error left unexplained there moves the attitude the others follow."""
     if report is None:
         return set()
     exceeding = {s for s, why in report.searched.items() if "exceed" in why}
@@ -152,7 +153,8 @@ def unexplained_misfits(report: StructureReport | None, ok: Sequence[Candidate])
     for d in report.found:
         if d.sensor in exceeding and (d.sensor not in strongest or d.share > strongest[d.sensor].share):
             strongest[d.sensor] = d
-    return {s for s, d in strongest.items() if not any(matches(c, d) for c in ok)}
+    found_none = exceeding - set(strongest)  # a misfit whose residual follows nothing searched
+    return found_none | {s for s, d in strongest.items() if not any(matches(c, d) for c in ok)}
 
 
 def _catalogue_first(pick: Candidate, ok: Sequence[Candidate], bic: dict[str, float]) -> Candidate:
