@@ -96,7 +96,7 @@ class Analysis:
         self.stop_reason = ""
         self._factors: dict = {}  # sensor -> NoiseFactor the problem's σ carry
         self._factors_mode = config.filter.noise_weighting  # the weighting the factors come from
-        #: fit with the factors as they are, measuring but not refitting (gcs_core/noise/alternative.py)
+        #: fit with the factors as they are, measuring but not refitting (gcs_core/diagnosis/alternative.py)
         self.hold_factors = False
         #: sensor -> generic family effects the residual-structure search made candidates
         self.offered: dict[str, tuple[str, ...]] = {}

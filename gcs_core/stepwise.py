@@ -16,10 +16,9 @@ import logging
 from collections.abc import Callable
 from typing import TYPE_CHECKING
 
-from gcs_core.diagnosis import blame, leave_out, policy
+from gcs_core.diagnosis import alternative, blame, leave_out, policy
 from gcs_core.diagnosis import search as search_session
 from gcs_core.display import p_text
-from gcs_core.noise import alternative
 
 if TYPE_CHECKING:  # the session calls this loop; the loop only reads the session
     from gcs_core.diagnosis.structure import StructureReport
@@ -49,7 +48,7 @@ def discover(analysis: Analysis, *, max_steps: int = 10, progress: Callable[[str
             cands = analysis.rank()
         if not search_session.trusted(analysis):
             report = None  # reported, not acted on (search.trusted)
-        # the most significant candidate absorbed at weights its own misfit set (noise/alternative.py)
+        # the most significant candidate absorbed at weights its own misfit set (diagnosis/alternative.py)
         again = alternative.recheck(analysis, cands)
         if again is not None:
             cands = again

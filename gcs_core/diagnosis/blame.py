@@ -22,7 +22,7 @@ pass the family-wise level (:func:`choose`):
    (the gyro carrying the attitude) and physics effects are exempt.
 3. **An unexplained misfit's own candidates first.** When a sensor exceeds its noise and its
    residual's strongest dependency has the form of no passing candidate (or the search found
-   none), rule 1 chooses only
+   none), and no sensor exceeding its noise is explained, rule 1 chooses only
    among that sensor's candidates of the search's forms (and the gyro's and physics options,
    which have no residuals of their own), else among its own passing candidates (its
    alignment), when it has any: a tracker with an error no family holds (one
@@ -145,7 +145,8 @@ def unexplained_misfits(report: StructureReport | None, ok: Sequence[Candidate])
     """Sensors exceeding their noise (fitted or held-out) whose strongest dependency (the
     largest share of its residual's variance) no passing candidate has the form of (a
     tracker error following the star's magnitude), or with no dependency found at all: an
-    error left unexplained there moves the attitude the others follow."""
+    error left unexplained there moves the attitude the others follow. Empty while any
+    sensor exceeding its noise has an explanation (its misfit may be what moves the rest)."""
     if report is None:
         return set()
     exceeding = {s for s, why in report.searched.items() if "exceed" in why}
@@ -154,7 +155,10 @@ def unexplained_misfits(report: StructureReport | None, ok: Sequence[Candidate])
         if d.sensor in exceeding and (d.sensor not in strongest or d.share > strongest[d.sensor].share):
             strongest[d.sensor] = d
     found_none = exceeding - set(strongest)  # a misfit whose residual follows nothing searched
-    return found_none | {s for s, d in strongest.items() if not any(matches(c, d) for c in ok)}
+    out = found_none | {s for s, d in strongest.items() if not any(matches(c, d) for c in ok)}
+    # only while no misfit has an explanation: an explained misfit (a magnetometer's matrix)
+    # moves the attitude too, and the others' unexplained excess may be its doing
+    return out if out == exceeding else set()
 
 
 def _catalogue_first(pick: Candidate, ok: Sequence[Candidate], bic: dict[str, float]) -> Candidate:

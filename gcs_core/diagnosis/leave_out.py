@@ -22,8 +22,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from gcs_core.diagnosis.alternative import _held_fit, _Saved
 from gcs_core.errors import EstimationError
-from gcs_core.noise.alternative import _held_fit, _Saved
 from gcs_core.noise.weighting import NoiseFactor
 
 if TYPE_CHECKING:

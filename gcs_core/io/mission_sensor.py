@@ -19,10 +19,10 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core.errors import InputError
+from gcs_core.io.noise_psd import PSD_KEYS, correlated_sigma
 from gcs_core.io.plan_sensor import PLAN_SENSOR_KEYS, plan_keys
 from gcs_core.io.toml_fields import Ctx, existing_file, number, numbers, string
 from gcs_core.io.types import SENSOR_TYPES, SensorSpec
-from gcs_core.noise.psd import PSD_KEYS, correlated_sigma
 from gcs_core.suggest import closest, did_you_mean
 
 #: the reader's logger (mission.toml's warnings come from one place)
@@ -141,7 +141,7 @@ BOOK_KEYS: dict[str, dict[str, BookKey]] = {
 #: a sensor's noise declared correlated (first-order Gauss–Markov; docs/icd_extensions.md,
 #: gcs_core/noise/correlated.py): the correlation time τ [s] and the σ of the
 #: correlated part (default: all of ``noise``), in the sensor's telemetry units ``u``, or
-#: instead of that σ one PSD form (gcs_core/noise/psd.py, converted to it exactly)
+#: instead of that σ one PSD form (gcs_core/io/noise_psd.py, converted to it exactly)
 NOISE_CORRELATION_KEYS = {
     "noise_correlation_s": BookKey(0, "s", required=False, default=None, check=_positive),
     "noise_correlated": BookKey(0, "telemetry units", required=False, default=None, check=_positive),
@@ -305,7 +305,7 @@ def _book(tab: _Table, name: str, stype: str, planning: bool) -> dict[str, Any]:
 
 
 def _psd_form(tab: _Table, book: dict[str, Any]) -> None:
-    """A Gauss–Markov part declared as a PSD level (:data:`~gcs_core.noise.psd.PSD_KEYS`)
+    """A Gauss–Markov part declared as a PSD level (:data:`~gcs_core.io.noise_psd.PSD_KEYS`)
     becomes its σ ``noise_correlated`` (the one form the book keeps, so a mission written
     back from it reads the same): it needs
     ``noise_correlation_s``, excludes the other forms, and may not exceed ``noise``."""

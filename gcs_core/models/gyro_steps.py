@@ -42,7 +42,7 @@ def step_tags(families: Iterable[str], aux_names: Iterable[str]) -> tuple[str, .
 def step_channels(t_rows: np.ndarray, aux, tags: Sequence[str]) -> dict[str, np.ndarray]:
     """channel -> (K,) its value over each gyro row's interval ``(t_{k−1}, t_k]``: held
     (ICD §6) at the interval's middle, the first interval as long as the median one."""
-    from gcs_core.problem.prepare import hold_channels
+    from gcs_core.io.aux_hold import hold_channels
 
     t = np.asarray(t_rows, float)
     if not tags or t.size == 0:
@@ -94,7 +94,7 @@ def gyro_step_channels(
 ) -> dict[str, np.ndarray]:
     """channel -> (K,) at the gyro's rows, for the ``bias_vs_<channel>`` families named for
     ``gyro`` among ``families`` (sensor -> family effects) whose channel ``aux`` has."""
-    from gcs_core.problem.prepare import aux_channel_names
+    from gcs_core.io.aux_hold import aux_channel_names
 
     tags = step_tags((families or {}).get(gyro, ()), aux_channel_names(aux))
     return step_channels(t_rows, aux, tags)

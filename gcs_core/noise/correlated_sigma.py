@@ -94,7 +94,7 @@ def _forward_sum(t: np.ndarray, h: np.ndarray, tau_s: float) -> np.ndarray:
 def _knot_covariance(result):
     """``(dynamics, X)`` of a whole-span result with knots, ``X`` (K, d, p) ``Cov(z_j, x)``
     over its solve-for columns (:meth:`Dynamics.covariance`); ``(None, None)`` otherwise."""
-    dyn = getattr(result, "dynamics", None)
+    dyn = result.dynamics  # the result protocol's (None without knots)
     if dyn is None or dyn.factors is None or tuple(dyn.names) != tuple(result.solve_for):
         return None, None
     cov = dyn.covariance()

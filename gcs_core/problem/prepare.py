@@ -41,6 +41,7 @@ from gcs_core.ephem import corrections
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.geomag import GeomagField
 from gcs_core.frames.reference import spin_axis
+from gcs_core.io.aux_hold import aux_channel_names, hold_channels  # noqa: F401 — re-exported
 from gcs_core.io.types import MissionSpec, Table
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry, ObservationModel
@@ -119,21 +120,6 @@ class SensorData:
     @property
     def n(self) -> int:
         return int(self.t.shape[0])
-
-
-def hold_channels(aux: Table | None, t: np.ndarray) -> dict[str, np.ndarray]:
-    """ICD §6: each auxiliary channel holds its value until its next row.
-
-    Frames before the first aux row take the first row's value.
-    """
-    if aux is None or len(aux) == 0:
-        return {}
-    k = np.clip(np.searchsorted(aux.t, t, side="right") - 1, 0, len(aux) - 1)
-    return {name: np.asarray(col)[k] for name, col in aux.columns.items() if name != "t"}
-
-
-def aux_channel_names(aux: Table | None) -> tuple[str, ...]:
-    return tuple(n for n in aux.columns if n != "t") if aux is not None else ()
 
 
 class HeldChannels(Mapping):

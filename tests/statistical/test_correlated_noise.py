@@ -129,12 +129,12 @@ def test_declared_correlation_is_read_checked_and_carried(shared_example, tmp_pa
 
 def test_psd_forms_convert_exactly_to_the_simulators_sigma():
     """σ_c from the one-sided low-frequency PSD level and from the driving-noise density
-    (gcs_core/noise/psd.py), against the Welch spectrum of the simulator's own AR(1) draws:
+    (gcs_core/io/noise_psd.py), against the Welch spectrum of the simulator's own AR(1) draws:
     the plateau below the corner 1/(2π τ) averaged over ~60 bins × 127 segments (sampling
     error ≈ 1.5 %; tolerance 6 %)."""
     from scipy import signal
 
-    from gcs_core.noise.psd import sigma_from_driving_density, sigma_from_psd_level
+    from gcs_core.io.noise_psd import sigma_from_driving_density, sigma_from_psd_level
 
     tau, sig, dt = 10.0, 2.0, 1.0
     s1 = 4.0 * sig**2 * tau  # one-sided plateau [u²/Hz]

@@ -1,5 +1,5 @@
 """Power under correlated noise (issue 27): a hidden effect whose misfit hides its sensor's
-Gauss–Markov noise is still found (gcs_core/noise/alternative.py).
+Gauss–Markov noise is still found (gcs_core/diagnosis/alternative.py).
 
 The slice (one seed, ~15 s): issue 10's 0.1° FHST1 roll on a 4-h Sun-pointing mission whose
 trackers and magnetometer carry τ = 60 s Gauss–Markov noise at their stated σ (the seed of
@@ -37,7 +37,7 @@ def test_fhst1_roll_is_found_exactly_under_tau_60_noise(tmp_path):
 def test_recheck_runs_only_for_an_absorbed_significant_candidate_with_a_sensor_carried():
     from types import SimpleNamespace
 
-    from gcs_core.noise import alternative
+    from gcs_core.diagnosis import alternative
 
     def session(scale):
         cfg = SimpleNamespace(filter=SimpleNamespace(noise_weighting="correlated"))
