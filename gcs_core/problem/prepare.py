@@ -41,7 +41,7 @@ from gcs_core.ephem import corrections
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.geomag import GeomagField
 from gcs_core.frames.reference import spin_axis
-from gcs_core.io.aux_hold import aux_channel_names, hold_channels  # noqa: F401 — re-exported
+from gcs_core.io.aux_hold import aux_channel_names, hold_channels  # noqa: F401 — re-exported for callers of this module
 from gcs_core.io.types import MissionSpec, Table
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry, ObservationModel
