@@ -46,7 +46,7 @@ if TYPE_CHECKING:
 log = logging.getLogger(__name__)
 
 
-class _Saved:
+class SavedSession:
     """What a trial changes in a session, to put back."""
 
     def __init__(self, analysis: Analysis):
@@ -60,7 +60,7 @@ class _Saved:
 def weights_under(analysis: Analysis, effect_id: str) -> dict:
     """The noise factors measured on the fit with ``effect_id`` added (the session is left as
     it was)."""
-    saved = _Saved(analysis)
+    saved = SavedSession(analysis)
     prev = analysis.result
     assert prev is not None
     try:
@@ -72,7 +72,7 @@ def weights_under(analysis: Analysis, effect_id: str) -> dict:
         saved.restore(analysis)
 
 
-def _held_fit(analysis: Analysis, factors: dict) -> None:
+def held_fit(analysis: Analysis, factors: dict) -> None:
     """Refit the current model with ``factors`` held (measured, not refitted)."""
     prev = analysis.result
     assert prev is not None
@@ -94,12 +94,12 @@ def recheck(analysis: Analysis, cands: Sequence[Candidate]) -> list[Candidate] |
     best = next((c for c in cands if c.significant and c.dof > 0), None)
     if best is None or best.absorbed < ABSORB_TOL:
         return None
-    saved = _Saved(analysis)
+    saved = SavedSession(analysis)
     try:
         alt = weights_under(analysis, best.id)
         if same_factors(alt, analysis._factors):
             return None
-        _held_fit(analysis, alt)
+        held_fit(analysis, alt)
         new = analysis.rank()
     except (EstimationError, np.linalg.LinAlgError) as exc:  # a trial that fails changes nothing
         log.info("%s: weights under it not measured (%s)", best.id, exc)

@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from gcs_core.diagnosis.alternative import _held_fit, _Saved
+from gcs_core.diagnosis.alternative import SavedSession, held_fit
 from gcs_core.errors import EstimationError
 from gcs_core.noise.weighting import NoiseFactor
 
@@ -39,13 +39,13 @@ def passes_without(analysis: Analysis, sensors: Iterable[str], candidate_id: str
     """Whether ``candidate_id`` still passes (significant and identifiable) when ``sensors``
     are left out of the fit (module docstring). A trial that fails counts as passing (the
     candidate keeps its place)."""
-    saved = _Saved(analysis)
+    saved = SavedSession(analysis)
     try:
         factors = dict(analysis._factors)
         for s in sensors:
             f = factors.get(s) or NoiseFactor(s, 0.0, 0, math.nan, math.nan, 1.0)
             factors[s] = replace(f, factor=OUT_FACTOR * max(f.factor, 1.0), note="left out (blame)")
-        _held_fit(analysis, factors)
+        held_fit(analysis, factors)
         again = next((c for c in analysis.rank() if c.id == candidate_id), None)
         return again is not None and again.passes
     except (EstimationError, np.linalg.LinAlgError) as exc:

@@ -13,19 +13,27 @@ from gcs_tui.tui.screens.diagnosis import DiagnosisScreen
 from gcs_tui.tui.screens.structure import StructureScreen
 
 
-@pytest.mark.slow
-async def test_dependencies_listed_and_plotted(tmp_path):
+def _app(tmp_path) -> GcsApp:
+    """The app on the hidden-contamination sample (skipped when it is not bundled)."""
     mission = sample_mission("hidden-tam-contamination")
     if mission is None:
         pytest.skip("sample mission not bundled")
-    config = save_config(AnalysisConfig().with_changes(mission=mission), tmp_path / "analysis.toml")
-    app = GcsApp(config)
+    return GcsApp(save_config(AnalysisConfig().with_changes(mission=mission), tmp_path / "analysis.toml"))
+
+
+async def _fit_then_diagnosis(pilot) -> None:
+    await settle(pilot)
+    await pilot.press("f")  # fit
+    await settle(pilot)
+    await pilot.press("7")  # diagnosis
+    await settle(pilot)
+
+
+@pytest.mark.slow
+async def test_dependencies_listed_and_plotted(tmp_path):
+    app = _app(tmp_path)
     async with app.run_test(size=(120, 36)) as pilot:
-        await settle(pilot)
-        await pilot.press("f")  # fit
-        await settle(pilot)
-        await pilot.press("7")  # diagnosis
-        await settle(pilot)
+        await _fit_then_diagnosis(pilot)
         assert isinstance(app.screen, DiagnosisScreen)
         await pilot.press("y")
         await settle(pilot)
@@ -48,17 +56,9 @@ async def test_family_candidates_listed_with_the_catalogue_ones(tmp_path):
     """After a fit, the candidate table lists the families of what the residuals follow (the
     hidden contamination's channel, the orbit) beside the catalogue's effects, as discovery
     offers them."""
-    mission = sample_mission("hidden-tam-contamination")
-    if mission is None:
-        pytest.skip("sample mission not bundled")
-    config = save_config(AnalysisConfig().with_changes(mission=mission), tmp_path / "analysis.toml")
-    app = GcsApp(config)
+    app = _app(tmp_path)
     async with app.run_test(size=(120, 36)) as pilot:
-        await settle(pilot)
-        await pilot.press("f")  # fit
-        await settle(pilot)
-        await pilot.press("7")  # diagnosis
-        await settle(pilot)
+        await _fit_then_diagnosis(pilot)
         table = app.screen.query_one("#candidates", DataTable)
         keys = [str(k.value) for k in table.rows]
         assert "TAM1.contamination_mtb_x" in keys  # the catalogue's
