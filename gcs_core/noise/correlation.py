@@ -10,16 +10,20 @@ form: Conway, Operations Research 11(1), 1963) measures it from the data:
 
     A = Σ_k H_kᵀ R⁻¹ H_k + P₀⁻¹            (the information the fit assumed, a priori included)
     g_b = Σ_{k ∈ b} H_kᵀ R⁻¹ r_k           (the score of block b: frames in one window of L s)
-    B = Σ_b g_b g_bᵀ                        (what the residuals actually supply)
+    B = Σ_b g_b g_bᵀ + P₀⁻¹                 (what the residuals actually supply, and the a priori)
     Cov_honest = A⁻¹ B A⁻¹,    s_i = sqrt((A⁻¹ B A⁻¹)_ii / (A⁻¹)_ii)
 
 over the solve-for elements other than the attitude's (a sensor's own, the shared ones such
 as ``field.*``, and the gyro's, which the gyro-carried attitude passes to every sensor),
 with the scores of all the measurement sensors summed within each window (errors common to
-two sensors in one window count once, as they should), conditional on the attitude. With white residuals of
-the stated σ, ``E[B] = A − P₀⁻¹`` and ``s ≈ 1`` (less where the a priori carries the
-element); residuals correlated over windows shorter than ``L`` raise ``B`` by exactly the
-factor that inflates the estimate's scatter. ``s_i`` multiplies the fit's σ of element
+two sensors in one window count once, as they should), conditional on the attitude. The a
+priori is one more observation, with its own white error, so it enters ``B`` as it enters
+``A``: with white residuals of the stated σ ``E[B] = A`` and ``s ≈ 1``; residuals correlated
+over windows shorter than ``L`` raise ``B`` by exactly the factor that inflates the
+estimate's scatter, and an element whose variance the a priori sets (a field's magnitude
+beside a magnetometer's scale factors) is not inflated by them. ``A`` is inverted scaled to a
+unit diagonal (:func:`equilibrated_inverse`): it spans nT and rad, and a plain
+pseudo-inverse's relative cut dropped or kept the a priori's directions with the round-off. ``s_i`` multiplies the fit's σ of element
 ``i``. The window ``L`` must exceed the residual's correlation time and leave many windows
 in the span: the estimate of each ``s_i²`` has about ``n_b`` (number of windows) degrees of
 freedom, so ``s`` itself scatters by about ``1/sqrt(2 n_b)``.
@@ -148,16 +152,21 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
             f"{n_blocks} windows of {block_s:g} s hold used frames; at least {MIN_BLOCKS} are needed for a σ scale",
             key="block_s",
         )
-    A = A[np.ix_(idx, idx)] + np.diag(
+    prior = np.array(
         [1.0 / state[n].sigma0 ** 2 if np.isfinite(state[n].sigma0) and state[n].sigma0 > 0 else 0.0 for n in names]
     )
+    A = A[np.ix_(idx, idx)] + np.diag(prior)
     G = G[:, idx]
-    Ainv = np.linalg.pinv(A)
+    # inverted scaled to a unit diagonal (module docstring): a plain pseudo-inverse kept
+    # or dropped the a priori's directions with the round-off (a TAM bias's scale moved ×2
+    # with the summation order of the normal equations)
+    d = np.sqrt(np.maximum(np.diag(A), 1e-300))
+    Ainv = equilibrated_inverse(A / np.outer(d, d)) / np.outer(d, d)
     with np.errstate(all="ignore"):
-        honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G, Ainv)
+        honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G + np.diag(prior), Ainv)
         scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
-    # a pseudo-inverse of an information matrix spanning nT and rad can keep a direction it
-    # should have cut, and the scale explodes (issue 27: TAM1.bias_y at 1.6e130): not a finding
+    # where A is not positive definite its pseudo-inverse can keep a direction it should have
+    # cut, and the scale explodes (issue 27: TAM1.bias_y at 1.6e130): not a finding
     ok = np.isfinite(scale) & (scale < SCALE_MAX) & (np.diag(Ainv) > 0)
     failed = tuple(n for n, good in zip(names, ok) if not good)
     if failed:

@@ -3,10 +3,10 @@
 The laboratory mission of ``test_sigma_scale`` (exact kinematics, a field gradient, 60 s)
 run through the command with ``--sigma-window 1`` (60 windows; the default 4 s leaves 15,
 fewer than MIN_BLOCKS, and the scale is skipped with one log line). With each magnetometer
-draw held over :data:`HOLD` samples the report gives the magnetometer's elements scales
-near ``sqrt(HOLD)`` and σ × scale, and the table lists them under "σ with the residuals'
-correlation"; with white noise the scales sit at 1 within their scatter and the table adds
-nothing.
+draw held over :data:`HOLD` samples the report gives the magnetometer's elements the data
+set scales near ``sqrt(HOLD)`` (those the a priori sets, near 1: test_sigma_scale) and σ ×
+scale, and the table lists them under "σ with the residuals' correlation"; with white noise
+the scales sit at 1 within their scatter and the table adds nothing.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ import numpy as np
 import pytest
 from test_field_gradient import EFFECTS, fit, write_mission
 from test_ground_mission import MEMS_PRIORS
-from test_sigma_scale import HOLD, MAG_ELEMENTS, SCALE_SCATTER
+from test_sigma_scale import DATA_SET, HOLD, MAG_ELEMENTS, PRIOR_SET, SCALE_SCATTER
 
 from gcs_core.config import default_config, save_config
 from gcs_tui.cli.arguments import seconds_or_zero
@@ -56,8 +56,8 @@ def test_report_gives_each_element_its_scale_and_sigma(batch):
     assert (sc["window_s"], sc["n_windows"], sc["sensors"]) == (WINDOW_S, 60, ["MAG", "OPT"])
     assert min(sc["frames_per_window"].values()) > 2  # samples at 50 Hz: each window sees the correlation
     elements = sc["elements"]
-    expected = np.sqrt(hold)
     for n in MAG_ELEMENTS:
+        expected = np.sqrt(hold) if n not in PRIOR_SET else 1.0
         e = elements[n]
         assert abs(e["scale"] / expected - 1.0) < SCALE_SCATTER, (n, e["scale"], expected)
         assert e["sigma_with_correlation"] == pytest.approx(e["sigma"] * max(1.0, e["scale"]), rel=1e-3)
@@ -74,8 +74,8 @@ def test_table_lists_the_correlated_elements_only(batch):
     block = out[out.index(HEADER) :].splitlines()
     assert block[0].endswith(f"({'batch-means sandwich'}, 1-s windows, 60 windows):")
     listed = {line.split()[0]: float(line.split()[2]) for line in block[1:] if line.startswith("  ")}
-    assert set(MAG_ELEMENTS) <= set(listed)
-    for n in MAG_ELEMENTS:
+    assert set(DATA_SET) <= set(listed)
+    for n in DATA_SET:
         assert listed[n] == pytest.approx(rep["sigma_scale"]["elements"][n]["scale"], abs=0.006)
     assert "OPT.time_offset" not in listed  # the optical reference's noise is white
     assert "samples per" not in out  # many samples per window

@@ -134,7 +134,7 @@ def whole_span_fit(
     noise = noise if noise is not None else process_noise(problem)
     start = start_from(problem, noise, start, previous, edited, spacing)
     batch: BatchResult | Restart = (
-        start if start is not None else batch_fit(problem, opts, edited=edited, initial=initial)
+        start if start is not None else batch_fit(problem, _start_options(opts, noise), edited=edited, initial=initial)
     )
     if noise is None or not noise.process or not isinstance(problem.attitude, GyroAttitude):
         return cast(BatchResult, batch)  # a restart is made only with process noise
@@ -142,6 +142,21 @@ def whole_span_fit(
     del batch, start  # its residuals (a week: 32 MB) are not kept alive
     _edit_passes(problem, it)
     return _finish(problem, it)
+
+
+#: Gauss–Newton iterations of the batch that starts a fit carrying the read-out noise
+START_ITERATIONS_READOUT = 1
+
+
+def _start_options(opts: BatchOptions, noise: GyroNoise | None) -> BatchOptions:
+    """The options of the batch the fit starts from. With the read-out noise its first
+    iteration is enough: the batch's minimum is not the fit's (it takes the gyro-carried
+    attitude as exact, and its partials at ε = 0 are the errors-in-variables regression,
+    :mod:`.readout`), so the fit's first step moves the statics by more than the batch's
+    later iterations would, and its passes cost two to three of the batch's."""
+    if noise is None or not noise.sigma_e:
+        return opts
+    return replace(opts, max_iterations=min(opts.max_iterations, START_ITERATIONS_READOUT))
 
 
 @dataclass
@@ -317,6 +332,9 @@ def _iterate(it: _Iterate) -> None:
         it.x, it.z = x_try, z_try
         it.lin, it.trial = (it.trial if fresh else None), None
         if it.lin is None:
+            # a trial without its Jacobian (always, with the read-out noise): linearized
+            # here about the read-out errors' conditional optimum the trial found
+            it.adopt_readout()
             it.lin = it.passes.run(it.x, it.z, it.edits)
         # the read-out errors' conditional optimum at (x, z), when it moved (a pass
         # re-linearizes there before the fit may stop)
@@ -368,18 +386,50 @@ def _line_search(it: _Iterate, step: _Step):
     Returns (x, z, cost, scale, fresh: ``it.trial`` holds the Jacobian there), or None."""
     passes, cost = it.passes, it.cost
     scale, fresh = 1.0, True
+    joint = _joint_readout(it, step)  # (the read-out errors before, at the joint step) or None
     for attempt in range(10):
         x_try, z_try = it.x + scale * step.dx, it.z + scale * step.dz
+        # the first try's Jacobian is the next iteration's. With the read-out noise it is
+        # made at the joint step's read-out errors when they were predicted; else the try
+        # needs only the cost (a pass without the Jacobian), and the next pass is made
+        # about the read-out errors' optimum it finds
+        fresh = attempt == 0 and (not passes.sig_e2 or joint is not None)
+        if attempt == 1 and joint is not None and passes.errors is not None:
+            passes.errors.move_to(joint[0])  # the shortened steps: about the errors before
         it.trial = None
-        it.trial = passes.run(x_try, z_try, it.edits, jacobian=attempt == 0)
+        it.trial = passes.run(x_try, z_try, it.edits, jacobian=fresh)
         cost_t = passes.cost(x_try, it.trial.chi2, it.trial.system)
-        fresh = attempt == 0
-        if fresh and it.opts.knot_correction and np.isfinite(cost_t) and cost - cost_t < CORRECT_BELOW * step.gain:
+        if (
+            attempt == 0
+            and it.opts.knot_correction
+            and np.isfinite(cost_t)
+            and cost - cost_t < CORRECT_BELOW * step.gain
+        ):
+            if not fresh:  # the correction needs the try's Jacobian
+                it.trial = None
+                it.trial = passes.run(x_try, z_try, it.edits)
             z_try, cost_t, fresh = _correct_knots(it, x_try, z_try, cost_t, step.gain)
         if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
             return x_try, z_try, cost_t, scale, fresh
         scale *= 0.5
     return None
+
+
+def _joint_readout(it: _Iterate, step: _Step) -> tuple[np.ndarray, np.ndarray] | None:
+    """With the read-out noise, move the passes' read-out errors to the joint Gauss–Newton
+    step's (:meth:`.readout.EpochErrors.predicted`: the conditional optimum at the new
+    statics and knots, to first order), so that the line search's first try linearizes
+    where the next iteration needs it. Returns (the errors before, the errors moved to), or
+    None when nothing was recorded."""
+    errors, R = it.passes.errors, it.passes.R_fixed
+    if errors is None or R is None:
+        return None
+    new = errors.predicted(step.dx, step.dz, it.grid, R, 1.0 / it.passes.sig_e2)
+    if new is None:
+        return None
+    before = errors.eps
+    errors.move_to(new)
+    return before, new
 
 
 def _correct_knots(it: _Iterate, x_try, z_try, cost_t: float, gain: float):

@@ -14,7 +14,7 @@ from gcs_core.compiled import COMPILED
 from gcs_core.estimators.residuals import Residuals
 from gcs_core.estimators.whole_span import knots as kn
 from gcs_core.estimators.whole_span.knot_kernels import correct_attitude, rotate_by_rotvec
-from gcs_core.estimators.whole_span.readout import EpochErrors, ReadoutEpochs, row_variance
+from gcs_core.estimators.whole_span.readout import EpochErrors, ReadoutEpochs, row_readout
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
 from gcs_core.problem.build import Problem
@@ -242,7 +242,14 @@ class Passes:
         chi2, m_used = 0.0, 0
         ro = (
             ReadoutEpochs(
-                self.sig_e2, A, b, sysk if jacobian else None, self.problem.sensors, self.errors, self.readout_work
+                self.sig_e2,
+                A,
+                b,
+                sysk if jacobian else None,
+                self.problem.sensors,
+                self.errors,
+                self.readout_work,
+                record=jacobian,
             )
             if self.sig_e2
             else None
@@ -323,10 +330,9 @@ class Passes:
         if D is None or blk.geom.C_BI is None:
             buf[blk.lo : blk.hi] = 0.0
             return
-        D = np.nan_to_num(D)
-        buf[blk.lo : blk.hi] = row_variance(D, self.sig_e2, finite=True)
-        if self.errors is not None and self.errors.nonzero:
-            De = np.einsum("nma,na->nm", D, self.errors.at(sd.t[blk.lo : blk.hi]))
+        eps = self.errors.at(sd.t[blk.lo : blk.hi]) if self.errors is not None and self.errors.nonzero else None
+        buf[blk.lo : blk.hi], De = row_readout(D, self.sig_e2, eps)
+        if De is not None:
             self.buffers.r[sd.name][blk.lo : blk.hi] += De
             if sd.name in self.buffers.y_pred:  # the prediction at ε = 0 likewise
                 self.buffers.y_pred[sd.name][blk.lo : blk.hi] -= De

@@ -89,8 +89,23 @@ from gcs_core.estimators.whole_span.readout_kernels import (
     _epoch_solve,
     _frame_products,
     _products3,
+    _row_readout,
     _scatter,
 )
+
+
+def row_readout(D: np.ndarray, sig_e2: float, eps: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
+    """(N, m) each row's read-out variance ``σ_e² |D_i|²`` (:func:`row_variance`) and, given
+    the frames' ε̂ (N, 3), ``D_i · ε̂`` (NaN partials count as 0)."""
+    if COMPILED:
+        D = np.ascontiguousarray(D, float)
+        var = np.empty(D.shape[:2])
+        De = np.empty(D.shape[:2]) if eps is not None else None
+        e = np.ascontiguousarray(eps, float) if eps is not None else np.zeros((0, 3))
+        _row_readout(D, e, sig_e2, var, De if De is not None else var[:0])
+        return var, De
+    D = np.nan_to_num(D)
+    return row_variance(D, sig_e2, finite=True), (np.einsum("nma,na->nm", D, eps) if eps is not None else None)
 
 
 def row_variance(D: np.ndarray, sig_e2: float, *, finite: bool = False) -> np.ndarray:
@@ -186,6 +201,11 @@ def inverse_spd3(M: np.ndarray) -> np.ndarray:
     return out
 
 
+#: the per-epoch sensitivities :meth:`EpochErrors.predicted` needs are kept below this size
+#: [bytes] (G_x in single precision: a day of 1 Hz epochs over 31 statics is 45 MB)
+PREDICT_BYTES = 256 * 2**20
+
+
 class EpochErrors:
     """The per-epoch read-out errors ``ε̂_k`` the whole-span fit linearizes about.
 
@@ -201,6 +221,8 @@ class EpochErrors:
         self.cond = self.eps.copy()
         self.stale = False  # ε̂ adopted after the last pass
         self.nonzero = False  # any ε̂ ≠ 0 (kept with ``eps``: asked per block)
+        # the last recording pass's per-epoch sensitivities (:meth:`record_start`)
+        self.sens: dict | None = None
         # (index, is an epoch) of times that view a sensor's frame times, asked at every
         # pass: keyed by the viewed array's identity and the view's place in it
         self._where: dict[tuple, tuple] = {}
@@ -209,7 +231,9 @@ class EpochErrors:
         """(n,) epoch of each time (every data time is one)."""
         return self._locate(t)[0]
 
-    def _locate(self, t: np.ndarray, of: np.ndarray | None = None, tag: str = "") -> tuple[np.ndarray, np.ndarray]:
+    def _locate(
+        self, t: np.ndarray, of: np.ndarray | None = None, tag: str = ""
+    ) -> tuple[np.ndarray, np.ndarray | bool]:
         """(epoch index, whether the time is that epoch) of each time, cached when the times
         (or ``of``, the times they derive from, with a ``tag`` saying how) view a longer
         array: frame times are never changed in place; a weak reference ties the entry to
@@ -221,11 +245,12 @@ class EpochErrors:
         if base is not None and src.ndim == 1 and src.size and src.strides == base.strides:
             off = (src.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // src.itemsize
             key = (id(base), int(off), src.size, float(src[0]), float(src[-1]), tag)
-            hit = self._where.get(key)
-            if hit is not None and hit[0]() is base:
-                return hit[1]
+            cached = self._where.get(key)
+            if cached is not None and cached[0]() is base:
+                return cached[1]
         i = np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
-        found = (i, self.T[i] == t if self.T.size else np.zeros(np.shape(t), bool))
+        hit = self.T[i] == t if self.T.size else np.zeros(np.shape(t), bool)
+        found: tuple[np.ndarray, np.ndarray | bool] = (i, True if np.all(hit) else hit)  # True: all epochs
         if key is not None:
             if len(self._where) >= 4096:  # bounded: a long span's blocks
                 self._where.clear()
@@ -238,7 +263,60 @@ class EpochErrors:
         if not self.T.size:
             return np.zeros((np.size(t), 3))
         i, hit = self._locate(t, of, tag)
+        if isinstance(hit, bool):  # True: every time is an epoch (_locate)
+            return self.eps[i]
         return np.where(hit[:, None], self.eps[i], 0.0)
+
+    def record_start(self, p: int) -> None:
+        """Keep the next pass's per-epoch sensitivities (:meth:`predicted`) over ``p``
+        static columns, unless they would exceed :data:`PREDICT_BYTES`."""
+        E = self.T.size
+        if not E or E * (3 * p * 4 + 21 * 8) > PREDICT_BYTES:
+            self.sens = None
+            return
+        old = self.sens
+        if old is None or old["Gx"].shape != (E, 3, p):
+            old = {"Gx": np.empty((E, 3, p), np.float32), "F": np.empty((E, 3, 3)), "FC": np.empty((E, 3, 3))}
+            old["base"], old["have"] = np.empty((E, 3)), np.zeros(E, bool)
+        old["have"].fill(False)
+        self.sens = old
+
+    def record(self, k: np.ndarray, Gx: np.ndarray, F: np.ndarray, FC: np.ndarray, cond: np.ndarray) -> None:
+        """The epochs ``k``'s ``G_x = D̃ᵀH̃`` (E, 3, p), ``F``, ``F C`` and conditional optimum
+        at the recording pass."""
+        s = self.sens
+        if s is None or not k.size:
+            return
+        at: slice | np.ndarray = k
+        if k[-1] - k[0] + 1 == k.size:  # a window's epochs are a range (no epoch dropped)
+            at = slice(int(k[0]), int(k[-1]) + 1)
+        s["Gx"][at], s["F"][at], s["FC"][at], s["base"][at] = Gx, F, FC, cond
+        s["have"][at] = True
+
+    def predicted(self, dx: np.ndarray, dz: np.ndarray, grid, R: np.ndarray, inv_e2: float) -> np.ndarray | None:
+        """(E, 3) the read-out errors' part of the joint Gauss–Newton step taken from the
+        recorded pass's point: ``ε̂ + M⁻¹(g_ε − G_x dx − F C α(dz))``, with ``α(dz)`` the
+        knots' step at the epoch (:func:`~.knots.alpha_at`); the conditional optimum at
+        the new statics and knots to first order. None when nothing was recorded."""
+        s = self.sens
+        if s is None or not np.any(s["have"]):
+            return None
+        k = slice(None) if s["have"].all() else np.flatnonzero(s["have"])
+        Gx = s["Gx"][k]
+        a = kn.alpha_at(grid, dz, R, self.T[k])
+        rhs = (Gx.reshape(-1, Gx.shape[2]) @ dx.astype(np.float32)).reshape(-1, 3).astype(float)
+        rhs += np.einsum("eab,eb->ea", s["FC"][k], a)
+        Minv = inverse_spd3(s["F"][k] + inv_e2 * np.eye(3))
+        out = self.eps.copy()
+        out[k] = s["base"][k] - np.einsum("eab,eb->ea", Minv, rhs)
+        return out
+
+    def move_to(self, eps: np.ndarray) -> None:
+        """Linearize the next passes about ``eps`` (the joint step's, :meth:`predicted`, or
+        the one before it)."""
+        self.eps = eps
+        self.nonzero = bool(np.any(eps))
+        self.stale = True
 
     def moved(self, sig_e: float) -> float:
         """The largest change :meth:`adopt` would make, in σ_e (inf when ε̂ changed since the
@@ -276,9 +354,14 @@ class ReadoutEpochs:
         sensors,
         errors: EpochErrors | None = None,
         work: dict | None = None,
+        record: bool = False,
     ):
         self.inv_e2 = 1.0 / float(sig_e2)
         self.errors = errors  # ε̂ the rows were evaluated at (None: ε = 0)
+        # keep the epochs' sensitivities for the joint step's read-out part (EpochErrors.predicted)
+        self.record = bool(record and errors is not None and knots is not None)
+        if self.record and errors is not None:
+            errors.record_start(A.shape[0])
         self.A, self.b, self.knots = A, b, knots
         self.p = A.shape[0]
         self.order = {sd.name: i for i, sd in enumerate(sensors)}
@@ -319,7 +402,7 @@ class ReadoutEpochs:
         n, m = D.shape[:2]
         k = len(cols)
         if COMPILED:
-            F, X = np.zeros((n, 3, 3)), np.zeros((n, 3, k + 1))
+            F, X = np.empty((n, 3, 3)), np.empty((n, 3, k + 1))
             _frame_products(D, w, Hm, rw, F, X)
             FC = None
             if C is not None:
@@ -434,6 +517,8 @@ class ReadoutEpochs:
             if ro is not None:
                 ro.cond[k] = eps + y_eps  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
                 ro.stale = False
+                if self.record and FC is not None:
+                    ro.record(k, G[:, :, :p], F, FC, ro.cond[k])
             if self.knots is not None and FC is not None:
                 subtract_factored_knot_rows(self.knots, W, T, V, np.arange(p))
             return
@@ -448,5 +533,7 @@ class ReadoutEpochs:
         if ro is not None:
             ro.cond[k] = eps + Y[:, :, p]  # the conditional optimum given (x, z): ε̂ + M⁻¹ g_ε
             ro.stale = False
+            if self.record and FC is not None:
+                ro.record(k, G[:, :, :p], F, FC, ro.cond[k])
         if self.knots is not None and FC is not None:
             subtract_knot_rows(self.knots, FC, np.matmul(Minv, FC), T, Y, np.arange(p))

@@ -4,6 +4,7 @@ with numba (:data:`gcs_core.compiled.COMPILED`; without numba the numpy forms in
 * :func:`_frame_products` — per frame ``F = Σ D̃ᵀD̃`` and ``D̃ᵀ[H̃ | r̃]``;
 * :func:`_products3` — ``F C`` per frame;
 * :func:`_scatter` — a block's frames added to the window's epochs;
+* :func:`_row_readout` — per row the read-out variance ``σ_e² |D|²`` and ``D ε̂``;
 * :func:`_epoch_solve` — per epoch the Cholesky factor of ``M = F + σ_e⁻² I`` and the
   factored rows ``L⁻¹ G``, ``L⁻¹ F C`` and the read-out error's step;
 * :func:`_epoch_knot_rows` — the epochs' knot rows ``W [I | Γ_j(t)]``.
@@ -28,28 +29,30 @@ def _epoch_solve(F, G, FC, inv_e2, V, W, y_eps):
         a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
         d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
         l00 = np.sqrt(a)
-        l10, l20 = b / l00, c / l00
+        i00 = 1.0 / l00  # the diagonal's reciprocals: three divisions per epoch
+        l10, l20 = b * i00, c * i00
         l11 = np.sqrt(d - l10 * l10)
-        l21 = (f - l20 * l10) / l11
-        l22 = np.sqrt(g - l20 * l20 - l21 * l21)
+        i11 = 1.0 / l11
+        l21 = (f - l20 * l10) * i11
+        i22 = 1.0 / np.sqrt(g - l20 * l20 - l21 * l21)
         for q in range(G.shape[2]):
-            v0 = G[e, 0, q] / l00
-            v1 = (G[e, 1, q] - l10 * v0) / l11
+            v0 = G[e, 0, q] * i00
+            v1 = (G[e, 1, q] - l10 * v0) * i11
             V[e, 0, q] = v0
             V[e, 1, q] = v1
-            V[e, 2, q] = (G[e, 2, q] - l20 * v0 - l21 * v1) / l22
+            V[e, 2, q] = (G[e, 2, q] - l20 * v0 - l21 * v1) * i22
         if FC.shape[0]:
             for q in range(3):
-                v0 = FC[e, 0, q] / l00
-                v1 = (FC[e, 1, q] - l10 * v0) / l11
+                v0 = FC[e, 0, q] * i00
+                v1 = (FC[e, 1, q] - l10 * v0) * i11
                 W[e, 0, q] = v0
                 W[e, 1, q] = v1
-                W[e, 2, q] = (FC[e, 2, q] - l20 * v0 - l21 * v1) / l22
-        y2 = V[e, 2, last] / l22
-        y1 = (V[e, 1, last] - l21 * y2) / l11
+                W[e, 2, q] = (FC[e, 2, q] - l20 * v0 - l21 * v1) * i22
+        y2 = V[e, 2, last] * i22
+        y1 = (V[e, 1, last] - l21 * y2) * i11
         y_eps[e, 2] = y2
         y_eps[e, 1] = y1
-        y_eps[e, 0] = (V[e, 0, last] - l10 * y1 - l20 * y2) / l00
+        y_eps[e, 0] = (V[e, 0, last] - l10 * y1 - l20 * y2) * i00
 
 
 @_jit
@@ -86,6 +89,7 @@ def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
     """``G[idx[i], :, ext[q]] += X[i, :, q]``, ``F[idx[i]] += Fb[i]`` and, when ``FCb`` has
     the frames, ``FC[idx[i]] += FCb[i]`` (repeated epochs add)."""
     with_fc = FCb.shape[0] > 0
+    nq = ext.shape[0]
     for i in range(idx.shape[0]):
         e = idx[i]
         for r in range(3):
@@ -93,19 +97,39 @@ def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
                 F[e, r, c] += Fb[i, r, c]
                 if with_fc:
                     FC[e, r, c] += FCb[i, r, c]
-        for q in range(ext.shape[0]):
-            c = ext[q]
-            for r in range(3):
-                G[e, r, c] += X[i, r, q]
+            for q in range(nq):  # along X's rows (contiguous)
+                G[e, r, ext[q]] += X[i, r, q]
+
+
+@_jit
+def _row_readout(D, eps, sig_e2, var, De):
+    """Per row ``var = σ_e² |D|²`` and ``De = D · ε̂`` of its frame (D (n, m, 3), NaN
+    partials as 0; eps (n, 3), or (0, 3) for none: De is left as it is)."""
+    with_eps = eps.shape[0] > 0
+    for i in range(D.shape[0]):
+        for r in range(D.shape[1]):
+            s, de = 0.0, 0.0
+            for a in range(3):
+                v = D[i, r, a]
+                if v == v:
+                    s += v * v
+                    if with_eps:
+                        de += v * eps[i, a]
+            var[i, r] = sig_e2 * s
+            if with_eps:
+                De[i, r] = de
 
 
 @_jit
 def _frame_products(D, w, Hm, rw, F, X):
     """Per frame ``F = Σ_r D̃_rᵀ D̃_r`` and ``X = Σ_r D̃_rᵀ [h̃_r | r̃_r]`` with ``D̃_r = w_r D_r``
-    (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,); rows of weight 0 skipped)."""
+    (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,); rows of weight 0 skipped; F and X are
+    overwritten)."""
     n, m = D.shape[0], D.shape[1]
     k = Hm.shape[1]
     d = np.empty(3)
+    F[:] = 0.0
+    X[:] = 0.0
     for i in range(n):
         for r in range(m):
             wr = w[i, r]
