@@ -53,15 +53,19 @@ class Residuals:
     y_pred: dict[str, np.ndarray] = field(default_factory=dict)
     r: dict[str, np.ndarray] = field(default_factory=dict)
     valid: dict[str, np.ndarray] = field(default_factory=dict)
+    #: sensor -> (N, m, 3) the model's attitude partials, kept only when asked (:meth:`ensure`)
+    d_att: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def ensure(self, problem: Problem) -> Residuals:
+    def ensure(self, problem: Problem, *, attitude_partials: bool = False) -> Residuals:
         for sd in problem.sensors:
+            m = len(sd.sigma)
             if sd.name not in self.r:
-                m = len(sd.sigma)
                 if type(sd.model).residual is not ObservationModel.residual:
                     self.y_pred[sd.name] = np.empty((sd.n, m))
                 self.r[sd.name] = np.empty((sd.n, m))
                 self.valid[sd.name] = np.empty(sd.n, bool)
+            if attitude_partials and sd.name not in self.d_att:
+                self.d_att[sd.name] = np.zeros((sd.n, m, 3))
         return self
 
 

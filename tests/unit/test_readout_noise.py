@@ -155,3 +155,88 @@ def test_epoch_elimination_synthetic_rows_both_forms(monkeypatch):
         np.testing.assert_allclose(A, A_d, rtol=1e-9, atol=1e-9 * np.abs(A_d).max())
         np.testing.assert_allclose(b, b_d, rtol=1e-9, atol=1e-9 * np.abs(b_d).max())
         assert chi == pytest.approx(removed, rel=1e-9)
+
+
+def test_window_sums_equal_the_per_frame_form(monkeypatch):
+    """With the span's epochs known (the fit's case) the blocks go straight into the
+    window's epochs (``_add_into_window``), a repeated time included: the same A, b and χ²
+    as the per-frame products scattered at the window's end."""
+    from types import SimpleNamespace
+
+    from gcs_core.estimators.whole_span import readout
+
+    if not readout.COMPILED:
+        pytest.skip("the window sums are the compiled form")
+    rng = np.random.default_rng(5)
+    p = 4
+    t1, t2 = np.array([0.0, 1.0, 2.0, 3.0, 5.0]), np.array([1.0, 1.0, 3.0, 4.0])
+    sensors = [SimpleNamespace(name="S1", t=t1, n=t1.size), SimpleNamespace(name="S2", t=t2, n=t2.size)]
+    data = []
+    for sd, m, cols in ((sensors[0], 2, np.array([0, 3])), (sensors[1], 3, np.array([1, 2, 3]))):
+        n = sd.t.size
+        D, Hm, rw = rng.normal(size=(n, m, 3)) * 1e4, rng.normal(size=(n * m, cols.size)), rng.normal(size=n * m)
+        data.append((sd, m, cols, D, Hm, rw))
+
+    def eliminate(errors):
+        A, b = np.zeros((p, p)), np.zeros(p)
+        ro = readout.ReadoutEpochs(1e-8, A, b, None, sensors, errors)
+        for window in (0, 1):  # each sensor once per window; an epoch's rows in one window
+            for sd, m, cols, D, Hm, rw in data:
+                lo, hi = (0, 2) if window == 0 else (2, sd.t.size)
+                ro.visit(sd)
+                w = np.ones((hi - lo, m))
+                ro.add(sd.t[lo:hi], D[lo:hi], w, None, Hm[lo * m : hi * m], rw[lo * m : hi * m], cols)
+        return A, b, ro.finish()
+
+    A0, b0, c0 = eliminate(None)
+    A1, b1, c1 = eliminate(readout.EpochErrors(sensors))
+    np.testing.assert_allclose(A1, A0, rtol=1e-12, atol=1e-12 * np.abs(A0).max())
+    np.testing.assert_allclose(b1, b0, rtol=1e-12, atol=1e-12 * np.abs(b0).max())
+    assert c1 == pytest.approx(c0, rel=1e-12)
+
+
+def test_sorted_union_is_numpy_unique():
+    from gcs_core.estimators.whole_span.readout import _sorted_union
+
+    rng = np.random.default_rng(2)
+    ts = [np.sort(rng.integers(0, 50, size=n).astype(float)) for n in (0, 7, 30, 30)]
+    np.testing.assert_array_equal(_sorted_union(ts), np.unique(np.concatenate(ts)))
+    assert _sorted_union([]).size == 0
+
+
+def test_seed_from_the_batch_is_the_first_pass():
+    """The read-out errors' first optimum from the batch's residuals and attitude partials
+    (``EpochErrors.seed``) is what a pass without the Jacobian finds at the batch's point."""
+    problem, _, grid, passes = _setup(SIGMA_E)
+    partials: dict = {}
+    batch = batch_fit(problem, NO_EDIT, attitude_partials=partials)
+    z = np.zeros((grid.K, grid.d))
+    passes.run(np.asarray(batch.x), z, {}, jacobian=False)
+    from_pass = passes.errors.cond.copy()
+    passes.errors.cond[:] = 0.0
+    passes.errors.seed(problem.sensors, batch.residuals, partials, SIGMA_E**2)
+    assert passes.errors.seeded
+    assert np.max(np.abs(passes.errors.cond - from_pass)) < ROUND_OFF * SIGMA_E
+
+
+def test_the_joint_step_predicts_the_read_out_errors():
+    """After a step of the statics and knots, the read-out errors' conditional optimum at
+    the new point is the recorded pass's prediction (``EpochErrors.predicted``) to second
+    order: its miss is a small fraction of the move."""
+    problem, batch, grid, passes = _setup(SIGMA_E)
+    x = np.asarray(batch.x)
+    z = np.zeros((grid.K, grid.d))
+    passes.run(x, z, {}, jacobian=False)
+    passes.errors.adopt()
+    lin = passes.run(x, z, {})  # records the sensitivities
+    before = passes.errors.cond.copy()
+    rng = np.random.default_rng(3)
+    dx = rng.normal(size=x.size) * np.sqrt(np.diag(batch.P))  # a 1-σ step of every static
+    dz = np.zeros_like(z)
+    dz[1:, :3] = rng.normal(0, 2 * SIGMA_E, (grid.K - 1, 3))
+    pred = passes.errors.predicted(dx, dz, grid, lin.R, 1.0 / SIGMA_E**2)
+    passes.run(x + dx, z + dz, {}, jacobian=False)
+    after = passes.errors.cond
+    move, miss = np.max(np.abs(after - before)), np.max(np.abs(pred - after))
+    assert move > 0.05 * SIGMA_E  # the step moves the read-out errors
+    assert miss < 0.02 * move, (miss / SIGMA_E, move / SIGMA_E)

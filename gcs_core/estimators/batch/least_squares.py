@@ -149,6 +149,9 @@ def normal_equations(
                 store.y_pred[blk.name][blk.lo : blk.hi] = blk.y_pred
             store.r[blk.name][blk.lo : blk.hi] = blk.r
             store.valid[blk.name][blk.lo : blk.hi] = blk.valid
+            if blk.name in store.d_att:  # kept when asked (the read-out noise's start)
+                D = getattr(blk.pred, "d_att", None)
+                store.d_att[blk.name][blk.lo : blk.hi] = D if D is not None and blk.geom.C_BI is not None else 0.0
         nu = int(np.count_nonzero(blk.used))
         if not nu:
             continue
@@ -218,11 +221,14 @@ def batch_fit(
     *,
     edited: Mapping[str, np.ndarray] | None = None,
     initial: Mapping[str, float] | None = None,
+    attitude_partials: dict[str, np.ndarray] | None = None,
 ) -> BatchResult:
     """Iterated batch least squares with a priori and k-σ editing (module docstring).
 
     ``edited`` pre-flags frames (e.g. a held-out span); ``initial`` starts the iteration
     from other values than the a priori (a warm start) without moving the prior mean.
+    ``attitude_partials``, a dict, receives each sensor's attitude partials ``D`` (N, m, 3)
+    at the solution (0 where a model has none), beside the result's residuals.
     The steps: the passes over the data (:class:`_Passes`), the damped Gauss–Newton
     iterations of each editing pass (:func:`_iterate`, :func:`_damped_step`) and the
     solution (:func:`_solution`).
@@ -234,6 +240,8 @@ def batch_fit(
     if not names:
         raise EstimationError("nothing to estimate: every state element is held or consider")
     ev = _Passes(problem, names, edited)
+    if attitude_partials is not None:
+        ev.buffers.ensure(problem, attitude_partials=True)
     x = ev.x_bar.copy()
     if initial:
         x = np.array([float(initial.get(nm, ev.x_bar[j])) for j, nm in enumerate(names)])
@@ -255,6 +263,8 @@ def batch_fit(
     ev.set_x(x)
     message = rec.message + suspect_note(rec.suspect, opts)
     final = ev.stored if not cons and _stored_at(ev.stored, x, ev.edits) else None
+    if attitude_partials is not None:  # the buffers hold the solution's pass (_solution)
+        attitude_partials.update(ev.buffers.d_att)
     return _solution(
         problem,
         opts,

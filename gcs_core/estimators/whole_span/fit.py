@@ -133,12 +133,19 @@ def whole_span_fit(
     opts = options or BatchOptions()
     noise = noise if noise is not None else process_noise(problem)
     start = start_from(problem, noise, start, previous, edited, spacing)
+    # with the read-out noise the batch keeps its attitude partials: the read-out errors'
+    # first optimum needs only them and its residuals (_first_linearization)
+    partials: dict[str, np.ndarray] | None = {} if start is None and noise is not None and noise.sigma_e else None
     batch: BatchResult | Restart = (
-        start if start is not None else batch_fit(problem, _start_options(opts, noise), edited=edited, initial=initial)
+        start
+        if start is not None
+        else batch_fit(problem, _start_options(opts, noise), edited=edited, initial=initial, attitude_partials=partials)
     )
     if noise is None or not noise.process or not isinstance(problem.attitude, GyroAttitude):
         return cast(BatchResult, batch)  # a restart is made only with process noise
     it = _begin(problem, opts, noise, batch, edited, spacing)
+    if partials and it.passes.errors is not None:
+        it.passes.errors.seed(problem.sensors, cast(BatchResult, batch).residuals, partials, noise.sigma_e**2)
     del batch, start  # its residuals (a week: 32 MB) are not kept alive
     _edit_passes(problem, it)
     return _finish(problem, it)
@@ -281,7 +288,10 @@ def _first_linearization(it: _Iterate) -> SpanLinearization:
     the one full pass is made about it."""
     errors = it.passes.errors
     if errors is not None and not errors.nonzero:
-        it.passes.run(it.x, it.z, it.edits, jacobian=False)
+        if errors.seeded:  # from the batch's pass at this point (EpochErrors.seed)
+            errors.seeded = False
+        else:
+            it.passes.run(it.x, it.z, it.edits, jacobian=False)
         it.adopt_readout()
         it.lin = it.passes.run(it.x, it.z, it.edits)
         return it.lin

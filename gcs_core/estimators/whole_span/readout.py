@@ -79,6 +79,7 @@ J. L., *Fundamentals of Spacecraft Attitude Determination and Control*, Springer
 from __future__ import annotations
 
 import weakref
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -88,6 +89,7 @@ from gcs_core.estimators.whole_span.readout_kernels import (
     _epoch_knot_rows,
     _epoch_solve,
     _frame_products,
+    _frame_products_into,
     _products3,
     _row_readout,
     _scatter,
@@ -201,6 +203,16 @@ def inverse_spd3(M: np.ndarray) -> np.ndarray:
     return out
 
 
+def _sorted_union(ts: list[np.ndarray]) -> np.ndarray:
+    """The sorted distinct times of several arrays (``numpy.unique`` of their
+    concatenation; each sensor's times are in order, so a stable sort merges runs)."""
+    if not ts:
+        return np.zeros(0)
+    T = np.concatenate(ts)
+    T.sort(kind="stable")
+    return T[np.r_[True, T[1:] != T[:-1]]] if T.size else T
+
+
 #: the per-epoch sensitivities :meth:`EpochErrors.predicted` needs are kept below this size
 #: [bytes] (G_x in single precision: a day of 1 Hz epochs over 31 statics is 45 MB)
 PREDICT_BYTES = 256 * 2**20
@@ -216,13 +228,14 @@ class EpochErrors:
 
     def __init__(self, sensors):
         ts = [np.asarray(sd.t, float) for sd in sensors if sd.n]
-        self.T = np.unique(np.concatenate(ts)) if ts else np.zeros(0)
+        self.T = _sorted_union(ts)
         self.eps = np.zeros((self.T.size, 3))
         self.cond = self.eps.copy()
         self.stale = False  # ε̂ adopted after the last pass
         self.nonzero = False  # any ε̂ ≠ 0 (kept with ``eps``: asked per block)
         # the last recording pass's per-epoch sensitivities (:meth:`record_start`)
         self.sens: dict | None = None
+        self.seeded = False  # ``cond`` from :meth:`seed`, not yet taken by the fit
         # (index, is an epoch) of times that view a sensor's frame times, asked at every
         # pass: keyed by the viewed array's identity and the view's place in it
         self._where: dict[tuple, tuple] = {}
@@ -266,6 +279,25 @@ class EpochErrors:
         if isinstance(hit, bool):  # True: every time is an epoch (_locate)
             return self.eps[i]
         return np.where(hit[:, None], self.eps[i], 0.0)
+
+    def seed(self, sensors, residuals, partials, sig_e2: float) -> None:
+        """The conditional optimum ``M⁻¹ Σ D̃ᵀ r̃`` per epoch at ε = 0 from a pass's residuals
+        (sensor -> :class:`~gcs_core.estimators.results.SensorResiduals`) and attitude
+        partials (sensor -> (N, m, 3)) at the point where the fit starts, without knots (the
+        batch's solution): what a pass without the Jacobian there finds, with no model
+        evaluated; ``seeded`` says so until the fit takes it."""
+        ro = ReadoutEpochs(sig_e2, np.zeros((0, 0)), np.zeros(0), None, sensors, self)
+        for sd in sensors:
+            D, res = partials.get(sd.name), residuals.get(sd.name)
+            if D is None or res is None or not sd.n:
+                continue
+            used = np.asarray(res.used, bool)
+            w = used[:, None] / sd.sigma[None, :]
+            rw = np.where(used[:, None], np.asarray(res.residual, float), 0.0) / sd.sigma[None, :]
+            ro.visit(sd)
+            ro.add(np.asarray(sd.t, float), D, w, None, np.zeros((rw.size, 0)), rw.reshape(-1), np.zeros(0, np.int64))
+        ro.finish()
+        self.seeded = True
 
     def record_start(self, p: int) -> None:
         """Keep the next pass's per-epoch sensitivities (:meth:`predicted`) over ``p``
@@ -333,6 +365,20 @@ class EpochErrors:
             self.stale = True
 
 
+@dataclass
+class _Window:
+    """One window's per-epoch sums (:meth:`ReadoutEpochs._add_into_window`): buffers over the
+    epochs ``base, base + 1, …`` (global indices), of which ``[lo, hi)`` have rows."""
+
+    base: int
+    F: np.ndarray  # (S, 3, 3)
+    G: np.ndarray  # (S, 3, p + 1)
+    FC: np.ndarray | None  # (S, 3, 3), with knots
+    lo: int
+    hi: int
+    tag: str = ""  # which of the two buffer sets it uses (ReadoutEpochs._cover)
+
+
 class ReadoutEpochs:
     """The per-epoch elimination of the read-out error over one streaming pass.
 
@@ -368,6 +414,7 @@ class ReadoutEpochs:
         self.chi2_removed = 0.0
         self._last = -1
         self._parts: list[tuple] = []
+        self._win: _Window | None = None  # the window's epochs, added into (_add_into_window)
         self._passed: list[tuple] = []
         # the windows' (E, 3, p + 1) arrays, reused from window to window and, given the
         # caller's ``work``, from pass to pass (fresh pages cost more than the sums in them)
@@ -401,6 +448,9 @@ class ReadoutEpochs:
         (n·m, k) over ``cols`` (k,), weighted residuals rw (n·m,)."""
         n, m = D.shape[:2]
         k = len(cols)
+        if COMPILED and self.errors is not None and self.errors.T.size:
+            self._add_into_window(t, D, w, C, Hm, rw, cols)
+            return
         if COMPILED:
             F, X = np.empty((n, 3, 3)), np.empty((n, 3, k + 1))
             _frame_products(D, w, Hm, rw, F, X)
@@ -418,9 +468,75 @@ class ReadoutEpochs:
             FC = F @ C if C is not None else None
         self._parts.append((np.asarray(t, float), F, FC, X, np.asarray(cols, int)))
 
+    def _add_into_window(self, t, D, w, C, Hm, rw, cols) -> None:
+        """One block added straight into the window's epochs (the span's epochs known: the
+        frames' epoch indices are looked up, cached per frame-time array): ``F``, ``F C``
+        and ``G`` per epoch in one compiled pass, no per-frame products kept."""
+        t = np.asarray(t, float)
+        if not t.size:
+            return
+        assert self.errors is not None  # the caller's condition
+        g = self.errors._locate(t)[0]
+        a, b = int(g.min()), int(g.max()) + 1
+        win = self._cover(a, b)
+        ext = np.append(np.asarray(cols, np.int64), self.p)
+        FC = win.FC if C is not None and win.FC is not None else win.F[:0]
+        _frame_products_into(
+            D,
+            w,
+            Hm,
+            rw,
+            np.ascontiguousarray(C) if FC.shape[0] else np.zeros((0, 3, 3)),
+            (g - win.base).astype(np.int64),
+            ext,
+            win.F,
+            win.G,
+            FC,
+        )
+        win.lo, win.hi = min(win.lo, a), max(win.hi, b)
+
+    def _cover(self, a: int, b: int) -> _Window:
+        """The window's buffers, holding epochs ``[a, b)`` (global indices), zeroed where
+        new: first allocated with a quarter's slack each side, re-based (copied) only when a
+        later block reaches past that."""
+        win = self._win
+        if win is not None and win.base <= a and b <= win.base + win.F.shape[0]:
+            return win
+        lo, hi = (a, b) if win is None else (min(a, win.lo), max(b, win.hi))
+        slack = (hi - lo) // 4 + 16
+        base = max(lo - slack, 0)
+        n_epochs = self.errors.T.size if self.errors is not None else hi + slack
+        size = min(hi + slack, n_epochs) - base
+        # buffers kept from window to window (and pass to pass with the caller's ``work``),
+        # one set while a window is re-based onto the other
+        tag = "" if win is None or win.tag else "'"
+        new = _Window(
+            base,
+            self._buffer("wF" + tag, (size, 3, 3), zero=True),
+            self._buffer("wG" + tag, (size, 3, self.p + 1), zero=True),
+            self._buffer("wFC" + tag, (size, 3, 3), zero=True) if self.knots is not None else None,
+            lo if win is None else win.lo,
+            hi if win is None else win.hi,
+            tag,
+        )
+        if win is not None:  # re-based: the epochs already added move with it
+            o, u, v = win.lo - base, win.lo - win.base, win.hi - win.base
+            new.F[o : o + v - u] = win.F[u:v]
+            new.G[o : o + v - u] = win.G[u:v]
+            if new.FC is not None and win.FC is not None:
+                new.FC[o : o + v - u] = win.FC[u:v]
+        self._win = new
+        return new
+
     def flush(self) -> None:
         """Form the held window's epochs and subtract their pseudo-rows."""
         parts, self._parts, self._last = self._parts, [], -1
+        win, self._win = self._win, None
+        if win is not None and win.hi > win.lo:
+            assert self.errors is not None  # windows are built only with the span's epochs
+            u, v = win.lo - win.base, win.hi - win.base
+            FC = win.FC[u:v] if win.FC is not None else None
+            self._downdate(self.errors.T[win.lo : win.hi], win.F[u:v], win.G[u:v], FC, win.lo)
         if parts:
             self._eliminate(parts)
         if self.knots is not None:
@@ -488,6 +604,12 @@ class ReadoutEpochs:
                     np.add.at(G[:, :, c], idx, X[:, :, q])
             else:  # the advanced indices' axes come first: (n, k + 1, 3)
                 G[idx[:, None], :, ext[None, :]] += np.swapaxes(X, 1, 2)
+        self._downdate(T, F, G, FC, lo)
+
+    def _downdate(self, T, F, G, FC, lo: int) -> None:
+        """Subtract the window's epochs (times T (E,), ``F``, ``G`` = D̃ᵀ[H̃ | r̃] (E, 3, p + 1),
+        ``F C`` or None; ``lo`` the first epoch's index in :attr:`EpochErrors.T`)."""
+        E, p = T.size, self.p
         keep = np.einsum("eaa->e", F) > 0  # epochs with attitude-sensitive rows
         k = np.arange(lo, lo + E)  # their indices in EpochErrors.T (with ``errors``)
         if not np.all(keep):

@@ -4,6 +4,7 @@ with numba (:data:`gcs_core.compiled.COMPILED`; without numba the numpy forms in
 * :func:`_frame_products` — per frame ``F = Σ D̃ᵀD̃`` and ``D̃ᵀ[H̃ | r̃]``;
 * :func:`_products3` — ``F C`` per frame;
 * :func:`_scatter` — a block's frames added to the window's epochs;
+* :func:`_frame_products_into` — the two in one pass, straight into the epochs;
 * :func:`_row_readout` — per row the read-out variance ``σ_e² |D|²`` and ``D ε̂``;
 * :func:`_epoch_solve` — per epoch the Cholesky factor of ``M = F + σ_e⁻² I`` and the
   factored rows ``L⁻¹ G``, ``L⁻¹ F C`` and the read-out error's step;
@@ -99,6 +100,45 @@ def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
                     FC[e, r, c] += FCb[i, r, c]
             for q in range(nq):  # along X's rows (contiguous)
                 G[e, r, ext[q]] += X[i, r, q]
+
+
+@_jit
+def _frame_products_into(D, w, Hm, rw, C, idx, ext, F, G, FC):
+    """:func:`_frame_products` added straight into the epochs: frame ``i`` into epoch
+    ``e = idx[i]``, ``F[e] += Σ_r D̃_rᵀ D̃_r``, ``G[e, :, ext[q]] += Σ_r D̃_rᵀ h̃_r[q]`` (the
+    last of ``ext`` the residual column, fed by ``rw``) and, when ``FC`` has epochs,
+    ``FC[e] += F_i C_i`` (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,), C (n, 3, 3)))."""
+    n, m = D.shape[0], D.shape[1]
+    k = Hm.shape[1]
+    last = ext[k]
+    with_fc = FC.shape[0] > 0
+    d = np.empty(3)
+    Fi = np.empty((3, 3))
+    for i in range(n):
+        e = idx[i]
+        Fi[:, :] = 0.0
+        for r in range(m):
+            wr = w[i, r]
+            if wr == 0.0:
+                continue
+            for a in range(3):
+                v = D[i, r, a] * wr
+                d[a] = v if v == v else 0.0  # NaN partials count as 0 (np.nan_to_num)
+            row = i * m + r
+            for a in range(3):
+                da = d[a]
+                for b in range(3):
+                    Fi[a, b] += da * d[b]
+                for q in range(k):
+                    G[e, a, ext[q]] += da * Hm[row, q]
+                G[e, a, last] += da * rw[row]
+        for a in range(3):
+            for b in range(3):
+                F[e, a, b] += Fi[a, b]
+        if with_fc:
+            for a in range(3):
+                for c in range(3):
+                    FC[e, a, c] += Fi[a, 0] * C[i, 0, c] + Fi[a, 1] * C[i, 1, c] + Fi[a, 2] * C[i, 2, c]
 
 
 @_jit
