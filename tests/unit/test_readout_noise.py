@@ -219,7 +219,7 @@ def test_seed_from_the_batch_is_the_first_pass():
     assert np.max(np.abs(passes.errors.cond - from_pass)) < ROUND_OFF * SIGMA_E
 
 
-def test_the_joint_step_predicts_the_read_out_errors():
+def test_the_joint_step_predicts_the_read_out_errors(monkeypatch):
     """After a step of the statics and knots, the read-out errors' conditional optimum at
     the new point is the recorded pass's prediction (``EpochErrors.predicted``) to second
     order: its miss is a small fraction of the move."""
@@ -235,6 +235,13 @@ def test_the_joint_step_predicts_the_read_out_errors():
     dz = np.zeros_like(z)
     dz[1:, :3] = rng.normal(0, 2 * SIGMA_E, (grid.K - 1, 3))
     pred = passes.errors.predicted(dx, dz, grid, lin.R, 1.0 / SIGMA_E**2)
+    from gcs_core.estimators.whole_span import readout
+
+    monkeypatch.setattr(readout, "COMPILED", False)  # the numpy form gives the same
+    np.testing.assert_allclose(
+        passes.errors.predicted(dx, dz, grid, lin.R, 1.0 / SIGMA_E**2), pred, atol=1e-9 * SIGMA_E
+    )
+    monkeypatch.undo()
     passes.run(x + dx, z + dz, {}, jacobian=False)
     after = passes.errors.cond
     move, miss = np.max(np.abs(after - before)), np.max(np.abs(pred - after))

@@ -88,6 +88,7 @@ from gcs_core.estimators.whole_span import knots as kn
 from gcs_core.estimators.whole_span.readout_kernels import (
     _epoch_knot_rows,
     _epoch_solve,
+    _epoch_step,
     _frame_products,
     _frame_products_into,
     _products3,
@@ -336,11 +337,15 @@ class EpochErrors:
         k = slice(None) if s["have"].all() else np.flatnonzero(s["have"])
         Gx = s["Gx"][k]
         a = kn.alpha_at(grid, dz, R, self.T[k])
-        rhs = (Gx.reshape(-1, Gx.shape[2]) @ dx.astype(np.float32)).reshape(-1, 3).astype(float)
-        rhs += np.einsum("eab,eb->ea", s["FC"][k], a)
-        Minv = inverse_spd3(s["F"][k] + inv_e2 * np.eye(3))
+        Gdx = (Gx.reshape(-1, Gx.shape[2]) @ dx.astype(np.float32)).reshape(-1, 3).astype(float)
         out = self.eps.copy()
-        out[k] = s["base"][k] - np.einsum("eab,eb->ea", Minv, rhs)
+        if COMPILED:
+            step = np.empty_like(Gdx)
+            _epoch_step(s["F"][k], s["FC"][k], Gdx, a, s["base"][k], inv_e2, step)
+            out[k] = step
+            return out
+        Minv = inverse_spd3(s["F"][k] + inv_e2 * np.eye(3))
+        out[k] = s["base"][k] - np.einsum("eab,eb->ea", Minv, Gdx + np.einsum("eab,eb->ea", s["FC"][k], a))
         return out
 
     def move_to(self, eps: np.ndarray) -> None:

@@ -8,7 +8,8 @@ with numba (:data:`gcs_core.compiled.COMPILED`; without numba the numpy forms in
 * :func:`_row_readout` — per row the read-out variance ``σ_e² |D|²`` and ``D ε̂``;
 * :func:`_epoch_solve` — per epoch the Cholesky factor of ``M = F + σ_e⁻² I`` and the
   factored rows ``L⁻¹ G``, ``L⁻¹ F C`` and the read-out error's step;
-* :func:`_epoch_knot_rows` — the epochs' knot rows ``W [I | Γ_j(t)]``.
+* :func:`_epoch_knot_rows` — the epochs' knot rows ``W [I | Γ_j(t)]``;
+* :func:`_epoch_step` — the read-out errors' part of a joint step, per epoch.
 """
 
 from __future__ import annotations
@@ -139,6 +140,30 @@ def _frame_products_into(D, w, Hm, rw, C, idx, ext, F, G, FC):
             for a in range(3):
                 for c in range(3):
                     FC[e, a, c] += Fi[a, 0] * C[i, 0, c] + Fi[a, 1] * C[i, 1, c] + Fi[a, 2] * C[i, 2, c]
+
+
+@_jit
+def _epoch_step(F, FC, Gdx, a, base, inv_e2, out):
+    """Per epoch ``out = base − M⁻¹ (G_x dx + F C a)``, ``M = F + σ_e⁻² I`` (Cholesky; F, FC
+    (E, 3, 3), Gdx and a (E, 3) the statics' and the knots' parts, base (E, 3))."""
+    for e in range(F.shape[0]):
+        r0 = Gdx[e, 0] + FC[e, 0, 0] * a[e, 0] + FC[e, 0, 1] * a[e, 1] + FC[e, 0, 2] * a[e, 2]
+        r1 = Gdx[e, 1] + FC[e, 1, 0] * a[e, 0] + FC[e, 1, 1] * a[e, 1] + FC[e, 1, 2] * a[e, 2]
+        r2 = Gdx[e, 2] + FC[e, 2, 0] * a[e, 0] + FC[e, 2, 1] * a[e, 1] + FC[e, 2, 2] * a[e, 2]
+        l00 = np.sqrt(F[e, 0, 0] + inv_e2)
+        l10, l20 = F[e, 0, 1] / l00, F[e, 0, 2] / l00
+        l11 = np.sqrt(F[e, 1, 1] + inv_e2 - l10 * l10)
+        l21 = (F[e, 1, 2] - l20 * l10) / l11
+        l22 = np.sqrt(F[e, 2, 2] + inv_e2 - l20 * l20 - l21 * l21)
+        v0 = r0 / l00
+        v1 = (r1 - l10 * v0) / l11
+        v2 = (r2 - l20 * v0 - l21 * v1) / l22
+        y2 = v2 / l22
+        y1 = (v1 - l21 * y2) / l11
+        y0 = (v0 - l10 * y1 - l20 * y2) / l00
+        out[e, 0] = base[e, 0] - y0
+        out[e, 1] = base[e, 1] - y1
+        out[e, 2] = base[e, 2] - y2
 
 
 @_jit
