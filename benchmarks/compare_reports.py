@@ -3,7 +3,7 @@
 A refactoring of the engine must leave every report as it was. Run the same commands before
 and after into two folders, then::
 
-    python benchmarks/compare_reports.py BEFORE_DIR AFTER_DIR [--rtol 1e-9]
+    python benchmarks/compare_reports.py BEFORE_DIR AFTER_DIR [--rtol 1e-9] [--ignore /sigma_scale/]
 
 Each ``*.json`` of BEFORE is read with its namesake in AFTER and walked together: objects
 must have the same keys, lists the same length, strings and booleans be equal, and numbers
@@ -54,8 +54,11 @@ def differences(before: Any, after: Any, rtol: float, path: str = "") -> list[st
     return [] if before == after else [f"{path}: {before!r} != {after!r}"]
 
 
-def compare_trees(before_dir: Path, after_dir: Path, rtol: float) -> tuple[int, int, list[str]]:
-    """(reports compared, reports differing, difference lines) over BEFORE's ``*.json``."""
+def compare_trees(
+    before_dir: Path, after_dir: Path, rtol: float, ignore: tuple[str, ...] = ()
+) -> tuple[int, int, list[str]]:
+    """(reports compared, reports differing, difference lines) over BEFORE's ``*.json``;
+    differences under a path starting with one of ``ignore`` (``/sigma_scale/``) left out."""
     lines: list[str] = []
     compared = differing = 0
     for before_path in sorted(before_dir.rglob("*.json")):
@@ -67,6 +70,7 @@ def compare_trees(before_dir: Path, after_dir: Path, rtol: float) -> tuple[int, 
             lines.append(f"{rel}: missing after")
             continue
         diffs = differences(json.loads(before_path.read_text()), json.loads(after_path.read_text()), rtol)
+        diffs = [d for d in diffs if not d.startswith(ignore)] if ignore else diffs
         if diffs:
             differing += 1
             lines += [f"{rel} {d}" for d in diffs]
@@ -78,11 +82,19 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("before", type=Path)
     parser.add_argument("after", type=Path)
     parser.add_argument("--rtol", type=float, default=1e-9, help="relative tolerance on numbers")
+    parser.add_argument(
+        "--ignore",
+        action="append",
+        default=[],
+        metavar="PATH",
+        help="leave out differences under this report path (e.g. /sigma_scale/ after a change of that statistic)",
+    )
     args = parser.parse_args(argv)
-    compared, differing, lines = compare_trees(args.before, args.after, args.rtol)
+    compared, differing, lines = compare_trees(args.before, args.after, args.rtol, tuple(args.ignore))
     for line in lines:
         print(line)
-    print(f"{compared} reports compared, {differing} differ (rtol {args.rtol:g})")
+    left_out = f"; left out: {', '.join(args.ignore)}" if args.ignore else ""
+    print(f"{compared} reports compared, {differing} differ (rtol {args.rtol:g}{left_out})")
     return 1 if differing or compared == 0 else 0
 
 
