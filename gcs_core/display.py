@@ -5,7 +5,9 @@ that rows of one table with similar σ share a unit whatever their values:
 
 * an angle (internal ``rad``) is in arcsec while its σ is below 1°, in degrees from 1°
   (``rad/count`` likewise: arcsec/count or deg/count);
-* a rate (``rad/s``) is always in deg/h, an angular acceleration (``rad/s2``) in deg/h²;
+* a rate (``rad/s``) is in deg/h (a gyro's bias, its drift's rate), and a body rate whose
+  value or σ reaches 1°/s (3600 deg/h: a hand turning a unit, a spinner) in deg/s; an
+  angular acceleration (``rad/s2``) in deg/h²;
 * an angle whose value reaches 10° is in degrees whatever its σ (``31.78856 ± 0.00023 deg``,
   not ``114436.9 ± 8.2 arcsec``); below 10° (at most 5 digits of arcsec) rows with similar σ
   keep sharing a unit;
@@ -39,6 +41,7 @@ from gcs_core.units import DEG, UNIT_SCALE
 SCALE: dict[str, float] = {
     **UNIT_SCALE,
     "deg/h2": (3600.0 / DEG) * 3600.0,
+    "deg/s": 1.0 / DEG,
     "arcsec/count": 1.0 / (DEG / 3600.0),
     "deg/count": 1.0 / DEG,
 }
@@ -50,7 +53,6 @@ DEG_FROM_SIGMA = 1.0 * DEG
 _BY_SIGMA = {
     "rad": ("arcsec", "deg"),
     "rad/count": ("arcsec/count", "deg/count"),
-    "rad/s": ("deg/h", "deg/h"),
     "rad/s2": ("deg/h2", "deg/h2"),
 }
 
@@ -64,6 +66,8 @@ FIXED_LIMIT = 1e7
 def display_unit(unit: str, scale: float) -> str:
     """The display unit of a quantity in internal ``unit`` whose σ (or, without σ, its
     spread) is ``scale`` (module docstring). A non-finite scale picks the small unit."""
+    if unit == "rad/s":
+        return "deg/s" if math.isfinite(scale) and abs(scale) >= LARGE_RATE else "deg/h"
     choice = _BY_SIGMA.get(unit)
     if choice is None:
         return unit
@@ -84,8 +88,14 @@ def shown_unit(unit: str, value: float, sigma: float | None = None) -> str:
     usable = sigma is not None and math.isfinite(sigma) and sigma > 0
     if unit == "rad" and math.isfinite(value) and abs(value) >= LARGE_ANGLE:
         return "deg"
+    if unit == "rad/s" and math.isfinite(value) and abs(value) >= LARGE_RATE:
+        return "deg/s"
     return display_unit(unit, sigma if usable and sigma is not None else abs(value))
 
+
+#: a rate (rad/s) from this value or σ on is shown in deg/s (1°/s: beyond 3600 deg/h a
+#: number of deg/h stops being read at a glance; a gyro's bias is far below it)
+LARGE_RATE = 1.0 * DEG
 
 #: an angle (rad) from this value on is shown in degrees whatever its σ (36 000 arcsec: beyond
 #: five digits of arcsec a number stops being read at a glance)

@@ -28,8 +28,9 @@ def channel_text(value: float, d: Dependency) -> str:
     """A channel's value as the analyst reads it (degrees for an angle, hours for time)."""
     if d.channel_unit == "rad":
         return f"{value / DEG:.0f}°"
-    if d.channel_unit == "rad/s":
-        return f"{display.sig(value / DEG * 3600.0, 2)} deg/h"
+    if d.channel_unit == "rad/s":  # deg/h, a body rate from 1°/s in deg/s (the display rule)
+        shown = display.shown_unit("rad/s", value)
+        return f"{display.sig(display.to_display(value, 'rad/s', shown), 2)} {shown}"
     if d.kind == "aux_integral":  # a switch's time integral: seconds on
         return f"{display.sig(value, 2)} s"
     if d.channel_unit == "s":

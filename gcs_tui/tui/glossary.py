@@ -58,7 +58,8 @@ TERMS: tuple[tuple[str, str], ...] = (
     (
         "estimate ± σ",
         "The fitted value and its 1-σ uncertainty. The unit is chosen from σ (arcsec below 1°, "
-        "deg above; rates in deg/h) and σ keeps two significant digits, the value rounded to match.",
+        "deg above; rates in deg/h, from 1°/s in deg/s) and σ keeps two significant digits, the value "
+        "rounded to match.",
     ),
     (
         "not determined (dim)",

@@ -1,8 +1,8 @@
 """Honest precision and units at the edge (gcs_core.display, as the TUI shows numbers).
 
 Rule: σ keeps two significant digits and the value is rounded to σ's last digit;
-angles are shown in arcsec while σ is below one degree and in degrees above, rates in deg/h. The
-expected strings are worked out by hand from that rule.
+angles are shown in arcsec while σ is below one degree and in degrees above, rates in deg/h (a
+body rate from 1°/s in deg/s). The expected strings are worked out by hand from that rule.
 """
 
 from __future__ import annotations
@@ -50,3 +50,11 @@ def test_missing_sigma_and_statistics():
     assert fmt.pvalue(1e-30) == "< 1e-16"
     assert fmt.fixed(float("nan"), 3) == "—"
     assert fmt.fixed(-0.04, 1) == "0.0"
+
+
+def test_a_body_rate_reads_in_degrees_per_second():
+    """A rate from 1°/s (a hand turning a unit, a spinner) is in deg/s, value or σ; a gyro's
+    bias stays in deg/h (BROAD's body rate read −458144 deg/h before this rule)."""
+    assert fmt.estimate(-127.26 * DEG, 0.0021 * DEG, "rad/s") == "-127.2600 ± 0.0021 deg/s"
+    assert fmt.estimate(0.5 * DEG, 2.0 * DEG, "rad/s").endswith(" deg/s")
+    assert fmt.estimate(2.0 * DEG / 3600.0, 0.01 * DEG / 3600.0, "rad/s") == "2.000 ± 0.010 deg/h"
