@@ -23,10 +23,11 @@ over windows shorter than ``L`` raise ``B`` by exactly the factor that inflates 
 estimate's scatter, and an element whose variance the a priori sets (a field's magnitude
 beside a magnetometer's scale factors) is not inflated by them. ``A`` is inverted scaled to a
 unit diagonal (:func:`equilibrated_inverse`): it spans nT and rad, and a plain
-pseudo-inverse's relative cut dropped or kept the a priori's directions with the round-off. ``s_i`` multiplies the fit's σ of element
-``i``. The window ``L`` must exceed the residual's correlation time and leave many windows
-in the span: the estimate of each ``s_i²`` has about ``n_b`` (number of windows) degrees of
-freedom, so ``s`` itself scatters by about ``1/sqrt(2 n_b)``.
+pseudo-inverse's relative cut dropped or kept the a priori's directions with the round-off.
+``s_i`` multiplies the fit's σ of element ``i``. The window ``L`` must exceed the
+residual's correlation time and leave many windows in the span: the estimate of each
+``s_i²`` has about ``n_b`` (number of windows) degrees of freedom, so ``s`` itself scatters
+by about ``1/sqrt(2 n_b)``.
 
 Conditional on the attitude. ``A`` is the information with the attitude held; the fit's
 own covariance has the attitude (and, for the whole-span method, its knots) marginalized.
