@@ -9,7 +9,7 @@ its 95 % χ² band (Bar-Shalom, Li & Kirubarajan 2001, §5.4.2).
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -75,7 +75,31 @@ def ratio_band(runs: int, elements: int, alpha: float = ALPHA, match: float = MA
     return (1.0 - match) * lo, (1.0 + match) * hi
 
 
-def summarize(pred, records: Sequence[dict]) -> MonteCarloResult:
+def drawn_sigma(pred, draw: Mapping[str, float] | None) -> np.ndarray:
+    """(n,) the predicted total σ of ``pred``'s elements for a priori drawn at ``draw``
+    (element -> σ of its draw; the others at their a priori σ̄). The a priori is an
+    observation with influence ``P P₀⁻¹``: of each variance, ``(P P₀⁻¹ P)_ii`` is its error's
+    share, which draws at ``σ_d`` make ``(P P₀⁻¹ D P₀⁻¹ P)_ii``, ``D = diag(σ_d²)``. An element
+    drawn narrower than its a priori lowers its own share and, through the correlations of
+    ``P``, the others' (the cap of :func:`~gcs_core.trade.montecarlo.draw_sigmas`; without
+    this the tracker scales of a τ = 60 s Monte Carlo read 4–17 % conservative,
+    docs/benchmarks.md)."""
+    total = np.asarray(pred.sigma[-1], float) ** 2
+    P, s0 = getattr(pred, "P", None), getattr(pred, "prior", None)
+    if not draw or P is None or s0 is None:
+        return np.sqrt(total)
+    P, s0 = np.asarray(P, float), np.asarray(s0, float)
+    info0 = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
+    sd = np.array([draw.get(n, s) for n, s in zip(pred.names, s0)], float)
+    sd = np.where(np.isfinite(sd), sd, 0.0)
+    share = np.einsum("ij,j,ji->i", P, info0, P)
+    drawn = np.einsum("ij,j,ji->i", P, info0**2 * sd**2, P)
+    return np.sqrt(np.maximum(total - share + drawn, 0.0))
+
+
+def summarize(pred, records: Sequence[dict], draw: Mapping[str, float] | None = None) -> MonteCarloResult:
+    """The verdict of the runs ``records`` against ``pred``, the a priori drawn at ``draw``
+    (:func:`drawn_sigma`; None: at every σ̄)."""
     from scipy import stats
 
     ok = [r for r in records if r.get("status") in CONVERGED]
@@ -85,8 +109,10 @@ def summarize(pred, records: Sequence[dict]) -> MonteCarloResult:
     E = np.array([r["error"] for r in ok])
     Ps = np.array([r["P"] for r in ok])
     pi = [pred.names.index(n) if n in pred.names else None for n in names]
-    # the total σ: the runs draw the consider elements too (module docstring)
-    psig = np.array([pred.sigma[-1, i] if i is not None else np.nan for i in pi])
+    # the total σ: the runs draw the consider elements too (module docstring), each
+    # element's a priori as it was drawn
+    sig_all = drawn_sigma(pred, draw)
+    psig = np.array([sig_all[i] if i is not None else np.nan for i in pi])
     und = set(pred.undetermined)
     det = np.array([n not in und and np.isfinite(s) for n, s in zip(names, psig)])
     scat = np.std(E, axis=0, ddof=1) if len(ok) > 1 else np.full(len(names), np.nan)
@@ -120,7 +146,8 @@ def summary_lines(res: MonteCarloResult) -> list[str]:
     out = [
         f"{res.runs} runs fitted"
         + (f", {res.failed} failed" if res.failed else "")
-        + f"; predicted σ (noise and consider elements) against the Monte-Carlo scatter: ratio band "
+        + f"; predicted σ (noise and consider elements, the a priori as drawn) against the Monte-Carlo "
+        "scatter: ratio band "
         f"[{lo:.3f}, {hi:.3f}] = ±{100 * MATCH_FRACTION:g} % widened by the χ² sampling error of "
         f"{res.runs} runs (family-wise α = {ALPHA:g})",
         f"{'element':<16}{'predicted σ':>13}{'MC σ':>11}{'ratio':>8}{'fit σ':>11}{'mean/σ':>8}  unit",

@@ -13,7 +13,9 @@ simulator's truth instead, ``x̄ = x + δ``, ``δ ~ N(0, P̄)`` (the same joint 
 ``x̄ − x``, for every element whatever its sensor model): every solve-for element with a
 finite a-priori σ, and every consider element, which the fit then holds at its drawn,
 wrong value. The scatter is therefore compared with the predictor's *total* σ (noise and
-consider elements together) and the NEES with each fit's ``P_consider``.
+consider elements together), the a priori's share as drawn (an element drawn narrower than
+its σ̄, :func:`draw_sigmas`: :func:`~gcs_core.trade.mc_summary.drawn_sigma`), and the NEES
+with each fit's ``P_consider``.
 
 For each solve-for element the summary compares
 
@@ -288,9 +290,11 @@ def draw_sigmas(pred) -> dict[str, float]:
     priori and σ its predicted σ (a consider element is drawn with its σ̄: what the fit
     holds it wrong by). The cap keeps the draws inside the region the predictor
     linearizes (a sensor's transfer function drawn over its whole, wide a priori tests
-    its nonlinearity, not the plan); where it binds, ``σ < σ̄ / DRAW_CAP``, and the a
-    priori's share of the error variance, ``(σ/σ̄)⁴ σ_draw²``, is below
-    ``DRAW_CAP² (σ/σ̄)⁴ σ² < 1 %`` of σ²."""
+    its nonlinearity, not the plan); where it binds, ``σ < σ̄ / DRAW_CAP``. The element's
+    own a priori's share of its error variance is then small, but through the correlations
+    of the covariance another element's can be too (the two tracker scales), so the
+    summary's predicted σ counts every share as drawn
+    (:func:`~gcs_core.trade.mc_summary.drawn_sigma`)."""
     out = {}
     prior = pred.prior if pred.prior is not None else np.full(len(pred.names), np.inf)
     for n, s0, s in zip(pred.names, prior, pred.sigma[-1]):
@@ -391,7 +395,7 @@ def run_montecarlo(
     if output is not None:
         _, records = store.read(output, store.MONTECARLO)
         records = [r for r in records if int(r["index"]) < mc.runs]
-    return summarize(pred, sorted(records, key=lambda r: r["index"]))
+    return summarize(pred, sorted(records, key=lambda r: r["index"]), draw=mc.draw)
 
 
 def replay(output, i: int) -> list[str]:

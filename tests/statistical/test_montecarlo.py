@@ -136,6 +136,28 @@ def test_truth_drawn_from_the_a_priori_consider_elements_too():
         assert 1e-3 < p < 1 - 1e-3, p
 
 
+def test_predicted_sigma_counts_the_a_priori_as_drawn():
+    """A linear model ``y = H x + v`` with the a priori drawn at ``σ_d``: the estimate's error
+    covariance is ``P Hᵀ R⁻¹ H P + P P₀⁻¹ D P₀⁻¹ P`` (``P`` the posterior, ``D = diag(σ_d²)``),
+    which ``drawn_sigma`` gives from ``P`` and σ̄ alone; drawn at every σ̄ it is ``P``."""
+    from types import SimpleNamespace
+
+    from gcs_core.trade.mc_summary import drawn_sigma
+
+    rng = np.random.default_rng(4)
+    H = rng.normal(size=(6, 3)) * np.array([1.0, 0.05, 0.3])  # one weakly observed, correlated
+    prior = np.array([2.0, 1.0, 0.5])
+    P = np.linalg.inv(H.T @ H + np.diag(1 / prior**2))  # R = I
+    pred = SimpleNamespace(names=("a", "b", "c"), sigma=np.sqrt(np.diag(P))[None, :], P=P, prior=prior)
+    draw = {"a": 0.2, "b": 0.1}  # two capped; "c" at its a priori
+    D = np.diag([0.2, 0.1, 0.5]) ** 2
+    Pi = np.diag(1 / prior**2)
+    exact = np.sqrt(np.diag(P @ H.T @ H @ P + P @ Pi @ D @ Pi @ P))
+    np.testing.assert_allclose(drawn_sigma(pred, draw), exact, rtol=1e-12)
+    np.testing.assert_allclose(drawn_sigma(pred, None), np.sqrt(np.diag(P)), rtol=1e-12)
+    np.testing.assert_allclose(drawn_sigma(pred, {"a": 2.0, "b": 1.0, "c": 0.5}), np.sqrt(np.diag(P)), rtol=1e-12)
+
+
 def stats_chi2_p(x, sigma):
     from scipy import stats
 
