@@ -89,9 +89,7 @@ from gcs_core.estimators.whole_span.readout_kernels import (
     _epoch_knot_rows,
     _epoch_solve,
     _epoch_step,
-    _frame_products,
     _frame_products_into,
-    _products3,
     _row_readout,
     _scatter,
 )
@@ -456,13 +454,21 @@ class ReadoutEpochs:
         if COMPILED and self.errors is not None and self.errors.T.size:
             self._add_into_window(t, D, w, C, Hm, rw, cols)
             return
-        if COMPILED:
-            F, X = np.empty((n, 3, 3)), np.empty((n, 3, k + 1))
-            _frame_products(D, w, Hm, rw, F, X)
-            FC = None
-            if C is not None:
-                FC = np.empty((n, 3, 3))
-                _products3(F, np.ascontiguousarray(C), FC)
+        if COMPILED:  # one "epoch" per frame
+            F, X = np.zeros((n, 3, 3)), np.zeros((n, 3, k + 1))
+            FC = np.zeros((n, 3, 3)) if C is not None else None
+            _frame_products_into(
+                D,
+                w,
+                Hm,
+                rw,
+                np.ascontiguousarray(C) if FC is not None else np.zeros((0, 3, 3)),
+                np.arange(n, dtype=np.int64),
+                np.arange(k + 1, dtype=np.int64),
+                F,
+                X,
+                FC if FC is not None else F[:0],
+            )
         else:
             Dw = np.nan_to_num(D) * w[:, :, None]
             F = np.einsum("nma,nmb->nab", Dw, Dw)

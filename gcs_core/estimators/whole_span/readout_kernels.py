@@ -1,10 +1,9 @@
 """Compiled loops of the read-out noise elimination (:mod:`gcs_core.estimators.whole_span.readout`),
 with numba (:data:`gcs_core.compiled.COMPILED`; without numba the numpy forms in that module run):
 
-* :func:`_frame_products` — per frame ``F = Σ D̃ᵀD̃`` and ``D̃ᵀ[H̃ | r̃]``;
-* :func:`_products3` — ``F C`` per frame;
-* :func:`_scatter` — a block's frames added to the window's epochs;
-* :func:`_frame_products_into` — the two in one pass, straight into the epochs;
+* :func:`_frame_products_into` — per frame ``F = Σ D̃ᵀD̃``, ``D̃ᵀ[H̃ | r̃]`` and ``F C``, added
+  into its epoch (one epoch per frame: the per-frame products);
+* :func:`_scatter` — per-frame products added to the window's epochs;
 * :func:`_row_readout` — per row the read-out variance ``σ_e² |D|²`` and ``D ε̂``;
 * :func:`_epoch_solve` — per epoch the Cholesky factor of ``M = F + σ_e⁻² I`` and the
   factored rows ``L⁻¹ G``, ``L⁻¹ F C`` and the read-out error's step;
@@ -22,21 +21,27 @@ _jit = jit()
 
 
 @_jit
+def _cholesky3(F, e, inv_e2):
+    """The Cholesky factor ``L`` of epoch ``e``'s ``M = F_e + σ_e⁻² I`` (3 × 3, positive
+    definite) as ``(1/l00, l10, l20, 1/l11, l21, 1/l22)``: the diagonal's reciprocals, three
+    divisions per epoch."""
+    i00 = 1.0 / np.sqrt(F[e, 0, 0] + inv_e2)
+    l10, l20 = F[e, 0, 1] * i00, F[e, 0, 2] * i00
+    l11 = np.sqrt(F[e, 1, 1] + inv_e2 - l10 * l10)
+    i11 = 1.0 / l11
+    l21 = (F[e, 1, 2] - l20 * l10) * i11
+    i22 = 1.0 / np.sqrt(F[e, 2, 2] + inv_e2 - l20 * l20 - l21 * l21)
+    return i00, l10, l20, i11, l21, i22
+
+
+@_jit
 def _epoch_solve(F, G, FC, inv_e2, V, W, y_eps):
-    """Per epoch the Cholesky factor ``L`` of ``M = F + σ_e⁻² I`` (3 × 3, positive
-    definite), ``V = L⁻¹ G``, ``W = L⁻¹ FC`` (when FC has the epochs) and
+    """Per epoch the Cholesky factor ``L`` of ``M = F + σ_e⁻² I`` (:func:`_cholesky3`),
+    ``V = L⁻¹ G``, ``W = L⁻¹ FC`` (when FC has the epochs) and
     ``y_eps = M⁻¹ g_ε = L⁻ᵀ V[:, last]`` (the read-out error's step)."""
     last = G.shape[2] - 1
     for e in range(F.shape[0]):
-        a, b, c = F[e, 0, 0] + inv_e2, F[e, 0, 1], F[e, 0, 2]
-        d, f, g = F[e, 1, 1] + inv_e2, F[e, 1, 2], F[e, 2, 2] + inv_e2
-        l00 = np.sqrt(a)
-        i00 = 1.0 / l00  # the diagonal's reciprocals: three divisions per epoch
-        l10, l20 = b * i00, c * i00
-        l11 = np.sqrt(d - l10 * l10)
-        i11 = 1.0 / l11
-        l21 = (f - l20 * l10) * i11
-        i22 = 1.0 / np.sqrt(g - l20 * l20 - l21 * l21)
+        i00, l10, l20, i11, l21, i22 = _cholesky3(F, e, inv_e2)
         for q in range(G.shape[2]):
             v0 = G[e, 0, q] * i00
             v1 = (G[e, 1, q] - l10 * v0) * i11
@@ -77,16 +82,6 @@ def _epoch_knot_rows(W, t, j, tau, R, U):
 
 
 @_jit
-def _products3(A, B, out):
-    """``out_i = A_i B_i`` for (n, 3, 3) stacks (numpy's batched matmul is slow at 3 × 3)."""
-    for i in range(A.shape[0]):
-        for r in range(3):
-            a0, a1, a2 = A[i, r, 0], A[i, r, 1], A[i, r, 2]
-            for c in range(3):
-                out[i, r, c] = a0 * B[i, 0, c] + a1 * B[i, 1, c] + a2 * B[i, 2, c]
-
-
-@_jit
 def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
     """``G[idx[i], :, ext[q]] += X[i, :, q]``, ``F[idx[i]] += Fb[i]`` and, when ``FCb`` has
     the frames, ``FC[idx[i]] += FCb[i]`` (repeated epochs add)."""
@@ -105,8 +100,8 @@ def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
 
 @_jit
 def _frame_products_into(D, w, Hm, rw, C, idx, ext, F, G, FC):
-    """:func:`_frame_products` added straight into the epochs: frame ``i`` into epoch
-    ``e = idx[i]``, ``F[e] += Σ_r D̃_rᵀ D̃_r``, ``G[e, :, ext[q]] += Σ_r D̃_rᵀ h̃_r[q]`` (the
+    """Frame ``i``'s products added into epoch ``e = idx[i]``, with ``D̃_r = w_r D_r`` (rows of
+    weight 0 skipped, NaN partials as 0): ``F[e] += Σ_r D̃_rᵀ D̃_r``, ``G[e, :, ext[q]] += Σ_r D̃_rᵀ h̃_r[q]`` (the
     last of ``ext`` the residual column, fed by ``rw``) and, when ``FC`` has epochs,
     ``FC[e] += F_i C_i`` (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,), C (n, 3, 3)))."""
     n, m = D.shape[0], D.shape[1]
@@ -144,23 +139,18 @@ def _frame_products_into(D, w, Hm, rw, C, idx, ext, F, G, FC):
 
 @_jit
 def _epoch_step(F, FC, Gdx, a, base, inv_e2, out):
-    """Per epoch ``out = base − M⁻¹ (G_x dx + F C a)``, ``M = F + σ_e⁻² I`` (Cholesky; F, FC
+    """Per epoch ``out = base − M⁻¹ (G_x dx + F C a)``, ``M = F + σ_e⁻² I`` (:func:`_cholesky3`; F, FC
     (E, 3, 3), Gdx and a (E, 3) the statics' and the knots' parts, base (E, 3))."""
     for e in range(F.shape[0]):
         r0 = Gdx[e, 0] + FC[e, 0, 0] * a[e, 0] + FC[e, 0, 1] * a[e, 1] + FC[e, 0, 2] * a[e, 2]
         r1 = Gdx[e, 1] + FC[e, 1, 0] * a[e, 0] + FC[e, 1, 1] * a[e, 1] + FC[e, 1, 2] * a[e, 2]
         r2 = Gdx[e, 2] + FC[e, 2, 0] * a[e, 0] + FC[e, 2, 1] * a[e, 1] + FC[e, 2, 2] * a[e, 2]
-        l00 = np.sqrt(F[e, 0, 0] + inv_e2)
-        l10, l20 = F[e, 0, 1] / l00, F[e, 0, 2] / l00
-        l11 = np.sqrt(F[e, 1, 1] + inv_e2 - l10 * l10)
-        l21 = (F[e, 1, 2] - l20 * l10) / l11
-        l22 = np.sqrt(F[e, 2, 2] + inv_e2 - l20 * l20 - l21 * l21)
-        v0 = r0 / l00
-        v1 = (r1 - l10 * v0) / l11
-        v2 = (r2 - l20 * v0 - l21 * v1) / l22
-        y2 = v2 / l22
-        y1 = (v1 - l21 * y2) / l11
-        y0 = (v0 - l10 * y1 - l20 * y2) / l00
+        i00, l10, l20, i11, l21, i22 = _cholesky3(F, e, inv_e2)
+        v0 = r0 * i00
+        v1 = (r1 - l10 * v0) * i11
+        y2 = (r2 - l20 * v0 - l21 * v1) * i22 * i22
+        y1 = (v1 - l21 * y2) * i11
+        y0 = (v0 - l10 * y1 - l20 * y2) * i00
         out[e, 0] = base[e, 0] - y0
         out[e, 1] = base[e, 1] - y1
         out[e, 2] = base[e, 2] - y2
@@ -183,30 +173,3 @@ def _row_readout(D, eps, sig_e2, var, De):
             var[i, r] = sig_e2 * s
             if with_eps:
                 De[i, r] = de
-
-
-@_jit
-def _frame_products(D, w, Hm, rw, F, X):
-    """Per frame ``F = Σ_r D̃_rᵀ D̃_r`` and ``X = Σ_r D̃_rᵀ [h̃_r | r̃_r]`` with ``D̃_r = w_r D_r``
-    (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,); rows of weight 0 skipped; F and X are
-    overwritten)."""
-    n, m = D.shape[0], D.shape[1]
-    k = Hm.shape[1]
-    d = np.empty(3)
-    F[:] = 0.0
-    X[:] = 0.0
-    for i in range(n):
-        for r in range(m):
-            wr = w[i, r]
-            if wr == 0.0:
-                continue
-            for a in range(3):
-                v = D[i, r, a] * wr
-                d[a] = v if v == v else 0.0  # NaN partials count as 0 (np.nan_to_num)
-            row = i * m + r
-            for a in range(3):
-                for b in range(3):
-                    F[i, a, b] += d[a] * d[b]
-                for q in range(k):
-                    X[i, a, q] += d[a] * Hm[row, q]
-                X[i, a, k] += d[a] * rw[row]
