@@ -20,6 +20,8 @@ from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
 from gcs_core.estimators.whole_span import fit as sb
 from gcs_core.estimators.whole_span import knots as kn
 from gcs_core.estimators.whole_span import passes as wsp
+from gcs_core.estimators.whole_span.epoch_errors import EpochErrors
+from gcs_core.estimators.whole_span.readout import seed_errors
 from gcs_core.problem.linearization import iter_blocks
 
 NO_EDIT = BatchOptions(edit_k=None)
@@ -189,14 +191,14 @@ def test_window_sums_equal_the_per_frame_form(monkeypatch):
         return A, b, ro.finish()
 
     A0, b0, c0 = eliminate(None)
-    A1, b1, c1 = eliminate(readout.EpochErrors(sensors))
+    A1, b1, c1 = eliminate(EpochErrors(sensors))
     np.testing.assert_allclose(A1, A0, rtol=1e-12, atol=1e-12 * np.abs(A0).max())
     np.testing.assert_allclose(b1, b0, rtol=1e-12, atol=1e-12 * np.abs(b0).max())
     assert c1 == pytest.approx(c0, rel=1e-12)
 
 
 def test_sorted_union_is_numpy_unique():
-    from gcs_core.estimators.whole_span.readout import _sorted_union
+    from gcs_core.estimators.whole_span.epoch_errors import _sorted_union
 
     rng = np.random.default_rng(2)
     ts = [np.sort(rng.integers(0, 50, size=n).astype(float)) for n in (0, 7, 30, 30)]
@@ -206,7 +208,7 @@ def test_sorted_union_is_numpy_unique():
 
 def test_seed_from_the_batch_is_the_first_pass():
     """The read-out errors' first optimum from the batch's residuals and attitude partials
-    (``EpochErrors.seed``) is what a pass without the Jacobian finds at the batch's point."""
+    (``readout.seed_errors``) is what a pass without the Jacobian finds at the batch's point."""
     problem, _, grid, passes = _setup(SIGMA_E)
     partials: dict = {}
     batch = batch_fit(problem, NO_EDIT, attitude_partials=partials)
@@ -214,7 +216,7 @@ def test_seed_from_the_batch_is_the_first_pass():
     passes.run(np.asarray(batch.x), z, {}, jacobian=False)
     from_pass = passes.errors.cond.copy()
     passes.errors.cond[:] = 0.0
-    passes.errors.seed(problem.sensors, batch.residuals, partials, SIGMA_E**2)
+    seed_errors(passes.errors, problem.sensors, batch.residuals, partials, SIGMA_E**2)
     assert passes.errors.seeded
     assert np.max(np.abs(passes.errors.cond - from_pass)) < ROUND_OFF * SIGMA_E
 
@@ -235,9 +237,9 @@ def test_the_joint_step_predicts_the_read_out_errors(monkeypatch):
     dz = np.zeros_like(z)
     dz[1:, :3] = rng.normal(0, 2 * SIGMA_E, (grid.K - 1, 3))
     pred = passes.errors.predicted(dx, dz, grid, lin.R, 1.0 / SIGMA_E**2)
-    from gcs_core.estimators.whole_span import readout
+    from gcs_core.estimators.whole_span import epoch_errors
 
-    monkeypatch.setattr(readout, "COMPILED", False)  # the numpy form gives the same
+    monkeypatch.setattr(epoch_errors, "COMPILED", False)  # the numpy form gives the same
     np.testing.assert_allclose(
         passes.errors.predicted(dx, dz, grid, lin.R, 1.0 / SIGMA_E**2), pred, atol=1e-9 * SIGMA_E
     )

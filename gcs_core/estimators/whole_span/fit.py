@@ -81,6 +81,7 @@ from gcs_core.estimators.results import BatchResult, FitResult
 from gcs_core.estimators.whole_span import knots as kn
 from gcs_core.estimators.whole_span.grid import make_knots, process_noise
 from gcs_core.estimators.whole_span.passes import Dynamics, Passes, SpanLinearization
+from gcs_core.estimators.whole_span.readout import seed_errors
 from gcs_core.estimators.whole_span.restart import Restart, start_from
 from gcs_core.estimators.whole_span.result import SmoothedResult
 from gcs_core.models.gyro_noise import GyroNoise
@@ -145,7 +146,7 @@ def whole_span_fit(
         return cast(BatchResult, batch)  # a restart is made only with process noise
     it = _begin(problem, opts, noise, batch, edited, spacing)
     if partials and it.passes.errors is not None:
-        it.passes.errors.seed(problem.sensors, cast(BatchResult, batch).residuals, partials, noise.sigma_e**2)
+        seed_errors(it.passes.errors, problem.sensors, cast(BatchResult, batch).residuals, partials, noise.sigma_e**2)
     del batch, start  # its residuals (a week: 32 MB) are not kept alive
     _edit_passes(problem, it)
     return _finish(problem, it)
@@ -288,7 +289,7 @@ def _first_linearization(it: _Iterate) -> SpanLinearization:
     the one full pass is made about it."""
     errors = it.passes.errors
     if errors is not None and not errors.nonzero:
-        if errors.seeded:  # from the batch's pass at this point (EpochErrors.seed)
+        if errors.seeded:  # from the batch's pass at this point (readout.seed_errors)
             errors.seeded = False
         else:
             it.passes.run(it.x, it.z, it.edits, jacobian=False)
@@ -427,7 +428,7 @@ def _line_search(it: _Iterate, step: _Step):
 
 def _joint_readout(it: _Iterate, step: _Step) -> tuple[np.ndarray, np.ndarray] | None:
     """With the read-out noise, move the passes' read-out errors to the joint Gauss–Newton
-    step's (:meth:`.readout.EpochErrors.predicted`: the conditional optimum at the new
+    step's (:meth:`.epoch_errors.EpochErrors.predicted`: the conditional optimum at the new
     statics and knots, to first order), so that the line search's first try linearizes
     where the next iteration needs it. Returns (the errors before, the errors moved to), or
     None when nothing was recorded."""

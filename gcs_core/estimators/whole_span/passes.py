@@ -13,8 +13,9 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.estimators.residuals import Residuals
 from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.epoch_errors import EpochErrors
 from gcs_core.estimators.whole_span.knot_kernels import correct_attitude, rotate_by_rotvec
-from gcs_core.estimators.whole_span.readout import EpochErrors, ReadoutEpochs, row_readout
+from gcs_core.estimators.whole_span.readout import ReadoutEpochs, row_readout
 from gcs_core.frames.rotations import rotvec_to_dcm
 from gcs_core.problem.attitude import AttitudeEval, FrameAttitude
 from gcs_core.problem.build import Problem
