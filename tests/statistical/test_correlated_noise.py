@@ -105,13 +105,22 @@ def test_chi2_on_effective_dof_and_too_good_causes():
 
 
 # ------------------------------------------------------------------------------ declared
-def test_declared_correlation_is_read_checked_and_carried(shared_example, tmp_path):
-    src = shared_example("sunpoint-nominal")
+def _with_fhst1_lines(shared_example, tmp_path):
+    """A copy of sunpoint-nominal and a writer of extra lines into its FHST1 table (the
+    mission's folder, ``write(lines)``)."""
     root = tmp_path / "m"
-    shutil.copytree(src, root)
-    toml = (root / "mission.toml").read_text()
-    head, sep, rest = toml.partition('name = "FHST1"')
-    (root / "mission.toml").write_text(head + sep + "\nnoise_correlation_s = 60.0" + rest)
+    shutil.copytree(shared_example("sunpoint-nominal"), root)
+    head, sep, rest = (root / "mission.toml").read_text().partition('name = "FHST1"')
+
+    def write(lines: str) -> None:
+        (root / "mission.toml").write_text(head + sep + "\n" + lines + rest)
+
+    return root, write
+
+
+def test_declared_correlation_is_read_checked_and_carried(shared_example, tmp_path):
+    root, write = _with_fhst1_lines(shared_example, tmp_path)
+    write("noise_correlation_s = 60.0")
     spec = load_mission(root).spec
     assert nc.declared_correlation(spec) == {"FHST1": nc.Declared(60.0, 1.0)}
     a = Analysis(default_config(root), mission=load_mission(root))
@@ -122,7 +131,7 @@ def test_declared_correlation_is_read_checked_and_carried(shared_example, tmp_pa
     k = math.sqrt(c.inflation)
     assert np.allclose(a.problem.sensor("FHST1").sigma, spec.sensor("FHST1").noise * k)
     assert "FHST1" in a.goodness().as_report()["sensors"] and a.goodness().sensors["FHST1"].inflation > 1
-    (root / "mission.toml").write_text(head + sep + "\nnoise_correlation_s = -5.0" + rest)
+    write("noise_correlation_s = -5.0")
     with pytest.raises(GcsError, match="noise_correlation_s"):
         load_mission(root)
 
@@ -150,15 +159,11 @@ def test_psd_forms_convert_exactly_to_the_simulators_sigma():
 
 
 def test_psd_declaration_is_read_converted_and_checked(shared_example, tmp_path):
-    src = shared_example("sunpoint-nominal")
-    root = tmp_path / "m"
-    shutil.copytree(src, root)
-    toml = (root / "mission.toml").read_text()
-    head, sep, rest = toml.partition('name = "FHST1"')
-    noise = load_mission(src).spec.sensor("FHST1").noise
+    root, write = _with_fhst1_lines(shared_example, tmp_path)
+    noise = load_mission(shared_example("sunpoint-nominal")).spec.sensor("FHST1").noise
 
     def read(lines: str):
-        (root / "mission.toml").write_text(head + sep + "\n" + lines + rest)
+        write(lines)
         return load_mission(root).spec
 
     sig_c = 0.5 * noise
