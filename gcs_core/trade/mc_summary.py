@@ -85,7 +85,7 @@ def drawn_sigma(pred, draw: Mapping[str, float] | None) -> np.ndarray:
     this the tracker scales of a τ = 60 s Monte Carlo read 4–17 % conservative,
     docs/benchmarks.md)."""
     total = np.asarray(pred.sigma[-1], float) ** 2
-    P, s0 = getattr(pred, "P", None), getattr(pred, "prior", None)
+    P, s0 = pred.P, pred.prior
     if not draw or P is None or s0 is None:
         return np.sqrt(total)
     P, s0 = np.asarray(P, float), np.asarray(s0, float)

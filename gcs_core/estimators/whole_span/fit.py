@@ -397,16 +397,16 @@ def _line_search(it: _Iterate, step: _Step):
     Returns (x, z, cost, scale, fresh: ``it.trial`` holds the Jacobian there), or None."""
     passes, cost = it.passes, it.cost
     scale, fresh = 1.0, True
-    joint = _joint_readout(it, step)  # (the read-out errors before, at the joint step) or None
+    before = _joint_readout(it, step)  # the read-out errors before the joint step's, or None
     for attempt in range(10):
         x_try, z_try = it.x + scale * step.dx, it.z + scale * step.dz
         # the first try's Jacobian is the next iteration's. With the read-out noise it is
         # made at the joint step's read-out errors when they were predicted; else the try
         # needs only the cost (a pass without the Jacobian), and the next pass is made
         # about the read-out errors' optimum it finds
-        fresh = attempt == 0 and (not passes.sig_e2 or joint is not None)
-        if attempt == 1 and joint is not None and passes.errors is not None:
-            passes.errors.move_to(joint[0])  # the shortened steps: about the errors before
+        fresh = attempt == 0 and (not passes.sig_e2 or before is not None)
+        if attempt == 1 and before is not None and passes.errors is not None:
+            passes.errors.move_to(before)  # the shortened steps: about the errors before
         it.trial = None
         it.trial = passes.run(x_try, z_try, it.edits, jacobian=fresh)
         cost_t = passes.cost(x_try, it.trial.chi2, it.trial.system)
@@ -426,12 +426,12 @@ def _line_search(it: _Iterate, step: _Step):
     return None
 
 
-def _joint_readout(it: _Iterate, step: _Step) -> tuple[np.ndarray, np.ndarray] | None:
+def _joint_readout(it: _Iterate, step: _Step) -> np.ndarray | None:
     """With the read-out noise, move the passes' read-out errors to the joint Gauss–Newton
     step's (:meth:`.epoch_errors.EpochErrors.predicted`: the conditional optimum at the new
     statics and knots, to first order), so that the line search's first try linearizes
-    where the next iteration needs it. Returns (the errors before, the errors moved to), or
-    None when nothing was recorded."""
+    where the next iteration needs it. Returns the errors before, or None when nothing was
+    recorded."""
     errors, R = it.passes.errors, it.passes.R_fixed
     if errors is None or R is None:
         return None
@@ -440,7 +440,7 @@ def _joint_readout(it: _Iterate, step: _Step) -> tuple[np.ndarray, np.ndarray] |
         return None
     before = errors.eps
     errors.move_to(new)
-    return before, new
+    return before
 
 
 def _correct_knots(it: _Iterate, x_try, z_try, cost_t: float, gain: float):
