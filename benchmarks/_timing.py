@@ -17,14 +17,19 @@ def best_of(fn, repeats: int) -> float:
     return best
 
 
-def interleaved(fns: dict, rounds: int) -> dict[str, np.ndarray]:
+def interleaved(fns: dict, rounds: int, seed: int | None = 0) -> dict[str, np.ndarray]:
     """name -> (rounds,) wall seconds of each ``fn()``, the functions called in turn round
     after round: a ratio taken within a round sees the same machine state (load, clock,
-    caches), which a best-of-each taken minutes apart does not."""
+    caches), which a best-of-each taken minutes apart does not. With ``seed`` the order is
+    drawn afresh each round (seeded): a function's time also depends on what ran just
+    before it (the pages the previous call freed), and a fixed order would give each
+    function the same predecessor every round."""
+    rng = None if seed is None else np.random.default_rng(seed)
+    names = list(fns)
     out: dict[str, list[float]] = {k: [] for k in fns}
     for _ in range(rounds):
-        for k, fn in fns.items():
+        for k in names if rng is None else [names[i] for i in rng.permutation(len(names))]:
             t0 = time.perf_counter()
-            fn()
+            fns[k]()
             out[k].append(time.perf_counter() - t0)
     return {k: np.asarray(v) for k, v in out.items()}

@@ -134,7 +134,7 @@ def test_epoch_elimination_synthetic_rows_both_forms(monkeypatch):
         ro = readout.ReadoutEpochs(sig_e2, A, b, None, sensors)
         for sd, t, _m, cols, D, w, Hm, rw in data:
             ro.visit(sd)
-            ro.add(t, D, w, None, Hm, rw, cols)
+            ro.add(t, D, w, None, np.column_stack((Hm, rw)), cols)
         return A, b, ro.finish()
 
     rows: dict = {}
@@ -187,7 +187,8 @@ def test_window_sums_equal_the_per_frame_form(monkeypatch):
                 lo, hi = (0, 2) if window == 0 else (2, sd.t.size)
                 ro.visit(sd)
                 w = np.ones((hi - lo, m))
-                ro.add(sd.t[lo:hi], D[lo:hi], w, None, Hm[lo * m : hi * m], rw[lo * m : hi * m], cols)
+                Hr = np.column_stack((Hm, rw))[lo * m : hi * m]
+                ro.add(sd.t[lo:hi], D[lo:hi], w, None, Hr, cols)
         return A, b, ro.finish()
 
     A0, b0, c0 = eliminate(None)

@@ -161,6 +161,59 @@ def test_compiled_and_numpy_forms_agree(monkeypatch):
     np.testing.assert_allclose(C_fast, C_slow, atol=1e-14)
 
 
+def _fused_row_at_a_time(D, C, w, t, knot, tau, R, Hr, m, cols, Dk, Bk):
+    """The fused accumulation one row at a time in plain Python floats (IEEE doubles, the
+    kernel's own expressions in its order): the reference the pairing must match to the bit."""
+    d, k = Dk.shape[1], cols.size
+    for jj in np.unique(knot):
+        accD, acc = np.zeros((d, d)), np.zeros((d, k + 1))
+        for i in np.flatnonzero(knot == jj):
+            s = -(float(t[i]) - float(tau[jj]))
+            jr = min(int(jj), R.shape[0] - 1)
+            for r in range(m):
+                wr = float(w[i, r])
+                if wr == 0.0:
+                    continue
+                dd = [float(np.nan_to_num(D[i, r, a])) * wr for a in range(3)]
+                u = [dd[0] * C[i, 0, c] + dd[1] * C[i, 1, c] + dd[2] * C[i, 2, c] for c in range(3)]
+                u += [s * (u[0] * R[jr, 0, c] + u[1] * R[jr, 1, c] + u[2] * R[jr, 2, c]) for c in range(3)]
+                for a in range(d):
+                    for b in range(d):
+                        accD[a, b] += u[a] * u[b]
+                    for q in range(k + 1):
+                        acc[a, q] += u[a] * Hr[i * m + r, q]
+        Dk[jj] += accD
+        Bk[jj][:, list(cols) + [Bk.shape[2] - 1]] += acc
+
+
+def test_fused_pairs_sum_as_one_row_at_a_time():
+    """The compiled accumulation sums a knot's rows two at a time; every sum meets its
+    terms in row order, so it gives the bits of one row at a time, here over knots with odd
+    and even counts of used rows, rows of weight zero and a NaN partial."""
+    if not COMPILED:
+        pytest.skip("numba not available: only the numpy form runs")
+    from gcs_core.estimators.whole_span.knot_kernels import _accumulate_fused
+
+    rng = np.random.default_rng(11)
+    n, m, k = 9, 3, 4
+    D = rng.normal(size=(n, m, 3)) * 1e3
+    D[4, 1, 2] = np.nan
+    C = np.linalg.qr(rng.normal(size=(n, 3, 3)))[0]
+    w = np.full((n, m), 2.0)
+    w[[1, 2, 6], [0, 2, 1]] = 0.0
+    t = np.arange(n, dtype=float) + 0.25
+    knot = np.array([0, 0, 0, 1, 1, 2, 2, 2, 2], np.int64)
+    tau = np.array([0.0, 3.0, 5.0])
+    R = np.linalg.qr(rng.normal(size=(2, 3, 3)))[0]
+    Hr = rng.normal(size=(n * m, k + 1))
+    cols = np.array([4, 0, 2, 1], np.int64)
+    out = [np.zeros((3, 6, 6)), np.zeros((3, 6, 6))], [np.zeros((3, 6, 6)), np.zeros((3, 6, 6))]
+    (Dk1, Bk1), (Dk2, Bk2) = out
+    _accumulate_fused(D, C, w, t, knot, tau, R, Hr, m, cols, Dk1, Bk1)
+    _fused_row_at_a_time(D, C, w, t, knot, tau, R, Hr, m, cols, Dk2, Bk2)
+    assert np.array_equal(Dk1, Dk2) and np.array_equal(Bk1, Bk2)
+
+
 def test_reduces_to_the_batch_when_the_process_noise_vanishes():
     """Q → 0 (the gyro noise scaled by 1e-4): the batch's minimum within 1e-3 σ."""
     mission, _ = simulate(4, duration_s=900.0)

@@ -50,9 +50,10 @@ class KnotElimination:
         t_blk = sd.t[blk.lo : blk.hi]
         C = np.ascontiguousarray(chained_attitude(blk.geom.C_BI, dyn.grid, dyn.z, dyn.R, t_blk))
         w = blk.used[:, None] / sd.sigma[None, :]
-        self.knots.add_rows(D, C, w, t_blk, np.ascontiguousarray(Hm), np.ascontiguousarray(rw), c)
+        Hr = np.column_stack((Hm, rw))
+        self.knots.add_rows(D, C, w, t_blk, Hr, c)
         if self.readout is not None:
-            self.readout.add(t_blk, D, blk.used[:, None] / sd.sigma[None, :], C, Hm, rw, c)
+            self.readout.add(t_blk, D, w, C, Hr, c)
 
     def passed(self, sd, hi: int) -> None:
         if self.readout is not None:

@@ -70,29 +70,59 @@ def _finite(v):
 
 
 @_jit
-def _accumulate_fused(D, C, w, t, knot, tau, R, Hm, rw, m, cols, Dk, Bk):
+def _flush_knot(j, d, k, last, cols, accD, acc, Dk, Bk):
+    """Add one knot's sums into ``Dk[j]``, ``Bk[j]`` (``accD`` holds its upper triangle:
+    ``u_a u_b`` and ``u_b u_a`` are the same products, summed in the same order)."""
+    for a in range(d):
+        for b in range(d):
+            Dk[j, a, b] += accD[a, b] if a <= b else accD[b, a]
+        for q in range(k):
+            Bk[j, a, cols[q]] += acc[a, q]
+        Bk[j, a, last] += acc[a, k]
+
+
+@_jit
+def _add_row(u, d, k, Hr, row, accD, acc):
+    """One knot row ``u`` into the knot's sums: ``accD += u uᵀ`` (upper triangle),
+    ``acc += u Hr[row]``."""
+    for a in range(d):
+        ua = u[a]
+        for b in range(a, d):
+            accD[a, b] += ua * u[b]
+        for q in range(k + 1):
+            acc[a, q] += ua * Hr[row, q]
+
+
+@_jit
+def _accumulate_fused(D, C, w, t, knot, tau, R, Hr, m, cols, Dk, Bk):
     """:func:`knot_rows` and :func:`_accumulate` in one pass: the rows ``u`` are formed
-    per frame and summed at once (D (N, m, 3), C (N, 3, 3), w (N, m), Hm (N·m, k),
-    rw (N·m,); the module docstring gives ``u``). Non-finite partials are read as
-    :func:`numpy.nan_to_num` makes them (:func:`_finite`: no cleaned copy of D)."""
+    per frame and summed at once (D (N, m, 3), C (N, 3, 3), w (N, m); Hr (N·m, k + 1) the
+    weighted static rows with the weighted residual last, C-ordered so that the loop
+    along a row is unit-stride (a strided view of it ran 1.5× slower); the module
+    docstring gives ``u``). Non-finite partials are read as :func:`numpy.nan_to_num`
+    makes them (:func:`_finite`: no cleaned copy of D).
+
+    The rows of a knot are summed two at a time, ``(acc + u₁h₁) + u₂h₂``: each sum
+    meets its terms in row order, as one row at a time would (the same bits), with half
+    the loads and stores of ``acc``."""
     d = Dk.shape[1]
     k = cols.shape[0]
     last = Bk.shape[2] - 1
     nR = R.shape[0]
-    u = np.empty(6)
+    u = np.empty(6)  # the row held until its pair comes
+    u2 = np.empty(6)
     acc = np.zeros((6, k + 1))
     accD = np.zeros((6, 6))
     cur = -1
+    held = -1  # the held row's index in Hr, −1 for none
     for i in range(D.shape[0]):
         jj = knot[i]
         if jj != cur:
+            if held >= 0:
+                _add_row(u, d, k, Hr, held, accD, acc)
+                held = -1
             if cur >= 0:
-                for a in range(d):
-                    for b in range(d):
-                        Dk[cur, a, b] += accD[a, b]
-                    for q in range(k):
-                        Bk[cur, a, cols[q]] += acc[a, q]
-                    Bk[cur, a, last] += acc[a, k]
+                _flush_knot(cur, d, k, last, cols, accD, acc, Dk, Bk)
             accD[:, :] = 0.0
             acc[:, :] = 0.0
             cur = jj
@@ -103,26 +133,27 @@ def _accumulate_fused(D, C, w, t, knot, tau, R, Hm, rw, m, cols, Dk, Bk):
             if wr == 0.0:
                 continue
             d0, d1, d2 = _finite(D[i, r, 0]) * wr, _finite(D[i, r, 1]) * wr, _finite(D[i, r, 2]) * wr
+            v = u2 if held >= 0 else u
             for c in range(3):
-                u[c] = d0 * C[i, 0, c] + d1 * C[i, 1, c] + d2 * C[i, 2, c]
+                v[c] = d0 * C[i, 0, c] + d1 * C[i, 1, c] + d2 * C[i, 2, c]
             if d == 6:
                 for c in range(3):
-                    u[3 + c] = s * (u[0] * R[jr, 0, c] + u[1] * R[jr, 1, c] + u[2] * R[jr, 2, c])
+                    v[3 + c] = s * (v[0] * R[jr, 0, c] + v[1] * R[jr, 1, c] + v[2] * R[jr, 2, c])
             row = i * m + r
+            if held < 0:
+                held = row
+                continue
             for a in range(d):
-                ua = u[a]
-                for b in range(d):
-                    accD[a, b] += ua * u[b]
-                for q in range(k):
-                    acc[a, q] += ua * Hm[row, q]
-                acc[a, k] += ua * rw[row]
+                ua, ub = u[a], u2[a]
+                for b in range(a, d):
+                    accD[a, b] = (accD[a, b] + ua * u[b]) + ub * u2[b]
+                for q in range(k + 1):
+                    acc[a, q] = (acc[a, q] + ua * Hr[held, q]) + ub * Hr[row, q]
+            held = -1
+    if held >= 0:
+        _add_row(u, d, k, Hr, held, accD, acc)
     if cur >= 0:
-        for a in range(d):
-            for b in range(d):
-                Dk[cur, a, b] += accD[a, b]
-            for q in range(k):
-                Bk[cur, a, cols[q]] += acc[a, q]
-            Bk[cur, a, last] += acc[a, k]
+        _flush_knot(cur, d, k, last, cols, accD, acc, Dk, Bk)
 
 
 @_jit

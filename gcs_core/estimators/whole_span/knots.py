@@ -325,15 +325,16 @@ class KnotSystem:
                 setattr(self, name, new)
         return knot - self.base
 
-    def add_rows(self, D, C, w, t, Hm, rw, cols) -> None:
+    def add_rows(self, D, C, w, t, Hr, cols) -> None:
         """Add one block from the model's attitude partials ``D`` (N, m, 3), the attitude
-        ``C`` (N, 3, 3), row weights ``w`` (N, m), the weighted static rows ``Hm``
-        (N·m, k) over ``cols`` and the weighted residuals ``rw`` (N·m,)."""
+        ``C`` (N, 3, 3), row weights ``w`` (N, m) and ``Hr`` (N·m, k + 1): the weighted
+        static rows over ``cols`` (k,), the weighted residual last."""
+        m = D.shape[1]
         if not COMPILED:
             j = self.grid.index(t)
             U = knot_rows(np.nan_to_num(D), C, t, j, self.grid, self.R, w)
-            m = D.shape[1]
-            self.add(U, Hm.reshape(D.shape[0], m, -1), rw.reshape(D.shape[0], m), t, cols)
+            Hr = Hr.reshape(D.shape[0], m, -1)
+            self.add(U, Hr[:, :, :-1], Hr[:, :, -1], t, cols)
             return
         knot = self._local(self.grid.index(t).astype(np.int64))
         R = self.R if self.R.shape[0] else np.eye(3)[None]
@@ -346,9 +347,8 @@ class KnotSystem:
             knot,
             self.grid.tau[self.base :],
             R[self.base :] if self.base < R.shape[0] else R[-1:],
-            Hm,
-            rw,
-            D.shape[1],
+            np.ascontiguousarray(Hr),
+            m,
             np.asarray(cols, np.int64),
             self.Dk,
             self.Bk,

@@ -314,9 +314,9 @@ class Passes:
         w = blk.used[:, None] / sd.sigma[None, :]
         C = np.ascontiguousarray(kn.chained_attitude(blk.geom.C_BI, self.grid, sysk.z, R, t))
         if blk.Hr is not None:
-            sysk.add_rows(D, C, w, t, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+            sysk.add_rows(D, C, w, t, blk.Hr, blk.cols)
         else:
-            sysk.add_rows(D, C, w, t, np.zeros((rw.size, 0)), rw.reshape(-1).copy(), np.zeros(0, np.int64))
+            sysk.add_rows(D, C, w, t, rw.reshape(-1, 1), np.zeros(0, np.int64))
         return C
 
     def _readout_rows(self, blk) -> None:
@@ -347,10 +347,10 @@ class Passes:
         t = sd.t[blk.lo : blk.hi]
         w = blk.used[:, None] / sd.sigma[None, :]
         if blk.Hr is not None and ro.p:
-            ro.add(t, D, w, C, blk.Hr[:, :-1], blk.Hr[:, -1], blk.cols)
+            ro.add(t, D, w, C, blk.Hr, blk.cols)
         else:
-            rwf = blk.Hr[:, -1] if blk.Hr is not None else rw.reshape(-1)
-            ro.add(t, D, w, C, np.zeros((rwf.size, 0)), rwf, np.zeros(0, np.int64))
+            rwf = blk.Hr[:, -1:] if blk.Hr is not None else rw.reshape(-1, 1)
+            ro.add(t, D, w, C, rwf, np.zeros(0, np.int64))
 
     def marginal_sigma(self) -> dict[str, np.ndarray]:
         """sensor -> (N, m) each row's marginal σ at the last pass, ``sqrt(σ² + σ_e² |D|²)``

@@ -264,14 +264,15 @@ class ReadoutEpochs:
         if self.knots is not None:
             self._passed.append((sd, hi))
 
-    def add(self, t, D, w, C, Hm, rw, cols) -> None:
+    def add(self, t, D, w, C, Hr, cols) -> None:
         """One block: times t (n,), attitude partials D (n, m, 3), row weights w (n, m),
-        the chained attitude C (n, 3, 3) or None (no knots), weighted static rows Hm
-        (n·m, k) over ``cols`` (k,), weighted residuals rw (n·m,)."""
+        the chained attitude C (n, 3, 3) or None (no knots), ``Hr`` (n·m, k + 1) the
+        weighted static rows over ``cols`` (k,) with the weighted residual last."""
         n, m = D.shape[:2]
         k = len(cols)
+        Hr = np.ascontiguousarray(Hr)  # the kernels' loop along a row is unit-stride
         if COMPILED and self.errors is not None and self.errors.T.size:
-            self._add_into_window(t, D, w, C, Hm, rw, cols)
+            self._add_into_window(t, D, w, C, Hr, cols)
             return
         if COMPILED:  # one "epoch" per frame
             F, X = np.zeros((n, 3, 3)), np.zeros((n, 3, k + 1))
@@ -279,8 +280,7 @@ class ReadoutEpochs:
             _frame_products_into(
                 D,
                 w,
-                Hm,
-                rw,
+                Hr,
                 np.ascontiguousarray(C) if FC is not None else np.zeros((0, 3, 3)),
                 np.arange(n, dtype=np.int64),
                 np.arange(k + 1, dtype=np.int64),
@@ -293,12 +293,12 @@ class ReadoutEpochs:
             F = np.einsum("nma,nmb->nab", Dw, Dw)
             X = np.empty((n, 3, k + 1))
             if k:
-                X[:, :, :k] = np.einsum("nma,nmq->naq", Dw, Hm.reshape(n, m, k))
-            X[:, :, k] = np.einsum("nma,nm->na", Dw, rw.reshape(n, m))
+                X[:, :, :k] = np.einsum("nma,nmq->naq", Dw, Hr[:, :k].reshape(n, m, k))
+            X[:, :, k] = np.einsum("nma,nm->na", Dw, Hr[:, k].reshape(n, m))
             FC = F @ C if C is not None else None
         self._parts.append((np.asarray(t, float), F, FC, X, np.asarray(cols, int)))
 
-    def _add_into_window(self, t, D, w, C, Hm, rw, cols) -> None:
+    def _add_into_window(self, t, D, w, C, Hr, cols) -> None:
         """One block added straight into the window's epochs (the span's epochs known: the
         frames' epoch indices are looked up, cached per frame-time array): ``F``, ``F C``
         and ``G`` per epoch in one compiled pass, no per-frame products kept."""
@@ -314,8 +314,7 @@ class ReadoutEpochs:
         _frame_products_into(
             D,
             w,
-            Hm,
-            rw,
+            Hr,
             np.ascontiguousarray(C) if FC.shape[0] else np.zeros((0, 3, 3)),
             (g - win.base).astype(np.int64),
             ext,
@@ -506,6 +505,6 @@ def seed_errors(errors: EpochErrors, sensors, residuals, partials, sig_e2: float
         w = used[:, None] / sd.sigma[None, :]
         rw = np.where(used[:, None], np.asarray(res.residual, float), 0.0) / sd.sigma[None, :]
         ro.visit(sd)
-        ro.add(np.asarray(sd.t, float), D, w, None, np.zeros((rw.size, 0)), rw.reshape(-1), np.zeros(0, np.int64))
+        ro.add(np.asarray(sd.t, float), D, w, None, rw.reshape(-1, 1), np.zeros(0, np.int64))
     ro.finish()
     errors.seeded = True

@@ -99,14 +99,14 @@ def _scatter(idx, ext, X, G, Fb, F, FCb, FC):
 
 
 @_jit
-def _frame_products_into(D, w, Hm, rw, C, idx, ext, F, G, FC):
+def _frame_products_into(D, w, Hr, C, idx, ext, F, G, FC):
     """Frame ``i``'s products added into epoch ``e = idx[i]``, with ``D̃_r = w_r D_r`` (rows of
-    weight 0 skipped, NaN partials as 0): ``F[e] += Σ_r D̃_rᵀ D̃_r``, ``G[e, :, ext[q]] += Σ_r D̃_rᵀ h̃_r[q]`` (the
-    last of ``ext`` the residual column, fed by ``rw``) and, when ``FC`` has epochs,
-    ``FC[e] += F_i C_i`` (D (n, m, 3), w (n, m), Hm (n·m, k), rw (n·m,), C (n, 3, 3)))."""
+    weight 0 skipped, NaN partials as 0): ``F[e] += Σ_r D̃_rᵀ D̃_r``, ``G[e, :, ext[q]] += Σ_r
+    D̃_rᵀ [h̃_r | r̃_r][q]`` (the last of ``ext`` the residual column) and, when ``FC`` has
+    epochs, ``FC[e] += F_i C_i`` (D (n, m, 3), w (n, m), Hr (n·m, k + 1) the weighted
+    static rows with the weighted residual last, C-ordered; C (n, 3, 3))."""
     n, m = D.shape[0], D.shape[1]
-    k = Hm.shape[1]
-    last = ext[k]
+    k1 = Hr.shape[1]
     with_fc = FC.shape[0] > 0
     d = np.empty(3)
     Fi = np.empty((3, 3))
@@ -125,9 +125,8 @@ def _frame_products_into(D, w, Hm, rw, C, idx, ext, F, G, FC):
                 da = d[a]
                 for b in range(3):
                     Fi[a, b] += da * d[b]
-                for q in range(k):
-                    G[e, a, ext[q]] += da * Hm[row, q]
-                G[e, a, last] += da * rw[row]
+                for q in range(k1):
+                    G[e, a, ext[q]] += da * Hr[row, q]
         for a in range(3):
             for b in range(3):
                 F[e, a, b] += Fi[a, b]
