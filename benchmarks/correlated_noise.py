@@ -131,6 +131,7 @@ def montecarlo(args) -> None:
     from gcs_core.noise import correlated_sigma
     from gcs_core.session import Analysis
     from gcs_core.sim.writer import write_mission
+    from gcs_core.trade.mc_summary import prior_as_drawn
     from gcs_core.trade.montecarlo import PRIOR_STREAM, draw_prior
 
     honest = correlated_sigma.honest
@@ -175,21 +176,20 @@ def montecarlo(args) -> None:
                 res = a.result
             P = seen.get("P", np.asarray(res.P))
             s0 = np.array([res.state[n].sigma0 for n in res.solve_for])
-            info0 = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
-            prior_part = np.einsum("ij,j,ji->i", P, info0, P)
-            # the a priori's share as the draws made it: σ_d² per element instead of σ̄²
+            total = np.diag(np.asarray(res.P, float))
+            # without the a priori's share (its draw at 0), and with it as the draws made it
+            # (σ_d per element instead of σ̄): gcs_core.trade.mc_summary.prior_as_drawn
             sd = np.array([caps.get(n, 0.0) for n in res.solve_for]) if args.mc_draw_prior else np.zeros(len(s0))
-            drawn_part = np.einsum("ij,j,ji->i", P, info0**2 * sd**2, P)
+            at_prior = prior_as_drawn(total, P, s0, np.zeros(len(s0)))
+            as_drawn = prior_as_drawn(total, P, s0, sd)
             tv = hc.truth_all(truth, a.problem, "whole_span")
             skip = set(a.not_determined())
             for i, n in enumerate(res.solve_for):
                 if n in tv and n not in skip and not n.startswith("att."):
                     est.setdefault(n, []).append(float(res.x[i] - tv[n]))
                     sig.setdefault(n, []).append(float(math.sqrt(res.P[i, i])))
-                    sig0.setdefault(n, []).append(float(math.sqrt(max(res.P[i, i] - prior_part[i], 0.0))))
-                    sigd.setdefault(n, []).append(
-                        float(math.sqrt(max(res.P[i, i] - prior_part[i] + drawn_part[i], 0.0)))
-                    )
+                    sig0.setdefault(n, []).append(float(at_prior[i]))
+                    sigd.setdefault(n, []).append(float(as_drawn[i]))
     correlated_sigma.honest = honest
     n_runs = args.mc_runs
     err = 1.0 / math.sqrt(2.0 * max(n_runs - 1, 1))

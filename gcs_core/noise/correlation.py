@@ -59,6 +59,7 @@ import numpy as np
 
 from gcs_core.errors import InputError
 from gcs_core.problem.linearization import iter_blocks
+from gcs_core.problem.state import prior_information
 
 log = logging.getLogger(__name__)
 
@@ -153,10 +154,8 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
             f"{n_blocks} windows of {block_s:g} s hold used frames; at least {MIN_BLOCKS} are needed for a σ scale",
             key="block_s",
         )
-    prior = np.array(
-        [1.0 / state[n].sigma0 ** 2 if np.isfinite(state[n].sigma0) and state[n].sigma0 > 0 else 0.0 for n in names]
-    )
-    A = A[np.ix_(idx, idx)] + np.diag(prior)
+    prior = prior_information(state, names)  # P₀⁻¹ (diagonal)
+    A = A[np.ix_(idx, idx)] + prior
     G = G[:, idx]
     # inverted scaled to a unit diagonal (module docstring): a plain pseudo-inverse kept
     # or dropped the a priori's directions with the round-off (a TAM bias's scale moved ×2
@@ -164,7 +163,7 @@ def sigma_scale(problem, result, sensors=None, *, block_s: float = BLOCK_S) -> S
     d = np.sqrt(np.maximum(np.diag(A), 1e-300))
     Ainv = equilibrated_inverse(A / np.outer(d, d)) / np.outer(d, d)
     with np.errstate(all="ignore"):
-        honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G + np.diag(prior), Ainv)
+        honest = np.einsum("ij,jk,ki->i", Ainv, G.T @ G + prior, Ainv)
         scale = np.sqrt(np.maximum(honest, 0.0) / np.maximum(np.diag(Ainv), 1e-300))
     # where A is not positive definite its pseudo-inverse can keep a direction it should have
     # cut, and the scale explodes (issue 27: TAM1.bias_y at 1.6e130): not a finding

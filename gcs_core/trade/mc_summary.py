@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from gcs_core.errors import InputError
+from gcs_core.predictor.information import prior_information
 
 #: the acceptance band of predicted against Monte-Carlo σ, beyond the sampling error
 MATCH_FRACTION = 0.15
@@ -77,21 +78,26 @@ def ratio_band(runs: int, elements: int, alpha: float = ALPHA, match: float = MA
 
 def drawn_sigma(pred, draw: Mapping[str, float] | None) -> np.ndarray:
     """(n,) the predicted total σ of ``pred``'s elements for a priori drawn at ``draw``
-    (element -> σ of its draw; the others at their a priori σ̄). The a priori is an
-    observation with influence ``P P₀⁻¹``: of each variance, ``(P P₀⁻¹ P)_ii`` is its error's
-    share, which draws at ``σ_d`` make ``(P P₀⁻¹ D P₀⁻¹ P)_ii``, ``D = diag(σ_d²)``. An element
-    drawn narrower than its a priori lowers its own share and, through the correlations of
-    ``P``, the others' (the cap of :func:`~gcs_core.trade.montecarlo.draw_sigmas`; without
-    this the tracker scales of a τ = 60 s Monte Carlo read 4–17 % conservative,
-    docs/benchmarks.md)."""
+    (element -> σ of its draw; the others at their a priori σ̄): :func:`prior_as_drawn`.
+    An element drawn narrower than its a priori lowers its own share and, through the
+    correlations of ``P``, the others' (the cap of
+    :func:`~gcs_core.trade.montecarlo.draw_sigmas`; without this the tracker scales of a
+    τ = 60 s Monte Carlo read 4–17 % conservative, docs/benchmarks.md)."""
     total = np.asarray(pred.sigma[-1], float) ** 2
-    P, s0 = pred.P, pred.prior
-    if not draw or P is None or s0 is None:
+    if not draw or pred.P is None or pred.prior is None:
         return np.sqrt(total)
-    P, s0 = np.asarray(P, float), np.asarray(s0, float)
-    info0 = np.where(np.isfinite(s0) & (s0 > 0), 1.0 / np.where(s0 > 0, s0, 1.0) ** 2, 0.0)
+    s0 = np.asarray(pred.prior, float)
     sd = np.array([draw.get(n, s) for n, s in zip(pred.names, s0)], float)
-    sd = np.where(np.isfinite(sd), sd, 0.0)
+    return prior_as_drawn(total, np.asarray(pred.P, float), s0, sd)
+
+
+def prior_as_drawn(total: np.ndarray, P: np.ndarray, sigma0: np.ndarray, sigma_d: np.ndarray) -> np.ndarray:
+    """(n,) the σ of an estimate whose error variance is ``total`` when its a priori (σ̄
+    ``sigma0``) was drawn at ``sigma_d`` instead (0: the a priori at the truth). The a priori
+    is an observation with influence ``P P₀⁻¹``: of each variance ``(P P₀⁻¹ P)_ii`` is its
+    error's share, which draws at ``σ_d`` make ``(P P₀⁻¹ D P₀⁻¹ P)_ii``, ``D = diag(σ_d²)``."""
+    info0 = prior_information(sigma0)
+    sd = np.where(np.isfinite(sigma_d), sigma_d, 0.0)
     share = np.einsum("ij,j,ji->i", P, info0, P)
     drawn = np.einsum("ij,j,ji->i", P, info0**2 * sd**2, P)
     return np.sqrt(np.maximum(total - share + drawn, 0.0))
