@@ -70,12 +70,13 @@ def _scored(analysis, gyro: str, tag: str):
 
 def gyro_dependencies(analysis) -> list[Dependency]:
     """One test per switched aux channel of the gyro carrying the attitude (module
-    docstring), as dependencies of the gyro on ``aux:<channel>`` (unadjusted p)."""
+    docstring), as dependencies of the gyro on ``aux:<channel>`` (unadjusted p). Asked only
+    where the search is trusted (:func:`gcs_core.diagnosis.search.run`)."""
     from gcs_core.problem.gyro_attitude import GyroAttitude
 
     prob = analysis.problem
     gyro = prob.gyro_name
-    if gyro is None or not isinstance(prob.attitude, GyroAttitude) or not trusted(analysis):
+    if gyro is None or not isinstance(prob.attitude, GyroAttitude):
         return []
     out = []
     for tag in switch_channels(analysis.mission.aux):
@@ -114,11 +115,3 @@ def _dependency(gyro: str, tag: str, c, analysis) -> Dependency:
         float(c.p_value),
         share=float("nan"),
     )
-
-
-def trusted(analysis) -> bool:
-    """Whether the search's findings may make candidates and blame: not under the batch
-    method with a gyro, which holds the gyro-carried attitude exact, so that the attitude's
-    wander shows in every sensor as a slow dependence (on time, the orbit, a temperature
-    following it) its score tests cannot tell from a drift (``Analysis._method_warnings``)."""
-    return analysis.estimator.gyro_process_noise or analysis.problem.gyro_name is None

@@ -20,7 +20,7 @@ from scipy import stats
 
 from gcs_core.diagnosis.channels import Channel, sensor_channels
 from gcs_core.diagnosis.families import families_from
-from gcs_core.diagnosis.gyro_search import gyro_dependencies, trusted
+from gcs_core.diagnosis.gyro_search import gyro_dependencies
 from gcs_core.diagnosis.structure import StructureReport, search
 
 log = logging.getLogger(__name__)
@@ -82,12 +82,21 @@ def run(analysis, sensors: Iterable[str] = ()) -> StructureReport:
     why = {k: v for k, v in why.items() if k in known and k in res.residuals}
     chans = {s: channels_of(analysis, s) for s in why}
     ids = [e.id for e in analysis.candidate_effects()]
-    gyro = gyro_dependencies(analysis)  # its bias against switched aux channels (none without)
+    # its bias against switched aux channels (none without; not where the search is untrusted)
+    gyro = gyro_dependencies(analysis) if trusted(analysis) else []
     if gyro:
         why[gyro[0].sensor] = "its bias against the switched aux channels (score test)"
     return search(
         res.residuals, chans, alpha=analysis.config.diagnosis.significance, why=why, catalogue_ids=ids, extra=gyro
     )
+
+
+def trusted(analysis) -> bool:
+    """Whether the search's findings may make candidates and blame: not under the batch
+    method with a gyro, which holds the gyro-carried attitude exact, so that the attitude's
+    wander shows in every sensor as a slow dependence (on time, the orbit, a temperature
+    following it) its score tests cannot tell from a drift (``Analysis._method_warnings``)."""
+    return analysis.estimator.gyro_process_noise or analysis.problem.gyro_name is None
 
 
 def offer(analysis, report: StructureReport) -> bool:
