@@ -41,7 +41,7 @@ from gcs_core.ephem import corrections
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.geomag import GeomagField
 from gcs_core.frames.reference import spin_axis
-from gcs_core.io.aux_hold import aux_channel_names, hold_channels  # noqa: F401 — re-exported for callers of this module
+from gcs_core.io.aux_hold import aux_channel_names
 from gcs_core.io.types import MissionSpec, Table
 from gcs_core.models import make_model
 from gcs_core.models.base import Geometry, ObservationModel
@@ -123,7 +123,7 @@ class SensorData:
 
 
 class HeldChannels(Mapping):
-    """The auxiliary channels held at N frames (ICD §6, :func:`hold_channels`), computed
+    """The auxiliary channels held at N frames (ICD §6, :func:`~gcs_core.io.aux_hold.hold_channels`), computed
     when a channel is read rather than stored: ``name -> (N,)`` array.
 
     A full-length mapping keeps what it has computed (the TUI and the Kalman filter read

@@ -16,8 +16,9 @@ import pytest
 from gcs_core.config import AnalysisConfig
 from gcs_core.diagnosis.ranking import rank_candidates
 from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit, normal_equations
+from gcs_core.io.aux_hold import hold_channels
 from gcs_core.problem.linearization import chunk_windows, iter_blocks, linearize
-from gcs_core.problem.prepare import HeldChannels, hold_channels
+from gcs_core.problem.prepare import HeldChannels
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission
