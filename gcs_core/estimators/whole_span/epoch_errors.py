@@ -9,6 +9,7 @@ Gauss–Newton step's read-out part can be predicted (:meth:`EpochErrors.predict
 from __future__ import annotations
 
 import weakref
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -46,6 +47,29 @@ def _sorted_union(ts: list[np.ndarray]) -> np.ndarray:
 PREDICT_BYTES = 256 * 2**20
 
 
+@dataclass
+class Sensitivities:
+    """What a recording pass keeps per epoch for :meth:`EpochErrors.predicted`: ``Gx``
+    (E, 3, p) ``D̃ᵀH̃`` in single precision, ``F`` and ``FC`` (E, 3, 3), ``base`` (E, 3) the
+    conditional optimum there, ``have`` (E,) which epochs the pass reached."""
+
+    Gx: np.ndarray
+    F: np.ndarray
+    FC: np.ndarray
+    base: np.ndarray
+    have: np.ndarray
+
+    @classmethod
+    def empty(cls, E: int, p: int) -> Sensitivities:
+        return cls(
+            np.empty((E, 3, p), np.float32),
+            np.empty((E, 3, 3)),
+            np.empty((E, 3, 3)),
+            np.empty((E, 3)),
+            np.zeros(E, bool),
+        )
+
+
 class EpochErrors:
     """The per-epoch read-out errors ``ε̂_k`` the whole-span fit linearizes about.
 
@@ -62,7 +86,7 @@ class EpochErrors:
         self.stale = False  # ε̂ adopted after the last pass
         self.nonzero = False  # any ε̂ ≠ 0 (kept with ``eps``: asked per block)
         # the last recording pass's per-epoch sensitivities (:meth:`record_start`)
-        self.sens: dict | None = None
+        self.sens: Sensitivities | None = None
         self.seeded = False  # ``cond`` from :func:`.readout.seed_errors`, not yet taken by the fit
         # (index, is an epoch) of times that view a sensor's frame times, asked at every
         # pass: keyed by the viewed array's identity and the view's place in it
@@ -115,12 +139,9 @@ class EpochErrors:
         if not E or E * (3 * p * 4 + 21 * 8) > PREDICT_BYTES:
             self.sens = None
             return
-        old = self.sens
-        if old is None or old["Gx"].shape != (E, 3, p):
-            old = {"Gx": np.empty((E, 3, p), np.float32), "F": np.empty((E, 3, 3)), "FC": np.empty((E, 3, 3))}
-            old["base"], old["have"] = np.empty((E, 3)), np.zeros(E, bool)
-        old["have"].fill(False)
-        self.sens = old
+        if self.sens is None or self.sens.Gx.shape != (E, 3, p):
+            self.sens = Sensitivities.empty(E, p)
+        self.sens.have.fill(False)
 
     def record(self, k: np.ndarray, Gx: np.ndarray, F: np.ndarray, FC: np.ndarray, cond: np.ndarray) -> None:
         """The epochs ``k``'s ``G_x = D̃ᵀH̃`` (E, 3, p), ``F``, ``F C`` and conditional optimum
@@ -131,8 +152,8 @@ class EpochErrors:
         at: slice | np.ndarray = k
         if k[-1] - k[0] + 1 == k.size:  # a window's epochs are a range (no epoch dropped)
             at = slice(int(k[0]), int(k[-1]) + 1)
-        s["Gx"][at], s["F"][at], s["FC"][at], s["base"][at] = Gx, F, FC, cond
-        s["have"][at] = True
+        s.Gx[at], s.F[at], s.FC[at], s.base[at] = Gx, F, FC, cond
+        s.have[at] = True
 
     def predicted(self, dx: np.ndarray, dz: np.ndarray, grid, R: np.ndarray, inv_e2: float) -> np.ndarray | None:
         """(E, 3) the read-out errors' part of the joint Gauss–Newton step taken from the
@@ -140,20 +161,20 @@ class EpochErrors:
         knots' step at the epoch (:func:`~.knots.alpha_at`); the conditional optimum at
         the new statics and knots to first order. None when nothing was recorded."""
         s = self.sens
-        if s is None or not np.any(s["have"]):
+        if s is None or not np.any(s.have):
             return None
-        k = slice(None) if s["have"].all() else np.flatnonzero(s["have"])
-        Gx = s["Gx"][k]
+        k = slice(None) if s.have.all() else np.flatnonzero(s.have)
+        Gx = s.Gx[k]
         a = kn.alpha_at(grid, dz, R, self.T[k])
         Gdx = (Gx.reshape(-1, Gx.shape[2]) @ dx.astype(np.float32)).reshape(-1, 3).astype(float)
         out = self.eps.copy()
         if COMPILED:
             step = np.empty_like(Gdx)
-            _epoch_step(s["F"][k], s["FC"][k], Gdx, a, s["base"][k], inv_e2, step)
+            _epoch_step(s.F[k], s.FC[k], Gdx, a, s.base[k], inv_e2, step)
             out[k] = step
             return out
-        Minv = inverse_spd3(s["F"][k] + inv_e2 * np.eye(3))
-        out[k] = s["base"][k] - np.einsum("eab,eb->ea", Minv, Gdx + np.einsum("eab,eb->ea", s["FC"][k], a))
+        Minv = inverse_spd3(s.F[k] + inv_e2 * np.eye(3))
+        out[k] = s.base[k] - np.einsum("eab,eb->ea", Minv, Gdx + np.einsum("eab,eb->ea", s.FC[k], a))
         return out
 
     def move_to(self, eps: np.ndarray) -> None:

@@ -306,7 +306,7 @@ class ReadoutEpochs:
         if not t.size:
             return
         assert self.errors is not None  # the caller's condition
-        g = self.errors._locate(t)[0]
+        g = self.errors.index(t)
         a, b = int(g.min()), int(g.max()) + 1
         win = self._cover(a, b)
         ext = np.append(np.asarray(cols, np.int64), self.p)
