@@ -293,11 +293,11 @@ class Passes:
                 chi2 += float(np.sum(rw * rw))
             if not jacobian:
                 if ro is not None:
-                    self._readout_add(ro, blk, None, rw, R)
+                    self._readout_add(ro, blk, None, rw)
                 continue
             C = self._knot_rows(blk, sysk, rw, R)
             if ro is not None:
-                self._readout_add(ro, blk, C, rw, R)
+                self._readout_add(ro, blk, C, rw)
             passed(sd, blk.hi)
         if ro is not None:
             chi2 -= ro.finish()
@@ -338,7 +338,7 @@ class Passes:
             if sd.name in self.buffers.y_pred:  # the prediction at ε = 0 likewise
                 self.buffers.y_pred[sd.name][blk.lo : blk.hi] -= De
 
-    def _readout_add(self, ro: ReadoutEpochs, blk, C, rw, R) -> None:
+    def _readout_add(self, ro: ReadoutEpochs, blk, C, rw) -> None:
         """The block's rows in the per-epoch elimination of the read-out error."""
         sd = blk.sensor
         D = getattr(blk.pred, "d_att", None)
