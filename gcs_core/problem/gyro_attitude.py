@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import operator
 import sys
-import weakref
 from collections.abc import Mapping
 
 import numpy as np
@@ -44,6 +43,7 @@ from gcs_core.problem.attitude import (
 )
 from gcs_core.problem.earth_rate import lab_attitude
 from gcs_core.problem.quat_steps import fast_dcm, quat_scan, step_quaternions
+from gcs_core.problem.view_cache import ViewCache
 
 
 # ----------------------------------------------------------------------------------------
@@ -216,7 +216,7 @@ class GyroAttitude:
         self._checkpoints: list = []
         self._blocks: dict[int, _Block] = {}
         self._spare: np.ndarray | None = None
-        self._where: dict = {}
+        self._where = ViewCache(1024)
         self._getter = operator.itemgetter(*self.names)  # the state key: this provider's values
 
     @property
@@ -232,7 +232,7 @@ class GyroAttitude:
     def block_knots(self, value: int) -> None:
         self._block_knots = max(1, int(value))
         self._key = None
-        self._where = {}
+        self._where = ViewCache(1024)
 
     @property
     def n_blocks(self) -> int:
@@ -442,24 +442,9 @@ class GyroAttitude:
         """Where the times ``t`` fall among the knots (:class:`_Where`).
 
         State-independent, so it is kept for times that view a longer array (a chunk of a
-        sensor's frame times, asked again at every pass), keyed by that array's identity,
-        the offset and the end values (frame times are never changed in place).
+        sensor's frame times, asked again at every pass: :class:`~.view_cache.ViewCache`).
         """
-        base = t.base if isinstance(t.base, np.ndarray) and t.base.ndim == 1 else None
-        key = None
-        if base is not None and t.size and t.strides == base.strides:
-            off = (t.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // t.itemsize
-            key = (id(base), int(off), t.size, float(t[0]), float(t[-1]), self._block_knots)
-            hit = self._where.get(key)
-            if hit is not None and hit[0]() is base:
-                return hit[1]
-        where = _Where.of(self, t)
-        if key is not None:
-            if len(self._where) >= 1024:  # bounded: a long span's chunks
-                self._where.clear()
-            # a weak reference: the entry neither keeps the array alive nor outlives it
-            self._where[key] = (weakref.ref(base), where)
-        return where
+        return self._where.get(t, self._block_knots, lambda: _Where.of(self, t))
 
     def _frames_in_block(self, blk: _Block, t, where: _Where) -> FrameAttitude:
         c = self._consts

@@ -8,7 +8,6 @@ Gauss–Newton step's read-out part can be predicted (:meth:`EpochErrors.predict
 
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -16,6 +15,7 @@ import numpy as np
 from gcs_core.compiled import COMPILED
 from gcs_core.estimators.whole_span import knots as kn
 from gcs_core.estimators.whole_span.readout_kernels import _epoch_step
+from gcs_core.problem.view_cache import ViewCache
 
 
 def inverse_spd3(M: np.ndarray) -> np.ndarray:
@@ -88,9 +88,8 @@ class EpochErrors:
         # the last recording pass's per-epoch sensitivities (:meth:`record_start`)
         self.sens: Sensitivities | None = None
         self.seeded = False  # ``cond`` from :func:`.readout.seed_errors`, not yet taken by the fit
-        # (index, is an epoch) of times that view a sensor's frame times, asked at every
-        # pass: keyed by the viewed array's identity and the view's place in it
-        self._where: dict[tuple, tuple] = {}
+        # (index, is an epoch) of times that view a sensor's frame times, asked at every pass
+        self._where = ViewCache(4096)
 
     def index(self, t: np.ndarray) -> np.ndarray:
         """(n,) epoch of each time (every data time is one)."""
@@ -99,28 +98,16 @@ class EpochErrors:
     def _locate(
         self, t: np.ndarray, of: np.ndarray | None = None, tag: str = ""
     ) -> tuple[np.ndarray, np.ndarray | bool]:
-        """(epoch index, whether the time is that epoch) of each time, cached when the times
+        """(epoch index, whether the time is that epoch) of each time, kept when the times
         (or ``of``, the times they derive from, with a ``tag`` saying how) view a longer
-        array: frame times are never changed in place; a weak reference ties the entry to
-        the array."""
+        array (:class:`~gcs_core.problem.view_cache.ViewCache`)."""
         t = np.asarray(t, float)
-        src = t if of is None else of
-        base = src.base if isinstance(src.base, np.ndarray) and src.base.ndim == 1 else None
-        key = None
-        if base is not None and src.ndim == 1 and src.size and src.strides == base.strides:
-            off = (src.__array_interface__["data"][0] - base.__array_interface__["data"][0]) // src.itemsize
-            key = (id(base), int(off), src.size, float(src[0]), float(src[-1]), tag)
-            cached = self._where.get(key)
-            if cached is not None and cached[0]() is base:
-                return cached[1]
+        return self._where.get(t if of is None else of, tag, lambda: self._find(t))
+
+    def _find(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray | bool]:
         i = np.clip(np.searchsorted(self.T, t), 0, max(self.T.size - 1, 0))
         hit = self.T[i] == t if self.T.size else np.zeros(np.shape(t), bool)
-        found: tuple[np.ndarray, np.ndarray | bool] = (i, True if np.all(hit) else hit)  # True: all epochs
-        if key is not None:
-            if len(self._where) >= 4096:  # bounded: a long span's blocks
-                self._where.clear()
-            self._where[key] = (weakref.ref(base), found)
-        return found
+        return i, (True if np.all(hit) else hit)  # True: every time an epoch
 
     def at(self, t: np.ndarray, of: np.ndarray | None = None, tag: str = "") -> np.ndarray:
         """(n, 3) ε̂ at times ``t`` (0 at a time that is no epoch); ``of``, ``tag``: the
