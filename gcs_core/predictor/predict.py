@@ -297,7 +297,7 @@ def predict(
         default from the config (``kalman`` for ``method = "kalman"``); ``"whole_span"``
         (the default fit's setting) is Eq 3-2's history whose final covariance is the
         whole-span fit's, the gyro noise carried as process noise
-        (:func:`~gcs_core.estimators.whole_span.fit.predicted_covariance`).
+        (:func:`~gcs_core.estimators.whole_span.uses.predicted_covariance`).
     ephemeris_step : tabulation step of an orbit-built ephemeris [s].
     catalog : the star catalog already read (:class:`~gcs_core.predictor.stars.Catalog`),
         for ``stars = "catalog"`` without reading a file here.

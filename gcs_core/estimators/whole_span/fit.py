@@ -17,19 +17,9 @@ this Gauss–Newton method (Bell 1994); the minimum, covariance and residuals do
 depend on how the span is cut into blocks.
 
 The iteration starts from the batch solution (never from a one-pass filter's track),
-and a step that raises ``J`` is shortened. Before it is: a static step along a direction
-the knots can compensate (the gyro bias and its drift against the knots' walk) moves the
-gyro-carried attitude by far more than the noise, and the knots' corrections, applied as
-first-order rotations about the old trajectory, undo it only to first order. The
-directional derivative of ``J`` is then exact, but its curvature along the Gauss–Newton
-step is many times the model's (BROAD trial 02 whole: the full step raised ``J`` by 5900
-where it predicted a fall of 360, statics-only and knots-only steps each 1.4·10⁸), and
-halving the step took 60 iterations without converging. So a full step that lowers ``J``
-by less than :data:`CORRECT_BELOW` of its predicted gain first has its knots re-solved
-with the statics held at the new point (a Gauss–Newton step in ``z`` alone,
-:func:`_knot_correction`, up to :data:`KNOT_CORRECTIONS` times while ``J`` falls): the
-curved valley is followed instead of cut (``benchmarks/broad_convergence.py``). Steps the
-linearization sizes well are untouched. Data are edited on the whole-span residuals
+and a step that raises ``J`` is shortened; before it is, a full step that falls short of
+its predicted gain has its knots re-solved at the new statics, following a curved valley
+instead of cutting it (:mod:`.line_search`). Data are edited on the whole-span residuals
 with the batch's robust k-σ rule (:func:`~gcs_core.estimators.batch.editing.robust_outliers`); a
 sensor with more than ``max_edit_fraction`` of its frames beyond k σ is not edited but
 reported (the model, not the data, is wrong). With no gyro noise in the data book the
@@ -69,21 +59,21 @@ import numpy as np
 
 from gcs_core.errors import UnobservableError
 from gcs_core.estimators import stopping
-from gcs_core.estimators.batch.editing import edit_frames, suspect_note
+from gcs_core.estimators.batch.editing import edit_frames
 from gcs_core.estimators.batch.least_squares import (
     BatchOptions,
     _solve_normal,
     batch_fit,
     name_combinations,
 )
-from gcs_core.estimators.residuals import residuals_from
 from gcs_core.estimators.results import BatchResult, FitResult
 from gcs_core.estimators.whole_span import knots as kn
+from gcs_core.estimators.whole_span.finish import finish
 from gcs_core.estimators.whole_span.grid import make_knots, process_noise
+from gcs_core.estimators.whole_span.line_search import Step, line_search
 from gcs_core.estimators.whole_span.passes import Dynamics, Passes, SpanLinearization
 from gcs_core.estimators.whole_span.readout import seed_errors
 from gcs_core.estimators.whole_span.restart import Restart, start_from
-from gcs_core.estimators.whole_span.result import SmoothedResult
 from gcs_core.models.gyro_noise import GyroNoise
 from gcs_core.problem.build import Problem
 from gcs_core.problem.gyro_attitude import GyroAttitude
@@ -97,11 +87,6 @@ GAIN_TOL = 1e-3
 NOISE_GAIN = 1e-6
 #: ... with the per-epoch read-out errors ε̂ (readout.py) moving by less than this, in σ_e
 EPS_TOL = 0.02
-#: a full step that lowers the cost by less than this fraction of the predicted gain has
-#: its knots re-solved at the new statics before it is shortened (:func:`_knot_correction`)
-CORRECT_BELOW = 0.5
-#: ... at most this many times (each a pass over the data), while the cost falls
-KNOT_CORRECTIONS = 3
 
 
 def whole_span_fit(
@@ -128,8 +113,8 @@ def whole_span_fit(
 
     The steps: the start (:func:`.restart.start_from`), the knots and the first point
     (:func:`_begin`), Gauss–Newton iterations with a line search in each editing pass
-    (:func:`_edit_passes`, :func:`_iterate`, :func:`_line_search`), and the covariance and
-    result at the solution (:func:`_finish`).
+    (:func:`_edit_passes`, :func:`_iterate`, :func:`.line_search.line_search`), and the
+    covariance and result at the solution (:func:`.finish.finish`).
     """
     opts = options or BatchOptions()
     noise = noise if noise is not None else process_noise(problem)
@@ -149,7 +134,7 @@ def whole_span_fit(
         seed_errors(it.passes.errors, problem.sensors, cast(BatchResult, batch).residuals, partials, noise.sigma_e**2)
     del batch, start  # its residuals (a week: 32 MB) are not kept alive
     _edit_passes(problem, it)
-    return _finish(problem, it)
+    return finish(problem, it)
 
 
 #: Gauss–Newton iterations of the batch that starts a fit carrying the read-out noise
@@ -168,7 +153,7 @@ def _start_options(opts: BatchOptions, noise: GyroNoise | None) -> BatchOptions:
 
 
 @dataclass
-class _Iterate:
+class Iterate:
     """The state of a whole-span fit as it iterates: the point ``(x, z)``, the
     linearization there (``lin``, or a trial point's, ``trial``: one at a time is kept,
     their knot blocks and factors grow with the span), the edits and what is reported."""
@@ -215,7 +200,7 @@ class _Iterate:
         return True
 
 
-def _begin(problem: Problem, opts: BatchOptions, noise: GyroNoise, batch, edited, spacing) -> _Iterate:
+def _begin(problem: Problem, opts: BatchOptions, noise: GyroNoise, batch, edited, spacing) -> Iterate:
     """The knots (the start's own when it brings them, else laid out from the batch's
     information), the passes over the data and the first point with the start's edits."""
     state = problem.state
@@ -240,7 +225,7 @@ def _begin(problem: Problem, opts: BatchOptions, noise: GyroNoise, batch, edited
     preflag = {k: np.asarray(v, bool).copy() for k, v in (edited or {}).items()}
     edits = {nm: r.edited | preflag.get(nm, np.zeros(r.edited.shape, bool)) for nm, r in batch.residuals.items()}
     restarted = isinstance(batch, Restart)
-    return _Iterate(
+    return Iterate(
         opts=opts,
         passes=passes,
         grid=grid,
@@ -258,7 +243,7 @@ def _begin(problem: Problem, opts: BatchOptions, noise: GyroNoise, batch, edited
     )
 
 
-def _edit_passes(problem: Problem, it: _Iterate) -> None:
+def _edit_passes(problem: Problem, it: Iterate) -> None:
     """Iterate to the minimum, edit the frames beyond k σ of the whole-span residuals, and
     again while the edits change (``edit_passes`` at most)."""
     opts = it.opts
@@ -281,7 +266,7 @@ def _edit_passes(problem: Problem, it: _Iterate) -> None:
         log.info("editing pass %d: %d frames flagged", edit_pass + 1, sum(int(v.sum()) for v in it.edits.values()))
 
 
-def _first_linearization(it: _Iterate) -> SpanLinearization:
+def _first_linearization(it: Iterate) -> SpanLinearization:
     """Linearize at the pass's first point, about the read-out errors' conditional optimum
     there when σ_e is carried (:mod:`.readout`). From ``ε̂ = 0`` (a fresh start) that
     optimum needs only the residuals and the attitude partials: a pass without the
@@ -303,18 +288,7 @@ def _first_linearization(it: _Iterate) -> SpanLinearization:
     return it.lin
 
 
-@dataclass(frozen=True)
-class _Step:
-    """A Gauss–Newton step of the statics ``dx`` and the knots ``dz``, with the cost's fall
-    the linearization predicts (``gain``) and the statics' σ there."""
-
-    dx: np.ndarray
-    dz: np.ndarray
-    gain: float
-    sigma: np.ndarray
-
-
-def _iterate(it: _Iterate) -> None:
+def _iterate(it: Iterate) -> None:
     """Gauss–Newton iterations from ``it.lin`` until converged, stalled or at the limit; the
     outcome in ``it.status``, ``it.message``."""
     opts = it.opts
@@ -334,7 +308,7 @@ def _iterate(it: _Iterate) -> None:
             it.it_total -= 1
             return
         it.lin = None  # the line search holds one linearization at a time
-        found = _line_search(it, step)
+        found = line_search(it, step)
         if found is None:
             _no_step_lowers_the_cost(it, step, k)
             return
@@ -360,7 +334,7 @@ def _iterate(it: _Iterate) -> None:
     it.status, it.message = stopping.iteration_limit(opts.max_iterations, it.cost, it.change)
 
 
-def _gauss_newton_step(it: _Iterate, k: int) -> _Step:
+def _gauss_newton_step(it: Iterate, k: int) -> Step:
     """The Gauss–Newton step at ``it.lin``: the knots eliminated, the statics solved with
     their prior, the knots back-substituted."""
     assert it.lin is not None
@@ -388,90 +362,10 @@ def _gauss_newton_step(it: _Iterate, k: int) -> _Step:
         it.names[int(np.argmax(worst))],
         gain,
     )
-    return _Step(dx, dz, gain, sig)
+    return Step(dx, dz, gain, sig)
 
 
-def _line_search(it: _Iterate, step: _Step):
-    """The longest of the steps 1, 1/2, … (ten at most) that does not raise the cost, its
-    first try with the knots re-solved when the cost falls short (:func:`_correct_knots`).
-    Returns (x, z, cost, scale, fresh: ``it.trial`` holds the Jacobian there), or None."""
-    passes, cost = it.passes, it.cost
-    scale, fresh = 1.0, True
-    before = _joint_readout(it, step)  # the read-out errors before the joint step's, or None
-    for attempt in range(10):
-        x_try, z_try = it.x + scale * step.dx, it.z + scale * step.dz
-        # the first try's Jacobian is the next iteration's. With the read-out noise it is
-        # made at the joint step's read-out errors when they were predicted; else the try
-        # needs only the cost (a pass without the Jacobian), and the next pass is made
-        # about the read-out errors' optimum it finds
-        fresh = attempt == 0 and (not passes.sig_e2 or before is not None)
-        if attempt == 1 and before is not None and passes.errors is not None:
-            passes.errors.move_to(before)  # the shortened steps: about the errors before
-        it.trial = None
-        it.trial = passes.run(x_try, z_try, it.edits, jacobian=fresh)
-        cost_t = passes.cost(x_try, it.trial.chi2, it.trial.system)
-        if (
-            attempt == 0
-            and it.opts.knot_correction
-            and np.isfinite(cost_t)
-            and cost - cost_t < CORRECT_BELOW * step.gain
-        ):
-            if not fresh:  # the correction needs the try's Jacobian
-                it.trial = None
-                it.trial = passes.run(x_try, z_try, it.edits)
-            z_try, cost_t, fresh = _correct_knots(it, x_try, z_try, cost_t, step.gain)
-        if np.isfinite(cost_t) and cost_t <= cost * (1 + 1e-12) + 1e-9:
-            return x_try, z_try, cost_t, scale, fresh
-        scale *= 0.5
-    return None
-
-
-def _joint_readout(it: _Iterate, step: _Step) -> np.ndarray | None:
-    """With the read-out noise, move the passes' read-out errors to the joint Gauss–Newton
-    step's (:meth:`.epoch_errors.EpochErrors.predicted`: the conditional optimum at the new
-    statics and knots, to first order), so that the line search's first try linearizes
-    where the next iteration needs it. Returns the errors before, or None when nothing was
-    recorded."""
-    errors, R = it.passes.errors, it.passes.R_fixed
-    if errors is None or R is None:
-        return None
-    new = errors.predicted(step.dx, step.dz, it.grid, R, 1.0 / it.passes.sig_e2)
-    if new is None:
-        return None
-    before = errors.eps
-    errors.move_to(new)
-    return before
-
-
-def _correct_knots(it: _Iterate, x_try, z_try, cost_t: float, gain: float):
-    """A curved valley: the knots' first-order compensation of the statics' step is off at
-    second order; re-solve the knots at the new statics (:func:`_knot_correction`, at most
-    :data:`KNOT_CORRECTIONS` times while the cost falls). Returns (z, cost, fresh)."""
-    passes, cost = it.passes, it.cost
-    at = z_try  # where ``it.trial`` holds the Jacobian
-    for _ in range(KNOT_CORRECTIONS):
-        assert it.trial is not None
-        z_c = z_try + _knot_correction(it.trial, x_try, it.x_bar, it.prior_info)
-        it.trial = None
-        it.trial, at = passes.run(x_try, z_c, it.edits), z_c
-        cost_c = passes.cost(x_try, it.trial.chi2, it.trial.system)
-        if not (np.isfinite(cost_c) and cost_c < cost_t):
-            break
-        log.debug("  knots re-solved at the new statics: Δcost %.6g", cost_c - cost)
-        z_try, cost_t, better = z_c, cost_c, cost_t - cost_c
-        if cost - cost_t >= CORRECT_BELOW * gain or better < 0.01 * gain:
-            break  # enough, or the knots no longer move the cost
-    fresh = True
-    if at is not z_try:  # the last correction was refused
-        if cost_t <= cost * (1 + 1e-12) + 1e-9:
-            it.trial = None
-            it.trial = passes.run(x_try, z_try, it.edits)  # linearized where it stands
-        else:
-            fresh = False
-    return z_try, cost_t, fresh
-
-
-def _no_step_lowers_the_cost(it: _Iterate, step: _Step, k: int) -> None:
+def _no_step_lowers_the_cost(it: Iterate, step: Step, k: int) -> None:
     """No shortened step lowers the cost: the minimum to the knot partials' accuracy when
     the predicted gain is below it, else a stall (the cost is finite and never rose)."""
     it.trial = None
@@ -485,93 +379,3 @@ def _no_step_lowers_the_cost(it: _Iterate, step: _Step, k: int) -> None:
         it.status, it.message = stopping.stalled(
             it.it_total - 1, it.cost, it.change, step.gain, "no shortened step lowers the cost"
         )
-
-
-@dataclass(frozen=True)
-class _Covariance:
-    """The statics' covariance at the solution: noise only (``P``) and with the consider
-    elements (``P_consider``, ``budget``), the data information, and the knots' factors."""
-
-    P: np.ndarray
-    P_consider: np.ndarray
-    budget: dict[str, np.ndarray]
-    information: np.ndarray
-    factors: tuple
-
-
-def _covariance(it: _Iterate, lin: SpanLinearization, state) -> _Covariance:
-    """The reduced normal matrix at the solution, inverted (Eq 3-2 with the knots
-    eliminated), and the consider elements' contribution ``S σ_c² Sᵀ``."""
-    n, cons = len(it.names), it.cons
-    pi_all = np.concatenate([it.prior_info, np.zeros(len(cons))])
-    N_all = lin.A + np.diag(pi_all)
-    g_all = lin.b.copy()
-    g_all[:n] += it.prior_info * (it.x_bar - it.x)
-    N_red_all, _, fac = lin.system.eliminate(N_all, g_all)
-    N_red = N_red_all[:n, :n]
-    _, P = _solve_normal(N_red, np.zeros(n))
-    P_cons, budget = P.copy(), {}
-    if cons:
-        S = -P @ N_red_all[:n, n:]
-        for j, c in enumerate(cons):
-            contrib = np.outer(S[:, j], S[:, j]) * state[c].sigma0 ** 2
-            budget[c] = np.sqrt(np.diag(contrib))
-            P_cons += contrib
-        fac = (fac[0], np.concatenate([fac[1][:, :, :n], fac[1][:, :, -1:]], axis=2), fac[2])
-    return _Covariance(P, P_cons, budget, N_red - np.diag(it.prior_info), fac)
-
-
-def _finish(problem: Problem, it: _Iterate) -> SmoothedResult:
-    """The result at the solution: the final normal equations (the last pass when it was
-    there, with these edits and no consider column), the covariance, the residuals
-    normalized by each row's marginal σ (:mod:`.readout`) and the knots."""
-    state, passes, grid, names = problem.state, it.passes, it.grid, it.names
-    n = len(names)
-    lin = it.lin
-    if it.cons or lin is None:
-        it.lin = lin = None
-        lin = passes.run(it.x, it.z, it.edits, columns=names + it.cons)
-    cov = _covariance(it, lin, state)
-    unobs = tuple(name_combinations(cov.information, names, it.opts.rank_tol * 1e3))
-    chi2_proc = lin.system.prior_cost()
-    message = (
-        f"whole-span fit with gyro process noise ({grid.K} knots every "
-        f"{float(np.median(np.diff(grid.tau))):.3g} s"
-        + (f"; read-out noise σ_e {np.sqrt(passes.sig_e2):.3g} rad per epoch" if passes.sig_e2 else "")
-        + f"): {it.message}"
-    ) + suspect_note(it.suspect, it.opts)
-    residuals = residuals_from(problem, passes.buffers, it.edits)
-    for nm, sig_row in passes.marginal_sigma().items():  # against each row's marginal σ (readout.py)
-        residuals[nm] = replace(residuals[nm], normalized_=residuals[nm].residual / sig_row)
-    status = it.status
-    if not np.isfinite(lin.chi2 + chi2_proc):
-        status, message = stopping.diverged(it.it_total)
-    return SmoothedResult(
-        state=state.with_values({nm: it.x[j] for j, nm in enumerate(names)}),
-        solve_for=names,
-        consider=it.cons,
-        x=it.x,
-        P=cov.P,
-        P_consider=cov.P_consider,
-        residuals=residuals,
-        chi2=lin.chi2 + chi2_proc,
-        dof=lin.m_used - n,
-        cost_history=tuple(it.history),
-        iterations=it.it_total + it.start_iterations,
-        status=status,
-        message=message,
-        information=cov.information,
-        unobservable=unobs,
-        consider_budget=cov.budget,
-        dynamics=Dynamics(grid, it.z, lin.R, names, cov.factors, cov.P, passes.sig_e2, passes.errors),
-        chi2_process=chi2_proc,
-        batch_delta_sigma=None if it.restarted else (it.start_x - it.x) / np.sqrt(np.diag(cov.P)),
-    )
-
-
-def _knot_correction(lin: SpanLinearization, x, x_bar, prior_info) -> np.ndarray:
-    """The knots' Gauss–Newton step with the statics held at ``x`` (``δx = 0``), from the
-    linearization ``lin`` there: what the knots must add so that they compensate the
-    statics' step exactly rather than to first order."""
-    _, _, fac = lin.system.eliminate(lin.A + np.diag(prior_info), lin.b + prior_info * (x_bar - x))
-    return kn.KnotSystem.back_substitute(fac, np.zeros(lin.A.shape[0]))
