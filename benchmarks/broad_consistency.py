@@ -52,7 +52,8 @@ from typing import Any
 
 import numpy as np
 
-from gcs_core.config import ElementConfig, default_config
+from gcs_core.config import default_config
+from gcs_core.config_schema import ElementConfig
 from gcs_core.convert import convert
 from gcs_core.convert.broad import LAB_LATITUDE_DEG
 from gcs_core.estimators.gyro_bias import gyro_bias_at

@@ -20,7 +20,8 @@ import sys
 import tempfile
 from pathlib import Path
 
-from gcs_core.config import ElementConfig, default_config
+from gcs_core.config import default_config
+from gcs_core.config_schema import ElementConfig
 from gcs_core.convert import convert
 from gcs_core.io.importer import load_mission
 from gcs_core.session import Analysis

@@ -127,7 +127,7 @@ def montecarlo(args) -> None:
     influence ``P P₀⁻¹``), never shows in the scatter. Where the long-run weights and the
     sandwich leave the data little (the tracker scales: ~10 % of their variance is the a
     priori's, well under 1 % under white noise) the first ratio reads conservative by that share."""
-    from gcs_core.config import AnalysisConfig
+    from gcs_core.config_schema import AnalysisConfig
     from gcs_core.noise import correlated_sigma
     from gcs_core.session import Analysis
     from gcs_core.sim.writer import write_mission
@@ -241,7 +241,7 @@ def speed(args) -> None:
     import copy
 
     from batch_vs_least_squares import make_mission
-    from gcs_core.config import AnalysisConfig
+    from gcs_core.config_schema import AnalysisConfig
     from gcs_core.io.importer import load_mission
     from gcs_core.session import Analysis
 

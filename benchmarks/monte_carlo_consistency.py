@@ -103,7 +103,7 @@ def one_run(
     """Simulate and fit one seed (no held-out fit); returns (names, error (k,), covariance
     (k, k), not-determined names): the headline rows, then the ``extra`` elements (or,
     for ``extra = ("all-calibrated",)``, every other solve-for element with a truth)."""
-    from gcs_core.config import AnalysisConfig
+    from gcs_core.config_schema import AnalysisConfig
     from gcs_core.session import Analysis
 
     cfg = threeaxis(mode, seed, 60.0 * minutes)

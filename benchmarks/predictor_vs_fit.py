@@ -36,7 +36,7 @@ import numpy as np
 REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
-from gcs_core.config import AnalysisConfig, Maneuver
+from gcs_core.config_schema import AnalysisConfig, Maneuver
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.predictor.plan import DataPlan
 from gcs_core.predictor.predict import predict

@@ -66,7 +66,7 @@ REPO = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(REPO))
 
 from _timing import best_of
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.estimators.batch.least_squares import normal_equations
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect

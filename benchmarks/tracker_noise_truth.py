@@ -46,7 +46,7 @@ sys.path[:0] = [str(ROOT), *(str(p) for p in sorted((ROOT / "tests").iterdir()) 
 
 import honesty_cases as hc
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim import astro
 from gcs_core.sim._rot import rpy_to_dcm

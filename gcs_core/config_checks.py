@@ -90,7 +90,7 @@ MODEL_OFF = "off"
 
 def check_against_mission(cfg, spec) -> None:
     """The checks that need the mission, on a loaded
-    :class:`~gcs_core.config.AnalysisConfig` ``cfg``: ``[models]`` names its sensors with their
+    :class:`~gcs_core.config_schema.AnalysisConfig` ``cfg``: ``[models]`` names its sensors with their
     types, and effect ids and element names start with one of its sensors (``att.``/``model.``
     too).
 
@@ -230,7 +230,7 @@ def read_state(st: dict, f) -> dict[str, Any]:
 
 
 def read_prediction(pr: dict, mission: Path, f) -> dict[str, Any]:
-    """``[prediction]``'s values, the keys of :class:`~gcs_core.config.PredictionConfig` (each
+    """``[prediction]``'s values, the keys of :class:`~gcs_core.config_schema.PredictionConfig` (each
     maneuver as a (start, duration, axis, rate_deg_s) tuple; the catalog resolved against the
     ``mission`` directory); unknown keys are checked by the caller."""
     gaps = _list(pr, "gaps", "prediction.gaps", f)

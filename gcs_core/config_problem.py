@@ -13,7 +13,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.errors import ConfigError
 from gcs_core.io.types import MissionSpec
 from gcs_core.problem.build import ElementOverride, Problem, StateOptions, build_problem

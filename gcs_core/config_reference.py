@@ -18,7 +18,7 @@ from dataclasses import MISSING, Field, fields, is_dataclass
 from pathlib import Path
 from typing import Any
 
-from gcs_core.config import ANALYSIS_KEYS, AnalysisConfig, ElementConfig, Maneuver
+from gcs_core.config_schema import ANALYSIS_KEYS, AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.fileperm import write_atomic
 
 #: where :func:`main` writes the reference, relative to the repository root
@@ -130,7 +130,7 @@ def render() -> str:
     lines = [
         "# Analysis config: every key",
         "",
-        f"Generated from the fields of `gcs_core/config.py` by `{COMMAND}`; do not edit by hand",
+        f"Generated from the fields of `gcs_core/config_schema.py` by `{COMMAND}`; do not edit by hand",
         "(`tests/unit/test_config_reference.py` fails when it is stale, when a key has no",
         "documentation, or when a bound listed here is not enforced). An annotated example is the",
         "docstring of `gcs_core/config.py`; `sample_data/configs/` holds one config per sample",

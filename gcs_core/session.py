@@ -14,8 +14,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from gcs_core import stepwise
-from gcs_core.config import AnalysisConfig
 from gcs_core.config_problem import problem_from_config
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.diagnosis import aliases, determination, goodness, physics
 from gcs_core.diagnosis import holdout as held_out
 from gcs_core.diagnosis import search as search_session

@@ -17,7 +17,7 @@ algebra (:mod:`gcs_core.estimators.results`).
 Adding an estimator: a subpackage with its fit and its result (a dataclass that satisfies
 ``FitResult``, with :class:`~gcs_core.estimators.results.StaticAlgebra` or its own algebra),
 an :class:`Estimator` entry in :data:`ESTIMATORS`, and its name in the config's methods
-(:data:`gcs_core.config.METHODS`).
+(:data:`gcs_core.config_schema.METHODS`).
 """
 
 from __future__ import annotations

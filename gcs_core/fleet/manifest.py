@@ -38,7 +38,8 @@ from pathlib import Path
 from typing import Any
 
 from gcs_core import toml_values
-from gcs_core.config import AnalysisConfig, config_from_dict
+from gcs_core.config import config_from_dict
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.errors import ConfigError
 
 __all__ = ["Manifest", "Spacecraft", "read_manifest", "FLEET_KEYS", "SPACECRAFT_KEYS"]

@@ -32,7 +32,8 @@ from typing import Any
 import numpy as np
 
 from gcs_core import limits
-from gcs_core.config import AXES, STAR_MODELS, AnalysisConfig, Maneuver
+from gcs_core.config_checks import AXES, STAR_MODELS
+from gcs_core.config_schema import AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.units import DEG
 

@@ -27,8 +27,8 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-from gcs_core.config import AnalysisConfig
 from gcs_core.config_problem import sensors_off, state_options
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.ephem.ephemeris import Ephemeris
 from gcs_core.ephem.orbit import build_ephemeris
 from gcs_core.errors import InputError
@@ -281,7 +281,7 @@ def predict(
 
     Parameters
     ----------
-    source : an :class:`~gcs_core.config.AnalysisConfig` (mission, physics, state roles,
+    source : an :class:`~gcs_core.config_schema.AnalysisConfig` (mission, physics, state roles,
         ``[prediction]`` plan and method), a :class:`~gcs_core.session.Analysis`, an
         :class:`~gcs_core.io.importer.ImportedMission`, a
         :class:`~gcs_core.io.types.MissionSpec` (pre-launch: no telemetry), or a

@@ -29,7 +29,8 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from gcs_core.config import AnalysisConfig, load_config
+from gcs_core.config import load_config
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.errors import InputError
 from gcs_core.io.types import MissionSpec, Table
 from gcs_core.predictor.plan import DataPlan

@@ -37,7 +37,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from gcs_core.config import AXES, AnalysisConfig, Maneuver
+from gcs_core.config_checks import AXES
+from gcs_core.config_schema import AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.trade import engine, space
 from gcs_core.trade.report import element_unit, in_unit

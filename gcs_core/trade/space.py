@@ -53,7 +53,8 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from gcs_core import limits
-from gcs_core.config import AXES, AnalysisConfig, ElementConfig, Maneuver
+from gcs_core.config_checks import AXES
+from gcs_core.config_schema import AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.io.types import MissionSpec
 from gcs_core.predictor.plan import DataPlan

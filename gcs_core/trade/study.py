@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.errors import GcsError, InputError
 from gcs_core.trade import space
 

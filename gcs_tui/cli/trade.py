@@ -23,7 +23,7 @@ from gcs_core.textsafe import terminal_safe
 from gcs_tui.cli.arguments import whole_number
 
 EXIT_OK, EXIT_FLAG, EXIT_INPUT, EXIT_INTERRUPT = 0, 1, 2, 130
-#: the estimators a plan can be predicted for (gcs_core.config.METHODS, the default first)
+#: the estimators a plan can be predicted for (gcs_core.config_schema.METHODS, the default first)
 METHODS = ("whole_span", "batch", "kalman")
 
 

@@ -24,7 +24,8 @@ from pathlib import Path
 from types import EllipsisType
 from typing import Any
 
-from gcs_core.config import METHODS, AnalysisConfig, ElementConfig, config_for, fit_key, save_config
+from gcs_core.config import config_for, fit_key, save_config
+from gcs_core.config_schema import METHODS, AnalysisConfig, ElementConfig
 from gcs_core.errors import ConfigError
 from gcs_core.problem.prepare import PHYSICS_EFFECTS
 from gcs_core.problem.state import ROLES

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis
 

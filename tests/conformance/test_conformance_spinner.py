@@ -15,7 +15,7 @@ import tomllib
 
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.units import DEG
 

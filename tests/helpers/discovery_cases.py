@@ -12,7 +12,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.problem.prepare import PHYSICS_EFFECTS
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, spinner_nominal, with_effect

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 from discovery_cases import scenario
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.diagnosis.families import channel_of
 from gcs_core.session import Analysis
 from gcs_core.sim._rot import dcm_to_rpy, rotvec_to_dcm, rpy_to_dcm

@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 from test_truth_recovery import _angle_diff, truth_values
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect

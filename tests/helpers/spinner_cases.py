@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 from test_truth_recovery import normalized_errors, simulate, truth_values
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.problem.linearization import linearize
 from gcs_core.problem.state import HELD
 from gcs_core.reporting import analysis_report

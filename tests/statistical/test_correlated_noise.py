@@ -24,7 +24,8 @@ import honesty_cases as hc
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig, default_config
+from gcs_core.config import default_config
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.diagnosis.goodness import ChiSquare, GoodnessOfFit
 from gcs_core.errors import GcsError
 from gcs_core.io.importer import load_mission

@@ -20,7 +20,7 @@ import honesty_cases as hc
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.noise import correlated_sigma as cs
 from gcs_core.problem.linearization import iter_blocks
 from gcs_core.session import Analysis

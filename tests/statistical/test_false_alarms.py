@@ -61,7 +61,7 @@ import pytest
 from scipy import stats
 from test_truth_recovery import ONE_HOUR, threeaxis
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import spinner_nominal
 from gcs_core.sim.writer import write_mission

@@ -15,7 +15,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gcs_core.config import ElementConfig, default_config
+from gcs_core.config import default_config
+from gcs_core.config_schema import ElementConfig
 from gcs_core.errors import InputError
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, rotvec_to_dcm
 from gcs_core.io.importer import load_mission

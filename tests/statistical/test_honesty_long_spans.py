@@ -32,7 +32,7 @@ from __future__ import annotations
 import honesty_cases as hc
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 
 FOUR_HOURS = 4.0
 SEED = 1

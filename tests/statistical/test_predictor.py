@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig, ElementConfig, Maneuver
+from gcs_core.config_schema import AnalysisConfig, ElementConfig, Maneuver
 from gcs_core.ephem.orbit import KeplerOrbit
 from gcs_core.io.importer import load_mission
 from gcs_core.predictor.plan import DataPlan

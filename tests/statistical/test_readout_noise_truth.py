@@ -41,7 +41,7 @@ import pytest
 from scipy import stats
 from test_truth_recovery import _angle_diff, truth_values
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.diagnosis.goodness import goodness_of_fit
 from gcs_core.estimators.kalman.mekf import attitude_gyro_noise
 from gcs_core.estimators.whole_span.fit import whole_span_fit

@@ -63,7 +63,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim.config import MissionConfig, OrbitElements, Slew, ThreeAxisProfile
 from gcs_core.sim.scenarios import nominal_threeaxis, spinner_nominal, with_effect

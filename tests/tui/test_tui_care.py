@@ -304,7 +304,8 @@ def test_kalman_passes_and_unobservable_are_said_in_words():
 
 
 def test_reports_and_configs_get_the_usual_permissions(tmp_path):
-    from gcs_core.config import AnalysisConfig, save_config
+    from gcs_core.config import save_config
+    from gcs_core.config_schema import AnalysisConfig
 
     usual = 0o666 & ~_umask()
     rep = reporting.write_json_atomic(tmp_path / "report.json", {"mission": "x"})

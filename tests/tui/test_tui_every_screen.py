@@ -16,7 +16,8 @@ import pytest
 from repo_paths import SAMPLE_MISSIONS
 from tui_testing import settle
 
-from gcs_core.config import AnalysisConfig, save_config
+from gcs_core.config import save_config
+from gcs_core.config_schema import AnalysisConfig
 from gcs_tui.tui.app import GcsApp
 from gcs_tui.tui.keys import VIEWS
 

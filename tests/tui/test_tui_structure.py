@@ -7,7 +7,8 @@ import pytest
 from textual.widgets import DataTable
 from tui_testing import sample_mission, settle
 
-from gcs_core.config import AnalysisConfig, save_config
+from gcs_core.config import save_config
+from gcs_core.config_schema import AnalysisConfig
 from gcs_tui.tui.app import GcsApp
 from gcs_tui.tui.screens.diagnosis import DiagnosisScreen
 from gcs_tui.tui.screens.structure import StructureScreen

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.estimators.batch.attitude_independent import (
     magnetometer_bias_from_magnitude,
     star_tracker_scales_from_separations,

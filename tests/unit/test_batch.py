@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig, ElementConfig
+from gcs_core.config_schema import AnalysisConfig, ElementConfig
 from gcs_core.errors import UnobservableError
 from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit, name_combinations
 from gcs_core.session import Analysis

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from gcs_core.calibration import save_calibration, save_ground_attitude
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.errors import EstimationError
 from gcs_core.io import asf, scds
 from gcs_core.session import Analysis

@@ -16,6 +16,7 @@ from repo_paths import ROOT
 
 from gcs_core import config as C
 from gcs_core import config_checks
+from gcs_core import config_schema as S
 from gcs_core.errors import ConfigError, InputError
 from gcs_core.io.importer import load_mission
 
@@ -69,13 +70,13 @@ def test_documented_example_loads_with_every_key(tmp_path):
     }
     assert cfg.models == {"CSS1": "coarse_sun", "IRU": "gyro"}
     assert cfg.state.effects == ("TAM1.alignment",) and cfg.state.exclude == ()
-    assert cfg.state.elements == {"TAM1.bias_x": C.ElementConfig("solve-for", 0.0, 200.0)}
+    assert cfg.state.elements == {"TAM1.bias_x": S.ElementConfig("solve-for", 0.0, 200.0)}
     assert cfg.state.attitude_sigma_deg == 1.0
-    assert cfg.filter == C.FilterConfig(600.0, 5.0, 20, {"FHST1": 4.0}, "long_run", 1.0, 2, ("FHST1",))
+    assert cfg.filter == S.FilterConfig(600.0, 5.0, 20, {"FHST1": 4.0}, "long_run", 1.0, 2, ("FHST1",))
     assert (cfg.diagnosis.significance, cfg.diagnosis.holdout_fraction) == (0.001, 0.25)
     p = cfg.prediction
     assert (p.start, p.end, p.step, p.gaps) == (0.0, 7200.0, 10.0, ((1800.0, 2400.0),))
-    assert cfg.prediction.maneuvers == (C.Maneuver(3000.0, 600.0, "yaw", 0.1),)
+    assert cfg.prediction.maneuvers == (S.Maneuver(3000.0, 600.0, "yaw", 0.1),)
     assert cfg.verification.requirement_deg == 0.01
 
 
@@ -96,7 +97,7 @@ def test_every_documented_key_survives_save_and_load(tmp_path):
 
 def test_documented_example_names_every_key_the_loader_knows():
     doc = C.parse_toml(example_text(MISSION))
-    for table, keys in C.TABLES.items():
+    for table, keys in S.TABLES.items():
         assert table in doc, table
         for k in keys:
             assert k in doc[table], f"{table}.{k} is not in the docstring example"
@@ -258,7 +259,7 @@ def test_sample_config_loads_and_points_at_its_mission(path):
     config_checks.check_against_mission(cfg, spec)
     assert spec.name == path.stem
     shown = set(leaves(C.parse_toml(path.read_text())))
-    for table in C.TABLES:  # each sample shows every table of the example
+    for table in S.TABLES:  # each sample shows every table of the example
         assert any(k == table or k.startswith(table + ".") for k in shown), (path.name, table)
 
 
@@ -315,9 +316,9 @@ def test_tables_and_the_fit_key_come_from_the_dataclasses():
     marked as not changing a fit (the plan, the requirement, the planning tables)."""
     from dataclasses import fields
 
-    assert C.TABLES["filter"] == tuple(f.name for f in fields(C.FilterConfig))
-    assert C.TABLES["prediction"] == tuple(f.name for f in fields(C.PredictionConfig))
-    base = C.AnalysisConfig(mission=MISSION)
+    assert S.TABLES["filter"] == tuple(f.name for f in fields(S.FilterConfig))
+    assert S.TABLES["prediction"] == tuple(f.name for f in fields(S.PredictionConfig))
+    base = S.AnalysisConfig(mission=MISSION)
     same = base.with_changes(
         prediction={"start": 10.0, "end": 99.0, "step": 3.0},
         verification={"requirement_deg": 0.5},

@@ -10,7 +10,8 @@ import pytest
 from repo_paths import ROOT
 
 from gcs_core import config_reference as R
-from gcs_core.config import PLANNING_TABLES, TABLES, config_from_dict
+from gcs_core.config import config_from_dict
+from gcs_core.config_schema import PLANNING_TABLES, TABLES
 from gcs_core.errors import ConfigError
 
 REGENERATE = f"regenerate it: {R.COMMAND}"

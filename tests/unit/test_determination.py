@@ -14,7 +14,7 @@ import math
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig, ElementConfig
+from gcs_core.config_schema import AnalysisConfig, ElementConfig
 from gcs_core.diagnosis import determination
 from gcs_core.reporting import analysis_report
 from gcs_core.session import Analysis

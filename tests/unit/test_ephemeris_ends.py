@@ -14,7 +14,7 @@ import re
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.errors import InputError
 from gcs_core.io.importer import TIME_TAG_BOUND_S, load_mission
 from gcs_core.session import Analysis

@@ -15,7 +15,7 @@ import ast
 
 from repo_paths import ROOT
 
-from gcs_core.config import METHODS
+from gcs_core.config_schema import METHODS
 from gcs_core.estimators.registry import ESTIMATORS
 
 #: where the method's name may be read: the registry and the config reader

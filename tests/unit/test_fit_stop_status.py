@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.estimators import stopping
 from gcs_core.estimators.batch.least_squares import BatchOptions
 from gcs_core.estimators.whole_span import fit as smoothing_batch

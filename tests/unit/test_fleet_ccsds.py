@@ -12,7 +12,7 @@ import pytest
 
 pytest.importorskip("ccsds_ndm")
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.errors import InputError
 from gcs_core.fleet.ccsds import read_aem, write_aem
 from gcs_core.io.ccsds import read_oem_table, utc_text

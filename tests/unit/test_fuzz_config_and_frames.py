@@ -26,6 +26,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from gcs_core import config as C
+from gcs_core import config_schema as S
 from gcs_core.errors import ConfigError, InputError
 from gcs_core.frames import rotations as R
 
@@ -53,7 +54,7 @@ def _example_text() -> str:
 EXAMPLE = C.parse_toml(_example_text())
 
 
-def _accepts_or_refuses(load) -> C.AnalysisConfig | None:
+def _accepts_or_refuses(load) -> S.AnalysisConfig | None:
     try:
         return load()
     except (ConfigError, InputError) as err:
@@ -62,16 +63,16 @@ def _accepts_or_refuses(load) -> C.AnalysisConfig | None:
         return None
 
 
-def _round_trips(cfg: C.AnalysisConfig) -> None:
+def _round_trips(cfg: S.AnalysisConfig) -> None:
     """An accepted config written and read back is the same config."""
-    again = C.config_from_dict(C.parse_toml(tomli_w.dumps(C.to_dict(cfg))), path=cfg.path)
+    again = C.config_from_dict(C.parse_toml(tomli_w.dumps(S.to_dict(cfg))), path=cfg.path)
     # the planning tables are kept raw (checked by the trade study) and may hold nan, which
     # is equal to itself only through its text
     assert again == cfg or _text(again) == _text(cfg)
 
 
-def _text(cfg: C.AnalysisConfig) -> str:
-    return json.dumps(C.to_dict(cfg), sort_keys=True, default=str)
+def _text(cfg: S.AnalysisConfig) -> str:
+    return json.dumps(S.to_dict(cfg), sort_keys=True, default=str)
 
 
 #: per table: lines that belong there (good and bad values), and a few that do not

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from repo_paths import SAMPLE_MISSIONS
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.diagnosis import determination, goodness
 from gcs_core.estimators import static_algebra
 from gcs_core.reporting import analysis_report, icd_report_problems

@@ -46,7 +46,13 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("problem", ("gcs_core.problem",)),
     (
         "analysis config",
-        ("gcs_core.config", "gcs_core.config_checks", "gcs_core.config_problem", "gcs_core.config_reference"),
+        (
+            "gcs_core.config_schema",
+            "gcs_core.config",
+            "gcs_core.config_checks",
+            "gcs_core.config_problem",
+            "gcs_core.config_reference",
+        ),
     ),
     ("noise characterisation", ("gcs_core.noise",)),
     ("estimators", ("gcs_core.estimators",)),

@@ -24,7 +24,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig, ConfigError, Maneuver, config_from_dict, load_config, save_config
+from gcs_core.config import ConfigError, config_from_dict, load_config, save_config
+from gcs_core.config_schema import AnalysisConfig, Maneuver
 from gcs_core.errors import InputError
 from gcs_core.io.importer import load_mission
 from gcs_core.io.types import Table

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 from test_truth_recovery import normalized_errors, truth_values
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.session import Analysis
 from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
 from gcs_core.sim.writer import write_mission

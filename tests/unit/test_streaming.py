@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.diagnosis.ranking import rank_candidates
 from gcs_core.estimators.batch.least_squares import BatchOptions, batch_fit, normal_equations
 from gcs_core.io.aux_hold import hold_channels

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from gcs_core import units
-from gcs_core.config import AnalysisConfig
+from gcs_core.config_schema import AnalysisConfig
 from gcs_core.frames.rotations import euler123_to_dcm, quat_from_dcm, quat_to_dcm, rotvec_to_dcm
 from gcs_core.session import Analysis
 from gcs_core.sim.config import OnboardConfig

@@ -267,7 +267,7 @@ def test_gross_magnetometer_error_does_not_drag_the_attitude(tmp_path):
     following the magnetometer put them at several hundred σ; the issue's bound for a
     divergence is 10), does not edit the magnetometer away, and the ranking puts TAM1's
     matrix effect first."""
-    from gcs_core.config import AnalysisConfig
+    from gcs_core.config_schema import AnalysisConfig
     from gcs_core.session import Analysis
     from gcs_core.sim.scenarios import nominal_threeaxis, with_effect
     from gcs_core.sim.writer import write_mission

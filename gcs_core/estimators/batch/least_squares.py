@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import linalg
 
-from gcs_core.config import FilterConfig
+from gcs_core.config_schema import FilterConfig
 from gcs_core.errors import EstimationError, UnobservableError
 from gcs_core.estimators import stopping
 from gcs_core.estimators.batch import local_refine

@@ -7,7 +7,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-from gcs_core.config import FilterConfig
+from gcs_core.config_schema import FilterConfig
 
 
 @dataclass(frozen=True)

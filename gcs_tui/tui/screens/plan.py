@@ -11,7 +11,8 @@ from textual.containers import Horizontal, Vertical
 from textual.widgets import DataTable, Label, Static
 
 from gcs_core import display as fmt
-from gcs_core.config import AXES, Maneuver, PredictionConfig
+from gcs_core.config_checks import AXES
+from gcs_core.config_schema import Maneuver, PredictionConfig
 from gcs_core.errors import GcsError
 from gcs_tui.tui.keys import SCREENS, bindings
 from gcs_tui.tui.screens.base import GcsScreen

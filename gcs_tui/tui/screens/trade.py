@@ -18,7 +18,7 @@ from textual.binding import Binding
 from textual.screen import Screen
 from textual.widgets import DataTable, Footer, Static
 
-from gcs_core.config import Maneuver
+from gcs_core.config_schema import Maneuver
 from gcs_core.errors import GcsError
 from gcs_core.trade.report import sigma_display
 from gcs_core.trade.run import sigma_grid, varied_keys
