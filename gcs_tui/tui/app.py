@@ -13,8 +13,7 @@ from __future__ import annotations
 
 import logging
 import time
-from collections.abc import Callable, Iterator
-from contextlib import contextmanager
+from collections.abc import Callable
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -29,7 +28,9 @@ from gcs_core.errors import GcsError
 from gcs_core.fileperm import make_usual
 from gcs_core.textsafe import terminal_safe
 from gcs_tui.tui import jobs
+from gcs_tui.tui.app_logging import LOGGERS, AppLogHandler, detached_terminal_logging
 from gcs_tui.tui.commands import GcsCommands
+from gcs_tui.tui.derive import poor_choice
 from gcs_tui.tui.keys import APP, VIEWS, bindings
 from gcs_tui.tui.messages import EngineLog, FiltrBlock, JobFinished, JobProgress, JobStarted
 from gcs_tui.tui.screens.diagnosis import DiagnosisScreen
@@ -62,9 +63,6 @@ SCREENS_BY_VIEW: dict[str, str | Callable[[], Screen]] = {
     "verification": VerificationScreen,
     "history": HistoryScreen,
 }
-
-#: loggers whose warnings the app shows (and whose CLI handlers it detaches while it runs)
-LOGGERS = ("gcs", "gcs_core", "gcs_tui", "py.warnings")
 
 JobFn = Callable[[Callable[..., None], Callable[[], bool]], Any]
 """``fn(progress, cancelled)``: the work of a job; ``progress(done, total, text)``."""
@@ -552,71 +550,6 @@ class GcsApp(App):
         self.call_later(lambda: self.screen.run_action("run_to_end"))
 
 
-def poor_choice(c, alpha: float) -> str:
-    """Why adding candidate ``c`` is a poor choice ('' when it is significant and identifiable)."""
-    from gcs_core import display as fmt
-
-    reasons = []
-    if not c.significant:
-        reasons.append(
-            f"It is not significant: {fmt.p_text(c.p_adjusted, 'p adj')} is not below the family-wise "
-            f"α = {alpha:g}, so its Δχ² = {fmt.sig(c.delta_chi2, 3)} is what noise alone often gives "
-            "with this many candidates tried."
-        )
-    if not c.identifiable:
-        with_what = ", ".join(list(c.aliases_state) + [a for a, _ in c.aliases_candidates])
-        reasons.append(
-            "It is not identifiable: the data cannot tell it apart from "
-            + (with_what if with_what else "what is already estimated")
-            + ", so its estimate would be set by the a priori and trade off against those."
-        )
-    return " ".join(reasons)
-
-
-class AppLogHandler(logging.Handler):
-    """Engine warnings into the app (from any thread): each becomes an :class:`EngineLog`."""
-
-    def __init__(self, app: GcsApp) -> None:
-        super().__init__(logging.WARNING)
-        self.app = app
-
-    def emit(self, record: logging.LogRecord) -> None:
-        try:
-            self.app.post_message(EngineLog(record.levelname.lower(), record.getMessage()))
-        except Exception:  # noqa: BLE001 — logging must never raise into the engine
-            self.handleError(record)
-
-
-@contextmanager
-def detached_terminal_logging() -> Iterator[None]:
-    """While the TUI runs, no log handler may write to the terminal behind it: detach every
-    handler of the GCS loggers (the CLI's stderr line printer among them) and the root
-    logger's stream handlers, and send Python warnings to logging; restore them after."""
-    import warnings
-
-    saved = []
-    for name in LOGGERS + ("",):
-        lg = logging.getLogger(name)
-        for h in list(lg.handlers):
-            if name or isinstance(h, logging.StreamHandler):
-                lg.removeHandler(h)
-                saved.append((lg, h))
-    for name in LOGGERS:  # warnings still reach the app's own handler
-        lg = logging.getLogger(name)
-        if lg.level > logging.WARNING or lg.level == logging.NOTSET:
-            lg.setLevel(logging.WARNING)
-    captured = logging.captureWarnings
-    captured(True)
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("default")
-            yield
-    finally:
-        captured(False)
-        for lg, h in saved:
-            lg.addHandler(h)
-
-
 def run_tui(path: str | Path | None = None, *, work_dir: str | Path | None = None) -> GcsApp:
     """Run the TUI on a mission directory or analysis config (the CLI's ``gcs tui``);
     files it writes unasked go to ``work_dir`` (default: beside the config or mission).
@@ -629,4 +562,4 @@ def run_tui(path: str | Path | None = None, *, work_dir: str | Path | None = Non
     return app
 
 
-__all__ = ["GcsApp", "run_tui", "detached_terminal_logging", "poor_choice", "VIEWS"]
+__all__ = ["GcsApp", "run_tui", "VIEWS"]

@@ -133,3 +133,24 @@ def aux_unit(name: str) -> str:
     from gcs_core.display import aux_unit as rule
 
     return rule(name)
+
+
+def poor_choice(c, alpha: float) -> str:
+    """Why adding candidate ``c`` is a poor choice ('' when it is significant and identifiable)."""
+    from gcs_core import display as fmt
+
+    reasons = []
+    if not c.significant:
+        reasons.append(
+            f"It is not significant: {fmt.p_text(c.p_adjusted, 'p adj')} is not below the family-wise "
+            f"α = {alpha:g}, so its Δχ² = {fmt.sig(c.delta_chi2, 3)} is what noise alone often gives "
+            "with this many candidates tried."
+        )
+    if not c.identifiable:
+        with_what = ", ".join(list(c.aliases_state) + [a for a, _ in c.aliases_candidates])
+        reasons.append(
+            "It is not identifiable: the data cannot tell it apart from "
+            + (with_what if with_what else "what is already estimated")
+            + ", so its estimate would be set by the a priori and trade off against those."
+        )
+    return " ".join(reasons)

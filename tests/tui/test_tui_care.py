@@ -28,7 +28,9 @@ from gcs_core import reporting
 from gcs_core.units import ARCSEC, DEG
 from gcs_tui.cli import tables
 from gcs_tui.cli.progress import LogHandler, Progress
-from gcs_tui.tui.app import LOGGERS, GcsApp, detached_terminal_logging, poor_choice
+from gcs_tui.tui.app import GcsApp
+from gcs_tui.tui.app_logging import LOGGERS, detached_terminal_logging
+from gcs_tui.tui.derive import poor_choice
 from gcs_tui.tui.screens.dialogs import ConfirmScreen, Field, FormScreen
 
 MISSION = "hidden-tam-contamination"
