@@ -318,7 +318,7 @@ FORMS: dict[str, tuple[str, ...]] = {
 
 def catalogue_forms(sensor: str, ch: Channel, catalogue_ids: Iterable[str]) -> tuple[str, ...]:
     """The catalogue effects (ids in ``catalogue_ids``) with the form of a dependency on ``ch``."""
-    ids = set(catalogue_ids)
+    ids = dict.fromkeys(catalogue_ids)  # in the catalogue's order: a set's would vary with the hash seed
     out = []
     for form in FORMS.get(ch.kind, ()):
         name = form.format(ch=ch.label)

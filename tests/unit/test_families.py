@@ -16,7 +16,7 @@ import pytest
 from model_fixtures import CASES
 
 from gcs_core.diagnosis.families import family_name, offered_for
-from gcs_core.diagnosis.structure import Dependency
+from gcs_core.diagnosis.structure import Dependency, catalogue_forms
 from gcs_core.models.checks import CENTRAL_DIFFERENCE_RTOL, assert_partials_match, check_partials
 from gcs_core.models.drift import DriftingModel, drifting_params, with_families
 
@@ -124,3 +124,12 @@ def test_only_switches_offer_the_gyro_its_bias_step():
     }
     aux = type("Aux", (), {"t": columns["t"], "columns": columns, "__len__": lambda self: 6})()
     assert switch_channels(aux) == ("iru_heater",)
+
+
+def test_catalogue_forms_keep_the_catalogue_order():
+    """A rate dependency names every sensor's time offset: in the catalogue's order, whatever
+    the hash seed (a set's order made a report differ from run to run)."""
+    ids = ["FSS1.time_offset", "TAM1.time_offset", "FHST1.time_offset", "FHST2.time_offset"]
+    rate = SimpleNamespace(kind="rate", label="rate")
+    assert catalogue_forms("FSS1", rate, ids) == tuple(ids)
+    assert catalogue_forms("FSS1", rate, ids[:1] + ids[:0:-1]) == (ids[0], *ids[:0:-1])
